@@ -1,0 +1,7 @@
+"""``python -m stcvision`` runs the CLI."""
+
+import sys
+
+from stcvision.cli import main
+
+sys.exit(main())

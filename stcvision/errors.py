@@ -1,0 +1,26 @@
+"""Project exceptions.
+
+Every error caused by bad input (wrong dtype or shape, unreadable file, malformed profile or map,
+impossible parameter) is a :class:`StcVisionError`. Its message names the offending thing and
+what was expected; the CLI prints it as one line and exits with code 2.
+"""
+
+
+class StcVisionError(Exception):
+    """Base class of every error this project raises on purpose."""
+
+
+class BadInputError(StcVisionError, ValueError):
+    """An argument, array or file does not meet the documented contract."""
+
+
+class MapError(BadInputError):
+    """A board map file (text or PNG) is malformed."""
+
+
+class ProfileError(BadInputError):
+    """A calibration profile is missing a field, has a wrong type or unit, or cannot be read."""
+
+
+class FileExistsRefusedError(StcVisionError):
+    """Refused to overwrite a file the user made (pass ``--force`` to allow it)."""
