@@ -1,0 +1,340 @@
+"""Differential-drive robot body: a dynamic pymunk circle driven by two wheels.
+
+Commands are *nominal* wheel surface speeds in m/s (what the robot's motor controller is asked
+for). The wheels actually turn at ``command * motor_gain(t)``, where the motor gain is drawn once
+per robot (``speed_gain_spread``, e.g. +-10 %) and fades with battery charge
+(``battery_fade_per_h``) -- the STC seed (``003_01c9be04038c8c46.txt``): "Because of the battery
+decay, and the fact that the robot is built from Lego, a 90 degree turn, wasn't actually 90
+degree". Each wheel rolls ``rotation * true_radius`` plus slip noise; the body's velocity follows
+from the true wheelbase (see :mod:`sim_camera.odometry` for the error model).
+
+Motion primitives are small state machines advanced by :meth:`World.step`:
+``drive_distance`` (done when the odometry says so, or "blocked" when the motor stalls against
+something), ``rotate_for`` (open loop: a timed turn, so its angle is off by the motor gain) and
+raw ``set_wheel_speeds``. ``World.run_until_done(robot)`` steps until the primitive ends.
+
+Presets (every number with its source; "assumed" means the seeds give none):
+
+* :data:`KHEPERA` -- the Buffon explorer (seed 000 sec. 3). Diameter 55 mm and wheelbase 53 mm
+  (K-Team Khepera user manual); wheel diameter 15.6 mm and 150 encoder lines x 4 = 600 counts per
+  revolution give the manual's ~12 counts per mm; top speed 1 m/s (K-Team spec).
+* :data:`TASTI2` -- the chemical-search robot (seed 001 sec. IV). Body radius 153 mm = the radius
+  of its front capacitive ring; wheelbase 0.22 m, wheel diameter 65 mm, 128-line quadrature
+  encoders, cruise speed 0.05 m/s: assumed. Ed = 1.002 and Eb = 1.01: assumed, the order of the
+  uncalibrated errors Borenstein & Feng 1996 report for their platforms.
+* :data:`LEGO_STC` -- the ant-like STC robot (seed 003). Radius 70 mm so it fits a 0.16 m
+  sub-cell (the default board); LEGO 56 mm tyres; wheelbase 0.12 m; NXT-style motor encoders at
+  360 counts/rev; cruise 0.08 m/s; turn wheel speed 0.063 m/s so a nominal 90-degree turn takes
+  1.5 s; motor gain +-10 % per robot and 20 %/h battery fade (assumed; the seed gives only the
+  qualitative statement above); Ed = 1.005, Eb = 1.03 (assumed: a flexible Lego frame).
+"""
+
+from __future__ import annotations
+
+import enum
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import pymunk
+
+from sim_camera.odometry import Odometry, OdometryParams, WheelEncoders, true_wheel_diameters_m
+from stcvision.errors import BadInputError
+
+__all__ = [
+    "KHEPERA",
+    "LEGO_STC",
+    "TASTI2",
+    "DiffDriveParams",
+    "DiffDriveRobot",
+    "MotionMode",
+    "MotionResult",
+]
+
+
+@dataclass(frozen=True, kw_only=True, slots=True)
+class DiffDriveParams:
+    """Geometry, limits and error model of a differential-drive robot (SI units)."""
+
+    name: str = "robot"
+    radius_m: float  # collision radius of the body
+    wheelbase_m: float  # nominal distance between the wheel contact points (odometry uses it)
+    wheel_diameter_m: float  # nominal wheel diameter (odometry uses it)
+    max_wheel_speed_m_s: float  # commands are clipped to +- this
+    cruise_speed_m_s: float  # default speed of drive_distance
+    turn_wheel_speed_m_s: float  # wheel speed of rotate_for (left -v, right +v for a left turn)
+    encoder_lines_per_rev: int  # quadrature: 4 counts per line
+    mass_kg: float = 0.5
+    # true-vs-nominal (systematic) and random error, see sim_camera.odometry
+    ed: float = 1.0  # D_R / D_L (true)
+    eb: float = 1.0  # b_true / b_nominal
+    slip_k: float = 0.0  # m / sqrt(m): per-wheel travel noise std = slip_k * sqrt(|d|)
+    speed_gain_spread: float = 0.0  # motor gain drawn once per robot from U(1 - s, 1 + s)
+    battery_fade_per_h: float = 0.0  # motor gain loses this fraction per hour (floor 0.5)
+    stall_time_s: float = 0.3  # drive_distance reports "blocked" after this long without progress
+
+    def __post_init__(self):
+        for k in ("radius_m", "wheelbase_m", "wheel_diameter_m", "max_wheel_speed_m_s",
+                  "cruise_speed_m_s", "turn_wheel_speed_m_s", "mass_kg", "ed", "eb"):
+            v = getattr(self, k)
+            if not (isinstance(v, int | float) and math.isfinite(v) and v > 0):
+                raise BadInputError(f"DiffDriveParams.{k} must be a positive number; got {v!r}")
+        if not 0 <= self.speed_gain_spread < 1:
+            raise BadInputError("DiffDriveParams.speed_gain_spread must be in [0, 1)")
+
+    @property
+    def nominal_turn_rate_rad_s(self) -> float:
+        """Turn rate of rotate_for if the robot were exactly nominal: 2 v_turn / b."""
+        return 2.0 * self.turn_wheel_speed_m_s / self.wheelbase_m
+
+    @property
+    def counts_per_rev(self) -> int:
+        return 4 * self.encoder_lines_per_rev
+
+    def odometry_params(self) -> OdometryParams:
+        return OdometryParams(wheel_diameter_m=self.wheel_diameter_m,
+                              wheelbase_m=self.wheelbase_m, counts_per_rev=self.counts_per_rev)
+
+
+KHEPERA = DiffDriveParams(
+    name="khepera", radius_m=0.0275, wheelbase_m=0.053, wheel_diameter_m=0.0156,
+    max_wheel_speed_m_s=1.0, cruise_speed_m_s=0.1, turn_wheel_speed_m_s=0.05,
+    encoder_lines_per_rev=150, mass_kg=0.08, slip_k=0.0005,
+)
+TASTI2 = DiffDriveParams(
+    name="tasti2", radius_m=0.153, wheelbase_m=0.22, wheel_diameter_m=0.065,
+    max_wheel_speed_m_s=0.15, cruise_speed_m_s=0.05, turn_wheel_speed_m_s=0.05,
+    encoder_lines_per_rev=128, mass_kg=3.0, ed=1.002, eb=1.01, slip_k=0.001,
+)
+LEGO_STC = DiffDriveParams(
+    name="lego_stc", radius_m=0.07, wheelbase_m=0.12, wheel_diameter_m=0.056,
+    max_wheel_speed_m_s=0.15, cruise_speed_m_s=0.08, turn_wheel_speed_m_s=0.0628,
+    encoder_lines_per_rev=90, mass_kg=0.8, ed=1.005, eb=1.03, slip_k=0.002,
+    speed_gain_spread=0.10, battery_fade_per_h=0.2,
+)
+
+
+class MotionMode(enum.Enum):
+    IDLE = "idle"
+    WHEELS = "wheels"  # raw wheel speeds until changed
+    DRIVE = "drive"  # drive_distance in progress
+    ROTATE = "rotate"  # rotate_for in progress
+
+
+@dataclass(frozen=True, slots=True)
+class MotionResult:
+    """How a primitive ended: ``status`` is "done", "blocked" or "timeout"."""
+
+    status: str
+    odometric_distance_m: float
+    duration_s: float
+
+    @property
+    def ok(self) -> bool:
+        return self.status == "done"
+
+
+class DiffDriveRobot:
+    """A robot in a :class:`sim_camera.world.World` (create it with ``world.add_robot``).
+
+    State the rest of the sim reads: :attr:`pose` (true x, y, heading), :attr:`leds_lit` (the UV
+    LEDs, read by the phosphor layer), :attr:`nozzle_open` (pheromone nozzle), :attr:`encoders`,
+    :attr:`odometry` (the robot's own dead-reckoning estimate), :attr:`trail` (true positions).
+    """
+
+    def __init__(self, params: DiffDriveParams, pose: tuple[float, float, float], *,
+                 seed: np.random.SeedSequence, robot_id: int, record_trail: bool = True):
+        self.params = params
+        self.id = robot_id
+        ss_params, ss_slip, self.sensor_seed = seed.spawn(3)
+        prng = np.random.default_rng(ss_params)
+        s = params.speed_gain_spread
+        self.speed_gain = float(prng.uniform(1 - s, 1 + s)) if s > 0 else 1.0
+        self._slip_rng = np.random.default_rng(ss_slip)
+        self.wheel_diameters_m = true_wheel_diameters_m(params.wheel_diameter_m, params.ed)
+        self.wheelbase_true_m = params.wheelbase_m * params.eb
+
+        self.body = pymunk.Body(params.mass_kg,
+                                pymunk.moment_for_circle(params.mass_kg, 0, params.radius_m))
+        self.body.position = (float(pose[0]), float(pose[1]))
+        self.body.angle = float(pose[2])
+        self.shape = pymunk.Circle(self.body, params.radius_m)
+        self.shape.friction = 0.0
+        self.shape.elasticity = 0.0
+        self.shape.filter = pymunk.ShapeFilter(group=robot_id + 1)
+        self.body.velocity_func = self._velocity_func
+
+        self.encoders = WheelEncoders(params.encoder_lines_per_rev)
+        self.odometry = Odometry(params.odometry_params(), pose)
+        self.wheel_angles_rad = [0.0, 0.0]
+        self.leds_lit = False  # UV LEDs state, read by the phosphor layer
+        self.nozzle_open = False  # pheromone nozzle state
+        self.record_trail = record_trail
+        self.trail: list[tuple[float, float]] = [(float(pose[0]), float(pose[1]))]
+        self.distance_travelled_m = 0.0  # true path length of the centre
+        self.sensors = None  # set by World.add_robot (sim_camera.sensors.SensorSuite)
+
+        self.mode = MotionMode.IDLE
+        self._cmd = (0.0, 0.0)
+        self._v = 0.0
+        self._w = 0.0
+        self._last_inside = (float(pose[0]), float(pose[1]), float(pose[2]))
+        self._prim: dict = {}
+        self.last_result: MotionResult | None = None
+
+    # -- state -----------------------------------------------------------------------------
+    @property
+    def pose(self) -> tuple[float, float, float]:
+        """True pose (x m, y m, heading rad) in the world frame."""
+        p = self.body.position
+        return (p.x, p.y, self.body.angle)
+
+    @property
+    def position(self) -> np.ndarray:
+        p = self.body.position
+        return np.array([p.x, p.y])
+
+    @property
+    def busy(self) -> bool:
+        return self.mode in (MotionMode.DRIVE, MotionMode.ROTATE)
+
+    def motor_gain(self, t_s: float) -> float:
+        """Actual/commanded wheel speed at time ``t_s``: the per-robot gain times battery fade."""
+        fade = max(0.5, 1.0 - self.params.battery_fade_per_h * t_s / 3600.0)
+        return self.speed_gain * fade
+
+    def true_turn_rate_rad_s(self, t_s: float) -> float:
+        """The rate rotate_for really turns at time ``t_s`` (vs. ``params.nominal_turn_rate``)."""
+        dl, dr = self.wheel_diameters_m
+        dn = self.params.wheel_diameter_m
+        v = self.params.turn_wheel_speed_m_s * self.motor_gain(t_s)
+        return v * (dl + dr) / dn / self.wheelbase_true_m
+
+    # -- commands --------------------------------------------------------------------------
+    def set_wheel_speeds(self, left_m_s: float, right_m_s: float) -> None:
+        """Command nominal wheel speeds (m/s, clipped to the limit); cancels any primitive."""
+        m = self.params.max_wheel_speed_m_s
+        self._cmd = (min(m, max(-m, float(left_m_s))), min(m, max(-m, float(right_m_s))))
+        self.mode = MotionMode.WHEELS
+        self._prim = {}
+
+    def stop(self) -> None:
+        self._cmd = (0.0, 0.0)
+        self.mode = MotionMode.IDLE
+        self._prim = {}
+
+    def drive_distance(self, d_m: float, speed_m_s: float | None = None) -> None:
+        """Start driving ``d_m`` metres straight (negative = backwards) by the odometry.
+        Ends "done" when the odometric distance is reached or "blocked" on a motor stall."""
+        v = self.params.cruise_speed_m_s if speed_m_s is None else float(speed_m_s)
+        if not v > 0:
+            raise BadInputError(f"drive_distance speed must be > 0; got {speed_m_s!r}")
+        self.mode = MotionMode.DRIVE
+        self.last_result = None
+        self._prim = {"target": abs(float(d_m)), "sign": 1.0 if d_m >= 0 else -1.0,
+                      "speed": min(v, self.params.max_wheel_speed_m_s),
+                      "start_dist": self.odometry.distance_m, "t": 0.0, "stall": 0.0}
+
+    def rotate_for(self, duration_s: float, direction: int) -> None:
+        """Start turning in place for ``duration_s`` (``direction`` +1 = left/counter-clockwise,
+        -1 = right). Open loop: the angle is nominal_turn_rate * duration only for a nominal
+        robot; this one turns at :meth:`true_turn_rate_rad_s`."""
+        if direction not in (1, -1):
+            raise BadInputError(f"rotate_for direction must be +1 or -1; got {direction!r}")
+        if not duration_s >= 0:
+            raise BadInputError(f"rotate_for duration must be >= 0; got {duration_s!r}")
+        self.mode = MotionMode.ROTATE
+        self.last_result = None
+        self._prim = {"duration": float(duration_s), "dir": direction, "t": 0.0,
+                      "start_dist": self.odometry.distance_m}
+
+    def leds_on(self) -> None:
+        """Switch the rear UV LEDs on (:attr:`leds_lit` is what the phosphor layer reads)."""
+        self.leds_lit = True
+
+    def leds_off(self) -> None:
+        self.leds_lit = False
+
+    def nozzle_on(self) -> None:
+        """Open the pheromone nozzle: the world's pheromone layer records the trail."""
+        self.nozzle_open = True
+
+    def nozzle_off(self) -> None:
+        self.nozzle_open = False
+
+    # -- advanced by World.step ---------------------------------------------------------------
+    def _finish(self, status: str) -> None:
+        p = self._prim
+        self.last_result = MotionResult(status, self.odometry.distance_m - p.get("start_dist", 0),
+                                        p.get("t", 0.0))
+        self.stop()
+
+    def _pre_step(self, t_s: float, dt_s: float) -> float:
+        """Work out this step's wheel motion; return the centre speed bound (m/s) for substeps."""
+        p = self._prim
+        if self.mode is MotionMode.DRIVE:
+            remaining = p["target"] - (self.odometry.distance_m - p["start_dist"])
+            # slow down on the last step so the odometric distance lands on the target
+            v = p["sign"] * min(p["speed"], max(0.0, remaining) / dt_s)
+            cmd = (v, v)
+        elif self.mode is MotionMode.ROTATE:
+            frac = min(1.0, max(0.0, p["duration"] - p["t"]) / dt_s)
+            w = p["dir"] * self.params.turn_wheel_speed_m_s * frac
+            cmd = (-w, w)
+        else:
+            cmd = self._cmd
+        self._step_cmd = cmd
+        g = self.motor_gain(t_s)
+        half_dn = 0.5 * self.params.wheel_diameter_m
+        dphi_l = cmd[0] / half_dn * g * dt_s
+        dphi_r = cmd[1] / half_dn * g * dt_s
+        self.wheel_angles_rad[0] += dphi_l
+        self.wheel_angles_rad[1] += dphi_r
+        dl = dphi_l * 0.5 * self.wheel_diameters_m[0]
+        dr = dphi_r * 0.5 * self.wheel_diameters_m[1]
+        k = self.params.slip_k
+        if k > 0 and (dl != 0 or dr != 0):
+            n = self._slip_rng.standard_normal(2)
+            dl += k * math.sqrt(abs(dl)) * n[0]
+            dr += k * math.sqrt(abs(dr)) * n[1]
+        self._v = 0.5 * (dl + dr) / dt_s
+        self._w = (dr - dl) / (self.wheelbase_true_m * dt_s)
+        self._pos_before = self.body.position
+        # Without contacts, start the step at the commanded velocity (no one-substep lag); in
+        # contact, keep the solver's corrected velocity from the last substep.
+        touching = []
+        self.body.each_arbiter(touching.append)
+        if not touching:
+            self._velocity_func(self.body, None, 1.0, dt_s)
+        return abs(self._v)
+
+    def _velocity_func(self, body, gravity, damping, dt) -> None:
+        """pymunk velocity callback, run inside every substep *before* the contact solver: the
+        wheels set the velocity, contacts then correct it, and the corrected velocity moves the
+        body in the next substep (so a wall is never driven into; cf. Chipmunk's step order:
+        integrate positions, collide, integrate velocities, solve)."""
+        a = body.angle
+        body.velocity = (self._v * math.cos(a), self._v * math.sin(a))
+        body.angular_velocity = self._w
+
+    def _post_step(self, dt_s: float) -> None:
+        pos = self.body.position
+        moved = math.hypot(pos.x - self._pos_before.x, pos.y - self._pos_before.y)
+        self.distance_travelled_m += moved
+        if self.record_trail:
+            self.trail.append((pos.x, pos.y))
+        self.odometry.update(self.encoders.update(*self.wheel_angles_rad))
+        p = self._prim
+        if self.mode is MotionMode.DRIVE:
+            p["t"] += dt_s
+            expected = abs(self._step_cmd[0]) * dt_s
+            # motor stall (current sensing on a real robot): the body barely moves
+            p["stall"] = p["stall"] + dt_s if expected > 0 and moved < 0.3 * expected else 0.0
+            if self.odometry.distance_m - p["start_dist"] >= p["target"] - 1e-9:
+                self._finish("done")
+            elif p["stall"] >= self.params.stall_time_s:
+                self._finish("blocked")
+        elif self.mode is MotionMode.ROTATE:
+            p["t"] += dt_s
+            if p["t"] >= p["duration"] - 1e-12:
+                self._finish("done")
