@@ -714,7 +714,14 @@ class BoardArena(Arena):
     blocked: np.ndarray = field(default_factory=lambda: np.zeros((2, 2), bool), compare=False)
     subcell_m: float = 0.16
     red_lights: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)), compare=False)
+    start_xy_m: tuple[float, float] | None = None  # centre of the board's start sub-cell
     kind: ClassVar[str] = "board"
+
+    def start_pose(self, clearance_m: float) -> tuple[float, float, float]:
+        """The start sub-cell's centre, heading north (if free enough), else the generic one."""
+        if self.start_xy_m is not None and self.contains(self.start_xy_m, clearance_m)[0]:
+            return (self.start_xy_m[0], self.start_xy_m[1], math.pi / 2)
+        return Arena.start_pose(self, clearance_m)
 
     @property
     def size_m(self) -> tuple[float, float]:
@@ -799,5 +806,10 @@ def arena_from_board(board: Any, *, wall_thickness_m: float = DEFAULT_WALL_THICK
                 j += 1
     red = getattr(board, "red_lights_m", None)
     red_lights = np.asarray(red(), dtype=float) if callable(red) else np.zeros((0, 2))
+    start = getattr(board, "start_subcell", None)
+    start_xy = None
+    if start is not None:
+        start_xy = ((start[1] + 0.5) * d, h - (start[0] + 0.5) * d)
     return BoardArena(blocked=blocked, subcell_m=d, obstacles=tuple(obstacles),
-                      red_lights=red_lights, wall_thickness_m=wall_thickness_m)
+                      red_lights=red_lights, wall_thickness_m=wall_thickness_m,
+                      start_xy_m=start_xy)
