@@ -1,0 +1,271 @@
+"""STC boards: a grid of sub-cells (side ``D``), cells of 2x2 sub-cells, obstacle cells with red lights.
+
+Map files
+---------
+* **text**: one character per sub-cell, ``.`` free, ``#`` blocked, ``S`` the start sub-cell
+  (free). Blank lines and lines starting with ``;`` are ignored. Exactly one ``S``.
+* **PNG** (or any image OpenCV reads): one pixel = one sub-cell, dark (grey < 128) = blocked.
+  This is the convention of PythonRobotics' coverage maps (white = free). An image carries no
+  start, so the start is the lower-right sub-cell of the first free cell found scanning the cell
+  rows top-down, left to right, unless the caller gives one.
+
+Both dimensions must be even (a cell is 2x2 sub-cells). A cell is free iff all four of its
+sub-cells are free; every other cell is an obstacle cell and carries a red light at its centre.
+Cells beyond the board's edge read as blocked too: :meth:`Board.red_lights_m` adds a ring of red
+lights one cell outside the border (``../shared/DESIGN.md``, "the start cell").
+
+Frames: row 0 is the map's top (north) row. World x is east along the columns, y north, with the
+origin at the board's south-west corner, so sub-cell ``(i, j)`` has its centre at
+``x = (j + 0.5) D``, ``y = H - (i + 0.5) D``.
+"""
+
+from __future__ import annotations
+
+from collections import deque
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from stcvision.errors import MapError
+
+__all__ = ["DEFAULT_SUBCELL_M", "Board"]
+
+#: Default sub-cell side D (m): the footprint of the default STC robot, a small Lego Mindstorms
+#: robot about 16 cm across (seed 003: "the robot divides the floor virtually into sub-cells of
+#: its size"; the footprint itself is this project's choice, documented in the README).
+DEFAULT_SUBCELL_M = 0.16
+
+_TEXT_CHARS = {".": False, "#": True, "S": False}
+
+
+@dataclass(frozen=True, eq=False)
+class Board:
+    """An STC board of sub-cells.
+
+    Parameters
+    ----------
+    blocked : (rows, cols) bool
+        ``True`` for blocked sub-cells; row 0 is north. ``rows`` and ``cols`` are even.
+    start_subcell : (i, j)
+        The sub-cell the robot starts in; its cell must be free.
+    subcell_m : float
+        Sub-cell side ``D`` in metres.
+    """
+
+    blocked: np.ndarray
+    start_subcell: tuple[int, int]
+    subcell_m: float = DEFAULT_SUBCELL_M
+    cell_free: np.ndarray = field(init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        blocked = np.asarray(self.blocked)
+        if blocked.ndim != 2 or blocked.size == 0:
+            raise MapError(f"board must be a non-empty 2-D grid of sub-cells, got shape {blocked.shape}")
+        rows, cols = blocked.shape
+        if rows % 2 or cols % 2:
+            raise MapError(
+                f"board is {rows}x{cols} sub-cells; expected even rows and columns (a cell is 2x2 sub-cells)"
+            )
+        if not self.subcell_m > 0:
+            raise MapError(f"subcell_m must be > 0 metres, got {self.subcell_m}")
+        blocked = blocked.astype(bool, copy=True)
+        blocked.setflags(write=False)
+        object.__setattr__(self, "blocked", blocked)
+        free = ~blocked.reshape(rows // 2, 2, cols // 2, 2).any(axis=(1, 3))
+        free.setflags(write=False)
+        object.__setattr__(self, "cell_free", free)
+        i, j = (int(v) for v in self.start_subcell)
+        if not (0 <= i < rows and 0 <= j < cols):
+            raise MapError(f"start sub-cell ({i},{j}) is outside the {rows}x{cols} board")
+        if not free[i // 2, j // 2]:
+            raise MapError(f"start sub-cell ({i},{j}) lies in an obstacle cell; expected a free cell")
+        object.__setattr__(self, "start_subcell", (i, j))
+
+    # ------------------------------------------------------------------ constructors
+    @classmethod
+    def from_text(cls, text: str, *, subcell_m: float = DEFAULT_SUBCELL_M, source: str = "map") -> Board:
+        """Parse a text map (``.`` free, ``#`` blocked, ``S`` start)."""
+        lines = [ln.rstrip("\r\n").rstrip() for ln in text.splitlines()]
+        lines = [ln for ln in lines if ln and not ln.startswith(";")]
+        if not lines:
+            raise MapError(f"{source} is empty; expected rows of '.', '#' and one 'S'")
+        width = len(lines[0])
+        start = []
+        grid = np.zeros((len(lines), width), bool)
+        for i, ln in enumerate(lines):
+            if len(ln) != width:
+                raise MapError(
+                    f"{source} line {i + 1} has {len(ln)} sub-cells, line 1 has {width}; expected a rectangle"
+                )
+            for j, ch in enumerate(ln):
+                if ch not in _TEXT_CHARS:
+                    raise MapError(
+                        f"{source} line {i + 1} column {j + 1}: unknown character {ch!r}; "
+                        "expected '.', '#' or 'S'"
+                    )
+                grid[i, j] = _TEXT_CHARS[ch]
+                if ch == "S":
+                    start.append((i, j))
+        if len(start) != 1:
+            what = "no start" if not start else f"{len(start)} starts"
+            raise MapError(f"{source} has {what}; expected exactly one 'S' sub-cell")
+        return cls(grid, start[0], subcell_m)
+
+    @classmethod
+    def from_image(
+        cls, image: np.ndarray, *, subcell_m: float = DEFAULT_SUBCELL_M, start_subcell=None
+    ) -> Board:
+        """Board from a grey or BGR uint8 image: one pixel = one sub-cell, dark (< 128) = blocked."""
+        img = np.asarray(image)
+        if img.ndim == 3:
+            img = img.mean(axis=2)
+        if img.ndim != 2:
+            raise MapError(f"map image must be 2-D (grey) or 3-D (colour), got shape {img.shape}")
+        blocked = img < 128
+        if start_subcell is None:
+            start_subcell = cls._default_start(blocked)
+        return cls(blocked, start_subcell, subcell_m)
+
+    @classmethod
+    def from_file(
+        cls, path: str | Path, *, subcell_m: float = DEFAULT_SUBCELL_M, start_subcell=None
+    ) -> Board:
+        """Load a ``.txt`` map or an image map (``.png``, ``.bmp``...)."""
+        path = Path(path)
+        if not path.is_file():
+            raise MapError(f"map file {path} does not exist")
+        if path.suffix.lower() in (".txt", ".map", ""):
+            try:
+                text = path.read_text(encoding="utf-8")
+            except (OSError, UnicodeDecodeError) as exc:
+                raise MapError(f"cannot read text map {path}: {exc}") from None
+            board = cls.from_text(text, subcell_m=subcell_m, source=f"map {path}")
+            if start_subcell is not None:
+                board = cls(board.blocked, start_subcell, subcell_m)
+            return board
+        from stcvision.fileio import read_image
+
+        try:
+            img = read_image(path, color=False, what="map image")
+        except Exception as exc:  # BadInputError -> MapError with the same message
+            raise MapError(str(exc)) from None
+        return cls.from_image(img, subcell_m=subcell_m, start_subcell=start_subcell)
+
+    @classmethod
+    def random(
+        cls,
+        cells_shape: tuple[int, int],
+        *,
+        obstacle_fraction: float = 0.1,
+        rng: np.random.Generator,
+        subcell_m: float = DEFAULT_SUBCELL_M,
+    ) -> Board:
+        """A random board of ``cells_shape`` cells with about ``obstacle_fraction`` obstacle cells.
+
+        The start is the lower-right sub-cell of the first free cell (rows top-down); at least
+        one cell is always free.
+        """
+        cr, cc = (int(v) for v in cells_shape)
+        if cr < 1 or cc < 1:
+            raise MapError(f"board must have at least 1x1 cells, got {cr}x{cc}")
+        if not 0.0 <= obstacle_fraction < 1.0:
+            raise MapError(f"obstacle_fraction must be in [0, 1), got {obstacle_fraction}")
+        cells = rng.random((cr, cc)) < obstacle_fraction
+        if cells.all():
+            cells[rng.integers(cr), rng.integers(cc)] = False
+        blocked = np.repeat(np.repeat(cells, 2, axis=0), 2, axis=1)
+        return cls(blocked, cls._default_start(blocked), subcell_m)
+
+    @staticmethod
+    def _default_start(blocked: np.ndarray) -> tuple[int, int]:
+        rows, cols = blocked.shape
+        if rows % 2 or cols % 2:
+            raise MapError(
+                f"board is {rows}x{cols} sub-cells; expected even rows and columns (a cell is 2x2 sub-cells)"
+            )
+        free = ~blocked.reshape(rows // 2, 2, cols // 2, 2).any(axis=(1, 3))
+        idx = np.argwhere(free)
+        if len(idx) == 0:
+            raise MapError("board has no free cell (a cell is free iff its 4 sub-cells are free)")
+        ci, cj = idx[0]
+        return (2 * int(ci) + 1, 2 * int(cj) + 1)
+
+    # ------------------------------------------------------------------ geometry
+    @property
+    def shape_subcells(self) -> tuple[int, int]:
+        return self.blocked.shape
+
+    @property
+    def shape_cells(self) -> tuple[int, int]:
+        return self.cell_free.shape
+
+    @property
+    def cell_m(self) -> float:
+        """Cell side ``2 D`` in metres."""
+        return 2.0 * self.subcell_m
+
+    @property
+    def size_m(self) -> tuple[float, float]:
+        """(width, height) of the board in metres."""
+        rows, cols = self.blocked.shape
+        return (cols * self.subcell_m, rows * self.subcell_m)
+
+    @property
+    def start_cell(self) -> tuple[int, int]:
+        return (self.start_subcell[0] // 2, self.start_subcell[1] // 2)
+
+    def subcell_center_m(self, i: int, j: int) -> np.ndarray:
+        """World (x, y) of the centre of sub-cell (row ``i``, column ``j``)."""
+        h = self.blocked.shape[0] * self.subcell_m
+        return np.array([(j + 0.5) * self.subcell_m, h - (i + 0.5) * self.subcell_m])
+
+    def cell_center_m(self, ci: int, cj: int) -> np.ndarray:
+        """World (x, y) of the centre of cell (row ``ci``, column ``cj``); may lie off the board."""
+        h = self.blocked.shape[0] * self.subcell_m
+        return np.array([(cj + 0.5) * self.cell_m, h - (ci + 0.5) * self.cell_m])
+
+    def subcell_at(self, xy_m) -> tuple[int, int]:
+        """(row, column) of the sub-cell containing world point ``xy_m`` (may be off the board)."""
+        x, y = float(xy_m[0]), float(xy_m[1])
+        h = self.blocked.shape[0] * self.subcell_m
+        return (int(np.floor((h - y) / self.subcell_m)), int(np.floor(x / self.subcell_m)))
+
+    def is_cell_free(self, ci: int, cj: int) -> bool:
+        """``True`` for a free cell on the board; cells off the board read as blocked."""
+        cr, cc = self.cell_free.shape
+        return bool(0 <= ci < cr and 0 <= cj < cc and self.cell_free[ci, cj])
+
+    def red_lights_m(self) -> np.ndarray:
+        """(N, 2) world positions of red lights: every obstacle cell's centre plus a ring of
+        virtual obstacle cells one cell outside the border."""
+        cr, cc = self.cell_free.shape
+        cells = [tuple(c) for c in np.argwhere(~self.cell_free)]
+        cells += [(-1, j) for j in range(-1, cc + 1)] + [(cr, j) for j in range(-1, cc + 1)]
+        cells += [(i, -1) for i in range(cr)] + [(i, cc) for i in range(cr)]
+        return np.array([self.cell_center_m(i, j) for i, j in cells], dtype=float).reshape(-1, 2)
+
+    def reachable_cells(self, start_cell: tuple[int, int] | None = None) -> np.ndarray:
+        """(cells_rows, cells_cols) bool: free cells 4-connected to ``start_cell`` (default: the
+        start sub-cell's cell)."""
+        start = self.start_cell if start_cell is None else tuple(start_cell)
+        cr, cc = self.cell_free.shape
+        seen = np.zeros((cr, cc), bool)
+        if not self.is_cell_free(*start):
+            return seen
+        seen[start] = True
+        todo = deque([start])
+        while todo:
+            i, j = todo.popleft()
+            for di, dj in ((1, 0), (-1, 0), (0, 1), (0, -1)):
+                a, b = i + di, j + dj
+                if 0 <= a < cr and 0 <= b < cc and self.cell_free[a, b] and not seen[a, b]:
+                    seen[a, b] = True
+                    todo.append((a, b))
+        return seen
+
+    def to_text(self) -> str:
+        """The board as a text map (round-trips through :meth:`from_text`)."""
+        chars = np.where(self.blocked, "#", ".")
+        chars[self.start_subcell] = "S"
+        return "\n".join("".join(r) for r in chars) + "\n"

@@ -1,0 +1,356 @@
+"""The synthetic catadioptric camera: renders the phosphor floor and red lights into noisy
+8-bit mirror images, with ground truth.
+
+Build once, render many: :class:`SyntheticCamera` traces every pixel onto the floor once
+(:func:`sim_camera.optics.trace_pixels`) and draws its fixed-pattern noise once; per frame only
+the robot pose moves the floor under that table.
+
+Rendering
+---------
+* **Dots and lights** are small emitting discs. Each is projected with the forward solver
+  (:func:`~sim_camera.optics.project_floor_points`); its electrons are
+  ``L * e_per_cd_m2_s * exposure * vignetting * (disc area / pixel footprint)`` -- the fraction
+  of the pixel's floor footprint the disc fills -- spread by a Gaussian whose covariance is the
+  lens blur plus the disc mapped through the local pixel->floor Jacobian (far dots are squashed
+  radially, as a spherical mirror does).
+* **Lights-on frames** (calibration) see the lit floor: uniform phosphor floor of
+  ``room_floor_cd_m2`` with dark tape lines on every cell boundary, anti-aliased per pixel from
+  its footprint; the robot body shows dark grey; outside the mirror is black.
+* The sensor (:mod:`sim_camera.sensor`) adds dark current, fixed pattern, noise, crosstalk,
+  saturation/blooming, and quantises.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from sim_camera.optics import FloorProjector, MirrorCameraParams, RayTable, trace_pixels
+from sim_camera.sensor import FixedPattern, SensorParams, expose
+from stcvision.errors import BadInputError
+
+__all__ = [
+    "Frame", "LightsOnParams", "Pose", "SyntheticCamera", "detection_snr", "visibility_horizon_s",
+]
+
+#: Lens blur (Gaussian sigma, px) of a cheap webcam lens looking at a spherical mirror.
+PSF_SIGMA_PX = 0.6
+#: Red obstacle light: a diffused red LED, 10 mm across, ~3000 cd/m^2 (typical diffused
+#: indicator LED: tens to hundreds of mcd over a ~10 mm dome).
+RED_LIGHT_DIAMETER_M = 0.010
+RED_LIGHT_CD_M2 = 3000.0
+#: Rose criterion: an object is detectable when its SNR is at least 5 (A. Rose, 1948).
+ROSE_SNR = 5.0
+_PATCH = 4  # splat patch half-size (px): 9x9
+
+
+@dataclass(frozen=True, slots=True)
+class Pose:
+    """Robot pose in the world: position (m) and heading (rad, 0 = east, counter-clockwise)."""
+
+    x_m: float
+    y_m: float
+    heading_rad: float
+
+    def world_to_robot(self, xy_m) -> np.ndarray:
+        xy = np.asarray(xy_m, float).reshape(-1, 2) - (self.x_m, self.y_m)
+        c, s = np.cos(self.heading_rad), np.sin(self.heading_rad)
+        return np.column_stack([c * xy[:, 0] + s * xy[:, 1], -s * xy[:, 0] + c * xy[:, 1]])
+
+    def robot_to_world(self, xy_m) -> np.ndarray:
+        xy = np.asarray(xy_m, float).reshape(-1, 2)
+        c, s = np.cos(self.heading_rad), np.sin(self.heading_rad)
+        return np.column_stack(
+            [c * xy[:, 0] - s * xy[:, 1] + self.x_m, s * xy[:, 0] + c * xy[:, 1] + self.y_m]
+        )
+
+    def to_dict(self) -> dict:
+        return {"x_m": self.x_m, "y_m": self.y_m, "heading_rad": self.heading_rad}
+
+
+@dataclass(frozen=True, kw_only=True, slots=True)
+class LightsOnParams:
+    """The lit room used for calibration frames.
+
+    ``room_floor_cd_m2``: a light floor (albedo ~0.3) under ~300 lx office light,
+    ``L = E * albedo / pi ~ 30 cd/m^2``. Tape lines ``grid_line_m`` wide on every cell boundary
+    reflect ``line_contrast`` of the floor; the robot's body ``body_contrast``.
+    """
+
+    room_floor_cd_m2: float = 30.0
+    grid_line_m: float = 0.012
+    line_contrast: float = 0.12
+    body_contrast: float = 0.25
+    target_dn: float = 140.0
+
+
+@dataclass(frozen=True, eq=False)
+class Frame:
+    """One rendered frame: ``image`` (H, W, 3) uint8 BGR and, if asked for, ``truth`` (a dict)."""
+
+    image: np.ndarray
+    truth: dict | None = None
+    signal_e: np.ndarray | None = field(default=None, repr=False)
+
+
+class SyntheticCamera:
+    """A catadioptric camera on a robot.
+
+    Parameters
+    ----------
+    optics : MirrorCameraParams
+    sensor : SensorParams
+        Default settings; :meth:`render` accepts per-frame overrides (exposure control).
+    pattern_seed : int
+        Seed of this camera's fixed-pattern noise (a physical camera has one pattern).
+    """
+
+    def __init__(
+        self,
+        optics: MirrorCameraParams | None = None,
+        sensor: SensorParams | None = None,
+        *,
+        pattern_seed: int = 0,
+    ) -> None:
+        self.optics = optics or MirrorCameraParams()
+        self.sensor = sensor or SensorParams()
+        self.table: RayTable = trace_pixels(self.optics)
+        self.projector = FloorProjector(self.table)
+        shape = (self.optics.height_px, self.optics.width_px)
+        self.pattern = FixedPattern.draw(shape, self.sensor, np.random.default_rng(pattern_seed))
+        self._scratch = np.empty((*shape, 3), np.float32)
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        return (self.optics.height_px, self.optics.width_px)
+
+    # ------------------------------------------------------------------ sources -> electrons
+    def _splat(self, out, xy_robot, lum_cd_m2, diameter_m, bgr, s: SensorParams):
+        """Add the electrons of emitting discs to ``out`` (H, W, 3); return per-source info."""
+        n = len(xy_robot)
+        info = {
+            "uv": np.full((n, 2), np.nan),
+            "visible": np.zeros(n, bool),
+            "total_e": np.zeros(n),
+            "cov_px": np.zeros((n, 2, 2)),
+        }
+        if n == 0:
+            return info
+        uv, vis = self.projector.project(xy_robot)
+        info["uv"], info["visible"] = uv, vis
+        idx = np.flatnonzero(vis & (np.asarray(lum_cd_m2) > 0))
+        if len(idx) == 0:
+            return info
+        h, w = self.shape
+        iu = np.clip(np.rint(uv[idx, 0]).astype(int), 0, w - 1)
+        iv = np.clip(np.rint(uv[idx, 1]).astype(int), 0, h - 1)
+        fp = self.table.footprint_m2[iv, iu]
+        good = np.isfinite(fp) & (fp > 0)
+        idx, iu, iv, fp = idx[good], iu[good], iv[good], fp[good]
+        area = np.pi * (diameter_m / 2) ** 2
+        lum = np.broadcast_to(np.asarray(lum_cd_m2, float), (n,))[idx]
+        total = (
+            lum * s.e_per_cd_m2_s * s.exposure_s * self.table.vignetting[iv, iu] * (area / fp)
+        )
+        info["total_e"][idx] = total
+        # covariance: PSF + disc (variance r^2/4 per axis on the floor) mapped to pixels
+        jinv = np.linalg.inv(self.table.jacobian[iv, iu])
+        cov = (diameter_m / 2) ** 2 / 4.0 * jinv @ np.swapaxes(jinv, 1, 2)
+        cov += PSF_SIGMA_PX**2 * np.eye(2)
+        info["cov_px"][idx] = cov
+        # evaluate each Gaussian on a 9x9 patch around its nearest pixel, normalised to 1
+        off = np.arange(-_PATCH, _PATCH + 1)
+        pu = iu[:, None, None] + off[None, None, :]
+        pv = iv[:, None, None] + off[None, :, None]
+        du = pu - uv[idx, 0][:, None, None]
+        dv = pv - uv[idx, 1][:, None, None]
+        icov = np.linalg.inv(cov)
+        q = icov[:, 0, 0, None, None] * du * du + 2 * icov[:, 0, 1, None, None] * du * dv
+        q += icov[:, 1, 1, None, None] * dv * dv
+        wgt = np.exp(-0.5 * q)
+        inside = (pu >= 0) & (pu < w) & (pv >= 0) & (pv < h)
+        wgt /= wgt.sum(axis=(1, 2), keepdims=True)
+        wgt *= inside
+        flat = (np.clip(pv, 0, h - 1) * w + np.clip(pu, 0, w - 1)).ravel()
+        energy = (wgt * total[:, None, None]).ravel()
+        view = out.reshape(-1, 3)
+        for ch in range(3):
+            if bgr[ch] > 0:
+                np.add.at(view[:, ch], flat, (energy * bgr[ch]).astype(np.float32))
+        return info
+
+    # ------------------------------------------------------------------ public API
+    def signal(self, pose: Pose, *, t_s: float = 0.0, phosphor=None, red_lights_m=None,
+               sensor: SensorParams | None = None):
+        """Expected photo-electrons (H, W, 3) float32 of a dark-room frame, before noise, and
+        per-source info (projected positions, electrons)."""
+        s = sensor or self.sensor
+        out = self._scratch
+        out.fill(0)
+        info = {}
+        if phosphor is not None and len(phosphor):
+            lum = phosphor.luminance_at(t_s)
+            xy_r = pose.world_to_robot(phosphor.xy_m)
+            info["dots"] = self._splat(out, xy_r, lum, phosphor.dot_diameter_m, s.phosphor_bgr, s)
+            info["dots"]["lum"] = lum
+            info["dots"]["xy_robot"] = xy_r
+        if red_lights_m is not None and len(red_lights_m):
+            xy_r = pose.world_to_robot(red_lights_m)
+            info["lights"] = self._splat(out, xy_r, RED_LIGHT_CD_M2, RED_LIGHT_DIAMETER_M, s.red_led_bgr, s)
+            info["lights"]["xy_robot"] = xy_r
+        return out, info
+
+    def render(
+        self,
+        pose: Pose,
+        *,
+        rng: np.random.Generator,
+        t_s: float = 0.0,
+        phosphor=None,
+        red_lights_m=None,
+        sensor: SensorParams | None = None,
+        board=None,
+        truth: bool = False,
+    ) -> Frame:
+        """Render one dark-room frame (phosphor dots + red lights) at sim time ``t_s``.
+
+        Parameters
+        ----------
+        pose : Pose
+            True robot pose (world).
+        rng : numpy.random.Generator
+            Temporal noise source.
+        phosphor : sim_camera.phosphor.PhosphorLayer, optional
+        red_lights_m : (N, 2) world positions of red lights, optional
+        sensor : SensorParams, optional
+            Settings for this frame (exposure, gain); defaults to the camera's.
+        board : sim_camera.board.Board, optional
+            Needed for the cell/box/neighbour regions in the ground truth.
+        truth : bool
+            Attach ground truth (slower: a few ms).
+        """
+        s = sensor or self.sensor
+        sig, info = self.signal(pose, t_s=t_s, phosphor=phosphor, red_lights_m=red_lights_m, sensor=s)
+        image = expose(sig, s, self.pattern, rng)
+        gt = None
+        if truth:
+            from sim_camera.truth import build_truth
+
+            gt = build_truth(self, pose, s, info, t_s=t_s, phosphor=phosphor,
+                             red_lights_m=red_lights_m, board=board)
+        return Frame(image, gt)
+
+    def dark_frame(self, *, rng: np.random.Generator, sensor: SensorParams | None = None) -> np.ndarray:
+        """One frame with the lens capped (or the room dark and empty) at the given settings."""
+        s = sensor or self.sensor
+        self._scratch.fill(0)
+        return expose(self._scratch, s, self.pattern, rng)
+
+    def lights_on(
+        self,
+        pose: Pose,
+        *,
+        board,
+        rng: np.random.Generator,
+        room: LightsOnParams | None = None,
+        sensor: SensorParams | None = None,
+        truth: bool = False,
+    ) -> Frame:
+        """A calibration frame: room lights on, floor and cell grid lines visible.
+
+        The exposure is set automatically (gain 1) so the lit floor reads about
+        ``room.target_dn``, as a webcam's auto-exposure does, unless ``sensor`` is given.
+        """
+        room = room or LightsOnParams()
+        t = self.table
+        lum = np.zeros(self.shape, np.float32)
+        g = t.ground
+        xy_w = pose.robot_to_world(t.floor_xy_m[g])
+        # distance to the nearest cell boundary line (lines every 2D, board-aligned)
+        cell = board.cell_m
+        fx = np.abs(((xy_w[:, 0] + cell / 2) % cell) - cell / 2)
+        fy = np.abs(((xy_w[:, 1] + cell / 2) % cell) - cell / 2)
+        dist = np.minimum(fx, fy)
+        pix = np.sqrt(t.footprint_m2[g])  # pixel size on the floor, for anti-aliasing
+        cover = np.clip((room.grid_line_m / 2 - dist) / pix + 0.5, 0.0, 1.0)
+        refl = 1.0 - cover * (1.0 - room.line_contrast)
+        lum[g] = room.room_floor_cd_m2 * refl * t.vignetting[g]
+        lum[t.body] = room.room_floor_cd_m2 * room.body_contrast * t.vignetting[t.body]
+        s = sensor
+        if s is None:
+            base = self.sensor.replace(gain=1.0)
+            e_per_s = room.room_floor_cd_m2 * base.e_per_cd_m2_s
+            exposure = room.target_dn / (base.dn_per_e * e_per_s)
+            s = base.replace(exposure_s=float(exposure))
+        sig = (lum * np.float32(s.e_per_cd_m2_s * s.exposure_s))[..., None] * np.asarray(
+            s.floor_bgr, np.float32
+        )
+        image = expose(np.ascontiguousarray(sig, np.float32), s, self.pattern, rng)
+        gt = None
+        if truth:
+            from sim_camera.truth import build_truth
+
+            gt = build_truth(self, pose, s, {}, t_s=0.0, board=board)
+            gt["lights_on"] = True
+        return Frame(image, gt)
+
+
+def detection_snr(total_e: np.ndarray, cov_px: np.ndarray, s: SensorParams, *, window: int = 3) -> np.ndarray:
+    """Expected SNR of a dot in the best ``window`` x ``window`` square (the seed's square
+    search window) after an ideal dark-frame subtraction.
+
+    Signal ``S`` = the dot's electrons inside the window (Gaussian approximation, window
+    centred on the dot); noise variance = ``S`` (shot) + per pixel ``dark + read^2 + q^2``
+    where ``q^2 = 1 / (12 dn_per_e^2)`` is the quantisation noise. Detectable iff
+    ``SNR >= ROSE_SNR``.
+    """
+    from scipy.special import erf
+
+    total_e = np.asarray(total_e, float)
+    half = window / 2
+    sx = np.sqrt(np.maximum(cov_px[..., 0, 0], 1e-12))
+    sy = np.sqrt(np.maximum(cov_px[..., 1, 1], 1e-12))
+    frac = erf(half / (np.sqrt(2) * sx)) * erf(half / (np.sqrt(2) * sy))
+    S = total_e * frac
+    per_px = s.dark_current_e_s * s.exposure_s + s.read_noise_e**2 + 1.0 / (12 * s.dn_per_e**2)
+    return S / np.sqrt(S + window * window * per_px)
+
+
+def visibility_horizon_s(
+    camera: SyntheticCamera,
+    *,
+    sensor: SensorParams | None = None,
+    law=None,
+    rho_m: float = 0.25,
+    charge_s: float = 3.0,
+    n_stack: int = 1,
+    max_age_s: float = 36000.0,
+) -> float:
+    """Age (s) beyond which a dot charged for ``charge_s`` at ``rho_m`` from the robot is no
+    longer detectable (expected SNR < :data:`ROSE_SNR` in a 3x3 window), for these settings.
+
+    Averaging ``n_stack`` frames divides the noise variance by ``n_stack``. Returns 0 if the
+    dot is never detectable and ``inf`` if it still is at ``max_age_s``.
+    """
+    from sim_camera.phosphor import AfterglowLaw, PhosphorLayer
+
+    s = sensor or camera.sensor
+    law = law or AfterglowLaw()
+    layer = PhosphorLayer(law)
+    # a direction away from the image axes, where no special symmetry helps
+    layer.charge([[rho_m * np.cos(0.7), rho_m * np.sin(0.7)]], t_start_s=-charge_s, duration_s=charge_s)
+    _, info = camera.signal(Pose(0.0, 0.0, 0.0), t_s=0.0, phosphor=layer, sensor=s)
+    d = info["dots"]
+    if not d["visible"][0]:
+        return 0.0
+    e0, cov = d["total_e"][0], d["cov_px"][0]
+    ages = np.geomspace(0.1, max_age_s, 4000)
+    rel = law.luminance_cd_m2(ages, charge_s) / law.luminance_cd_m2(0.0, charge_s)
+    snr = detection_snr(e0 * rel, np.broadcast_to(cov, (len(ages), 2, 2)), s) * np.sqrt(n_stack)
+    below = snr < ROSE_SNR
+    if below[0]:
+        return 0.0
+    if not below.any():
+        return float("inf")
+    return float(ages[np.argmax(below)])

@@ -1,0 +1,430 @@
+"""Ray-traced catadioptric optics: a pinhole camera with radial distortion looking up at a
+convex spherical mirror, reflecting each pixel's ray onto the floor.
+
+This is the *renderer's* model. The vision pipeline in ``stcvision`` has its own (fitted) model;
+the two must stay independent or their errors would cancel (``../shared/DESIGN.md``).
+
+Frames
+------
+Robot frame: x forward, y left, z up, origin on the floor under the turning centre. The camera
+pinhole sits at ``(0, 0, camera_height_m)`` looking straight up. Camera axes: ``x_cam = +y``
+(image u to the right is the robot's left: a mirror view), ``y_cam = -x`` (image v down is the
+robot's back, so forward is up in the raw image), ``z_cam = +z``.
+
+The mirror is a sphere of radius ``mirror_radius_m`` whose lowest point (vertex) is
+``mirror_distance_m`` above the pinhole, plus a decentre. It is a cap: only points within
+``mirror_rim_radius_m`` of the mirror axis reflect; the rim is the cap's edge. Tilt rotates the
+mirror about its vertex (its mount), moving the sphere centre sideways and tilting the rim.
+
+Two independent calculations:
+
+* :func:`trace_pixels` (pixel -> floor): undistort, intersect the ray with the sphere, reflect,
+  intersect the floor, and mark pixels that miss the mirror, see the sky, or land on the robot.
+* :func:`project_floor_points` (floor -> pixel): solve the reflection point on the sphere
+  (Alhazen's problem, in the plane of pinhole, sphere centre and floor point) by bisection, then
+  project it with the distortion model.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, replace
+
+import numpy as np
+
+from stcvision.errors import BadInputError
+
+__all__ = [
+    "FloorProjector",
+    "MirrorCameraParams",
+    "RayTable",
+    "mirror_geometry",
+    "project_floor_points",
+    "rim_points_px",
+    "trace_pixels",
+]
+
+
+@dataclass(frozen=True, kw_only=True, slots=True)
+class MirrorCameraParams:
+    """Geometry of the camera, the mirror and the robot body (metres, pixels, radians).
+
+    Defaults describe the default simulated robot: a VGA webcam (6 um pixels, 4.7 mm lens,
+    f/2.0; ~44 degree horizontal field) 15 cm above the floor, under a 62 mm wide spherical
+    mirror (radius 6 cm) 10 cm above the lens. The mirror fills most of the frame (rim ~225 px)
+    and shows the floor out to ~1.3 m, enough for the five cells around the robot.
+    """
+
+    width_px: int = 640
+    height_px: int = 480
+    focal_px: float = 786.0
+    principal_px: tuple[float, float] = (319.5, 239.5)
+    k1: float = -0.05
+    k2: float = 0.0
+    camera_height_m: float = 0.15
+    mirror_radius_m: float = 0.06
+    mirror_distance_m: float = 0.10
+    mirror_rim_radius_m: float = 0.031
+    mirror_decentre_m: tuple[float, float] = (0.0, 0.0)
+    mirror_tilt_rad: float = 0.0
+    mirror_tilt_axis_rad: float = 0.0
+    body_radius_m: float = 0.065
+    body_height_m: float = 0.05
+    housing_radius_m: float = 0.02
+
+    def __post_init__(self) -> None:
+        positive = (
+            "width_px", "height_px", "focal_px", "camera_height_m", "mirror_radius_m",
+            "mirror_distance_m", "mirror_rim_radius_m",
+        )
+        for name in positive:
+            if not getattr(self, name) > 0:
+                raise BadInputError(f"camera parameter {name} must be > 0, got {getattr(self, name)}")
+        if self.mirror_rim_radius_m >= self.mirror_radius_m:
+            raise BadInputError(
+                f"mirror_rim_radius_m ({self.mirror_rim_radius_m}) must be < mirror_radius_m "
+                f"({self.mirror_radius_m})"
+            )
+        if abs(self.mirror_tilt_rad) > np.radians(15):
+            raise BadInputError(f"mirror_tilt_rad {self.mirror_tilt_rad} is beyond +-15 degrees")
+
+    def to_dict(self) -> dict:
+        d = asdict(self)
+        return {k: list(v) if isinstance(v, tuple) else v for k, v in d.items()}
+
+    @classmethod
+    def from_dict(cls, d: dict) -> MirrorCameraParams:
+        names = set(cls.__dataclass_fields__)
+        unknown = set(d) - names
+        if unknown:
+            raise BadInputError(
+                f"unknown camera parameter(s) {sorted(unknown)}; expected some of {sorted(names)}"
+            )
+        kw = {}
+        for k, v in d.items():
+            if isinstance(getattr(cls(), k), tuple):
+                try:
+                    v = tuple(float(x) for x in v)
+                except (TypeError, ValueError):
+                    raise BadInputError(f"camera parameter {k} must be a pair of numbers, got {v!r}") from None
+                if len(v) != 2:
+                    raise BadInputError(f"camera parameter {k} must be a pair of numbers, got {v!r}")
+            elif not isinstance(v, int | float) or isinstance(v, bool):
+                raise BadInputError(f"camera parameter {k} must be a number, got {v!r}")
+            kw[k] = v
+        return cls(**kw)
+
+    def replace(self, **kw) -> MirrorCameraParams:
+        return replace(self, **kw)
+
+
+def mirror_geometry(p: MirrorCameraParams) -> tuple[np.ndarray, np.ndarray, float]:
+    """Sphere centre (3,), mirror axis (3,) pointing up, and cos of the cap half-angle."""
+    dx, dy = p.mirror_decentre_m
+    vertex = np.array([dx, dy, p.camera_height_m + p.mirror_distance_m])
+    t, a = p.mirror_tilt_rad, p.mirror_tilt_axis_rad
+    # rotate +z by angle t about the horizontal axis (cos a, sin a, 0)
+    k = np.array([np.cos(a), np.sin(a), 0.0])
+    z = np.array([0.0, 0.0, 1.0])
+    axis = z * np.cos(t) + np.cross(k, z) * np.sin(t)
+    centre = vertex + p.mirror_radius_m * axis
+    cos_cap = np.sqrt(1.0 - (p.mirror_rim_radius_m / p.mirror_radius_m) ** 2)
+    return centre, axis, cos_cap
+
+
+def _cam_to_robot(xc, yc, zc):
+    """Camera-frame components -> robot-frame components (x = -y_cam, y = x_cam, z = z_cam)."""
+    return -yc, xc, zc
+
+
+def _distort(xn, yn, p: MirrorCameraParams):
+    r2 = xn * xn + yn * yn
+    s = 1.0 + p.k1 * r2 + p.k2 * r2 * r2
+    return xn * s, yn * s
+
+
+def _undistort(xd, yd, p: MirrorCameraParams, iters: int = 20):
+    """Invert the radial model by fixed-point iteration (converges for the mild k1, k2 used)."""
+    xn, yn = xd.copy(), yd.copy()
+    for _ in range(iters):
+        r2 = xn * xn + yn * yn
+        s = 1.0 + p.k1 * r2 + p.k2 * r2 * r2
+        xn, yn = xd / s, yd / s
+    return xn, yn
+
+
+def _body_hit(origin, direction, p: MirrorCameraParams):
+    """True where a downward ray from ``origin`` along ``direction`` hits the robot: the body's
+    top disc (z = body_height_m, radius body_radius_m) or the camera housing's top
+    (z = camera_height_m, radius housing_radius_m)."""
+    hit = np.zeros(origin.shape[:-1], bool)
+    for z_top, radius in ((p.camera_height_m, p.housing_radius_m), (p.body_height_m, p.body_radius_m)):
+        s = (z_top - origin[..., 2]) / direction[..., 2]
+        q = origin[..., :2] + s[..., None] * direction[..., :2]
+        hit |= (s > 0) & ((q**2).sum(-1) <= radius * radius)
+    return hit
+
+
+@dataclass(frozen=True, eq=False)
+class RayTable:
+    """Per-pixel result of :func:`trace_pixels` (all arrays (H, W)).
+
+    Attributes
+    ----------
+    floor_xy_m : (H, W, 2) float64
+        Floor point of each pixel in the robot frame (NaN where ``~ground``).
+    ground : bool
+        The pixel sees the floor (hits the mirror cap, reflects down, misses the robot).
+    mirror : bool
+        The pixel's ray hits the mirror cap (inside the rim).
+    body : bool
+        The pixel sees the robot's own body or the camera housing.
+    footprint_m2 : float64
+        Floor area one pixel covers (from the Jacobian of ``floor_xy_m``; NaN off-ground).
+    vignetting : float64
+        cos^4 of the ray's angle to the optical axis.
+    jacobian : (H, W, 2, 2) float64
+        Floor step (m, robot frame) per pixel step; columns are d/du and d/dv.
+    """
+
+    params: MirrorCameraParams
+    floor_xy_m: np.ndarray
+    ground: np.ndarray
+    mirror: np.ndarray
+    body: np.ndarray
+    footprint_m2: np.ndarray
+    vignetting: np.ndarray
+    jacobian: np.ndarray
+
+
+def _trace_dirs(dirs: np.ndarray, p: MirrorCameraParams, mask: bool = True):
+    """Trace rays from the pinhole along ``dirs`` (..., 3, robot frame, unit)."""
+    centre, axis, cos_cap = mirror_geometry(p)
+    origin = np.array([0.0, 0.0, p.camera_height_m])
+    oc = origin - centre
+    b = dirs @ oc
+    c = oc @ oc - p.mirror_radius_m**2
+    disc = b * b - c
+    t = -b - np.sqrt(np.maximum(disc, 0.0))
+    hit = origin + t[..., None] * dirs
+    n = (hit - centre) / p.mirror_radius_m
+    in_cap = (disc > 0) & (t > 0) & ((n @ -axis) >= cos_cap)
+    refl = dirs - 2.0 * (dirs * n).sum(-1, keepdims=True) * n
+    down = refl[..., 2] < -1e-9
+    s = np.where(down, -hit[..., 2] / np.where(down, refl[..., 2], -1.0), np.nan)
+    floor = hit[..., :2] + s[..., None] * refl[..., :2]
+    body = in_cap & down & _body_hit(hit, refl, p)
+    ground = in_cap & down & ~body
+    if not mask:  # the sphere's geometry continues past the rim: used for finite differences
+        return floor, ground, in_cap, body
+    floor[~ground] = np.nan
+    return floor, ground, in_cap, body
+
+
+def trace_pixels(p: MirrorCameraParams) -> RayTable:
+    """Trace every pixel centre of the image onto the floor (done once per camera)."""
+    u, v = np.meshgrid(np.arange(p.width_px, dtype=float), np.arange(p.height_px, dtype=float))
+    cx, cy = p.principal_px
+    xn, yn = _undistort((u - cx) / p.focal_px, (v - cy) / p.focal_px, p)
+    x, y, z = _cam_to_robot(xn, yn, np.ones_like(xn))
+    dirs = np.stack([x, y, z], -1)
+    norm = np.linalg.norm(dirs, axis=-1, keepdims=True)
+    dirs /= norm
+    floor, ground, mirror, body = _trace_dirs(dirs, p)
+    vignetting = (1.0 / norm[..., 0]) ** 4
+    # footprint: |det J| of (u, v) -> floor, by central differences of half-pixel offsets
+    fu, fv = _footprint_steps(p, u, v)
+    jac = np.stack([fu, fv], axis=-1)
+    jac[~ground] = np.nan
+    footprint = np.abs(fu[..., 0] * fv[..., 1] - fu[..., 1] * fv[..., 0])
+    footprint[~ground] = np.nan
+    return RayTable(p, floor, ground, mirror, body, footprint, vignetting, jac)
+
+
+def _footprint_steps(p: MirrorCameraParams, u=None, v=None):
+    """Floor step (robot frame, m) per one-pixel step along u and along v, per pixel."""
+    if u is None:
+        u, v = np.meshgrid(np.arange(p.width_px, dtype=float), np.arange(p.height_px, dtype=float))
+    cx, cy = p.principal_px
+
+    def floor_at(du, dv):
+        xn, yn = _undistort((u + du - cx) / p.focal_px, (v + dv - cy) / p.focal_px, p)
+        x, y, z = _cam_to_robot(xn, yn, np.ones_like(xn))
+        d = np.stack([x, y, z], -1)
+        d /= np.linalg.norm(d, axis=-1, keepdims=True)
+        return _trace_dirs(d, p, mask=False)[0]
+
+    fu = floor_at(0.5, 0) - floor_at(-0.5, 0)  # floor step per pixel along u
+    fv = floor_at(0, 0.5) - floor_at(0, -0.5)  # ... and along v
+    return fu, fv
+
+
+def project_floor_points(p: MirrorCameraParams, xy_m, *, iters: int = 60):
+    """Image position of floor points (robot frame) via the reflection point on the sphere.
+
+    Parameters
+    ----------
+    xy_m : (N, 2) floor points in the robot frame (m).
+
+    Returns
+    -------
+    uv_px : (N, 2) float64
+        Sub-pixel image positions (u right, v down); NaN where not visible.
+    visible : (N,) bool
+        The reflection lies on the mirror cap, the path misses the robot, and the pixel is inside
+        the image.
+    """
+    xy = np.asarray(xy_m, float).reshape(-1, 2)
+    centre, axis, cos_cap = mirror_geometry(p)
+    R = p.mirror_radius_m
+    O = np.array([0.0, 0.0, p.camera_height_m])
+    F = np.column_stack([xy, np.zeros(len(xy))])
+    # orthonormal basis of the plane through O, C, F: e1 = unit(O - C) (towards the camera),
+    # e2 = component of (F - C) perpendicular to e1.
+    e1 = (O - centre) / np.linalg.norm(O - centre)
+    w = F - centre
+    e2 = w - (w @ e1)[:, None] * e1
+    n2 = np.linalg.norm(e2, axis=1, keepdims=True)
+    degenerate = n2[:, 0] < 1e-12
+    e2 = np.where(degenerate[:, None], np.array([1.0, 0.0, 0.0]), e2 / np.maximum(n2, 1e-300))
+    # P(phi) = C + R (cos phi e1 + sin phi e2); reflection at P requires the unit vectors to O
+    # and to F to make equal angles with the normal: g(phi) = (uO + uF) . tangent = 0.
+    lo = np.zeros(len(xy))
+    hi = np.full(len(xy), np.pi / 2)
+
+    def g(phi):
+        P = centre + R * (np.cos(phi)[:, None] * e1 + np.sin(phi)[:, None] * e2)
+        n = (P - centre) / R
+        tang = -np.sin(phi)[:, None] * e1 + np.cos(phi)[:, None] * e2
+        uo = O - P
+        uo /= np.linalg.norm(uo, axis=1, keepdims=True)
+        uf = F - P
+        uf /= np.linalg.norm(uf, axis=1, keepdims=True)
+        return ((uo + uf) * tang).sum(1), P, n, uo, uf
+
+    # At phi = 0 (P straight towards the camera) uO is the normal and uF leans towards +e2, so
+    # g > 0; towards the sphere's equator g < 0. One sign change in (0, pi/2): bisection.
+    g_lo = g(lo)[0]
+    for _ in range(iters):
+        mid = 0.5 * (lo + hi)
+        gm = g(mid)[0]
+        same = np.sign(gm) == np.sign(g_lo)
+        lo = np.where(same, mid, lo)
+        g_lo = np.where(same, gm, g_lo)
+        hi = np.where(same, hi, mid)
+    phi = 0.5 * (lo + hi)
+    gv, P, n, uo, uf = g(phi)
+    ok = np.abs(gv) < 1e-6
+    ok &= (n @ -axis) >= cos_cap
+    ok &= (uo * n).sum(1) > 0  # camera and floor on the mirror's outer side
+    ok &= (uf * n).sum(1) > 0
+    # path from P down to F must miss the robot
+    ok &= ~_body_hit(P, F - P, p)
+    # project P into the camera
+    rel = P - O
+    xc, yc, zc = rel[:, 1], -rel[:, 0], rel[:, 2]
+    xd, yd = _distort(xc / zc, yc / zc, p)
+    cx, cy = p.principal_px
+    uv = np.column_stack([p.focal_px * xd + cx, p.focal_px * yd + cy])
+    ok &= (uv[:, 0] >= -0.5) & (uv[:, 0] <= p.width_px - 0.5)
+    ok &= (uv[:, 1] >= -0.5) & (uv[:, 1] <= p.height_px - 0.5)
+    uv[~ok] = np.nan
+    return uv, ok
+
+
+def rim_points_px(p: MirrorCameraParams, n: int = 360) -> np.ndarray:
+    """(n, 2) image positions of the mirror rim (a circle, an ellipse under tilt)."""
+    centre, axis, cos_cap = mirror_geometry(p)
+    R = p.mirror_radius_m
+    # orthonormal pair perpendicular to the axis
+    a = np.array([1.0, 0.0, 0.0])
+    b1 = a - (a @ axis) * axis
+    b1 /= np.linalg.norm(b1)
+    b2 = np.cross(axis, b1)
+    ang = np.linspace(0, 2 * np.pi, n, endpoint=False)
+    sin_cap = p.mirror_rim_radius_m / R
+    pts = centre - R * cos_cap * axis + R * sin_cap * (
+        np.cos(ang)[:, None] * b1 + np.sin(ang)[:, None] * b2
+    )
+    rel = pts - np.array([0.0, 0.0, p.camera_height_m])
+    xc, yc, zc = rel[:, 1], -rel[:, 0], rel[:, 2]
+    xd, yd = _distort(xc / zc, yc / zc, p)
+    cx, cy = p.principal_px
+    return np.column_stack([p.focal_px * xd + cx, p.focal_px * yd + cy])
+
+
+def _trace_uv(p: MirrorCameraParams, u, v):
+    """Floor point (robot frame) and ground flag of continuous pixel positions ``(u, v)``."""
+    cx, cy = p.principal_px
+    xn, yn = _undistort((np.asarray(u, float) - cx) / p.focal_px, (np.asarray(v, float) - cy) / p.focal_px, p)
+    x, y, z = _cam_to_robot(xn, yn, np.ones_like(xn))
+    d = np.stack([x, y, z], -1)
+    d /= np.linalg.norm(d, axis=-1, keepdims=True)
+    floor, ground, _, _ = _trace_dirs(d, p, mask=False)
+    return floor, ground
+
+
+class FloorProjector:
+    """Fast floor -> pixel projection for rendering, built once from a :class:`RayTable`.
+
+    An inverse lookup grid (floor cell -> mean pixel of the rays landing there, holes filled
+    from the nearest filled cell) gives a first guess; three Newton steps on the exact pixel ray
+    trace, with the table's Jacobian, refine it to far below 0.01 px. Agrees with the
+    independent :func:`project_floor_points` (checked in the tests).
+    """
+
+    def __init__(self, table: RayTable, *, cell_m: float = 0.01) -> None:
+        from scipy import ndimage
+
+        self.table = table
+        g = table.ground
+        xy = table.floor_xy_m[g]
+        self.max_radius_m = float(np.hypot(xy[:, 0], xy[:, 1]).max())
+        r = self.max_radius_m + cell_m
+        n = int(np.ceil(2 * r / cell_m))
+        self._origin, self._cell, self._n = -r, cell_m, n
+        ij = np.floor((xy - self._origin) / cell_m).astype(int)
+        v, u = np.nonzero(g)
+        flat = ij[:, 1] * n + ij[:, 0]
+        cnt = np.bincount(flat, minlength=n * n).astype(float)
+        su = np.bincount(flat, weights=u, minlength=n * n)
+        sv = np.bincount(flat, weights=v, minlength=n * n)
+        filled = cnt > 0
+        gu = np.where(filled, su / np.maximum(cnt, 1), 0).reshape(n, n)
+        gv = np.where(filled, sv / np.maximum(cnt, 1), 0).reshape(n, n)
+        _, (ii, jj) = ndimage.distance_transform_edt(~filled.reshape(n, n), return_indices=True)
+        self._guess_u = gu[ii, jj]
+        self._guess_v = gv[ii, jj]
+
+    def project(self, xy_m, *, iters: int = 3):
+        """(N, 2) robot-frame floor points -> ((N, 2) sub-pixel (u, v), (N,) visible)."""
+        p = self.table.params
+        xy = np.asarray(xy_m, float).reshape(-1, 2)
+        uv = np.full((len(xy), 2), np.nan)
+        near = np.hypot(xy[:, 0], xy[:, 1]) <= self.max_radius_m
+        idx = np.flatnonzero(near)
+        if len(idx) == 0:
+            return uv, np.zeros(len(xy), bool)
+        pts = xy[idx]
+        ij = np.clip(np.floor((pts - self._origin) / self._cell).astype(int), 0, self._n - 1)
+        u = self._guess_u[ij[:, 1], ij[:, 0]]
+        v = self._guess_v[ij[:, 1], ij[:, 0]]
+        h, w = self.table.ground.shape
+        for _ in range(iters):
+            iu = np.clip(np.rint(u).astype(int), 0, w - 1)
+            iv = np.clip(np.rint(v).astype(int), 0, h - 1)
+            J = self.table.jacobian[iu * 0 + iv, iu]
+            ok = np.isfinite(J).all(axis=(1, 2))
+            J[~ok] = np.eye(2)
+            f, _ = _trace_uv(p, u, v)
+            step = np.linalg.solve(J, (pts - f)[..., None])[..., 0]
+            step = np.where(np.isfinite(step), step, 0.0)
+            u, v = u + np.clip(step[:, 0], -20, 20), v + np.clip(step[:, 1], -20, 20)
+        f, ground = _trace_uv(p, u, v)
+        iu = np.clip(np.rint(u).astype(int), 0, w - 1)
+        iv = np.clip(np.rint(v).astype(int), 0, h - 1)
+        ok = ground & (np.hypot(*(f - pts).T) < 1e-5) & self.table.ground[iv, iu]
+        ok &= (u >= -0.5) & (u <= w - 0.5) & (v >= -0.5) & (v <= h - 0.5)
+        vis = np.zeros(len(xy), bool)
+        vis[idx] = ok
+        uv[idx[ok]] = np.column_stack([u, v])[ok]
+        return uv, vis

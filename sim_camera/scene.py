@@ -1,0 +1,198 @@
+"""Scenes: a JSON description of what the synthetic camera looks at.
+
+A scene names a board, the robot's pose, marks (rows of four UV dots) with their ages, single
+dots, red lights, and overrides of the camera, sensor and afterglow parameters. It is what
+``stcvision render --scene`` reads and what dataset recipes generate. See :data:`EXAMPLE_SCENE`
+(printed by ``stcvision render --example-scene``).
+"""
+
+from __future__ import annotations
+
+import copy
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from sim_camera.board import DEFAULT_SUBCELL_M, Board
+from sim_camera.camera import Pose, SyntheticCamera
+from sim_camera.optics import MirrorCameraParams
+from sim_camera.phosphor import AfterglowLaw, PhosphorLayer, mark_dots_m
+from sim_camera.sensor import SensorParams
+from stcvision.errors import BadInputError
+
+__all__ = ["EDGES", "EXAMPLE_SCENE", "Scene"]
+
+#: Edge names (world directions) -> unit vector from a sub-cell's centre towards that edge.
+EDGES = {"N": (0.0, 1.0), "E": (1.0, 0.0), "S": (0.0, -1.0), "W": (-1.0, 0.0)}
+
+EXAMPLE_SCENE = {
+    "_doc": (
+        "stcvision scene. board: one of text (rows of '.', '#', 'S'; one char per sub-cell), "
+        "file (a .txt or .png map), random ({cells, obstacle_fraction, seed}). robot: subcell "
+        "[row, col] + heading_deg (0 = east, 90 = north) + optional offset_m [dx, dy] and "
+        "heading_error_deg, or x_m/y_m/heading_deg. marks: a row of 4 UV dots inside a sub-cell "
+        "along one edge (N/E/S/W), age_s seconds after its charge_s-second charge ended. dots: "
+        "single dots at x_m/y_m. red_lights: 'board' (obstacle cells + border ring), a list of "
+        "[x_m, y_m], or false. camera/sensor/afterglow: overrides of "
+        "sim_camera.optics.MirrorCameraParams, sim_camera.sensor.SensorParams, "
+        "sim_camera.phosphor.AfterglowLaw. pattern_seed: the camera's fixed-pattern noise."
+    ),
+    "board": {"text": [
+        "..........",
+        "..........",
+        "....##....",
+        "....##....",
+        "..........",
+        "..........",
+        "......S...",
+        "..........",
+    ]},
+    "subcell_m": 0.16,
+    "robot": {"subcell": [6, 6], "heading_deg": 90, "heading_error_deg": 3.0},
+    "marks": [
+        {"subcell": [6, 6], "edge": "S", "age_s": 2.0, "charge_s": 3.0},
+        {"subcell": [5, 6], "edge": "S", "age_s": 20.0},
+        {"subcell": [5, 7], "edge": "W", "age_s": 40.0},
+        {"subcell": [6, 3], "edge": "E", "age_s": 55.0},
+    ],
+    "dots": [],
+    "red_lights": "board",
+    "camera": {"mirror_decentre_m": [0.0005, -0.0003]},
+    "sensor": {"exposure_s": 0.0333},
+    "afterglow": {},
+    "pattern_seed": 0,
+}
+
+_KEYS = {"_doc", "board", "subcell_m", "robot", "marks", "dots", "red_lights", "camera", "sensor",
+         "afterglow", "pattern_seed", "time_s"}
+
+
+def _num(d: dict, key: str, where: str, default=None) -> float:
+    v = d.get(key, default)
+    if v is None:
+        raise BadInputError(f"{where}: missing {key!r}")
+    if isinstance(v, bool) or not isinstance(v, int | float):
+        raise BadInputError(f"{where}: {key!r} must be a number, got {v!r}")
+    return float(v)
+
+
+def _pair(v, where: str, kind=float) -> tuple:
+    if not isinstance(v, list | tuple) or len(v) != 2 or not all(
+        isinstance(x, int | float) and not isinstance(x, bool) for x in v
+    ):
+        raise BadInputError(f"{where} must be a list of 2 numbers, got {v!r}")
+    return tuple(kind(x) for x in v)
+
+
+@dataclass(frozen=True, eq=False)
+class Scene:
+    """A parsed scene: everything needed to render one frame."""
+
+    board: Board
+    pose: Pose
+    phosphor: PhosphorLayer
+    red_lights_m: np.ndarray
+    optics: MirrorCameraParams
+    sensor: SensorParams
+    pattern_seed: int
+    t_s: float = 0.0
+
+    def camera(self) -> SyntheticCamera:
+        return SyntheticCamera(self.optics, self.sensor, pattern_seed=self.pattern_seed)
+
+    @classmethod
+    def from_file(cls, path: str | Path) -> Scene:
+        from stcvision.fileio import read_json
+
+        return cls.from_dict(read_json(path, what="scene"), base_dir=Path(path).parent)
+
+    @classmethod
+    def from_dict(cls, d: dict, *, base_dir: Path | None = None) -> Scene:
+        if not isinstance(d, dict):
+            raise BadInputError("scene must be a JSON object")
+        unknown = set(d) - _KEYS
+        if unknown:
+            raise BadInputError(f"scene has unknown key(s) {sorted(unknown)}; expected some of {sorted(_KEYS)}")
+        D = _num(d, "subcell_m", "scene", DEFAULT_SUBCELL_M)
+        board = _board(d.get("board"), D, base_dir)
+        pose = _pose(d.get("robot"), board)
+        t_s = _num(d, "time_s", "scene", 0.0)
+        law = AfterglowLaw(**_overrides(d.get("afterglow", {}), "afterglow"))
+        layer = PhosphorLayer(law)
+        for k, m in enumerate(d.get("marks", [])):
+            where = f"scene marks[{k}]"
+            if not isinstance(m, dict):
+                raise BadInputError(f"{where} must be an object")
+            ij = _pair(m.get("subcell"), f"{where}.subcell", int)
+            edge = m.get("edge")
+            if edge not in EDGES:
+                raise BadInputError(f"{where}.edge is {edge!r}; expected one of N, E, S, W")
+            age, charge = _num(m, "age_s", where), _num(m, "charge_s", where, 3.0)
+            xy = mark_dots_m(board.subcell_center_m(*ij), EDGES[edge], board.subcell_m)
+            layer.charge(xy, t_start_s=t_s - age - charge, duration_s=charge)
+        for k, dot in enumerate(d.get("dots", [])):
+            where = f"scene dots[{k}]"
+            xy = [_num(dot, "x_m", where), _num(dot, "y_m", where)]
+            age, charge = _num(dot, "age_s", where), _num(dot, "charge_s", where, 3.0)
+            layer.charge([xy], t_start_s=t_s - age - charge, duration_s=charge)
+        rl = d.get("red_lights", "board")
+        if rl == "board":
+            lights = board.red_lights_m()
+        elif rl is False or rl is None:
+            lights = np.zeros((0, 2))
+        elif isinstance(rl, list):
+            lights = np.array([_pair(p, f"scene red_lights[{k}]") for k, p in enumerate(rl)]).reshape(-1, 2)
+        else:
+            raise BadInputError(f"scene red_lights is {rl!r}; expected 'board', false or a list of [x_m, y_m]")
+        optics = MirrorCameraParams.from_dict(_overrides(d.get("camera", {}), "camera"))
+        sensor = SensorParams.from_dict(_overrides(d.get("sensor", {}), "sensor"))
+        seed = d.get("pattern_seed", 0)
+        if not isinstance(seed, int) or isinstance(seed, bool) or seed < 0:
+            raise BadInputError(f"scene pattern_seed must be a non-negative integer, got {seed!r}")
+        return cls(board, pose, layer, lights, optics, sensor, seed, t_s)
+
+
+def _overrides(v, name: str) -> dict:
+    if not isinstance(v, dict):
+        raise BadInputError(f"scene {name} must be an object of parameter overrides, got {v!r}")
+    return copy.deepcopy(v)
+
+
+def _board(b, D: float, base_dir: Path | None) -> Board:
+    if not isinstance(b, dict) or len(b) != 1:
+        raise BadInputError("scene board must be an object with exactly one of: text, file, random")
+    (kind, v), = b.items()
+    if kind == "text":
+        text = "\n".join(v) if isinstance(v, list) else v
+        if not isinstance(text, str):
+            raise BadInputError("scene board.text must be a list of strings")
+        return Board.from_text(text, subcell_m=D, source="scene board.text")
+    if kind == "file":
+        path = Path(v)
+        if base_dir is not None and not path.is_absolute():
+            path = base_dir / path
+        return Board.from_file(path, subcell_m=D)
+    if kind == "random":
+        if not isinstance(v, dict):
+            raise BadInputError("scene board.random must be an object {cells, obstacle_fraction, seed}")
+        cells = _pair(v.get("cells"), "scene board.random.cells", int)
+        frac = _num(v, "obstacle_fraction", "scene board.random", 0.1)
+        seed = int(_num(v, "seed", "scene board.random", 0))
+        return Board.random(cells, obstacle_fraction=frac, rng=np.random.default_rng(seed), subcell_m=D)
+    raise BadInputError(f"scene board kind {kind!r} unknown; expected text, file or random")
+
+
+def _pose(r, board: Board) -> Pose:
+    if r is None:
+        i, j = board.start_subcell
+        c = board.subcell_center_m(i, j)
+        return Pose(float(c[0]), float(c[1]), np.pi / 2)
+    if not isinstance(r, dict):
+        raise BadInputError("scene robot must be an object")
+    heading = np.radians(_num(r, "heading_deg", "scene robot", 90.0) + _num(r, "heading_error_deg", "scene robot", 0.0))
+    if "subcell" in r:
+        ij = _pair(r["subcell"], "scene robot.subcell", int)
+        c = board.subcell_center_m(*ij) + np.asarray(_pair(r.get("offset_m", [0, 0]), "scene robot.offset_m"))
+        return Pose(float(c[0]), float(c[1]), float(heading))
+    return Pose(_num(r, "x_m", "scene robot"), _num(r, "y_m", "scene robot"), float(heading))

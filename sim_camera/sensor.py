@@ -1,0 +1,216 @@
+"""Image sensor model: photons -> electrons -> noisy 8-bit BGR.
+
+What is modelled (per pixel, per colour channel; a full-resolution RGB sensor, i.e. no Bayer
+mosaic and no demosaicing):
+
+* signal electrons ``S`` (from the optics: luminance x etendue x QE x exposure), photo-response
+  non-uniformity (PRNU);
+* dark current ``D = dark_current_e_s * exposure_s * dsnu`` with a fixed per-camera pattern
+  (log-normal dark-signal non-uniformity and hot pixels) that a dark frame captures;
+* column offsets (fixed per camera, electrons) and a black-level pedestal;
+* shot noise of ``S + D`` and read noise, drawn together as one Gaussian of variance
+  ``S + D + read_noise_e**2``. (Exact Poisson statistics matter only for a few electrons, where
+  the read noise of several electrons already hides the difference.)
+* full-well saturation with blooming (a fraction of the excess charge spills into the
+  neighbourhood) and veiling glare around very bright sources;
+* conversion gain ``gain * 255 / full_well_e`` DN per electron, rounding and clipping to 8 bits.
+
+Defaults describe the seed's cheap wireless webcam in the dark (seed 003: "The camera we used,
+was not intended to work with low-light conditions"): a VGA CMOS sensor with 6 um pixels (the
+OmniVision OV7725 class), a 4.7 mm f/2.0 lens, 1/30 s exposure (30 frames/s) and the analogue
+gain its auto-exposure reaches in the dark (16x). Noise figures are typical of small-pixel
+consumer CMOS sensors (read noise ~6 e-, dark current ~40 e-/s at room temperature), not taken
+from one datasheet.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, field, replace
+
+import cv2
+import numpy as np
+from scipy.special import ndtri
+
+from stcvision.errors import BadInputError
+
+__all__ = ["FixedPattern", "SensorParams", "expose", "gaussian_noise"]
+
+#: photons per second in one lumen at 555 nm (1 lm = 1/683 W; E_photon = 3.58e-19 J)
+PHOTONS_PER_LUMEN_S = 4.09e15
+
+
+@dataclass(frozen=True, kw_only=True, slots=True)
+class SensorParams:
+    """Sensor and exposure settings. Exposure and gain are the camera's *settings* (a robot may
+    change them); the rest is the sensor's physics (fixed for a given camera)."""
+
+    exposure_s: float = 1.0 / 30.0
+    gain: float = 16.0
+    full_well_e: float = 20000.0
+    read_noise_e: float = 6.0
+    dark_current_e_s: float = 40.0
+    dsnu_sigma: float = 0.3
+    hot_pixel_fraction: float = 0.002
+    hot_pixel_factor: float = 100.0
+    column_offset_e_sigma: float = 4.0
+    black_level_dn: float = 8.0
+    prnu_sigma: float = 0.01
+    pixel_pitch_m: float = 6.0e-6
+    f_number: float = 2.0
+    quantum_efficiency: float = 0.5
+    mirror_reflectance: float = 0.9
+    phosphor_bgr: tuple[float, float, float] = (0.20, 1.0, 0.08)
+    red_led_bgr: tuple[float, float, float] = (0.02, 0.06, 1.0)
+    floor_bgr: tuple[float, float, float] = (0.85, 1.0, 0.95)
+    bloom_fraction: float = 0.3
+    glare_fraction: float = 2.0e-3
+
+    def __post_init__(self) -> None:
+        for name in ("exposure_s", "gain", "full_well_e", "pixel_pitch_m", "f_number", "quantum_efficiency"):
+            if not getattr(self, name) > 0:
+                raise BadInputError(f"sensor parameter {name} must be > 0, got {getattr(self, name)}")
+        for name in ("read_noise_e", "dark_current_e_s", "dsnu_sigma", "hot_pixel_fraction",
+                     "column_offset_e_sigma", "black_level_dn", "prnu_sigma", "bloom_fraction",
+                     "glare_fraction"):
+            if not getattr(self, name) >= 0:
+                raise BadInputError(f"sensor parameter {name} must be >= 0, got {getattr(self, name)}")
+        if self.exposure_s > 60:
+            raise BadInputError(f"exposure_s {self.exposure_s} is longer than a minute; expected <= 60 s")
+
+    @property
+    def dn_per_e(self) -> float:
+        """Conversion gain: digital numbers per electron."""
+        return self.gain * 255.0 / self.full_well_e
+
+    @property
+    def e_per_cd_m2_s(self) -> float:
+        """Electrons per second collected by one pixel looking (via the mirror) at an extended
+        source of 1 cd/m^2, on the optical axis, for a channel response of 1: sensor-plane
+        illuminance ``pi L T / (4 N^2)`` times pixel area, photons per lumen and QE."""
+        lux = np.pi * self.mirror_reflectance / (4.0 * self.f_number**2)
+        return lux * self.pixel_pitch_m**2 * PHOTONS_PER_LUMEN_S * self.quantum_efficiency
+
+    def to_dict(self) -> dict:
+        return {k: list(v) if isinstance(v, tuple) else v for k, v in asdict(self).items()}
+
+    @classmethod
+    def from_dict(cls, d: dict) -> SensorParams:
+        names = set(cls.__dataclass_fields__)
+        unknown = set(d) - names
+        if unknown:
+            raise BadInputError(f"unknown sensor parameter(s) {sorted(unknown)}; expected some of {sorted(names)}")
+        kw = {}
+        for k, v in d.items():
+            default = getattr(cls(), k)
+            try:
+                kw[k] = tuple(float(x) for x in v) if isinstance(default, tuple) else float(v)
+            except (TypeError, ValueError):
+                raise BadInputError(f"sensor parameter {k} must be a number, got {v!r}") from None
+            if isinstance(default, tuple) and len(kw[k]) != 3:
+                raise BadInputError(f"sensor parameter {k} must be 3 numbers (B, G, R), got {v!r}")
+        return cls(**kw)
+
+    def replace(self, **kw) -> SensorParams:
+        return replace(self, **kw)
+
+
+@dataclass(frozen=True, eq=False)
+class FixedPattern:
+    """Per-camera fixed pattern noise (drawn once from the camera's own seed).
+
+    ``dark_gain`` (H, W, 3): multiplier of the mean dark current per pixel (log-normal DSNU,
+    hot pixels); ``column_offset_e`` (W,): per-column offset in electrons; ``prnu`` (H, W, 3):
+    photo-response non-uniformity.
+    """
+
+    dark_gain: np.ndarray
+    column_offset_e: np.ndarray
+    prnu: np.ndarray
+    hot: np.ndarray
+    cache: dict = field(default_factory=dict, repr=False)
+
+    @classmethod
+    def draw(cls, shape_hw: tuple[int, int], s: SensorParams, rng: np.random.Generator) -> FixedPattern:
+        h, w = shape_hw
+        dark = rng.lognormal(-0.5 * s.dsnu_sigma**2, s.dsnu_sigma, (h, w, 3)).astype(np.float32)
+        hot = rng.random((h, w)) < s.hot_pixel_fraction
+        dark[hot] *= np.float32(s.hot_pixel_factor)
+        cols = (rng.standard_normal(w) * s.column_offset_e_sigma).astype(np.float32)
+        prnu = (1.0 + rng.standard_normal((h, w, 3)) * s.prnu_sigma).astype(np.float32)
+        return cls(dark, cols, prnu, hot)
+
+
+_LUT = ndtri((np.arange(65536) + 0.5) / 65536).astype(np.float32)
+
+
+def gaussian_noise(rng: np.random.Generator, shape) -> np.ndarray:
+    """Standard normal float32 noise via a 16-bit inverse-CDF table (tails cut at 4.3 sigma).
+
+    About 2.5x faster than ``rng.standard_normal`` for a 640x480x3 frame and exactly Gaussian
+    to 1/65536 in probability; every sample is an independent draw from ``rng``.
+    """
+    idx = rng.integers(0, 65536, size=shape, dtype=np.uint16)
+    return np.take(_LUT, idx)
+
+
+def _dark_terms(s: SensorParams, pattern: FixedPattern):
+    """Per-pixel dark mean (+ column offset) and base variance for these settings, cached on
+    the pattern (they depend only on exposure, dark current and read noise)."""
+    key = (s.exposure_s, s.dark_current_e_s, s.read_noise_e)
+    hit = pattern.cache.get(key)
+    if hit is None:
+        dark = pattern.dark_gain * np.float32(s.dark_current_e_s * s.exposure_s)
+        var0 = dark + np.float32(s.read_noise_e**2)
+        mean0 = dark + pattern.column_offset_e[None, :, None]
+        hit = (dark, var0, mean0, float(dark.max()))
+        if len(pattern.cache) > 16:
+            pattern.cache.clear()
+        pattern.cache[key] = hit
+    return hit
+
+
+def expose(
+    signal_e: np.ndarray,
+    s: SensorParams,
+    pattern: FixedPattern,
+    rng: np.random.Generator,
+) -> np.ndarray:
+    """Turn expected signal electrons into one noisy 8-bit BGR frame.
+
+    Parameters
+    ----------
+    signal_e : (H, W, 3) float32
+        Expected photo-electrons per pixel and channel during this exposure (modified in place:
+        pass a scratch array).
+
+    Returns
+    -------
+    (H, W, 3) uint8 BGR frame.
+    """
+    e = signal_e
+    if s.prnu_sigma > 0:
+        e *= pattern.prnu
+    dark, var0, mean0, dark_max = _dark_terms(s, pattern)
+    fw = np.float32(s.full_well_e)
+    peak = float(e.max())
+    if peak + dark_max > fw:
+        # blooming (excess charge spills into the neighbourhood) and veiling glare (a wide,
+        # faint halo of very bright sources, computed at quarter resolution)
+        excess = np.maximum(e + dark - fw, 0)
+        spill = cv2.GaussianBlur(excess, (0, 0), 1.5) * np.float32(s.bloom_fraction)
+        if s.glare_fraction > 0:
+            h, w = e.shape[:2]
+            small = cv2.resize(e, (w // 4, h // 4), interpolation=cv2.INTER_AREA)
+            small = cv2.GaussianBlur(small, (0, 0), 2.0)
+            spill += cv2.resize(small, (w, h), interpolation=cv2.INTER_LINEAR) * np.float32(s.glare_fraction)
+        e += spill
+        np.minimum(e, fw - dark, out=e)
+    sigma = e + var0
+    np.sqrt(sigma, out=sigma)
+    sigma *= gaussian_noise(rng, e.shape)
+    e += sigma
+    e += mean0
+    e *= np.float32(s.dn_per_e)
+    e += np.float32(s.black_level_dn + 0.5)
+    np.clip(e, 0, min(255.0, s.full_well_e * s.dn_per_e + s.black_level_dn + 0.5), out=e)
+    return e.astype(np.uint8)
