@@ -62,6 +62,12 @@ def draw_world(world, *, px_per_m: float = 200.0, margin_px: int = 20, trails: b
     img = np.full((f.h, f.w, 3), 255, np.uint8)
     arena = world.arena
     s = f.s
+    # outer walls are built outward from the boundary: draw a line twice the wall thickness
+    # centred on the boundary, then clear the inside, so only the outer half shows
+    verts = f.px(arena.outer_vertices())
+    cv2.polylines(img, [verts], True, (0, 0, 0), max(1, int(round(2 * arena.wall_thickness_m * s))),
+                  cv2.LINE_AA)
+    cv2.fillPoly(img, [verts], (255, 255, 255), cv2.LINE_AA)
 
     # floor layers, sampled at pixel centres
     if world.pheromone is not None or world.chemical is not None:
@@ -106,10 +112,7 @@ def draw_world(world, *, px_per_m: float = 200.0, margin_px: int = 20, trails: b
             else:
                 cv2.fillPoly(img, [f.px(o.vertices_m)], (120, 120, 120), cv2.LINE_AA)
 
-    wall_px = max(1, int(round(arena.wall_thickness_m * s)))
-    # outer walls are built outward from the boundary: draw the boundary line offset outward
-    verts = arena.outer_vertices()
-    cv2.polylines(img, [f.px(verts)], True, (0, 0, 0), wall_px, cv2.LINE_AA)
+    cv2.polylines(img, [verts], True, (0, 0, 0), 1, cv2.LINE_AA)
     for b in arena.barriers:
         p = f.px([b.start_m, b.end_m])
         cv2.line(img, tuple(map(int, p[0])), tuple(map(int, p[1])), (0, 0, 0),
