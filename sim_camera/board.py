@@ -39,6 +39,14 @@ DEFAULT_SUBCELL_M = 0.16
 _TEXT_CHARS = {".": False, "#": True, "S": False}
 
 
+def _check_even(shape: tuple[int, int], source: str) -> None:
+    rows, cols = shape
+    if rows % 2 or cols % 2:
+        raise MapError(
+            f"{source} is {rows}x{cols} sub-cells; expected even rows and columns (a cell is 2x2 sub-cells)"
+        )
+
+
 @dataclass(frozen=True, eq=False)
 class Board:
     """An STC board of sub-cells.
@@ -62,11 +70,8 @@ class Board:
         blocked = np.asarray(self.blocked)
         if blocked.ndim != 2 or blocked.size == 0:
             raise MapError(f"board must be a non-empty 2-D grid of sub-cells, got shape {blocked.shape}")
+        _check_even(blocked.shape, "board")
         rows, cols = blocked.shape
-        if rows % 2 or cols % 2:
-            raise MapError(
-                f"board is {rows}x{cols} sub-cells; expected even rows and columns (a cell is 2x2 sub-cells)"
-            )
         if not self.subcell_m > 0:
             raise MapError(f"subcell_m must be > 0 metres, got {self.subcell_m}")
         blocked = blocked.astype(bool, copy=True)
@@ -107,6 +112,7 @@ class Board:
                 grid[i, j] = _TEXT_CHARS[ch]
                 if ch == "S":
                     start.append((i, j))
+        _check_even(grid.shape, source)
         if len(start) != 1:
             what = "no start" if not start else f"{len(start)} starts"
             raise MapError(f"{source} has {what}; expected exactly one 'S' sub-cell")
@@ -179,11 +185,8 @@ class Board:
 
     @staticmethod
     def _default_start(blocked: np.ndarray) -> tuple[int, int]:
+        _check_even(blocked.shape, "board")
         rows, cols = blocked.shape
-        if rows % 2 or cols % 2:
-            raise MapError(
-                f"board is {rows}x{cols} sub-cells; expected even rows and columns (a cell is 2x2 sub-cells)"
-            )
         free = ~blocked.reshape(rows // 2, 2, cols // 2, 2).any(axis=(1, 3))
         idx = np.argwhere(free)
         if len(idx) == 0:

@@ -297,12 +297,13 @@ class SyntheticCamera:
 
 
 def detection_snr(total_e: np.ndarray, cov_px: np.ndarray, s: SensorParams, *, window: int = 3) -> np.ndarray:
-    """Expected SNR of a dot in the best ``window`` x ``window`` square (the seed's square
-    search window) after an ideal dark-frame subtraction.
+    """Expected SNR of a dot in a ``window`` x ``window`` square (the seed's square search
+    window) after an ideal dark-frame subtraction.
 
-    Signal ``S`` = the dot's electrons inside the window (Gaussian approximation, window
-    centred on the dot); noise variance = ``S`` (shot) + per pixel ``dark + read^2 + q^2``
-    where ``q^2 = 1 / (12 dn_per_e^2)`` is the quantisation noise. Detectable iff
+    ``SNR = S / sigma_bg`` (Rose's definition: the signal against the noise of the background it
+    must be told from), with ``S`` the dot's electrons inside the window (Gaussian
+    approximation, window centred on the dot) and ``sigma_bg^2 = window^2 (dark + read^2 +
+    q^2)``, ``q^2 = 1 / (12 dn_per_e^2)`` the quantisation noise. Detectable iff
     ``SNR >= ROSE_SNR``.
     """
     from scipy.special import erf
@@ -314,7 +315,7 @@ def detection_snr(total_e: np.ndarray, cov_px: np.ndarray, s: SensorParams, *, w
     frac = erf(half / (np.sqrt(2) * sx)) * erf(half / (np.sqrt(2) * sy))
     S = total_e * frac
     per_px = s.dark_current_e_s * s.exposure_s + s.read_noise_e**2 + 1.0 / (12 * s.dn_per_e**2)
-    return S / np.sqrt(S + window * window * per_px)
+    return S / np.sqrt(window * window * per_px)
 
 
 def visibility_horizon_s(

@@ -18,15 +18,15 @@ Parameters (world constants; see :class:`AfterglowLaw`):
   decays on a scale of seconds to tens of seconds.
 * ``fill_s = 2 s``: charging saturates within a few seconds under a close UV LED; the seed charges
   "for a few seconds ... to allow the surface to absorb the light" (seed 003, Marking Sub-cells).
-* ``l_sat_cd_m2 = 0.5``: the saturated initial luminance of a dot. This is the one constant fitted
+* ``l_sat_cd_m2 = 0.45``: the saturated initial luminance of a dot. This is the one constant fitted
   to an observation: with the seed's webcam (``sim_camera.sensor.SensorParams`` defaults,
   exposure 1/30 s, gain 16) a dot charged for 3 s at the reference distance (0.25 m from the
   robot, a mark in its own cell) stays detectable (Rose criterion, SNR >= 5 in the seed's 3x3
   search window) for about a minute and not at two (seed 003, Limitations: "it could be seen
-  by the camera we used only in the first minute or so"). The same law then gives ~4 mcd/m^2
+  by the camera we used only in the first minute or so"). The same law then gives ~3.8 mcd/m^2
   at 10 minutes, above the 0.3 mcd/m^2 perception limit DIN 67510 uses for the dark-adapted
   eye, consistent with the seed's "could be still seen by humans until after 10 minutes".
-  A fresh dot (0.39 cd/m^2) is of the order of commercial pigments a minute after a short
+  A fresh dot (0.35 cd/m^2) is of the order of commercial pigments a minute after a short
   charge.
 
 A dot is a small disc (``dot_diameter_m``, the spot of one UV LED) laid by a row of four rear
@@ -51,7 +51,7 @@ class AfterglowLaw:
     See the module docstring for where each default comes from.
     """
 
-    l_sat_cd_m2: float = 0.5
+    l_sat_cd_m2: float = 0.45
     fill_s: float = 2.0
     tau_s: float = 10.0
     n: float = 1.1
