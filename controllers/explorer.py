@@ -1,4 +1,4 @@
-"""The Buffon's-needle explorer's exploration behaviour (seed ``000_65e7c97ffd15e972.txt``, sec. 3.2).
+"""The Buffon explorer's exploration behaviour (seed ``000_65e7c97ffd15e972.txt``, sec. 3.2).
 
 A Braitenberg-style behaviour with noise and short-term memory, from six front IR readings
 I_0..I_5 in [0, 1] (0 = left side ... 5 = right side, Khepera order):
@@ -56,23 +56,29 @@ class ExplorerState:
     rbar: float = 0.0  # last output activation (for logging)
 
 
-def explorer_step(state: ExplorerState, ir, rng: np.random.Generator,
-                  params: ExplorerParams = ExplorerParams()
-                  ) -> tuple[ExplorerState, tuple[float, float]]:
+def explorer_step(
+    state: ExplorerState, ir, rng: np.random.Generator, params: ExplorerParams = ExplorerParams()
+) -> tuple[ExplorerState, tuple[float, float]]:
     """One update. ``ir`` : (6,) readings in [0, 1]. Returns the new state and the wheel
     speeds (left, right) in m/s."""
     i0, i1, i2, i3, i4, i5 = (float(v) for v in ir)
     r, wl, wr = state.r, state.w_l, state.w_r
-    dr = (-0.9 * r + 0.3 * (1 - r) * (wl + 1.5 * i4 + 1.2 * i3)
-          - 0.3 * (1 + r) * (wr + 1.5 * i1 + 1.2 * i2))
+    dr = (
+        -0.9 * r
+        + 0.3 * (1 - r) * (wl + 1.5 * i4 + 1.2 * i3)
+        - 0.3 * (1 + r) * (wr + 1.5 * i1 + 1.2 * i2)
+    )
     g = params.gamma
     dwl = -0.1 * wl + g * (1 - wl) * i1 - 0.7 * wl * (i2 + i3)
     dwr = -0.1 * wr + g * (1 - wr) * i4 - 0.7 * wr * (i2 + i3)
     r, wl, wr = r + dr, wl + dwl, wr + dwr
     n = rng.uniform(-params.noise, params.noise)
     nbar = rng.uniform(params.escape_min, params.escape_max)
-    if (i1 + i2 + i3 + i4 > params.front_sum_threshold or i0 > params.side_threshold
-            or i5 > params.side_threshold):
+    if (
+        i1 + i2 + i3 + i4 > params.front_sum_threshold
+        or i0 > params.side_threshold
+        or i5 > params.side_threshold
+    ):
         rbar = (1.0 if wr - wl >= 0 else -1.0) * nbar
     else:
         rbar = min(1.0, max(-1.0, r + n))

@@ -100,7 +100,7 @@ def _point_in_polygon_xy(x: float, y: float, poly: tuple[tuple[float, float], ..
 
 
 def segment_distances(points: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Distances from each point to each segment: ``points`` (N, 2), ``a``/``b`` (E, 2) -> (N, E)."""
+    """Point-to-segment distances: ``points`` (N, 2), ``a``, ``b`` (E, 2) -> (N, E)."""
     ab = b - a
     len2 = np.maximum(np.einsum("ij,ij->i", ab, ab), 1e-300)
     ap = points[:, None, :] - a[None, :, :]
@@ -197,8 +197,11 @@ class Barrier:
         return math.dist(self.start_m, self.end_m)
 
     def to_dict(self) -> dict:
-        return {"start_m": list(self.start_m), "end_m": list(self.end_m),
-                "thickness_m": self.thickness_m}
+        return {
+            "start_m": list(self.start_m),
+            "end_m": list(self.end_m),
+            "thickness_m": self.thickness_m,
+        }
 
 
 @dataclass(frozen=True, kw_only=True, slots=True)
@@ -269,8 +272,9 @@ def _obstacle_from_dict(d: Any, where: str) -> Obstacle:
         raise BadInputError(f"{where}: must be a JSON object; got {d!r}")
     kind = d.get("kind")
     if kind == "circle":
-        return CircleObstacle(center_m=_vec2(d, "center_m", where),
-                              radius_m=_pos(d, "radius_m", where))
+        return CircleObstacle(
+            center_m=_vec2(d, "center_m", where), radius_m=_pos(d, "radius_m", where)
+        )
     if kind == "polygon":
         return PolygonObstacle(vertices_m=_vertices(d, "vertices_m", where))
     raise BadInputError(f"{where}: key 'kind' must be 'circle' or 'polygon'; got {kind!r}")
@@ -331,8 +335,12 @@ class Arena:
     def bounds_m(self) -> tuple[float, float, float, float]:
         """(xmin, ymin, xmax, ymax) of the outer boundary."""
         v = self.outer_vertices()
-        return (float(v[:, 0].min()), float(v[:, 1].min()),
-                float(v[:, 0].max()), float(v[:, 1].max()))
+        return (
+            float(v[:, 0].min()),
+            float(v[:, 1].min()),
+            float(v[:, 0].max()),
+            float(v[:, 1].max()),
+        )
 
     @property
     def area_m2(self) -> float:
@@ -401,8 +409,9 @@ class Arena:
             segs.append(np.stack([ov, np.roll(ov, -1, axis=0)], axis=1))
         return np.concatenate(segs, axis=0)
 
-    def sample_free_points(self, n: int, rng: np.random.Generator,
-                           margin_m: float = 0.0) -> np.ndarray:
+    def sample_free_points(
+        self, n: int, rng: np.random.Generator, margin_m: float = 0.0
+    ) -> np.ndarray:
         """``n`` points uniform over the free region (shrunk by ``margin_m``), by rejection."""
         xmin, ymin, xmax, ymax = self.bounds_m
         out: list[np.ndarray] = []
@@ -455,21 +464,30 @@ class Arena:
             "wall_thickness_m": _pos(d, "wall_thickness_m", where, DEFAULT_WALL_THICKNESS_M)
         }
         if kind == "circle":
-            shape: Arena = CircleArena(center_m=_vec2(d, "center_m", where),
-                                       radius_m=_pos(d, "radius_m", where), **common)
+            shape: Arena = CircleArena(
+                center_m=_vec2(d, "center_m", where), radius_m=_pos(d, "radius_m", where), **common
+            )
         elif kind == "square":
-            shape = SquareArena(center_m=_vec2(d, "center_m", where),
-                                side_m=_pos(d, "side_m", where), **common)
+            shape = SquareArena(
+                center_m=_vec2(d, "center_m", where), side_m=_pos(d, "side_m", where), **common
+            )
         elif kind == "ellipse":
             ax = d.get("semi_axes_m")
-            if not (isinstance(ax, list) and len(ax) == 2
-                    and all(isinstance(a, int | float) and not isinstance(a, bool) and a > 0
-                            for a in ax)):
+            if not (
+                isinstance(ax, list)
+                and len(ax) == 2
+                and all(
+                    isinstance(a, int | float) and not isinstance(a, bool) and a > 0 for a in ax
+                )
+            ):
                 raise BadInputError(
                     f"{where}: key 'semi_axes_m' must be [a, b], two positive numbers; got {ax!r}"
                 )
-            shape = EllipseArena(center_m=_vec2(d, "center_m", where),
-                                 semi_axes_m=(float(ax[0]), float(ax[1])), **common)
+            shape = EllipseArena(
+                center_m=_vec2(d, "center_m", where),
+                semi_axes_m=(float(ax[0]), float(ax[1])),
+                **common,
+            )
         elif kind == "polygon":
             shape = PolygonArena(vertices_m=_vertices(d, "vertices_m", where), **common)
         else:
@@ -481,8 +499,9 @@ class Arena:
         obstacles_raw = d.get("obstacles", [])
         if not isinstance(obstacles_raw, list):
             raise BadInputError(f"arena: key 'obstacles' must be a list; got {obstacles_raw!r}")
-        obstacles = tuple(_obstacle_from_dict(o, f"arena: obstacles[{i}]")
-                          for i, o in enumerate(obstacles_raw))
+        obstacles = tuple(
+            _obstacle_from_dict(o, f"arena: obstacles[{i}]") for i, o in enumerate(obstacles_raw)
+        )
         return shape.with_parts(barriers=barriers, obstacles=obstacles)
 
     @staticmethod
@@ -491,16 +510,21 @@ class Arena:
 
         return Arena.from_dict(read_json(path, what="arena file"))
 
-    def with_parts(self, *, barriers: tuple[Barrier, ...] = (),
-                   obstacles: tuple[Obstacle, ...] = ()) -> Arena:
+    def with_parts(
+        self, *, barriers: tuple[Barrier, ...] = (), obstacles: tuple[Obstacle, ...] = ()
+    ) -> Arena:
         """A copy with extra barriers and obstacles appended."""
         import dataclasses
 
-        return dataclasses.replace(self, barriers=self.barriers + tuple(barriers),
-                                   obstacles=self.obstacles + tuple(obstacles))
+        return dataclasses.replace(
+            self,
+            barriers=self.barriers + tuple(barriers),
+            obstacles=self.obstacles + tuple(obstacles),
+        )
 
-    def centred_barriers(self, kind: str, length_fraction: float,
-                         thickness_m: float = DEFAULT_BARRIER_THICKNESS_M) -> tuple[Barrier, ...]:
+    def centred_barriers(
+        self, kind: str, length_fraction: float, thickness_m: float = DEFAULT_BARRIER_THICKNESS_M
+    ) -> tuple[Barrier, ...]:
         """The Buffon paper's ``|`` or ``+`` barrier(s), centred, length a fraction of the
         arena's extent along the barrier (seed 000 sec. 5.3)."""
         cx, cy = self.center_m
@@ -527,8 +551,7 @@ def _barriers_from_list(raw: Any, shape: Arena) -> tuple[Barrier, ...]:
         thick = _pos(b, "thickness_m", where, DEFAULT_BARRIER_THICKNESS_M)
         if "type" in b:
             frac = b.get("length_fraction")
-            if (isinstance(frac, bool) or not isinstance(frac, int | float)
-                    or not 0 < frac <= 1):
+            if isinstance(frac, bool) or not isinstance(frac, int | float) or not 0 < frac <= 1:
                 raise BadInputError(
                     f"{where}: key 'length_fraction' must be a number in (0, 1]; got {frac!r}"
                 )
@@ -574,8 +597,10 @@ class CircleArena(Arena):
     def outer_vertices(self):
         n = _n_segments_for(self.radius_m, self.curve_tolerance_m)
         t = np.linspace(0, 2 * np.pi, n, endpoint=False)
-        return np.c_[self.center_m[0] + self.radius_m * np.cos(t),
-                     self.center_m[1] + self.radius_m * np.sin(t)]
+        return np.c_[
+            self.center_m[0] + self.radius_m * np.cos(t),
+            self.center_m[1] + self.radius_m * np.sin(t),
+        ]
 
     @property
     def bounds_m(self):
@@ -777,12 +802,15 @@ class BoardArena(Arena):
         return not self.blocked[i, j]
 
     def _shape_dict(self):
-        return {"subcell_m": self.subcell_m,
-                "blocked": ["".join("#" if c else "." for c in row) for row in self.blocked]}
+        return {
+            "subcell_m": self.subcell_m,
+            "blocked": ["".join("#" if c else "." for c in row) for row in self.blocked],
+        }
 
 
-def arena_from_board(board: Any, *, wall_thickness_m: float = DEFAULT_WALL_THICKNESS_M
-                     ) -> BoardArena:
+def arena_from_board(
+    board: Any, *, wall_thickness_m: float = DEFAULT_WALL_THICKNESS_M
+) -> BoardArena:
     """Arena of a :class:`sim_camera.board.Board` (anything with ``blocked``, ``subcell_m``)."""
     blocked = np.asarray(board.blocked, dtype=bool).copy()
     blocked.setflags(write=False)
@@ -799,8 +827,9 @@ def arena_from_board(board: Any, *, wall_thickness_m: float = DEFAULT_WALL_THICK
                     k += 1
                 x0, x1 = j * d, (k + 1) * d
                 y1, y0 = h - i * d, h - (i + 1) * d
-                obstacles.append(PolygonObstacle(
-                    vertices_m=((x0, y0), (x1, y0), (x1, y1), (x0, y1))))
+                obstacles.append(
+                    PolygonObstacle(vertices_m=((x0, y0), (x1, y0), (x1, y1), (x0, y1)))
+                )
                 j = k + 1
             else:
                 j += 1
@@ -810,6 +839,11 @@ def arena_from_board(board: Any, *, wall_thickness_m: float = DEFAULT_WALL_THICK
     start_xy = None
     if start is not None:
         start_xy = ((start[1] + 0.5) * d, h - (start[0] + 0.5) * d)
-    return BoardArena(blocked=blocked, subcell_m=d, obstacles=tuple(obstacles),
-                      red_lights=red_lights, wall_thickness_m=wall_thickness_m,
-                      start_xy_m=start_xy)
+    return BoardArena(
+        blocked=blocked,
+        subcell_m=d,
+        obstacles=tuple(obstacles),
+        red_lights=red_lights,
+        wall_thickness_m=wall_thickness_m,
+        start_xy_m=start_xy,
+    )

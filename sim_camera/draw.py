@@ -50,8 +50,14 @@ def _bounds(world):
     return (xmin - pad, ymin - pad, xmax + pad, ymax + pad)
 
 
-def draw_world(world, *, px_per_m: float = 200.0, margin_px: int = 20, trails: bool = True,
-               odometry: bool = True) -> np.ndarray:
+def draw_world(
+    world,
+    *,
+    px_per_m: float = 200.0,
+    margin_px: int = 20,
+    trails: bool = True,
+    odometry: bool = True,
+) -> np.ndarray:
     """Draw ``world`` top-down. Returns (H, W, 3) uint8 BGR."""
     f = _Frame(_bounds(world), px_per_m, margin_px)
     if f.w > MAX_SIDE_PX or f.h > MAX_SIDE_PX:
@@ -65,13 +71,19 @@ def draw_world(world, *, px_per_m: float = 200.0, margin_px: int = 20, trails: b
     # outer walls are built outward from the boundary: draw a line twice the wall thickness
     # centred on the boundary, then clear the inside, so only the outer half shows
     verts = f.px(arena.outer_vertices())
-    cv2.polylines(img, [verts], True, (0, 0, 0), max(1, int(round(2 * arena.wall_thickness_m * s))),
-                  cv2.LINE_AA)
+    cv2.polylines(
+        img,
+        [verts],
+        True,
+        (0, 0, 0),
+        max(1, int(round(2 * arena.wall_thickness_m * s))),
+        cv2.LINE_AA,
+    )
     cv2.fillPoly(img, [verts], (255, 255, 255), cv2.LINE_AA)
 
     # floor layers, sampled at pixel centres
     if world.pheromone is not None or world.chemical is not None:
-        vv, uu = np.mgrid[0:f.h, 0:f.w]
+        vv, uu = np.mgrid[0 : f.h, 0 : f.w]
         x, y = f.world(uu.ravel(), vv.ravel())
         pts = np.c_[x, y]
         if world.chemical is not None and world.chemical.patches:
@@ -91,32 +103,59 @@ def draw_world(world, *, px_per_m: float = 200.0, margin_px: int = 20, trails: b
             cv2.rectangle(img, tuple(map(int, p[0])), tuple(map(int, p[1])), (90, 90, 90), -1)
         for j in range(cols + 1):
             p = f.px([[j * d, 0], [j * d, top]])
-            cv2.line(img, tuple(map(int, p[0])), tuple(map(int, p[1])),
-                     (150, 150, 150) if j % 2 == 0 else (215, 215, 215), 1)
+            cv2.line(
+                img,
+                tuple(map(int, p[0])),
+                tuple(map(int, p[1])),
+                (150, 150, 150) if j % 2 == 0 else (215, 215, 215),
+                1,
+            )
         for i in range(rows + 1):
             p = f.px([[0, i * d], [cols * d, i * d]])
-            cv2.line(img, tuple(map(int, p[0])), tuple(map(int, p[1])),
-                     (150, 150, 150) if i % 2 == 0 else (215, 215, 215), 1)
+            cv2.line(
+                img,
+                tuple(map(int, p[0])),
+                tuple(map(int, p[1])),
+                (150, 150, 150) if i % 2 == 0 else (215, 215, 215),
+                1,
+            )
         if len(arena.red_lights):
-            inside = ((arena.red_lights[:, 0] > 0) & (arena.red_lights[:, 0] < arena.size_m[0])
-                      & (arena.red_lights[:, 1] > 0) & (arena.red_lights[:, 1] < top))
+            inside = (
+                (arena.red_lights[:, 0] > 0)
+                & (arena.red_lights[:, 0] < arena.size_m[0])
+                & (arena.red_lights[:, 1] > 0)
+                & (arena.red_lights[:, 1] < top)
+            )
             for u, v in f.px(arena.red_lights[inside]):
-                cv2.circle(img, (int(u), int(v)), max(2, int(0.02 * s)), (0, 0, 255), -1,
-                           cv2.LINE_AA)
+                cv2.circle(
+                    img, (int(u), int(v)), max(2, int(0.02 * s)), (0, 0, 255), -1, cv2.LINE_AA
+                )
     else:
         for o in arena.obstacles:
             if isinstance(o, CircleObstacle):
                 c = f.px([o.center_m])[0]
-                cv2.circle(img, (int(c[0]), int(c[1])), max(1, int(round(o.radius_m * s))),
-                           (120, 120, 120), -1, cv2.LINE_AA)
+                cv2.circle(
+                    img,
+                    (int(c[0]), int(c[1])),
+                    max(1, int(round(o.radius_m * s))),
+                    (120, 120, 120),
+                    -1,
+                    cv2.LINE_AA,
+                )
             else:
                 cv2.fillPoly(img, [f.px(o.vertices_m)], (120, 120, 120), cv2.LINE_AA)
 
     cv2.polylines(img, [verts], True, (0, 0, 0), 1, cv2.LINE_AA)
     for b in arena.barriers:
         p = f.px([b.start_m, b.end_m])
-        cv2.line(img, tuple(map(int, p[0])), tuple(map(int, p[1])), (0, 0, 0),
-                 max(1, int(round(b.thickness_m * s))), cv2.LINE_AA)
+        cv2.line(
+            img,
+            tuple(map(int, p[0])),
+            tuple(map(int, p[1])),
+            (0, 0, 0),
+            max(1, int(round(b.thickness_m * s))),
+            cv2.LINE_AA,
+        )
 
     for r in world.robots:
         if trails and len(r.trail) > 1:
@@ -129,10 +168,17 @@ def draw_world(world, *, px_per_m: float = 200.0, margin_px: int = 20, trails: b
         rad = max(2, int(round(r.params.radius_m * s)))
         cv2.circle(img, (int(c[0]), int(c[1])), rad, (0, 160, 0), 2, cv2.LINE_AA)
         tip = f.px([[x + r.params.radius_m * math.cos(th), y + r.params.radius_m * math.sin(th)]])
-        cv2.line(img, (int(c[0]), int(c[1])), (int(tip[0][0]), int(tip[0][1])), (0, 160, 0), 2,
-                 cv2.LINE_AA)
+        cv2.line(
+            img,
+            (int(c[0]), int(c[1])),
+            (int(tip[0][0]), int(tip[0][1])),
+            (0, 160, 0),
+            2,
+            cv2.LINE_AA,
+        )
         if odometry:
             o = f.px([[r.odometry.x, r.odometry.y]])[0]
-            cv2.drawMarker(img, (int(o[0]), int(o[1])), (200, 0, 200), cv2.MARKER_CROSS,
-                           max(6, rad), 1)
+            cv2.drawMarker(
+                img, (int(o[0]), int(o[1])), (200, 0, 200), cv2.MARKER_CROSS, max(6, rad), 1
+            )
     return img

@@ -24,8 +24,13 @@ import numpy as np
 from sim_camera.arenas import _as_points, points_in_polygon
 from stcvision.errors import BadInputError
 
-__all__ = ["ChemicalLayer", "ChemicalPatch", "PheromoneLayer", "PolygonPatch",
-           "TASTI2_SALT_PATCH_DIAMETER_M"]
+__all__ = [
+    "ChemicalLayer",
+    "ChemicalPatch",
+    "PheromoneLayer",
+    "PolygonPatch",
+    "TASTI2_SALT_PATCH_DIAMETER_M",
+]
 
 TASTI2_SALT_PATCH_DIAMETER_M = 0.350  # seed 001 sec. V
 
@@ -37,16 +42,23 @@ class PheromoneLayer:
     (xmin + (j + 0.5) c, ymin + (i + 0.5) c) with c = ``cell_m``.
     """
 
-    def __init__(self, bounds_m: tuple[float, float, float, float], *, width_m: float,
-                 cell_m: float | None = None):
+    def __init__(
+        self,
+        bounds_m: tuple[float, float, float, float],
+        *,
+        width_m: float,
+        cell_m: float | None = None,
+    ):
         if not width_m > 0:
             raise BadInputError(f"pheromone width_m must be > 0; got {width_m!r}")
         self.width_m = float(width_m)
         self.cell_m = float(cell_m) if cell_m is not None else 0.5 * self.width_m
         xmin, ymin, xmax, ymax = bounds_m
         self.origin_m = (float(xmin), float(ymin))
-        self.shape = (max(1, math.ceil((ymax - ymin) / self.cell_m)),
-                      max(1, math.ceil((xmax - xmin) / self.cell_m)))
+        self.shape = (
+            max(1, math.ceil((ymax - ymin) / self.cell_m)),
+            max(1, math.ceil((xmax - xmin) / self.cell_m)),
+        )
         if self.shape[0] * self.shape[1] > 100_000_000:
             raise BadInputError(
                 f"pheromone grid {self.shape} too large; use a coarser cell_m than {self.cell_m}"

@@ -92,8 +92,10 @@ class WheelEncoders:
 
     def update(self, wheel_angle_left_rad: float, wheel_angle_right_rad: float) -> tuple[int, int]:
         """Return the cumulative (left, right) counts for the given true wheel angles."""
-        self.counts = (math.floor(wheel_angle_left_rad * self._k),
-                       math.floor(wheel_angle_right_rad * self._k))
+        self.counts = (
+            math.floor(wheel_angle_left_rad * self._k),
+            math.floor(wheel_angle_right_rad * self._k),
+        )
         return self.counts
 
 

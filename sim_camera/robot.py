@@ -74,8 +74,17 @@ class DiffDriveParams:
     stall_time_s: float = 0.3  # drive_distance reports "blocked" after this long without progress
 
     def __post_init__(self):
-        for k in ("radius_m", "wheelbase_m", "wheel_diameter_m", "max_wheel_speed_m_s",
-                  "cruise_speed_m_s", "turn_wheel_speed_m_s", "mass_kg", "ed", "eb"):
+        for k in (
+            "radius_m",
+            "wheelbase_m",
+            "wheel_diameter_m",
+            "max_wheel_speed_m_s",
+            "cruise_speed_m_s",
+            "turn_wheel_speed_m_s",
+            "mass_kg",
+            "ed",
+            "eb",
+        ):
             v = getattr(self, k)
             if not (isinstance(v, int | float) and math.isfinite(v) and v > 0):
                 raise BadInputError(f"DiffDriveParams.{k} must be a positive number; got {v!r}")
@@ -92,25 +101,54 @@ class DiffDriveParams:
         return 4 * self.encoder_lines_per_rev
 
     def odometry_params(self) -> OdometryParams:
-        return OdometryParams(wheel_diameter_m=self.wheel_diameter_m,
-                              wheelbase_m=self.wheelbase_m, counts_per_rev=self.counts_per_rev)
+        return OdometryParams(
+            wheel_diameter_m=self.wheel_diameter_m,
+            wheelbase_m=self.wheelbase_m,
+            counts_per_rev=self.counts_per_rev,
+        )
 
 
 KHEPERA = DiffDriveParams(
-    name="khepera", radius_m=0.0275, wheelbase_m=0.053, wheel_diameter_m=0.0156,
-    max_wheel_speed_m_s=1.0, cruise_speed_m_s=0.1, turn_wheel_speed_m_s=0.05,
-    encoder_lines_per_rev=150, mass_kg=0.08, slip_k=0.0005,
+    name="khepera",
+    radius_m=0.0275,
+    wheelbase_m=0.053,
+    wheel_diameter_m=0.0156,
+    max_wheel_speed_m_s=1.0,
+    cruise_speed_m_s=0.1,
+    turn_wheel_speed_m_s=0.05,
+    encoder_lines_per_rev=150,
+    mass_kg=0.08,
+    slip_k=0.0005,
 )
 TASTI2 = DiffDriveParams(
-    name="tasti2", radius_m=0.153, wheelbase_m=0.22, wheel_diameter_m=0.065,
-    max_wheel_speed_m_s=0.15, cruise_speed_m_s=0.05, turn_wheel_speed_m_s=0.05,
-    encoder_lines_per_rev=128, mass_kg=3.0, ed=1.002, eb=1.01, slip_k=0.001,
+    name="tasti2",
+    radius_m=0.153,
+    wheelbase_m=0.22,
+    wheel_diameter_m=0.065,
+    max_wheel_speed_m_s=0.15,
+    cruise_speed_m_s=0.05,
+    turn_wheel_speed_m_s=0.05,
+    encoder_lines_per_rev=128,
+    mass_kg=3.0,
+    ed=1.002,
+    eb=1.01,
+    slip_k=0.001,
 )
 LEGO_STC = DiffDriveParams(
-    name="lego_stc", radius_m=0.07, wheelbase_m=0.12, wheel_diameter_m=0.056,
-    max_wheel_speed_m_s=0.15, cruise_speed_m_s=0.08, turn_wheel_speed_m_s=0.0628,
-    encoder_lines_per_rev=90, mass_kg=0.8, ed=1.005, eb=1.03, slip_k=0.002,
-    speed_gain_spread=0.10, battery_fade_per_h=0.2,
+    name="lego_stc",
+    radius_m=0.07,
+    wheelbase_m=0.12,
+    wheel_diameter_m=0.056,
+    max_wheel_speed_m_s=0.15,
+    cruise_speed_m_s=0.08,
+    turn_wheel_speed_m_s=0.0628,
+    encoder_lines_per_rev=90,
+    mass_kg=0.8,
+    ed=1.005,
+    eb=1.03,
+    slip_k=0.002,
+    speed_gain_spread=0.10,
+    battery_fade_per_h=0.2,
 )
 
 
@@ -142,8 +180,15 @@ class DiffDriveRobot:
     :attr:`odometry` (the robot's own dead-reckoning estimate), :attr:`trail` (true positions).
     """
 
-    def __init__(self, params: DiffDriveParams, pose: tuple[float, float, float], *,
-                 seed: np.random.SeedSequence, robot_id: int, record_trail: bool = True):
+    def __init__(
+        self,
+        params: DiffDriveParams,
+        pose: tuple[float, float, float],
+        *,
+        seed: np.random.SeedSequence,
+        robot_id: int,
+        record_trail: bool = True,
+    ):
         self.params = params
         self.id = robot_id
         ss_params, ss_slip, self.sensor_seed = seed.spawn(3)
@@ -154,8 +199,9 @@ class DiffDriveRobot:
         self.wheel_diameters_m = true_wheel_diameters_m(params.wheel_diameter_m, params.ed)
         self.wheelbase_true_m = params.wheelbase_m * params.eb
 
-        self.body = pymunk.Body(params.mass_kg,
-                                pymunk.moment_for_circle(params.mass_kg, 0, params.radius_m))
+        self.body = pymunk.Body(
+            params.mass_kg, pymunk.moment_for_circle(params.mass_kg, 0, params.radius_m)
+        )
         self.body.position = (float(pose[0]), float(pose[1]))
         self.body.angle = float(pose[2])
         self.shape = pymunk.Circle(self.body, params.radius_m)
@@ -231,9 +277,14 @@ class DiffDriveRobot:
             raise BadInputError(f"drive_distance speed must be > 0; got {speed_m_s!r}")
         self.mode = MotionMode.DRIVE
         self.last_result = None
-        self._prim = {"target": abs(float(d_m)), "sign": 1.0 if d_m >= 0 else -1.0,
-                      "speed": min(v, self.params.max_wheel_speed_m_s),
-                      "start_dist": self.odometry.distance_m, "t": 0.0, "stall": 0.0}
+        self._prim = {
+            "target": abs(float(d_m)),
+            "sign": 1.0 if d_m >= 0 else -1.0,
+            "speed": min(v, self.params.max_wheel_speed_m_s),
+            "start_dist": self.odometry.distance_m,
+            "t": 0.0,
+            "stall": 0.0,
+        }
 
     def rotate_for(self, duration_s: float, direction: int) -> None:
         """Start turning in place for ``duration_s`` (``direction`` +1 = left/counter-clockwise,
@@ -245,8 +296,12 @@ class DiffDriveRobot:
             raise BadInputError(f"rotate_for duration must be >= 0; got {duration_s!r}")
         self.mode = MotionMode.ROTATE
         self.last_result = None
-        self._prim = {"duration": float(duration_s), "dir": direction, "t": 0.0,
-                      "start_dist": self.odometry.distance_m}
+        self._prim = {
+            "duration": float(duration_s),
+            "dir": direction,
+            "t": 0.0,
+            "start_dist": self.odometry.distance_m,
+        }
 
     def leds_on(self) -> None:
         """Switch the rear UV LEDs on (:attr:`leds_lit` is what the phosphor layer reads)."""
@@ -265,8 +320,9 @@ class DiffDriveRobot:
     # -- advanced by World.step ---------------------------------------------------------------
     def _finish(self, status: str) -> None:
         p = self._prim
-        self.last_result = MotionResult(status, self.odometry.distance_m - p.get("start_dist", 0),
-                                        p.get("t", 0.0))
+        self.last_result = MotionResult(
+            status, self.odometry.distance_m - p.get("start_dist", 0), p.get("t", 0.0)
+        )
         self.stop()
 
     def _pre_step(self, t_s: float, dt_s: float) -> float:

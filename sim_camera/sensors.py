@@ -82,8 +82,9 @@ class IrSensors:
         for k, a in enumerate(self.params.angles_rad):
             c, s = math.cos(th + a), math.sin(th + a)
             start = (x + r * c, y + r * s)
-            d = self.world.ray_distance(start, (start[0] + rng_m * c, start[1] + rng_m * s),
-                                        self.robot)
+            d = self.world.ray_distance(
+                start, (start[0] + rng_m * c, start[1] + rng_m * s), self.robot
+            )
             if d is not None:
                 out[k] = d
         return out
@@ -110,10 +111,12 @@ class CapacitiveRingParams:
 
     def ray_angles_rad(self) -> np.ndarray:
         """(n_electrodes, rays) ray directions in the robot frame (0 = forward)."""
-        centres = (np.arange(self.n_electrodes) - (self.n_electrodes - 1) / 2) \
-            * self.electrode_span_rad
-        offs = (np.arange(self.rays_per_electrode) - (self.rays_per_electrode - 1) / 2) \
-            * (0.8 * self.electrode_span_rad / max(1, self.rays_per_electrode - 1))
+        centres = (
+            np.arange(self.n_electrodes) - (self.n_electrodes - 1) / 2
+        ) * self.electrode_span_rad
+        offs = (np.arange(self.rays_per_electrode) - (self.rays_per_electrode - 1) / 2) * (
+            0.8 * self.electrode_span_rad / max(1, self.rays_per_electrode - 1)
+        )
         return centres[:, None] + offs[None, :]
 
 
@@ -122,8 +125,11 @@ def _signal_from_gaps(gaps: np.ndarray, p: CapacitiveRingParams) -> float:
     return float(np.where(np.isfinite(g), np.exp(-g / p.decay_m), 0.0).sum())
 
 
-def capacitive_signal_for_can(gap_m: float, p: CapacitiveRingParams = CapacitiveRingParams(),
-                              can_radius_m: float | None = None) -> float:
+def capacitive_signal_for_can(
+    gap_m: float,
+    p: CapacitiveRingParams = CapacitiveRingParams(),
+    can_radius_m: float | None = None,
+) -> float:
     """Noise-free ring signal with a can of ``can_radius_m`` dead ahead, ``gap_m`` from the ring
     (pure geometry: each ray from the ring against the circle)."""
     rc = p.reference_can_radius_m if can_radius_m is None else can_radius_m
@@ -238,8 +244,14 @@ class LeakyIntegrator:
 class SensorSuite:
     """All sensors of one robot, each with its own noise stream (fixed spawn order)."""
 
-    def __init__(self, world, robot, *, ir: IrParams = IrParams(),
-                 capacitive: CapacitiveRingParams | None = None):
+    def __init__(
+        self,
+        world,
+        robot,
+        *,
+        ir: IrParams = IrParams(),
+        capacitive: CapacitiveRingParams | None = None,
+    ):
         ss = robot.sensor_seed.spawn(3)
         if capacitive is None:
             capacitive = CapacitiveRingParams(ring_radius_m=robot.params.radius_m)

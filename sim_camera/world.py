@@ -56,15 +56,25 @@ class World:
     pheromone, chemical : optional floor layers (see :mod:`sim_camera.layers`).
     """
 
-    def __init__(self, arena: Arena, *, dt_s: float = 0.05, min_substeps: int = 2,
-                 seed: int | np.random.SeedSequence = 0,
-                 max_substep_travel_m: float | None = None, pheromone=None, chemical=None):
+    def __init__(
+        self,
+        arena: Arena,
+        *,
+        dt_s: float = 0.05,
+        min_substeps: int = 2,
+        seed: int | np.random.SeedSequence = 0,
+        max_substep_travel_m: float | None = None,
+        pheromone=None,
+        chemical=None,
+    ):
         if not dt_s > 0:
             raise BadInputError(f"dt_s must be > 0; got {dt_s!r}")
         self.arena = arena
         self.dt_s = float(dt_s)
         self.min_substeps = max(1, int(min_substeps))
-        self._ss = seed if isinstance(seed, np.random.SeedSequence) else np.random.SeedSequence(seed)
+        self._ss = (
+            seed if isinstance(seed, np.random.SeedSequence) else np.random.SeedSequence(seed)
+        )
         self.pheromone = pheromone
         self.chemical = chemical
         self.layers: list = []
@@ -81,8 +91,11 @@ class World:
         space.iterations = 20
         self.space = space
         self._thinnest_m = self._build_walls()
-        self.max_substep_travel_m = (float(max_substep_travel_m) if max_substep_travel_m
-                                     else min(0.002, 0.25 * self._thinnest_m))
+        self.max_substep_travel_m = (
+            float(max_substep_travel_m)
+            if max_substep_travel_m
+            else min(0.002, 0.25 * self._thinnest_m)
+        )
 
     # -- construction ----------------------------------------------------------------------
     def _add_static(self, shape: pymunk.Shape) -> None:
@@ -136,8 +149,14 @@ class World:
         """A fresh child seed stream of this world (deterministic order)."""
         return self._ss.spawn(1)[0]
 
-    def add_robot(self, params: DiffDriveParams, pose: tuple[float, float, float] | None = None,
-                  *, record_trail: bool = True, sensors: bool = True) -> DiffDriveRobot:
+    def add_robot(
+        self,
+        params: DiffDriveParams,
+        pose: tuple[float, float, float] | None = None,
+        *,
+        record_trail: bool = True,
+        sensors: bool = True,
+    ) -> DiffDriveRobot:
         """Add a robot at ``pose`` (default: the arena's central-bottom start pose)."""
         if pose is None:
             pose = self.arena.start_pose(params.radius_m * 1.2)
@@ -146,8 +165,13 @@ class World:
                 f"robot pose {tuple(round(p, 4) for p in pose)} is not a free spot "
                 f"{params.radius_m} m from the walls"
             )
-        robot = DiffDriveRobot(params, pose, seed=self.spawn_seed(), robot_id=len(self.robots),
-                               record_trail=record_trail)
+        robot = DiffDriveRobot(
+            params,
+            pose,
+            seed=self.spawn_seed(),
+            robot_id=len(self.robots),
+            record_trail=record_trail,
+        )
         robot.shape.filter = pymunk.ShapeFilter(group=robot.id + 1, categories=ROBOT_CATEGORY)
         self.space.add(robot.body, robot.shape)
         self.robots.append(robot)
@@ -211,8 +235,11 @@ class World:
         t_end = self.time_s + timeout_s
         while robot.busy:
             if self.time_s >= t_end:
-                res = MotionResult("timeout", robot.odometry.distance_m
-                                   - robot._prim.get("start_dist", 0.0), robot._prim.get("t", 0))
+                res = MotionResult(
+                    "timeout",
+                    robot.odometry.distance_m - robot._prim.get("start_dist", 0.0),
+                    robot._prim.get("t", 0),
+                )
                 robot.stop()
                 robot.last_result = res
                 return res

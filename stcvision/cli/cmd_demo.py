@@ -57,8 +57,8 @@ def run(args) -> dict:
         "sim_time_s": world.time_s,
         "distance_m": robot.distance_travelled_m,
         "containment_events": world.containment_events,
-        "turn_rate_error_pct": 100 * (robot.true_turn_rate_rad_s(world.time_s)
-                                      / LEGO_STC.nominal_turn_rate_rad_s - 1),
+        "turn_rate_error_pct": 100
+        * (robot.true_turn_rate_rad_s(world.time_s) / LEGO_STC.nominal_turn_rate_rad_s - 1),
         "odometry_position_error_m": pos_err,
         "odometry_heading_error_deg": math.degrees(head_err),
     }

@@ -88,8 +88,14 @@ def test_json_round_trip_every_kind(tmp_path, arenas):
 
 
 def test_json_typed_barriers():
-    a = Arena.from_dict({"kind": "square", "center_m": [1, 1], "side_m": 2,
-                         "barriers": [{"type": "+", "length_fraction": 0.5, "thickness_m": 0.02}]})
+    a = Arena.from_dict(
+        {
+            "kind": "square",
+            "center_m": [1, 1],
+            "side_m": 2,
+            "barriers": [{"type": "+", "length_fraction": 0.5, "thickness_m": 0.02}],
+        }
+    )
     assert len(a.barriers) == 2 and all(b.thickness_m == 0.02 for b in a.barriers)
     assert a.barriers[0].start_m == (1.0, 0.5)
 
@@ -105,15 +111,38 @@ def test_json_typed_barriers():
         ({"kind": "ellipse", "center_m": [0, 0], "semi_axes_m": [1]}, "'semi_axes_m'"),
         ({"kind": "polygon", "vertices_m": [[0, 0], [1, 0]]}, "'vertices_m'"),
         ({"kind": "polygon", "vertices_m": [[0, 0], [1, 0], [2, 0]]}, "'vertices_m'"),
-        ({"kind": "circle", "center_m": [0, 0], "radius_m": 1,
-          "barriers": [{"type": "|", "length_fraction": 2}]}, "'length_fraction'"),
-        ({"kind": "circle", "center_m": [0, 0], "radius_m": 1,
-          "barriers": [{"start_m": [0, 0]}]}, "'end_m'"),
-        ({"kind": "circle", "center_m": [0, 0], "radius_m": 1,
-          "obstacles": [{"kind": "circle", "center_m": [0, 0]}]}, "'radius_m'"),
+        (
+            {
+                "kind": "circle",
+                "center_m": [0, 0],
+                "radius_m": 1,
+                "barriers": [{"type": "|", "length_fraction": 2}],
+            },
+            "'length_fraction'",
+        ),
+        (
+            {
+                "kind": "circle",
+                "center_m": [0, 0],
+                "radius_m": 1,
+                "barriers": [{"start_m": [0, 0]}],
+            },
+            "'end_m'",
+        ),
+        (
+            {
+                "kind": "circle",
+                "center_m": [0, 0],
+                "radius_m": 1,
+                "obstacles": [{"kind": "circle", "center_m": [0, 0]}],
+            },
+            "'radius_m'",
+        ),
         ({"kind": "circle", "center_m": [0, 0], "radius_m": 1, "obstacles": "none"}, "'obstacles'"),
-        ({"kind": "circle", "center_m": [0, 0], "radius_m": 1, "schema_version": 7},
-         "'schema_version'"),
+        (
+            {"kind": "circle", "center_m": [0, 0], "radius_m": 1, "schema_version": 7},
+            "'schema_version'",
+        ),
     ],
 )
 def test_bad_arena_dicts_name_the_key(d, key):

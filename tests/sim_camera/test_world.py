@@ -55,8 +55,9 @@ def test_random_drive_never_leaves_arena(name, arenas):
     elapsed = time.perf_counter() - t0
     assert world.containment_events == 0
     assert arena.contains(pos).all()
-    clearance = arena.clearance_m(pos[::7]) if name in ("ellipse", "polygon") else \
-        arena.clearance_m(pos)
+    clearance = (
+        arena.clearance_m(pos[::7]) if name in ("ellipse", "polygon") else arena.clearance_m(pos)
+    )
     assert clearance.min() > LEGO_STC.radius_m - 0.002
     assert robot.distance_travelled_m > 100  # it really drove around
     assert elapsed < 20
@@ -68,7 +69,8 @@ def test_wedged_between_obstacle_and_wall():
     20,000 steps, the robot neither squeezes through nor leaves the arena."""
     arena = SquareArena(side_m=1.0).with_parts(
         obstacles=(CircleObstacle(center_m=(0.36, 0.0), radius_m=0.1),),
-        barriers=(Barrier(start_m=(-0.5, 0.0), end_m=(0.36, 0.0), thickness_m=0.02),))
+        barriers=(Barrier(start_m=(-0.5, 0.0), end_m=(0.36, 0.0), thickness_m=0.02),),
+    )
     gap = 0.5 - 0.46
     assert gap < 2 * LEGO_STC.radius_m
     world = World(arena, seed=2)
@@ -100,7 +102,8 @@ def test_fast_robot_does_not_tunnel_through_thin_barrier():
     """Khepera at its 1 m/s limit (5 cm per step, 5x the barrier thickness) against a 1 cm
     barrier: the substeps keep every substep's travel under a quarter of the half-thickness."""
     arena = SquareArena(side_m=1.0).with_parts(
-        barriers=(Barrier(start_m=(0.0, -0.45), end_m=(0.0, 0.45), thickness_m=0.01),))
+        barriers=(Barrier(start_m=(0.0, -0.45), end_m=(0.0, 0.45), thickness_m=0.01),)
+    )
     world = World(arena, seed=0)
     robot = world.add_robot(KHEPERA, pose=(-0.3, 0.0, 0.0), sensors=False)
     robot.set_wheel_speeds(1.0, 1.0)
@@ -145,8 +148,9 @@ def test_add_robot_rejects_pose_in_wall():
 
 def test_ideal_robot_follows_kinematics():
     """No errors configured: straight line and in-place turn match the unicycle model."""
-    ideal = dataclasses.replace(LEGO_STC, ed=1.0, eb=1.0, slip_k=0.0, speed_gain_spread=0.0,
-                                battery_fade_per_h=0.0)
+    ideal = dataclasses.replace(
+        LEGO_STC, ed=1.0, eb=1.0, slip_k=0.0, speed_gain_spread=0.0, battery_fade_per_h=0.0
+    )
     world = World(SquareArena(side_m=3.0), seed=0)
     r = world.add_robot(ideal, pose=(0.0, 0.0, 0.0), sensors=False)
     r.set_wheel_speeds(0.1, 0.1)
