@@ -5,9 +5,10 @@ For Monte-Carlo sweeps (Buffon: 50,000 steps per visit, 100 trials per nest, DES
 robots with numpy: unicycle kinematics (v, omega per robot), then a wall rule for robots whose
 new centre is closer than ``radius_m`` to a solid (``arena.contains(p, margin_m=radius_m)``):
 
-* ``"slide"`` (default, like the pymunk path's frictionless contact): keep only the component of
-  the step along the nearest boundary segment (seen from the old position); if that is still
-  blocked, stay put;
+* ``"slide"`` (default, like the pymunk path's frictionless contact): project the new centre back
+  onto the edge of the free region (``radius_m`` from the nearest solid, along the gradient of
+  ``arena.clearance_m``), so a robot pushing into a wall slides along it touching it, as in
+  pymunk; where the projection fails (deep in a concave corner) it stays put;
 * ``"reflect"``: stay at the old position and mirror the heading about that segment.
 
 It is not a physics engine (no robot-robot contacts, no wedging); :mod:`tests` check that its
@@ -42,10 +43,32 @@ class PointRobotBatch:
         self.heading = np.array(headings, dtype=float).reshape(-1)
         segs = arena.boundary_segments()
         self._a, self._b = segs[:, 0], segs[:, 1]
+
         t = self._b - self._a
         self._t = t / np.maximum(np.linalg.norm(t, axis=1), 1e-300)[:, None]
         self.wall_hits = 0
         self.distance_m = np.zeros(len(self.pos))
+
+    def _project(self, p: np.ndarray, old: np.ndarray) -> np.ndarray:
+        """Move blocked centres onto the free region's edge (``radius_m`` from the nearest solid)
+        along the clearance gradient (a few Newton steps, finite differences); fall back to
+        the old position where that does not converge (e.g. into a concave corner)."""
+        r = self.radius_m + 1e-5
+        h = 1e-6
+        p = p.copy()
+        for _ in range(4):
+            c = self.arena.clearance_m(p)
+            need = c < r
+            if not need.any():
+                break
+            q = p[need]
+            gx = (self.arena.clearance_m(q + (h, 0)) - c[need]) / h
+            gy = (self.arena.clearance_m(q + (0, h)) - c[need]) / h
+            g = np.c_[gx, gy]
+            g /= np.maximum(np.linalg.norm(g, axis=1), 1e-12)[:, None]
+            p[need] = q + (r - c[need])[:, None] * g
+        ok = self.arena.contains(p, margin_m=self.radius_m)
+        return np.where(ok[:, None], p, old)
 
     def step(self, v_m_s: np.ndarray, w_rad_s: np.ndarray, dt_s: float) -> None:
         """Advance every robot by forward speed ``v_m_s`` and turn rate ``w_rad_s`` for ``dt_s``
@@ -62,10 +85,7 @@ class PointRobotBatch:
             k = segment_distances(old, self._a, self._b).argmin(axis=1)
             t = self._t[k]
             if self.wall_mode == "slide":
-                along = np.einsum("ij,ij->i", step[bad], t)[:, None] * t
-                cand = old + along
-                ok2 = self.arena.contains(cand, margin_m=self.radius_m)
-                new[bad] = np.where(ok2[:, None], cand, old)
+                new[bad] = self._project(new[bad], old)
             else:
                 new[bad] = old
                 ang_t = np.arctan2(t[:, 1], t[:, 0])
