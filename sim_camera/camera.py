@@ -16,8 +16,11 @@ Rendering
 * **Lights-on frames** (calibration) see the lit floor: uniform phosphor floor of
   ``room_floor_cd_m2`` with dark tape lines on every cell boundary, anti-aliased per pixel from
   its footprint; the robot body shows dark grey; outside the mirror is black.
-* The sensor (:mod:`sim_camera.sensor`) adds dark current, fixed pattern, noise, crosstalk,
-  saturation/blooming, and quantises.
+* Sources that overflow the full well bloom (``bloom_fraction`` of the excess charge spreads
+  over a few pixels) and carry veiling glare (``glare_fraction`` of their light over tens of
+  pixels); both are added around each such source only.
+* The sensor (:mod:`sim_camera.sensor`) adds dark current, fixed pattern, noise, colour
+  response and crosstalk, saturation, and quantises.
 """
 
 from __future__ import annotations
@@ -43,6 +46,18 @@ RED_LIGHT_CD_M2 = 3000.0
 #: Rose criterion: an object is detectable when its SNR is at least 5 (A. Rose, 1948).
 ROSE_SNR = 5.0
 _PATCH = 4  # splat patch half-size (px): 9x9
+_GLARE_HALF = 24  # glare/bloom patch half-size (px): 49x49
+
+
+def _gauss_kernel(sigma: float, half: int) -> np.ndarray:
+    x = np.arange(-half, half + 1)
+    g = np.exp(-0.5 * (x[:, None] ** 2 + x[None, :] ** 2) / sigma**2)
+    return g / g.sum()
+
+
+#: blooming spreads excess charge over a few pixels; veiling glare over tens (sigma 8 px)
+_BLOOM_KERNEL = _gauss_kernel(2.0, _GLARE_HALF)
+_GLARE_KERNEL = _gauss_kernel(8.0, _GLARE_HALF)
 
 
 @dataclass(frozen=True, slots=True)
@@ -173,12 +188,33 @@ class SyntheticCamera:
         wgt /= wgt.sum(axis=(1, 2), keepdims=True)
         wgt *= inside
         flat = (np.clip(pv, 0, h - 1) * w + np.clip(pu, 0, w - 1)).ravel()
-        energy = (wgt * total[:, None, None]).ravel()
+        core = wgt * total[:, None, None]
         view = out.reshape(-1, 3)
         for ch in range(3):
             if bgr[ch] > 0:
-                np.add.at(view[:, ch], flat, (energy * bgr[ch]).astype(np.float32))
+                np.add.at(view[:, ch], flat, (core.ravel() * bgr[ch]).astype(np.float32))
+        # Very bright sources (a red LED in the dark) overflow the full well: a fraction of the
+        # excess charge blooms into the neighbourhood, and the lens and mirror spread a faint
+        # veiling glare around them. Only sources that saturate are worth the wider patches.
+        peak = core.max(axis=(1, 2)) * max(bgr)
+        for k in np.flatnonzero(peak > s.full_well_e):
+            self._spill(view, iu[k], iv[k], core[k], total[k], bgr, s)
         return info
+
+    def _spill(self, view, u0, v0, core, total, bgr, s: SensorParams) -> None:
+        h, w = self.shape
+        r = _GLARE_HALF
+        us, vs = np.arange(u0 - r, u0 + r + 1), np.arange(v0 - r, v0 + r + 1)
+        mu, mv = (us >= 0) & (us < w), (vs >= 0) & (vs < h)
+        flat = (vs[mv][:, None] * w + us[mu][None, :]).ravel()
+        kb = _BLOOM_KERNEL[np.ix_(mv, mu)].ravel()
+        kg = _GLARE_KERNEL[np.ix_(mv, mu)].ravel()
+        for ch in range(3):
+            if bgr[ch] <= 0:
+                continue
+            excess = np.maximum(core * bgr[ch] - s.full_well_e, 0.0).sum()
+            add = kb * (s.bloom_fraction * excess) + kg * (s.glare_fraction * total * bgr[ch])
+            view[flat, ch] += add.astype(np.float32)
 
     # ------------------------------------------------------------------ public API
     def signal(self, pose: Pose, *, t_s: float = 0.0, phosphor=None, red_lights_m=None,

@@ -142,13 +142,19 @@ def _distort(xn, yn, p: MirrorCameraParams):
     return xn * s, yn * s
 
 
-def _undistort(xd, yd, p: MirrorCameraParams, iters: int = 20):
+def _undistort(xd, yd, p: MirrorCameraParams, iters: int = 50):
     """Invert the radial model by fixed-point iteration (converges for the mild k1, k2 used)."""
-    xn, yn = xd.copy(), yd.copy()
+    if p.k1 == 0.0 and p.k2 == 0.0:
+        return xd, yd
+    xn, yn = xd, yd
     for _ in range(iters):
         r2 = xn * xn + yn * yn
         s = 1.0 + p.k1 * r2 + p.k2 * r2 * r2
-        xn, yn = xd / s, yd / s
+        xn_new, yn_new = xd / s, yd / s
+        done = np.max(np.abs(xn_new - xn) + np.abs(yn_new - yn), initial=0.0) < 1e-13
+        xn, yn = xn_new, yn_new
+        if done:
+            break
     return xn, yn
 
 

@@ -11,8 +11,8 @@ mosaic and no demosaicing):
 * shot noise of ``S + D`` and read noise, drawn together as one Gaussian of variance
   ``S + D + read_noise_e**2``. (Exact Poisson statistics matter only for a few electrons, where
   the read noise of several electrons already hides the difference.)
-* full-well saturation with blooming (a fraction of the excess charge spills into the
-  neighbourhood) and veiling glare around very bright sources;
+* full-well saturation (blooming and glare of saturating sources are added by the renderer
+  around each such source, see :mod:`sim_camera.camera`);
 * conversion gain ``gain * 255 / full_well_e`` DN per electron, rounding and clipping to 8 bits.
 
 Defaults describe the seed's cheap wireless webcam in the dark (seed 003: "The camera we used,
@@ -129,6 +129,14 @@ class FixedPattern:
     hot: np.ndarray
     cache: dict = field(default_factory=dict, repr=False)
 
+    def buffer(self, name: str, shape: tuple) -> np.ndarray:
+        """A reusable float32 scratch array (no per-frame allocation)."""
+        key = ("buf", name, tuple(shape))
+        buf = self.cache.get(key)
+        if buf is None:
+            buf = self.cache[key] = np.empty(shape, np.float32)
+        return buf
+
     @classmethod
     def draw(cls, shape_hw: tuple[int, int], s: SensorParams, rng: np.random.Generator) -> FixedPattern:
         h, w = shape_hw
@@ -163,7 +171,7 @@ def _dark_terms(s: SensorParams, pattern: FixedPattern):
         var0 = dark + np.float32(s.read_noise_e**2)
         mean0 = dark + pattern.column_offset_e[None, :, None]
         hit = (dark, var0, mean0, float(dark.max()))
-        if len(pattern.cache) > 16:
+        if len(pattern.cache) > 32:
             pattern.cache.clear()
         pattern.cache[key] = hit
     return hit
@@ -181,36 +189,31 @@ def expose(
     ----------
     signal_e : (H, W, 3) float32
         Expected photo-electrons per pixel and channel during this exposure (modified in place:
-        pass a scratch array).
+        pass a scratch array). Blooming and glare of saturating sources are the renderer's job
+        (they are local to each source); here the charge is clipped at the full well.
 
     Returns
     -------
     (H, W, 3) uint8 BGR frame.
     """
     e = signal_e
+    if e.dtype != np.float32 or not e.flags.c_contiguous:
+        raise BadInputError("expose: signal_e must be a C-contiguous float32 array")
+    tmp = pattern.buffer("sigma", e.shape)
+    noise = pattern.buffer("noise", e.shape)
     if s.prnu_sigma > 0:
         e *= pattern.prnu
-    dark, var0, mean0, dark_max = _dark_terms(s, pattern)
+    _, var0, mean0, dark_max = _dark_terms(s, pattern)
     fw = np.float32(s.full_well_e)
-    peak = float(e.max())
-    if peak + dark_max > fw:
-        # blooming (excess charge spills into the neighbourhood) and veiling glare (a wide,
-        # faint halo of very bright sources, computed at quarter resolution)
-        excess = np.maximum(e + dark - fw, 0)
-        spill = cv2.GaussianBlur(excess, (0, 0), 1.5) * np.float32(s.bloom_fraction)
-        if s.glare_fraction > 0:
-            h, w = e.shape[:2]
-            small = cv2.resize(e, (w // 4, h // 4), interpolation=cv2.INTER_AREA)
-            small = cv2.GaussianBlur(small, (0, 0), 2.0)
-            spill += cv2.resize(small, (w, h), interpolation=cv2.INTER_LINEAR) * np.float32(s.glare_fraction)
-        e += spill
-        np.minimum(e, fw - dark, out=e)
-    sigma = e + var0
-    np.sqrt(sigma, out=sigma)
-    sigma *= gaussian_noise(rng, e.shape)
-    e += sigma
-    e += mean0
-    e *= np.float32(s.dn_per_e)
-    e += np.float32(s.black_level_dn + 0.5)
-    np.clip(e, 0, min(255.0, s.full_well_e * s.dn_per_e + s.black_level_dn + 0.5), out=e)
-    return e.astype(np.uint8)
+    np.add(e, var0, out=tmp)
+    np.sqrt(tmp, out=tmp)
+    idx = rng.integers(0, 65536, size=e.shape, dtype=np.uint16)
+    np.take(_LUT, idx, out=noise)
+    tmp *= noise
+    e += mean0  # dark current and column offsets
+    e += tmp  # shot + read noise
+    if float(e.max()) > fw:
+        np.minimum(e, fw, out=e)  # the pixel's full well
+    # digitise: DN = black + e * gain, rounded and saturated to 8 bits
+    np.maximum(e, np.float32(-s.black_level_dn / s.dn_per_e), out=e)
+    return cv2.convertScaleAbs(e, alpha=s.dn_per_e, beta=s.black_level_dn)

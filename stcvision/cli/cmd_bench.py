@@ -1,9 +1,98 @@
-"""Run the toolkit's main job on an embedded default (placeholder replaced below)."""
+"""Measure speed on one core: the synthetic camera's render time (640x480 with noise) and the
+vision pipeline's per-frame time (all stages, and each stage). Reports medians over repeats.
+
+This is the benchmark behind the performance goals (../shared/DESIGN.md): tests never time
+anything.
+"""
+
+from __future__ import annotations
 
 
 def add_parser(p):
-    p.add_argument("--out", default="out")
+    p.add_argument("--frames", type=int, default=200, metavar="N", help="frames to time (default 200)")
+    p.add_argument("--seed", type=int, default=0, help="seed of the benchmark scene (default 0)")
+
+
+def _median_ms(fn, n: int) -> float:
+    import time
+
+    import numpy as np
+
+    fn()  # warm up
+    times = []
+    for _ in range(n):
+        t0 = time.perf_counter_ns()
+        fn()
+        times.append(time.perf_counter_ns() - t0)
+    return float(np.median(times)) / 1e6
+
+
+def benchmark_scene(seed: int = 0):
+    """A representative closed-loop scene: a 22x22-cell board with 10 % obstacle cells, every
+    sub-cell marked at a random age up to 3 minutes, the robot inside the board."""
+    import numpy as np
+
+    from sim_camera.board import Board
+    from sim_camera.camera import Pose
+    from sim_camera.phosphor import PhosphorLayer, mark_dots_m
+    from sim_camera.scene import EDGES
+
+    rng = np.random.default_rng(seed)
+    board = Board.random((22, 22), obstacle_fraction=0.1, rng=rng)
+    layer = PhosphorLayer()
+    edges = list(EDGES.values())
+    rows, cols = board.shape_subcells
+    for i in range(rows):
+        for j in range(cols):
+            if not board.blocked[i, j]:
+                e = edges[rng.integers(4)]
+                layer.charge(mark_dots_m(board.subcell_center_m(i, j), e, board.subcell_m),
+                             t_start_s=-rng.uniform(0, 180), duration_s=3.0)
+    free = np.argwhere(board.cell_free)
+    ci, cj = free[len(free) // 2]
+    c = board.subcell_center_m(2 * ci + 1, 2 * cj + 1)
+    return board, layer, Pose(float(c[0]), float(c[1]), np.pi / 2 + 0.03)
 
 
 def run(args):
-    return {"ok": True}
+    import cv2
+    import numpy as np
+
+    from sim_camera.camera import SyntheticCamera
+    from stcvision.errors import BadInputError
+
+    if args.frames < 1:
+        raise BadInputError(f"--frames must be >= 1, got {args.frames}")
+    cv2.setNumThreads(1)
+    board, layer, pose = benchmark_scene(args.seed)
+    cam = SyntheticCamera()
+    rng = np.random.default_rng(args.seed)
+    lights = board.red_lights_m()
+    render_ms = _median_ms(
+        lambda: cam.render(pose, rng=rng, phosphor=layer, red_lights_m=lights), args.frames
+    )
+    result = {
+        "frame_size_px": [cam.optics.width_px, cam.optics.height_px],
+        "dots_on_floor": len(layer),
+        "render_ms_per_frame": render_ms,
+        "render_frames_per_s": 1000.0 / render_ms,
+        "threads": 1,
+    }
+    try:
+        from stcvision.pipeline import bench_pipeline
+    except ImportError:
+        return result
+    result.update(bench_pipeline(cam, board, layer, pose, frames=args.frames, rng=rng))
+    return result
+
+
+def format_text(r):
+    lines = [
+        f"render: {r['render_ms_per_frame']:.2f} ms/frame ({r['render_frames_per_s']:.0f} frames/s), "
+        f"{r['frame_size_px'][0]}x{r['frame_size_px'][1]} with noise, {r['dots_on_floor']} dots on the floor, 1 thread"
+    ]
+    if "pipeline_ms_per_frame" in r:
+        lines.append(f"pipeline: {r['pipeline_ms_per_frame']:.3f} ms/frame (median, all stages, 1 thread)")
+        for k, v in r["stage_ms"].items():
+            lines.append(f"  {k:<16s} {v:.3f} ms")
+    return "\n".join(lines)
