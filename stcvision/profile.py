@@ -1,0 +1,301 @@
+"""Calibration profiles: the pipeline's model of one robot's camera and mirror.
+
+A profile is versioned JSON with unit-suffixed keys and provenance. Its mirror model is the
+pipeline's own -- a *central radial* model fitted by calibration, deliberately not the
+renderer's ray-traced spherical mirror -- and it says:
+
+* where the mirror's axis is in the image (``center_px``), the rim (``rim_radius_px``), and the
+  rim's ellipticity under a tilted mirror (``ellipse_ratio``, ``ellipse_angle_rad``);
+* azimuth ``phi``: robot-forward appears at image angle ``forward_angle_rad``
+  (``atan2(v - cv, u - cu)``); ``mirrored`` says the image is a mirror view (robot-left appears
+  clockwise of forward, as when looking up into a mirror);
+* elevation ``theta``: the depression angle below the horizon, seen from an effective viewpoint
+  ``viewpoint_height_m`` above the floor, as a polynomial of the normalised image radius
+  ``r / rim_radius_px`` (``theta_poly``, ascending powers). A floor point at distance ``rho``
+  from the robot has ``theta = atan2(viewpoint_height_m, rho)`` (seed 003, "Image
+  Transformation": the pixel moves along the axis through the lens centre; phi and theta give
+  how far);
+* the mirror axis may lean against the floor's normal (a decentred or tilted mirror):
+  ``axis_tilt_rad`` = (tilt about the robot's x axis, tilt about its y axis); the rays are
+  built in the axis frame and rotated into the floor frame before meeting the floor;
+* the ground view: top-down, centred on the robot, forward up, ``ground_px_per_m``,
+  ``ground_size_px`` square;
+* the board's sub-cell side ``subcell_m`` and the neighbours calibration: the 12 corners of the
+  five cells (``neighbour_corners_px``, ground-view pixels, order :data:`CORNER_ORDER`).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass, field, replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from stcvision.errors import ProfileError
+
+__all__ = ["CORNER_ORDER", "SCHEMA_VERSION", "Profile", "nominal_corners_px"]
+
+SCHEMA_VERSION = 1
+MODEL = "radial_central"
+
+#: The 12 corners of the plus-shaped union of the current cell and its four neighbours, in the
+#: entry frame, in units of the sub-cell side D relative to the current cell's centre
+#: ((right, up); the robot stands in sub-cell 0 at (0.5, -0.5)). Counter-clockwise from the
+#: current cell's lower-right corner. Corners 0, 3, 6 and 9 are the current cell's.
+CORNER_ORDER = (
+    (1, -1), (3, -1), (3, 1), (1, 1), (1, 3), (-1, 3),
+    (-1, 1), (-3, 1), (-3, -1), (-1, -1), (-1, -3), (1, -3),
+)
+#: The robot's turning centre in the same units (centre of sub-cell 0).
+ROBOT_IN_CELL = (0.5, -0.5)
+
+
+def nominal_corners_px(subcell_m: float, px_per_m: float, size_px: int) -> np.ndarray:
+    """Where the 12 corners fall in an ideal ground view (robot exactly at the centre of
+    sub-cell 0, heading exactly up)."""
+    c = (size_px - 1) / 2.0
+    pts = []
+    for r, u in CORNER_ORDER:
+        right_m = (r - ROBOT_IN_CELL[0]) * subcell_m
+        fwd_m = (u - ROBOT_IN_CELL[1]) * subcell_m
+        pts.append((c + right_m * px_per_m, c - fwd_m * px_per_m))
+    return np.array(pts)
+
+
+def _num(d: dict, key: str, *, positive: bool = False, where: str = "profile") -> float:
+    if key not in d:
+        raise ProfileError(f"{where} is missing field {key!r}")
+    v = d[key]
+    if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
+        raise ProfileError(f"{where} field {key!r} must be a finite number, got {v!r}")
+    if positive and v <= 0:
+        raise ProfileError(f"{where} field {key!r} must be > 0, got {v!r}")
+    return float(v)
+
+
+def _vec(d: dict, key: str, n: int | None, *, where: str = "profile") -> list[float]:
+    if key not in d:
+        raise ProfileError(f"{where} is missing field {key!r}")
+    v = d[key]
+    if not isinstance(v, list) or (n is not None and len(v) != n):
+        raise ProfileError(f"{where} field {key!r} must be a list of {n or 'some'} numbers, got {v!r}")
+    for x in v:
+        if isinstance(x, bool) or not isinstance(x, int | float) or not math.isfinite(x):
+            raise ProfileError(f"{where} field {key!r} must hold finite numbers, got {x!r}")
+    return [float(x) for x in v]
+
+
+@dataclass(frozen=True, kw_only=True)
+class Profile:
+    """A calibration profile (see the module docstring for every field's meaning)."""
+
+    image_size_px: tuple[int, int]
+    center_px: tuple[float, float]
+    rim_radius_px: float
+    forward_angle_rad: float = -math.pi / 2
+    mirrored: bool = True
+    ellipse_ratio: float = 1.0
+    ellipse_angle_rad: float = 0.0
+    axis_tilt_rad: tuple[float, float] = (0.0, 0.0)
+    viewpoint_height_m: float
+    theta_poly: tuple[float, ...]
+    ground_px_per_m: float = 312.5
+    ground_size_px: int = 360
+    subcell_m: float = 0.16
+    neighbour_corners_px: tuple[tuple[float, float], ...] | None = None
+    provenance: dict = field(default_factory=dict)
+
+    # ------------------------------------------------------------------ model
+    def theta_of_r(self, r_px) -> np.ndarray:
+        """Depression angle (rad) of the floor point seen at image radius ``r_px``."""
+        x = np.asarray(r_px, float) / self.rim_radius_px
+        return np.polynomial.polynomial.polyval(x, self.theta_poly)
+
+    def _tilt(self) -> np.ndarray:
+        """Rotation from the mirror-axis frame to the floor frame."""
+        ax, ay = self.axis_tilt_rad
+        cx, sx, cy, sy = math.cos(ax), math.sin(ax), math.cos(ay), math.sin(ay)
+        rx = np.array([[1, 0, 0], [0, cx, -sx], [0, sx, cx]])
+        ry = np.array([[cy, 0, sy], [0, 1, 0], [-sy, 0, cy]])
+        return ry @ rx
+
+    def robot_to_image(self, xy_m) -> np.ndarray:
+        """(N, 2) robot-frame floor points (x forward, y left) -> (N, 2) image (u, v);
+        NaN where the model does not reach."""
+        xy = np.asarray(xy_m, float).reshape(-1, 2)
+        theta, psi = self._floor_to_angles(xy)
+        r_tab, th_tab = self._theta_table()
+        # theta decreases with r: interpolate on the reversed table
+        r = np.interp(theta, th_tab[::-1], r_tab[::-1], left=np.nan, right=np.nan)
+        sign = 1.0 if self.mirrored else -1.0
+        a = self.forward_angle_rad + sign * psi
+        d = np.column_stack([r * np.cos(a), r * np.sin(a)])
+        return self._ellipse(d) + self.center_px
+
+    def _floor_to_angles(self, xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Depression angle and azimuth (axis frame) of floor points seen from the viewpoint."""
+        d = np.column_stack([xy, np.full(len(xy), -self.viewpoint_height_m)])
+        if self.axis_tilt_rad != (0.0, 0.0):
+            d = d @ self._tilt()  # floor -> axis frame (R^T d, row vectors)
+        n = np.linalg.norm(d, axis=1)
+        return np.arcsin(np.clip(-d[:, 2] / n, -1, 1)), np.arctan2(d[:, 1], d[:, 0])
+
+    def _theta_table(self, n: int = 4096) -> tuple[np.ndarray, np.ndarray]:
+        """(r_px, theta) from the centre to the rim, cut where theta stops decreasing."""
+        key = "_theta_tab"
+        cached = self.__dict__.get(key)
+        if cached is not None:
+            return cached
+        r = np.linspace(0.0, self.rim_radius_px, n)
+        th = self.theta_of_r(r)
+        dec = np.concatenate([[True], np.diff(th) < 0])
+        stop = n if dec.all() else int(np.argmin(dec))
+        out = (r[:stop], th[:stop])
+        object.__setattr__(self, key, out)
+        return out
+
+    def image_to_robot(self, uv_px) -> np.ndarray:
+        """(N, 2) image points -> (N, 2) robot-frame floor points (inverse of
+        :meth:`robot_to_image`); NaN for rays at or above the horizon."""
+        uv = np.asarray(uv_px, float).reshape(-1, 2)
+        d2 = self._ellipse(uv - self.center_px, inverse=True)
+        r = np.hypot(d2[:, 0], d2[:, 1])
+        a = np.arctan2(d2[:, 1], d2[:, 0])
+        sign = 1.0 if self.mirrored else -1.0
+        psi = sign * (a - self.forward_angle_rad)
+        th = self.theta_of_r(r)
+        d = np.column_stack([np.cos(th) * np.cos(psi), np.cos(th) * np.sin(psi), -np.sin(th)])
+        if self.axis_tilt_rad != (0.0, 0.0):
+            d = d @ self._tilt().T
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t = np.where(d[:, 2] < -1e-9, self.viewpoint_height_m / -d[:, 2], np.nan)
+        return d[:, :2] * t[:, None]
+
+    def _ellipse(self, d: np.ndarray, inverse: bool = False) -> np.ndarray:
+        if self.ellipse_ratio == 1.0:
+            return d
+        c, s = math.cos(self.ellipse_angle_rad), math.sin(self.ellipse_angle_rad)
+        rot = np.array([[c, -s], [s, c]])
+        k = self.ellipse_ratio if not inverse else 1.0 / self.ellipse_ratio
+        m = rot @ np.diag([1.0, k]) @ rot.T
+        return d @ m.T
+
+    # ------------------------------------------------------------------ ground view
+    def ground_to_robot(self, gxy_px) -> np.ndarray:
+        """Ground-view pixels (x right, y down) -> robot frame metres (x forward, y left)."""
+        g = np.asarray(gxy_px, float).reshape(-1, 2)
+        c = (self.ground_size_px - 1) / 2.0
+        return np.column_stack([(c - g[:, 1]) / self.ground_px_per_m, (c - g[:, 0]) / self.ground_px_per_m])
+
+    def robot_to_ground(self, xy_m) -> np.ndarray:
+        xy = np.asarray(xy_m, float).reshape(-1, 2)
+        c = (self.ground_size_px - 1) / 2.0
+        return np.column_stack([c - xy[:, 1] * self.ground_px_per_m, c - xy[:, 0] * self.ground_px_per_m])
+
+    def corners_px(self) -> np.ndarray:
+        """The 12 neighbour corners (ground px): calibrated if present, else nominal."""
+        if self.neighbour_corners_px is not None:
+            return np.asarray(self.neighbour_corners_px, float)
+        return nominal_corners_px(self.subcell_m, self.ground_px_per_m, self.ground_size_px)
+
+    # ------------------------------------------------------------------ I/O
+    def to_dict(self) -> dict:
+        d = asdict(self)
+        d = {k: (list(v) if isinstance(v, tuple) else v) for k, v in d.items()}
+        if self.neighbour_corners_px is not None:
+            d["neighbour_corners_px"] = [list(p) for p in self.neighbour_corners_px]
+        return {"schema_version": SCHEMA_VERSION, "model": MODEL, **d}
+
+    @classmethod
+    def from_dict(cls, d: Any, *, where: str = "profile") -> Profile:
+        """Validate every field; a bad one raises :class:`ProfileError` naming it."""
+        if not isinstance(d, dict):
+            raise ProfileError(f"{where} must be a JSON object")
+        d = _migrate(dict(d), where)
+        if d.get("model") != MODEL:
+            raise ProfileError(f"{where} field 'model' is {d.get('model')!r}; expected {MODEL!r}")
+        size = _vec(d, "image_size_px", 2, where=where)
+        if size[0] < 1 or size[1] < 1 or size[0] != int(size[0]) or size[1] != int(size[1]):
+            raise ProfileError(f"{where} field 'image_size_px' must be two positive integers, got {size}")
+        theta = _vec(d, "theta_poly", None, where=where)
+        if not 2 <= len(theta) <= 12:
+            raise ProfileError(f"{where} field 'theta_poly' must have 2..12 coefficients, got {len(theta)}")
+        mirrored = d.get("mirrored", True)
+        if not isinstance(mirrored, bool):
+            raise ProfileError(f"{where} field 'mirrored' must be true or false, got {mirrored!r}")
+        corners = d.get("neighbour_corners_px")
+        if corners is not None:
+            if not isinstance(corners, list) or len(corners) != 12:
+                raise ProfileError(f"{where} field 'neighbour_corners_px' must be a list of 12 [x, y] points")
+            corners = tuple(tuple(_vec({"p": p}, "p", 2, where=f"{where} neighbour_corners_px")) for p in corners)
+        prov = d.get("provenance", {})
+        if not isinstance(prov, dict):
+            raise ProfileError(f"{where} field 'provenance' must be an object")
+        known = {"schema_version", "model", *cls.__dataclass_fields__}
+        unknown = set(d) - known
+        if unknown:
+            raise ProfileError(f"{where} has unknown field(s) {sorted(unknown)}")
+        gsize = _num(d, "ground_size_px", positive=True, where=where) if "ground_size_px" in d else 360
+        if gsize != int(gsize) or not 16 <= gsize <= 4096:
+            raise ProfileError(f"{where} field 'ground_size_px' must be an integer in 16..4096, got {gsize}")
+        ratio = _num(d, "ellipse_ratio", positive=True, where=where) if "ellipse_ratio" in d else 1.0
+        if not 0.8 <= ratio <= 1.25:
+            raise ProfileError(f"{where} field 'ellipse_ratio' must be in 0.8..1.25, got {ratio}")
+        return cls(
+            image_size_px=(int(size[0]), int(size[1])),
+            center_px=tuple(_vec(d, "center_px", 2, where=where)),
+            rim_radius_px=_num(d, "rim_radius_px", positive=True, where=where),
+            forward_angle_rad=_num(d, "forward_angle_rad", where=where) if "forward_angle_rad" in d else -math.pi / 2,
+            mirrored=mirrored,
+            ellipse_ratio=ratio,
+            ellipse_angle_rad=_num(d, "ellipse_angle_rad", where=where) if "ellipse_angle_rad" in d else 0.0,
+            axis_tilt_rad=tuple(_vec(d, "axis_tilt_rad", 2, where=where)) if "axis_tilt_rad" in d else (0.0, 0.0),
+            viewpoint_height_m=_num(d, "viewpoint_height_m", positive=True, where=where),
+            theta_poly=tuple(theta),
+            ground_px_per_m=_num(d, "ground_px_per_m", positive=True, where=where) if "ground_px_per_m" in d else 312.5,
+            ground_size_px=int(gsize),
+            subcell_m=_num(d, "subcell_m", positive=True, where=where) if "subcell_m" in d else 0.16,
+            neighbour_corners_px=corners,
+            provenance=prov,
+        )
+
+    @classmethod
+    def load(cls, path: str | Path) -> Profile:
+        from stcvision.fileio import read_json
+
+        return cls.from_dict(read_json(path, what="profile"), where=f"profile {path}")
+
+    def save(self, path: str | Path, *, overwrite: bool = False) -> Path:
+        """Write atomically (temp file + rename); refuses to overwrite unless asked."""
+        from stcvision.fileio import write_json
+
+        return write_json(path, self.to_dict(), overwrite=overwrite)
+
+    def replace(self, **kw) -> Profile:
+        return replace(self, **kw)
+
+    def check_frame(self, shape) -> None:
+        """Raise if a frame's (H, W) does not match the profile's image size."""
+        h, w = shape[:2]
+        if (w, h) != tuple(self.image_size_px):
+            raise ProfileError(
+                f"frame is {w}x{h} but the profile was calibrated for "
+                f"{self.image_size_px[0]}x{self.image_size_px[1]}; use a profile for this camera"
+            )
+
+
+def _migrate(d: dict, where: str) -> dict:
+    v = d.get("schema_version")
+    if v is None:
+        raise ProfileError(f"{where} is missing field 'schema_version'")
+    if isinstance(v, bool) or not isinstance(v, int):
+        raise ProfileError(f"{where} field 'schema_version' must be an integer, got {v!r}")
+    if v > SCHEMA_VERSION:
+        raise ProfileError(
+            f"{where} has schema_version {v}, newer than this stcvision understands ({SCHEMA_VERSION}); upgrade stcvision"
+        )
+    if v < 1:
+        raise ProfileError(f"{where} has schema_version {v}; expected 1..{SCHEMA_VERSION}")
+    return d
