@@ -24,6 +24,7 @@ COMMANDS: list[tuple[str, str, str]] = [
     ("demo", "stcvision.cli.cmd_demo", "run the toolkit's main job on an embedded default"),
     ("world", "stcvision.cli.cmd_world", "build an arena or board world, drive a robot, draw it"),
     ("render", "stcvision.cli.cmd_render", "render a synthetic catadioptric frame with ground truth"),
+    ("pipeline", "stcvision.cli.cmd_pipeline", "run the vision pipeline on frames from disk"),
     ("bench", "stcvision.cli.cmd_bench", "measure render and pipeline speed on one core"),
 ]
 

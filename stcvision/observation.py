@@ -1,0 +1,216 @@
+"""The per-cell observation the ant-like STC controller consumes.
+
+Geometry (``../shared/DESIGN.md``): in the entry frame the robot stands in sub-cell 0 (lower
+right) of its cell; sub-cells are numbered counter-clockwise 0..3; five boxes can be lit:
+
+==== ========== =====================
+box  sub-cell   edge
+==== ========== =====================
+1    1          right (exterior)
+2    2          top (exterior)
+3    2          right (shared with 1)
+4    3          top (shared with 2)
+5    1          bottom (shared with 0)
+==== ========== =====================
+
+Sub-cell 1 is visited iff box 1 or 5 is lit, 2 iff box 2 or 3, 3 iff box 4.
+
+Where the cells are in the ground view comes from the profile's neighbours calibration (the 12
+corners of the five cells), through a homography to *cell units* (the entry frame in units of
+the sub-cell side, origin at the current cell's centre). A mark lies a few centimetres inside
+one edge of its sub-cell, so each dot is assigned to the sub-cell it falls in and that
+sub-cell's nearest edge. The measured heading error (from the heading fit) rotates the dots
+back into the entry frame about the robot before they are assigned.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+from stcvision.profile import CORNER_ORDER, ROBOT_IN_CELL
+
+__all__ = ["BOXES", "NEIGHBOURS", "CellGeometry", "CellObservation", "NeighbourReading", "observe_cell"]
+
+#: box -> (sub-cell, edge direction (right, up))
+BOXES = {1: (1, (1, 0)), 2: (2, (0, 1)), 3: (2, (1, 0)), 4: (3, (0, 1)), 5: (1, (0, -1))}
+#: sub-cell -> sign of its centre (right, up) in cell units
+SUBCELLS = {0: (1, -1), 1: (1, 1), 2: (-1, 1), 3: (-1, -1)}
+#: neighbour -> direction (right, up); counter-clockwise order starting at "right"
+NEIGHBOURS = {"right": (1, 0), "forward": (0, 1), "left": (-1, 0), "back": (0, -1)}
+
+
+@dataclass(frozen=True, eq=False)
+class CellGeometry:
+    """Homography from ground-view pixels to cell units, built once from a profile."""
+
+    H: np.ndarray  # (3, 3) ground px -> cell units
+    H_inv: np.ndarray
+
+    @classmethod
+    def from_profile(cls, profile) -> CellGeometry:
+        src = profile.corners_px().astype(np.float64)
+        dst = np.array(CORNER_ORDER, np.float64)
+        H, _ = cv2.findHomography(src, dst, 0)
+        return cls(H, np.linalg.inv(H))
+
+    def to_cell(self, xy_px: np.ndarray) -> np.ndarray:
+        p = np.asarray(xy_px, float).reshape(-1, 2)
+        q = np.column_stack([p, np.ones(len(p))]) @ self.H.T
+        return q[:, :2] / q[:, 2:3]
+
+    def to_ground(self, ru: np.ndarray) -> np.ndarray:
+        p = np.asarray(ru, float).reshape(-1, 2)
+        q = np.column_stack([p, np.ones(len(p))]) @ self.H_inv.T
+        return q[:, :2] / q[:, 2:3]
+
+    def outline_px(self, heading_error_rad: float = 0.0) -> dict[str, np.ndarray]:
+        """Ground-view polygons of the cell, its sub-cells, the five boxes and the four
+        neighbours (for drawing), rotated by the heading error."""
+        polys = {"cell": _sq((0, 0), 1)}
+        for k, (sr, su) in SUBCELLS.items():
+            polys[f"subcell{k}"] = _sq((0.5 * sr, 0.5 * su), 0.5)
+        for b, (k, (er, eu)) in BOXES.items():
+            sr, su = SUBCELLS[k]
+            c = np.array([0.5 * sr, 0.5 * su])
+            e = np.array([er, eu], float)
+            t = np.array([e[1], -e[0]])
+            polys[f"box{b}"] = np.array([c, c + 0.5 * (e + t), c + 0.5 * (e - t)])
+        for name, (dr, du) in NEIGHBOURS.items():
+            polys[name] = _sq((2 * dr, 2 * du), 1)
+        return {k: self.to_ground(_rotate(v, heading_error_rad)) for k, v in polys.items()}
+
+
+def _sq(c, h):
+    c = np.asarray(c, float)
+    return np.array([c + (h, -h), c + (h, h), c + (-h, h), c + (-h, -h)])
+
+
+def _rotate(ru: np.ndarray, angle_rad: float) -> np.ndarray:
+    """Rotate cell-unit points about the robot by ``angle_rad`` (counter-clockwise)."""
+    if angle_rad == 0.0:
+        return ru
+    c, s = math.cos(angle_rad), math.sin(angle_rad)
+    d = ru - ROBOT_IN_CELL
+    return np.column_stack([c * d[:, 0] - s * d[:, 1], s * d[:, 0] + c * d[:, 1]]) + ROBOT_IN_CELL
+
+
+def assign_boxes(ru: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """For points in cell units: sub-cell index (-1 outside the cell), box (0 = none) and
+    neighbour index (0..3 in :data:`NEIGHBOURS` order, -1 = none)."""
+    r, u = ru[:, 0], ru[:, 1]
+    inside = (np.abs(r) < 1) & (np.abs(u) < 1)
+    right, up = r >= 0, u >= 0
+    sub = np.where(right & ~up, 0, np.where(right & up, 1, np.where(~right & up, 2, 3)))
+    sub = np.where(inside, sub, -1)
+    lr = r - np.where(right, 0.5, -0.5)
+    lu = u - np.where(up, 0.5, -0.5)
+    horiz = np.abs(lr) > np.abs(lu)
+    er = np.where(horiz, np.sign(lr), 0).astype(int)
+    eu = np.where(horiz, 0, np.sign(lu)).astype(int)
+    box = np.zeros(len(ru), int)
+    for b, (k, (ber, beu)) in BOXES.items():
+        box[(sub == k) & (er == ber) & (eu == beu)] = b
+    nb = np.full(len(ru), -1)
+    for i, (dr, du) in enumerate(NEIGHBOURS.values()):
+        nb[(np.abs(r - 2 * dr) < 1) & (np.abs(u - 2 * du) < 1)] = i
+    return sub, box, nb
+
+
+def _confidence(value: float, threshold: float, noise: float) -> float:
+    """How sure a threshold decision is: logistic in the margin, in units of the noise
+    (0.5 at the threshold, ~0.99 five noise units away)."""
+    return float(1.0 / (1.0 + math.exp(-abs(value - threshold) / max(noise, 1e-9))))
+
+
+@dataclass(frozen=True)
+class BoxReading:
+    box: int
+    lit: bool
+    confidence: float
+    n_dots: int
+
+
+@dataclass(frozen=True)
+class NeighbourReading:
+    direction: str
+    has_marks: bool
+    has_red: bool
+    marks_confidence: float
+    red_confidence: float
+
+
+@dataclass(frozen=True)
+class CellObservation:
+    """What the camera says about the current cell and its neighbours (entry frame).
+
+    ``boxes``: the five mark boxes; ``visited``: sub-cells 1-3 from the box rule;
+    ``neighbours``: right, forward, left, back; ``heading_error_rad``: the rotation applied;
+    ``stray_dots``: lit dots in the current cell outside any box (a sign of a bad pose).
+    """
+
+    boxes: tuple[BoxReading, ...]
+    visited: dict[int, bool]
+    neighbours: dict[str, NeighbourReading]
+    heading_error_rad: float
+    stray_dots: int
+
+    def lit(self, box: int) -> bool:
+        return self.boxes[box - 1].lit
+
+    def to_dict(self) -> dict:
+        return {
+            "boxes": {b.box: {"lit": b.lit, "confidence": round(b.confidence, 4), "n_dots": b.n_dots} for b in self.boxes},
+            "visited": {str(k): v for k, v in self.visited.items()},
+            "neighbours": {
+                n.direction: {"has_marks": n.has_marks, "has_red": n.has_red,
+                              "marks_confidence": round(n.marks_confidence, 4),
+                              "red_confidence": round(n.red_confidence, 4)}
+                for n in self.neighbours.values()
+            },
+            "heading_error_deg": math.degrees(self.heading_error_rad),
+            "stray_dots": self.stray_dots,
+        }
+
+
+def observe_cell(dots, red_px: np.ndarray, red_strength: np.ndarray, geometry: CellGeometry, *,
+                 red_threshold_dn: float, heading_error_rad: float = 0.0) -> CellObservation:
+    """Classify the five boxes and the four neighbours.
+
+    Parameters
+    ----------
+    dots : stcvision.stages.Dots -- all candidates (lit and not) in the ground view.
+    red_px, red_strength : (M, 2) ground-view centroids and peak values of red blobs.
+    heading_error_rad : rotate the ground view back by this much (from the heading fit).
+    """
+    ru = _rotate(geometry.to_cell(dots.xy_px), heading_error_rad) if len(dots) else np.zeros((0, 2))
+    sub, box, nb = assign_boxes(ru) if len(ru) else (np.zeros(0, int),) * 3
+    thr = dots.threshold_snr
+    boxes = []
+    for b in BOXES:
+        sel = box == b
+        best = float(dots.snr[sel].max()) if sel.any() else 0.0
+        conf = _confidence(best, thr, 1.0)
+        lit_sel = sel & dots.lit
+        boxes.append(BoxReading(b, bool(lit_sel.any()), conf, int(lit_sel.sum())))
+    lit_b = {b.box: b.lit for b in boxes}
+    visited = {1: lit_b[1] or lit_b[5], 2: lit_b[2] or lit_b[3], 3: lit_b[4]}
+    stray = int(((sub >= 0) & (box == 0) & dots.lit).sum()) if len(ru) else 0
+    rru = _rotate(geometry.to_cell(red_px), heading_error_rad) if len(red_px) else np.zeros((0, 2))
+    _, _, rnb = assign_boxes(rru) if len(rru) else (None, None, np.zeros(0, int))
+    neighbours = {}
+    for i, name in enumerate(NEIGHBOURS):
+        sel = nb == i
+        lit_sel = sel & dots.lit
+        best = float(dots.snr[sel].max()) if sel.any() else 0.0
+        rsel = rnb == i
+        rbest = float(red_strength[rsel].max()) if rsel.any() else 0.0
+        neighbours[name] = NeighbourReading(
+            name, bool(lit_sel.any()), bool(rsel.any()),
+            _confidence(best, thr, 1.0),
+            _confidence(rbest, red_threshold_dn, red_threshold_dn / 5.0) if rsel.any() else 1.0,
+        )
+    return CellObservation(tuple(boxes), visited, neighbours, float(heading_error_rad), stray)

@@ -1,0 +1,199 @@
+"""The pipeline runner: raw frame -> dots, heading, cell observation, with per-stage timing.
+
+Stages (``stcvision.stages``), in the order they run::
+
+    dark      subtract the dark frame (saturating, with a pedestal), mask hot pixels
+    unwarp    phi/theta remap of the colour image to the ground view (one cv2.remap)
+    channels  red-light mask: obstacle and marks images
+    dots      window-mean dot search with black-out
+    red       red-light blobs
+    heading   line fit through the newest mark row
+    observe   five boxes, visited sub-cells, four neighbours
+
+The runner is built once per profile (remap table, cell homography); ``process`` allocates only
+the images it returns. Logging (``stcvision.rr``) observes the result afterwards.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from stcvision.observation import CellGeometry, CellObservation, observe_cell
+from stcvision.profile import Profile
+from stcvision.stages import (
+    ChannelParams,
+    DotParams,
+    Dots,
+    HeadingFit,
+    HeadingParams,
+    RedLights,
+    RedParams,
+    UnwarpMap,
+    check_frame,
+    estimate_background,
+    filter_channels,
+    find_dots,
+    find_red,
+    fit_heading,
+    hot_pixels,
+    noise_gain,
+    subtract_dark,
+    unwarp,
+)
+
+__all__ = ["Pipeline", "PipelineParams", "PipelineResult", "STAGES"]
+
+STAGES = ("dark", "unwarp", "channels", "dots", "red", "heading", "observe")
+
+
+@dataclass(frozen=True, kw_only=True, slots=True)
+class PipelineParams:
+    """Parameters of every stage. ``pedestal_dn``: offset kept by the dark subtraction so the
+    background noise stays measurable (see :func:`~stcvision.stages.subtract_dark`)."""
+
+    pedestal_dn: int = 10
+    channels: ChannelParams = field(default_factory=ChannelParams)
+    dots: DotParams = field(default_factory=DotParams)
+    red: RedParams = field(default_factory=RedParams)
+    heading: HeadingParams = field(default_factory=HeadingParams)
+    #: rotate the cell regions by the measured heading error before reading the boxes
+    use_heading: bool = True
+
+
+@dataclass(frozen=True, eq=False)
+class PipelineResult:
+    """Everything one frame gave, plus the intermediate images (references, not copies)."""
+
+    frame: np.ndarray
+    dark_subtracted: np.ndarray
+    ground: np.ndarray
+    obstacle: np.ndarray
+    marks: np.ndarray
+    dots: Dots
+    red: RedLights
+    heading: HeadingFit
+    observation: CellObservation
+    stage_ms: dict[str, float]
+
+    @property
+    def total_ms(self) -> float:
+        return float(sum(self.stage_ms.values()))
+
+    def to_dict(self, profile: Profile | None = None) -> dict:
+        d = self.dots
+        out = {
+            "dots": [
+                {"xy_px": [round(float(x), 3) for x in d.xy_px[i]], "xy_m": [round(float(x), 5) for x in d.xy_m[i]],
+                 "strength_dn": round(float(d.strength[i]), 3), "snr": round(float(d.snr[i]), 2)}
+                for i in np.flatnonzero(d.lit)
+            ],
+            "dot_threshold_snr": d.threshold_snr,
+            "noise_dn": d.noise_dn,
+            "background_dn": d.background_dn,
+            "heading": {
+                "ok": self.heading.ok,
+                "heading_error_deg": None if not self.heading.ok else float(np.degrees(self.heading.heading_error_rad)),
+                "residual_mm": None if not self.heading.ok else 1000 * self.heading.residual_m,
+                "reason": self.heading.reason,
+            },
+            "obstacles": [
+                {"xy_px": [round(float(x), 2) for x in self.red.xy_px[i]], "peak_dn": float(self.red.peak_dn[i])}
+                for i in range(len(self.red))
+            ],
+            "observation": self.observation.to_dict(),
+            "stage_ms": {k: round(v, 4) for k, v in self.stage_ms.items()},
+            "total_ms": round(self.total_ms, 4),
+        }
+        return out
+
+
+class Pipeline:
+    """Build once per profile, then ``process`` frames.
+
+    Parameters
+    ----------
+    profile : Profile
+    params : PipelineParams
+    dark : (H, W, 3) uint8, optional -- the dark frame for every ``process`` call.
+    """
+
+    def __init__(self, profile: Profile, params: PipelineParams | None = None, *, dark: np.ndarray | None = None) -> None:
+        self.profile = profile
+        self.params = params or PipelineParams()
+        self.umap = UnwarpMap.from_profile(profile)
+        self.geometry = CellGeometry.from_profile(profile)
+        self.inv_gain = (1.0 / noise_gain(self.umap, self.params.dots.window_px)).astype(np.float32)
+        # raw pixels inside the mirror rim, sparsely, for the per-frame background/noise estimate
+        w, h = profile.image_size_px
+        vv, uu = np.mgrid[0:h:5, 0:w:5]
+        inside = np.hypot(uu - profile.center_px[0], vv - profile.center_px[1]) < 0.95 * profile.rim_radius_px
+        self._sample_green = (vv[inside] * w + uu[inside]).ravel() * 3 + 1  # flat BGR index of G
+        self._hot = (id(dark), hot_pixels(dark)) if dark is not None else (None, None)
+        if dark is not None:
+            check_frame(dark, "dark frame")
+            profile.check_frame(dark.shape)
+        self.dark = dark
+
+    def process(self, frame: np.ndarray, *, dark: np.ndarray | None = None) -> PipelineResult:
+        """Run every stage on one (H, W, 3) uint8 BGR frame."""
+        check_frame(frame)
+        self.profile.check_frame(frame.shape)
+        p = self.params
+        dark = self.dark if dark is None else dark
+        clock = time.perf_counter_ns
+        t = [clock()]
+        if dark is not None:
+            sub = subtract_dark(frame, dark, pedestal_dn=p.pedestal_dn)
+            if self._hot[0] != id(dark):
+                self._hot = (id(dark), hot_pixels(dark))
+            sub.reshape(-1)[self._hot[1]] = p.pedestal_dn  # defect-pixel map from the dark frame
+        else:
+            sub = frame
+        t.append(clock())
+        ground = unwarp(sub, self.umap)
+        t.append(clock())
+        obstacle, marks = filter_channels(ground, p.channels)
+        # background and noise of the marks, measured on raw green pixels inside the rim
+        bg, noise = estimate_background(sub, self._sample_green)
+        t.append(clock())
+        dots = find_dots(marks, p.dots, inv_gain=self.inv_gain, background_dn=bg, noise_dn=noise,
+                         ground_to_robot=self.profile.ground_to_robot)
+        t.append(clock())
+        red = find_red(obstacle, p.red)
+        t.append(clock())
+        heading = fit_heading(dots, p.heading)
+        t.append(clock())
+        herr = heading.heading_error_rad if (heading.ok and p.use_heading) else 0.0
+        obs = observe_cell(dots, red.xy_px, red.peak_dn, self.geometry,
+                           red_threshold_dn=p.channels.red_threshold_dn, heading_error_rad=herr)
+        t.append(clock())
+        stage_ms = {name: (t[i + 1] - t[i]) / 1e6 for i, name in enumerate(STAGES)}
+        return PipelineResult(frame, sub, ground, obstacle, marks, dots, red, heading, obs, stage_ms)
+
+
+def bench_pipeline(camera, board, layer, pose, *, frames: int, rng, profile: Profile | None = None) -> dict:
+    """Median per-frame and per-stage times of the pipeline on rendered frames (one core)."""
+    if profile is None:
+        from calibration.profiles import default_profile
+
+        profile = default_profile()
+    darks = np.stack([camera.dark_frame(rng=rng) for _ in range(8)])
+    dark = np.median(darks, axis=0).astype(np.uint8)
+    lights = board.red_lights_m()
+    imgs = [camera.render(pose, rng=rng, phosphor=layer, red_lights_m=lights).image for _ in range(8)]
+    pipe = Pipeline(profile, dark=dark)
+    pipe.process(imgs[0])
+    totals, stages = [], {s: [] for s in STAGES}
+    for i in range(frames):
+        r = pipe.process(imgs[i % len(imgs)])
+        totals.append(r.total_ms)
+        for k, v in r.stage_ms.items():
+            stages[k].append(v)
+    return {
+        "pipeline_ms_per_frame": float(np.median(totals)),
+        "pipeline_ms_p90": float(np.percentile(totals, 90)),
+        "stage_ms": {k: float(np.median(v)) for k, v in stages.items()},
+    }
