@@ -3,7 +3,8 @@
 Stages (``stcvision.stages``), in the order they run::
 
     dark      subtract the dark frame (saturating, with a pedestal), mask hot pixels
-    unwarp    phi/theta remap of the colour image to the ground view (one cv2.remap)
+    window    sums over the dot-sized square, in the mirror image (filter once)
+    unwarp    phi/theta remap of the window sums to the ground view (one cv2.remap)
     channels  red-light mask: obstacle and marks images
     dots      window-mean dot search with black-out
     red       red-light blobs
@@ -19,9 +20,10 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass, field
 
+import cv2
 import numpy as np
 
-from stcvision.observation import CellGeometry, CellObservation, observe_cell
+from stcvision.observation import CellGeometry, CellObservation, ObservationParams, observe_cell
 from stcvision.profile import Profile
 from stcvision.stages import (
     ChannelParams,
@@ -42,11 +44,12 @@ from stcvision.stages import (
     noise_gain,
     subtract_dark,
     unwarp,
+    window_sums,
 )
 
 __all__ = ["Pipeline", "PipelineParams", "PipelineResult", "STAGES"]
 
-STAGES = ("dark", "unwarp", "channels", "dots", "red", "heading", "observe")
+STAGES = ("dark", "window", "unwarp", "channels", "dots", "red", "heading", "observe")
 
 
 @dataclass(frozen=True, kw_only=True, slots=True)
@@ -59,13 +62,18 @@ class PipelineParams:
     dots: DotParams = field(default_factory=DotParams)
     red: RedParams = field(default_factory=RedParams)
     heading: HeadingParams = field(default_factory=HeadingParams)
+    observation: ObservationParams = field(default_factory=ObservationParams)
     #: rotate the cell regions by the measured heading error before reading the boxes
     use_heading: bool = True
 
 
 @dataclass(frozen=True, eq=False)
 class PipelineResult:
-    """Everything one frame gave, plus the intermediate images (references, not copies)."""
+    """Everything one frame gave, plus the intermediate images (references, not copies).
+
+    ``ground``, ``obstacle`` and ``marks`` hold window sums (uint16); :meth:`ground_u8` and
+    friends give 8-bit window means for display.
+    """
 
     frame: np.ndarray
     dark_subtracted: np.ndarray
@@ -77,6 +85,20 @@ class PipelineResult:
     heading: HeadingFit
     observation: CellObservation
     stage_ms: dict[str, float]
+
+    window_area: int = 9
+
+    def _u8(self, img: np.ndarray) -> np.ndarray:
+        return cv2.convertScaleAbs(img, alpha=1.0 / self.window_area)
+
+    def ground_u8(self) -> np.ndarray:
+        return self._u8(self.ground)
+
+    def obstacle_u8(self) -> np.ndarray:
+        return self._u8(self.obstacle)
+
+    def marks_u8(self) -> np.ndarray:
+        return self._u8(self.marks)
 
     @property
     def total_ms(self) -> float:
@@ -153,25 +175,31 @@ class Pipeline:
         else:
             sub = frame
         t.append(clock())
-        ground = unwarp(sub, self.umap)
+        sums = window_sums(sub, p.dots.window_px)
         t.append(clock())
-        obstacle, marks = filter_channels(ground, p.channels)
-        # background and noise of the marks, measured on raw green pixels inside the rim
+        ground = unwarp(sums, self.umap)
+        t.append(clock())
+        area = p.dots.window_px**2
+        # background and noise, measured on raw pixels inside the rim
         bg, noise = estimate_background(sub, self._sample_green)
+        bg_r, noise_r = estimate_background(sub, self._sample_green + 1)
+        leak = area * bg_r + p.channels.leak_k_sigma * max(noise_r, 0.3) * p.dots.window_px
+        obstacle, marks = filter_channels(ground, p.channels, window_area=area, leak_threshold=leak)
         t.append(clock())
         dots = find_dots(marks, p.dots, inv_gain=self.inv_gain, background_dn=bg, noise_dn=noise,
                          ground_to_robot=self.profile.ground_to_robot)
         t.append(clock())
-        red = find_red(obstacle, p.red)
+        red = find_red(obstacle, p.red, window_area=area)
         t.append(clock())
         heading = fit_heading(dots, p.heading)
         t.append(clock())
         herr = heading.heading_error_rad if (heading.ok and p.use_heading) else 0.0
         obs = observe_cell(dots, red.xy_px, red.peak_dn, self.geometry,
-                           red_threshold_dn=p.channels.red_threshold_dn, heading_error_rad=herr)
+                           red_threshold_dn=p.channels.red_threshold_dn, heading_error_rad=herr,
+                           params=p.observation)
         t.append(clock())
         stage_ms = {name: (t[i + 1] - t[i]) / 1e6 for i, name in enumerate(STAGES)}
-        return PipelineResult(frame, sub, ground, obstacle, marks, dots, red, heading, obs, stage_ms)
+        return PipelineResult(frame, sub, ground, obstacle, marks, dots, red, heading, obs, stage_ms, area)
 
 
 def bench_pipeline(camera, board, layer, pose, *, frames: int, rng, profile: Profile | None = None) -> dict:

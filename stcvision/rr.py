@@ -112,9 +112,9 @@ class PipelineLogger:
             rec.set_time("sim_time", duration=float(sim_time_s))
         self._img("raw", result.frame)
         self._img("dark_subtracted", result.dark_subtracted)
-        self._img("ground/image", result.ground)
-        self._img("channels/red", result.obstacle, bgr=False)
-        self._img("channels/green", result.marks, bgr=False)
+        self._img("ground/image", result.ground_u8())
+        self._img("channels/red", result.obstacle_u8(), bgr=False)
+        self._img("channels/green", result.marks_u8(), bgr=False)
         d = result.dots
         if len(d):
             colors = np.where(d.lit[:, None], [[60, 255, 60]], [[140, 140, 140]])

@@ -37,6 +37,7 @@ __all__ = [
     "recalibrate_turn",
     "subtract_dark",
     "unwarp",
+    "window_sums",
 ]
 
 
@@ -161,28 +162,68 @@ class ChannelParams:
     red colors is less than a threshold").
 
     A pixel is *red light* iff its red value (after dark subtraction) is above
-    ``red_threshold_dn`` and at least ``1 / green_per_red_max`` of its green value: a red LED
+    ``red_threshold_dn`` and at least its green value (less ``dominance_tol_dn``): a red LED
     leaks only a few per cent into green (so R >> G, and where both saturate R ~ G), while a
-    green phosphor dot shows about a tenth as much red as green. Red-light pixels go to the
-    obstacle image and are blacked out of the marks image, which removes the crosstalk.
+    green phosphor dot shows about a twelfth as much red as green -- also when its green
+    saturates in a long exposure, where a ratio test would mistake it for red. Red-light pixels go to the
+    obstacle image and are blacked out of the marks image, which removes the crosstalk; the
+    black-out extends ``red_margin_px`` beyond them, over the light's faint halo (blooming and
+    lens glare carry green too), and over every red-dominated pixel whose red is
+    ``leak_k_sigma`` noise levels above the background (a light's faint halo grows with the
+    exposure). Red lights stand at cell centres, marks at least 4 cm away.
     """
 
     red_threshold_dn: int = 40
-    green_per_red_max: int = 4
+    dominance_tol_dn: int = 3
+    red_margin_px: int = 2
+    leak_k_sigma: float = 5.0
 
 
-def filter_channels(image: np.ndarray, params: ChannelParams = ChannelParams()) -> tuple[np.ndarray, np.ndarray]:
-    """Split a dark-subtracted BGR image (the ground view, in the pipeline) into (obstacle,
-    marks) single-channel uint8 images."""
-    check_frame(image, "image")
+def filter_channels(
+    image: np.ndarray,
+    params: ChannelParams = ChannelParams(),
+    *,
+    window_area: int = 1,
+    leak_threshold: float | None = None,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Split a dark-subtracted BGR image into (obstacle, marks) single-channel images.
+
+    ``image`` is uint8, or uint16 window sums (see :func:`window_sums`) with ``window_area``
+    pixels per sum; the thresholds are per pixel and scale with it. The outputs keep the input
+    dtype. ``leak_threshold`` (same units as ``image``; default: the red threshold) is the
+    lower red level above which a red-dominated pixel is still kept out of the marks image: a
+    bright light's faint halo (lens glare, blooming) carries green by crosstalk far beyond the
+    pixels bright enough to count as the light itself.
+    """
+    if image.ndim != 3 or image.shape[2] != 3 or image.dtype not in (np.uint8, np.uint16):
+        raise BadInputError(f"image must be (H, W, 3) uint8 or uint16, got {image.shape} {image.dtype}")
     g = cv2.extractChannel(image, 1)
     r = cv2.extractChannel(image, 2)
-    red = cv2.compare(r, params.red_threshold_dn, cv2.CMP_GT)
-    scaled = cv2.multiply(r, params.green_per_red_max)  # saturating
-    cv2.bitwise_and(red, cv2.compare(scaled, g, cv2.CMP_GE), dst=red)
-    marks = cv2.subtract(g, red)  # 255 where red: saturates to 0
-    obstacle = cv2.bitwise_and(r, red)
+    # red-dominated: R >= G up to a tolerance (where both saturate, the dark frame decides which
+    # reads higher); saturating add. A green dot has R ~ G / 12 even when its green saturates.
+    dominated = cv2.compare(cv2.add(r, float(params.dominance_tol_dn * window_area)), g, cv2.CMP_GE)
+    red = cv2.bitwise_and(cv2.compare(r, float(params.red_threshold_dn * window_area), cv2.CMP_GT), dominated)
+    obstacle = cv2.bitwise_and(r, r, mask=red)
+    if leak_threshold is not None:
+        red = cv2.bitwise_or(red, cv2.bitwise_and(cv2.compare(r, float(leak_threshold), cv2.CMP_GT), dominated))
+    if params.red_margin_px > 0:
+        k = 2 * params.red_margin_px + 1
+        red = cv2.dilate(red, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (k, k)))
+    marks = cv2.bitwise_and(g, g, mask=cv2.bitwise_not(red))
     return obstacle, marks
+
+
+def window_sums(image: np.ndarray, window_px: int) -> np.ndarray:
+    """Sum over the dot-sized square around every pixel (uint16, no rounding).
+
+    Seed 003, "Finding the green dots": "we look for the square of pixels (of a dot's size)
+    that has the highest average value". Filtering once, in the mirror image where the pixels
+    are, and unwarping the sums keeps every photon of a dot and the noise of exactly
+    ``window_px**2`` pixels, wherever the dot lies (the unwarp would otherwise skip pixels near
+    the robot, where the ground view is coarser than the mirror image).
+    """
+    return cv2.boxFilter(image, cv2.CV_16U, (window_px, window_px), normalize=False,
+                         borderType=cv2.BORDER_CONSTANT)
 
 
 # --------------------------------------------------------------------------- dots
@@ -191,20 +232,29 @@ class DotParams:
     """Dot search (seed 003, "Finding the green dots": the square of a dot's size with the
     highest average, a threshold, then black out and look again).
 
-    ``window_px``: side of the averaging square in ground-view pixels (3 px ~ 1 cm at the
-    default 312.5 px/m, the size of a UV dot). The decision is made on the window mean's
-    signal-to-noise ratio: a dot is lit iff ``(mean - background) / noise >= k_sigma`` (Rose
-    criterion, k = 5), with the background and the raw noise measured on the frame itself and the
-    noise of the window mean at each ground pixel from the unwarp's noise gain. A fixed
+    ``window_px``: side of the averaging square in mirror-image pixels (3 px: about a UV dot
+    near the robot, where a pixel sees ~2 mm of floor). The decision is made on the window mean's
+    signal-to-noise ratio: a dot is lit iff ``(mean - background) / noise >= k_sigma``, with the background and the raw noise measured on the frame itself and the
+    noise of the window mean at each ground pixel from the unwarp's noise gain. ``k_sigma =
+    5.5`` rather than Rose's 5: the noise is a mixture (dark-current non-uniformity, the dark
+    frame's own error), so its tail is heavier than a Gaussian's -- measured on rendered dark
+    frames, window SNRs above 5 occur 8x more often than Gaussian noise predicts, above 5.5 no
+    more often than Gaussian noise does above 5. A fixed
     ``threshold_dn`` (window mean above background) overrides that. ``blackout_px``: half-side
-    of the square blacked out around a found dot. Candidates down to ``candidate_snr`` are
-    reported with ``lit=False`` so that decisions carry a confidence.
+    of the square blacked out around a found dot (3 px ~ 1 cm: the end dots of two marks meeting
+    at a sub-cell corner are 1.5 cm apart along each axis). A weaker peak near a much brighter
+    dot is also dropped when that dot's blur (a Gaussian of ``tail_sigma_px``) explains at least
+    half of it: a fresh dot hundreds of sigma strong still shows at 5 sigma a few pixels out.
+    Candidates down to ``candidate_snr`` are reported with ``lit=False`` so that decisions carry
+    a confidence.
     """
 
     window_px: int = 3
-    k_sigma: float = 5.0
+    k_sigma: float = 5.5
     threshold_dn: float | None = None
-    blackout_px: int = 4
+    blackout_px: int = 3
+    tail_sigma_px: float = 1.6
+    centroid_px: int = 2
     max_dots: int = 200
     candidate_snr: float = 4.0
 
@@ -239,20 +289,20 @@ _K3 = np.ones((3, 3), np.uint8)
 
 
 def noise_gain(umap: UnwarpMap, window_px: int, *, n: int = 12, seed: int = 0) -> np.ndarray:
-    """Standard deviation, per ground pixel, of the window mean of unwarped unit white noise.
+    """Standard deviation, per ground pixel, of the unwarped window mean of unit white noise.
 
-    The unwarp interpolates (the near field is sampled finer than the mirror resolves, the far
-    field much finer), so the noise of a window mean varies across the ground view; this map,
-    computed once, turns the raw image's noise into each ground pixel's.
+    The unwarp interpolates between window means, which lowers their noise by an amount that
+    varies across the ground view; this map, computed once, turns the raw image's per-pixel
+    noise into each ground pixel's.
     """
     rng = np.random.default_rng(seed)
     w, h = umap.image_size_px
     acc = np.zeros(umap.map_x.shape, np.float64)
     for _ in range(n):
         z = rng.standard_normal((h, w)).astype(np.float32)
-        g = cv2.remap(z, umap.map_x, umap.map_y, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=0)
-        b = cv2.boxFilter(g, cv2.CV_32F, (window_px, window_px))
-        acc += b.astype(np.float64) ** 2
+        b = cv2.boxFilter(z, cv2.CV_32F, (window_px, window_px))  # the window mean, in the mirror image
+        g = cv2.remap(b, umap.map_x, umap.map_y, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=0)
+        acc += g.astype(np.float64) ** 2
     # the gain varies smoothly across the view: smoothing the variance estimate removes the
     # sampling noise of a few Monte-Carlo images (12 samples alone scatter by +-20 %)
     var = cv2.GaussianBlur((acc / n).astype(np.float32), (0, 0), 4.0)
@@ -291,19 +341,25 @@ def find_dots(
 
     Parameters
     ----------
-    marks : (S, S) uint8
+    marks : (S, S) uint8 image, or uint16 window sums (:func:`window_sums`, then unwarped)
     inv_gain : (S, S) float32, ``1 / noise_gain(...)``; default: white noise (gain 1/window).
     background_dn, noise_dn : background level and raw per-pixel noise; default: measured on
         ``marks`` (median, MAD).
     ground_to_robot : callable (N, 2) px -> (N, 2) m, optional (``Profile.ground_to_robot``).
     """
-    if marks.dtype != np.uint8 or marks.ndim != 2:
-        raise BadInputError(f"marks image must be (H, W) uint8, got {marks.shape} {marks.dtype}")
+    if marks.ndim != 2 or marks.dtype not in (np.uint8, np.uint16):
+        raise BadInputError(f"marks image must be (H, W) uint8 or uint16 window sums, got {marks.shape} {marks.dtype}")
     w = params.window_px
     if background_dn is None or noise_dn is None:
+        if marks.dtype != np.uint8:
+            raise BadInputError("find_dots: give background_dn and noise_dn with window sums")
         background_dn, noise_dn = estimate_background(marks)
     noise_dn = max(noise_dn, 0.3)  # quantisation floor (1/sqrt(12) DN)
-    score = cv2.boxFilter(marks, cv2.CV_32F, (w, w))
+    if marks.dtype == np.uint8:  # a plain image: filter it here
+        score = cv2.boxFilter(marks, cv2.CV_32F, (w, w))
+    else:  # window sums of the mirror image, already unwarped
+        score = marks.astype(np.float32)
+        score *= np.float32(1.0 / (w * w))
     cv2.subtract(score, float(background_dn), dst=score)
     if params.threshold_dn is not None:
         snr = score * np.float32(params.k_sigma / params.threshold_dn)
@@ -316,6 +372,8 @@ def find_dots(
     b = params.blackout_px
     peaks = cv2.dilate(snr, np.ones((2 * b + 1, 2 * b + 1), np.uint8))
     cand = cv2.bitwise_and(cv2.compare(snr, peaks, cv2.CMP_GE), cv2.compare(snr, low, cv2.CMP_GE))
+    e = w // 2 + 1  # a window cut by the image border sees reflected pixels: no dot there
+    cand[:e], cand[-e:], cand[:, :e], cand[:, -e:] = 0, 0, 0, 0
     pts = cv2.findNonZero(cand)
     pts = np.zeros((0, 2), np.int32) if pts is None else pts.reshape(-1, 2)
     xs, ys = pts[:, 0], pts[:, 1]
@@ -325,9 +383,16 @@ def find_dots(
     # greedy black-out, strongest first (plateaus and chains of maxima that the dilation
     # left): a candidate inside an accepted dot's square is dropped
     kept: list[int] = []
+    inv2s2 = 1.0 / (2.0 * params.tail_sigma_px**2)
     for k in range(len(vals)):
-        y, x = ys[k], xs[k]
-        if any(abs(ys[j] - y) <= b and abs(xs[j] - x) <= b for j in kept):
+        y, x, v = int(ys[k]), int(xs[k]), float(vals[k])
+        shadowed = False
+        for j in kept:
+            dy, dx = abs(int(ys[j]) - y), abs(int(xs[j]) - x)
+            if (dy <= b and dx <= b) or float(vals[j]) * math.exp(-(dx * dx + dy * dy) * inv2s2) >= 0.5 * v:
+                shadowed = True
+                break
+        if shadowed:
             continue
         kept.append(k)
         if len(kept) >= params.max_dots:
@@ -337,11 +402,12 @@ def find_dots(
     xy = np.zeros((n, 2))
     if n:  # intensity-weighted centroids above background, all dots at once
         h, wid = marks.shape
-        r = w // 2 + 1
+        r = params.centroid_px
         off = np.arange(-r, r + 1)
         py = np.clip(ys[kept_a][:, None, None] + off[None, :, None], 0, h - 1)
         px = np.clip(xs[kept_a][:, None, None] + off[None, None, :], 0, wid - 1)
-        patch = np.maximum(marks[py, px].astype(np.float32) - np.float32(background_dn), 0)
+        per_px = background_dn * (w * w if marks.dtype != np.uint8 else 1)  # sums hold w*w pixels
+        patch = np.maximum(marks[py, px].astype(np.float32) - np.float32(per_px), 0)
         tot = patch.sum(axis=(1, 2))
         tot = np.where(tot > 0, tot, 1)
         xy[:, 0] = np.where(patch.sum(axis=(1, 2)) > 0, (px * patch).sum(axis=(1, 2)) / tot, xs[kept_a])
@@ -359,13 +425,14 @@ class HeadingParams:
     """Heading fit (seed 003, "Angle Detection": the newest three dots, a line through them).
 
     The newest mark is the brightest; its dots are the brightest dot and its lit neighbours
-    within ``row_radius_m`` (a row of four UV dots spans 9 cm). ``max_residual_m``: RMS
-    distance of the dots from the fitted line above which the fit is refused.
+    within ``row_radius_m`` (a row of four UV dots spans 9 cm) that lie on one line with it
+    (within ``max_residual_m``). ``max_residual_m`` is also the RMS distance of the dots from
+    the fitted line above which the fit is refused.
     """
 
     n_dots: int = 3
     row_radius_m: float = 0.10
-    max_residual_m: float = 0.006
+    max_residual_m: float = 0.004
     min_span_m: float = 0.02
 
 
@@ -400,7 +467,23 @@ def fit_heading(dots: Dots, params: HeadingParams = HeadingParams()) -> HeadingF
     near = np.flatnonzero(np.hypot(*(xy - xy[first]).T) <= params.row_radius_m)
     if len(near) < params.n_dots:
         return HeadingFit(False, reason=f"the brightest dot has only {len(near) - 1} lit neighbours within {params.row_radius_m} m")
-    pick = near[np.argsort(-s[near], kind="stable")[: params.n_dots]]
+    # the row through the brightest dot: of the lines from it to each neighbour, the one most
+    # other neighbours lie on (another mark can sit within the row radius, across the row)
+    best = None
+    for j in near:
+        if j == first:
+            continue
+        d = xy[j] - xy[first]
+        d /= np.hypot(*d)
+        off = np.abs((xy[near] - xy[first]) @ np.array([-d[1], d[0]]))
+        on = near[off <= params.max_residual_m]
+        score = (len(on), s[on].sum())
+        if best is None or score > best[0]:
+            best = (score, on)
+    row = best[1]
+    if len(row) < params.n_dots:
+        return HeadingFit(False, reason=f"no row of {params.n_dots} collinear dots at the brightest dot")
+    pick = row[np.argsort(-s[row], kind="stable")[: params.n_dots]]
     pts = xy[pick]
     c = pts.mean(0)
     _, sv, vt = np.linalg.svd(pts - c)
@@ -486,11 +569,13 @@ class RedLights:
         return len(self.peak_dn)
 
 
-def find_red(obstacle: np.ndarray, params: RedParams = RedParams()) -> RedLights:
-    """Blobs of the (already thresholded) obstacle image: outer contours and their moments."""
-    if obstacle.dtype != np.uint8 or obstacle.ndim != 2:
-        raise BadInputError(f"obstacle image must be (H, W) uint8, got {obstacle.shape} {obstacle.dtype}")
-    contours, _ = cv2.findContours(obstacle, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
+def find_red(obstacle: np.ndarray, params: RedParams = RedParams(), *, window_area: int = 1) -> RedLights:
+    """Blobs of the (already thresholded) obstacle image: outer contours and their moments.
+    ``peak_dn`` is per pixel (window sums are divided by ``window_area``)."""
+    if obstacle.ndim != 2 or obstacle.dtype not in (np.uint8, np.uint16):
+        raise BadInputError(f"obstacle image must be (H, W) uint8 or uint16, got {obstacle.shape} {obstacle.dtype}")
+    binary = cv2.compare(obstacle, 0, cv2.CMP_GT)
+    contours, _ = cv2.findContours(binary, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
     xy, peak, area = [], [], []
     for c in contours:
         m = cv2.moments(c)
@@ -502,6 +587,6 @@ def find_red(obstacle: np.ndarray, params: RedParams = RedParams()) -> RedLights
         else:
             xy.append(tuple(c.reshape(-1, 2).mean(0)))
         x, y, w, h = cv2.boundingRect(c)
-        peak.append(float(obstacle[y : y + h, x : x + w].max()))
+        peak.append(float(obstacle[y : y + h, x : x + w].max()) / window_area)
         area.append(a)
     return RedLights(np.array(xy, float).reshape(-1, 2), np.array(peak), np.array(area))

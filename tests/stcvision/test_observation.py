@@ -1,0 +1,53 @@
+"""The five-box geometry: every mark position maps to the box of DESIGN.md's table."""
+
+import numpy as np
+import pytest
+
+from stcvision.observation import BOXES, assign_boxes, row_orientation
+from stcvision.profile import CORNER_ORDER
+
+INSET = 0.125  # 2 cm of a 16 cm sub-cell
+OFFS = np.array([-0.281, -0.094, 0.094, 0.281])  # LED offsets along the edge (D units)
+SIGNS = {0: (1, -1), 1: (1, 1), 2: (-1, 1), 3: (-1, -1)}
+
+
+def _mark(k, edge):
+    c = 0.5 * np.array(SIGNS[k], float)
+    e = np.array(edge, float)
+    t = np.array([-e[1], e[0]])
+    return c + e * (0.5 - INSET) + OFFS[:, None] * t
+
+
+@pytest.mark.parametrize("k", range(4))
+@pytest.mark.parametrize("edge", [(1, 0), (0, 1), (-1, 0), (0, -1)])
+def test_every_mark_position_gets_its_box(k, edge):
+    dots = _mark(k, edge)
+    sub, box, _ = assign_boxes(dots)
+    assert (sub == k).all()
+    want = next((b for b, (kk, e) in BOXES.items() if kk == k and tuple(e) == edge), 0)
+    assert (box == want).all()
+
+
+def test_corner_neighbours_keep_their_own_rows():
+    """Box 1 and box 5 rows meet at sub-cell 1's lower-right corner: their end dots are
+    closer to each other than to their row-mates, yet each keeps its box."""
+    dots = np.vstack([_mark(1, (1, 0)), _mark(1, (0, -1))])
+    assert row_orientation(dots).tolist() == [1] * 4 + [0] * 4
+    _, box, _ = assign_boxes(dots)
+    assert box.tolist() == [1] * 4 + [5] * 4
+    # shifted by a robot position error of 6 mm in both directions
+    _, box, _ = assign_boxes(dots + 0.0375)
+    assert box.tolist() == [1] * 4 + [5] * 4
+
+
+def test_neighbour_marks_outside_the_shared_edge_belong_to_the_neighbour():
+    # the forward neighbour's mark along its bottom edge: 2 cm beyond our top edge
+    dots = np.array([[x, 1 + INSET] for x in (-0.6, -0.4, -0.2, 0.0)])
+    sub, box, nb = assign_boxes(dots)
+    assert (sub == -1).all() and (box == 0).all() and (nb == 1).all()
+
+
+def test_corner_order_is_the_plus_outline_counter_clockwise():
+    pts = np.array(CORNER_ORDER, float)
+    area = 0.5 * np.sum(pts[:, 0] * np.roll(pts[:, 1], -1) - np.roll(pts[:, 0], -1) * pts[:, 1])
+    assert area == pytest.approx(20.0)  # five 2x2 cells, counter-clockwise (positive)
