@@ -90,14 +90,38 @@ class PhosphorLayer:
     time ``t``. Dots whose charge has not ended by ``t`` do not glow yet.
     """
 
-    def __init__(self, law: AfterglowLaw | None = None, *, dot_diameter_m: float = 0.008) -> None:
+    def __init__(self, law: AfterglowLaw | None = None, *, dot_diameter_m: float = 0.008,
+                 rear_led_x_m: float = -0.06) -> None:
         if not dot_diameter_m > 0:
             raise BadInputError(f"dot_diameter_m must be > 0, got {dot_diameter_m}")
         self.law = law or AfterglowLaw()
         self.dot_diameter_m = float(dot_diameter_m)
+        self.rear_led_x_m = float(rear_led_x_m)
         self._xy = np.zeros((0, 2))
         self._t_end = np.zeros(0)
         self._charge = np.zeros(0)
+        self._lit: dict[int, tuple[float, np.ndarray]] = {}
+
+    def led_positions_m(self, pose) -> np.ndarray:
+        """World positions (4, 2) under the rear UV LEDs of a robot at ``pose`` (x, y, heading):
+        a row across the robot, ``rear_led_x_m`` behind its turning centre."""
+        x, y, h = pose
+        c, s = np.cos(h), np.sin(h)
+        offs = np.asarray(LED_OFFSETS_M)
+        lx = np.full(4, self.rear_led_x_m)
+        return np.column_stack([x + c * lx - s * offs, y + s * lx + c * offs])
+
+    def on_step(self, world) -> None:
+        """World layer hook: a robot's LEDs switched on start charging the floor under them;
+        switched off, the dots are laid with the charge time they got."""
+        for robot in world.robots:
+            rid = id(robot)
+            if robot.leds_lit and rid not in self._lit:
+                self._lit[rid] = (world.time_s, self.led_positions_m(robot.pose))
+            elif not robot.leds_lit and rid in self._lit:
+                t0, xy = self._lit.pop(rid)
+                if world.time_s > t0:
+                    self.charge(xy, t_start_s=t0, duration_s=world.time_s - t0)
 
     def __len__(self) -> int:
         return len(self._t_end)

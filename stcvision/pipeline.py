@@ -36,12 +36,12 @@ from stcvision.stages import (
     UnwarpMap,
     check_frame,
     estimate_background,
-    filter_channels,
     find_dots,
     find_red,
     fit_heading,
     hot_pixels,
     noise_gain,
+    separate_channels,
     subtract_dark,
     unwarp,
     window_sums,
@@ -71,13 +71,16 @@ class PipelineParams:
 class PipelineResult:
     """Everything one frame gave, plus the intermediate images (references, not copies).
 
-    ``ground``, ``obstacle`` and ``marks`` hold window sums (uint16); :meth:`ground_u8` and
-    friends give 8-bit window means for display.
+    ``green`` and ``red_raw`` are the dark-subtracted mirror-image channels; ``obstacle`` and
+    ``marks`` the ground-view images of window sums (uint16, ``window_area`` pixels each).
+    Display images (8-bit window means, the colour dark-subtracted frame) are made on demand.
     """
 
     frame: np.ndarray
-    dark_subtracted: np.ndarray
-    ground: np.ndarray
+    dark: np.ndarray | None
+    pedestal_dn: int
+    green: np.ndarray
+    red_raw: np.ndarray
     obstacle: np.ndarray
     marks: np.ndarray
     dots: Dots
@@ -85,14 +88,17 @@ class PipelineResult:
     heading: HeadingFit
     observation: CellObservation
     stage_ms: dict[str, float]
-
     window_area: int = 9
+
+    @property
+    def dark_subtracted(self) -> np.ndarray:
+        """The colour frame after dark subtraction (for display; the stages split channels)."""
+        if self.dark is None:
+            return self.frame
+        return subtract_dark(self.frame, self.dark, pedestal_dn=self.pedestal_dn)
 
     def _u8(self, img: np.ndarray) -> np.ndarray:
         return cv2.convertScaleAbs(img, alpha=1.0 / self.window_area)
-
-    def ground_u8(self) -> np.ndarray:
-        return self._u8(self.ground)
 
     def obstacle_u8(self) -> np.ndarray:
         return self._u8(self.obstacle)
@@ -147,46 +153,61 @@ class Pipeline:
         self.params = params or PipelineParams()
         self.umap = UnwarpMap.from_profile(profile)
         self.geometry = CellGeometry.from_profile(profile)
-        self.inv_gain = (1.0 / noise_gain(self.umap, self.params.dots.window_px)).astype(np.float32)
+        self.gain = noise_gain(self.umap, self.params.dots.window_px)
         # raw pixels inside the mirror rim, sparsely, for the per-frame background/noise estimate
         w, h = profile.image_size_px
         vv, uu = np.mgrid[0:h:5, 0:w:5]
         inside = np.hypot(uu - profile.center_px[0], vv - profile.center_px[1]) < 0.95 * profile.rim_radius_px
-        self._sample_green = (vv[inside] * w + uu[inside]).ravel() * 3 + 1  # flat BGR index of G
-        self._hot = (id(dark), hot_pixels(dark)) if dark is not None else (None, None)
+        self._sample = (vv[inside] * w + uu[inside]).ravel()
+        self.dark = None
         if dark is not None:
-            check_frame(dark, "dark frame")
-            profile.check_frame(dark.shape)
+            self.set_dark(dark)
+
+    def set_dark(self, dark: np.ndarray) -> None:
+        """Use ``dark`` (H, W, 3) uint8 from now on: split it once, map its hot pixels once."""
+        check_frame(dark, "dark frame")
+        self.profile.check_frame(dark.shape)
         self.dark = dark
+        self._dark_g = cv2.extractChannel(dark, 1)
+        self._dark_r = cv2.extractChannel(dark, 2)
+        hot = hot_pixels(dark)
+        self._hot_g = hot[hot % 3 == 1] // 3  # flat indices into one channel
+        self._hot_r = hot[hot % 3 == 2] // 3
+
+    def _channel(self, frame: np.ndarray, ch: int) -> np.ndarray:
+        c = cv2.extractChannel(frame, ch)
+        if self.dark is None:
+            return c
+        ped = self.params.pedestal_dn
+        c = cv2.subtract(cv2.add(c, ped), self._dark_g if ch == 1 else self._dark_r)
+        c.reshape(-1)[self._hot_g if ch == 1 else self._hot_r] = ped  # defect-pixel map
+        return c
 
     def process(self, frame: np.ndarray, *, dark: np.ndarray | None = None) -> PipelineResult:
         """Run every stage on one (H, W, 3) uint8 BGR frame."""
         check_frame(frame)
         self.profile.check_frame(frame.shape)
+        if dark is not None and dark is not self.dark:
+            self.set_dark(dark)
         p = self.params
-        dark = self.dark if dark is None else dark
+        w = p.dots.window_px
+        area = w * w
         clock = time.perf_counter_ns
         t = [clock()]
-        if dark is not None:
-            sub = subtract_dark(frame, dark, pedestal_dn=p.pedestal_dn)
-            if self._hot[0] != id(dark):
-                self._hot = (id(dark), hot_pixels(dark))
-            sub.reshape(-1)[self._hot[1]] = p.pedestal_dn  # defect-pixel map from the dark frame
-        else:
-            sub = frame
+        g = self._channel(frame, 1)  # only green and red carry marks and lights
+        r = self._channel(frame, 2)
         t.append(clock())
-        sums = window_sums(sub, p.dots.window_px)
+        gs, rs = window_sums(g, w), window_sums(r, w)
         t.append(clock())
-        ground = unwarp(sums, self.umap)
+        G, R = unwarp(gs, self.umap), unwarp(rs, self.umap)
         t.append(clock())
-        area = p.dots.window_px**2
         # background and noise, measured on raw pixels inside the rim
-        bg, noise = estimate_background(sub, self._sample_green)
-        bg_r, noise_r = estimate_background(sub, self._sample_green + 1)
-        leak = area * bg_r + p.channels.leak_k_sigma * max(noise_r, 0.3) * p.dots.window_px
-        obstacle, marks = filter_channels(ground, p.channels, window_area=area, leak_threshold=leak)
+        bg, noise = estimate_background(g, self._sample)
+        bg_r, noise_r = estimate_background(r, self._sample)
+        leak = area * bg_r + p.channels.leak_k_sigma * max(noise_r, 0.3) * w
+        obstacle, marks = separate_channels(G, R, p.channels, window_area=area, leak_threshold=leak)
         t.append(clock())
-        dots = find_dots(marks, p.dots, inv_gain=self.inv_gain, background_dn=bg, noise_dn=noise,
+        dots = find_dots(marks, p.dots, gain=self.gain, background_dn=bg, noise_dn=noise,
                          ground_to_robot=self.profile.ground_to_robot)
         t.append(clock())
         red = find_red(obstacle, p.red, window_area=area)
@@ -199,7 +220,13 @@ class Pipeline:
                            params=p.observation)
         t.append(clock())
         stage_ms = {name: (t[i + 1] - t[i]) / 1e6 for i, name in enumerate(STAGES)}
-        return PipelineResult(frame, sub, ground, obstacle, marks, dots, red, heading, obs, stage_ms, area)
+        return PipelineResult(frame, self.dark, p.pedestal_dn, g, r, obstacle, marks, dots, red, heading,
+                              obs, stage_ms, area)
+
+    def ground_view(self, image: np.ndarray) -> np.ndarray:
+        """8-bit colour ground view of an image, as the stages see it (window means)."""
+        w = self.params.dots.window_px
+        return cv2.convertScaleAbs(unwarp(window_sums(image, w), self.umap), alpha=1.0 / (w * w))
 
 
 def bench_pipeline(camera, board, layer, pose, *, frames: int, rng, profile: Profile | None = None) -> dict:

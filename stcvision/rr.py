@@ -112,7 +112,7 @@ class PipelineLogger:
             rec.set_time("sim_time", duration=float(sim_time_s))
         self._img("raw", result.frame)
         self._img("dark_subtracted", result.dark_subtracted)
-        self._img("ground/image", result.ground_u8())
+        self._img("ground/image", self.pipeline.ground_view(result.dark_subtracted))
         self._img("channels/red", result.obstacle_u8(), bgr=False)
         self._img("channels/green", result.marks_u8(), bgr=False)
         d = result.dots

@@ -29,6 +29,7 @@ __all__ = [
     "check_frame",
     "estimate_background",
     "noise_gain",
+    "separate_channels",
     "filter_channels",
     "find_dots",
     "find_red",
@@ -190,15 +191,26 @@ def filter_channels(
 
     ``image`` is uint8, or uint16 window sums (see :func:`window_sums`) with ``window_area``
     pixels per sum; the thresholds are per pixel and scale with it. The outputs keep the input
-    dtype. ``leak_threshold`` (same units as ``image``; default: the red threshold) is the
-    lower red level above which a red-dominated pixel is still kept out of the marks image: a
-    bright light's faint halo (lens glare, blooming) carries green by crosstalk far beyond the
-    pixels bright enough to count as the light itself.
+    dtype. ``leak_threshold`` (same units as ``image``; default: none) is the lower red level
+    above which a red-dominated pixel is still kept out of the marks image: a bright light's
+    faint halo (lens glare, blooming) carries green by crosstalk far beyond the pixels bright
+    enough to count as the light itself.
     """
     if image.ndim != 3 or image.shape[2] != 3 or image.dtype not in (np.uint8, np.uint16):
         raise BadInputError(f"image must be (H, W, 3) uint8 or uint16, got {image.shape} {image.dtype}")
-    g = cv2.extractChannel(image, 1)
-    r = cv2.extractChannel(image, 2)
+    return separate_channels(cv2.extractChannel(image, 1), cv2.extractChannel(image, 2), params,
+                             window_area=window_area, leak_threshold=leak_threshold)
+
+
+def separate_channels(
+    g: np.ndarray,
+    r: np.ndarray,
+    params: ChannelParams = ChannelParams(),
+    *,
+    window_area: int = 1,
+    leak_threshold: float | None = None,
+) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`filter_channels` on a green and a red image already split apart."""
     # red-dominated: R >= G up to a tolerance (where both saturate, the dark frame decides which
     # reads higher); saturating add. A green dot has R ~ G / 12 even when its green saturates.
     dominated = cv2.compare(cv2.add(r, float(params.dominance_tol_dn * window_area)), g, cv2.CMP_GE)
@@ -331,69 +343,85 @@ def find_dots(
     marks: np.ndarray,
     params: DotParams = DotParams(),
     *,
-    inv_gain: np.ndarray | None = None,
+    gain: np.ndarray | None = None,
     background_dn: float | None = None,
     noise_dn: float | None = None,
     ground_to_robot=None,
 ) -> Dots:
-    """Find dots in a ground-view marks image: filter once (window mean), normalise to SNR, take
-    local maxima, accept them strongest first while blacking out a square around each.
+    """Find dots in a ground-view marks image: filter once (window mean), keep local maxima
+    above the candidate level, accept them strongest first while blacking out a square around
+    each.
 
     Parameters
     ----------
     marks : (S, S) uint8 image, or uint16 window sums (:func:`window_sums`, then unwarped)
-    inv_gain : (S, S) float32, ``1 / noise_gain(...)``; default: white noise (gain 1/window).
+    gain : (S, S) float32 :func:`noise_gain` map (noise of a window mean per unit raw noise);
+        default: white noise, ``1 / window_px``.
     background_dn, noise_dn : background level and raw per-pixel noise; default: measured on
-        ``marks`` (median, MAD).
+        ``marks`` (median, IQR).
     ground_to_robot : callable (N, 2) px -> (N, 2) m, optional (``Profile.ground_to_robot``).
     """
     if marks.ndim != 2 or marks.dtype not in (np.uint8, np.uint16):
         raise BadInputError(f"marks image must be (H, W) uint8 or uint16 window sums, got {marks.shape} {marks.dtype}")
     w = params.window_px
+    area = w * w
     if background_dn is None or noise_dn is None:
         if marks.dtype != np.uint8:
             raise BadInputError("find_dots: give background_dn and noise_dn with window sums")
         background_dn, noise_dn = estimate_background(marks)
     noise_dn = max(noise_dn, 0.3)  # quantisation floor (1/sqrt(12) DN)
     if marks.dtype == np.uint8:  # a plain image: filter it here
-        score = cv2.boxFilter(marks, cv2.CV_32F, (w, w))
+        sums = cv2.boxFilter(marks, cv2.CV_32F, (w, w), normalize=False)
     else:  # window sums of the mirror image, already unwarped
-        score = marks.astype(np.float32)
-        score *= np.float32(1.0 / (w * w))
-    cv2.subtract(score, float(background_dn), dst=score)
-    if params.threshold_dn is not None:
-        snr = score * np.float32(params.k_sigma / params.threshold_dn)
-    elif inv_gain is not None:
-        snr = cv2.multiply(score, inv_gain, scale=1.0 / noise_dn)
-    else:
-        snr = score * np.float32(w / noise_dn)
+        sums = marks
     low = min(params.candidate_snr, params.k_sigma)
+    # the candidate level as an image in the sums' own units (no float copy of the image):
+    # area * (background + snr * noise of the window mean there)
+    if params.threshold_dn is not None:
+        level = np.float32(area * (background_dn + params.threshold_dn * low / params.k_sigma))
+    elif gain is not None:
+        level = gain * np.float32(area * low * noise_dn)
+        level += np.float32(area * background_dn)
+    else:
+        level = np.float32(area * (background_dn + low * noise_dn / w))
+    if sums.dtype == np.uint16:
+        level = np.minimum(np.ceil(level), 65535).astype(np.uint16) if np.ndim(level) else min(int(np.ceil(level)), 65535)
     # local maxima over the black-out square: one dilation does most of the suppression
     b = params.blackout_px
-    peaks = cv2.dilate(snr, np.ones((2 * b + 1, 2 * b + 1), np.uint8))
-    cand = cv2.bitwise_and(cv2.compare(snr, peaks, cv2.CMP_GE), cv2.compare(snr, low, cv2.CMP_GE))
+    peaks = cv2.dilate(sums, np.ones((2 * b + 1, 2 * b + 1), np.uint8))
+    above = cv2.compare(sums, level, cv2.CMP_GE) if np.ndim(level) else cv2.compare(sums, float(level), cv2.CMP_GE)
+    cand = cv2.bitwise_and(cv2.compare(sums, peaks, cv2.CMP_GE), above)
     e = w // 2 + 1  # a window cut by the image border sees reflected pixels: no dot there
     cand[:e], cand[-e:], cand[:, :e], cand[:, -e:] = 0, 0, 0, 0
     pts = cv2.findNonZero(cand)
     pts = np.zeros((0, 2), np.int32) if pts is None else pts.reshape(-1, 2)
     xs, ys = pts[:, 0], pts[:, 1]
-    vals = snr[ys, xs]
+    mean = sums[ys, xs].astype(np.float64) / area - background_dn
+    if params.threshold_dn is not None:
+        vals = mean * (params.k_sigma / params.threshold_dn)
+    else:
+        g = gain[ys, xs].astype(np.float64) if gain is not None else 1.0 / w
+        vals = mean / (noise_dn * g)
     order = np.argsort(-vals, kind="stable")
-    xs, ys, vals = xs[order], ys[order], vals[order]
+    xs, ys, vals, mean = xs[order], ys[order], vals[order], mean[order]
     # greedy black-out, strongest first (plateaus and chains of maxima that the dilation
     # left): a candidate inside an accepted dot's square is dropped
+    # S[k, j]: the stronger candidate j (j < k) shadows k -- k lies in j's black-out square, or
+    # j's blur explains half of k. Greedy, strongest first: keep k unless a kept j shadows it.
+    dy = np.abs(ys[:, None].astype(np.int64) - ys[None, :])
+    dx = np.abs(xs[:, None].astype(np.int64) - xs[None, :])
+    tail = vals[None, :] * np.exp(-(dx * dx + dy * dy) / (2.0 * params.tail_sigma_px**2))
+    shadow = np.tril(((dy <= b) & (dx <= b)) | (tail >= 0.5 * vals[:, None]), k=-1)
+    rows, cols = np.nonzero(shadow)
+    shadowers: dict[int, list[int]] = {}
+    for k, j in zip(rows.tolist(), cols.tolist(), strict=True):
+        shadowers.setdefault(k, []).append(j)
+    keep = np.zeros(len(vals), bool)
     kept: list[int] = []
-    inv2s2 = 1.0 / (2.0 * params.tail_sigma_px**2)
     for k in range(len(vals)):
-        y, x, v = int(ys[k]), int(xs[k]), float(vals[k])
-        shadowed = False
-        for j in kept:
-            dy, dx = abs(int(ys[j]) - y), abs(int(xs[j]) - x)
-            if (dy <= b and dx <= b) or float(vals[j]) * math.exp(-(dx * dx + dy * dy) * inv2s2) >= 0.5 * v:
-                shadowed = True
-                break
-        if shadowed:
+        if any(keep[j] for j in shadowers.get(k, ())):
             continue
+        keep[k] = True
         kept.append(k)
         if len(kept) >= params.max_dots:
             break
@@ -406,14 +434,14 @@ def find_dots(
         off = np.arange(-r, r + 1)
         py = np.clip(ys[kept_a][:, None, None] + off[None, :, None], 0, h - 1)
         px = np.clip(xs[kept_a][:, None, None] + off[None, None, :], 0, wid - 1)
-        per_px = background_dn * (w * w if marks.dtype != np.uint8 else 1)  # sums hold w*w pixels
+        per_px = background_dn * (area if marks.dtype != np.uint8 else 1)  # sums hold w*w pixels
         patch = np.maximum(marks[py, px].astype(np.float32) - np.float32(per_px), 0)
         tot = patch.sum(axis=(1, 2))
         tot = np.where(tot > 0, tot, 1)
         xy[:, 0] = np.where(patch.sum(axis=(1, 2)) > 0, (px * patch).sum(axis=(1, 2)) / tot, xs[kept_a])
         xy[:, 1] = np.where(patch.sum(axis=(1, 2)) > 0, (py * patch).sum(axis=(1, 2)) / tot, ys[kept_a])
     snr_k = vals[kept_a].astype(float) if n else np.zeros(0)
-    strength = score[ys[kept_a], xs[kept_a]].astype(float) if n else np.zeros(0)
+    strength = mean[kept_a] if n else np.zeros(0)
     xy_m = ground_to_robot(xy) if (ground_to_robot is not None and n) else np.zeros((n, 2))
     return Dots(xy, xy_m, strength, snr_k, snr_k >= params.k_sigma, float(params.k_sigma),
                 float(noise_dn), float(background_dn))
