@@ -1,6 +1,9 @@
-"""Build the shipped default profile by calibrating the default simulated camera.
+"""The shipped default profile, made by running the calibration workflow on the default
+simulated camera.
 
-Run ``python -m calibration.defaults`` to regenerate ``calibration/profiles/default.json``.
+``python -m calibration.defaults`` regenerates ``calibration/profiles/default.json``; a test
+regenerates it and compares. :func:`calibrate_simulated` runs the same workflow on any
+simulated camera (the tests use it on perturbed mirrors).
 """
 
 from __future__ import annotations
@@ -10,46 +13,39 @@ import numpy as np
 from stcvision.profile import Profile
 
 SEED = 2026
+#: The calibration board: 8x8 cells, the robot in the entry sub-cell of cell (3, 4), facing north.
+CALIBRATION_MAP = "\n".join(["." * 16] * 15 + ["." * 15 + "S"])
+CALIBRATION_SUBCELL = (7, 9)
 
 
-def target_profile(camera, *, seed: int = SEED, n: int = 800) -> Profile:
-    """Calibrate a simulated camera with a perfectly measured target: ``n`` floor points at
-    known positions (0.09..0.9 m from the robot) and where the camera images them. The
-    pipeline's model stays its own (a fitted central radial model), not the renderer's."""
-    from calibration.fit import fit_profile
+def calibration_frame(camera, *, seed: int = SEED) -> np.ndarray:
+    """A rendered lights-on frame of the calibration board, robot at the calibration pose."""
+    from sim_camera.board import Board
+    from sim_camera.camera import Pose
 
-    rng = np.random.default_rng(seed)
-    r = np.sqrt(rng.uniform(0.09**2, 0.9**2, n))
-    a = rng.uniform(-np.pi, np.pi, n)
-    xy = np.column_stack([r * np.cos(a), r * np.sin(a)])
-    uv, ok = camera.projector.project(xy)
-    prof, rep = fit_profile(
-        uv[ok], xy[ok], image_size_px=(camera.optics.width_px, camera.optics.height_px),
-        rim_radius_px=_rim_radius(camera),
-    )
-    return prof.replace(provenance={
-        "method": "target fit: known floor points imaged by a simulated camera",
-        "seed": seed,
-        "fit": rep.to_dict(),
-    })
+    board = Board.from_text(CALIBRATION_MAP)
+    c = board.subcell_center_m(*CALIBRATION_SUBCELL)
+    return camera.lights_on(Pose(float(c[0]), float(c[1]), np.pi / 2), board=board,
+                            rng=np.random.default_rng(seed)).image
+
+
+def calibrate_simulated(camera, *, seed: int = SEED) -> Profile:
+    """The transformation and neighbours calibration on a simulated camera's lights-on frame."""
+    from calibration.transform import calibrate_neighbors, calibrate_transform
+
+    frame = calibration_frame(camera, seed=seed)
+    prof, _ = calibrate_transform(frame)
+    prof, _ = calibrate_neighbors(frame, prof)
+    return prof
 
 
 def build_default_profile() -> Profile:
-    """Calibrate the default simulated camera (``sim_camera`` defaults, pattern seed 0).
-
-    Interim method, until the automatic grid workflow replaces it: :func:`target_profile`.
-    """
+    """Calibrate the default simulated camera (``sim_camera`` defaults, pattern seed 0)."""
     from sim_camera.camera import SyntheticCamera
 
-    prof = target_profile(SyntheticCamera())
-    return prof.replace(provenance={**prof.provenance, "camera": "sim_camera defaults, pattern_seed 0"})
-
-
-def _rim_radius(cam) -> float:
-    """Rim radius measured on the camera's own mirror mask (the furthest mirror pixel)."""
-    v, u = np.nonzero(cam.table.mirror)
-    cx, cy = u.mean(), v.mean()
-    return float(np.hypot(u - cx, v - cy).max())
+    prof = calibrate_simulated(SyntheticCamera())
+    return prof.replace(provenance={**prof.provenance, "camera": "sim_camera defaults, pattern_seed 0",
+                                    "frame": f"calibration.defaults.calibration_frame(seed={SEED})"})
 
 
 def main() -> None:

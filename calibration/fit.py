@@ -34,8 +34,8 @@ class FitReport:
     n_points: int
     floor_err_m_median: float
     floor_err_m_max: float
-    image_err_px_median: float
-    image_err_px_max: float
+    image_err_px_median: float | None
+    image_err_px_max: float | None
     inliers: int
 
     def to_dict(self) -> dict:
@@ -55,6 +55,8 @@ def fit_profile(
     fit_ellipse: bool = True,
     fit_tilt: bool = True,
     base: Profile | None = None,
+    lines: tuple | None = None,
+    init: Profile | None = None,
 ) -> tuple[Profile, FitReport]:
     """Fit a profile to ``uv_px`` (N, 2) image points of floor points ``xy_robot_m`` (N, 2).
 
@@ -63,12 +65,16 @@ def fit_profile(
     center_px : initial (or, with ``fix_center``, fixed) image centre; default: image centre.
     degree : degree of the theta polynomial.
     base : profile whose ground-view and board fields are kept.
+    lines : optional ``(uv (M, 2), axis (M,), offset_m (M,)[, weight])``: image points known
+        to lie on the floor line ``x = offset`` (axis 0) or ``y = offset`` (axis 1) of the
+        robot frame (points along the calibration grid's tape lines).
     """
     uv = np.asarray(uv_px, float).reshape(-1, 2)
     xy = np.asarray(xy_robot_m, float).reshape(-1, 2)
     if len(uv) != len(xy):
         raise BadInputError(f"fit_profile: {len(uv)} image points but {len(xy)} floor points")
-    if len(uv) < degree + 6:
+    n_lines = 0 if lines is None else len(lines[0])
+    if len(uv) + n_lines // 4 < degree + 6:
         raise BadInputError(f"fit_profile: need at least {degree + 6} correspondences, got {len(uv)}")
     w, h = image_size_px
     c0 = np.array(center_px if center_px is not None else ((w - 1) / 2, (h - 1) / 2), float)
@@ -87,19 +93,32 @@ def fit_profile(
         return np.arcsin(np.clip(-d[:, 2], -1, 1)), np.arctan2(d[:, 1], d[:, 0])
 
     # initial guesses: flip and forward angle from the azimuths, theta from a polynomial
-    d = uv - c0
-    a = np.arctan2(d[:, 1], d[:, 0])
-    best = None
-    for mirrored in (True, False):
-        s = 1.0 if mirrored else -1.0
-        fwd = np.angle(np.mean(np.exp(1j * (a - s * psi_t))))
-        spread = np.abs(np.angle(np.exp(1j * (a - s * psi_t - fwd)))).mean()
-        if best is None or spread < best[0]:
-            best = (spread, mirrored, fwd)
-    _, mirrored, fwd0 = best
+    if init is not None:
+        c0 = np.array(init.center_px, float)
+        mirrored, fwd0 = init.mirrored, init.forward_angle_rad
+        poly0 = np.zeros(degree + 1)
+        m = min(len(init.theta_poly), degree + 1)
+        poly0[:m] = init.theta_poly[:m]
+        e0 = [init.ellipse_ratio, init.ellipse_angle_rad]
+        t0 = list(init.axis_tilt_rad)
+    else:
+        d = uv - c0
+        a = np.arctan2(d[:, 1], d[:, 0])
+        best = None
+        for mirrored in (True, False):
+            s = 1.0 if mirrored else -1.0
+            fwd = np.angle(np.mean(np.exp(1j * (a - s * psi_t))))
+            spread = np.abs(np.angle(np.exp(1j * (a - s * psi_t - fwd)))).mean()
+            if best is None or spread < best[0]:
+                best = (spread, mirrored, fwd)
+        _, mirrored, fwd0 = best
+        x0n = np.hypot(d[:, 0], d[:, 1]) / rim_radius_px
+        # least squares for the non-constant terms with theta(0) = pi/2
+        V = np.vander(x0n, degree + 1, increasing=True)[:, 1:]
+        coef = np.linalg.lstsq(V, theta_t - math.pi / 2, rcond=None)[0]
+        poly0 = np.concatenate([[math.pi / 2], coef])
+        e0, t0 = [1.0, 0.0], [0.0, 0.0]
     sign = 1.0 if mirrored else -1.0
-    x0n = np.hypot(d[:, 0], d[:, 1]) / rim_radius_px
-    poly0 = np.polynomial.polynomial.polyfit(x0n, theta_t, degree)
 
     def unpack(p):
         i = 0
@@ -116,7 +135,36 @@ def fit_profile(
             tilt, i = (p[i], p[i + 1]), i + 2
         else:
             tilt = (0.0, 0.0)
-        return c, fwd, k, ang, tilt, p[i:]
+        # theta(0) = pi/2: the mirror's axis looks straight down in its own frame (the axis tilt
+        # carries any lean); with no data under the robot's body the constant would float
+        return c, fwd, k, ang, tilt, np.concatenate([[math.pi / 2], p[i:]])
+
+    if lines is not None:
+        l_uv = np.asarray(lines[0], float).reshape(-1, 2)
+        l_axis = np.asarray(lines[1], int)
+        l_off = np.asarray(lines[2], float)
+        l_w = float(lines[3]) if len(lines) > 3 else 1.0
+
+    def line_residuals(c, fwd, k, ang, tilt, poly):
+        """Signed floor distance of each line point from its known line, over its distance
+        from the viewpoint (an angle, like the point residuals)."""
+        dd = l_uv - c
+        if fit_ellipse:
+            cs, sn = math.cos(ang), math.sin(ang)
+            rot = np.array([[cs, -sn], [sn, cs]])
+            dd = dd @ (rot @ np.diag([1.0, 1.0 / k]) @ rot.T).T
+        r = np.hypot(dd[:, 0], dd[:, 1]) / rim_radius_px
+        th = np.polynomial.polynomial.polyval(r, poly)
+        psi = sign * (np.arctan2(dd[:, 1], dd[:, 0]) - fwd)
+        d = np.column_stack([np.cos(th) * np.cos(psi), np.cos(th) * np.sin(psi), -np.sin(th)])
+        tx, ty = tilt
+        cx, sx, cy, sy = math.cos(tx), math.sin(tx), math.cos(ty), math.sin(ty)
+        rot3 = np.array([[cy, 0, sy], [0, 1, 0], [-sy, 0, cy]]) @ np.array([[1, 0, 0], [0, cx, -sx], [0, sx, cx]])
+        d = d @ rot3.T
+        t = H / np.maximum(-d[:, 2], 1e-3)
+        xy = d[:, :2] * t[:, None]
+        coord = np.where(l_axis == 0, xy[:, 0], xy[:, 1])
+        return l_w * (coord - l_off) / np.hypot(np.hypot(xy[:, 0], xy[:, 1]), H)
 
     def residuals(p):
         c, fwd, k, ang, tilt, poly = unpack(p)
@@ -133,18 +181,21 @@ def fit_profile(
         psi = sign * (az - fwd)
         dpsi = np.angle(np.exp(1j * (psi - psi_t)))
         # azimuth error matters in proportion to how far the point is seen off the nadir
-        return np.concatenate([th - theta_t, dpsi * np.cos(theta_t)])
+        res = [th - theta_t, dpsi * np.cos(theta_t)]
+        if lines is not None:
+            res.append(line_residuals(c, fwd, k, ang, tilt, poly))
+        return np.concatenate(res)
 
     tilt_lim = np.radians(10.0)
-    p0 = ([] if fix_center else list(c0)) + [fwd0] + ([1.0, 0.0] if fit_ellipse else [])
-    p0 += [0.0, 0.0] if fit_tilt else []
-    p0 += list(poly0)
+    p0 = ([] if fix_center else list(c0)) + [fwd0] + (list(e0) if fit_ellipse else [])
+    p0 += list(t0) if fit_tilt else []
+    p0 += list(poly0[1:])
     lo = ([-np.inf, -np.inf] if not fix_center else []) + [-np.inf] + ([0.9, -np.pi] if fit_ellipse else [])
     hi = ([np.inf, np.inf] if not fix_center else []) + [np.inf] + ([1.1, np.pi] if fit_ellipse else [])
     lo += [-tilt_lim, -tilt_lim] if fit_tilt else []
     hi += [tilt_lim, tilt_lim] if fit_tilt else []
-    lo += [-np.inf] * len(poly0)
-    hi += [np.inf] * len(poly0)
+    lo += [-np.inf] * (len(poly0) - 1)
+    hi += [np.inf] * (len(poly0) - 1)
     sol = least_squares(residuals, np.array(p0), bounds=(lo, hi), loss="soft_l1", f_scale=2e-3, x_scale="jac")
     c, fwd, k, ang, tilt, poly = unpack(sol.x)
     fields = dict(
@@ -163,18 +214,23 @@ def fit_profile(
         prof = base.replace(**fields)
     else:
         prof = Profile(**fields)
-    back = prof.image_to_robot(uv)
-    ferr = np.hypot(*(back - xy).T)
-    fwd_uv = prof.robot_to_image(xy)
-    ierr = np.hypot(*(fwd_uv - uv).T)
-    res = residuals(sol.x)
-    inl = int(np.sum(np.hypot(res[: len(uv)], res[len(uv):]) < 5e-3))
+    if len(uv):
+        back = prof.image_to_robot(uv)
+        ferr = np.hypot(*(back - xy).T)
+        ierr = np.hypot(*(prof.robot_to_image(xy) - uv).T)
+        res = residuals(sol.x)
+        inl = int(np.sum(np.hypot(res[: len(uv)], res[len(uv) : 2 * len(uv)]) < 5e-3))
+    else:  # lines only: the floor distance of each line point from its line
+        res = line_residuals(*unpack(sol.x)) / l_w
+        ferr = np.abs(res) * 0.5  # ~ metres at the typical 0.5 m (reported only)
+        ierr = None
+        inl = int(np.sum(np.abs(res) < 5e-3))
     report = FitReport(
         n_points=len(uv),
         floor_err_m_median=float(np.nanmedian(ferr)),
         floor_err_m_max=float(np.nanmax(ferr)),
-        image_err_px_median=float(np.nanmedian(ierr)),
-        image_err_px_max=float(np.nanmax(ierr)),
+        image_err_px_median=None if ierr is None else float(np.nanmedian(ierr)),
+        image_err_px_max=None if ierr is None else float(np.nanmax(ierr)),
         inliers=inl,
     )
     return prof, report

@@ -25,6 +25,7 @@ COMMANDS: list[tuple[str, str, str]] = [
     ("world", "stcvision.cli.cmd_world", "build an arena or board world, drive a robot, draw it"),
     ("render", "stcvision.cli.cmd_render", "render a synthetic catadioptric frame with ground truth"),
     ("pipeline", "stcvision.cli.cmd_pipeline", "run the vision pipeline on frames from disk"),
+    ("calibrate", "stcvision.cli.cmd_calibrate", "calibrate a camera: dark frames, rim, transformation, neighbours"),
     ("bench", "stcvision.cli.cmd_bench", "measure render and pipeline speed on one core"),
 ]
 
@@ -51,7 +52,8 @@ def build_parser() -> argparse.ArgumentParser:
         mod = importlib.import_module(module)
         p = sub.add_parser(name, help=help_, description=mod.__doc__)
         mod.add_parser(p)
-        p.add_argument("--json", action="store_true", help="print the result as one JSON object")
+        if not any(a.dest == "json" for a in p._actions) and not getattr(mod, "NESTED", False):
+            p.add_argument("--json", action="store_true", help="print the result as one JSON object")
         p.set_defaults(_module=mod)
     return parser
 
@@ -78,7 +80,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 0
     from stcvision.fileio import dumps
 
-    if args.json:
+    if getattr(args, "json", False):
         print(dumps(result, indent=None))
     else:
         fmt = getattr(mod, "format_text", None)

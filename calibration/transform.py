@@ -1,0 +1,303 @@
+"""Transformation and neighbours calibration from a lights-on frame.
+
+The robot stands on the board as it does when it enters a cell: at the centre of a sub-cell,
+facing along the grid (DESIGN.md: "in the entry frame the robot stands in the lower-right
+sub-cell"). In its frame (x forward, y left) the cell boundaries -- dark tape lines -- are then
+the lines ``x = -D/2 + 2kD`` and ``y = -D/2 + 2kD``, and their crossings are known floor points.
+
+1. :func:`calibration.rim.detect_rim` finds the mirror's rim (centre and radius), unless a
+   person gives the centre.
+2. A coarse search fits the grid: for each of the four ways the robot can face in the image
+   and a grid of radial shapes, the known grid lines are projected and scored by how many land
+   on the dark-line mask (a chamfer score on its distance transform). A mirror view is always
+   mirrored (one reflection), which removes the grid's diagonal symmetry.
+3. Grid crossings are predicted with the best model, refined to sub-pixel with
+   :func:`cv2.cornerSubPix`, and the profile is fitted to them (:func:`calibration.fit.fit_profile`);
+   predict-refine-fit repeats so farther crossings join as the model improves.
+4. Neighbours calibration: the 12 corners of the five cells are found in the unwarped ground
+   view the same way (straight lines there) and stored in the profile.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import math
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+from calibration.fit import DEFAULT_VIEWPOINT_M, fit_profile
+from calibration.rim import RimFit, detect_rim
+from stcvision.errors import BadInputError
+from stcvision.profile import CORNER_ORDER, Profile, nominal_corners_px
+
+__all__ = ["TransformReport", "calibrate_neighbors", "calibrate_transform", "draw_preview", "grid_corners_m"]
+
+
+def grid_lines_m(subcell_m: float, reach_m: float = 1.2) -> tuple[np.ndarray, np.ndarray]:
+    """Offsets of the cell-boundary lines ``x = a`` and ``y = b`` in the robot frame."""
+    k = np.arange(-8, 9)
+    v = -subcell_m / 2 + 2 * k * subcell_m
+    v = v[np.abs(v) <= reach_m]
+    return v, v
+
+
+def grid_corners_m(subcell_m: float, *, rho_min_m: float = 0.12, rho_max_m: float = 1.0) -> np.ndarray:
+    """Grid crossings (robot frame) between ``rho_min_m`` and ``rho_max_m`` from the robot."""
+    xs, ys = grid_lines_m(subcell_m)
+    pts = np.array([(x, y) for x in xs for y in ys])
+    rho = np.hypot(pts[:, 0], pts[:, 1])
+    return pts[(rho >= rho_min_m) & (rho <= rho_max_m)]
+
+
+def _line_samples(subcell_m: float, step_m: float = 0.01) -> np.ndarray:
+    xs, ys = grid_lines_m(subcell_m)
+    t = np.arange(-1.2, 1.2, step_m)
+    pts = [np.column_stack([np.full_like(t, x), t]) for x in xs] + [np.column_stack([t, np.full_like(t, y)]) for y in ys]
+    pts = np.vstack(pts)
+    rho = np.hypot(pts[:, 0], pts[:, 1])
+    return pts[(rho > 0.1) & (rho < 1.0)]
+
+
+def _line_points(subcell_m: float, step_m: float = 0.005):
+    """Points along every grid line (robot frame), with the line's axis and offset."""
+    xs, ys = grid_lines_m(subcell_m)
+    t = np.arange(-1.2, 1.2, step_m)
+    pts, axis, off = [], [], []
+    for x in xs:
+        pts.append(np.column_stack([np.full_like(t, x), t]))
+        axis.append(np.zeros(len(t), int))
+        off.append(np.full(len(t), x))
+    for y in ys:
+        pts.append(np.column_stack([t, np.full_like(t, y)]))
+        axis.append(np.ones(len(t), int))
+        off.append(np.full(len(t), y))
+    pts, axis, off = np.vstack(pts), np.concatenate(axis), np.concatenate(off)
+    rho = np.hypot(pts[:, 0], pts[:, 1])
+    # away from the crossings (where the profile across one line meets the other line)
+    other = np.where(axis == 0, pts[:, 1], pts[:, 0])
+    crossing = np.abs(((other + subcell_m / 2) % (2 * subcell_m)) - 0) < 0.03
+    crossing |= np.abs(((other + subcell_m / 2) % (2 * subcell_m)) - 2 * subcell_m) < 0.03
+    keep = (rho > 0.12) & (rho < 1.0) & ~crossing
+    return pts[keep], axis[keep], off[keep]
+
+
+def _measure_line_centres(prof, bh: np.ndarray, pts: np.ndarray, axis: np.ndarray, centre, rim_r: float):
+    """Image points of the dark line's centre across each predicted line point: the centroid
+    of the black-hat response along the image normal of the projected line (+-5 px)."""
+    along = np.where(axis[:, None] == 0, [[0.0, 0.002]], [[0.002, 0.0]])  # the line's direction
+    uv = prof.robot_to_image(pts)
+    uv2 = prof.robot_to_image(pts + along)
+    d = uv2 - uv
+    n = np.column_stack([-d[:, 1], d[:, 0]])
+    n /= np.maximum(np.hypot(n[:, 0], n[:, 1]), 1e-9)[:, None]
+    ts = np.arange(-5.0, 5.01, 0.5)
+    su = (uv[:, 0, None] + ts[None, :] * n[:, 0, None]).astype(np.float32)
+    sv = (uv[:, 1, None] + ts[None, :] * n[:, 1, None]).astype(np.float32)
+    prof_vals = cv2.remap(bh, su, sv, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=0)
+    base = np.minimum(prof_vals[:, 0], prof_vals[:, -1])[:, None]
+    wts = np.maximum(prof_vals - base, 0)
+    tot = wts.sum(1)
+    t_star = (wts * ts[None, :]).sum(1) / np.maximum(tot, 1e-9)
+    peak = prof_vals.max(1)
+    r_img = np.hypot(uv[:, 0] - centre[0], uv[:, 1] - centre[1])
+    keep = np.isfinite(uv).all(1) & np.isfinite(uv2).all(1) & (r_img < 0.93 * rim_r)
+    keep &= (peak > 8.0) & (np.abs(t_star) < 3.5) & (tot > 0)
+    return (uv + t_star[:, None] * n)[keep], keep
+
+
+def _line_residuals_m(prof, uv, axis, off) -> np.ndarray:
+    xy = prof.image_to_robot(uv)
+    return np.where(axis == 0, xy[:, 0], xy[:, 1]) - off
+
+
+def _chamfer_refine(prof, dist: np.ndarray, samples: np.ndarray):
+    from scipy.optimize import least_squares
+
+    h, w = dist.shape
+    poly0 = np.zeros(4)
+    poly0[: min(4, len(prof.theta_poly))] = prof.theta_poly[:4]
+    x0 = np.concatenate([prof.center_px, [prof.forward_angle_rad, 0.0, 0.0], poly0[1:]])
+
+    def make(x):
+        return prof.replace(center_px=(float(x[0]), float(x[1])), forward_angle_rad=float(x[2]),
+                            axis_tilt_rad=(float(x[3]), float(x[4])), theta_poly=(math.pi / 2, *map(float, x[5:])))
+
+    def res(x):
+        uv = make(x).robot_to_image(samples)
+        ok = np.isfinite(uv).all(1)
+        out = np.full(len(samples), 6.0)
+        if ok.any():
+            d = cv2.remap(dist, uv[ok, 0].astype(np.float32).reshape(-1, 1), uv[ok, 1].astype(np.float32).reshape(-1, 1),
+                          cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=6.0).ravel()
+            out[ok] = np.minimum(d, 6.0)
+        return out
+
+    sol = least_squares(res, x0, loss="soft_l1", f_scale=2.0, diff_step=1e-4, max_nfev=200)
+    return make(sol.x)
+
+
+def _line_mask(grey: np.ndarray, rim: RimFit) -> np.ndarray:
+    bh = cv2.morphologyEx(grey, cv2.MORPH_BLACKHAT, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (9, 9)))
+    h, w = grey.shape
+    vv, uu = np.mgrid[0:h, 0:w]
+    inside = np.hypot(uu - rim.center_px[0], vv - rim.center_px[1]) < 0.97 * rim.radius_px
+    vals = bh[inside]
+    thr, _ = cv2.threshold(vals.reshape(-1, 1), 0, 255, cv2.THRESH_BINARY + cv2.THRESH_OTSU)
+    return ((bh > thr) & inside).astype(np.uint8)
+
+
+def _theta_poly(rho_mid: float, rho_far: float, H: float) -> tuple[float, ...]:
+    """Quadratic theta(x), x = r / rim, through (0, pi/2), (0.45, atan H/rho_mid), (0.85, ...)."""
+    x = np.array([0.0, 0.45, 0.85])
+    th = np.array([math.pi / 2, math.atan2(H, rho_mid), math.atan2(H, rho_far)])
+    return tuple(np.polynomial.polynomial.polyfit(x, th, 2))
+
+
+@dataclass(frozen=True)
+class TransformReport:
+    """``line_points``: points measured on the tape lines; ``line_err_mm_*``: their floor
+    distance from their lines after the fit."""
+
+    rim: RimFit
+    forward_angle_deg: float
+    line_points: int
+    line_err_mm_median: float
+    line_err_mm_max: float
+
+    def to_dict(self) -> dict:
+        d = dict(self.__dict__)
+        d["rim"] = self.rim.to_dict()
+        return d
+
+
+def calibrate_transform(
+    frame: np.ndarray,
+    *,
+    subcell_m: float = 0.16,
+    center_px: tuple[float, float] | None = None,
+    viewpoint_height_m: float = DEFAULT_VIEWPOINT_M,
+    base: Profile | None = None,
+    iterations: int = 3,
+) -> tuple[Profile, TransformReport]:
+    """Fit a profile to a lights-on frame of the board grid (see the module docstring)."""
+    if not isinstance(frame, np.ndarray) or frame.dtype != np.uint8 or frame.ndim != 3:
+        raise BadInputError("transformation calibration needs an (H, W, 3) uint8 lights-on frame")
+    h, w = frame.shape[:2]
+    grey = cv2.cvtColor(frame, cv2.COLOR_BGR2GRAY)
+    rim = detect_rim(frame)
+    centre = tuple(center_px) if center_px is not None else rim.center_px
+    mask = _line_mask(grey, rim)
+    if mask.sum() < 200:
+        raise BadInputError("no grid lines found in the frame: expected a lights-on frame of the board with its cell grid visible")
+    dist = cv2.distanceTransform((1 - mask).astype(np.uint8), cv2.DIST_L2, 3)
+    samples = _line_samples(subcell_m)
+    H = viewpoint_height_m
+    base = base or Profile(image_size_px=(w, h), center_px=centre, rim_radius_px=rim.radius_px,
+                           viewpoint_height_m=H, theta_poly=(math.pi / 2, -1.0), subcell_m=subcell_m)
+
+    # 1) coarse search over orientation and radial shape (chamfer score)
+    best = (-1.0, None)
+    for fwd in (-math.pi / 2, 0.0, math.pi / 2, math.pi):
+        for rho_mid in np.geomspace(0.08, 0.6, 14):
+            for rho_far in np.geomspace(0.3, 3.0, 16):
+                if rho_far < 1.3 * rho_mid:
+                    continue
+                prof = base.replace(center_px=tuple(centre), rim_radius_px=rim.radius_px, forward_angle_rad=fwd,
+                                    mirrored=True, theta_poly=_theta_poly(rho_mid, rho_far, H))
+                uv = prof.robot_to_image(samples)
+                ok = np.isfinite(uv).all(1)
+                if ok.sum() < 0.3 * len(samples):
+                    continue
+                iu = np.clip(np.rint(uv[ok, 0]).astype(int), 0, w - 1)
+                iv = np.clip(np.rint(uv[ok, 1]).astype(int), 0, h - 1)
+                score = float(np.exp(-0.5 * (dist[iv, iu] / 2.0) ** 2).sum()) / len(samples)
+                if score > best[0]:
+                    best = (score, prof)
+    prof = best[1]
+    if prof is None:
+        raise BadInputError("could not fit the grid: is the robot on the board, at a sub-cell centre, facing along the grid?")
+
+    # 2) continuous chamfer refinement (centre, forward angle, axis tilt, a cubic theta): the
+    # projected grid lines slide onto the line mask
+    prof = _chamfer_refine(prof, dist, samples)
+
+    # 3) dense fit along the tape lines: every 5 mm of every line the dark line's centre is
+    # measured across the predicted image line, and the profile is fitted so that each
+    # measured point maps onto its known floor line; measure again with the new profile
+    bh = cv2.morphologyEx(grey, cv2.MORPH_BLACKHAT, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (9, 9)))
+    bh = cv2.GaussianBlur(bh.astype(np.float32), (0, 0), 0.7)
+    lpts, laxis, loff = _line_points(subcell_m)
+    empty = np.zeros((0, 2))
+    for it in range(iterations):
+        l_uv, keep = _measure_line_centres(prof, bh, lpts, laxis, centre, rim.radius_px)
+        if len(l_uv) < 100:
+            raise BadInputError(f"only {len(l_uv)} points on the grid lines found; expected hundreds")
+        degree = 3 if it == 0 else 6
+        prof, _ = fit_profile(empty, empty, image_size_px=(w, h), rim_radius_px=rim.radius_px,
+                              viewpoint_height_m=H, base=prof, init=prof, degree=degree,
+                              lines=(l_uv, laxis[keep], loff[keep]))
+    ferr = 1000 * np.abs(_line_residuals_m(prof, l_uv, laxis[keep], loff[keep]))
+    report = TransformReport(rim, math.degrees(prof.forward_angle_rad), int(len(l_uv)),
+                             float(np.median(ferr)), float(ferr.max()))
+    prov = {
+        "method": "transformation calibration: rim + grid crossings of a lights-on frame",
+        "frame_sha256": hashlib.sha256(frame.tobytes()).hexdigest(),
+        "subcell_m": subcell_m,
+        "report": report.to_dict(),
+    }
+    return prof.replace(subcell_m=subcell_m, neighbour_corners_px=None, provenance=prov), report
+
+
+def calibrate_neighbors(frame: np.ndarray, profile: Profile) -> tuple[Profile, np.ndarray]:
+    """Find the 12 corners of the five cells in the lights-on frame's ground view and store them
+    in the profile. Returns (profile, corners (12, 2) ground px)."""
+    from stcvision.pipeline import Pipeline
+
+    profile.check_frame(frame.shape)
+    ground = Pipeline(profile).ground_view(frame)
+    grey = cv2.cvtColor(ground, cv2.COLOR_BGR2GRAY)
+    nominal = nominal_corners_px(profile.subcell_m, profile.ground_px_per_m, profile.ground_size_px)
+    pts = nominal.astype(np.float32).reshape(-1, 1, 2).copy()
+    crit = (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_MAX_ITER, 40, 0.01)
+    found = cv2.cornerSubPix(grey, pts, (6, 6), (-1, -1), crit).reshape(-1, 2)
+    moved = np.hypot(*(found - nominal).T)
+    if (moved > 8).any():
+        bad = [i for i in range(12) if moved[i] > 8]
+        raise BadInputError(
+            f"corner(s) {bad} of the 12 not found near where the transformation puts them; "
+            "check the robot's pose, or give the corners with --points"
+        )
+    return with_corners(profile, found, method="neighbours calibration: ground-view grid corners", frame=frame), found
+
+
+def with_corners(profile: Profile, corners, *, method: str, frame: np.ndarray | None = None) -> Profile:
+    c = np.asarray(corners, float)
+    if c.shape != (12, 2) or not np.isfinite(c).all():
+        raise BadInputError(f"neighbours calibration needs 12 [x, y] ground-view points, got shape {c.shape}")
+    prov = dict(profile.provenance)
+    prov["neighbours"] = {"method": method, "corner_order": [list(p) for p in CORNER_ORDER]}
+    if frame is not None:
+        prov["neighbours"]["frame_sha256"] = hashlib.sha256(frame.tobytes()).hexdigest()
+    return profile.replace(neighbour_corners_px=tuple(tuple(map(float, p)) for p in c), provenance=prov)
+
+
+def draw_preview(frame: np.ndarray, profile: Profile) -> np.ndarray:
+    """The unwarped ground view with the expected grid (cell boundaries) and the 12 corners
+    drawn over it: a person checks that the drawn grid sits on the tape lines."""
+    from stcvision.pipeline import Pipeline
+
+    ground = Pipeline(profile).ground_view(frame).copy()
+    xs, ys = grid_lines_m(profile.subcell_m)
+    for x in xs:
+        a, b = profile.robot_to_ground(np.array([[x, -1.2], [x, 1.2]]))
+        cv2.line(ground, tuple(np.rint(a).astype(int)), tuple(np.rint(b).astype(int)), (0, 200, 255), 1, cv2.LINE_AA)
+    for y in ys:
+        a, b = profile.robot_to_ground(np.array([[-1.2, y], [1.2, y]]))
+        cv2.line(ground, tuple(np.rint(a).astype(int)), tuple(np.rint(b).astype(int)), (0, 200, 255), 1, cv2.LINE_AA)
+    for i, p in enumerate(profile.corners_px()):
+        c = tuple(np.rint(p).astype(int))
+        cv2.circle(ground, c, 4, (255, 80, 0), 1, cv2.LINE_AA)
+        cv2.putText(ground, str(i), (c[0] + 4, c[1] - 4), cv2.FONT_HERSHEY_SIMPLEX, 0.35, (255, 80, 0), 1, cv2.LINE_AA)
+    return ground
