@@ -31,7 +31,6 @@ import numpy as np
 
 from sim_camera.optics import FloorProjector, MirrorCameraParams, RayTable, trace_pixels
 from sim_camera.sensor import FixedPattern, SensorParams, expose
-from stcvision.errors import BadInputError
 
 __all__ = [
     "Frame", "LightsOnParams", "Pose", "SyntheticCamera", "detection_snr", "visibility_horizon_s",
