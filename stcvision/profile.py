@@ -101,8 +101,8 @@ class Profile:
     axis_tilt_rad: tuple[float, float] = (0.0, 0.0)
     viewpoint_height_m: float
     theta_poly: tuple[float, ...]
-    ground_px_per_m: float = 312.5
-    ground_size_px: int = 360
+    ground_px_per_m: float = 260.0
+    ground_size_px: int = 300
     subcell_m: float = 0.16
     neighbour_corners_px: tuple[tuple[float, float], ...] | None = None
     provenance: dict = field(default_factory=dict)
@@ -237,7 +237,7 @@ class Profile:
         unknown = set(d) - known
         if unknown:
             raise ProfileError(f"{where} has unknown field(s) {sorted(unknown)}")
-        gsize = _num(d, "ground_size_px", positive=True, where=where) if "ground_size_px" in d else 360
+        gsize = _num(d, "ground_size_px", positive=True, where=where) if "ground_size_px" in d else 300
         if gsize != int(gsize) or not 16 <= gsize <= 4096:
             raise ProfileError(f"{where} field 'ground_size_px' must be an integer in 16..4096, got {gsize}")
         ratio = _num(d, "ellipse_ratio", positive=True, where=where) if "ellipse_ratio" in d else 1.0
@@ -254,7 +254,7 @@ class Profile:
             axis_tilt_rad=tuple(_vec(d, "axis_tilt_rad", 2, where=where)) if "axis_tilt_rad" in d else (0.0, 0.0),
             viewpoint_height_m=_num(d, "viewpoint_height_m", positive=True, where=where),
             theta_poly=tuple(theta),
-            ground_px_per_m=_num(d, "ground_px_per_m", positive=True, where=where) if "ground_px_per_m" in d else 312.5,
+            ground_px_per_m=_num(d, "ground_px_per_m", positive=True, where=where) if "ground_px_per_m" in d else 260.0,
             ground_size_px=int(gsize),
             subcell_m=_num(d, "subcell_m", positive=True, where=where) if "subcell_m" in d else 0.16,
             neighbour_corners_px=corners,
