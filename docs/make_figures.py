@@ -15,7 +15,7 @@ def main() -> None:
     cam = scene.camera()
     rng = np.random.default_rng(0)
     frame = cam.render(scene.pose, rng=rng, phosphor=scene.phosphor, red_lights_m=scene.red_lights_m).image
-    dark = np.median(np.stack([cam.dark_frame(rng=rng) for _ in range(16)]), 0).astype(np.uint8)
+    dark = cam.median_dark(16, rng=rng)
     lit = cam.lights_on(scene.pose, board=scene.board, rng=rng).image
     shown = cv2.convertScaleAbs(cv2.subtract(frame, dark), alpha=6.0)  # 6x brighter to be seen
     crop = (slice(16, 464), slice(96, 544))  # the mirror

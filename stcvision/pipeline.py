@@ -235,8 +235,7 @@ def bench_pipeline(camera, board, layer, pose, *, frames: int, rng, profile: Pro
         from calibration.profiles import default_profile
 
         profile = default_profile()
-    darks = np.stack([camera.dark_frame(rng=rng) for _ in range(8)])
-    dark = np.median(darks, axis=0).astype(np.uint8)
+    dark = camera.median_dark(8, rng=rng)
     lights = board.red_lights_m()
     imgs = [camera.render(pose, rng=rng, phosphor=layer, red_lights_m=lights).image for _ in range(8)]
     pipe = Pipeline(profile, dark=dark)

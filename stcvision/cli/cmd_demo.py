@@ -74,7 +74,7 @@ def run(args) -> dict:
     crng = np.random.default_rng(args.seed + 1)
     x, y, h = robot.pose
     pose = Pose(x, y, h)
-    dark = np.median(np.stack([cam.dark_frame(rng=crng) for _ in range(16)]), 0).astype(np.uint8)
+    dark = cam.median_dark(16, rng=crng)
     frame = cam.render(pose, rng=crng, t_s=world.time_s, phosphor=phosphor,
                        red_lights_m=board.red_lights_m(), board=board, truth=True)
     pipe = Pipeline(default_profile(), dark=dark)

@@ -53,8 +53,7 @@ def run(args):
     rngs = [np.random.default_rng(s) for s in np.random.SeedSequence(args.seed).spawn(3)]
     frame = cam.render(scene.pose, rng=rngs[0], t_s=scene.t_s, phosphor=scene.phosphor,
                        red_lights_m=scene.red_lights_m, board=scene.board, truth=True)
-    darks = np.stack([cam.dark_frame(rng=rngs[1]) for _ in range(args.dark_frames)])
-    dark = np.median(darks, axis=0).round().astype(np.uint8)
+    dark = cam.median_dark(args.dark_frames, rng=rngs[1])
     lit = cam.lights_on(scene.pose, board=scene.board, rng=rngs[2])
     truth = frame.truth
     truth["scene"] = str(args.scene)

@@ -17,7 +17,7 @@ from stcvision.scoring import score_frame, summarize
 
 
 def median_dark(camera, rng, n=16, sensor=None):
-    return np.median(np.stack([camera.dark_frame(rng=rng, sensor=sensor) for _ in range(n)]), 0).astype(np.uint8)
+    return camera.median_dark(n, rng=rng, sensor=sensor)
 
 
 def run_scenes(camera, profile, n, *, seed, sensor=None, **scene_kw):
