@@ -25,8 +25,9 @@ def calibration_frame(camera, *, seed: int = SEED) -> np.ndarray:
 
     board = Board.from_text(CALIBRATION_MAP)
     c = board.subcell_center_m(*CALIBRATION_SUBCELL)
-    return camera.lights_on(Pose(float(c[0]), float(c[1]), np.pi / 2), board=board,
-                            rng=np.random.default_rng(seed)).image
+    return camera.lights_on(
+        Pose(float(c[0]), float(c[1]), np.pi / 2), board=board, rng=np.random.default_rng(seed)
+    ).image
 
 
 def calibrate_simulated(camera, *, seed: int = SEED) -> Profile:
@@ -44,8 +45,13 @@ def build_default_profile() -> Profile:
     from sim_camera.camera import SyntheticCamera
 
     prof = calibrate_simulated(SyntheticCamera())
-    return prof.replace(provenance={**prof.provenance, "camera": "sim_camera defaults, pattern_seed 0",
-                                    "frame": f"calibration.defaults.calibration_frame(seed={SEED})"})
+    return prof.replace(
+        provenance={
+            **prof.provenance,
+            "camera": "sim_camera defaults, pattern_seed 0",
+            "frame": f"calibration.defaults.calibration_frame(seed={SEED})",
+        }
+    )
 
 
 def main() -> None:

@@ -50,8 +50,12 @@ def _coverage(pts, c, r, shape, tol):
     hit = np.zeros(360, bool)
     hit[ang] = True
     a = np.radians(np.arange(360) + 0.5)
-    visible = (c[0] + r * np.cos(a) >= 2) & (c[0] + r * np.cos(a) <= w - 3) & (c[1] + r * np.sin(a) >= 2) & (
-        c[1] + r * np.sin(a) <= h - 3)
+    visible = (
+        (c[0] + r * np.cos(a) >= 2)
+        & (c[0] + r * np.cos(a) <= w - 3)
+        & (c[1] + r * np.sin(a) >= 2)
+        & (c[1] + r * np.sin(a) <= h - 3)
+    )
     if visible.sum() < 90:
         return 0.0, inl
     return float((hit & visible).sum() / visible.sum()), inl
@@ -90,7 +94,11 @@ def detect_rim(
     sample = pts if len(pts) <= 4000 else pts[rng.choice(len(pts), 4000, replace=False)]
     for _ in range(iterations):
         p = sample[rng.choice(len(sample), 3, replace=False)]
-        A = np.column_stack([2 * (p[1:] - p[0]), ])
+        A = np.column_stack(
+            [
+                2 * (p[1:] - p[0]),
+            ]
+        )
         b = (p[1:] ** 2).sum(1) - (p[0] ** 2).sum()
         det = np.linalg.det(A)
         if abs(det) < 1e-6:
@@ -108,11 +116,21 @@ def detect_rim(
     for _ in range(3):  # refine on all edge points near the circle
         _, inl = _coverage(pts, c, r, (h, w), tol_px * 1.5)
         q = pts[inl]
-        sol = least_squares(lambda x: np.hypot(q[:, 0] - x[0], q[:, 1] - x[1]) - x[2], [c[0], c[1], r])
+        sol = least_squares(lambda x, q=q: np.hypot(q[:, 0] - x[0], q[:, 1] - x[1]) - x[2], [c[0], c[1], r])
         c, r = sol.x[:2], float(sol.x[2])
     cov, inl = _coverage(pts, c, r, (h, w), tol_px)
     q = pts[inl]
     resid = float(np.sqrt(np.mean((np.hypot(q[:, 0] - c[0], q[:, 1] - c[1]) - r) ** 2)))
-    (ex, ey), (ea, eb), eang = cv2.fitEllipse(q.astype(np.float32)) if len(q) >= 5 else ((c[0], c[1]), (2 * r, 2 * r), 0.0)
-    return RimFit((float(c[0]), float(c[1])), r, resid, cov, int(len(q)), (float(ex), float(ey)),
-                  (float(ea), float(eb)), float(eang))
+    (ex, ey), (ea, eb), eang = (
+        cv2.fitEllipse(q.astype(np.float32)) if len(q) >= 5 else ((c[0], c[1]), (2 * r, 2 * r), 0.0)
+    )
+    return RimFit(
+        (float(c[0]), float(c[1])),
+        r,
+        resid,
+        cov,
+        int(len(q)),
+        (float(ex), float(ey)),
+        (float(ea), float(eb)),
+        float(eang),
+    )

@@ -54,7 +54,9 @@ def grid_corners_m(subcell_m: float, *, rho_min_m: float = 0.12, rho_max_m: floa
 def _line_samples(subcell_m: float, step_m: float = 0.01) -> np.ndarray:
     xs, ys = grid_lines_m(subcell_m)
     t = np.arange(-1.2, 1.2, step_m)
-    pts = [np.column_stack([np.full_like(t, x), t]) for x in xs] + [np.column_stack([t, np.full_like(t, y)]) for y in ys]
+    pts = [np.column_stack([np.full_like(t, x), t]) for x in xs] + [
+        np.column_stack([t, np.full_like(t, y)]) for y in ys
+    ]
     pts = np.vstack(pts)
     rho = np.hypot(pts[:, 0], pts[:, 1])
     return pts[(rho > 0.1) & (rho < 1.0)]
@@ -121,16 +123,26 @@ def _chamfer_refine(prof, dist: np.ndarray, samples: np.ndarray):
     x0 = np.concatenate([prof.center_px, [prof.forward_angle_rad, 0.0, 0.0], poly0[1:]])
 
     def make(x):
-        return prof.replace(center_px=(float(x[0]), float(x[1])), forward_angle_rad=float(x[2]),
-                            axis_tilt_rad=(float(x[3]), float(x[4])), theta_poly=(math.pi / 2, *map(float, x[5:])))
+        return prof.replace(
+            center_px=(float(x[0]), float(x[1])),
+            forward_angle_rad=float(x[2]),
+            axis_tilt_rad=(float(x[3]), float(x[4])),
+            theta_poly=(math.pi / 2, *map(float, x[5:])),
+        )
 
     def res(x):
         uv = make(x).robot_to_image(samples)
         ok = np.isfinite(uv).all(1)
         out = np.full(len(samples), 6.0)
         if ok.any():
-            d = cv2.remap(dist, uv[ok, 0].astype(np.float32).reshape(-1, 1), uv[ok, 1].astype(np.float32).reshape(-1, 1),
-                          cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=6.0).ravel()
+            d = cv2.remap(
+                dist,
+                uv[ok, 0].astype(np.float32).reshape(-1, 1),
+                uv[ok, 1].astype(np.float32).reshape(-1, 1),
+                cv2.INTER_LINEAR,
+                borderMode=cv2.BORDER_CONSTANT,
+                borderValue=6.0,
+            ).ravel()
             out[ok] = np.minimum(d, 6.0)
         return out
 
@@ -190,12 +202,20 @@ def calibrate_transform(
     centre = tuple(center_px) if center_px is not None else rim.center_px
     mask = _line_mask(grey, rim)
     if mask.sum() < 200:
-        raise BadInputError("no grid lines found in the frame: expected a lights-on frame of the board with its cell grid visible")
+        raise BadInputError(
+            "no grid lines found in the frame: expected a lights-on frame of the board with its cell grid visible"
+        )
     dist = cv2.distanceTransform((1 - mask).astype(np.uint8), cv2.DIST_L2, 3)
     samples = _line_samples(subcell_m)
     H = viewpoint_height_m
-    base = base or Profile(image_size_px=(w, h), center_px=centre, rim_radius_px=rim.radius_px,
-                           viewpoint_height_m=H, theta_poly=(math.pi / 2, -1.0), subcell_m=subcell_m)
+    base = base or Profile(
+        image_size_px=(w, h),
+        center_px=centre,
+        rim_radius_px=rim.radius_px,
+        viewpoint_height_m=H,
+        theta_poly=(math.pi / 2, -1.0),
+        subcell_m=subcell_m,
+    )
 
     # 1) coarse search over orientation and radial shape (chamfer score)
     best = (-1.0, None)
@@ -204,8 +224,13 @@ def calibrate_transform(
             for rho_far in np.geomspace(0.3, 3.0, 16):
                 if rho_far < 1.3 * rho_mid:
                     continue
-                prof = base.replace(center_px=tuple(centre), rim_radius_px=rim.radius_px, forward_angle_rad=fwd,
-                                    mirrored=True, theta_poly=_theta_poly(rho_mid, rho_far, H))
+                prof = base.replace(
+                    center_px=tuple(centre),
+                    rim_radius_px=rim.radius_px,
+                    forward_angle_rad=fwd,
+                    mirrored=True,
+                    theta_poly=_theta_poly(rho_mid, rho_far, H),
+                )
                 uv = prof.robot_to_image(samples)
                 ok = np.isfinite(uv).all(1)
                 if ok.sum() < 0.3 * len(samples):
@@ -217,7 +242,9 @@ def calibrate_transform(
                     best = (score, prof)
     prof = best[1]
     if prof is None:
-        raise BadInputError("could not fit the grid: is the robot on the board, at a sub-cell centre, facing along the grid?")
+        raise BadInputError(
+            "could not fit the grid: is the robot on the board, at a sub-cell centre, facing along the grid?"
+        )
 
     # 2) continuous chamfer refinement (centre, forward angle, axis tilt, a cubic theta): the
     # projected grid lines slide onto the line mask
@@ -235,12 +262,21 @@ def calibrate_transform(
         if len(l_uv) < 100:
             raise BadInputError(f"only {len(l_uv)} points on the grid lines found; expected hundreds")
         degree = 3 if it == 0 else 6
-        prof, _ = fit_profile(empty, empty, image_size_px=(w, h), rim_radius_px=rim.radius_px,
-                              viewpoint_height_m=H, base=prof, init=prof, degree=degree,
-                              lines=(l_uv, laxis[keep], loff[keep]))
+        prof, _ = fit_profile(
+            empty,
+            empty,
+            image_size_px=(w, h),
+            rim_radius_px=rim.radius_px,
+            viewpoint_height_m=H,
+            base=prof,
+            init=prof,
+            degree=degree,
+            lines=(l_uv, laxis[keep], loff[keep]),
+        )
     ferr = 1000 * np.abs(_line_residuals_m(prof, l_uv, laxis[keep], loff[keep]))
-    report = TransformReport(rim, math.degrees(prof.forward_angle_rad), int(len(l_uv)),
-                             float(np.median(ferr)), float(ferr.max()))
+    report = TransformReport(
+        rim, math.degrees(prof.forward_angle_rad), int(len(l_uv)), float(np.median(ferr)), float(ferr.max())
+    )
     prov = {
         "method": "transformation calibration: rim + grid crossings of a lights-on frame",
         "frame_sha256": hashlib.sha256(frame.tobytes()).hexdigest(),

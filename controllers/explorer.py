@@ -63,22 +63,14 @@ def explorer_step(
     speeds (left, right) in m/s."""
     i0, i1, i2, i3, i4, i5 = (float(v) for v in ir)
     r, wl, wr = state.r, state.w_l, state.w_r
-    dr = (
-        -0.9 * r
-        + 0.3 * (1 - r) * (wl + 1.5 * i4 + 1.2 * i3)
-        - 0.3 * (1 + r) * (wr + 1.5 * i1 + 1.2 * i2)
-    )
+    dr = -0.9 * r + 0.3 * (1 - r) * (wl + 1.5 * i4 + 1.2 * i3) - 0.3 * (1 + r) * (wr + 1.5 * i1 + 1.2 * i2)
     g = params.gamma
     dwl = -0.1 * wl + g * (1 - wl) * i1 - 0.7 * wl * (i2 + i3)
     dwr = -0.1 * wr + g * (1 - wr) * i4 - 0.7 * wr * (i2 + i3)
     r, wl, wr = r + dr, wl + dwl, wr + dwr
     n = rng.uniform(-params.noise, params.noise)
     nbar = rng.uniform(params.escape_min, params.escape_max)
-    if (
-        i1 + i2 + i3 + i4 > params.front_sum_threshold
-        or i0 > params.side_threshold
-        or i5 > params.side_threshold
-    ):
+    if i1 + i2 + i3 + i4 > params.front_sum_threshold or i0 > params.side_threshold or i5 > params.side_threshold:
         rbar = (1.0 if wr - wl >= 0 else -1.0) * nbar
     else:
         rbar = min(1.0, max(-1.0, r + n))

@@ -272,9 +272,7 @@ def _obstacle_from_dict(d: Any, where: str) -> Obstacle:
         raise BadInputError(f"{where}: must be a JSON object; got {d!r}")
     kind = d.get("kind")
     if kind == "circle":
-        return CircleObstacle(
-            center_m=_vec2(d, "center_m", where), radius_m=_pos(d, "radius_m", where)
-        )
+        return CircleObstacle(center_m=_vec2(d, "center_m", where), radius_m=_pos(d, "radius_m", where))
     if kind == "polygon":
         return PolygonObstacle(vertices_m=_vertices(d, "vertices_m", where))
     raise BadInputError(f"{where}: key 'kind' must be 'circle' or 'polygon'; got {kind!r}")
@@ -409,9 +407,7 @@ class Arena:
             segs.append(np.stack([ov, np.roll(ov, -1, axis=0)], axis=1))
         return np.concatenate(segs, axis=0)
 
-    def sample_free_points(
-        self, n: int, rng: np.random.Generator, margin_m: float = 0.0
-    ) -> np.ndarray:
+    def sample_free_points(self, n: int, rng: np.random.Generator, margin_m: float = 0.0) -> np.ndarray:
         """``n`` points uniform over the free region (shrunk by ``margin_m``), by rejection."""
         xmin, ymin, xmax, ymax = self.bounds_m
         out: list[np.ndarray] = []
@@ -455,34 +451,24 @@ class Arena:
             raise BadInputError(f"arena must be a JSON object; got {type(d).__name__}")
         ver = d.get("schema_version", SCHEMA_VERSION)
         if ver != SCHEMA_VERSION:
-            raise BadInputError(
-                f"arena: key 'schema_version' is {ver!r}; this version reads {SCHEMA_VERSION}"
-            )
+            raise BadInputError(f"arena: key 'schema_version' is {ver!r}; this version reads {SCHEMA_VERSION}")
         kind = d.get("kind")
         where = f"arena ({kind})"
-        common: dict[str, Any] = {
-            "wall_thickness_m": _pos(d, "wall_thickness_m", where, DEFAULT_WALL_THICKNESS_M)
-        }
+        common: dict[str, Any] = {"wall_thickness_m": _pos(d, "wall_thickness_m", where, DEFAULT_WALL_THICKNESS_M)}
         if kind == "circle":
             shape: Arena = CircleArena(
                 center_m=_vec2(d, "center_m", where), radius_m=_pos(d, "radius_m", where), **common
             )
         elif kind == "square":
-            shape = SquareArena(
-                center_m=_vec2(d, "center_m", where), side_m=_pos(d, "side_m", where), **common
-            )
+            shape = SquareArena(center_m=_vec2(d, "center_m", where), side_m=_pos(d, "side_m", where), **common)
         elif kind == "ellipse":
             ax = d.get("semi_axes_m")
             if not (
                 isinstance(ax, list)
                 and len(ax) == 2
-                and all(
-                    isinstance(a, int | float) and not isinstance(a, bool) and a > 0 for a in ax
-                )
+                and all(isinstance(a, int | float) and not isinstance(a, bool) and a > 0 for a in ax)
             ):
-                raise BadInputError(
-                    f"{where}: key 'semi_axes_m' must be [a, b], two positive numbers; got {ax!r}"
-                )
+                raise BadInputError(f"{where}: key 'semi_axes_m' must be [a, b], two positive numbers; got {ax!r}")
             shape = EllipseArena(
                 center_m=_vec2(d, "center_m", where),
                 semi_axes_m=(float(ax[0]), float(ax[1])),
@@ -492,16 +478,13 @@ class Arena:
             shape = PolygonArena(vertices_m=_vertices(d, "vertices_m", where), **common)
         else:
             raise BadInputError(
-                "arena: key 'kind' must be one of 'circle', 'square', 'ellipse', 'polygon'; "
-                f"got {kind!r}"
+                f"arena: key 'kind' must be one of 'circle', 'square', 'ellipse', 'polygon'; got {kind!r}"
             )
         barriers = _barriers_from_list(d.get("barriers", []), shape)
         obstacles_raw = d.get("obstacles", [])
         if not isinstance(obstacles_raw, list):
             raise BadInputError(f"arena: key 'obstacles' must be a list; got {obstacles_raw!r}")
-        obstacles = tuple(
-            _obstacle_from_dict(o, f"arena: obstacles[{i}]") for i, o in enumerate(obstacles_raw)
-        )
+        obstacles = tuple(_obstacle_from_dict(o, f"arena: obstacles[{i}]") for i, o in enumerate(obstacles_raw))
         return shape.with_parts(barriers=barriers, obstacles=obstacles)
 
     @staticmethod
@@ -510,9 +493,7 @@ class Arena:
 
         return Arena.from_dict(read_json(path, what="arena file"))
 
-    def with_parts(
-        self, *, barriers: tuple[Barrier, ...] = (), obstacles: tuple[Obstacle, ...] = ()
-    ) -> Arena:
+    def with_parts(self, *, barriers: tuple[Barrier, ...] = (), obstacles: tuple[Obstacle, ...] = ()) -> Arena:
         """A copy with extra barriers and obstacles appended."""
         import dataclasses
 
@@ -552,9 +533,7 @@ def _barriers_from_list(raw: Any, shape: Arena) -> tuple[Barrier, ...]:
         if "type" in b:
             frac = b.get("length_fraction")
             if isinstance(frac, bool) or not isinstance(frac, int | float) or not 0 < frac <= 1:
-                raise BadInputError(
-                    f"{where}: key 'length_fraction' must be a number in (0, 1]; got {frac!r}"
-                )
+                raise BadInputError(f"{where}: key 'length_fraction' must be a number in (0, 1]; got {frac!r}")
             if b["type"] not in ("|", "+"):
                 raise BadInputError(f"{where}: key 'type' must be '|' or '+'; got {b['type']!r}")
             out.extend(shape.centred_barriers(b["type"], float(frac), thick))
@@ -808,9 +787,7 @@ class BoardArena(Arena):
         }
 
 
-def arena_from_board(
-    board: Any, *, wall_thickness_m: float = DEFAULT_WALL_THICKNESS_M
-) -> BoardArena:
+def arena_from_board(board: Any, *, wall_thickness_m: float = DEFAULT_WALL_THICKNESS_M) -> BoardArena:
     """Arena of a :class:`sim_camera.board.Board` (anything with ``blocked``, ``subcell_m``)."""
     blocked = np.asarray(board.blocked, dtype=bool).copy()
     blocked.setflags(write=False)
@@ -827,9 +804,7 @@ def arena_from_board(
                     k += 1
                 x0, x1 = j * d, (k + 1) * d
                 y1, y0 = h - i * d, h - (i + 1) * d
-                obstacles.append(
-                    PolygonObstacle(vertices_m=((x0, y0), (x1, y0), (x1, y1), (x0, y1)))
-                )
+                obstacles.append(PolygonObstacle(vertices_m=((x0, y0), (x1, y0), (x1, y1), (x0, y1))))
                 j = k + 1
             else:
                 j += 1

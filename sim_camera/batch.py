@@ -31,9 +31,7 @@ class PointRobotBatch:
     positions : (N, 2) m, headings : (N,) rad -- both copied.
     """
 
-    def __init__(
-        self, arena: Arena, positions, headings, *, radius_m: float, wall_mode: str = "slide"
-    ):
+    def __init__(self, arena: Arena, positions, headings, *, radius_m: float, wall_mode: str = "slide"):
         if wall_mode not in ("slide", "reflect"):
             raise ValueError(f"wall_mode must be 'slide' or 'reflect'; got {wall_mode!r}")
         self.arena = arena

@@ -42,9 +42,7 @@ _TEXT_CHARS = {".": False, "#": True, "S": False}
 def _check_even(shape: tuple[int, int], source: str) -> None:
     rows, cols = shape
     if rows % 2 or cols % 2:
-        raise MapError(
-            f"{source} is {rows}x{cols} sub-cells; expected even rows and columns (a cell is 2x2 sub-cells)"
-        )
+        raise MapError(f"{source} is {rows}x{cols} sub-cells; expected even rows and columns (a cell is 2x2 sub-cells)")
 
 
 @dataclass(frozen=True, eq=False)
@@ -106,8 +104,7 @@ class Board:
             for j, ch in enumerate(ln):
                 if ch not in _TEXT_CHARS:
                     raise MapError(
-                        f"{source} line {i + 1} column {j + 1}: unknown character {ch!r}; "
-                        "expected '.', '#' or 'S'"
+                        f"{source} line {i + 1} column {j + 1}: unknown character {ch!r}; expected '.', '#' or 'S'"
                     )
                 grid[i, j] = _TEXT_CHARS[ch]
                 if ch == "S":
@@ -119,9 +116,7 @@ class Board:
         return cls(grid, start[0], subcell_m)
 
     @classmethod
-    def from_image(
-        cls, image: np.ndarray, *, subcell_m: float = DEFAULT_SUBCELL_M, start_subcell=None
-    ) -> Board:
+    def from_image(cls, image: np.ndarray, *, subcell_m: float = DEFAULT_SUBCELL_M, start_subcell=None) -> Board:
         """Board from a grey or BGR uint8 image: one pixel = one sub-cell, dark (< 128) = blocked."""
         img = np.asarray(image)
         if img.ndim == 3:
@@ -134,9 +129,7 @@ class Board:
         return cls(blocked, start_subcell, subcell_m)
 
     @classmethod
-    def from_file(
-        cls, path: str | Path, *, subcell_m: float = DEFAULT_SUBCELL_M, start_subcell=None
-    ) -> Board:
+    def from_file(cls, path: str | Path, *, subcell_m: float = DEFAULT_SUBCELL_M, start_subcell=None) -> Board:
         """Load a ``.txt`` map or an image map (``.png``, ``.bmp``...)."""
         path = Path(path)
         if not path.is_file():

@@ -33,7 +33,12 @@ from sim_camera.optics import FloorProjector, MirrorCameraParams, RayTable, trac
 from sim_camera.sensor import FixedPattern, SensorParams, expose
 
 __all__ = [
-    "Frame", "LightsOnParams", "Pose", "SyntheticCamera", "detection_snr", "visibility_horizon_s",
+    "Frame",
+    "LightsOnParams",
+    "Pose",
+    "SyntheticCamera",
+    "detection_snr",
+    "visibility_horizon_s",
 ]
 
 #: Lens blur (Gaussian sigma, px) of a cheap webcam lens looking at a spherical mirror.
@@ -75,9 +80,7 @@ class Pose:
     def robot_to_world(self, xy_m) -> np.ndarray:
         xy = np.asarray(xy_m, float).reshape(-1, 2)
         c, s = np.cos(self.heading_rad), np.sin(self.heading_rad)
-        return np.column_stack(
-            [c * xy[:, 0] - s * xy[:, 1] + self.x_m, s * xy[:, 0] + c * xy[:, 1] + self.y_m]
-        )
+        return np.column_stack([c * xy[:, 0] - s * xy[:, 1] + self.x_m, s * xy[:, 0] + c * xy[:, 1] + self.y_m])
 
     def to_dict(self) -> dict:
         return {"x_m": self.x_m, "y_m": self.y_m, "heading_rad": self.heading_rad}
@@ -164,9 +167,7 @@ class SyntheticCamera:
         idx, iu, iv, fp = idx[good], iu[good], iv[good], fp[good]
         area = np.pi * (diameter_m / 2) ** 2
         lum = np.broadcast_to(np.asarray(lum_cd_m2, float), (n,))[idx]
-        total = (
-            lum * s.e_per_cd_m2_s * s.exposure_s * self.table.vignetting[iv, iu] * (area / fp)
-        )
+        total = lum * s.e_per_cd_m2_s * s.exposure_s * self.table.vignetting[iv, iu] * (area / fp)
         info["total_e"][idx] = total
         # covariance: PSF + disc (variance r^2/4 per axis on the floor) mapped to pixels
         jinv = np.linalg.inv(self.table.jacobian[iv, iu])
@@ -216,8 +217,9 @@ class SyntheticCamera:
             view[flat, ch] += add.astype(np.float32)
 
     # ------------------------------------------------------------------ public API
-    def signal(self, pose: Pose, *, t_s: float = 0.0, phosphor=None, red_lights_m=None,
-               sensor: SensorParams | None = None):
+    def signal(
+        self, pose: Pose, *, t_s: float = 0.0, phosphor=None, red_lights_m=None, sensor: SensorParams | None = None
+    ):
         """Expected photo-electrons (H, W, 3) float32 of a dark-room frame, before noise, and
         per-source info (projected positions, electrons)."""
         s = sensor or self.sensor
@@ -272,8 +274,7 @@ class SyntheticCamera:
         if truth:
             from sim_camera.truth import build_truth
 
-            gt = build_truth(self, pose, s, info, t_s=t_s, phosphor=phosphor,
-                             red_lights_m=red_lights_m, board=board)
+            gt = build_truth(self, pose, s, info, t_s=t_s, phosphor=phosphor, red_lights_m=red_lights_m, board=board)
         return Frame(image, gt)
 
     def dark_frame(self, *, rng: np.random.Generator, sensor: SensorParams | None = None) -> np.ndarray:
@@ -324,9 +325,7 @@ class SyntheticCamera:
             e_per_s = room.room_floor_cd_m2 * base.e_per_cd_m2_s
             exposure = room.target_dn / (base.dn_per_e * e_per_s)
             s = base.replace(exposure_s=float(exposure))
-        sig = (lum * np.float32(s.e_per_cd_m2_s * s.exposure_s))[..., None] * np.asarray(
-            s.floor_bgr, np.float32
-        )
+        sig = (lum * np.float32(s.e_per_cd_m2_s * s.exposure_s))[..., None] * np.asarray(s.floor_bgr, np.float32)
         image = expose(np.ascontiguousarray(sig, np.float32), s, self.pattern, rng)
         gt = None
         if truth:

@@ -62,8 +62,7 @@ def draw_world(
     f = _Frame(_bounds(world), px_per_m, margin_px)
     if f.w > MAX_SIDE_PX or f.h > MAX_SIDE_PX:
         raise BadInputError(
-            f"drawing would be {f.w}x{f.h} px (> {MAX_SIDE_PX}); use a smaller px_per_m than "
-            f"{px_per_m}"
+            f"drawing would be {f.w}x{f.h} px (> {MAX_SIDE_PX}); use a smaller px_per_m than {px_per_m}"
         )
     img = np.full((f.h, f.w, 3), 255, np.uint8)
     arena = world.arena
@@ -127,9 +126,7 @@ def draw_world(
                 & (arena.red_lights[:, 1] < top)
             )
             for u, v in f.px(arena.red_lights[inside]):
-                cv2.circle(
-                    img, (int(u), int(v)), max(2, int(0.02 * s)), (0, 0, 255), -1, cv2.LINE_AA
-                )
+                cv2.circle(img, (int(u), int(v)), max(2, int(0.02 * s)), (0, 0, 255), -1, cv2.LINE_AA)
     else:
         for o in arena.obstacles:
             if isinstance(o, CircleObstacle):
@@ -178,7 +175,5 @@ def draw_world(
         )
         if odometry:
             o = f.px([[r.odometry.x, r.odometry.y]])[0]
-            cv2.drawMarker(
-                img, (int(o[0]), int(o[1])), (200, 0, 200), cv2.MARKER_CROSS, max(6, rad), 1
-            )
+            cv2.drawMarker(img, (int(o[0]), int(o[1])), (200, 0, 200), cv2.MARKER_CROSS, max(6, rad), 1)
     return img

@@ -60,9 +60,7 @@ class PheromoneLayer:
             max(1, math.ceil((xmax - xmin) / self.cell_m)),
         )
         if self.shape[0] * self.shape[1] > 100_000_000:
-            raise BadInputError(
-                f"pheromone grid {self.shape} too large; use a coarser cell_m than {self.cell_m}"
-            )
+            raise BadInputError(f"pheromone grid {self.shape} too large; use a coarser cell_m than {self.cell_m}")
         self.grid = np.zeros(self.shape, dtype=bool)
 
     def clear(self) -> None:

@@ -73,16 +73,20 @@ class MirrorCameraParams:
 
     def __post_init__(self) -> None:
         positive = (
-            "width_px", "height_px", "focal_px", "camera_height_m", "mirror_radius_m",
-            "mirror_distance_m", "mirror_rim_radius_m",
+            "width_px",
+            "height_px",
+            "focal_px",
+            "camera_height_m",
+            "mirror_radius_m",
+            "mirror_distance_m",
+            "mirror_rim_radius_m",
         )
         for name in positive:
             if not getattr(self, name) > 0:
                 raise BadInputError(f"camera parameter {name} must be > 0, got {getattr(self, name)}")
         if self.mirror_rim_radius_m >= self.mirror_radius_m:
             raise BadInputError(
-                f"mirror_rim_radius_m ({self.mirror_rim_radius_m}) must be < mirror_radius_m "
-                f"({self.mirror_radius_m})"
+                f"mirror_rim_radius_m ({self.mirror_rim_radius_m}) must be < mirror_radius_m ({self.mirror_radius_m})"
             )
         if abs(self.mirror_tilt_rad) > np.radians(15):
             raise BadInputError(f"mirror_tilt_rad {self.mirror_tilt_rad} is beyond +-15 degrees")
@@ -96,9 +100,7 @@ class MirrorCameraParams:
         names = set(cls.__dataclass_fields__)
         unknown = set(d) - names
         if unknown:
-            raise BadInputError(
-                f"unknown camera parameter(s) {sorted(unknown)}; expected some of {sorted(names)}"
-            )
+            raise BadInputError(f"unknown camera parameter(s) {sorted(unknown)}; expected some of {sorted(names)}")
         kw = {}
         for k, v in d.items():
             if isinstance(getattr(cls(), k), tuple):
@@ -348,9 +350,7 @@ def rim_points_px(p: MirrorCameraParams, n: int = 360) -> np.ndarray:
     b2 = np.cross(axis, b1)
     ang = np.linspace(0, 2 * np.pi, n, endpoint=False)
     sin_cap = p.mirror_rim_radius_m / R
-    pts = centre - R * cos_cap * axis + R * sin_cap * (
-        np.cos(ang)[:, None] * b1 + np.sin(ang)[:, None] * b2
-    )
+    pts = centre - R * cos_cap * axis + R * sin_cap * (np.cos(ang)[:, None] * b1 + np.sin(ang)[:, None] * b2)
     rel = pts - np.array([0.0, 0.0, p.camera_height_m])
     xc, yc, zc = rel[:, 1], -rel[:, 0], rel[:, 2]
     xd, yd = _distort(xc / zc, yc / zc, p)

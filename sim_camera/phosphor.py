@@ -90,8 +90,9 @@ class PhosphorLayer:
     time ``t``. Dots whose charge has not ended by ``t`` do not glow yet.
     """
 
-    def __init__(self, law: AfterglowLaw | None = None, *, dot_diameter_m: float = 0.008,
-                 rear_led_x_m: float = -0.06) -> None:
+    def __init__(
+        self, law: AfterglowLaw | None = None, *, dot_diameter_m: float = 0.008, rear_led_x_m: float = -0.06
+    ) -> None:
         if not dot_diameter_m > 0:
             raise BadInputError(f"dot_diameter_m must be > 0, got {dot_diameter_m}")
         self.law = law or AfterglowLaw()

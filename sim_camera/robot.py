@@ -199,9 +199,7 @@ class DiffDriveRobot:
         self.wheel_diameters_m = true_wheel_diameters_m(params.wheel_diameter_m, params.ed)
         self.wheelbase_true_m = params.wheelbase_m * params.eb
 
-        self.body = pymunk.Body(
-            params.mass_kg, pymunk.moment_for_circle(params.mass_kg, 0, params.radius_m)
-        )
+        self.body = pymunk.Body(params.mass_kg, pymunk.moment_for_circle(params.mass_kg, 0, params.radius_m))
         self.body.position = (float(pose[0]), float(pose[1]))
         self.body.angle = float(pose[2])
         self.shape = pymunk.Circle(self.body, params.radius_m)
@@ -320,9 +318,7 @@ class DiffDriveRobot:
     # -- advanced by World.step ---------------------------------------------------------------
     def _finish(self, status: str) -> None:
         p = self._prim
-        self.last_result = MotionResult(
-            status, self.odometry.distance_m - p.get("start_dist", 0), p.get("t", 0.0)
-        )
+        self.last_result = MotionResult(status, self.odometry.distance_m - p.get("start_dist", 0), p.get("t", 0.0))
         self.stop()
 
     def _pre_step(self, t_s: float, dt_s: float) -> float:

@@ -79,8 +79,14 @@ def cell_scene(
     def lay(sub_centre, edge_ru, age, where):
         e = edge_ru[0] * right + edge_ru[1] * up
         layer.charge(mark_dots_m(sub_centre, e, D), t_start_s=-age - charge_s, duration_s=charge_s)
-        marks.append({"where": where, "age_s": float(age), "subcell_centre_m": list(map(float, sub_centre)),
-                      "edge": [float(v) for v in e]})
+        marks.append(
+            {
+                "where": where,
+                "age_s": float(age),
+                "subcell_centre_m": list(map(float, sub_centre)),
+                "edge": [float(v) for v in e],
+            }
+        )
 
     for b, (k, edge) in BOXES.items():
         if rng.random() < box_prob:

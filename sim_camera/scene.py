@@ -38,18 +38,20 @@ EXAMPLE_SCENE = {
         "sim_camera.optics.MirrorCameraParams, sim_camera.sensor.SensorParams, "
         "sim_camera.phosphor.AfterglowLaw. pattern_seed: the camera's fixed-pattern noise."
     ),
-    "board": {"text": [
-        "..........",
-        "..........",
-        "....##....",
-        "....##....",
-        "..........",
-        "..........",
-        "..........",
-        ".......S..",
-        "..........",
-        "..........",
-    ]},
+    "board": {
+        "text": [
+            "..........",
+            "..........",
+            "....##....",
+            "....##....",
+            "..........",
+            "..........",
+            "..........",
+            ".......S..",
+            "..........",
+            "..........",
+        ]
+    },
     "subcell_m": 0.16,
     "robot": {"subcell": [7, 7], "heading_deg": 90, "heading_error_deg": 3.0},
     "marks": [
@@ -66,8 +68,20 @@ EXAMPLE_SCENE = {
     "pattern_seed": 0,
 }
 
-_KEYS = {"_doc", "board", "subcell_m", "robot", "marks", "dots", "red_lights", "camera", "sensor",
-         "afterglow", "pattern_seed", "time_s"}
+_KEYS = {
+    "_doc",
+    "board",
+    "subcell_m",
+    "robot",
+    "marks",
+    "dots",
+    "red_lights",
+    "camera",
+    "sensor",
+    "afterglow",
+    "pattern_seed",
+    "time_s",
+}
 
 
 def _num(d: dict, key: str, where: str, default=None) -> float:
@@ -80,8 +94,10 @@ def _num(d: dict, key: str, where: str, default=None) -> float:
 
 
 def _pair(v, where: str, kind=float) -> tuple:
-    if not isinstance(v, list | tuple) or len(v) != 2 or not all(
-        isinstance(x, int | float) and not isinstance(x, bool) for x in v
+    if (
+        not isinstance(v, list | tuple)
+        or len(v) != 2
+        or not all(isinstance(x, int | float) and not isinstance(x, bool) for x in v)
     ):
         raise BadInputError(f"{where} must be a list of 2 numbers, got {v!r}")
     return tuple(kind(x) for x in v)
@@ -164,7 +180,7 @@ def _overrides(v, name: str) -> dict:
 def _board(b, D: float, base_dir: Path | None) -> Board:
     if not isinstance(b, dict) or len(b) != 1:
         raise BadInputError("scene board must be an object with exactly one of: text, file, random")
-    (kind, v), = b.items()
+    ((kind, v),) = b.items()
     if kind == "text":
         text = "\n".join(v) if isinstance(v, list) else v
         if not isinstance(text, str):

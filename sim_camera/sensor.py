@@ -69,9 +69,17 @@ class SensorParams:
         for name in ("exposure_s", "gain", "full_well_e", "pixel_pitch_m", "f_number", "quantum_efficiency"):
             if not getattr(self, name) > 0:
                 raise BadInputError(f"sensor parameter {name} must be > 0, got {getattr(self, name)}")
-        for name in ("read_noise_e", "dark_current_e_s", "dsnu_sigma", "hot_pixel_fraction",
-                     "column_offset_e_sigma", "black_level_dn", "prnu_sigma", "bloom_fraction",
-                     "glare_fraction"):
+        for name in (
+            "read_noise_e",
+            "dark_current_e_s",
+            "dsnu_sigma",
+            "hot_pixel_fraction",
+            "column_offset_e_sigma",
+            "black_level_dn",
+            "prnu_sigma",
+            "bloom_fraction",
+            "glare_fraction",
+        ):
             if not getattr(self, name) >= 0:
                 raise BadInputError(f"sensor parameter {name} must be >= 0, got {getattr(self, name)}")
         if self.exposure_s > 60:

@@ -82,9 +82,7 @@ class IrSensors:
         for k, a in enumerate(self.params.angles_rad):
             c, s = math.cos(th + a), math.sin(th + a)
             start = (x + r * c, y + r * s)
-            d = self.world.ray_distance(
-                start, (start[0] + rng_m * c, start[1] + rng_m * s), self.robot
-            )
+            d = self.world.ray_distance(start, (start[0] + rng_m * c, start[1] + rng_m * s), self.robot)
             if d is not None:
                 out[k] = d
         return out
@@ -111,9 +109,7 @@ class CapacitiveRingParams:
 
     def ray_angles_rad(self) -> np.ndarray:
         """(n_electrodes, rays) ray directions in the robot frame (0 = forward)."""
-        centres = (
-            np.arange(self.n_electrodes) - (self.n_electrodes - 1) / 2
-        ) * self.electrode_span_rad
+        centres = (np.arange(self.n_electrodes) - (self.n_electrodes - 1) / 2) * self.electrode_span_rad
         offs = (np.arange(self.rays_per_electrode) - (self.rays_per_electrode - 1) / 2) * (
             0.8 * self.electrode_span_rad / max(1, self.rays_per_electrode - 1)
         )

@@ -92,26 +92,30 @@ def build_truth(camera, pose, sensor, info, *, t_s, phosphor=None, red_lights_m=
         ages = phosphor.ages_s(t_s)
         xy_w = phosphor.xy_m
         for i in range(len(phosphor)):
-            truth["dots"].append({
-                "id": i,
-                "xy_world_m": xy_w[i].round(5).tolist(),
-                "xy_robot_m": d["xy_robot"][i].round(5).tolist(),
-                "uv_px": None if not d["visible"][i] else d["uv"][i].round(3).tolist(),
-                "visible": bool(d["visible"][i]),
-                "age_s": float(ages[i]),
-                "luminance_cd_m2": float(d["lum"][i]),
-                "electrons": float(d["total_e"][i]),
-                "snr": float(snr[i]),
-                "detectable": bool(snr[i] >= ROSE_SNR),
-            })
+            truth["dots"].append(
+                {
+                    "id": i,
+                    "xy_world_m": xy_w[i].round(5).tolist(),
+                    "xy_robot_m": d["xy_robot"][i].round(5).tolist(),
+                    "uv_px": None if not d["visible"][i] else d["uv"][i].round(3).tolist(),
+                    "visible": bool(d["visible"][i]),
+                    "age_s": float(ages[i]),
+                    "luminance_cd_m2": float(d["lum"][i]),
+                    "electrons": float(d["total_e"][i]),
+                    "snr": float(snr[i]),
+                    "detectable": bool(snr[i] >= ROSE_SNR),
+                }
+            )
     li = info.get("lights")
     if red_lights_m is not None and li is not None:
         for i, xy in enumerate(np.asarray(red_lights_m)):
-            truth["red_lights"].append({
-                "xy_world_m": xy.round(5).tolist(),
-                "uv_px": None if not li["visible"][i] else li["uv"][i].round(3).tolist(),
-                "visible": bool(li["visible"][i]),
-            })
+            truth["red_lights"].append(
+                {
+                    "xy_world_m": xy.round(5).tolist(),
+                    "uv_px": None if not li["visible"][i] else li["uv"][i].round(3).tolist(),
+                    "visible": bool(li["visible"][i]),
+                }
+            )
     if board is not None:
         truth["cell"] = _cell_truth(camera, pose, board, truth, red_lights_m)
     return truth
@@ -135,12 +139,14 @@ def _cell_truth(camera, pose, board, truth, red_lights_m) -> dict:
     subcells = []
     for k, (sr, su) in SUBCELL_SIGNS.items():
         c = centre + D / 2 * (sr * right + su * up)
-        subcells.append({
-            "index": k,
-            "subcell": list(board.subcell_at(c)),
-            "polygon_px": _project_polygon(camera, pose, _square(c, D / 2, right, up)),
-            "marked": any(a[0] == k for a in assign),
-        })
+        subcells.append(
+            {
+                "index": k,
+                "subcell": list(board.subcell_at(c)),
+                "polygon_px": _project_polygon(camera, pose, _square(c, D / 2, right, up)),
+                "marked": any(a[0] == k for a in assign),
+            }
+        )
     boxes = []
     for b, (k, (er, eu)) in BOXES.items():
         sr, su = SUBCELL_SIGNS[k]
@@ -149,13 +155,15 @@ def _cell_truth(camera, pose, board, truth, red_lights_m) -> dict:
         t = np.array([e[1], -e[0]])
         tri = np.array([c, c + D / 2 * (e + t), c + D / 2 * (e - t)])
         n = sum(1 for a in assign if a[1] == b)
-        boxes.append({
-            "box": b,
-            "subcell_index": k,
-            "lit": n > 0,
-            "n_dots": n,
-            "polygon_px": _project_polygon(camera, pose, tri),
-        })
+        boxes.append(
+            {
+                "box": b,
+                "subcell_index": k,
+                "lit": n > 0,
+                "n_dots": n,
+                "polygon_px": _project_polygon(camera, pose, tri),
+            }
+        )
     lights = np.asarray(red_lights_m).reshape(-1, 2) if red_lights_m is not None else np.zeros((0, 2))
     neighbours = []
     for name, (dr, du) in NEIGHBOURS.items():
@@ -165,14 +173,16 @@ def _cell_truth(camera, pose, board, truth, red_lights_m) -> dict:
         inside = lambda pts, c=nc: (  # noqa: E731
             (np.abs((pts - c) @ right) < D) & (np.abs((pts - c) @ up) < D)
         )
-        neighbours.append({
-            "direction": name,
-            "cell": [int(ni), int(nj)],
-            "free": board.is_cell_free(ni, nj),
-            "has_marks": bool(inside(xy).any()) if len(xy) else False,
-            "has_red": bool(inside(lights).any()) if len(lights) else False,
-            "polygon_px": _project_polygon(camera, pose, _square(nc, D, right, up)),
-        })
+        neighbours.append(
+            {
+                "direction": name,
+                "cell": [int(ni), int(nj)],
+                "free": board.is_cell_free(ni, nj),
+                "has_marks": bool(inside(xy).any()) if len(xy) else False,
+                "has_red": bool(inside(lights).any()) if len(lights) else False,
+                "polygon_px": _project_polygon(camera, pose, _square(nc, D, right, up)),
+            }
+        )
     return {
         "cell": [int(ci), int(cj)],
         "entry_heading_rad": h4,

@@ -72,9 +72,7 @@ class World:
         self.arena = arena
         self.dt_s = float(dt_s)
         self.min_substeps = max(1, int(min_substeps))
-        self._ss = (
-            seed if isinstance(seed, np.random.SeedSequence) else np.random.SeedSequence(seed)
-        )
+        self._ss = seed if isinstance(seed, np.random.SeedSequence) else np.random.SeedSequence(seed)
         self.pheromone = pheromone
         self.chemical = chemical
         self.layers: list = []
@@ -92,9 +90,7 @@ class World:
         self.space = space
         self._thinnest_m = self._build_walls()
         self.max_substep_travel_m = (
-            float(max_substep_travel_m)
-            if max_substep_travel_m
-            else min(0.002, 0.25 * self._thinnest_m)
+            float(max_substep_travel_m) if max_substep_travel_m else min(0.002, 0.25 * self._thinnest_m)
         )
 
     # -- construction ----------------------------------------------------------------------
@@ -162,8 +158,7 @@ class World:
             pose = self.arena.start_pose(params.radius_m * 1.2)
         if not self.arena.contains([pose[0], pose[1]], margin_m=params.radius_m * 0.999)[0]:
             raise BadInputError(
-                f"robot pose {tuple(round(p, 4) for p in pose)} is not a free spot "
-                f"{params.radius_m} m from the walls"
+                f"robot pose {tuple(round(p, 4) for p in pose)} is not a free spot {params.radius_m} m from the walls"
             )
         robot = DiffDriveRobot(
             params,

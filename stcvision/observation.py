@@ -34,7 +34,12 @@ import numpy as np
 from stcvision.profile import CORNER_ORDER, ROBOT_IN_CELL
 
 __all__ = [
-    "BOXES", "NEIGHBOURS", "CellGeometry", "CellObservation", "NeighbourReading", "ObservationParams",
+    "BOXES",
+    "NEIGHBOURS",
+    "CellGeometry",
+    "CellObservation",
+    "NeighbourReading",
+    "ObservationParams",
     "observe_cell",
 ]
 
@@ -197,12 +202,17 @@ class CellObservation:
 
     def to_dict(self) -> dict:
         return {
-            "boxes": {b.box: {"lit": b.lit, "confidence": round(b.confidence, 4), "n_dots": b.n_dots} for b in self.boxes},
+            "boxes": {
+                b.box: {"lit": b.lit, "confidence": round(b.confidence, 4), "n_dots": b.n_dots} for b in self.boxes
+            },
             "visited": {str(k): v for k, v in self.visited.items()},
             "neighbours": {
-                n.direction: {"has_marks": n.has_marks, "has_red": n.has_red,
-                              "marks_confidence": round(n.marks_confidence, 4),
-                              "red_confidence": round(n.red_confidence, 4)}
+                n.direction: {
+                    "has_marks": n.has_marks,
+                    "has_red": n.has_red,
+                    "marks_confidence": round(n.marks_confidence, 4),
+                    "red_confidence": round(n.red_confidence, 4),
+                }
                 for n in self.neighbours.values()
             },
             "heading_error_deg": math.degrees(self.heading_error_rad),
@@ -219,9 +229,16 @@ class ObservationParams:
     min_dots: int = 2
 
 
-def observe_cell(dots, red_px: np.ndarray, red_strength: np.ndarray, geometry: CellGeometry, *,
-                 red_threshold_dn: float, heading_error_rad: float = 0.0,
-                 params: ObservationParams = ObservationParams()) -> CellObservation:
+def observe_cell(
+    dots,
+    red_px: np.ndarray,
+    red_strength: np.ndarray,
+    geometry: CellGeometry,
+    *,
+    red_threshold_dn: float,
+    heading_error_rad: float = 0.0,
+    params: ObservationParams = ObservationParams(),
+) -> CellObservation:
     """Classify the five boxes and the four neighbours.
 
     Parameters
@@ -256,7 +273,9 @@ def observe_cell(dots, red_px: np.ndarray, red_strength: np.ndarray, geometry: C
         rsel = rnb == i
         rbest = float(red_strength[rsel].max()) if rsel.any() else 0.0
         neighbours[name] = NeighbourReading(
-            name, bool(lit_sel.sum() >= params.min_dots), bool(rsel.any()),
+            name,
+            bool(lit_sel.sum() >= params.min_dots),
+            bool(rsel.any()),
             _confidence(best, thr, 1.0),
             _confidence(rbest, red_threshold_dn, red_threshold_dn / 5.0) if rsel.any() else 1.0,
         )

@@ -114,8 +114,12 @@ class PipelineResult:
         d = self.dots
         out = {
             "dots": [
-                {"xy_px": [round(float(x), 3) for x in d.xy_px[i]], "xy_m": [round(float(x), 5) for x in d.xy_m[i]],
-                 "strength_dn": round(float(d.strength[i]), 3), "snr": round(float(d.snr[i]), 2)}
+                {
+                    "xy_px": [round(float(x), 3) for x in d.xy_px[i]],
+                    "xy_m": [round(float(x), 5) for x in d.xy_m[i]],
+                    "strength_dn": round(float(d.strength[i]), 3),
+                    "snr": round(float(d.snr[i]), 2),
+                }
                 for i in np.flatnonzero(d.lit)
             ],
             "dot_threshold_snr": d.threshold_snr,
@@ -148,7 +152,9 @@ class Pipeline:
     dark : (H, W, 3) uint8, optional -- the dark frame for every ``process`` call.
     """
 
-    def __init__(self, profile: Profile, params: PipelineParams | None = None, *, dark: np.ndarray | None = None) -> None:
+    def __init__(
+        self, profile: Profile, params: PipelineParams | None = None, *, dark: np.ndarray | None = None
+    ) -> None:
         self.profile = profile
         self.params = params or PipelineParams()
         self.umap = UnwarpMap.from_profile(profile)
@@ -207,21 +213,34 @@ class Pipeline:
         leak = area * bg_r + p.channels.leak_k_sigma * max(noise_r, 0.3) * w
         obstacle, marks = separate_channels(G, R, p.channels, window_area=area, leak_threshold=leak)
         t.append(clock())
-        dots = find_dots(marks, p.dots, gain=self.gain, background_dn=bg, noise_dn=noise,
-                         ground_to_robot=self.profile.ground_to_robot)
+        dots = find_dots(
+            marks,
+            p.dots,
+            gain=self.gain,
+            background_dn=bg,
+            noise_dn=noise,
+            ground_to_robot=self.profile.ground_to_robot,
+        )
         t.append(clock())
         red = find_red(obstacle, p.red, window_area=area)
         t.append(clock())
         heading = fit_heading(dots, p.heading)
         t.append(clock())
         herr = heading.heading_error_rad if (heading.ok and p.use_heading) else 0.0
-        obs = observe_cell(dots, red.xy_px, red.peak_dn, self.geometry,
-                           red_threshold_dn=p.channels.red_threshold_dn, heading_error_rad=herr,
-                           params=p.observation)
+        obs = observe_cell(
+            dots,
+            red.xy_px,
+            red.peak_dn,
+            self.geometry,
+            red_threshold_dn=p.channels.red_threshold_dn,
+            heading_error_rad=herr,
+            params=p.observation,
+        )
         t.append(clock())
         stage_ms = {name: (t[i + 1] - t[i]) / 1e6 for i, name in enumerate(STAGES)}
-        return PipelineResult(frame, self.dark, p.pedestal_dn, g, r, obstacle, marks, dots, red, heading,
-                              obs, stage_ms, area)
+        return PipelineResult(
+            frame, self.dark, p.pedestal_dn, g, r, obstacle, marks, dots, red, heading, obs, stage_ms, area
+        )
 
     def ground_view(self, image: np.ndarray) -> np.ndarray:
         """8-bit colour ground view of an image, as the stages see it (window means)."""

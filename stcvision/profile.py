@@ -45,8 +45,18 @@ MODEL = "radial_central"
 #: ((right, up); the robot stands in sub-cell 0 at (0.5, -0.5)). Counter-clockwise from the
 #: current cell's lower-right corner. Corners 0, 3, 6 and 9 are the current cell's.
 CORNER_ORDER = (
-    (1, -1), (3, -1), (3, 1), (1, 1), (1, 3), (-1, 3),
-    (-1, 1), (-3, 1), (-3, -1), (-1, -1), (-1, -3), (1, -3),
+    (1, -1),
+    (3, -1),
+    (3, 1),
+    (1, 1),
+    (1, 3),
+    (-1, 3),
+    (-1, 1),
+    (-3, 1),
+    (-3, -1),
+    (-1, -1),
+    (-1, -3),
+    (1, -3),
 )
 #: The robot's turning centre in the same units (centre of sub-cell 0).
 ROBOT_IN_CELL = (0.5, -0.5)
@@ -294,7 +304,8 @@ def _migrate(d: dict, where: str) -> dict:
         raise ProfileError(f"{where} field 'schema_version' must be an integer, got {v!r}")
     if v > SCHEMA_VERSION:
         raise ProfileError(
-            f"{where} has schema_version {v}, newer than this stcvision understands ({SCHEMA_VERSION}); upgrade stcvision"
+            f"{where} has schema_version {v}, newer than this stcvision understands "
+            f"({SCHEMA_VERSION}); upgrade stcvision"
         )
     if v < 1:
         raise ProfileError(f"{where} has schema_version {v}; expected 1..{SCHEMA_VERSION}")

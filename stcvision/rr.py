@@ -32,8 +32,17 @@ import rerun.blueprint as rrb
 __all__ = ["ENTITY_PATHS", "PipelineLogger", "blueprint", "open_recording"]
 
 ENTITY_PATHS = (
-    "raw", "dark_subtracted", "ground/image", "ground/cells", "ground/boxes", "ground/dots",
-    "ground/red", "ground/heading", "channels/red", "channels/green", "observation",
+    "raw",
+    "dark_subtracted",
+    "ground/image",
+    "ground/cells",
+    "ground/boxes",
+    "ground/dots",
+    "ground/red",
+    "ground/heading",
+    "channels/red",
+    "channels/green",
+    "observation",
 )
 
 
@@ -79,8 +88,15 @@ def open_recording(path: str | Path | None = None, *, spawn: bool = False, app_i
 class PipelineLogger:
     """Log :class:`stcvision.pipeline.PipelineResult` objects to a recording."""
 
-    def __init__(self, recording: rr.RecordingStream, pipeline, *, jpeg_quality: int = 80,
-                 final_path: str | Path | None = None, tmp_path: Path | None = None) -> None:
+    def __init__(
+        self,
+        recording: rr.RecordingStream,
+        pipeline,
+        *,
+        jpeg_quality: int = 80,
+        final_path: str | Path | None = None,
+        tmp_path: Path | None = None,
+    ) -> None:
         self.rec = recording
         self.pipeline = pipeline
         self.q = jpeg_quality
@@ -118,8 +134,7 @@ class PipelineLogger:
         d = result.dots
         if len(d):
             colors = np.where(d.lit[:, None], [[60, 255, 60]], [[140, 140, 140]])
-            rec.log("ground/dots", rr.Points2D(d.xy_px, radii=2.5, colors=colors,
-                                               labels=[f"{s:.1f}" for s in d.snr]))
+            rec.log("ground/dots", rr.Points2D(d.xy_px, radii=2.5, colors=colors, labels=[f"{s:.1f}" for s in d.snr]))
         else:
             rec.log("ground/dots", rr.Clear(recursive=False))
         if len(result.red):
@@ -133,8 +148,14 @@ class PipelineLogger:
             # direction (cos a, sin a) in the robot frame (x fwd, y left) is (-sin a, -cos a)
             # in ground pixels (x right, y down)
             u = np.array([-np.sin(h.line_angle_rad), -np.cos(h.line_angle_rad)])
-            rec.log("ground/heading", rr.LineStrips2D([[c - 40 * u, c + 40 * u]], colors=[255, 200, 0],
-                                                      labels=[f"{np.degrees(h.heading_error_rad):+.2f} deg"]))
+            rec.log(
+                "ground/heading",
+                rr.LineStrips2D(
+                    [[c - 40 * u, c + 40 * u]],
+                    colors=[255, 200, 0],
+                    labels=[f"{np.degrees(h.heading_error_rad):+.2f} deg"],
+                ),
+            )
         else:
             rec.log("ground/heading", rr.Clear(recursive=False))
         obs = result.observation
@@ -143,8 +164,9 @@ class PipelineLogger:
         rec.log("ground/cells", rr.LineStrips2D(cells, colors=[90, 120, 255], radii=0.6))
         boxes = [np.vstack([polys[f"box{b.box}"], polys[f"box{b.box}"][:1]]) for b in obs.boxes]
         bcol = [[60, 255, 60] if b.lit else [160, 160, 160] for b in obs.boxes]
-        rec.log("ground/boxes", rr.LineStrips2D(boxes, colors=bcol, radii=0.8,
-                                                labels=[f"box {b.box}" for b in obs.boxes]))
+        rec.log(
+            "ground/boxes", rr.LineStrips2D(boxes, colors=bcol, radii=0.8, labels=[f"box {b.box}" for b in obs.boxes])
+        )
         rec.log("observation", rr.TextDocument(text or observation_markdown(result), media_type="text/markdown"))
         for k, v in result.stage_ms.items():
             rec.log(f"timing/{k}", rr.Scalars(v))
@@ -164,9 +186,16 @@ def observation_markdown(result) -> str:
     lines += [f"| {b.box} | {'yes' if b.lit else 'no'} | {b.confidence:.2f} | {b.n_dots} |" for b in obs.boxes]
     lines += ["", "visited: " + ", ".join(f"sub-cell {k}: {'yes' if v else 'no'}" for k, v in obs.visited.items()), ""]
     lines += ["| neighbour | marks | red |", "|---|---|---|"]
-    lines += [f"| {n.direction} | {'yes' if n.has_marks else 'no'} | {'yes' if n.has_red else 'no'} |"
-              for n in obs.neighbours.values()]
+    lines += [
+        f"| {n.direction} | {'yes' if n.has_marks else 'no'} | {'yes' if n.has_red else 'no'} |"
+        for n in obs.neighbours.values()
+    ]
     h = result.heading
-    lines += ["", f"heading: {np.degrees(h.heading_error_rad):+.2f} deg (residual {1000 * h.residual_m:.2f} mm)"
-              if h.ok else f"heading: no fit ({h.reason})", f"total {result.total_ms:.2f} ms"]
+    lines += [
+        "",
+        f"heading: {np.degrees(h.heading_error_rad):+.2f} deg (residual {1000 * h.residual_m:.2f} mm)"
+        if h.ok
+        else f"heading: no fit ({h.reason})",
+        f"total {result.total_ms:.2f} ms",
+    ]
     return "\n".join(lines)

@@ -38,8 +38,16 @@ class FrameScore:
     errors: list = field(default_factory=list)
 
 
-def score_frame(result, truth: dict, profile, *, snr_visible: float = 8.0, snr_ambiguous: float = 3.0,
-                match_m: float = 0.01, min_dots: int = 2) -> FrameScore:
+def score_frame(
+    result,
+    truth: dict,
+    profile,
+    *,
+    snr_visible: float = 8.0,
+    snr_ambiguous: float = 3.0,
+    match_m: float = 0.01,
+    min_dots: int = 2,
+) -> FrameScore:
     sc = FrameScore()
     tdots = [d for d in truth["dots"] if d["visible"] and d["age_s"] >= 0]
     txy = np.array([d["xy_robot_m"] for d in tdots]).reshape(-1, 2)

@@ -78,7 +78,10 @@ def subtract_dark(
     check_frame(frame)
     check_frame(dark, "dark frame")
     if frame.shape != dark.shape:
-        raise BadInputError(f"dark frame is {dark.shape[1]}x{dark.shape[0]}, frame is {frame.shape[1]}x{frame.shape[0]}; expected the same size")
+        raise BadInputError(
+            f"dark frame is {dark.shape[1]}x{dark.shape[0]}, frame is {frame.shape[1]}x{frame.shape[0]}; "
+            "expected the same size"
+        )
     if frame_exposure_s is not None and dark_exposure_s is not None:
         if abs(frame_exposure_s - dark_exposure_s) > 0.01 * max(frame_exposure_s, dark_exposure_s):
             raise BadInputError(
@@ -147,7 +150,9 @@ def unwarp(image: np.ndarray, umap: UnwarpMap) -> np.ndarray:
     """
     h, w = image.shape[:2]
     if (w, h) != umap.image_size_px:
-        raise BadInputError(f"image is {w}x{h}; the unwarp map was built for {umap.image_size_px[0]}x{umap.image_size_px[1]}")
+        raise BadInputError(
+            f"image is {w}x{h}; the unwarp map was built for {umap.image_size_px[0]}x{umap.image_size_px[1]}"
+        )
     if image.ndim == 3 and umap.fixed1 is not None:
         m1, m2 = umap.fixed1, umap.fixed2
     else:
@@ -198,8 +203,13 @@ def filter_channels(
     """
     if image.ndim != 3 or image.shape[2] != 3 or image.dtype not in (np.uint8, np.uint16):
         raise BadInputError(f"image must be (H, W, 3) uint8 or uint16, got {image.shape} {image.dtype}")
-    return separate_channels(cv2.extractChannel(image, 1), cv2.extractChannel(image, 2), params,
-                             window_area=window_area, leak_threshold=leak_threshold)
+    return separate_channels(
+        cv2.extractChannel(image, 1),
+        cv2.extractChannel(image, 2),
+        params,
+        window_area=window_area,
+        leak_threshold=leak_threshold,
+    )
 
 
 def separate_channels(
@@ -234,8 +244,7 @@ def window_sums(image: np.ndarray, window_px: int) -> np.ndarray:
     ``window_px**2`` pixels, wherever the dot lies (the unwarp would otherwise skip pixels near
     the robot, where the ground view is coarser than the mirror image).
     """
-    return cv2.boxFilter(image, cv2.CV_16U, (window_px, window_px), normalize=False,
-                         borderType=cv2.BORDER_CONSTANT)
+    return cv2.boxFilter(image, cv2.CV_16U, (window_px, window_px), normalize=False, borderType=cv2.BORDER_CONSTANT)
 
 
 # --------------------------------------------------------------------------- dots
@@ -246,14 +255,15 @@ class DotParams:
 
     ``window_px``: side of the averaging square in mirror-image pixels (3 px: about a UV dot
     near the robot, where a pixel sees ~2 mm of floor). The decision is made on the window mean's
-    signal-to-noise ratio: a dot is lit iff ``(mean - background) / noise >= k_sigma``, with the background and the raw noise measured on the frame itself and the
-    noise of the window mean at each ground pixel from the unwarp's noise gain. ``k_sigma =
-    5.5`` rather than Rose's 5: the noise is a mixture (dark-current non-uniformity, the dark
-    frame's own error), so its tail is heavier than a Gaussian's -- measured on rendered dark
+    signal-to-noise ratio: a dot is lit iff ``(mean - background) / noise >= k_sigma``, with
+    the background and the raw noise measured on the frame itself and the noise of the window
+    mean at each ground pixel from the unwarp's noise gain. ``k_sigma = 5.5`` rather than
+    Rose's 5: the noise is a mixture (dark-current non-uniformity, the dark frame's own
+    error), so its tail is heavier than a Gaussian's -- measured on rendered dark
     frames, window SNRs above 5 occur 8x more often than Gaussian noise predicts, above 5.5 no
     more often than Gaussian noise does above 5. A fixed
     ``threshold_dn`` (window mean above background) overrides that. ``blackout_px``: half-side
-    of the square blacked out around a found dot (3 px ~ 1 cm: the end dots of two marks meeting
+    of the square blacked out around a found dot (3 px ~ 1.2 cm: the end dots of two marks meeting
     at a sub-cell corner are 1.5 cm apart along each axis). A weaker peak near a much brighter
     dot is also dropped when that dot's blur (a Gaussian of ``tail_sigma_px``) explains at least
     half of it: a fresh dot hundreds of sigma strong still shows at 5 sigma a few pixels out.
@@ -385,7 +395,9 @@ def find_dots(
     else:
         level = np.float32(area * (background_dn + low * noise_dn / w))
     if sums.dtype == np.uint16:
-        level = np.minimum(np.ceil(level), 65535).astype(np.uint16) if np.ndim(level) else min(int(np.ceil(level)), 65535)
+        level = (
+            np.minimum(np.ceil(level), 65535).astype(np.uint16) if np.ndim(level) else min(int(np.ceil(level)), 65535)
+        )
     # local maxima over the black-out square: one dilation does most of the suppression
     b = params.blackout_px
     peaks = cv2.dilate(sums, np.ones((2 * b + 1, 2 * b + 1), np.uint8))
@@ -443,8 +455,9 @@ def find_dots(
     snr_k = vals[kept_a].astype(float) if n else np.zeros(0)
     strength = mean[kept_a] if n else np.zeros(0)
     xy_m = ground_to_robot(xy) if (ground_to_robot is not None and n) else np.zeros((n, 2))
-    return Dots(xy, xy_m, strength, snr_k, snr_k >= params.k_sigma, float(params.k_sigma),
-                float(noise_dn), float(background_dn))
+    return Dots(
+        xy, xy_m, strength, snr_k, snr_k >= params.k_sigma, float(params.k_sigma), float(noise_dn), float(background_dn)
+    )
 
 
 # --------------------------------------------------------------------------- heading
@@ -494,7 +507,9 @@ def fit_heading(dots: Dots, params: HeadingParams = HeadingParams()) -> HeadingF
     first = int(np.argmax(s))
     near = np.flatnonzero(np.hypot(*(xy - xy[first]).T) <= params.row_radius_m)
     if len(near) < params.n_dots:
-        return HeadingFit(False, reason=f"the brightest dot has only {len(near) - 1} lit neighbours within {params.row_radius_m} m")
+        return HeadingFit(
+            False, reason=f"the brightest dot has only {len(near) - 1} lit neighbours within {params.row_radius_m} m"
+        )
     # the row through the brightest dot: of the lines from it to each neighbour, the one most
     # other neighbours lie on (another mark can sit within the row radius, across the row)
     best = None
@@ -521,8 +536,9 @@ def fit_heading(dots: Dots, params: HeadingParams = HeadingParams()) -> HeadingF
     if span * 2 < params.min_span_m:
         return HeadingFit(False, points_m=pts, reason="dots too close together to define a line")
     if resid > params.max_residual_m:
-        return HeadingFit(False, residual_m=float(resid), points_m=pts,
-                          reason=f"dots not on a line (residual {resid * 1000:.1f} mm)")
+        return HeadingFit(
+            False, residual_m=float(resid), points_m=pts, reason=f"dots not on a line (residual {resid * 1000:.1f} mm)"
+        )
     ang = math.atan2(direction[1], direction[0])
     folded = (ang + math.pi / 4) % (math.pi / 2) - math.pi / 4
     return HeadingFit(True, float(folded), float(-folded), float(resid), pts)

@@ -42,8 +42,10 @@ def test_transformation_calibration_on_perturbed_cameras(k):
     corners = grid_corners_m(0.16, rho_max_m=0.9)
     uv, ok = cam.projector.project(corners)
     err_mm = 1000 * np.hypot(*(prof.image_to_robot(uv[ok]) - corners[ok]).T)
-    print(f"camera {k}: centre error {centre_err:.3f} px, corner reprojection median {np.median(err_mm):.2f} mm, "
-          f"max {err_mm.max():.2f} mm over {ok.sum()} corners")
+    print(
+        f"camera {k}: centre error {centre_err:.3f} px, corner reprojection median {np.median(err_mm):.2f} mm, "
+        f"max {err_mm.max():.2f} mm over {ok.sum()} corners"
+    )
     assert np.median(err_mm) <= 5.0
     # the neighbours calibration finds the 12 corners near where the transformation puts them
     prof2, corners_px = calibrate_neighbors(frame, prof)
@@ -55,8 +57,14 @@ def test_transformation_calibration_on_perturbed_cameras(k):
 def test_shipped_default_profile_is_what_the_workflow_makes():
     fresh = build_default_profile().to_dict()
     shipped = default_profile().to_dict()
-    for key in ("center_px", "rim_radius_px", "forward_angle_rad", "axis_tilt_rad", "theta_poly",
-                "neighbour_corners_px"):
+    for key in (
+        "center_px",
+        "rim_radius_px",
+        "forward_angle_rad",
+        "axis_tilt_rad",
+        "theta_poly",
+        "neighbour_corners_px",
+    ):
         assert np.allclose(np.asarray(fresh[key], float), np.asarray(shipped[key], float), atol=1e-6), key
     assert shipped["provenance"]["method"].startswith("transformation calibration")
 
@@ -89,12 +97,39 @@ def test_calibrate_cli_end_to_end(tmp_path, capsys):
     # neighbours from a file a person made
     pts = tmp_path / "pts.json"
     pts.write_text(json.dumps(nominal_corners_px(0.16, 312.5, 360).tolist()))
-    assert main(["calibrate", "neighbors", str(tmp_path / "lights.png"), "--profile", str(out),
-                 "--points", str(pts), "--yes", "--json"]) == 0
+    assert (
+        main(
+            [
+                "calibrate",
+                "neighbors",
+                str(tmp_path / "lights.png"),
+                "--profile",
+                str(out),
+                "--points",
+                str(pts),
+                "--yes",
+                "--json",
+            ]
+        )
+        == 0
+    )
     assert len(json.loads(capsys.readouterr().out)["corners_px"]) == 12
     pts.write_text(json.dumps([[1, 2]] * 11))
-    assert main(["calibrate", "neighbors", str(tmp_path / "lights.png"), "--profile", str(out),
-                 "--points", str(pts), "--yes"]) == 2
+    assert (
+        main(
+            [
+                "calibrate",
+                "neighbors",
+                str(tmp_path / "lights.png"),
+                "--profile",
+                str(out),
+                "--points",
+                str(pts),
+                "--yes",
+            ]
+        )
+        == 2
+    )
     assert "12" in capsys.readouterr().err
     # rim on the same frame
     assert main(["calibrate", "rim", str(tmp_path / "lights.png"), "--json"]) == 0
@@ -113,5 +148,7 @@ def test_dark_stacking_cli(tmp_path, capsys):
     r = json.loads(capsys.readouterr().out)
     assert r["frames"] == 5 and r["hot_pixels"] == pytest.approx(cam.pattern.hot.sum(), rel=0.1)
     cv2.imwrite(str(tmp_path / "small.png"), np.zeros((10, 10, 3), np.uint8))
-    assert main(["calibrate", "dark", paths[0], str(tmp_path / "small.png"), "--out", str(tmp_path / "dark_bad.png")]) == 2
+    assert (
+        main(["calibrate", "dark", paths[0], str(tmp_path / "small.png"), "--out", str(tmp_path / "dark_bad.png")]) == 2
+    )
     assert "one size" in capsys.readouterr().err

@@ -46,8 +46,11 @@ def benchmark_scene(seed: int = 0):
         for j in range(cols):
             if not board.blocked[i, j]:
                 e = edges[rng.integers(4)]
-                layer.charge(mark_dots_m(board.subcell_center_m(i, j), e, board.subcell_m),
-                             t_start_s=-rng.uniform(0, 180), duration_s=3.0)
+                layer.charge(
+                    mark_dots_m(board.subcell_center_m(i, j), e, board.subcell_m),
+                    t_start_s=-rng.uniform(0, 180),
+                    duration_s=3.0,
+                )
     free = np.argwhere(board.cell_free)
     ci, cj = free[len(free) // 2]
     c = board.subcell_center_m(2 * ci + 1, 2 * cj + 1)
@@ -68,9 +71,7 @@ def run(args):
     cam = SyntheticCamera()
     rng = np.random.default_rng(args.seed)
     lights = board.red_lights_m()
-    render_ms = _median_ms(
-        lambda: cam.render(pose, rng=rng, phosphor=layer, red_lights_m=lights), args.frames
-    )
+    render_ms = _median_ms(lambda: cam.render(pose, rng=rng, phosphor=layer, red_lights_m=lights), args.frames)
     result = {
         "frame_size_px": [cam.optics.width_px, cam.optics.height_px],
         "dots_on_floor": len(layer),

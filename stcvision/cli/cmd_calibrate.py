@@ -23,28 +23,45 @@ def add_parser(p):
     from stcvision.cli._args import pair
 
     sub = p.add_subparsers(dest="step", metavar="STEP", parser_class=type(p))
-    d = sub.add_parser("dark", help="median-stack dark frames into one", description="Median-stack dark frames "
-                       "(lens capped or room dark) taken at the exposure of the frames they will correct.")
+    d = sub.add_parser(
+        "dark",
+        help="median-stack dark frames into one",
+        description="Median-stack dark frames "
+        "(lens capped or room dark) taken at the exposure of the frames they will correct.",
+    )
     d.add_argument("frames", nargs="+", metavar="FRAME")
     d.add_argument("--out", required=True, metavar="DARK.png")
     d.add_argument("--force", action="store_true", help="overwrite --out")
-    r = sub.add_parser("rim", help="find the mirror's rim circle in a frame",
-                       description="The mirror's rim circle (centre, radius, fit residual) in any catadioptric image.")
+    r = sub.add_parser(
+        "rim",
+        help="find the mirror's rim circle in a frame",
+        description="The mirror's rim circle (centre, radius, fit residual) in any catadioptric image.",
+    )
     r.add_argument("frame", metavar="FRAME")
-    t = sub.add_parser("transform", help="fit the phi/theta model to a lights-on frame of the grid",
-                       description="Find the rim, fit the grid, write a preview PNG, ask, write the profile.")
+    t = sub.add_parser(
+        "transform",
+        help="fit the phi/theta model to a lights-on frame of the grid",
+        description="Find the rim, fit the grid, write a preview PNG, ask, write the profile.",
+    )
     t.add_argument("frame", metavar="FRAME")
     t.add_argument("--out", required=True, metavar="PROFILE.json")
     t.add_argument("--center", type=pair(float), metavar="U,V", help="mirror centre by hand (pixels)")
     t.add_argument("--subcell-m", type=float, default=0.16, help="sub-cell side D of the board (default 0.16)")
-    t.add_argument("--viewpoint-m", type=float, default=0.25,
-                   help="rough height of the mirror above the floor (default 0.25; theta absorbs the rest)")
+    t.add_argument(
+        "--viewpoint-m",
+        type=float,
+        default=0.25,
+        help="rough height of the mirror above the floor (default 0.25; theta absorbs the rest)",
+    )
     t.add_argument("--preview", metavar="PNG", help="preview image (default: PROFILE.preview.png)")
     t.add_argument("--yes", action="store_true", help="accept without asking")
     t.add_argument("--force", action="store_true", help="overwrite an existing profile")
-    n = sub.add_parser("neighbors", help="find the 12 corners of the five cells and store them",
-                       description="Find the 12 corners of the current cell and its four neighbours in the "
-                       "ground view (or take them from --points), preview, store in the profile.")
+    n = sub.add_parser(
+        "neighbors",
+        help="find the 12 corners of the five cells and store them",
+        description="Find the 12 corners of the current cell and its four neighbours in the "
+        "ground view (or take them from --points), preview, store in the profile.",
+    )
     n.add_argument("frame", metavar="FRAME")
     n.add_argument("--profile", required=True, metavar="PROFILE.json")
     n.add_argument("--points", metavar="POINTS.json", help="12 [x, y] ground-view points made by a person")
@@ -90,20 +107,28 @@ def _dark(args):
     for f in args.frames:
         img = read_image(f, what="dark frame")
         if frames and img.shape != frames[0].shape:
-            raise BadInputError(f"dark frame {f} is {img.shape[1]}x{img.shape[0]}, the first is "
-                                f"{frames[0].shape[1]}x{frames[0].shape[0]}; expected one size")
+            raise BadInputError(
+                f"dark frame {f} is {img.shape[1]}x{img.shape[0]}, the first is "
+                f"{frames[0].shape[1]}x{frames[0].shape[0]}; expected one size"
+            )
         side = Path(f).with_suffix(".json")  # optional sidecar: {"exposure_s": ...}
         if side.exists():
             exposures.append(float(read_json(side, what="frame sidecar").get("exposure_s", "nan")))
         frames.append(img)
     if exposures and (max(exposures) - min(exposures) > 0.01 * max(exposures)):
-        raise BadInputError(f"dark frames were taken at different exposures ({min(exposures):g}..{max(exposures):g} s); "
-                            "expected one exposure")
+        raise BadInputError(
+            f"dark frames were taken at different exposures ({min(exposures):g}..{max(exposures):g} s); "
+            "expected one exposure"
+        )
     dark = np.median(np.stack(frames), axis=0).round().astype(np.uint8)
     write_image(args.out, dark, overwrite=True)
     hot = hot_pixels(dark)
-    return {"out": args.out, "frames": len(frames), "hot_pixels": int(len(np.unique(hot // 3))),
-            "mean_dn": float(dark.mean())}
+    return {
+        "out": args.out,
+        "frames": len(frames),
+        "hot_pixels": int(len(np.unique(hot // 3))),
+        "mean_dn": float(dark.mean()),
+    }
 
 
 def _rim(args):
@@ -125,8 +150,9 @@ def _transform(args):
     if not args.subcell_m > 0:
         raise BadInputError(f"--subcell-m must be > 0, got {args.subcell_m}")
     frame = read_image(args.frame, what="lights-on frame")
-    prof, rep = calibrate_transform(frame, subcell_m=args.subcell_m, center_px=args.center,
-                                    viewpoint_height_m=args.viewpoint_m)
+    prof, rep = calibrate_transform(
+        frame, subcell_m=args.subcell_m, center_px=args.center, viewpoint_height_m=args.viewpoint_m
+    )
     prof = prof.replace(provenance={**prof.provenance, "frame": str(args.frame)})
     try:  # the corners too, when they are where the transformation puts them
         prof, _ = calibrate_neighbors(frame, prof)

@@ -75,8 +75,9 @@ def run(args) -> dict:
     x, y, h = robot.pose
     pose = Pose(x, y, h)
     dark = cam.median_dark(16, rng=crng)
-    frame = cam.render(pose, rng=crng, t_s=world.time_s, phosphor=phosphor,
-                       red_lights_m=board.red_lights_m(), board=board, truth=True)
+    frame = cam.render(
+        pose, rng=crng, t_s=world.time_s, phosphor=phosphor, red_lights_m=board.red_lights_m(), board=board, truth=True
+    )
     pipe = Pipeline(default_profile(), dark=dark)
     result = pipe.process(frame.image)
     write_image(out / "camera.png", frame.image, overwrite=True)
@@ -97,8 +98,7 @@ def run(args) -> dict:
         "sim_time_s": world.time_s,
         "distance_m": robot.distance_travelled_m,
         "containment_events": world.containment_events,
-        "turn_rate_error_pct": 100 * (robot.true_turn_rate_rad_s(world.time_s)
-                                      / LEGO_STC.nominal_turn_rate_rad_s - 1),
+        "turn_rate_error_pct": 100 * (robot.true_turn_rate_rad_s(world.time_s) / LEGO_STC.nominal_turn_rate_rad_s - 1),
         "odometry_position_error_m": pos_err,
         "odometry_heading_error_deg": math.degrees(head_err),
         "dots_laid": len(phosphor),
@@ -118,7 +118,10 @@ def format_text(r: dict) -> str:
         ("moves (blocked)", f"{r['moves']} ({r['blocked_moves']})"),
         ("sim time", f"{r['sim_time_s']:.0f} s, {r['distance_m']:.2f} m driven"),
         ("turn rate off nominal", f"{r['turn_rate_error_pct']:+.1f} %"),
-        ("odometry error", f"{100 * r['odometry_position_error_m']:.1f} cm, {r['odometry_heading_error_deg']:+.1f} deg"),
+        (
+            "odometry error",
+            f"{100 * r['odometry_position_error_m']:.1f} cm, {r['odometry_heading_error_deg']:+.1f} deg",
+        ),
         ("containment events", str(r["containment_events"])),
         ("UV dots laid", str(r["dots_laid"])),
         ("dots in view / detectable / found", f"{r['dots_in_view']} / {r['dots_detectable']} / {r['dots_found']}"),

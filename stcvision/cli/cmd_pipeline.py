@@ -8,8 +8,11 @@ from __future__ import annotations
 
 def add_parser(p):
     p.add_argument("frames", nargs="+", metavar="FRAME", help="frame images (PNG/JPEG, BGR)")
-    p.add_argument("--profile", metavar="PROFILE.json",
-                   help="calibration profile (default: the shipped profile of the default simulated camera)")
+    p.add_argument(
+        "--profile",
+        metavar="PROFILE.json",
+        help="calibration profile (default: the shipped profile of the default simulated camera)",
+    )
     p.add_argument("--dark", metavar="DARK.png", help="dark frame at the frames' exposure")
     p.add_argument("--no-dark", action="store_true", help="run without a dark frame (not recommended)")
     p.add_argument("--rrd", metavar="OUT.rrd", help="write a rerun recording of every stage")

@@ -14,8 +14,9 @@ def add_parser(p):
     p.add_argument("--scene", metavar="SCENE.json", help="scene description (see --example-scene)")
     p.add_argument("--out", metavar="DIR", help="output folder")
     p.add_argument("--seed", type=int, default=0, help="seed of the temporal noise (default 0)")
-    p.add_argument("--dark-frames", type=int, default=16, metavar="N",
-                   help="dark frames median-stacked into dark.png (default 16)")
+    p.add_argument(
+        "--dark-frames", type=int, default=16, metavar="N", help="dark frames median-stacked into dark.png (default 16)"
+    )
     p.add_argument("--force", action="store_true", help="overwrite existing outputs in --out")
     p.add_argument("--example-scene", action="store_true", help="print an example scene and exit")
 
@@ -51,8 +52,15 @@ def run(args):
             raise FileExistsRefusedError(f"{out} already holds {', '.join(taken)}; use --force to overwrite")
     cam = scene.camera()
     rngs = [np.random.default_rng(s) for s in np.random.SeedSequence(args.seed).spawn(3)]
-    frame = cam.render(scene.pose, rng=rngs[0], t_s=scene.t_s, phosphor=scene.phosphor,
-                       red_lights_m=scene.red_lights_m, board=scene.board, truth=True)
+    frame = cam.render(
+        scene.pose,
+        rng=rngs[0],
+        t_s=scene.t_s,
+        phosphor=scene.phosphor,
+        red_lights_m=scene.red_lights_m,
+        board=scene.board,
+        truth=True,
+    )
     dark = cam.median_dark(args.dark_frames, rng=rngs[1])
     lit = cam.lights_on(scene.pose, board=scene.board, rng=rngs[2])
     truth = frame.truth

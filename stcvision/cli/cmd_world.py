@@ -19,9 +19,7 @@ def add_parser(p) -> None:
     src.add_argument("--arena", metavar="ARENA.json", help="arena description (JSON)")
     src.add_argument("--map", metavar="MAP", help="STC board map: .txt ('.', '#', 'S') or .png")
     src.add_argument("--board", metavar="WxH", type=pair(int), help="random board of W x H cells")
-    p.add_argument(
-        "--steps", type=positive(int), default=4000, help="world steps of 0.05 s (default 4000)"
-    )
+    p.add_argument("--steps", type=positive(int), default=4000, help="world steps of 0.05 s (default 4000)")
     p.add_argument("--seed", type=int, default=0, help="seed of everything random (default 0)")
     p.add_argument(
         "--px-per-m",
@@ -65,9 +63,7 @@ def build_world(args):
     width = 0.1 * 2 * KHEPERA.radius_m  # Buffon seed sec. 4: 0.1 body length
     xmin, ymin, xmax, ymax = arena.bounds_m
     cell = max(0.5 * width, max(xmax - xmin, ymax - ymin) / 4000)
-    world = World(
-        arena, seed=args.seed, pheromone=PheromoneLayer(arena.bounds_m, width_m=width, cell_m=cell)
-    )
+    world = World(arena, seed=args.seed, pheromone=PheromoneLayer(arena.bounds_m, width_m=width, cell_m=cell))
     return world, what
 
 

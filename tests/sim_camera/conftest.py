@@ -27,9 +27,7 @@ def make_arenas() -> dict:
     square = SquareArena(side_m=1.2)
     square = square.with_parts(
         barriers=square.centred_barriers("+", 0.5),
-        obstacles=(
-            PolygonObstacle(vertices_m=((0.3, 0.3), (0.45, 0.3), (0.45, 0.45), (0.3, 0.45))),
-        ),
+        obstacles=(PolygonObstacle(vertices_m=((0.3, 0.3), (0.45, 0.3), (0.45, 0.45), (0.3, 0.45))),),
     )
     ellipse = EllipseArena(semi_axes_m=(0.9, 0.45))
     ellipse = ellipse.with_parts(
@@ -55,9 +53,7 @@ def make_arenas() -> dict:
     )
     from sim_camera.board import Board
 
-    board = arena_from_board(
-        Board.random((4, 4), obstacle_fraction=0.25, rng=np.random.default_rng(3))
-    )
+    board = arena_from_board(Board.random((4, 4), obstacle_fraction=0.25, rng=np.random.default_rng(3)))
     return {"circle": circle, "square": square, "ellipse": ellipse, "polygon": poly, "board": board}
 
 

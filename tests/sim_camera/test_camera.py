@@ -147,18 +147,22 @@ def test_longer_exposure_and_stacking_extend_the_horizon(default_camera):
     s = cam.sensor.replace(exposure_s=0.5)
     img = cam.render(Pose(0, 0, 0), rng=np.random.default_rng(0), red_lights_m=np.array([[0.4, 0.0]]), sensor=s).image
     assert (img[..., 2] == 255).sum() > (
-        cam.render(Pose(0, 0, 0), rng=np.random.default_rng(0), red_lights_m=np.array([[0.4, 0.0]])).image[..., 2] == 255
+        cam.render(Pose(0, 0, 0), rng=np.random.default_rng(0), red_lights_m=np.array([[0.4, 0.0]])).image[..., 2]
+        == 255
     ).sum()
 
 
 def test_same_seed_gives_byte_identical_frames():
     scene = Scene.from_dict(EXAMPLE_SCENE)
-    a = scene.camera().render(scene.pose, rng=np.random.default_rng(7), phosphor=scene.phosphor,
-                              red_lights_m=scene.red_lights_m)
-    b = scene.camera().render(scene.pose, rng=np.random.default_rng(7), phosphor=scene.phosphor,
-                              red_lights_m=scene.red_lights_m)
-    c = scene.camera().render(scene.pose, rng=np.random.default_rng(8), phosphor=scene.phosphor,
-                              red_lights_m=scene.red_lights_m)
+    a = scene.camera().render(
+        scene.pose, rng=np.random.default_rng(7), phosphor=scene.phosphor, red_lights_m=scene.red_lights_m
+    )
+    b = scene.camera().render(
+        scene.pose, rng=np.random.default_rng(7), phosphor=scene.phosphor, red_lights_m=scene.red_lights_m
+    )
+    c = scene.camera().render(
+        scene.pose, rng=np.random.default_rng(8), phosphor=scene.phosphor, red_lights_m=scene.red_lights_m
+    )
     assert a.image.tobytes() == b.image.tobytes()
     assert a.image.tobytes() != c.image.tobytes()
 
@@ -166,8 +170,14 @@ def test_same_seed_gives_byte_identical_frames():
 def test_ground_truth_of_the_example_scene():
     scene = Scene.from_dict(EXAMPLE_SCENE)
     cam = scene.camera()
-    f = cam.render(scene.pose, rng=np.random.default_rng(0), phosphor=scene.phosphor,
-                   red_lights_m=scene.red_lights_m, board=scene.board, truth=True)
+    f = cam.render(
+        scene.pose,
+        rng=np.random.default_rng(0),
+        phosphor=scene.phosphor,
+        red_lights_m=scene.red_lights_m,
+        board=scene.board,
+        truth=True,
+    )
     t = json.loads(json.dumps(f.truth))  # JSON-serialisable
     cell = t["cell"]
     assert cell["cell"] == [3, 3]
@@ -198,8 +208,13 @@ def test_obstacle_neighbour_has_red_in_truth():
     board = Board.from_text("S.##\n..##\n")
     c = board.subcell_center_m(1, 1)
     cam = SyntheticCamera()
-    f = cam.render(Pose(c[0], c[1], np.pi / 2), rng=np.random.default_rng(0),
-                   red_lights_m=board.red_lights_m(), board=board, truth=True)
+    f = cam.render(
+        Pose(c[0], c[1], np.pi / 2),
+        rng=np.random.default_rng(0),
+        red_lights_m=board.red_lights_m(),
+        board=board,
+        truth=True,
+    )
     nb = {n["direction"]: n for n in f.truth["cell"]["neighbours"]}
     assert nb["right"]["has_red"] and not nb["right"]["free"]
     # off the board: the border ring of red lights

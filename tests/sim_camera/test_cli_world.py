@@ -26,20 +26,14 @@ def test_world_arena_file_board_and_map(tmp_path, capsys):
     }
     f = tmp_path / "arena.json"
     f.write_text(json.dumps(arena))
-    assert (
-        main(["world", "--arena", str(f), "--out", str(tmp_path / "a"), "--steps", "300", "--json"])
-        == 0
-    )
+    assert main(["world", "--arena", str(f), "--out", str(tmp_path / "a"), "--steps", "300", "--json"]) == 0
     assert json.loads(capsys.readouterr().out)["arena_kind"] == "ellipse"
     assert main(["world", "--board", "3x2", "--out", str(tmp_path / "b"), "--steps", "200"]) == 0
     out = capsys.readouterr().out
     assert "random board 3x2" in out and (tmp_path / "b" / "world.png").exists()
     m = tmp_path / "map.txt"
     m.write_text("....\n.S..\n..##\n..##\n")
-    assert (
-        main(["world", "--map", str(m), "--out", str(tmp_path / "c"), "--steps", "200", "--json"])
-        == 0
-    )
+    assert main(["world", "--map", str(m), "--out", str(tmp_path / "c"), "--steps", "200", "--json"]) == 0
     assert json.loads(capsys.readouterr().out)["arena_kind"] == "board"
 
 

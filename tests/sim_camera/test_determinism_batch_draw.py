@@ -40,9 +40,7 @@ def test_same_seed_same_world_different_seed_different():
 
 
 def test_per_robot_draws_depend_on_seed():
-    gains = {
-        World(CircleArena(radius_m=1.0), seed=s).add_robot(LEGO_STC).speed_gain for s in range(5)
-    }
+    gains = {World(CircleArena(radius_m=1.0), seed=s).add_robot(LEGO_STC).speed_gain for s in range(5)}
     assert len(gains) == 5 and all(0.9 <= g <= 1.1 for g in gains)
 
 
@@ -60,9 +58,7 @@ def test_batch_path_agrees_with_pymunk():
     "reflect" wall rule gives 0.54 / 0.12 and fails.)"""
     arena = CircleArena(radius_m=0.5)
     arena = arena.with_parts(barriers=arena.centred_barriers("|", 0.4))
-    ideal = dataclasses.replace(
-        LEGO_STC, ed=1.0, eb=1.0, slip_k=0.0, speed_gain_spread=0.0, battery_fade_per_h=0.0
-    )
+    ideal = dataclasses.replace(LEGO_STC, ed=1.0, eb=1.0, slip_k=0.0, speed_gain_spread=0.0, battery_fade_per_h=0.0)
     rad, vmax, b, dt, hold = ideal.radius_m, ideal.max_wheel_speed_m_s, ideal.wheelbase_m, 0.05, 20
     rfree = arena.radius_m - rad
 
@@ -111,9 +107,7 @@ def test_batch_path_agrees_with_pymunk():
 def test_batch_reflect_mode_stays_inside():
     arena = CircleArena(radius_m=0.5)
     rng = np.random.default_rng(0)
-    batch = PointRobotBatch(
-        arena, np.zeros((100, 2)), rng.uniform(-3, 3, 100), radius_m=0.05, wall_mode="reflect"
-    )
+    batch = PointRobotBatch(arena, np.zeros((100, 2)), rng.uniform(-3, 3, 100), radius_m=0.05, wall_mode="reflect")
     for _ in range(500):
         batch.step(np.full(100, 0.2), np.zeros(100), 0.05)
     assert arena.contains(batch.pos, margin_m=0.05 - 1e-9).all()
@@ -146,9 +140,7 @@ def test_draw_world_top_down_north_up():
     assert tuple(img[v, u]) == (0, 0, 255)
     # the robot outline is green, north is up: the board's north edge maps to a small v
     x, y, th = robot.pose
-    u, v = to_px(
-        [[x + LEGO_STC.radius_m * math.cos(th + 1.5), y + LEGO_STC.radius_m * math.sin(th + 1.5)]]
-    )[0]
+    u, v = to_px([[x + LEGO_STC.radius_m * math.cos(th + 1.5), y + LEGO_STC.radius_m * math.sin(th + 1.5)]])[0]
     patch = img[v - 2 : v + 3, u - 2 : u + 3].reshape(-1, 3)
     assert any(p[1] > 120 and p[0] < 60 and p[2] < 60 for p in patch)
     assert to_px([[0.0, h]])[0][1] < to_px([[0.0, 0.0]])[0][1]

@@ -14,8 +14,12 @@ from sim_camera.optics import (
 )
 
 PERTURBED = MirrorCameraParams(
-    mirror_decentre_m=(0.0012, -0.0007), mirror_tilt_rad=np.radians(1.5),
-    mirror_tilt_axis_rad=0.8, k1=-0.1, k2=0.01, principal_px=(322.0, 236.5),
+    mirror_decentre_m=(0.0012, -0.0007),
+    mirror_tilt_rad=np.radians(1.5),
+    mirror_tilt_axis_rad=0.8,
+    k1=-0.1,
+    k2=0.01,
+    principal_px=(322.0, 236.5),
 )
 
 
@@ -160,8 +164,22 @@ def test_default_view_reaches_the_five_cells():
     # robot in sub-cell 0 (lower right) of its cell, heading up: cell centre at (D/2, D/2)
     # in the robot frame (x forward, y left)
     c = np.array([D / 2, D / 2])
-    corners = [c + np.array(v) * D for v in [
-        (1, 1), (1, -1), (-1, -1), (-1, 1), (3, 1), (3, -1), (1, -3), (-1, -3),
-        (-3, -1), (-3, 1), (-1, 3), (1, 3)]]
+    corners = [
+        c + np.array(v) * D
+        for v in [
+            (1, 1),
+            (1, -1),
+            (-1, -1),
+            (-1, 1),
+            (3, 1),
+            (3, -1),
+            (1, -3),
+            (-1, -3),
+            (-3, -1),
+            (-3, 1),
+            (-1, 3),
+            (1, 3),
+        ]
+    ]
     _, ok = project_floor_points(p, np.array(corners))
     assert ok.all()

@@ -35,14 +35,10 @@ def test_ir_sees_wall_at_the_right_distance_and_side():
     world = World(SquareArena(side_m=1.0), seed=0)
     x = 0.5 - 0.02 - KHEPERA.radius_m
     r = world.add_robot(KHEPERA, pose=(x, 0.0, 0.0))
-    ir = IrSensors(
-        world, r, dataclasses.replace(IrParams(), noise_sigma=0.0), np.random.default_rng(0)
-    )
+    ir = IrSensors(world, r, dataclasses.replace(IrParams(), noise_sigma=0.0), np.random.default_rng(0))
     d = ir.distances_m()
     assert d[2] == pytest.approx(d[3], abs=1e-9)
-    assert d[2] == pytest.approx(
-        0.02 + KHEPERA.radius_m * (1 - math.cos(math.radians(10))), abs=3e-3
-    )
+    assert d[2] == pytest.approx(0.02 + KHEPERA.radius_m * (1 - math.cos(math.radians(10))), abs=3e-3)
     reading = ir.read()
     assert reading[2] == pytest.approx(ir_response(d[2]), abs=1e-12)
     assert reading[0] == 0 and reading[5] == 0
@@ -59,17 +55,13 @@ def test_ir_sees_wall_at_the_right_distance_and_side():
 def test_capacitive_ring_stops_tasti2_15mm_from_a_can():
     """TASTI 2 drives at a steel can and halts when the ring's signal crosses its threshold:
     the gap between ring (radius 153 mm) and can is 1.5 cm (seed 001 sec. IV) within 3 mm."""
-    can = CircleObstacle(
-        center_m=(0.5, 0.0), radius_m=CapacitiveRingParams().reference_can_radius_m
-    )
+    can = CircleObstacle(center_m=(0.5, 0.0), radius_m=CapacitiveRingParams().reference_can_radius_m)
     world = World(SquareArena(side_m=2.0).with_parts(obstacles=(can,)), seed=0)
     r = world.add_robot(TASTI2, pose=(-0.4, 0.0, 0.0))
     ring = r.sensors.capacitive
     assert ring.params.ring_radius_m == pytest.approx(0.153)
     assert ring.params.n_electrodes == 9
-    assert math.degrees(ring.params.electrode_span_rad * ring.params.n_electrodes) == pytest.approx(
-        180
-    )
+    assert math.degrees(ring.params.electrode_span_rad * ring.params.n_electrodes) == pytest.approx(180)
     assert ring.read() < 0.1 * ring.stop_threshold  # far away: nothing
     r.set_wheel_speeds(0.05, 0.05)
     for _ in range(2000):

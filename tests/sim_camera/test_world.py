@@ -55,9 +55,7 @@ def test_random_drive_never_leaves_arena(name, arenas):
     elapsed = time.perf_counter() - t0
     assert world.containment_events == 0
     assert arena.contains(pos).all()
-    clearance = (
-        arena.clearance_m(pos[::7]) if name in ("ellipse", "polygon") else arena.clearance_m(pos)
-    )
+    clearance = arena.clearance_m(pos[::7]) if name in ("ellipse", "polygon") else arena.clearance_m(pos)
     assert clearance.min() > LEGO_STC.radius_m - 0.002
     assert robot.distance_travelled_m > 100  # it really drove around
     assert elapsed < 20
@@ -148,9 +146,7 @@ def test_add_robot_rejects_pose_in_wall():
 
 def test_ideal_robot_follows_kinematics():
     """No errors configured: straight line and in-place turn match the unicycle model."""
-    ideal = dataclasses.replace(
-        LEGO_STC, ed=1.0, eb=1.0, slip_k=0.0, speed_gain_spread=0.0, battery_fade_per_h=0.0
-    )
+    ideal = dataclasses.replace(LEGO_STC, ed=1.0, eb=1.0, slip_k=0.0, speed_gain_spread=0.0, battery_fade_per_h=0.0)
     world = World(SquareArena(side_m=3.0), seed=0)
     r = world.add_robot(ideal, pose=(0.0, 0.0, 0.0), sensors=False)
     r.set_wheel_speeds(0.1, 0.1)

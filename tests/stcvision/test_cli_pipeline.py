@@ -37,8 +37,9 @@ def test_render_writes_frame_dark_lights_on_and_truth(rendered, capsys):
 
 def test_pipeline_json_and_rerun_recording(rendered, tmp_path, capsys):
     rrd = tmp_path / "run.rrd"
-    code = main(["pipeline", str(rendered / "frame.png"), "--dark", str(rendered / "dark.png"),
-                 "--rrd", str(rrd), "--json"])
+    code = main(
+        ["pipeline", str(rendered / "frame.png"), "--dark", str(rendered / "dark.png"), "--rrd", str(rrd), "--json"]
+    )
     assert code == 0
     out = json.loads(capsys.readouterr().out)
     f = out["frames"][0]
@@ -64,8 +65,10 @@ def test_pipeline_json_and_rerun_recording(rendered, tmp_path, capsys):
         (lambda d: d / "missing.png", "does not exist"),
         (lambda d: (d / "empty.png").write_bytes(b"") or d / "empty.png", "is empty"),
         (lambda d: (d / "text.png").write_text("hello") and d / "text.png", "not a readable image"),
-        (lambda d: cv2.imwrite(str(d / "small.png"), np.zeros((240, 320, 3), np.uint8)) and d / "small.png",
-         "calibrated for 640x480"),
+        (
+            lambda d: cv2.imwrite(str(d / "small.png"), np.zeros((240, 320, 3), np.uint8)) and d / "small.png",
+            "calibrated for 640x480",
+        ),
     ],
 )
 def test_pipeline_bad_frames_are_one_line_errors(rendered, tmp_path, capsys, make, words):
@@ -86,8 +89,19 @@ def test_pipeline_profile_that_does_not_match(rendered, tmp_path, capsys):
 
     p = default_profile().replace(image_size_px=(800, 600))
     p.save(tmp_path / "p.json")
-    assert main(["pipeline", str(rendered / "frame.png"), "--dark", str(rendered / "dark.png"),
-                 "--profile", str(tmp_path / "p.json")]) == 2
+    assert (
+        main(
+            [
+                "pipeline",
+                str(rendered / "frame.png"),
+                "--dark",
+                str(rendered / "dark.png"),
+                "--profile",
+                str(tmp_path / "p.json"),
+            ]
+        )
+        == 2
+    )
     assert "800x600" in capsys.readouterr().err
 
 

@@ -26,8 +26,9 @@ def run_scenes(camera, profile, n, *, seed, sensor=None, **scene_kw):
     scores = []
     for _ in range(n):
         s = cell_scene(rng, **scene_kw)
-        f = camera.render(s.pose, rng=rng, phosphor=s.phosphor, red_lights_m=s.red_lights_m,
-                          board=s.board, sensor=sensor, truth=True)
+        f = camera.render(
+            s.pose, rng=rng, phosphor=s.phosphor, red_lights_m=s.red_lights_m, board=s.board, sensor=sensor, truth=True
+        )
         scores.append(score_frame(pipe.process(f.image), f.truth, profile))
     return summarize(scores)
 
@@ -52,16 +53,16 @@ def test_webcam_frames_over_mark_ages(default_camera, default_profile):
 
 
 def test_headings_up_to_20_degrees(default_camera, default_profile):
-    m = run_scenes(default_camera, default_profile, 80, seed=12, heading_error_deg=(-20.0, 20.0),
-                   age_range_s=(0.0, 40.0))
+    m = run_scenes(
+        default_camera, default_profile, 80, seed=12, heading_error_deg=(-20.0, 20.0), age_range_s=(0.0, 40.0)
+    )
     check(m)
 
 
 @pytest.mark.parametrize(("exposure_s", "gain", "ages"), [(0.25, 8.0, (0, 300)), (1.0, 2.0, (0, 900))])
 def test_longer_exposures_with_matching_dark_frames(default_camera, default_profile, exposure_s, gain, ages):
     s = default_camera.sensor.replace(exposure_s=exposure_s, gain=gain)
-    m = run_scenes(default_camera, default_profile, 40, seed=13, sensor=s, age_range_s=ages,
-                   fresh_age_s=(30.0, 60.0))
+    m = run_scenes(default_camera, default_profile, 40, seed=13, sensor=s, age_range_s=ages, fresh_age_s=(30.0, 60.0))
     check(m)
 
 
@@ -82,8 +83,9 @@ def test_perturbed_cameras_calibrated_by_the_workflow(k):
 
 def test_default_profile_on_a_perturbed_camera_degrades(default_profile):
     """Calibration matters: the shipped profile reads a decentred, tilted mirror worse."""
-    optics = MirrorCameraParams(mirror_decentre_m=(0.0012, -0.0010), mirror_tilt_rad=np.radians(2.0),
-                                mirror_tilt_axis_rad=0.6)
+    optics = MirrorCameraParams(
+        mirror_decentre_m=(0.0012, -0.0010), mirror_tilt_rad=np.radians(2.0), mirror_tilt_axis_rad=0.6
+    )
     cam = SyntheticCamera(optics)
     bad = run_scenes(cam, default_profile, 40, seed=15, age_range_s=(0.0, 40.0))
     good = run_scenes(cam, calibrate_simulated(cam), 40, seed=15, age_range_s=(0.0, 40.0))

@@ -67,6 +67,7 @@ def test_save_never_overwrites_silently_and_is_atomic(tmp_path, default_profile,
     before = path.read_bytes()
     with pytest.raises(FileExistsRefusedError):
         default_profile.save(path)
+
     # a crash between writing the temporary file and renaming it leaves the old file intact
     def boom(src, dst):
         raise KeyboardInterrupt

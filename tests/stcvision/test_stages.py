@@ -42,8 +42,9 @@ def test_unwarp_puts_a_floor_point_where_the_profile_says(default_profile, defau
     from sim_camera.phosphor import PhosphorLayer
 
     umap = UnwarpMap.from_profile(default_profile)
-    s = default_camera.sensor.replace(read_noise_e=0.0, dark_current_e_s=0.0, column_offset_e_sigma=0.0,
-                                      black_level_dn=0.0, prnu_sigma=0.0)
+    s = default_camera.sensor.replace(
+        read_noise_e=0.0, dark_current_e_s=0.0, column_offset_e_sigma=0.0, black_level_dn=0.0, prnu_sigma=0.0
+    )
     for xy in ([0.3, 0.1], [-0.2, -0.25], [0.05, 0.45]):
         layer = PhosphorLayer()
         layer.charge([xy], t_start_s=-3.1, duration_s=3.0)
