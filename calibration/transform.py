@@ -51,37 +51,31 @@ def grid_corners_m(subcell_m: float, *, rho_min_m: float = 0.12, rho_max_m: floa
     return pts[(rho >= rho_min_m) & (rho <= rho_max_m)]
 
 
-def _line_samples(subcell_m: float, step_m: float = 0.01) -> np.ndarray:
-    xs, ys = grid_lines_m(subcell_m)
-    t = np.arange(-1.2, 1.2, step_m)
-    pts = [np.column_stack([np.full_like(t, x), t]) for x in xs] + [
-        np.column_stack([t, np.full_like(t, y)]) for y in ys
-    ]
-    pts = np.vstack(pts)
-    rho = np.hypot(pts[:, 0], pts[:, 1])
-    return pts[(rho > 0.1) & (rho < 1.0)]
+def _line_samples(subcell_m: float) -> np.ndarray:
+    """Points every centimetre along the grid lines (for the chamfer score and fit)."""
+    return _line_points(subcell_m, step_m=0.01, rho_min_m=0.1, skip_crossings=False)[0]
 
 
-def _line_points(subcell_m: float, step_m: float = 0.005):
-    """Points along every grid line (robot frame), with the line's axis and offset."""
+def _line_points(subcell_m: float, step_m: float = 0.005, *, rho_min_m: float = 0.12, skip_crossings: bool = True):
+    """Points along every grid line (robot frame) out to 1 m, with the line's axis (0: a line
+    ``x = offset``, 1: ``y = offset``) and offset; by default away from the crossings, where the
+    profile across one line meets the other line."""
     xs, ys = grid_lines_m(subcell_m)
     t = np.arange(-1.2, 1.2, step_m)
     pts, axis, off = [], [], []
-    for x in xs:
-        pts.append(np.column_stack([np.full_like(t, x), t]))
-        axis.append(np.zeros(len(t), int))
-        off.append(np.full(len(t), x))
-    for y in ys:
-        pts.append(np.column_stack([t, np.full_like(t, y)]))
-        axis.append(np.ones(len(t), int))
-        off.append(np.full(len(t), y))
+    for ax, offsets in ((0, xs), (1, ys)):
+        for v in offsets:
+            line = np.column_stack([np.full_like(t, v), t])
+            pts.append(line if ax == 0 else line[:, ::-1])
+            axis.append(np.full(len(t), ax))
+            off.append(np.full(len(t), v))
     pts, axis, off = np.vstack(pts), np.concatenate(axis), np.concatenate(off)
     rho = np.hypot(pts[:, 0], pts[:, 1])
-    # away from the crossings (where the profile across one line meets the other line)
-    other = np.where(axis == 0, pts[:, 1], pts[:, 0])
-    crossing = np.abs(((other + subcell_m / 2) % (2 * subcell_m)) - 0) < 0.03
-    crossing |= np.abs(((other + subcell_m / 2) % (2 * subcell_m)) - 2 * subcell_m) < 0.03
-    keep = (rho > 0.12) & (rho < 1.0) & ~crossing
+    keep = (rho > rho_min_m) & (rho < 1.0)
+    if skip_crossings:
+        other = np.where(axis == 0, pts[:, 1], pts[:, 0])
+        phase = (other + subcell_m / 2) % (2 * subcell_m)  # 0 at a crossing line
+        keep &= (phase > 0.03) & (phase < 2 * subcell_m - 0.03)
     return pts[keep], axis[keep], off[keep]
 
 
