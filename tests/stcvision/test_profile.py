@@ -82,3 +82,30 @@ def test_save_never_overwrites_silently_and_is_atomic(tmp_path, default_profile,
 def test_frame_size_is_checked(default_profile):
     with pytest.raises(ProfileError, match="calibrated for 640x480"):
         default_profile.check_frame((240, 320, 3))
+
+
+def test_killing_a_writer_never_leaves_a_half_written_profile(tmp_path, default_profile):
+    """SIGKILL a process that keeps rewriting a profile, at several moments: the file on disk
+    is always a whole, valid profile (temp file + fsync + rename)."""
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    path = tmp_path / "p.json"
+    default_profile.save(path)
+    code = (
+        "import sys\n"
+        "from stcvision.profile import Profile\n"
+        "p = Profile.load(sys.argv[1])\n"
+        "big = p.replace(provenance={'padding': 'x' * 2_000_000})\n"
+        "while True:\n"
+        "    big.save(sys.argv[1], overwrite=True)\n"
+        "    p.save(sys.argv[1], overwrite=True)\n"
+    )
+    for delay in (0.3, 0.45, 0.6, 0.8):
+        proc = subprocess.Popen([sys.executable, "-c", code, str(path)])
+        time.sleep(delay)
+        proc.send_signal(signal.SIGKILL)
+        proc.wait()
+        Profile.load(path)  # parses and validates: never truncated
