@@ -329,7 +329,7 @@ def noise_gain(umap: UnwarpMap, window_px: int, *, n: int = 12, seed: int = 0) -
     # sampling noise of a few Monte-Carlo images (12 samples alone scatter by +-20 %)
     var = cv2.GaussianBlur((acc / n).astype(np.float32), (0, 0), 4.0)
     gain = np.sqrt(var)
-    gain[~umap.valid] = np.inf
+    gain[~umap.valid] = 1e4  # no dot where the mirror does not look (finite: OpenCV arithmetic)
     return np.maximum(gain, 1e-3)
 
 
@@ -389,15 +389,15 @@ def find_dots(
     # area * (background + snr * noise of the window mean there)
     if params.threshold_dn is not None:
         level = np.float32(area * (background_dn + params.threshold_dn * low / params.k_sigma))
+    elif gain is not None and sums.dtype == np.uint16:  # one saturating OpenCV op, rounded up
+        level = cv2.addWeighted(gain, area * low * noise_dn, gain, 0.0, area * background_dn + 0.5, dtype=cv2.CV_16U)
     elif gain is not None:
         level = gain * np.float32(area * low * noise_dn)
         level += np.float32(area * background_dn)
     else:
         level = np.float32(area * (background_dn + low * noise_dn / w))
-    if sums.dtype == np.uint16:
-        level = (
-            np.minimum(np.ceil(level), 65535).astype(np.uint16) if np.ndim(level) else min(int(np.ceil(level)), 65535)
-        )
+    if sums.dtype == np.uint16 and not np.ndim(level):
+        level = min(int(np.ceil(level)), 65535)
     # local maxima over the black-out square: one dilation does most of the suppression
     b = params.blackout_px
     peaks = cv2.dilate(sums, np.ones((2 * b + 1, 2 * b + 1), np.uint8))
