@@ -1,0 +1,402 @@
+"""Ant-like STC (seed ``003_01c9be04038c8c46.txt``) as a pure O(1)-memory logic layer, with an
+ORACLE grid simulation to verify it (no physics, no camera).
+
+Geometry (``../shared/DESIGN.md``, "The ant-like STC geometry")
+---------------------------------------------------------------
+The robot occupies one sub-cell; a cell is 2x2 sub-cells. Every decision is taken on entering a
+cell, in the **entry frame** (robot heading "up"), where the robot stands in sub-cell 0 =
+lower-right; sub-cells are numbered counter-clockwise 0 (lower-right), 1 (upper-right),
+2 (upper-left), 3 (lower-left). Directions in the entry frame are numbered counter-clockwise too:
+``0`` right, ``1`` forward, ``2`` left, ``3`` back. Sub-cell ``m`` is left either towards the
+next sub-cell ``m + 1`` (direction ``m + 1``) or out of the cell (direction ``m``), so the exit
+to the neighbour in direction ``d`` is always from sub-cell ``d`` and lands in the neighbour's
+sub-cell 0 of its own entry frame (the right-hand side of the spanning-tree edge).
+
+Marking: just before every forward move the robot marks the sub-cell it leaves on its rear edge
+(the edge opposite the direction of travel). The five-box table of DESIGN.md is used as is:
+
+====  ======================================  =================================
+box   inside sub-cell, along edge             laid when
+====  ======================================  =================================
+1     sub-cell 1, right edge (exterior)        1 left going left
+2     sub-cell 2, top edge (exterior)          2 left going down
+3     sub-cell 2, right edge                   2 left going left
+4     sub-cell 3, top edge                     3 left going down
+5     sub-cell 1, bottom edge                  1 left going up
+====  ======================================  =================================
+
+sub-cell 1 visited iff box 1 or 5; 2 iff box 2 or 3; 3 iff box 4. ``run_oracle`` checks the
+table against the true visit history at every decision (``decision_mismatches``) and counts
+marks of the current cell lying outside the five boxes and the start-mark positions
+(``box_table_violations``); the tests find both zero on hundreds of random boards. (The seed's
+prose "left path lights 1, 3 and 4" is wrong, as DESIGN.md says: re-entering in sub-cell 1 of the
+old frame and leaving left lights 1, 2 and 4 in the new frame; the code never relies on it.)
+
+Start mark (this module's choice)
+---------------------------------
+Before its first move the robot turns left, switches the rear LEDs on without moving (action
+``MARK``) and turns back right. This lays a second kind of mark inside the start sub-cell, along
+its right edge in the start frame (an exterior edge of the start cell). In any entry frame, the
+start sub-cell ``m`` then carries a mark on its exterior edge in direction ``m`` (0: sub-cell 0's
+right edge, 1: sub-cell 1's top edge, 2: sub-cell 2's left edge, 3: sub-cell 3's bottom edge).
+Ordinary marks never sit there (sub-cell ``m`` is only ever left in directions ``m`` or
+``m + 1``, which mark its edges ``m + 2`` and ``m + 3``), so the camera can read the start mark
+and *which* sub-cell is the start sub-cell from the floor alone: ``StcObservation.start_mark``.
+It also makes the start cell read as visited for its neighbours from the very first step.
+
+Start cell: the cell behind the robot is a virtual parent; the start cell scans all four
+neighbours, the virtual parent's direction last. If it is free and unmarked the robot goes there,
+and the final return from it lands on the start sub-cell: the controller sees the start mark in
+its own sub-cell 0 with sub-cells 1-3 all visited and stops (``DONE``). Otherwise it covers the
+start cell's remaining sub-cells and stops beside the start sub-cell.
+
+Controller
+----------
+:func:`step` ``(StcState, StcObservation) -> (StcState, Action)`` is a pure function over a
+frozen, constant-size state (phase, current sub-cell index in the entry frame, heading relative
+to the entry frame, exit direction, a "stop there" flag). No map, no history: every decision comes
+from the observation (:func:`decide`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import enum
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = [
+    "Action",
+    "Decision",
+    "MarkFloor",
+    "NeighbourObs",
+    "StcObservation",
+    "StcPhase",
+    "StcState",
+    "decide",
+    "initial_state",
+    "observe_oracle",
+    "run_oracle",
+    "start_heading",
+    "step",
+]
+
+#: Compass headings, clockwise: 0 N, 1 E, 2 S, 3 W; (row, column) steps (row 0 = north).
+COMPASS_VEC = ((-1, 0), (0, 1), (1, 0), (0, -1))
+COMPASS_NAMES = "NESW"
+
+#: The five boxes as (sub-cell, entry-frame edge direction), directions 0 right 1 up 2 left 3 down.
+BOXES = ((1, 0), (2, 1), (2, 0), (3, 1), (1, 3))
+
+
+class Action(enum.Enum):
+    FORWARD = "forward"  # mark the rear edge of the current sub-cell, then drive one sub-cell
+    TURN_LEFT = "turn_left"  # 90 deg counter-clockwise in place
+    TURN_RIGHT = "turn_right"  # 90 deg clockwise in place
+    MARK = "mark"  # rear LEDs on without moving (only to lay the start mark)
+    DONE = "done"
+
+
+class StcPhase(enum.Enum):
+    INIT = 0  # about to turn left to lay the start mark
+    START_MARK = 1  # facing left of the start heading: lay the start mark
+    START_FACE = 2  # turn back to the start heading
+    DECIDE = 3  # just entered a cell (sub-cell 0, heading up): read the floor and decide
+    MOVE = 4  # walking the cell's sub-cells counter-clockwise towards the exit
+    DONE = 5
+
+
+@dataclass(frozen=True, slots=True)
+class StcState:
+    """Constant-size controller state (no map, no history)."""
+
+    phase: StcPhase = StcPhase.INIT
+    sub: int = 0  # current sub-cell, entry frame (0..3)
+    heading: int = 1  # current heading as an entry-frame direction (0 right, 1 up, 2 left, 3 down)
+    target: int = 0  # exit direction = index of the sub-cell to leave from (0..3)
+    final: bool = False  # stop in sub-cell ``target`` instead of leaving the cell
+
+
+def initial_state() -> StcState:
+    return StcState()
+
+
+@dataclass(frozen=True, slots=True)
+class NeighbourObs:
+    has_marks: bool  # any mark inside that cell
+    has_red: bool  # red light: obstacle cell or beyond the board
+
+
+@dataclass(frozen=True, slots=True)
+class StcObservation:
+    """What the camera reports in the entry frame (robot heading up, in sub-cell 0)."""
+
+    boxes: tuple[bool, bool, bool, bool, bool]
+    neighbours: tuple[NeighbourObs, NeighbourObs, NeighbourObs, NeighbourObs]  # right, fwd, left, back
+    start_mark: int | None  # entry-frame sub-cell holding the start mark, None if not this cell
+    other_marks: int = 0  # marks of this cell at none of the box / start-mark positions (checks)
+
+
+@dataclass(frozen=True, slots=True)
+class Decision:
+    visited: tuple[bool, bool, bool]  # sub-cells 1, 2, 3
+    parent: int  # entry-frame direction of the parent (virtual parent in the start cell)
+    child: int | None  # direction of the new neighbour to enter, None = none
+    is_start: bool
+    done: bool  # back on the start sub-cell with the whole cell covered
+    target: int  # sub-cell to go to (and leave from unless ``final``)
+    final: bool
+
+
+def decide(obs: StcObservation) -> Decision:
+    """The ant-like STC decision from one observation (pure, no memory)."""
+    b = obs.boxes
+    v = (False, bool(b[0] or b[4]), bool(b[1] or b[2]), bool(b[3]))
+    is_start = obs.start_mark is not None
+    if is_start and obs.start_mark == 0 and v[1] and v[2] and v[3]:
+        return Decision(v[1:], 3, None, True, True, 0, True)
+    parent = 3  # nothing visited: we came from behind (or the virtual parent in the start cell)
+    for m in (1, 2, 3):
+        if not v[m - 1] and v[m]:
+            parent = m - 1
+            break
+    free = [not (n.has_red or n.has_marks) for n in obs.neighbours]
+    child = None
+    for k in (1, 2, 3):
+        d = (parent + k) % 4
+        if free[d]:
+            child = d
+            break
+    if child is None and is_start and free[parent]:
+        child = parent
+    if child is not None:
+        return Decision(v[1:], parent, child, is_start, False, child, False)
+    return Decision(v[1:], parent, None, is_start, False, parent, is_start)
+
+
+def step(state: StcState, obs: StcObservation | None) -> tuple[StcState, Action]:
+    """One controller tick. ``obs`` is only read in the ``DECIDE`` phase."""
+    ph = state.phase
+    if ph is StcPhase.INIT:
+        return dataclasses.replace(state, phase=StcPhase.START_MARK), Action.TURN_LEFT
+    if ph is StcPhase.START_MARK:
+        return dataclasses.replace(state, phase=StcPhase.START_FACE), Action.MARK
+    if ph is StcPhase.START_FACE:
+        return StcState(phase=StcPhase.DECIDE), Action.TURN_RIGHT
+    if ph is StcPhase.DONE:
+        return state, Action.DONE
+    if ph is StcPhase.DECIDE:
+        if obs is None:
+            raise ValueError("the DECIDE phase needs an observation")
+        dec = decide(obs)
+        if dec.done:
+            return StcState(phase=StcPhase.DONE), Action.DONE
+        state = StcState(phase=StcPhase.MOVE, sub=0, heading=1, target=dec.target, final=dec.final)
+    m, r, j = state.sub, state.heading, state.target
+    if state.final and m == j:
+        return StcState(phase=StcPhase.DONE, sub=m, heading=r, target=j, final=True), Action.DONE
+    want = j if m == j else (m + 1) % 4
+    if r == want:
+        if m == j:  # leave the cell: new entry frame in the next cell
+            return StcState(phase=StcPhase.DECIDE), Action.FORWARD
+        return dataclasses.replace(state, sub=m + 1), Action.FORWARD
+    if (want - r) % 4 in (1, 2):
+        return dataclasses.replace(state, heading=(r + 1) % 4), Action.TURN_LEFT
+    return dataclasses.replace(state, heading=(r - 1) % 4), Action.TURN_RIGHT
+
+
+# ---------------------------------------------------------------------------------- oracle
+class MarkFloor:
+    """The marks on the floor: per sub-cell, the set of marked edges (compass 0..3)."""
+
+    def __init__(self, shape_subcells: tuple[int, int]):
+        rows, cols = shape_subcells
+        self.shape = (int(rows), int(cols))
+        self.edges: dict[tuple[int, int], set[int]] = {}
+        self.cell_count = np.zeros((rows // 2, cols // 2), int)
+
+    def mark(self, sub: tuple[int, int], edge: int) -> None:
+        s = self.edges.setdefault((int(sub[0]), int(sub[1])), set())
+        if edge % 4 not in s:
+            s.add(edge % 4)
+            self.cell_count[sub[0] // 2, sub[1] // 2] += 1
+
+    def has(self, sub: tuple[int, int], edge: int) -> bool:
+        return edge % 4 in self.edges.get((sub[0], sub[1]), ())
+
+    def cell_has_marks(self, ci: int, cj: int) -> bool:
+        cr, cc = self.cell_count.shape
+        return bool(0 <= ci < cr and 0 <= cj < cc and self.cell_count[ci, cj] > 0)
+
+
+def _frame_compass(h: int, d: int) -> int:
+    """Compass direction of entry-frame direction ``d`` when the robot heads ``h``."""
+    return (h + 1 - d) % 4
+
+
+def _frame_subcells(sub: tuple[int, int], h: int) -> list[tuple[int, int]]:
+    up, left = COMPASS_VEC[h], COMPASS_VEC[(h + 3) % 4]
+    i, j = sub
+    return [(i, j), (i + up[0], j + up[1]), (i + up[0] + left[0], j + up[1] + left[1]), (i + left[0], j + left[1])]
+
+
+def observe_oracle(floor: MarkFloor, board, robot_subcell: tuple[int, int], heading: int) -> StcObservation:
+    """The perfect camera: what the vision should report with the robot in ``robot_subcell``
+    heading ``heading`` (compass), taking that pose as the entry frame."""
+    subs = _frame_subcells(robot_subcell, heading)
+    boxes = tuple(floor.has(subs[m], _frame_compass(heading, d)) for m, d in BOXES)
+    start = None
+    for m in range(4):
+        if floor.has(subs[m], _frame_compass(heading, m)):
+            start = m
+            break
+    ci, cj = robot_subcell[0] // 2, robot_subcell[1] // 2
+    total = int(floor.cell_count[ci, cj])
+    other = total - sum(boxes) - (start is not None)
+    neigh = []
+    for d in range(4):
+        di, dj = COMPASS_VEC[_frame_compass(heading, d)]
+        a, b = ci + di, cj + dj
+        neigh.append(NeighbourObs(has_marks=floor.cell_has_marks(a, b), has_red=not board.is_cell_free(a, b)))
+    return StcObservation(boxes, tuple(neigh), start, other)
+
+
+def start_heading(board) -> int:
+    """Compass heading in which the board's start sub-cell is the lower-right one of its cell."""
+    i, j = board.start_subcell
+    for h in range(4):
+        subs = _frame_subcells((i, j), h)
+        if all(s[0] // 2 == i // 2 and s[1] // 2 == j // 2 for s in subs):
+            return h
+    raise AssertionError("unreachable")  # pragma: no cover
+
+
+def run_oracle(board, *, max_steps: int = 1_000_000, keep_mismatches: int = 20) -> dict:
+    """Run :func:`step` against :func:`observe_oracle` on ``board``.
+
+    The true visit history and spanning tree are kept here, outside the controller, only to
+    check every decision (box inference, parent, chosen neighbour, start/done recognition).
+
+    ``subcells_covered_more_than_once`` does not count the last move that closes the tour onto
+    the start sub-cell (``closed_loop`` is then ``True``); every other re-entry counts.
+    """
+    rows, cols = board.shape_subcells
+    s = tuple(board.start_subcell)
+    h = start_heading(board)
+    start_cell = board.start_cell
+    floor = MarkFloor((rows, cols))
+    visits = np.zeros((rows, cols), int)
+    visits[s] += 1
+    vh = COMPASS_VEC[h]
+    parent_of = {start_cell: (start_cell[0] - vh[0], start_cell[1] - vh[1])}  # virtual parent
+    cell_visited = np.zeros(board.shape_cells, bool)
+    cell_visited[start_cell] = True
+    state = initial_state()
+    moves = turns = marks = steps = decisions = collisions = box_violations = 0
+    mismatches: list[dict] = []
+    n_mismatch = 0
+    finished = False
+    while steps < max_steps:
+        steps += 1
+        obs = observe_oracle(floor, board, s, h) if state.phase is StcPhase.DECIDE else None
+        if obs is not None:
+            decisions += 1
+            dec = decide(obs)
+            bad = _check_decision(dec, obs, board, s, h, visits, parent_of, cell_visited, start_cell, moves)
+            if not dec.done and obs.other_marks:
+                box_violations += 1
+            if bad:
+                n_mismatch += 1
+                if len(mismatches) < keep_mismatches:
+                    mismatches.append({"subcell": s, "heading": COMPASS_NAMES[h], **bad})
+        state, action = step(state, obs)
+        if action is Action.FORWARD:
+            floor.mark(s, (h + 2) % 4)
+            di, dj = COMPASS_VEC[h]
+            n = (s[0] + di, s[1] + dj)
+            if not (0 <= n[0] < rows and 0 <= n[1] < cols) or board.blocked[n]:
+                collisions += 1
+                break
+            c_old, c_new = (s[0] // 2, s[1] // 2), (n[0] // 2, n[1] // 2)
+            if c_new != c_old and c_new not in parent_of:
+                parent_of[c_new] = c_old
+            cell_visited[c_new] = True
+            visits[n] += 1
+            s = n
+            moves += 1
+        elif action is Action.TURN_LEFT:
+            h = (h + 3) % 4
+            turns += 1
+        elif action is Action.TURN_RIGHT:
+            h = (h + 1) % 4
+            turns += 1
+        elif action is Action.MARK:
+            floor.mark(s, (h + 2) % 4)
+            marks += 1
+        elif action is Action.DONE:
+            finished = True
+            break
+    reachable = board.reachable_cells()
+    # the tour closes on the start sub-cell: that last arrival is not a second coverage
+    closed_loop = finished and s == tuple(board.start_subcell) and moves > 0
+    repeat = visits.copy()
+    if closed_loop:
+        repeat[s] -= 1
+    return {
+        "subcells_reachable": int(4 * reachable.sum()),
+        "subcells_covered": int((visits > 0).sum()),
+        "subcells_covered_more_than_once": int((repeat > 1).sum()),
+        "closed_loop": closed_loop,
+        "subcells_uncovered_reachable": int((~(visits > 0) & np.repeat(np.repeat(reachable, 2, 0), 2, 1)).sum()),
+        "returned_to_start": (s[0] // 2, s[1] // 2) == start_cell,
+        "finished": finished,
+        "moves": moves,
+        "turns": turns,
+        "marks": marks,
+        "steps": steps,
+        "decisions": decisions,
+        "collisions": collisions,
+        "box_table_violations": box_violations,
+        "decision_mismatches": n_mismatch,
+        "mismatch_examples": mismatches,
+        "final_subcell": s,
+    }
+
+
+def _check_decision(dec, obs, board, s, h, visits, parent_of, cell_visited, start_cell, moves) -> dict:
+    """Differences between ``dec`` and the ground truth from the true history ({} if none)."""
+    subs = _frame_subcells(s, h)
+    cell = (s[0] // 2, s[1] // 2)
+    bad = {}
+    true_start = cell == start_cell
+    if dec.is_start != true_start:
+        bad["is_start"] = (dec.is_start, true_start)
+    true_done = s == tuple(board.start_subcell) and moves > 0
+    if dec.done != true_done:
+        bad["done"] = (dec.done, true_done)
+    if true_done:
+        return bad
+    # sub-cell 0 is never visited on entry; 1..3 visited iff the robot has stood there
+    true_v = tuple(bool(visits[subs[m]] > 0) for m in (1, 2, 3))
+    if visits[subs[0]] != 1:
+        bad["entry_subcell_visits"] = int(visits[subs[0]])
+    if dec.visited != true_v:
+        bad["visited"] = (dec.visited, true_v)
+    p = parent_of[cell]
+    pc = {COMPASS_VEC[c]: c for c in range(4)}[(p[0] - cell[0], p[1] - cell[1])]
+    true_parent = (h + 1 - pc) % 4
+    if dec.parent != true_parent:
+        bad["parent"] = (dec.parent, true_parent)
+    cr, cc = board.shape_cells
+
+    def truly_new(d):
+        di, dj = COMPASS_VEC[_frame_compass(h, d)]
+        a, b = cell[0] + di, cell[1] + dj
+        return board.is_cell_free(a, b) and not cell_visited[a, b]
+
+    order = [(true_parent + k) % 4 for k in (1, 2, 3)] + ([true_parent] if true_start else [])
+    true_child = next((d for d in order if truly_new(d)), None)
+    if dec.child != true_child:
+        bad["child"] = (dec.child, true_child)
+    return bad
