@@ -28,9 +28,12 @@ box   inside sub-cell, along edge             laid when
 sub-cell 1 visited iff box 1 or 5; 2 iff box 2 or 3; 3 iff box 4. ``run_oracle`` checks the
 table against the true visit history at every decision (``decision_mismatches``) and counts
 marks of the current cell lying outside the five boxes and the start-mark positions
-(``box_table_violations``); the tests find both zero on hundreds of random boards. (The seed's
-prose "left path lights 1, 3 and 4" is wrong, as DESIGN.md says: re-entering in sub-cell 1 of the
-old frame and leaving left lights 1, 2 and 4 in the new frame; the code never relies on it.)
+(``box_table_violations``); the tests find both zero on hundreds of random boards, so the table
+and the three visited-rules hold. On re-entry exactly these lit-box sets occur (``box_patterns``):
+{4}, {2,4}, {3,4}, {2,4,5}, {3,4,5}, {1,2,4}, {1,3,4}. Note on DESIGN.md's remark about the seed:
+the seed's "entered from sub-cell 1, takes left: boxes 1, 3 and 4" is *also* right — it is the
+path 1 -> 2 -> out to the left child (box 3) -> back into 3 -> out down (box 4); the path
+1 -> 2 -> 3 -> out down lights 1, 2 and 4. Both occur; the rules "2 iff box 2 or 3" cover both.
 
 Start mark (this module's choice)
 ---------------------------------
@@ -295,6 +298,7 @@ def run_oracle(board, *, max_steps: int = 1_000_000, keep_mismatches: int = 20) 
     state = initial_state()
     moves = turns = marks = steps = decisions = collisions = box_violations = 0
     mismatches: list[dict] = []
+    box_patterns: dict[tuple[int, ...], int] = {}
     n_mismatch = 0
     finished = False
     while steps < max_steps:
@@ -304,8 +308,10 @@ def run_oracle(board, *, max_steps: int = 1_000_000, keep_mismatches: int = 20) 
             decisions += 1
             dec = decide(obs)
             bad = _check_decision(dec, obs, board, s, h, visits, parent_of, cell_visited, start_cell, moves)
-            if not dec.done and obs.other_marks:
-                box_violations += 1
+            if not dec.done:
+                box_violations += obs.other_marks > 0
+                key = tuple(k + 1 for k, lit in enumerate(obs.boxes) if lit)
+                box_patterns[key] = box_patterns.get(key, 0) + 1
             if bad:
                 n_mismatch += 1
                 if len(mismatches) < keep_mismatches:
@@ -358,6 +364,7 @@ def run_oracle(board, *, max_steps: int = 1_000_000, keep_mismatches: int = 20) 
         "decisions": decisions,
         "collisions": collisions,
         "box_table_violations": box_violations,
+        "box_patterns": box_patterns,
         "decision_mismatches": n_mismatch,
         "mismatch_examples": mismatches,
         "final_subcell": s,

@@ -59,6 +59,7 @@ def test_random_boards_default_start():
 def test_random_boards_random_start_subcell_and_heading():
     """Any free sub-cell as start (so all four start headings), virtual parent often free."""
     closed = 0
+    patterns = set()
     for _seed, rng, board in _random_boards(250, 5000):
         free = np.argwhere(np.repeat(np.repeat(board.cell_free, 2, 0), 2, 1))
         start = tuple(int(v) for v in free[rng.integers(len(free))])
@@ -66,7 +67,10 @@ def test_random_boards_random_start_subcell_and_heading():
         r = run_oracle(b, max_steps=100_000)
         _assert_full_cover(r, b)
         closed += r["closed_loop"]
+        patterns |= set(r["box_patterns"])
     assert closed > 10
+    # the lit-box sets on (re-)entry: all five boxes occur, nothing else (box_table_violations)
+    assert patterns == {(), (4,), (2, 4), (3, 4), (2, 4, 5), (3, 4, 5), (1, 2, 4), (1, 3, 4)}
 
 
 @pytest.mark.parametrize("start", [(0, 0), (0, 1), (1, 0), (1, 1)])
@@ -186,3 +190,22 @@ def test_step_start_sequence_and_done_is_absorbing():
     assert a is Action.FORWARD  # 0 -> 1 straight ahead
     done = StcState(phase=StcPhase.DONE)
     assert step(done, None) == (done, Action.DONE)
+
+
+def test_checker_catches_a_wrong_box_rule(monkeypatch):
+    """The ground-truth check is not vacuous: drop box 5 from the 'sub-cell 1 visited' rule."""
+    import controllers.stc as stc
+
+    real = stc.decide
+
+    def broken(obs):
+        b = list(obs.boxes)
+        b[4] = False
+        return real(dataclasses.replace(obs, boxes=tuple(b)))
+
+    monkeypatch.setattr(stc, "decide", broken)
+    bad = 0
+    for _seed, _, board in _random_boards(30, 1000):
+        r = stc.run_oracle(board, max_steps=100_000)
+        bad += r["decision_mismatches"] > 0
+    assert bad > 0
