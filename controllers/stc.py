@@ -119,6 +119,8 @@ class StcState:
     heading: int = 1  # current heading as an entry-frame direction (0 right, 1 up, 2 left, 3 down)
     target: int = 0  # exit direction = index of the sub-cell to leave from (0..3)
     final: bool = False  # stop in sub-cell ``target`` instead of leaving the cell
+    closing: bool = False  # this exit lands on a marked sub-cell: the tour closes there
+    at_start: bool = False  # the first decision, on the start sub-cell
 
 
 def initial_state() -> StcState:
@@ -139,6 +141,12 @@ class StcObservation:
     neighbours: tuple[NeighbourObs, NeighbourObs, NeighbourObs, NeighbourObs]  # right, fwd, left, back
     start_mark: int | None  # entry-frame sub-cell holding the start mark, None if not this cell
     other_marks: int = 0  # marks of this cell at none of the box / start-mark positions (checks)
+    #: per direction d: the sub-cell the robot lands on when it leaves towards d (neighbour d's
+    #: sub-cell next to our sub-cell d) already carries a mark. A return to the parent normally
+    #: lands on a fresh sub-cell; landing on a marked one is the tour closing on the start sub-cell
+    #: -- read from the floor, before the move, since the start mark under the robot is hidden
+    #: from its own camera.
+    landing_marked: tuple[bool, bool, bool, bool] = (False, False, False, False)
 
 
 @dataclass(frozen=True, slots=True)
@@ -152,11 +160,12 @@ class Decision:
     final: bool
 
 
-def decide(obs: StcObservation) -> Decision:
-    """The ant-like STC decision from one observation (pure, no memory)."""
+def decide(obs: StcObservation, *, at_start: bool = False) -> Decision:
+    """The ant-like STC decision from one observation (pure, no memory). ``at_start``: the very
+    first decision, standing on the start sub-cell (whose start mark the camera cannot see)."""
     b = obs.boxes
     v = (False, bool(b[0] or b[4]), bool(b[1] or b[2]), bool(b[3]))
-    is_start = obs.start_mark is not None
+    is_start = obs.start_mark is not None or at_start
     if is_start and obs.start_mark == 0 and v[1] and v[2] and v[3]:
         return Decision(v[1:], 3, None, True, True, 0, True)
     parent = 3  # nothing visited: we came from behind (or the virtual parent in the start cell)
@@ -186,23 +195,26 @@ def step(state: StcState, obs: StcObservation | None) -> tuple[StcState, Action]
     if ph is StcPhase.START_MARK:
         return dataclasses.replace(state, phase=StcPhase.START_FACE), Action.MARK
     if ph is StcPhase.START_FACE:
-        return StcState(phase=StcPhase.DECIDE), Action.TURN_RIGHT
+        return StcState(phase=StcPhase.DECIDE, at_start=True), Action.TURN_RIGHT
     if ph is StcPhase.DONE:
         return state, Action.DONE
     if ph is StcPhase.DECIDE:
+        if state.closing:  # we just drove onto the marked start sub-cell: the tour is closed
+            return StcState(phase=StcPhase.DONE), Action.DONE
         if obs is None:
             raise ValueError("the DECIDE phase needs an observation")
-        dec = decide(obs)
+        dec = decide(obs, at_start=state.at_start)
         if dec.done:
             return StcState(phase=StcPhase.DONE), Action.DONE
-        state = StcState(phase=StcPhase.MOVE, sub=0, heading=1, target=dec.target, final=dec.final)
+        closing = dec.child is None and not dec.final and obs.landing_marked[dec.target]
+        state = StcState(phase=StcPhase.MOVE, sub=0, heading=1, target=dec.target, final=dec.final, closing=closing)
     m, r, j = state.sub, state.heading, state.target
     if state.final and m == j:
         return StcState(phase=StcPhase.DONE, sub=m, heading=r, target=j, final=True), Action.DONE
     want = j if m == j else (m + 1) % 4
     if r == want:
         if m == j:  # leave the cell: new entry frame in the next cell
-            return StcState(phase=StcPhase.DECIDE), Action.FORWARD
+            return StcState(phase=StcPhase.DECIDE, closing=state.closing), Action.FORWARD
         return dataclasses.replace(state, sub=m + 1), Action.FORWARD
     if (want - r) % 4 in (1, 2):
         return dataclasses.replace(state, heading=(r + 1) % 4), Action.TURN_LEFT
@@ -244,13 +256,17 @@ def _frame_subcells(sub: tuple[int, int], h: int) -> list[tuple[int, int]]:
     return [(i, j), (i + up[0], j + up[1]), (i + up[0] + left[0], j + up[1] + left[1]), (i + left[0], j + left[1])]
 
 
-def observe_oracle(floor: MarkFloor, board, robot_subcell: tuple[int, int], heading: int) -> StcObservation:
+def observe_oracle(
+    floor: MarkFloor, board, robot_subcell: tuple[int, int], heading: int, *, camera_view: bool = False
+) -> StcObservation:
     """The perfect camera: what the vision should report with the robot in ``robot_subcell``
-    heading ``heading`` (compass), taking that pose as the entry frame."""
+    heading ``heading`` (compass), taking that pose as the entry frame. ``camera_view``: what a
+    real camera can see -- marks in the robot's own sub-cell are under its body, so a start mark
+    there is not reported."""
     subs = _frame_subcells(robot_subcell, heading)
     boxes = tuple(floor.has(subs[m], _frame_compass(heading, d)) for m, d in BOXES)
     start = None
-    for m in range(4):
+    for m in range(1 if camera_view else 0, 4):
         if floor.has(subs[m], _frame_compass(heading, m)):
             start = m
             break
@@ -258,11 +274,14 @@ def observe_oracle(floor: MarkFloor, board, robot_subcell: tuple[int, int], head
     total = int(floor.cell_count[ci, cj])
     other = total - sum(boxes) - (start is not None)
     neigh = []
+    landing = []
     for d in range(4):
         di, dj = COMPASS_VEC[_frame_compass(heading, d)]
         a, b = ci + di, cj + dj
         neigh.append(NeighbourObs(has_marks=floor.cell_has_marks(a, b), has_red=not board.is_cell_free(a, b)))
-    return StcObservation(boxes, tuple(neigh), start, other)
+        land = (subs[d][0] + di, subs[d][1] + dj)
+        landing.append(bool(floor.edges.get(land)))
+    return StcObservation(boxes, tuple(neigh), start, other, tuple(landing))
 
 
 def start_heading(board) -> int:
@@ -275,7 +294,7 @@ def start_heading(board) -> int:
     raise AssertionError("unreachable")  # pragma: no cover
 
 
-def run_oracle(board, *, max_steps: int = 1_000_000, keep_mismatches: int = 20) -> dict:
+def run_oracle(board, *, max_steps: int = 1_000_000, keep_mismatches: int = 20, camera_view: bool = False) -> dict:
     """Run :func:`step` against :func:`observe_oracle` on ``board``.
 
     The true visit history and spanning tree are kept here, outside the controller, only to
@@ -303,10 +322,11 @@ def run_oracle(board, *, max_steps: int = 1_000_000, keep_mismatches: int = 20) 
     finished = False
     while steps < max_steps:
         steps += 1
-        obs = observe_oracle(floor, board, s, h) if state.phase is StcPhase.DECIDE else None
+        deciding = state.phase is StcPhase.DECIDE and not state.closing  # closing: DONE without looking
+        obs = observe_oracle(floor, board, s, h, camera_view=camera_view) if deciding else None
         if obs is not None:
             decisions += 1
-            dec = decide(obs)
+            dec = decide(obs, at_start=state.at_start)
             bad = _check_decision(dec, obs, board, s, h, visits, parent_of, cell_visited, start_cell, moves)
             if not dec.done:
                 box_violations += obs.other_marks > 0

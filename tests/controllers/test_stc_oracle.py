@@ -198,10 +198,10 @@ def test_checker_catches_a_wrong_box_rule(monkeypatch):
 
     real = stc.decide
 
-    def broken(obs):
+    def broken(obs, **kw):
         b = list(obs.boxes)
         b[4] = False
-        return real(dataclasses.replace(obs, boxes=tuple(b)))
+        return real(dataclasses.replace(obs, boxes=tuple(b)), **kw)
 
     monkeypatch.setattr(stc, "decide", broken)
     bad = 0
@@ -209,3 +209,18 @@ def test_checker_catches_a_wrong_box_rule(monkeypatch):
         r = stc.run_oracle(board, max_steps=100_000)
         bad += r["decision_mismatches"] > 0
     assert bad > 0
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_camera_view_oracle_closes_the_tour_from_the_floor(seed):
+    """With the start mark under the robot hidden (as from its own camera), the tour still
+    ends on the start sub-cell: the landing sub-cell of the last return is seen marked."""
+    rng = np.random.default_rng(900 + seed)
+    for _ in range(40):
+        cells = tuple(int(v) for v in rng.integers(2, 9, 2))
+        board = Board.random(cells, obstacle_fraction=float(rng.uniform(0, 0.3)), rng=rng)
+        r = run_oracle(board, camera_view=True)
+        assert r["finished"] and r["returned_to_start"], r
+        assert r["subcells_covered"] == r["subcells_reachable"], r
+        assert r["subcells_covered_more_than_once"] == 0, r
+        assert r["decision_mismatches"] == 0, r["mismatch_examples"]
