@@ -26,6 +26,8 @@ COMMANDS: list[tuple[str, str, str]] = [
     ("render", "stcvision.cli.cmd_render", "render a synthetic catadioptric frame with ground truth"),
     ("pipeline", "stcvision.cli.cmd_pipeline", "run the vision pipeline on frames from disk"),
     ("calibrate", "stcvision.cli.cmd_calibrate", "calibrate a camera: dark frames, rim, transformation, neighbours"),
+    ("dataset", "stcvision.cli.cmd_dataset", "generate and check labelled frame sets from recipes"),
+    ("eval", "stcvision.cli.cmd_eval", "evaluate the pipeline on a dataset or your own frames; compare"),
     ("bench", "stcvision.cli.cmd_bench", "measure render and pipeline speed on one core"),
 ]
 

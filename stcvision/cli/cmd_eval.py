@@ -1,0 +1,216 @@
+"""Evaluate the vision pipeline offline, on a dataset or on your own frames.
+
+  stcvision eval DIR [--profile P.json] [--json] [--report OUTDIR] [--rrd R.rrd]
+  stcvision eval --compare A.json B.json
+  stcvision eval FOLDER_OF_IMAGES (--dark D.png | --no-dark) [--out RESULTS.jsonl] [--rrd R.rrd]
+
+On a dataset (made by 'stcvision dataset generate') every frame is run through the pipeline
+and scored against its label: dot recall and precision, dot location error, heading error RMS,
+box and obstacle accuracy, median ms per frame, with breakdowns by mark age, exposure, group
+and neighbour configuration. --report writes a markdown summary and PNG plots; --rrd logs the
+worst frames to a rerun recording. Each camera's own profile from the dataset is used if it
+has one, else the shipped default (or --profile for all).
+
+--compare prints, per metric, whether B is better, worse or the same as A (A and B are saved
+'--json' outputs).
+
+On a folder of images without labels the pipeline runs on each and writes per-frame results
+(JSONL); there is no truth, so no accuracy.
+"""
+
+from __future__ import annotations
+
+
+def add_parser(p):
+    p.add_argument("dir", nargs="?", metavar="DIR", help="a dataset folder, or a folder of your own frames")
+    p.add_argument("--profile", metavar="PROFILE.json", help="calibration profile for every frame")
+    p.add_argument("--report", metavar="OUTDIR", help="write summary.md, eval.json, frames.jsonl and PNG plots")
+    p.add_argument("--rrd", metavar="OUT.rrd", help="rerun recording of the worst frames (dataset) or every frame")
+    p.add_argument("--worst", type=int, default=10, metavar="N", help="frames logged with --rrd (default 10)")
+    p.add_argument("--compare", nargs=2, metavar=("A.json", "B.json"), help="compare two saved --json outputs")
+    p.add_argument("--dark", metavar="DARK.png", help="own frames: dark frame at the frames' exposure")
+    p.add_argument("--no-dark", action="store_true", help="own frames: run without a dark frame")
+    p.add_argument("--out", metavar="RESULTS.jsonl", help="own frames: per-frame results (default: DIR-results.jsonl)")
+    p.add_argument("--force", action="store_true", help="overwrite existing report, recording or results files")
+
+
+def _load_profile(path):
+    if path:
+        from stcvision.profile import Profile
+
+        return Profile.load(path)
+    return None
+
+
+def _default_profile():
+    from calibration.profiles import default_profile
+
+    return default_profile()
+
+
+def run(args):
+    from pathlib import Path
+
+    from stcvision.errors import BadInputError, FileExistsRefusedError
+
+    if args.compare:
+        if args.dir:
+            raise BadInputError("give either DIR or --compare A.json B.json, not both")
+        from stcvision.evaluate import compare
+        from stcvision.fileio import read_json
+
+        a, b = (read_json(p, what="evaluation") for p in args.compare)
+        r = compare(a, b, names=tuple(args.compare))
+        r["mode"] = "compare"
+        return r
+    if not args.dir:
+        raise BadInputError("eval needs DIR (a dataset or a folder of frames) or --compare A.json B.json")
+    if args.worst < 1:
+        raise BadInputError(f"--worst must be >= 1, got {args.worst}")
+    root = Path(args.dir)
+    if not root.is_dir():
+        raise BadInputError(f"{root} is not a folder; expected a dataset or a folder of frames")
+    if args.rrd and Path(args.rrd).exists() and not args.force:
+        raise FileExistsRefusedError(f"{args.rrd} exists; refusing to overwrite it (use --force)")
+    if (root / "manifest.json").exists() or (root / "labels.jsonl").exists():
+        return _run_dataset(args, root)
+    return _run_images(args, root)
+
+
+def _run_dataset(args, root):
+    from stcvision.datasets import open_dataset
+    from stcvision.errors import BadInputError
+    from stcvision.evaluate import evaluate_dataset, log_worst, write_report
+
+    if args.dark or args.no_dark or args.out:
+        raise BadInputError(f"{root} is a dataset: its dark frames are in the dataset; drop --dark/--no-dark/--out")
+    ds = open_dataset(root)
+    profile = _load_profile(args.profile)
+    default = _default_profile()
+    ev = evaluate_dataset(ds, default_profile=default, profile=profile)
+    r = dict(ev.summary)
+    r["mode"] = "dataset"
+    if args.profile:
+        r["profile"] = str(args.profile)
+    if args.report:
+        r["report"] = write_report(ev, args.report, overwrite=args.force)
+    if args.rrd:
+        r["rrd"] = str(args.rrd)
+        r["rrd_frames"] = log_worst(ev, ds, args.rrd, default_profile=default, profile=profile, n=args.worst)
+    return r
+
+
+def _run_images(args, root):
+    import numpy as np
+
+    from stcvision.datasets import list_images
+    from stcvision.errors import BadInputError, FileExistsRefusedError
+    from stcvision.evaluate import evaluate_images
+    from stcvision.fileio import dumps, read_image, write_bytes_atomic
+
+    if args.dark is None and not args.no_dark:
+        raise BadInputError(
+            f"{root} has no labels (not a dataset); pass --dark DARK.png (captured at the frames' exposure) or --no-dark"
+        )
+    if args.report:
+        raise BadInputError(f"{root} has no labels, so there is no accuracy to report; drop --report")
+    paths = list_images(root)
+    profile = _load_profile(args.profile) or _default_profile()
+    dark = None
+    if args.dark:
+        dark = read_image(args.dark, what="dark frame")
+        profile.check_frame(dark.shape)
+    out = Path(args.out) if args.out else root.resolve().parent / f"{root.resolve().name}-results.jsonl"
+    if out.exists() and not args.force:
+        raise FileExistsRefusedError(f"{out} exists; refusing to overwrite it (use --out or --force)")
+    logger = None
+    lines, ms, skipped, fits, ndots = [], [], [], 0, []
+    try:
+        for i, (p, res, reason, pipe) in enumerate(evaluate_images(paths, profile=profile, dark=dark)):
+            if res is None:
+                skipped.append({"frame": str(p), "reason": reason})
+                lines.append(dumps({"frame": str(p), "skipped": reason}, indent=None))
+                continue
+            if args.rrd and logger is None:
+                from stcvision.rr import PipelineLogger
+
+                logger = PipelineLogger.to_file(args.rrd, pipe)
+            if logger is not None:
+                logger.log(res, frame=i)
+            d = res.to_dict()
+            lines.append(dumps({"frame": str(p), **d}, indent=None))
+            ms.append(res.total_ms)
+            fits += bool(res.heading.ok)
+            ndots.append(len(d["dots"]))
+    finally:
+        if logger is not None:
+            logger.close()
+    write_bytes_atomic(out, "".join(s + "\n" for s in lines).encode(), overwrite=True)
+    return {
+        "mode": "frames",
+        "dir": str(root),
+        "frames": len(ms),
+        "frames_skipped": len(skipped),
+        "skipped": skipped,
+        "results": str(out),
+        "rrd": args.rrd,
+        "profile": args.profile or "default",
+        "dark": args.dark,
+        "dots_per_frame_median": float(np.median(ndots)) if ndots else None,
+        "heading_fits": fits,
+        "ms_per_frame_median": float(np.median(ms)) if ms else None,
+        "accuracy": None,
+        "note": "no labels: the pipeline ran, but without ground truth there is no accuracy to report",
+    }
+
+
+def _f(v, fmt=".4g"):
+    return "-" if v is None else f"{v:{fmt}}"
+
+
+def format_text(r):
+    if r["mode"] == "compare":
+        from stcvision.evaluate import format_compare
+
+        return format_compare(r)
+    if r["mode"] == "frames":
+        out = [
+            f"{r['dir']}: {r['frames']} frames run through the pipeline ({r['frames_skipped']} skipped), "
+            f"{_f(r['dots_per_frame_median'])} dots per frame (median), {r['heading_fits']} heading fits, "
+            f"{_f(r['ms_per_frame_median'], '.2f')} ms per frame (median)",
+            f"wrote {r['results']}" + (f" and {r['rrd']}" if r["rrd"] else ""),
+            "No labels: without ground truth there is no accuracy to report.",
+        ]
+        return "\n".join(out)
+
+    def pct(v):
+        return "-" if v is None else f"{100 * v:.2f} %"
+
+    out = [
+        f"{r['dataset']} (recipe {r['recipe']}, seed {r['seed']}, profile {r['profile']}): "
+        f"{r['frames']} frames, {r['frames_skipped']} skipped",
+        f"  dot recall            {pct(r['dot_recall'])}",
+        f"  dot precision         {pct(r['dot_precision'])}",
+        f"  dot loc. error median {_f(r['dot_loc_err_mm_median'], '.2f')} mm, {_f(r['dot_loc_err_px_median'], '.2f')} px",
+        f"  heading error RMS     {_f(r['heading_err_deg_rms'], '.3f')} deg ({r['heading_fits']} fits)",
+        f"  box accuracy          {pct(r['box_accuracy'])} of {r['boxes_scored']}",
+        f"  obstacle accuracy     {pct(r['obstacle_accuracy'])} of {r['obstacles_scored']}",
+        f"  ms per frame median   {_f(r['ms_per_frame_median'], '.2f')}",
+        "  by exposure:",
+    ]
+    for k, m in r["by_exposure"].items():
+        out.append(
+            f"    {k:<20} {m['frames']:>4} frames  recall {pct(m['dot_recall'])}  "
+            f"heading {_f(m['heading_err_deg_rms'], '.3f')} deg  boxes {pct(m['box_accuracy'])}"
+        )
+    out.append("  recall by mark age: " + ", ".join(
+        f"{b['age_s'][0]}-{'' if b['age_s'][1] is None else b['age_s'][1]} s {pct(b['recall'])}" for b in r["by_age"]
+    ))
+    if r.get("report"):
+        from pathlib import Path
+
+        out.append(f"wrote the report to {Path(r['report'][0]).parent}")
+    if r.get("rrd"):
+        out.append(f"wrote {r['rrd']} ({len(r['rrd_frames'])} worst frames)")
+    return "\n".join(out)
+

@@ -1,0 +1,585 @@
+"""Offline evaluation: run the pipeline on a dataset, score it, report, compare.
+
+:func:`evaluate_dataset` runs :class:`stcvision.pipeline.Pipeline` on every frame of a dataset
+(:func:`stcvision.datasets.open_dataset`), scores each against its label with
+:func:`stcvision.scoring.score_frame`, and adds what ``scoring.summarize`` does not: the median
+time per frame and per stage, recall by mark age (overall and per exposure setting), metrics per
+exposure setting, per group and per neighbour red-light configuration, the box and obstacle
+confusion matrices, and the worst frames. :func:`evaluate_images` runs the pipeline on a user's
+own frames (no labels, so no accuracy). :func:`write_report` draws the plots (matplotlib, Agg)
+and a markdown summary; :func:`compare` says per metric whether B is better, worse or the same
+as A.
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from stcvision.errors import BadInputError
+
+__all__ = [
+    "AGE_BINS_S",
+    "METRICS",
+    "Evaluation",
+    "compare",
+    "evaluate_dataset",
+    "evaluate_images",
+    "write_report",
+]
+
+#: mark-age bin edges (s) of the recall breakdown: the webcam horizon is ~1 min, 0.25 s
+#: exposures reach ~7 min, 1 s exposures ~15-18 min
+AGE_BINS_S = (0, 10, 30, 60, 90, 120, 180, 300, 600, 900, 1200, math.inf)
+
+#: (metric, which way is better, tolerance for "same", "abs" or "rel")
+METRICS = (
+    ("dot_recall", "higher", 0.002, "abs"),
+    ("dot_precision", "higher", 0.002, "abs"),
+    ("dot_loc_err_px_median", "lower", 0.05, "rel"),
+    ("dot_loc_err_mm_median", "lower", 0.05, "rel"),
+    ("dot_loc_err_mm_p95", "lower", 0.05, "rel"),
+    ("heading_err_deg_rms", "lower", 0.05, "rel"),
+    ("box_accuracy", "higher", 0.001, "abs"),
+    ("obstacle_accuracy", "higher", 0.001, "abs"),
+    ("ms_per_frame_median", "lower", 0.15, "rel"),
+    ("frames_skipped", "lower", 0, "abs"),
+)
+
+
+def _median(v) -> float | None:
+    return float(np.median(v)) if len(v) else None
+
+
+def exposure_key(sensor: dict) -> str:
+    """A readable key of a frame's exposure setting, e.g. ``"33.3 ms, gain 16"``."""
+    return f"{1000 * sensor['exposure_s']:.4g} ms, gain {sensor['gain']:g}"
+
+
+def box_truth(truth: dict, box: int, *, snr_visible=8.0, snr_ambiguous=3.0, min_dots=2) -> bool | None:
+    """True/False if box ``box`` is marked / unmarked in the truth, None if at the edge of
+    visibility (the same rule as :func:`stcvision.scoring.score_frame`)."""
+    snrs = sorted((t["snr"] for t in truth["dots"] if t["visible"] and t["age_s"] >= 0 and t.get("box") == box),
+                  reverse=True)
+    m = snrs[min_dots - 1] if len(snrs) >= min_dots else 0.0
+    return None if snr_ambiguous <= m < snr_visible else m >= snr_visible
+
+
+def recall_by_age(found: list, missed: list) -> list[dict]:
+    f, m = np.asarray(found, float), np.asarray(missed, float)
+    out = []
+    for lo, hi in zip(AGE_BINS_S[:-1], AGE_BINS_S[1:], strict=True):
+        nf = int(((f >= lo) & (f < hi)).sum())
+        nm = int(((m >= lo) & (m < hi)).sum())
+        if nf + nm:
+            out.append({"age_s": [lo, None if math.isinf(hi) else hi], "expected": nf + nm, "found": nf,
+                        "recall": nf / (nf + nm)})
+    return out
+
+
+@dataclass
+class FrameRecord:
+    """What one frame gave, for the breakdowns and the report."""
+
+    index: int
+    frame: str
+    group: str
+    exposure: str
+    score: Any  # stcvision.scoring.FrameScore
+    total_ms: float
+    stage_ms: dict
+    boxes: list = field(default_factory=list)  # (truth lit, read lit)
+    obstacles: list = field(default_factory=list)  # (truth red, read red)
+    neighbour_config: str | None = None
+    badness: float = 0.0
+
+    def to_dict(self) -> dict:
+        s = self.score
+        return {
+            "index": self.index,
+            "frame": self.frame,
+            "group": self.group,
+            "exposure": self.exposure,
+            "dots_expected": s.dots_expected,
+            "dots_found": s.dots_found,
+            "dots_true_positive": s.dots_true_positive,
+            "heading_err_deg": s.heading_err_deg,
+            "boxes_correct": s.boxes_correct,
+            "boxes_total": s.boxes_total,
+            "obstacles_correct": s.obstacles_correct,
+            "obstacles_total": s.obstacles_total,
+            "errors": s.errors,
+            "total_ms": round(self.total_ms, 4),
+            "badness": round(self.badness, 3),
+        }
+
+
+@dataclass
+class Evaluation:
+    summary: dict
+    records: list[FrameRecord]
+
+
+def _badness(s, truth_has_cell: bool) -> float:
+    """How bad a frame went (for picking the worst frames to inspect)."""
+    b = (s.dots_expected - len(s.dot_ages_found)) + (s.dots_found - s.dots_true_positive)
+    b += 5 * (s.boxes_total - s.boxes_correct) + 5 * (s.obstacles_total - s.obstacles_correct)
+    if truth_has_cell:
+        b += 5 if s.heading_err_deg is None else abs(s.heading_err_deg) / 0.5
+    return float(b)
+
+
+def _summarize(recs: list[FrameRecord]) -> dict:
+    from stcvision.scoring import summarize
+
+    m = summarize([r.score for r in recs])
+    m["ms_per_frame_median"] = _median([r.total_ms for r in recs])
+    return m
+
+
+def _confusion(pairs) -> list[list[int]]:
+    c = [[0, 0], [0, 0]]
+    for t, r in pairs:
+        c[int(bool(t))][int(bool(r))] += 1
+    return c
+
+
+def _progress(total: int, label: str):
+    from stcvision.datasets import _Progress
+
+    return _Progress(total, label)
+
+
+def evaluate_dataset(ds, *, default_profile, profile=None, progress=None) -> Evaluation:
+    """Run and score the pipeline on every frame of ``ds`` (a :class:`stcvision.datasets.Dataset`).
+
+    ``profile`` (a Profile) is used for every frame if given; otherwise each camera's own
+    profile from the dataset (``profiles/CAM.json``) if it has one, else ``default_profile``.
+    A frame that cannot be decoded is skipped and counted; a frame of the wrong size is an error.
+    """
+    from stcvision.fileio import read_image
+    from stcvision.pipeline import STAGES, Pipeline
+    from stcvision.profile import Profile
+    from stcvision.scoring import score_frame
+
+    w, h = ds.image_size_px
+    profiles: dict[str, Any] = {}
+    pipes: dict[tuple, Pipeline] = {}
+    darks: dict[str, np.ndarray] = {}
+
+    def profile_for(cam: str):
+        if profile is not None:
+            return profile
+        if cam not in profiles:
+            p = ds.profile_path(cam)
+            profiles[cam] = Profile.load(p) if p else default_profile
+        return profiles[cam]
+
+    def pipeline_for(cam: str, dark_name: str | None) -> Pipeline:
+        key = (cam if profile is None else "", dark_name)
+        if key not in pipes:
+            dark = None
+            if dark_name is not None:
+                if dark_name not in darks:
+                    d = read_image(ds.root / dark_name, what="dark frame")
+                    if d.shape[:2] != (h, w):
+                        raise BadInputError(
+                            f"dark frame {ds.root / dark_name} is {d.shape[1]}x{d.shape[0]}; expected {w}x{h}"
+                        )
+                    darks[dark_name] = d
+                dark = darks[dark_name]
+            prof = profile_for(cam)
+            prof.check_frame((h, w))
+            pipes[key] = Pipeline(prof, dark=dark)
+        return pipes[key]
+
+    records: list[FrameRecord] = []
+    skipped: list[dict] = []
+    bar = (progress or _progress)(len(ds.labels), f"eval {ds.root.name}")
+    for i, lab in enumerate(ds.labels):
+        path = ds.root / lab["frame"]
+        try:
+            img = read_image(path, what="frame")
+        except BadInputError as exc:
+            print(f"stcvision eval: skipped {path}: {exc}", file=sys.stderr)
+            skipped.append({"frame": lab["frame"], "reason": str(exc)})
+            bar(1)
+            continue
+        if img.shape[:2] != (h, w):
+            raise BadInputError(f"frame {path} is {img.shape[1]}x{img.shape[0]}; expected {w}x{h} (the dataset's camera)")
+        cam = lab.get("camera", "cam0")
+        pipe = pipeline_for(cam, lab.get("dark"))
+        res = pipe.process(img)
+        sc = score_frame(res, lab, pipe.profile)
+        rec = FrameRecord(
+            index=i,
+            frame=lab["frame"],
+            group=lab.get("group", ""),
+            exposure=exposure_key(lab["sensor"]),
+            score=sc,
+            total_ms=res.total_ms,
+            stage_ms=dict(res.stage_ms),
+        )
+        cell = lab.get("cell")
+        if cell is not None:
+            obs = res.observation
+            for b in obs.boxes:
+                t = box_truth(lab, b.box)
+                if t is not None:
+                    rec.boxes.append((t, b.lit))
+            tn = {n["direction"]: n for n in cell["neighbours"]}
+            for name, n in obs.neighbours.items():
+                rec.obstacles.append((tn[name]["has_red"], n.has_red))
+            rec.neighbour_config = " ".join(
+                f"{d}:{'R' if tn[d]['has_red'] else '-'}{'M' if tn[d].get('has_marks') else ''}"
+                for d in ("right", "forward", "left")
+                if d in tn
+            )
+        rec.badness = _badness(sc, cell is not None)
+        records.append(rec)
+        bar(1)
+    close = getattr(bar, "close", None)
+    if close:
+        close()
+    if not records:
+        raise BadInputError(f"no frame of {ds.root} could be read ({len(skipped)} skipped)")
+
+    summary = {
+        "dataset": str(ds.root),
+        "recipe": ds.manifest.get("recipe_name"),
+        "seed": ds.manifest.get("seed"),
+        "profile": "given" if profile is not None else "per camera" if any(
+            c.get("profile") for c in ds.manifest["cameras"].values()) else "default",
+    }
+    summary.update(_summarize(records))
+    summary["frames_skipped"] = len(skipped)
+    summary["skipped"] = skipped
+    summary["stage_ms_median"] = {s: _median([r.stage_ms[s] for r in records]) for s in STAGES}
+    found = [a for r in records for a in r.score.dot_ages_found]
+    missed = [a for r in records for a in r.score.dot_ages_missed]
+    summary["by_age"] = recall_by_age(found, missed)
+    by_exp: dict[str, list] = {}
+    by_group: dict[str, list] = {}
+    by_conf: dict[str, list] = {}
+    for r in records:
+        by_exp.setdefault(r.exposure, []).append(r)
+        by_group.setdefault(r.group, []).append(r)
+        if r.neighbour_config is not None:
+            by_conf.setdefault(r.neighbour_config, []).append(r)
+    summary["by_exposure"] = {}
+    for k, recs in by_exp.items():
+        m = _summarize(recs)
+        m["by_age"] = recall_by_age(
+            [a for r in recs for a in r.score.dot_ages_found], [a for r in recs for a in r.score.dot_ages_missed]
+        )
+        summary["by_exposure"][k] = m
+    summary["by_group"] = {k: _summarize(v) for k, v in by_group.items()}
+    summary["by_neighbour_config"] = {
+        k: {
+            "frames": len(v),
+            "obstacles_scored": sum(len(r.obstacles) for r in v),
+            "obstacle_accuracy": _ratio(sum(t == x for r in v for t, x in r.obstacles), sum(len(r.obstacles) for r in v)),
+            "box_accuracy": _ratio(sum(t == x for r in v for t, x in r.boxes), sum(len(r.boxes) for r in v)),
+        }
+        for k, v in sorted(by_conf.items())
+    }
+    summary["box_confusion"] = _confusion(p for r in records for p in r.boxes)
+    summary["obstacle_confusion"] = _confusion(p for r in records for p in r.obstacles)
+    worst = sorted(records, key=lambda r: (-r.badness, r.index))
+    summary["worst_frames"] = [r.to_dict() for r in worst[:10] if r.badness > 0]
+    return Evaluation(summary, records)
+
+
+def _ratio(a, b):
+    return a / b if b else None
+
+
+def log_worst(ev: Evaluation, ds, rrd_path, *, default_profile, profile=None, n: int = 10) -> list[str]:
+    """Re-run the pipeline on the ``n`` worst frames and log every stage to a rerun file."""
+    from stcvision.fileio import read_image
+    from stcvision.pipeline import Pipeline
+    from stcvision.profile import Profile
+    from stcvision.rr import PipelineLogger, observation_markdown
+
+    worst = [r for r in sorted(ev.records, key=lambda r: (-r.badness, r.index)) if r.badness > 0][:n]
+    if not worst:
+        worst = ev.records[:1]
+    logger = None
+    logged = []
+    try:
+        for j, r in enumerate(worst):
+            lab = ds.labels[r.index]
+            prof = profile
+            if prof is None:
+                p = ds.profile_path(lab.get("camera", "cam0"))
+                prof = Profile.load(p) if p else default_profile
+            dark = read_image(ds.root / lab["dark"], what="dark frame") if lab.get("dark") else None
+            pipe = Pipeline(prof, dark=dark)
+            res = pipe.process(read_image(ds.root / lab["frame"], what="frame"))
+            if logger is None:
+                logger = PipelineLogger.to_file(rrd_path, pipe)
+            else:
+                logger.pipeline = pipe
+            errs = "\n".join(f"- {e}" for e in r.score.errors) or "- none"
+            text = (
+                f"**{lab['frame']}** (group {r.group}, {r.exposure}), badness {r.badness:.1f}\n\n"
+                f"dots expected {r.score.dots_expected}, found {r.score.dots_found}, "
+                f"matched {r.score.dots_true_positive}; heading error {r.score.heading_err_deg}\n\n"
+                f"errors:\n{errs}\n\n" + observation_markdown(res)
+            )
+            logger.log(res, frame=j, text=text)
+            logged.append(lab["frame"])
+    finally:
+        if logger is not None:
+            logger.close()
+    return logged
+
+
+def evaluate_images(paths: list[Path], *, profile, dark, progress=None):
+    """Run the pipeline on the user's own frames; yields (path, result or None, skip reason)."""
+    from stcvision.fileio import read_image
+    from stcvision.pipeline import Pipeline
+
+    pipe = Pipeline(profile, dark=dark)
+    bar = (progress or _progress)(len(paths), "pipeline")
+    try:
+        for p in paths:
+            try:
+                img = read_image(p, what="frame")
+            except BadInputError as exc:
+                print(f"stcvision eval: skipped {p}: {exc}", file=sys.stderr)
+                bar(1)
+                yield p, None, str(exc), pipe
+                continue
+            profile.check_frame(img.shape)
+            res = pipe.process(img)
+            bar(1)
+            yield p, res, None, pipe
+    finally:
+        close = getattr(bar, "close", None)
+        if close:
+            close()
+
+
+# ---------------------------------------------------------------------------------------- compare
+def compare(a: dict, b: dict, *, names=("A", "B")) -> dict:
+    """Per metric: B better, worse or the same as A (within the metric's tolerance)."""
+    for d, nm in zip((a, b), names, strict=True):
+        if not isinstance(d, dict) or "dot_recall" not in d or "frames" not in d:
+            raise BadInputError(f"{nm} is not the output of 'stcvision eval DIR --json' (no dot_recall)")
+    rows = []
+    for name, better, tol, kind in METRICS:
+        va, vb = a.get(name), b.get(name)
+        if va is None and vb is None:
+            verdict, delta = "n/a", None
+        elif va is None or vb is None:
+            verdict, delta = "n/a", None
+        else:
+            delta = vb - va
+            lim = tol * abs(va) if kind == "rel" else tol
+            if abs(delta) <= lim:
+                verdict = "same"
+            else:
+                verdict = "better" if (delta > 0) == (better == "higher") else "worse"
+        rows.append({"metric": name, "a": va, "b": vb, "change": delta, "verdict": verdict, "better_is": better})
+    same_set = (a.get("recipe"), a.get("seed"), a.get("frames")) == (b.get("recipe"), b.get("seed"), b.get("frames"))
+    counts = {v: sum(r["verdict"] == v for r in rows) for v in ("better", "worse", "same")}
+    return {"a": names[0], "b": names[1], "same_dataset": same_set, "rows": rows, **counts}
+
+
+def format_compare(r: dict) -> str:
+    def f(v):
+        return "-" if v is None else f"{v:.4g}" if isinstance(v, float) else str(v)
+
+    out = [f"A = {r['a']}", f"B = {r['b']}"]
+    if not r["same_dataset"]:
+        out.append("note: A and B were measured on different datasets (recipe, seed or frame count differ)")
+    out.append(f"{'metric':<24} {'A':>10} {'B':>10} {'change':>10}  B vs A")
+    for row in r["rows"]:
+        out.append(
+            f"{row['metric']:<24} {f(row['a']):>10} {f(row['b']):>10} {f(row['change']):>10}  {row['verdict']}"
+        )
+    out.append(f"{r['better']} better, {r['worse']} worse, {r['same']} same")
+    return "\n".join(out)
+
+
+# ---------------------------------------------------------------------------------------- report
+REPORT_FILES = (
+    "summary.md",
+    "eval.json",
+    "frames.jsonl",
+    "recall_vs_age.png",
+    "heading_error_hist.png",
+    "box_confusion.png",
+    "obstacle_confusion.png",
+    "stage_timing.png",
+)
+
+
+def _png(fig, path: Path, overwrite: bool) -> None:
+    import io
+
+    from stcvision.fileio import write_bytes_atomic
+
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=100, metadata={"Software": None})
+    write_bytes_atomic(path, buf.getvalue(), overwrite=overwrite)
+
+
+def _pct(v) -> str:
+    return "-" if v is None else f"{100 * v:.1f} %"
+
+
+def _num(v, fmt=".2f", unit="") -> str:
+    return "-" if v is None else f"{v:{fmt}}{unit}"
+
+
+def write_report(ev: Evaluation, outdir: str | Path, *, overwrite: bool = False) -> list[str]:
+    """Write the markdown summary, the JSON summary, per-frame JSONL and the PNG plots."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from stcvision.errors import FileExistsRefusedError
+    from stcvision.fileio import dumps, write_bytes_atomic, write_json
+
+    out = Path(outdir)
+    if out.exists() and not out.is_dir():
+        raise BadInputError(f"report folder {out} is a file; expected a folder")
+    if not overwrite:
+        taken = [n for n in REPORT_FILES if (out / n).exists()]
+        if taken:
+            raise FileExistsRefusedError(f"{out} already holds {', '.join(taken)}; use --force to overwrite")
+    s, recs = ev.summary, ev.records
+    written = []
+
+    # recall vs mark age, per exposure
+    fig, ax = plt.subplots(figsize=(7, 4.2))
+    for k, m in s["by_exposure"].items():
+        bins = m["by_age"]
+        if not bins:
+            continue
+        x = [b["age_s"][0] if b["age_s"][1] is None else 0.5 * (b["age_s"][0] + b["age_s"][1]) for b in bins]
+        ax.plot(x, [100 * b["recall"] for b in bins], "o-", label=k)
+    ax.set_xscale("symlog", linthresh=10)
+    ax.set_xlabel("mark age (s)")
+    ax.set_ylabel("dot recall (%)")
+    ax.set_title("Recall of dots with expected SNR >= 8, by mark age")
+    ax.grid(True, alpha=0.3)
+    ax.legend(title="exposure", fontsize=8)
+    fig.tight_layout()
+    _png(fig, out / "recall_vs_age.png", overwrite)
+    plt.close(fig)
+
+    # heading error histogram
+    head = [r.score.heading_err_deg for r in recs if r.score.heading_err_deg is not None]
+    fig, ax = plt.subplots(figsize=(6, 4))
+    if head:
+        lim = max(1.0, float(np.percentile(np.abs(head), 99)) * 1.1)
+        ax.hist(np.clip(head, -lim, lim), bins=40, range=(-lim, lim), color="#3a7")
+    ax.set_xlabel("heading error (deg), measured - true")
+    ax.set_ylabel("frames")
+    ax.set_title(f"Heading error: RMS {_num(s['heading_err_deg_rms'], '.3f')} deg over {len(head)} fits")
+    fig.tight_layout()
+    _png(fig, out / "heading_error_hist.png", overwrite)
+    plt.close(fig)
+
+    # confusion matrices
+    for key, fname, what in (
+        ("box_confusion", "box_confusion.png", "box marked"),
+        ("obstacle_confusion", "obstacle_confusion.png", "neighbour has a red light"),
+    ):
+        c = np.array(s[key])
+        fig, ax = plt.subplots(figsize=(4.2, 3.8))
+        ax.imshow(c, cmap="Blues")
+        for i in range(2):
+            for j in range(2):
+                ax.text(j, i, str(c[i, j]), ha="center", va="center", color="black", fontsize=13)
+        ax.set_xticks([0, 1], ["no", "yes"])
+        ax.set_yticks([0, 1], ["no", "yes"])
+        ax.set_xlabel("pipeline read")
+        ax.set_ylabel("truth")
+        ax.set_title(what)
+        fig.tight_layout()
+        _png(fig, out / fname, overwrite)
+        plt.close(fig)
+
+    # per-stage timing
+    stages = list(s["stage_ms_median"])
+    data = [[r.stage_ms[k] for r in recs] for k in stages]
+    fig, ax = plt.subplots(figsize=(7, 4))
+    ax.boxplot(data, showfliers=False)
+    ax.set_xticks(range(1, len(stages) + 1), stages)
+    ax.set_ylabel("ms per frame")
+    ax.set_title(f"Pipeline stages (median total {_num(s['ms_per_frame_median'])} ms per frame)")
+    ax.grid(True, axis="y", alpha=0.3)
+    fig.tight_layout()
+    _png(fig, out / "stage_timing.png", overwrite)
+    plt.close(fig)
+
+    write_json(out / "eval.json", s, overwrite=overwrite)
+    lines = "".join(dumps(r.to_dict(), indent=None) + "\n" for r in recs)
+    write_bytes_atomic(out / "frames.jsonl", lines.encode(), overwrite=overwrite)
+
+    md = [
+        f"# Evaluation of `{s['dataset']}`",
+        "",
+        f"Recipe `{s['recipe']}`, seed {s['seed']}, profile: {s['profile']}. "
+        f"{s['frames']} frames scored, {s['frames_skipped']} skipped.",
+        "",
+        "| metric | value |",
+        "|---|---|",
+        f"| dot recall (expected SNR >= 8) | {_pct(s['dot_recall'])} |",
+        f"| dot precision | {_pct(s['dot_precision'])} |",
+        f"| dot location error, median | {_num(s['dot_loc_err_mm_median'], '.2f', ' mm')}, "
+        f"{_num(s['dot_loc_err_px_median'], '.2f', ' px')} |",
+        f"| dot location error, p95 | {_num(s['dot_loc_err_mm_p95'], '.2f', ' mm')} |",
+        f"| heading error RMS | {_num(s['heading_err_deg_rms'], '.3f', ' deg')} ({s['heading_fits']} fits) |",
+        f"| box accuracy | {_pct(s['box_accuracy'])} of {s['boxes_scored']} |",
+        f"| obstacle accuracy | {_pct(s['obstacle_accuracy'])} of {s['obstacles_scored']} |",
+        f"| time per frame, median | {_num(s['ms_per_frame_median'], '.2f', ' ms')} |",
+        "",
+        "## By exposure",
+        "",
+        "| exposure | frames | recall | precision | loc. median | heading RMS | boxes | obstacles | ms |",
+        "|---|---|---|---|---|---|---|---|---|",
+    ]
+    for k, m in s["by_exposure"].items():
+        md.append(
+            f"| {k} | {m['frames']} | {_pct(m['dot_recall'])} | {_pct(m['dot_precision'])} | "
+            f"{_num(m['dot_loc_err_mm_median'], '.2f', ' mm')} | {_num(m['heading_err_deg_rms'], '.3f', ' deg')} | "
+            f"{_pct(m['box_accuracy'])} | {_pct(m['obstacle_accuracy'])} | {_num(m['ms_per_frame_median'])} |"
+        )
+    md += ["", "## By group", "", "| group | frames | recall | precision | heading RMS | boxes | obstacles |",
+           "|---|---|---|---|---|---|---|"]
+    for k, m in s["by_group"].items():
+        md.append(
+            f"| {k} | {m['frames']} | {_pct(m['dot_recall'])} | {_pct(m['dot_precision'])} | "
+            f"{_num(m['heading_err_deg_rms'], '.3f', ' deg')} | {_pct(m['box_accuracy'])} | "
+            f"{_pct(m['obstacle_accuracy'])} |"
+        )
+    md += ["", "## Recall by mark age", "", "| age (s) | dots | recall |", "|---|---|---|"]
+    for b in s["by_age"]:
+        hi = "inf" if b["age_s"][1] is None else b["age_s"][1]
+        md.append(f"| {b['age_s'][0]}-{hi} | {b['expected']} | {_pct(b['recall'])} |")
+    if s["by_neighbour_config"]:
+        md += ["", "## Obstacles by neighbour configuration (R = red light, M = marks)", "",
+               "| right / forward / left | frames | obstacle accuracy | box accuracy |", "|---|---|---|---|"]
+        for k, m in s["by_neighbour_config"].items():
+            md.append(f"| {k} | {m['frames']} | {_pct(m['obstacle_accuracy'])} | {_pct(m['box_accuracy'])} |")
+    md += ["", "## Worst frames", ""]
+    md += [f"- `{w['frame']}` ({w['group']}): badness {w['badness']}; "
+           f"{'; '.join(w['errors']) or 'missed or extra dots'}" for w in s["worst_frames"]] or ["none"]
+    if s["skipped"]:
+        md += ["", "## Skipped frames", ""] + [f"- `{k['frame']}`: {k['reason']}" for k in s["skipped"]]
+    md += ["", "## Plots", ""]
+    md += [f"![{n}]({n})" for n in REPORT_FILES if n.endswith(".png")]
+    write_bytes_atomic(out / "summary.md", ("\n".join(md) + "\n").encode(), overwrite=overwrite)
+    written = [str(out / n) for n in REPORT_FILES]
+    return written
