@@ -420,7 +420,7 @@ def generate(
         bar(1)
     # frames
     todo_set = set(todo)
-    for gi, g in enumerate(groups):
+    for g in groups:
         sensor = SensorParams.from_dict(g["sensor"])
         scene_kw = {k: tuple(v) if isinstance(v, list) else v for k, v in g["scene"].items()}
         for k in range(g["first_frame"], g["first_frame"] + g["n"]):
@@ -517,19 +517,19 @@ def open_dataset(root: str | Path) -> Dataset:
         )
     m = read_json(mpath, what="dataset manifest")
     if not isinstance(m, dict) or m.get("kind") != "stcvision-dataset":
-        raise BadInputError(f"{mpath} is not a dataset manifest (no \"kind\": \"stcvision-dataset\")")
+        raise BadInputError(f'{mpath} is not a dataset manifest (no "kind": "stcvision-dataset")')
     v = m.get("schema_version")
     if not isinstance(v, int) or v > DATASET_SCHEMA_VERSION:
         raise BadInputError(
-            f"{mpath}: schema_version {v!r} is not supported; expected <= {DATASET_SCHEMA_VERSION} "
-            "(upgrade stcvision)"
+            f"{mpath}: schema_version {v!r} is not supported; expected <= {DATASET_SCHEMA_VERSION} (upgrade stcvision)"
         )
     for key in ("cameras", "groups", "counts", "image_size_px"):
         if key not in m:
             raise BadInputError(f"{mpath} has no {key!r}; expected a complete dataset manifest")
     if not m.get("complete"):
         raise BadInputError(
-            f"dataset {root} is incomplete (generation was interrupted); re-run 'stcvision dataset generate' to finish it"
+            f"dataset {root} is incomplete (generation was interrupted); "
+            "re-run 'stcvision dataset generate' to finish it"
         )
     if not lpath.exists():
         raise BadInputError(f"dataset {root} has a manifest but no labels.jsonl")
@@ -540,9 +540,11 @@ def open_dataset(root: str | Path) -> Dataset:
         try:
             lab = json.loads(line)
         except json.JSONDecodeError as exc:
-            raise BadInputError(f"{lpath} line {i} is not valid JSON ({exc.msg}); expected one object per line") from None
+            raise BadInputError(
+                f"{lpath} line {i} is not valid JSON ({exc.msg}); expected one object per line"
+            ) from None
         if not isinstance(lab, dict) or not isinstance(lab.get("frame"), str):
-            raise BadInputError(f"{lpath} line {i} has no \"frame\" (the frame's file name)")
+            raise BadInputError(f'{lpath} line {i} has no "frame" (the frame\'s file name)')
         for key in ("dots", "pose", "sensor"):
             if key not in lab:
                 raise BadInputError(f"{lpath} line {i} ({lab['frame']}) has no {key!r}; expected a camera truth dict")
@@ -582,4 +584,6 @@ def list_images(root: str | Path) -> list[Path]:
             imgs = sorted(p for p in d.iterdir() if p.is_file() and p.suffix.lower() in IMAGE_SUFFIXES)
             if imgs:
                 return imgs
-    raise BadInputError(f"{root} holds no images; expected PNG or JPEG frames (or a dataset made by 'dataset generate')")
+    raise BadInputError(
+        f"{root} holds no images; expected PNG or JPEG frames (or a dataset made by 'dataset generate')"
+    )

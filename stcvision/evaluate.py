@@ -64,8 +64,9 @@ def exposure_key(sensor: dict) -> str:
 def box_truth(truth: dict, box: int, *, snr_visible=8.0, snr_ambiguous=3.0, min_dots=2) -> bool | None:
     """True/False if box ``box`` is marked / unmarked in the truth, None if at the edge of
     visibility (the same rule as :func:`stcvision.scoring.score_frame`)."""
-    snrs = sorted((t["snr"] for t in truth["dots"] if t["visible"] and t["age_s"] >= 0 and t.get("box") == box),
-                  reverse=True)
+    snrs = sorted(
+        (t["snr"] for t in truth["dots"] if t["visible"] and t["age_s"] >= 0 and t.get("box") == box), reverse=True
+    )
     m = snrs[min_dots - 1] if len(snrs) >= min_dots else 0.0
     return None if snr_ambiguous <= m < snr_visible else m >= snr_visible
 
@@ -77,9 +78,37 @@ def recall_by_age(found: list, missed: list) -> list[dict]:
         nf = int(((f >= lo) & (f < hi)).sum())
         nm = int(((m >= lo) & (m < hi)).sum())
         if nf + nm:
-            out.append({"age_s": [lo, None if math.isinf(hi) else hi], "expected": nf + nm, "found": nf,
-                        "recall": nf / (nf + nm)})
+            out.append(
+                {
+                    "age_s": [lo, None if math.isinf(hi) else hi],
+                    "expected": nf + nm,
+                    "found": nf,
+                    "recall": nf / (nf + nm),
+                }
+            )
     return out
+
+
+def visible_detection(result, truth: dict, *, match_m: float = 0.01) -> list[tuple[float, bool]]:
+    """(age, found) of every visible truth dot, whatever its SNR: the same greedy matching as
+    :func:`stcvision.scoring.score_frame`, to show where the visibility horizon cuts detection."""
+    tdots = [d for d in truth["dots"] if d["visible"] and d["age_s"] >= 0]
+    if not tdots:
+        return []
+    txy = np.array([d["xy_robot_m"] for d in tdots]).reshape(-1, 2)
+    matched = np.zeros(len(tdots), bool)
+    d = result.dots
+    for k in np.flatnonzero(d.lit):
+        dist = np.hypot(*(txy - d.xy_m[k]).T)
+        j = int(np.argmin(dist))
+        if dist[j] <= match_m and not matched[j]:
+            matched[j] = True
+    return [(float(t["age_s"]), bool(m)) for t, m in zip(tdots, matched, strict=True)]
+
+
+def detection_by_age(pairs) -> list[dict]:
+    """Fraction of *all* visible dots found, per age bin."""
+    return recall_by_age([a for a, f in pairs if f], [a for a, f in pairs if not f])
 
 
 @dataclass
@@ -97,6 +126,7 @@ class FrameRecord:
     obstacles: list = field(default_factory=list)  # (truth red, read red)
     neighbour_config: str | None = None
     badness: float = 0.0
+    visible: list = field(default_factory=list)  # (age, found) of every visible dot
 
     def to_dict(self) -> dict:
         s = self.score
@@ -211,7 +241,9 @@ def evaluate_dataset(ds, *, default_profile, profile=None, progress=None) -> Eva
             bar(1)
             continue
         if img.shape[:2] != (h, w):
-            raise BadInputError(f"frame {path} is {img.shape[1]}x{img.shape[0]}; expected {w}x{h} (the dataset's camera)")
+            raise BadInputError(
+                f"frame {path} is {img.shape[1]}x{img.shape[0]}; expected {w}x{h} (the dataset's camera)"
+            )
         cam = lab.get("camera", "cam0")
         pipe = pipeline_for(cam, lab.get("dark"))
         res = pipe.process(img)
@@ -240,6 +272,7 @@ def evaluate_dataset(ds, *, default_profile, profile=None, progress=None) -> Eva
                 for d in ("right", "forward", "left")
                 if d in tn
             )
+        rec.visible = visible_detection(res, lab)
         rec.badness = _badness(sc, cell is not None)
         records.append(rec)
         bar(1)
@@ -253,8 +286,7 @@ def evaluate_dataset(ds, *, default_profile, profile=None, progress=None) -> Eva
         "dataset": str(ds.root),
         "recipe": ds.manifest.get("recipe_name"),
         "seed": ds.manifest.get("seed"),
-        "profile": "given" if profile is not None else "per camera" if any(
-            c.get("profile") for c in ds.manifest["cameras"].values()) else "default",
+        "profile": _profile_source(ds, profile),
     }
     summary.update(_summarize(records))
     summary["frames_skipped"] = len(skipped)
@@ -263,6 +295,7 @@ def evaluate_dataset(ds, *, default_profile, profile=None, progress=None) -> Eva
     found = [a for r in records for a in r.score.dot_ages_found]
     missed = [a for r in records for a in r.score.dot_ages_missed]
     summary["by_age"] = recall_by_age(found, missed)
+    summary["visible_detected_by_age"] = detection_by_age([p for r in records for p in r.visible])
     by_exp: dict[str, list] = {}
     by_group: dict[str, list] = {}
     by_conf: dict[str, list] = {}
@@ -277,13 +310,16 @@ def evaluate_dataset(ds, *, default_profile, profile=None, progress=None) -> Eva
         m["by_age"] = recall_by_age(
             [a for r in recs for a in r.score.dot_ages_found], [a for r in recs for a in r.score.dot_ages_missed]
         )
+        m["visible_detected_by_age"] = detection_by_age([p for r in recs for p in r.visible])
         summary["by_exposure"][k] = m
     summary["by_group"] = {k: _summarize(v) for k, v in by_group.items()}
     summary["by_neighbour_config"] = {
         k: {
             "frames": len(v),
             "obstacles_scored": sum(len(r.obstacles) for r in v),
-            "obstacle_accuracy": _ratio(sum(t == x for r in v for t, x in r.obstacles), sum(len(r.obstacles) for r in v)),
+            "obstacle_accuracy": _ratio(
+                sum(t == x for r in v for t, x in r.obstacles), sum(len(r.obstacles) for r in v)
+            ),
             "box_accuracy": _ratio(sum(t == x for r in v for t, x in r.boxes), sum(len(r.boxes) for r in v)),
         }
         for k, v in sorted(by_conf.items())
@@ -293,6 +329,12 @@ def evaluate_dataset(ds, *, default_profile, profile=None, progress=None) -> Eva
     worst = sorted(records, key=lambda r: (-r.badness, r.index))
     summary["worst_frames"] = [r.to_dict() for r in worst[:10] if r.badness > 0]
     return Evaluation(summary, records)
+
+
+def _profile_source(ds, profile) -> str:
+    if profile is not None:
+        return "given"
+    return "per camera" if any(c.get("profile") for c in ds.manifest["cameras"].values()) else "default"
 
 
 def _ratio(a, b):
@@ -401,9 +443,7 @@ def format_compare(r: dict) -> str:
         out.append("note: A and B were measured on different datasets (recipe, seed or frame count differ)")
     out.append(f"{'metric':<24} {'A':>10} {'B':>10} {'change':>10}  B vs A")
     for row in r["rows"]:
-        out.append(
-            f"{row['metric']:<24} {f(row['a']):>10} {f(row['b']):>10} {f(row['change']):>10}  {row['verdict']}"
-        )
+        out.append(f"{row['metric']:<24} {f(row['a']):>10} {f(row['b']):>10} {f(row['change']):>10}  {row['verdict']}")
     out.append(f"{r['better']} better, {r['worse']} worse, {r['same']} same")
     return "\n".join(out)
 
@@ -459,20 +499,25 @@ def write_report(ev: Evaluation, outdir: str | Path, *, overwrite: bool = False)
     s, recs = ev.summary, ev.records
     written = []
 
-    # recall vs mark age, per exposure
-    fig, ax = plt.subplots(figsize=(7, 4.2))
-    for k, m in s["by_exposure"].items():
-        bins = m["by_age"]
-        if not bins:
-            continue
-        x = [b["age_s"][0] if b["age_s"][1] is None else 0.5 * (b["age_s"][0] + b["age_s"][1]) for b in bins]
-        ax.plot(x, [100 * b["recall"] for b in bins], "o-", label=k)
-    ax.set_xscale("symlog", linthresh=10)
-    ax.set_xlabel("mark age (s)")
-    ax.set_ylabel("dot recall (%)")
-    ax.set_title("Recall of dots with expected SNR >= 8, by mark age")
-    ax.grid(True, alpha=0.3)
-    ax.legend(title="exposure", fontsize=8)
+    # recall vs mark age, per exposure: of the dots that should be found, and of all visible dots
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4.2), sharey=True)
+    for ax, key, title in (
+        (axes[0], "by_age", "Recall (dots with expected SNR >= 8)"),
+        (axes[1], "visible_detected_by_age", "Found / all visible dots (the visibility horizon)"),
+    ):
+        for k, m in s["by_exposure"].items():
+            bins = m[key]
+            if not bins:
+                continue
+            x = [b["age_s"][0] if b["age_s"][1] is None else 0.5 * (b["age_s"][0] + b["age_s"][1]) for b in bins]
+            ax.plot(x, [100 * b["recall"] for b in bins], "o-", label=k)
+        ax.set_xscale("symlog", linthresh=10)
+        ax.set_xlabel("mark age (s)")
+        ax.set_ylim(-3, 103)
+        ax.set_title(title, fontsize=10)
+        ax.grid(True, alpha=0.3)
+    axes[0].set_ylabel("dots found (%)")
+    axes[0].legend(title="exposure", fontsize=8)
     fig.tight_layout()
     _png(fig, out / "recall_vs_age.png", overwrite)
     plt.close(fig)
@@ -556,26 +601,49 @@ def write_report(ev: Evaluation, outdir: str | Path, *, overwrite: bool = False)
             f"{_num(m['dot_loc_err_mm_median'], '.2f', ' mm')} | {_num(m['heading_err_deg_rms'], '.3f', ' deg')} | "
             f"{_pct(m['box_accuracy'])} | {_pct(m['obstacle_accuracy'])} | {_num(m['ms_per_frame_median'])} |"
         )
-    md += ["", "## By group", "", "| group | frames | recall | precision | heading RMS | boxes | obstacles |",
-           "|---|---|---|---|---|---|---|"]
+    md += [
+        "",
+        "## By group",
+        "",
+        "| group | frames | recall | precision | heading RMS | boxes | obstacles |",
+        "|---|---|---|---|---|---|---|",
+    ]
     for k, m in s["by_group"].items():
         md.append(
             f"| {k} | {m['frames']} | {_pct(m['dot_recall'])} | {_pct(m['dot_precision'])} | "
             f"{_num(m['heading_err_deg_rms'], '.3f', ' deg')} | {_pct(m['box_accuracy'])} | "
             f"{_pct(m['obstacle_accuracy'])} |"
         )
-    md += ["", "## Recall by mark age", "", "| age (s) | dots | recall |", "|---|---|---|"]
-    for b in s["by_age"]:
-        hi = "inf" if b["age_s"][1] is None else b["age_s"][1]
-        md.append(f"| {b['age_s'][0]}-{hi} | {b['expected']} | {_pct(b['recall'])} |")
+    md += [
+        "",
+        "## Recall by mark age",
+        "",
+        "| age (s) | dots with SNR >= 8 | recall | visible dots | found |",
+        "|---|---|---|---|---|",
+    ]
+    vis = {tuple(b["age_s"]): b for b in s["visible_detected_by_age"]}
+    for key in sorted(vis, key=lambda a: a[0]):
+        b = next((x for x in s["by_age"] if tuple(x["age_s"]) == key), None)
+        hi = "inf" if key[1] is None else key[1]
+        md.append(
+            f"| {key[0]}-{hi} | {b['expected'] if b else 0} | {_pct(b['recall'] if b else None)} | "
+            f"{vis[key]['expected']} | {_pct(vis[key]['recall'])} |"
+        )
     if s["by_neighbour_config"]:
-        md += ["", "## Obstacles by neighbour configuration (R = red light, M = marks)", "",
-               "| right / forward / left | frames | obstacle accuracy | box accuracy |", "|---|---|---|---|"]
+        md += [
+            "",
+            "## Obstacles by neighbour configuration (R = red light, M = marks)",
+            "",
+            "| right / forward / left | frames | obstacle accuracy | box accuracy |",
+            "|---|---|---|---|",
+        ]
         for k, m in s["by_neighbour_config"].items():
             md.append(f"| {k} | {m['frames']} | {_pct(m['obstacle_accuracy'])} | {_pct(m['box_accuracy'])} |")
     md += ["", "## Worst frames", ""]
-    md += [f"- `{w['frame']}` ({w['group']}): badness {w['badness']}; "
-           f"{'; '.join(w['errors']) or 'missed or extra dots'}" for w in s["worst_frames"]] or ["none"]
+    md += [
+        f"- `{w['frame']}` ({w['group']}): badness {w['badness']}; {'; '.join(w['errors']) or 'missed or extra dots'}"
+        for w in s["worst_frames"]
+    ] or ["none"]
     if s["skipped"]:
         md += ["", "## Skipped frames", ""] + [f"- `{k['frame']}`: {k['reason']}" for k in s["skipped"]]
     md += ["", "## Plots", ""]

@@ -101,6 +101,8 @@ def _run_dataset(args, root):
 
 
 def _run_images(args, root):
+    from pathlib import Path
+
     import numpy as np
 
     from stcvision.datasets import list_images
@@ -110,7 +112,8 @@ def _run_images(args, root):
 
     if args.dark is None and not args.no_dark:
         raise BadInputError(
-            f"{root} has no labels (not a dataset); pass --dark DARK.png (captured at the frames' exposure) or --no-dark"
+            f"{root} has no labels (not a dataset); pass --dark DARK.png (captured at the frames' exposure) "
+            "or --no-dark"
         )
     if args.report:
         raise BadInputError(f"{root} has no labels, so there is no accuracy to report; drop --report")
@@ -191,7 +194,8 @@ def format_text(r):
         f"{r['frames']} frames, {r['frames_skipped']} skipped",
         f"  dot recall            {pct(r['dot_recall'])}",
         f"  dot precision         {pct(r['dot_precision'])}",
-        f"  dot loc. error median {_f(r['dot_loc_err_mm_median'], '.2f')} mm, {_f(r['dot_loc_err_px_median'], '.2f')} px",
+        f"  dot loc. error median {_f(r['dot_loc_err_mm_median'], '.2f')} mm, "
+        f"{_f(r['dot_loc_err_px_median'], '.2f')} px",
         f"  heading error RMS     {_f(r['heading_err_deg_rms'], '.3f')} deg ({r['heading_fits']} fits)",
         f"  box accuracy          {pct(r['box_accuracy'])} of {r['boxes_scored']}",
         f"  obstacle accuracy     {pct(r['obstacle_accuracy'])} of {r['obstacles_scored']}",
@@ -203,9 +207,13 @@ def format_text(r):
             f"    {k:<20} {m['frames']:>4} frames  recall {pct(m['dot_recall'])}  "
             f"heading {_f(m['heading_err_deg_rms'], '.3f')} deg  boxes {pct(m['box_accuracy'])}"
         )
-    out.append("  recall by mark age: " + ", ".join(
-        f"{b['age_s'][0]}-{'' if b['age_s'][1] is None else b['age_s'][1]} s {pct(b['recall'])}" for b in r["by_age"]
-    ))
+    out.append(
+        "  recall by mark age: "
+        + ", ".join(
+            f"{b['age_s'][0]}-{'' if b['age_s'][1] is None else b['age_s'][1]} s {pct(b['recall'])}"
+            for b in r["by_age"]
+        )
+    )
     if r.get("report"):
         from pathlib import Path
 
@@ -213,4 +221,3 @@ def format_text(r):
     if r.get("rrd"):
         out.append(f"wrote {r['rrd']} ({len(r['rrd_frames'])} worst frames)")
     return "\n".join(out)
-
