@@ -391,7 +391,7 @@ def generate(
 
     todo = [k for k in range(recipe.n_frames) if not ((out / _frame_name(k)).exists() and _frame_name(k) in labels)]
     bar = (progress or (lambda total, label: _Progress(total, label)))(
-        len(todo) + len(groups) + len(cameras), f"{recipe.name}"
+        len(todo) + len(groups) + len(cameras), f"generate {recipe.name}"
     )
     made = {"calibration_frames": 0, "profiles": 0, "darks": 0, "frames": 0}
     # calibration frames and profiles, per camera

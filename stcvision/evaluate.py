@@ -545,7 +545,10 @@ def write_report(ev: Evaluation, outdir: str | Path, *, overwrite: bool = False)
         ax.imshow(c, cmap="Blues")
         for i in range(2):
             for j in range(2):
-                ax.text(j, i, str(c[i, j]), ha="center", va="center", color="black", fontsize=13)
+                dark_cell = c[i, j] > 0.5 * max(c.max(), 1)
+                ax.text(
+                    j, i, str(c[i, j]), ha="center", va="center", color="white" if dark_cell else "black", fontsize=13
+                )
         ax.set_xticks([0, 1], ["no", "yes"])
         ax.set_yticks([0, 1], ["no", "yes"])
         ax.set_xlabel("pipeline read")

@@ -16,6 +16,9 @@ NESTED = True  # --json belongs to each step
 
 
 def add_parser(p):
+    import argparse
+
+    p.formatter_class = argparse.RawDescriptionHelpFormatter  # keep the usage lines of the docstring
     sub = p.add_subparsers(dest="step", metavar="STEP", parser_class=type(p))
     g = sub.add_parser(
         "generate",

@@ -22,6 +22,9 @@ from __future__ import annotations
 
 
 def add_parser(p):
+    import argparse
+
+    p.formatter_class = argparse.RawDescriptionHelpFormatter  # keep the usage lines of the docstring
     p.add_argument("dir", nargs="?", metavar="DIR", help="a dataset folder, or a folder of your own frames")
     p.add_argument("--profile", metavar="PROFILE.json", help="calibration profile for every frame")
     p.add_argument("--report", metavar="OUTDIR", help="write summary.md, eval.json, frames.jsonl and PNG plots")
