@@ -153,10 +153,64 @@ def assign_boxes(ru: np.ndarray, orient: np.ndarray | None = None) -> tuple[np.n
     box = np.zeros(len(ru), int)
     for b, (k, (ber, beu)) in BOXES.items():
         box[(sub == k) & (er == ber) & (eu == beu)] = b
+    # the start mark (controllers.stc): sub-cell m along its exterior edge in direction m, coded
+    # as box -m (m = 1, 2, 3; sub-cell 0's is under the robot)
+    for m, (ser, seu) in ((1, (0, 1)), (2, (-1, 0)), (3, (0, -1))):
+        box[(sub == m) & (er == ser) & (eu == seu)] = -m
     nb = np.full(len(ru), -1)
     for i, (dr, du) in enumerate(NEIGHBOURS.values()):
         nb[(np.abs(r - 2 * dr) < 1) & (np.abs(u - 2 * du) < 1)] = i
     return sub, box, nb
+
+
+def mark_offset(ru: np.ndarray, orient: np.ndarray, *, inset: float = 0.125, min_dots: int = 4):
+    """The robot's offset from its sub-cell centre (right, up; cell units) from the marks in
+    view: every mark lies ``inset`` inside one edge of its sub-cell, so across its row a dot's
+    coordinate should be an integer (an edge) +- ``inset``; the median residual of the rows
+    running along 'up' gives the offset to the right, of those along 'right' the offset up.
+    Unambiguous while the robot is less than ``inset`` off (the residual would flip sides)."""
+    out = []
+    for axis, along in ((0, 1), (1, 0)):
+        p = ru[orient == along, axis]
+        if len(p) < min_dots:
+            out.append(None)
+            continue
+        k = np.round(p)
+        nom = k + np.where(p >= k, inset, -inset)
+        out.append(-float(np.median(p - nom)))
+    if out[0] is None and out[1] is None:
+        return None
+    return (out[0] or 0.0, out[1] or 0.0)
+
+
+def pattern_rotation(ru: np.ndarray, orient: np.ndarray, *, min_rows: int = 2, max_rad: float = 0.06) -> float | None:
+    """Median lean (rad, counter-clockwise) of the mark rows in view. Dots are grouped into rows
+    (same coordinate across the row within ``ROW_TOL``, no gap over 0.35 along it); each row of
+    3+ dots spanning 0.3..0.7 sub-cells and fitting a line within 0.02 gives one angle. ``None``
+    unless ``min_rows`` rows agree (within 1 degree of their median) and the lean is under
+    ``max_rad`` (a larger one is a misgrouping, not the floor)."""
+    angles = []
+    for along, across in ((1, 0), (0, 1)):  # rows along 'up' (vary in u), along 'right'
+        sel = ru[orient == along]
+        if len(sel) < 3:
+            continue
+        sel = sel[np.argsort(sel[:, across])]
+        for band in np.split(sel, np.flatnonzero(np.diff(sel[:, across]) > ROW_TOL) + 1):
+            band = band[np.argsort(band[:, along])]
+            for row in np.split(band, np.flatnonzero(np.diff(band[:, along]) > 0.35) + 1):
+                if len(row) < 3 or not 0.3 <= np.ptp(row[:, along]) <= 0.7:
+                    continue
+                coef = np.polyfit(row[:, along], row[:, across], 1)
+                if np.abs(np.polyval(coef, row[:, along]) - row[:, across]).max() > 0.02:
+                    continue
+                angles.append(-math.atan(coef[0]) if along == 1 else math.atan(coef[0]))
+    if len(angles) < min_rows:
+        return None
+    med = float(np.median(angles))
+    agree = np.abs(np.asarray(angles) - med) < math.radians(1.0)
+    if agree.sum() < min_rows or abs(med) > max_rad:
+        return None
+    return float(np.median(np.asarray(angles)[agree]))
 
 
 def _confidence(value: float, threshold: float, noise: float) -> float:
@@ -188,7 +242,10 @@ class CellObservation:
 
     ``boxes``: the five mark boxes; ``visited``: sub-cells 1-3 from the box rule;
     ``neighbours``: right, forward, left, back; ``heading_error_rad``: the rotation applied;
-    ``stray_dots``: lit dots in the current cell outside any box (a sign of a bad pose).
+    ``stray_dots``: lit dots in the current cell outside any box (a sign of a bad pose);
+    ``start_mark``: the sub-cell (1-3) holding the STC start mark, if this is the start cell;
+    ``landing_marked``: per neighbour direction (right, forward, left, back), whether the sub-cell
+    the robot would land on when leaving that way already carries a mark.
     """
 
     boxes: tuple[BoxReading, ...]
@@ -196,6 +253,14 @@ class CellObservation:
     neighbours: dict[str, NeighbourReading]
     heading_error_rad: float
     stray_dots: int
+    start_mark: int | None = None
+    landing_marked: tuple[bool, bool, bool, bool] = (False, False, False, False)
+    #: where the marks say the robot stands, off its sub-cell centre, in the entry frame
+    #: (right, up; cell units = sub-cell sides); None with too few rows in view
+    position_offset: tuple[float, float] | None = None
+    #: how far all the rows in view still lean (counter-clockwise, rad) after the rotation by
+    #: ``heading_error_rad``: the consensus of every mark, not just the newest row
+    pattern_rotation_rad: float | None = None
 
     def lit(self, box: int) -> bool:
         return self.boxes[box - 1].lit
@@ -216,6 +281,8 @@ class CellObservation:
                 for n in self.neighbours.values()
             },
             "heading_error_deg": math.degrees(self.heading_error_rad),
+            "start_mark": self.start_mark,
+            "landing_marked": list(self.landing_marked),
             "stray_dots": self.stray_dots,
         }
 
@@ -263,6 +330,17 @@ def observe_cell(
     lit_b = {b.box: b.lit for b in boxes}
     visited = {1: lit_b[1] or lit_b[5], 2: lit_b[2] or lit_b[3], 3: lit_b[4]}
     stray = int(((sub >= 0) & (box == 0) & dots.lit).sum()) if len(ru) else 0
+    start_mark = None
+    for m in (1, 2, 3):
+        if int(((box == -m) & dots.lit).sum()) >= params.min_dots:
+            start_mark = m
+            break
+    landing = []
+    for d, (dr, du) in enumerate(NEIGHBOURS.values()):
+        sr, su = SUBCELLS[d]
+        cr, cu = 0.5 * sr + dr, 0.5 * su + du  # neighbour d's sub-cell next to our sub-cell d
+        sel = (np.abs(ru[:, 0] - cr) < 0.5) & (np.abs(ru[:, 1] - cu) < 0.5) & dots.lit if len(ru) else np.zeros(0, bool)
+        landing.append(bool(sel.sum() >= params.min_dots))
     rru = _rotate(geometry.to_cell(red_px), heading_error_rad) if len(red_px) else np.zeros((0, 2))
     _, _, rnb = assign_boxes(rru, np.full(len(rru), -1)) if len(rru) else (None, None, np.zeros(0, int))
     neighbours = {}
@@ -279,4 +357,8 @@ def observe_cell(
             _confidence(best, thr, 1.0),
             _confidence(rbest, red_threshold_dn, red_threshold_dn / 5.0) if rsel.any() else 1.0,
         )
-    return CellObservation(tuple(boxes), visited, neighbours, float(heading_error_rad), stray)
+    offset = mark_offset(ru[dots.lit], orient[dots.lit]) if len(ru) else None
+    lean = pattern_rotation(ru[dots.lit], orient[dots.lit]) if len(ru) else None
+    return CellObservation(
+        tuple(boxes), visited, neighbours, float(heading_error_rad), stray, start_mark, tuple(landing), offset, lean
+    )
