@@ -4,7 +4,8 @@
 (:func:`stcvision.datasets.open_dataset`), scores each against its label with
 :func:`stcvision.scoring.score_frame`, and adds what ``scoring.summarize`` does not: the median
 time per frame and per stage, recall by mark age (overall and per exposure setting), metrics per
-exposure setting, per group and per neighbour red-light configuration, the box and obstacle
+exposure setting, per group, per camera (with the profile's floor error at the true dots) and per
+neighbour red-light configuration, the box and obstacle
 confusion matrices, and the worst frames. :func:`evaluate_images` runs the pipeline on a user's
 own frames (no labels, so no accuracy). :func:`write_report` draws the plots (matplotlib, Agg)
 and a markdown summary; :func:`compare` says per metric whether B is better, worse or the same
@@ -111,6 +112,23 @@ def detection_by_age(pairs) -> list[dict]:
     return recall_by_age([a for a, f in pairs if f], [a for a, f in pairs if not f])
 
 
+def profile_floor_error_mm(profile, truth: dict, *, max_range_m: float = 0.9) -> list[float]:
+    """Floor error (mm) of the profile's image->floor map at every visible truth dot within
+    ``max_range_m`` of the robot: how well the profile fits this camera, independent of the
+    dot search (the calibration issue's ground reprojection error, on real dot positions)."""
+    pts = [
+        (d["uv_px"], d["xy_robot_m"])
+        for d in truth["dots"]
+        if d["visible"] and d["uv_px"] is not None and math.hypot(*d["xy_robot_m"]) <= max_range_m
+    ]
+    if not pts:
+        return []
+    uv = np.array([p[0] for p in pts], float)
+    xy = np.array([p[1] for p in pts], float)
+    err = 1000 * np.hypot(*(profile.image_to_robot(uv) - xy).T)
+    return [float(e) for e in err[np.isfinite(err)]]
+
+
 @dataclass
 class FrameRecord:
     """What one frame gave, for the breakdowns and the report."""
@@ -127,6 +145,8 @@ class FrameRecord:
     neighbour_config: str | None = None
     badness: float = 0.0
     visible: list = field(default_factory=list)  # (age, found) of every visible dot
+    camera: str = "cam0"
+    floor_err_mm: list = field(default_factory=list)  # profile image->floor error at the truth dots
 
     def to_dict(self) -> dict:
         s = self.score
@@ -273,6 +293,8 @@ def evaluate_dataset(ds, *, default_profile, profile=None, progress=None) -> Eva
                 if d in tn
             )
         rec.visible = visible_detection(res, lab)
+        rec.camera = cam
+        rec.floor_err_mm = profile_floor_error_mm(pipe.profile, lab)
         rec.badness = _badness(sc, cell is not None)
         records.append(rec)
         bar(1)
@@ -313,6 +335,20 @@ def evaluate_dataset(ds, *, default_profile, profile=None, progress=None) -> Eva
         m["visible_detected_by_age"] = detection_by_age([p for r in recs for p in r.visible])
         summary["by_exposure"][k] = m
     summary["by_group"] = {k: _summarize(v) for k, v in by_group.items()}
+    by_cam: dict[str, list] = {}
+    for r in records:
+        by_cam.setdefault(r.camera, []).append(r)
+    summary["by_camera"] = {}
+    for k, recs in by_cam.items():
+        m = _summarize(recs)
+        err = [e for r in recs for e in r.floor_err_mm]
+        m["profile"] = "given" if profile is not None else ds.manifest["cameras"].get(k, {}).get("profile") or "default"
+        m["profile_floor_err_mm_median"] = _median(err)
+        m["profile_floor_err_mm_p95"] = float(np.percentile(err, 95)) if err else None
+        m["profile_floor_err_points"] = len(err)
+        summary["by_camera"][k] = m
+    allerr = [e for r in records for e in r.floor_err_mm]
+    summary["profile_floor_err_mm_median"] = _median(allerr)
     summary["by_neighbour_config"] = {
         k: {
             "frames": len(v),
@@ -616,6 +652,20 @@ def write_report(ev: Evaluation, outdir: str | Path, *, overwrite: bool = False)
             f"| {k} | {m['frames']} | {_pct(m['dot_recall'])} | {_pct(m['dot_precision'])} | "
             f"{_num(m['heading_err_deg_rms'], '.3f', ' deg')} | {_pct(m['box_accuracy'])} | "
             f"{_pct(m['obstacle_accuracy'])} |"
+        )
+    md += [
+        "",
+        "## By camera (profile floor error: the profile's image->floor map at the true dots, <= 0.9 m)",
+        "",
+        "| camera | profile | frames | floor error median (p95) | recall | loc. median | heading RMS | boxes |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
+    for k, m in s["by_camera"].items():
+        md.append(
+            f"| {k} | {m['profile']} | {m['frames']} | {_num(m['profile_floor_err_mm_median'], '.2f', ' mm')} "
+            f"({_num(m['profile_floor_err_mm_p95'], '.2f', ' mm')}) | {_pct(m['dot_recall'])} | "
+            f"{_num(m['dot_loc_err_mm_median'], '.2f', ' mm')} | {_num(m['heading_err_deg_rms'], '.3f', ' deg')} | "
+            f"{_pct(m['box_accuracy'])} |"
         )
     md += [
         "",

@@ -6,9 +6,10 @@
 
 On a dataset (made by 'stcvision dataset generate') every frame is run through the pipeline
 and scored against its label: dot recall and precision, dot location error, heading error RMS,
-box and obstacle accuracy, median ms per frame, with breakdowns by mark age, exposure, group
-and neighbour configuration. --report writes a markdown summary and PNG plots; --rrd logs the
-worst frames to a rerun recording. Each camera's own profile from the dataset is used if it
+box and obstacle accuracy, median ms per frame, with breakdowns by mark age, exposure, group,
+camera (with the profile's floor error at the true dot positions) and neighbour configuration.
+--report writes a markdown summary and PNG plots; --rrd logs the worst frames to a rerun
+recording. Each camera's own profile from the dataset is used if it
 has one, else the shipped default (or --profile for all).
 
 --compare prints, per metric, whether B is better, worse or the same as A (A and B are saved

@@ -214,6 +214,9 @@ def test_each_camera_is_read_with_its_own_workflow_profile(tmp_path, capsys):
     bad = json.loads(out)
     # calibration matters: the shipped profile reads this mirror worse (README accuracy table)
     assert bad["dot_recall"] < own["dot_recall"]
+    own_cam, bad_cam = own["by_camera"]["cam0"], bad["by_camera"]["cam0"]
+    assert own_cam["profile"] == "profiles/cam0.json" and bad_cam["profile"] == "given"
+    assert own_cam["profile_floor_err_mm_median"] < 3.0 < bad_cam["profile_floor_err_mm_median"]
 
 
 def test_given_profile(smoke, tmp_path, capsys):
