@@ -510,6 +510,8 @@ def open_dataset(root: str | Path) -> Dataset:
     if not root.is_dir():
         raise BadInputError(f"dataset folder {root} does not exist")
     mpath, lpath = root / "manifest.json", root / "labels.jsonl"
+    if not mpath.exists() and not lpath.exists():
+        raise BadInputError(f"{root} is not a dataset (no manifest.json); expected a folder made by 'dataset generate'")
     if not mpath.exists():
         raise BadInputError(
             f"dataset {root} has labels.jsonl but no manifest.json; expected a folder made by "

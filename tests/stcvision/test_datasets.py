@@ -57,6 +57,8 @@ def test_smoke_dataset_layout(smoke, capsys):
     assert labels[3]["sensor"]["exposure_s"] == 0.25 and labels[3]["dark"] == "dark/exp250ms.png"
     code, out, _ = run(capsys, "dataset", "check", smoke, "--json")
     assert code == 0 and json.loads(out)["counts"]["frames"] == 6
+    code, _, err = run(capsys, "dataset", "check", smoke / "frames")
+    assert code == 2 and "is not a dataset" in err and err.count("\n") == 1
 
 
 def test_generation_is_deterministic(smoke, tmp_path):
