@@ -111,7 +111,7 @@ def _dec_key(dec) -> tuple:
 class _Camera:
     """Camera + pipeline at the robot, with dark frames per exposure setting."""
 
-    def __init__(self, board, cfg: CoverConfig, rng: np.random.Generator, logger=None):
+    def __init__(self, board, cfg: CoverConfig, rng: np.random.Generator):
         from calibration.profiles import default_profile
         from sim_camera.camera import SyntheticCamera
         from stcvision.pipeline import Pipeline
@@ -130,7 +130,6 @@ class _Camera:
         else:
             e = float(cfg.exposure)
             self.ladder = ((e, cfg.gain if cfg.gain is not None else max(1.0, min(16.0, 16.0 * (1 / 30) / e * 4))),)
-        self.logger = logger
         self.frames = 0
 
     def _sensor(self, k: int):
@@ -149,8 +148,9 @@ class _Camera:
         s = self._sensor(k)
         p = Pose(*pose)
         imgs = [
-            self.cam.render(p, rng=self.rng, t_s=t_s + i * s.exposure_s, phosphor=phosphor, red_lights_m=self.lights,
-                            sensor=s).image
+            self.cam.render(
+                p, rng=self.rng, t_s=t_s + i * s.exposure_s, phosphor=phosphor, red_lights_m=self.lights, sensor=s
+            ).image
             for i in range(self.cfg.n_stack)
         ]
         img = imgs[0] if len(imgs) == 1 else np.mean(np.stack(imgs), axis=0).round().astype(np.uint8)
@@ -181,7 +181,7 @@ class _Camera:
         return merged, res_l, dt + dt_l, 1
 
 
-def run_cover(board, cfg: CoverConfig = CoverConfig(), *, logger=None) -> dict:
+def run_cover(board, cfg: CoverConfig = CoverConfig(), *, recorder=None) -> dict:
     """Cover ``board`` from its start sub-cell; returns the summary the CLI prints."""
     from sim_camera.phosphor import PhosphorLayer
     from stcvision.stages import recalibrate_turn
@@ -207,7 +207,7 @@ def run_cover(board, cfg: CoverConfig = CoverConfig(), *, logger=None) -> dict:
     laid_at: dict = {}
     visits = np.zeros((rows, cols), int)
     visits[sub] += 1
-    camera = _Camera(board, cfg, rng, logger) if cfg.perception == "camera" else None
+    camera = _Camera(board, cfg, rng) if cfg.perception == "camera" else None
     state = initial_state()
     t = 0.0
     moves = turns = decisions = decision_errors = 0
@@ -279,23 +279,47 @@ def run_cover(board, cfg: CoverConfig = CoverConfig(), *, logger=None) -> dict:
                     decision_errors += 1
                     if first_error is None:
                         ideal = board.subcell_center_m(*sub)
-                        first_error = {"decision": decisions, "t_s": t, "subcell": sub, "camera": obs, "oracle": o_obs,
-                                       "pos_err_m": math.hypot(x - ideal[0], y - ideal[1]),
-                                       "heading_err_deg": math.degrees(heading_error())}
-                if logger is not None:
-                    logger.log(res, frame=decisions, sim_time_s=t, text=f"decision {decisions} at {sub}")
+                        first_error = {
+                            "decision": decisions,
+                            "t_s": t,
+                            "subcell": sub,
+                            "camera": obs,
+                            "oracle": o_obs,
+                            "pos_err_m": math.hypot(x - ideal[0], y - ideal[1]),
+                            "heading_err_deg": math.degrees(heading_error()),
+                        }
             else:
                 t += tm.settle_s
                 obs = o_obs
                 offset_est = true_offset() + rng.normal(0, cfg.position_sigma_oracle_m, 2)
+            if recorder is not None:
+                d = decide(obs, at_start=state.at_start)
+                text = (
+                    f"**decision {decisions}** at sub-cell {sub}, t = {t:.0f} s\n\n"
+                    f"visited 1-3: {d.visited}, parent {d.parent}, child {d.child}, "
+                    f"target {d.target}{' (stop there)' if d.final else ''}\n\n"
+                    f"boxes {obs.boxes}, start mark {obs.start_mark}"
+                )
+                recorder.decision(
+                    decisions,
+                    t,
+                    (x, y, hdg),
+                    phosphor,
+                    visits,
+                    res if camera is not None else None,
+                    camera.pipe if camera is not None else None,
+                    text,
+                )
             # the oldest mark whose box or neighbour the camera had to read
-            for (s_, e_), t_laid in laid_at.items():
+            for (s_, _edge), t_laid in laid_at.items():
                 if abs(s_[0] // 2 - sub[0] // 2) + abs(s_[1] // 2 - sub[1] // 2) <= 1:
                     max_age_read = max(max_age_read, t - t_laid)
         state, action = step(state, obs)
         if cfg.trace:
-            print(f"t={t:7.1f} {action.name:10s} sub={sub} hc={hc} herr={math.degrees(heading_error()):+.2f} "
-                  f"pos={100 * float(np.hypot(*true_offset())):.2f}cm est={100 * float(np.hypot(*offset_est)):.2f}cm")
+            print(
+                f"t={t:7.1f} {action.name:10s} sub={sub} hc={hc} herr={math.degrees(heading_error()):+.2f} "
+                f"pos={100 * float(np.hypot(*true_offset())):.2f}cm est={100 * float(np.hypot(*offset_est)):.2f}cm"
+            )
         if action is Action.DONE:
             finished = True
             break
@@ -382,9 +406,13 @@ def run_cover(board, cfg: CoverConfig = CoverConfig(), *, logger=None) -> dict:
     if first_error is not None:
         fe = first_error
         out["first_decision_error"] = {
-            "decision": fe["decision"], "t_s": round(fe["t_s"], 1), "subcell": list(fe["subcell"]),
-            "position_error_m": round(fe["pos_err_m"], 4), "heading_error_deg": round(fe["heading_err_deg"], 2),
-            "camera_boxes": list(fe["camera"].boxes), "oracle_boxes": list(fe["oracle"].boxes),
+            "decision": fe["decision"],
+            "t_s": round(fe["t_s"], 1),
+            "subcell": list(fe["subcell"]),
+            "position_error_m": round(fe["pos_err_m"], 4),
+            "heading_error_deg": round(fe["heading_err_deg"], 2),
+            "camera_boxes": list(fe["camera"].boxes),
+            "oracle_boxes": list(fe["oracle"].boxes),
             "camera_neighbours": [[n.has_marks, n.has_red] for n in fe["camera"].neighbours],
             "oracle_neighbours": [[n.has_marks, n.has_red] for n in fe["oracle"].neighbours],
         }

@@ -294,6 +294,8 @@ class ObservationParams:
     sigma false dot in 300 rendered frames) at the cost of marks with three of four dots lost."""
 
     min_dots: int = 2
+    #: shift the cell regions by the robot's offset as the marks show it (within 2 cm)
+    use_offset: bool = True
 
 
 def observe_cell(
@@ -316,8 +318,13 @@ def observe_cell(
     """
     ru = _rotate(geometry.to_cell(dots.xy_px), heading_error_rad) if len(dots) else np.zeros((0, 2))
     orient = np.full(len(ru), -1)
+    offset = None
     if len(ru):
         orient[dots.lit] = row_orientation(ru[dots.lit])  # rows are made of lit dots
+        # where the robot really stands, from the marks: read the boxes relative to that
+        offset = mark_offset(ru[dots.lit], orient[dots.lit])
+        if offset is not None and params.use_offset:
+            ru = ru + np.asarray(offset)
     sub, box, nb = assign_boxes(ru, orient) if len(ru) else (np.zeros(0, int),) * 3
     thr = dots.threshold_snr
     boxes = []
@@ -357,7 +364,6 @@ def observe_cell(
             _confidence(best, thr, 1.0),
             _confidence(rbest, red_threshold_dn, red_threshold_dn / 5.0) if rsel.any() else 1.0,
         )
-    offset = mark_offset(ru[dots.lit], orient[dots.lit]) if len(ru) else None
     lean = pattern_rotation(ru[dots.lit], orient[dots.lit]) if len(ru) else None
     return CellObservation(
         tuple(boxes), visited, neighbours, float(heading_error_rad), stray, start_mark, tuple(landing), offset, lean

@@ -1,0 +1,106 @@
+"""Rerun recording of a coverage run: the world (board, obstacle cells, robot pose, marks with
+their current luminance, covered sub-cells), the camera's pipeline stages at every decision
+(``stcvision.rr`` entity paths) and each decision as text, on the ``sim_time`` and ``decision``
+timelines. World coordinates are drawn with north up (y flipped for the 2-D view)."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+import rerun as rr
+import rerun.blueprint as rrb
+
+from stcvision.rr import PipelineLogger
+
+__all__ = ["CoverRecorder"]
+
+
+def _blueprint() -> rrb.Blueprint:
+    return rrb.Blueprint(
+        rrb.Horizontal(
+            rrb.Spatial2DView(origin="world", name="world (north up)"),
+            rrb.Vertical(
+                rrb.Spatial2DView(origin="raw", name="camera"),
+                rrb.Spatial2DView(origin="ground", name="ground view"),
+            ),
+            rrb.Vertical(
+                rrb.TextDocumentView(origin="decision", name="decision"),
+                rrb.TextDocumentView(origin="observation", name="observation"),
+                rrb.TimeSeriesView(origin="timing", name="stage ms"),
+            ),
+            column_shares=[3, 2, 2],
+        ),
+        collapse_panels=True,
+    )
+
+
+class CoverRecorder:
+    """Writes ``path`` (.rrd) atomically on :meth:`close`."""
+
+    def __init__(self, path: str | Path, board) -> None:
+        self.path = Path(path)
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        self.tmp = self.path.with_name(f".{self.path.name}.{os.getpid()}.tmp")
+        self.rec = rr.RecordingStream("stcvision-cover")
+        self.rec.save(self.tmp, default_blueprint=_blueprint())
+        self.board = board
+        self._pipe_logger = None
+        self._static()
+
+    @staticmethod
+    def _xy(p) -> np.ndarray:
+        p = np.asarray(p, float).reshape(-1, 2)
+        return np.column_stack([p[:, 0], -p[:, 1]])
+
+    def _static(self) -> None:
+        b = self.board
+        w, h = b.size_m
+        D = b.subcell_m
+        lines = [[(x, 0), (x, -h)] for x in np.arange(0, w + 1e-9, 2 * D)]
+        lines += [[(0, -y), (w, -y)] for y in np.arange(0, h + 1e-9, 2 * D)]
+        self.rec.log("world/grid", rr.LineStrips2D(lines, colors=[150, 150, 150], radii=0.002), static=True)
+        blocked = np.argwhere(~b.cell_free)
+        if len(blocked):
+            centres = self._xy([b.cell_center_m(i, j) for i, j in blocked])
+            self.rec.log(
+                "world/obstacles",
+                rr.Boxes2D(centers=centres, sizes=[[2 * D, 2 * D]] * len(centres), colors=[200, 40, 40]),
+                static=True,
+            )
+        self.rec.log(
+            "world/red_lights", rr.Points2D(self._xy(b.red_lights_m()), colors=[255, 0, 0], radii=0.01), static=True
+        )
+
+    def decision(self, k: int, t_s: float, pose, phosphor, visits, result, pipeline, text: str) -> None:
+        rec = self.rec
+        rec.set_time("decision", sequence=k)
+        rec.set_time("sim_time", duration=float(t_s))
+        x, y, h = pose
+        rec.log("world/robot", rr.Points2D(self._xy([(x, y)]), radii=0.07, colors=[60, 120, 255]))
+        tip = (x + 0.1 * np.cos(h), y + 0.1 * np.sin(h))
+        rec.log("world/robot_heading", rr.LineStrips2D([self._xy([(x, y), tip])], colors=[60, 120, 255], radii=0.006))
+        if len(phosphor):
+            lum = phosphor.luminance_at(t_s)
+            g = np.clip(255 * np.sqrt(lum / max(phosphor.law.l_sat_cd_m2, 1e-9)), 30, 255).astype(np.uint8)
+            colors = np.column_stack([np.zeros_like(g), g, np.zeros_like(g)])
+            rec.log("world/marks", rr.Points2D(self._xy(phosphor.xy_m), radii=0.006, colors=colors))
+        cov = np.argwhere(visits > 0)
+        if len(cov):
+            D = self.board.subcell_m
+            centres = self._xy([self.board.subcell_center_m(i, j) for i, j in cov])
+            rec.log(
+                "world/covered",
+                rr.Boxes2D(centers=centres, sizes=[[0.9 * D, 0.9 * D]] * len(cov), colors=[80, 200, 80, 60]),
+            )
+        rec.log("decision", rr.TextDocument(text, media_type="text/markdown"))
+        if result is not None and pipeline is not None:
+            if self._pipe_logger is None or self._pipe_logger.pipeline is not pipeline:
+                self._pipe_logger = PipelineLogger(rec, pipeline, jpeg_quality=70)
+            self._pipe_logger.log(result, frame=k, sim_time_s=t_s)
+
+    def close(self) -> None:
+        self.rec.flush()
+        self.rec.disconnect()
+        os.replace(self.tmp, self.path)

@@ -1,0 +1,101 @@
+"""Run the ant-like STC robot on a board until it has covered it (closed loop: camera ->
+pipeline -> finite-state controller -> robot), with honest time and fading marks.
+
+The board comes from --map (text or PNG, one pixel = one sub-cell) or --board WxH (random, with
+--obstacle-fraction). --perception camera renders every observation and reads it with the
+vision pipeline; oracle reads the floor's ground truth. --exposure webcam is the seed's camera
+(1/30 s); auto adds a long (2 s) frame for dim old marks; or give --exposure-s X.
+"""
+
+from __future__ import annotations
+
+
+def add_parser(p):
+    from stcvision.cli._args import pair
+
+    src = p.add_mutually_exclusive_group()
+    src.add_argument("--map", metavar="FILE", help="board map: .txt ('.', '#', 'S') or .png")
+    src.add_argument("--board", type=pair(int), metavar="WxH", help="random board of W x H cells (default 4x4)")
+    p.add_argument("--obstacle-fraction", type=float, default=0.15, help="for --board (default 0.15)")
+    p.add_argument("--start", type=pair(int), metavar="I,J", help="start sub-cell (row, column)")
+    p.add_argument("--perception", choices=("camera", "oracle"), default="camera")
+    ex = p.add_mutually_exclusive_group()
+    ex.add_argument("--exposure-s", type=float, metavar="X", help="fixed exposure in seconds")
+    ex.add_argument(
+        "--exposure",
+        choices=("webcam", "auto"),
+        default=None,
+        help="webcam: 1/30 s (the seed's camera); auto: plus a long frame (default: auto)",
+    )
+    p.add_argument("--seed", type=int, default=0, help="seed of the board, the robot and the camera (default 0)")
+    p.add_argument("--rrd", metavar="OUT.rrd", help="rerun recording of the world, the camera stages and each decision")
+    p.add_argument("--force", action="store_true", help="overwrite --rrd")
+
+
+def load_board(args):
+    import numpy as np
+
+    from sim_camera.board import Board
+    from stcvision.errors import BadInputError
+
+    if args.map:
+        return Board.from_file(args.map, start_subcell=args.start)
+    w, h = args.board if args.board else (4, 4)
+    if w < 1 or h < 1:
+        raise BadInputError(f"--board must be at least 1x1 cells, got {w}x{h}")
+    if not 0 <= args.obstacle_fraction < 1:
+        raise BadInputError(f"--obstacle-fraction must be in [0, 1), got {args.obstacle_fraction}")
+    board = Board.random((h, w), obstacle_fraction=args.obstacle_fraction, rng=np.random.default_rng(args.seed))
+    if args.start:
+        board = Board(board.blocked, args.start, board.subcell_m)
+    return board
+
+
+def run(args):
+    from pathlib import Path
+
+    from controllers.cover import CoverConfig, run_cover
+    from stcvision.errors import FileExistsRefusedError
+
+    board = load_board(args)
+    exposure = args.exposure_s if args.exposure_s is not None else (args.exposure or "auto")
+    if args.exposure_s is not None and not 0 < args.exposure_s <= 60:
+        from stcvision.errors import BadInputError
+
+        raise BadInputError(f"--exposure-s must be in (0, 60] seconds, got {args.exposure_s}")
+    if args.rrd and Path(args.rrd).exists() and not args.force:
+        raise FileExistsRefusedError(f"{args.rrd} exists; refusing to overwrite it (use --force)")
+    cfg = CoverConfig(perception=args.perception, exposure=exposure, seed=args.seed)
+    recorder = None
+    if args.rrd:
+        from controllers.cover_rr import CoverRecorder
+
+        recorder = CoverRecorder(args.rrd, board)
+    try:
+        result = run_cover(board, cfg, recorder=recorder)
+    finally:
+        if recorder is not None:
+            recorder.close()
+    result["rrd"] = args.rrd
+    return result
+
+
+def format_text(r):
+    rows = [
+        (
+            "board",
+            f"{r['board_cells'][0]}x{r['board_cells'][1]} cells, perception {r['perception']}, "
+            f"exposure {r['exposure']}",
+        ),
+        ("sub-cells covered / reachable", f"{r['subcells_covered']} / {r['subcells_reachable']}"),
+        ("covered more than once", str(r["subcells_covered_more_than_once"])),
+        ("finished / back in start cell", f"{r['finished']} / {r['returned_to_start']}"),
+        ("abort reason", str(r["abort_reason"])),
+        ("moves / turns / decisions", f"{r['moves']} / {r['turns']} / {r['decisions']}"),
+        ("decision errors (vs oracle)", str(r["decision_errors"])),
+        ("oldest mark read", f"{r['max_mark_age_read_s']:.0f} s"),
+        ("sim time / wall time", f"{r['sim_time_s']:.0f} s / {r['wall_s']:.1f} s"),
+    ]
+    w = max(len(k) for k, _ in rows)
+    text = "\n".join(f"{k:<{w}}  {v}" for k, v in rows)
+    return text + (f"\nwrote {r['rrd']}" if r.get("rrd") else "")
