@@ -104,10 +104,6 @@ def _to_stc_obs(cell_obs) -> StcObservation:
     )
 
 
-def _dec_key(dec) -> tuple:
-    return (dec.visited, dec.parent, dec.child, dec.target, dec.final, dec.done)
-
-
 class _Camera:
     """Camera + pipeline at the robot, with dark frames per exposure setting."""
 
@@ -275,7 +271,7 @@ def run_cover(board, cfg: CoverConfig = CoverConfig(), *, recorder=None) -> dict
                 t += tm.settle_s + dt
                 if res.observation.position_offset is not None:
                     offset_est = offset_to_world(res.observation.position_offset)
-                if _dec_key(decide(obs, at_start=state.at_start)) != _dec_key(decide(o_obs, at_start=state.at_start)):
+                if step(state, obs) != step(state, o_obs):  # what the oracle would do in this state
                     decision_errors += 1
                     if first_error is None:
                         ideal = board.subcell_center_m(*sub)
@@ -415,5 +411,9 @@ def run_cover(board, cfg: CoverConfig = CoverConfig(), *, recorder=None) -> dict
             "oracle_boxes": list(fe["oracle"].boxes),
             "camera_neighbours": [[n.has_marks, n.has_red] for n in fe["camera"].neighbours],
             "oracle_neighbours": [[n.has_marks, n.has_red] for n in fe["oracle"].neighbours],
+            "camera_landing": list(fe["camera"].landing_marked),
+            "oracle_landing": list(fe["oracle"].landing_marked),
+            "camera_start_mark": fe["camera"].start_mark,
+            "oracle_start_mark": fe["oracle"].start_mark,
         }
     return out

@@ -346,8 +346,13 @@ def observe_cell(
     for d, (dr, du) in enumerate(NEIGHBOURS.values()):
         sr, su = SUBCELLS[d]
         cr, cu = 0.5 * sr + dr, 0.5 * su + du  # neighbour d's sub-cell next to our sub-cell d
-        sel = (np.abs(ru[:, 0] - cr) < 0.5) & (np.abs(ru[:, 1] - cu) < 0.5) & dots.lit if len(ru) else np.zeros(0, bool)
-        landing.append(bool(sel.sum() >= params.min_dots))
+        # a whole row inside the sub-cell (3 of its 4 dots, 1 cm clear of the borders): a row of
+        # the next sub-cell 2 cm beyond its edge must not count
+        if len(ru):
+            sel = (np.abs(ru[:, 0] - cr) < 0.44) & (np.abs(ru[:, 1] - cu) < 0.44) & dots.lit
+        else:
+            sel = np.zeros(0, bool)
+        landing.append(bool(sel.sum() >= max(params.min_dots, 3)))
     rru = _rotate(geometry.to_cell(red_px), heading_error_rad) if len(red_px) else np.zeros((0, 2))
     _, _, rnb = assign_boxes(rru, np.full(len(rru), -1)) if len(rru) else (None, None, np.zeros(0, int))
     neighbours = {}
