@@ -47,7 +47,7 @@ from controllers.stc import (
     step,
 )
 
-__all__ = ["CoverConfig", "RobotTiming", "run_cover"]
+__all__ = ["CoverConfig", "RobotTiming", "draw_floor", "run_cover"]
 
 #: ``--exposure auto``: a short frame at the seed's webcam setting (red lights, fresh marks) and a
 #: long one for the dim old marks: (exposure_s, gain).
@@ -177,7 +177,7 @@ class _Camera:
         return merged, res_l, dt + dt_l, 1
 
 
-def run_cover(board, cfg: CoverConfig = CoverConfig(), *, recorder=None) -> dict:
+def run_cover(board, cfg: CoverConfig = CoverConfig(), *, recorder=None, on_end=None) -> dict:
     """Cover ``board`` from its start sub-cell; returns the summary the CLI prints."""
     from sim_camera.phosphor import PhosphorLayer
     from stcvision.stages import recalibrate_turn
@@ -370,6 +370,8 @@ def run_cover(board, cfg: CoverConfig = CoverConfig(), *, recorder=None) -> dict
                 est_err = 0.0
     else:
         abort = abort or f"gave up after {cfg.max_decisions} decisions"
+    if on_end is not None:  # e.g. to draw the floor as the run left it
+        on_end(phosphor=phosphor, visits=visits, pose=(x, y, hdg), t_s=t)
     reachable = board.reachable_cells()
     start = tuple(board.start_subcell)
     closed = finished and sub == start and moves > 0
@@ -417,3 +419,44 @@ def run_cover(board, cfg: CoverConfig = CoverConfig(), *, recorder=None) -> dict
             "oracle_start_mark": fe["oracle"].start_mark,
         }
     return out
+
+
+def draw_floor(board, phosphor, visits, pose, t_s: float, *, px_per_m: float = 400.0) -> np.ndarray:
+    """Top view (north up, BGR uint8) of a run: free and obstacle cells, red lights, covered
+    sub-cells, every UV dot drawn with its current luminance, and the robot."""
+    import cv2
+
+    w, h = board.size_m
+    m = 20
+    W, H = int(w * px_per_m) + 2 * m, int(h * px_per_m) + 2 * m
+    img = np.full((H, W, 3), 255, np.uint8)
+
+    def px(xy):
+        return int(round(m + xy[0] * px_per_m)), int(round(m + (h - xy[1]) * px_per_m))
+
+    D = board.subcell_m
+    rows, cols = board.shape_subcells
+    for i in range(rows):
+        for j in range(cols):
+            c = board.subcell_center_m(i, j)
+            a, b = px(c - D / 2), px(c + D / 2)
+            if not board.cell_free[i // 2, j // 2]:
+                cv2.rectangle(img, (a[0], b[1]), (b[0], a[1]), (90, 90, 90), -1)
+            elif visits[i, j]:
+                cv2.rectangle(img, (a[0], b[1]), (b[0], a[1]), (215, 240, 215), -1)
+    for k in range(0, cols + 1, 2):
+        cv2.line(img, px((k * D, 0)), px((k * D, h)), (150, 150, 150), 1)
+    for k in range(0, rows + 1, 2):
+        cv2.line(img, px((0, k * D)), px((w, k * D)), (150, 150, 150), 1)
+    for xy in board.red_lights_m():
+        if 0 <= xy[0] <= w and 0 <= xy[1] <= h:
+            cv2.circle(img, px(xy), 5, (0, 0, 230), -1)
+    if len(phosphor):
+        lum = phosphor.luminance_at(t_s)
+        g = np.sqrt(np.clip(lum / phosphor.law.initial_cd_m2(3.0), 0, 1))
+        for xy, v in zip(phosphor.xy_m, g, strict=True):
+            cv2.circle(img, px(xy), 2, (int(60 * (1 - v)), int(100 + 155 * v), int(60 * (1 - v))), -1)
+    x, y, hd = pose
+    cv2.circle(img, px((x, y)), int(0.065 * px_per_m), (200, 90, 40), 2)
+    cv2.line(img, px((x, y)), px((x + 0.08 * math.cos(hd), y + 0.08 * math.sin(hd))), (200, 90, 40), 2)
+    return img

@@ -48,8 +48,10 @@ def test_world_bad_arena_is_exit_2_one_line(tmp_path, capsys):
     assert not (tmp_path / "world.png").exists()
 
 
-def test_demo_writes_world_png(tmp_path, capsys):
+def test_demo_covers_the_default_board_in_camera_mode(tmp_path, capsys):
     assert main(["demo", "--out", str(tmp_path), "--json"]) == 0
     res = json.loads(capsys.readouterr().out)
-    assert res["containment_events"] == 0 and res["moves"] > 50
-    assert (tmp_path / "world.png").exists()
+    assert res["perception"] == "camera" and res["finished"] and res["returned_to_start"]
+    assert res["subcells_covered"] == res["subcells_reachable"] and res["subcells_covered_more_than_once"] == 0
+    assert res["decision_errors"] == 0
+    assert (tmp_path / "demo.rrd").stat().st_size > 0 and (tmp_path / "coverage.png").exists()
