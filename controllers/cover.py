@@ -81,6 +81,9 @@ class CoverConfig:
     heading_sigma_oracle_rad: float = math.radians(0.25)  # the pipeline's measured heading RMS
     position_sigma_oracle_m: float = 0.001  # the marks' position read-out (measured: ~1 mm)
     use_mark_consensus: bool = True
+    #: red lights as absolute position references (measured: helps 6x6 boards, hurts 4x4 ones
+    #: while the heading error stays uncorrected, so off by default)
+    use_landmarks: bool = False
     trace: bool = False  # heading from the lean of all rows in view, not the newest only
 
 
@@ -232,6 +235,14 @@ def run_cover(board, cfg: CoverConfig = CoverConfig(), *, recorder=None, on_end=
         right = np.array([up[1], -up[0]])
         return D * (off_ru[0] * right + off_ru[1] * up)
 
+    def where_am_i(observation, current):
+        """The robot's offset from its sub-cell centre: from the red lights in view when there
+        are any (they stand at cell centres: an absolute reference), else from its own marks."""
+        off = observation.landmark_offset if cfg.use_landmarks else None
+        if off is None:
+            off = observation.position_offset
+        return current if off is None else offset_to_world(off)
+
     def measure_heading():
         """The heading fit on the newest row (camera), or the truth with the pipeline's noise;
         the marks in view also say where the robot stands."""
@@ -242,8 +253,7 @@ def run_cover(board, cfg: CoverConfig = CoverConfig(), *, recorder=None, on_end=
             return heading_error() + rng.normal(0, cfg.heading_sigma_oracle_rad)
         res, dt = camera.shoot((x, y, hdg), t, phosphor)
         t += tm.settle_s + dt
-        if res.observation.position_offset is not None:
-            offset_est = offset_to_world(res.observation.position_offset)
+        offset_est = where_am_i(res.observation, offset_est)
         if not res.heading.ok:
             return None
         # the newest row carries the heading error the robot had when laying it; the lean of
@@ -269,8 +279,7 @@ def run_cover(board, cfg: CoverConfig = CoverConfig(), *, recorder=None, on_end=
                 obs, res, dt, k = camera.observe((x, y, hdg), t, phosphor)
                 exposure_steps.append(k)
                 t += tm.settle_s + dt
-                if res.observation.position_offset is not None:
-                    offset_est = offset_to_world(res.observation.position_offset)
+                offset_est = where_am_i(res.observation, offset_est)
                 if step(state, obs) != step(state, o_obs):  # what the oracle would do in this state
                     decision_errors += 1
                     if first_error is None:

@@ -261,6 +261,9 @@ class CellObservation:
     #: how far all the rows in view still lean (counter-clockwise, rad) after the rotation by
     #: ``heading_error_rad``: the consensus of every mark, not just the newest row
     pattern_rotation_rad: float | None = None
+    #: the robot's offset (right, up; cell units) from the red lights in view, which stand at
+    #: cell centres: an absolute reference, unlike the marks it laid itself; None without lights
+    landmark_offset: tuple[float, float] | None = None
 
     def lit(self, box: int) -> bool:
         return self.boxes[box - 1].lit
@@ -354,6 +357,14 @@ def observe_cell(
             sel = np.zeros(0, bool)
         landing.append(bool(sel.sum() >= max(params.min_dots, 3)))
     rru = _rotate(geometry.to_cell(red_px), heading_error_rad) if len(red_px) else np.zeros((0, 2))
+    # red lights stand at cell centres (even coordinates in cell units): absolute landmarks
+    landmark = None
+    if len(rru):
+        resid = rru - 2.0 * np.round(rru / 2.0)
+        # well inside the ground view (a blob cut by its border has a biased centroid)
+        near = (np.abs(resid) < 0.6).all(axis=1) & (np.hypot(*(rru - ROBOT_IN_CELL).T) < 2.6)
+        if near.any():
+            landmark = tuple(float(v) for v in -np.median(resid[near], axis=0))
     _, _, rnb = assign_boxes(rru, np.full(len(rru), -1)) if len(rru) else (None, None, np.zeros(0, int))
     neighbours = {}
     for i, name in enumerate(NEIGHBOURS):
@@ -371,5 +382,14 @@ def observe_cell(
         )
     lean = pattern_rotation(ru[dots.lit], orient[dots.lit]) if len(ru) else None
     return CellObservation(
-        tuple(boxes), visited, neighbours, float(heading_error_rad), stray, start_mark, tuple(landing), offset, lean
+        tuple(boxes),
+        visited,
+        neighbours,
+        float(heading_error_rad),
+        stray,
+        start_mark,
+        tuple(landing),
+        offset,
+        lean,
+        landmark,
     )
