@@ -243,6 +243,25 @@ def run_cover(board, cfg: CoverConfig = CoverConfig(), *, recorder=None, on_end=
             off = observation.position_offset
         return current if off is None else offset_to_world(off)
 
+    def heading_estimate(res):
+        """The heading error: the newest row's, less what the red lights (absolute, when in view)
+        or the lean of all rows (the consensus of older marks) say is left over."""
+        if not res.heading.ok:
+            return None
+        o = res.observation
+        left = o.landmark_rotation_rad if cfg.use_landmarks else None
+        if left is None and cfg.use_mark_consensus:
+            left = o.pattern_rotation_rad
+        return res.heading.heading_error_rad - (left if left is not None else 0.0)
+
+    def rotate_by(angle):
+        """A small correction turn at the robot's estimated rate (true rate applies)."""
+        nonlocal hdg, t
+        est_rate = (math.pi / 2) / turn_s
+        dur = abs(angle) / est_rate
+        hdg = _wrap(hdg + math.copysign(1.0, angle) * true_rate(t) * dur)
+        t += dur
+
     def measure_heading():
         """The heading fit on the newest row (camera), or the truth with the pipeline's noise;
         the marks in view also say where the robot stands."""
@@ -258,8 +277,7 @@ def run_cover(board, cfg: CoverConfig = CoverConfig(), *, recorder=None, on_end=
             return None
         # the newest row carries the heading error the robot had when laying it; the lean of
         # all the rows in view (the consensus of older marks) takes that out
-        lean = res.observation.pattern_rotation_rad if cfg.use_mark_consensus else None
-        return res.heading.heading_error_rad - (lean if lean is not None else 0.0)
+        return heading_estimate(res)
 
     def lay_mark():
         nonlocal t
@@ -280,6 +298,10 @@ def run_cover(board, cfg: CoverConfig = CoverConfig(), *, recorder=None, on_end=
                 exposure_steps.append(k)
                 t += tm.settle_s + dt
                 offset_est = where_am_i(res.observation, offset_est)
+                if cfg.use_landmarks and res.observation.landmark_rotation_rad is not None:
+                    e = heading_estimate(res)
+                    if e is not None and abs(e) > math.radians(0.5):
+                        rotate_by(-e)  # the lights say the heading has drifted: take it out
                 if step(state, obs) != step(state, o_obs):  # what the oracle would do in this state
                     decision_errors += 1
                     if first_error is None:

@@ -264,6 +264,9 @@ class CellObservation:
     #: the robot's offset (right, up; cell units) from the red lights in view, which stand at
     #: cell centres: an absolute reference, unlike the marks it laid itself; None without lights
     landmark_offset: tuple[float, float] | None = None
+    #: how far the red lights in view are still turned about the robot (rad, counter-clockwise)
+    #: after the rotation by ``heading_error_rad``; None without a light over 1.2 sub-cells away
+    landmark_rotation_rad: float | None = None
 
     def lit(self, box: int) -> bool:
         return self.boxes[box - 1].lit
@@ -359,12 +362,20 @@ def observe_cell(
     rru = _rotate(geometry.to_cell(red_px), heading_error_rad) if len(red_px) else np.zeros((0, 2))
     # red lights stand at cell centres (even coordinates in cell units): absolute landmarks
     landmark = None
+    landmark_rot = None
     if len(rru):
         resid = rru - 2.0 * np.round(rru / 2.0)
         # well inside the ground view (a blob cut by its border has a biased centroid)
         near = (np.abs(resid) < 0.6).all(axis=1) & (np.hypot(*(rru - ROBOT_IN_CELL).T) < 2.6)
         if near.any():
             landmark = tuple(float(v) for v in -np.median(resid[near], axis=0))
+            # their bearing from the robot against where they should be: the rotation left
+            far = near & (np.hypot(*(rru - ROBOT_IN_CELL).T) > 1.2)
+            if far.any():
+                obs_v = rru[far] - ROBOT_IN_CELL
+                exp_v = obs_v - resid[far]
+                ang = np.arctan2(obs_v[:, 1], obs_v[:, 0]) - np.arctan2(exp_v[:, 1], exp_v[:, 0])
+                landmark_rot = float(np.median((ang + np.pi) % (2 * np.pi) - np.pi))
     _, _, rnb = assign_boxes(rru, np.full(len(rru), -1)) if len(rru) else (None, None, np.zeros(0, int))
     neighbours = {}
     for i, name in enumerate(NEIGHBOURS):
@@ -392,4 +403,5 @@ def observe_cell(
         offset,
         lean,
         landmark,
+        landmark_rot,
     )
