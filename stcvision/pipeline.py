@@ -248,12 +248,8 @@ class Pipeline:
         return cv2.convertScaleAbs(unwarp(window_sums(image, w), self.umap), alpha=1.0 / (w * w))
 
 
-def bench_pipeline(camera, board, layer, pose, *, frames: int, rng, profile: Profile | None = None) -> dict:
+def bench_pipeline(camera, board, layer, pose, *, frames: int, rng, profile: Profile) -> dict:
     """Median per-frame and per-stage times of the pipeline on rendered frames (one core)."""
-    if profile is None:
-        from calibration.profiles import default_profile
-
-        profile = default_profile()
     dark = camera.median_dark(8, rng=rng)
     lights = board.red_lights_m()
     imgs = [camera.render(pose, rng=rng, phosphor=layer, red_lights_m=lights).image for _ in range(8)]

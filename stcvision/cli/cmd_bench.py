@@ -83,7 +83,9 @@ def run(args):
         from stcvision.pipeline import bench_pipeline
     except ImportError:
         return result
-    result.update(bench_pipeline(cam, board, layer, pose, frames=args.frames, rng=rng))
+    from calibration.profiles import default_profile
+
+    result.update(bench_pipeline(cam, board, layer, pose, frames=args.frames, rng=rng, profile=default_profile()))
     return result
 
 

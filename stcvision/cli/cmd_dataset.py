@@ -63,7 +63,8 @@ def run(args):
             "counts": m["counts"],
             "groups": {g["name"]: g["n"] for g in m["groups"]},
         }
-    from stcvision.datasets import generate, load_recipe
+    from stcvision.cli.dataset_generate import generate
+    from stcvision.datasets import load_recipe
 
     recipe = load_recipe(args.recipe)
     seed = recipe.seed if args.seed is None else args.seed

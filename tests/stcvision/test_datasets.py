@@ -102,7 +102,7 @@ def test_frame_k_does_not_depend_on_earlier_frames(tmp_path):
     base = {"schema_version": 1, "name": "indep", "dark_frames": 1, "seed": 9}
     a = parse_recipe({**base, "groups": [{"name": "g", "n": 3}]})
     b = parse_recipe({**base, "groups": [{"name": "first", "n": 1}, {"name": "g", "n": 3}]})
-    from stcvision.datasets import generate
+    from stcvision.cli.dataset_generate import generate
 
     generate(a, tmp_path / "a", progress=lambda total, label: lambda n=1: None)
     generate(b, tmp_path / "b", progress=lambda total, label: lambda n=1: None)
