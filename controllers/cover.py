@@ -120,7 +120,10 @@ class _Camera:
         self.lights = board.red_lights_m()
         self.rng = rng
         self.cfg = cfg
-        self.pipe = Pipeline(default_profile())
+        from stcvision.observation import ObservationParams
+        from stcvision.pipeline import PipelineParams
+
+        self.pipe = Pipeline(default_profile(), PipelineParams(observation=ObservationParams(pose_estimates=True)))
         self.darks: dict = {}
         if cfg.exposure == "auto":
             self.ladder = AUTO_LADDER
