@@ -401,7 +401,7 @@ class FloorProjector:
         self._guess_u = gu[ii, jj]
         self._guess_v = gv[ii, jj]
 
-    def project(self, xy_m, *, iters: int = 3):
+    def project(self, xy_m, *, iters: int = 2):
         """(N, 2) robot-frame floor points -> ((N, 2) sub-pixel (u, v), (N,) visible)."""
         p = self.table.params
         xy = np.asarray(xy_m, float).reshape(-1, 2)
@@ -428,7 +428,7 @@ class FloorProjector:
         f, ground = _trace_uv(p, u, v)
         iu = np.clip(np.rint(u).astype(int), 0, w - 1)
         iv = np.clip(np.rint(v).astype(int), 0, h - 1)
-        ok = ground & (np.hypot(*(f - pts).T) < 1e-5) & self.table.ground[iv, iu]
+        ok = ground & (np.hypot(*(f - pts).T) < 5e-5) & self.table.ground[iv, iu]
         ok &= (u >= -0.5) & (u <= w - 0.5) & (v >= -0.5) & (v <= h - 0.5)
         vis = np.zeros(len(xy), bool)
         vis[idx] = ok
