@@ -1,4 +1,8 @@
+from pathlib import Path
+
 import pytest
+
+SMOKE_RECIPE = Path(__file__).resolve().parents[2] / "datasets" / "recipes" / "smoke.json"
 
 
 @pytest.fixture(scope="session")
@@ -6,3 +10,27 @@ def default_profile():
     from calibration.profiles import default_profile
 
     return default_profile()
+
+
+@pytest.fixture
+def cli(capsys):
+    """Run ``stcvision ARGV...`` in-process; returns (exit code, stdout, stderr)."""
+    from stcvision.cli import main
+
+    def run(*argv) -> tuple[int, str, str]:
+        capsys.readouterr()
+        code = main([str(a) for a in argv])
+        out = capsys.readouterr()
+        return code, out.out, out.err
+
+    return run
+
+
+@pytest.fixture(scope="session")
+def smoke(tmp_path_factory):
+    """The tiny shipped 'smoke' recipe generated once per session (read-only: copy it before changing it)."""
+    from stcvision.cli import main
+
+    d = tmp_path_factory.mktemp("smoke") / "D"
+    assert main(["dataset", "generate", str(SMOKE_RECIPE), "--out", str(d)]) == 0
+    return d

@@ -11,25 +11,11 @@ from stcvision.datasets import load_recipe, open_dataset, parse_recipe
 
 ROOT = Path(__file__).resolve().parents[2]
 RECIPES = ROOT / "datasets" / "recipes"
-SMOKE = RECIPES / "smoke.json"
+SMOKE = RECIPES / "smoke.json"  # the recipe behind the conftest `smoke` fixture
 
 
 def files(d: Path) -> dict[str, bytes]:
     return {str(p.relative_to(d)): p.read_bytes() for p in sorted(d.rglob("*")) if p.is_file()}
-
-
-def run(capsys, *argv) -> tuple[int, str, str]:
-    capsys.readouterr()
-    code = main([str(a) for a in argv])
-    out = capsys.readouterr()
-    return code, out.out, out.err
-
-
-@pytest.fixture(scope="module")
-def smoke(tmp_path_factory):
-    d = tmp_path_factory.mktemp("smoke") / "D"
-    assert main(["dataset", "generate", str(SMOKE), "--out", str(d)]) == 0
-    return d
 
 
 def test_every_shipped_recipe_parses():
@@ -43,7 +29,7 @@ def test_every_shipped_recipe_parses():
     assert pc.profiles and len({(json.dumps(g.camera, sort_keys=True), g.pattern_seed) for g in pc.groups}) >= 2
 
 
-def test_smoke_dataset_layout(smoke, capsys):
+def test_smoke_dataset_layout(smoke, cli):
     m = json.loads((smoke / "manifest.json").read_text())
     assert m["schema_version"] == 1 and m["complete"] and m["recipe_name"] == "smoke" and m["seed"] == 0
     assert m["counts"]["frames"] == 6 and m["cameras"]["cam0"]["optics"]["width_px"] == 640
@@ -55,9 +41,9 @@ def test_smoke_dataset_layout(smoke, capsys):
     for lab in labels:
         assert {"dots", "pose", "sensor", "optics", "cell", "red_lights", "group", "dark", "camera"} <= set(lab)
     assert labels[3]["sensor"]["exposure_s"] == 0.25 and labels[3]["dark"] == "dark/exp250ms.png"
-    code, out, _ = run(capsys, "dataset", "check", smoke, "--json")
+    code, out, _ = cli("dataset", "check", smoke, "--json")
     assert code == 0 and json.loads(out)["counts"]["frames"] == 6
-    code, _, err = run(capsys, "dataset", "check", smoke / "frames")
+    code, _, err = cli("dataset", "check", smoke / "frames")
     assert code == 2 and "is not a dataset" in err and err.count("\n") == 1
 
 
@@ -66,18 +52,18 @@ def test_generation_is_deterministic(smoke, tmp_path):
     assert files(tmp_path / "again") == files(smoke)
 
 
-def test_resume_renders_only_what_is_missing(smoke, tmp_path, capsys):
+def test_resume_renders_only_what_is_missing(smoke, tmp_path, cli):
     d = tmp_path / "D"
     shutil.copytree(smoke, d)
     (d / "frames" / "000004.png").unlink()
     (d / "dark" / "webcam.png").unlink()
-    code, out, _ = run(capsys, "dataset", "generate", SMOKE, "--out", d, "--json")
+    code, out, _ = cli("dataset", "generate", SMOKE, "--out", d, "--json")
     r = json.loads(out)
     assert code == 0 and r["frames_rendered"] == 1 and r["frames_skipped"] == 5 and r["darks_rendered"] == 1
     assert files(d) == files(smoke)
 
 
-def test_interrupted_run_resumes_from_per_frame_labels(smoke, tmp_path, capsys):
+def test_interrupted_run_resumes_from_per_frame_labels(smoke, tmp_path, cli):
     # as after a kill: labels only in .parts/, no labels.jsonl, manifest not complete
     d = tmp_path / "D"
     shutil.copytree(smoke, d)
@@ -91,9 +77,9 @@ def test_interrupted_run_resumes_from_per_frame_labels(smoke, tmp_path, capsys):
     m = json.loads((d / "manifest.json").read_text())
     m["complete"] = False
     (d / "manifest.json").write_text(json.dumps(m))
-    code, _, err = run(capsys, "eval", d)
+    code, _, err = cli("eval", d)
     assert code == 2 and "incomplete" in err and err.count("\n") == 1
-    code, out, _ = run(capsys, "dataset", "generate", SMOKE, "--out", d, "--json")
+    code, out, _ = cli("dataset", "generate", SMOKE, "--out", d, "--json")
     assert code == 0 and json.loads(out)["frames_rendered"] == 3
     assert files(d) == files(smoke)
 
@@ -113,13 +99,13 @@ def test_frame_k_does_not_depend_on_earlier_frames(tmp_path):
         ).read_bytes()
 
 
-def test_refuses_a_folder_of_another_recipe_or_seed(smoke, tmp_path, capsys):
-    code, _, err = run(capsys, "dataset", "generate", SMOKE, "--out", smoke, "--seed", "1")
+def test_refuses_a_folder_of_another_recipe_or_seed(smoke, tmp_path, cli):
+    code, _, err = cli("dataset", "generate", SMOKE, "--out", smoke, "--seed", "1")
     assert code == 2 and "seed 0" in err and err.count("\n") == 1
     other = tmp_path / "other"
     other.mkdir()
     (other / "notes.txt").write_text("mine")
-    code, _, err = run(capsys, "dataset", "generate", SMOKE, "--out", other)
+    code, _, err = cli("dataset", "generate", SMOKE, "--out", other)
     assert code == 2 and "not empty" in err
     assert (other / "notes.txt").read_text() == "mine"
 
@@ -136,11 +122,11 @@ def test_refuses_a_folder_of_another_recipe_or_seed(smoke, tmp_path, capsys):
         ({"groups": [{"name": "g", "n": 1, "sensor": {"exposure_ms": 3}}]}, "exposure_ms"),
     ],
 )
-def test_bad_recipes_are_one_line_errors(tmp_path, capsys, patch, words):
+def test_bad_recipes_are_one_line_errors(tmp_path, cli, patch, words):
     r = {"schema_version": 1, "name": "bad", "groups": [{"name": "g", "n": 1}], **patch}
     p = tmp_path / "bad.json"
     p.write_text(json.dumps(r))
-    code, _, err = run(capsys, "dataset", "generate", p, "--out", tmp_path / "out")
+    code, _, err = cli("dataset", "generate", p, "--out", tmp_path / "out")
     assert code == 2 and words in err and err.count("\n") == 1, err
     assert not (tmp_path / "out").exists()
 

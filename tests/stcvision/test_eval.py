@@ -24,20 +24,6 @@ METRICS = (
 )
 
 
-def run(capsys, *argv) -> tuple[int, str, str]:
-    capsys.readouterr()
-    code = main([str(a) for a in argv])
-    out = capsys.readouterr()
-    return code, out.out, out.err
-
-
-@pytest.fixture(scope="module")
-def smoke(tmp_path_factory):
-    d = tmp_path_factory.mktemp("smoke") / "D"
-    assert main(["dataset", "generate", str(SMOKE), "--out", str(d)]) == 0
-    return d
-
-
 @pytest.fixture(scope="module")
 def evaluated(smoke, tmp_path_factory):
     """eval --json --report --rrd on the smoke set, once."""
@@ -94,50 +80,50 @@ def test_report_and_recording_files(evaluated):
     assert (d / "worst.rrd").stat().st_size > 10_000 and 1 <= len(r["rrd_frames"]) <= 10
 
 
-def test_report_is_never_overwritten_silently(smoke, evaluated, capsys):
+def test_report_is_never_overwritten_silently(smoke, evaluated, cli):
     d, _ = evaluated
-    code, _, err = run(capsys, "eval", smoke, "--report", d / "report")
+    code, _, err = cli("eval", smoke, "--report", d / "report")
     assert code == 2 and "--force" in err and err.count("\n") == 1
 
 
-def test_compare(evaluated, tmp_path, capsys):
+def test_compare(evaluated, tmp_path, cli):
     d, a = evaluated
     same = compare(a, a)
     assert same["worse"] == same["better"] == 0 and same["same_dataset"]
     b = dict(a, dot_recall=a["dot_recall"] - 0.05, heading_err_deg_rms=a["heading_err_deg_rms"] / 2)
     (tmp_path / "b.json").write_text(json.dumps(b))
-    code, out, _ = run(capsys, "eval", "--compare", d / "a.json", tmp_path / "b.json", "--json")
+    code, out, _ = cli("eval", "--compare", d / "a.json", tmp_path / "b.json", "--json")
     r = json.loads(out)
     verdict = {row["metric"]: row["verdict"] for row in r["rows"]}
     assert code == 0 and verdict["dot_recall"] == "worse" and verdict["heading_err_deg_rms"] == "better"
     assert verdict["box_accuracy"] == "same" and r["worse"] >= 1 and r["better"] >= 1
-    code, out, _ = run(capsys, "eval", "--compare", d / "a.json", tmp_path / "b.json")
+    code, out, _ = cli("eval", "--compare", d / "a.json", tmp_path / "b.json")
     assert code == 0 and "dot_recall" in out and "worse" in out and "better" in out
     (tmp_path / "junk.json").write_text('{"x": 1}')
-    code, _, err = run(capsys, "eval", "--compare", d / "a.json", tmp_path / "junk.json")
+    code, _, err = cli("eval", "--compare", d / "a.json", tmp_path / "junk.json")
     assert code == 2 and "junk.json" in err and err.count("\n") == 1
 
 
-def test_users_own_frames_without_labels(smoke, tmp_path, capsys):
+def test_users_own_frames_without_labels(smoke, tmp_path, cli):
     own = tmp_path / "robot_frames"
     own.mkdir()
     for k in range(3):
         shutil.copy(smoke / "frames" / f"{k:06d}.png", own / f"f{k}.png")
     (own / "f1b.png").write_bytes(b"not a png")  # a corrupt frame in the middle
-    code, _, err = run(capsys, "eval", own)
+    code, _, err = cli("eval", own)
     assert code == 2 and "--dark" in err and err.count("\n") == 1
-    code, out, err = run(capsys, "eval", own, "--dark", smoke / "dark" / "webcam.png", "--rrd", tmp_path / "own.rrd")
+    code, out, err = cli("eval", own, "--dark", smoke / "dark" / "webcam.png", "--rrd", tmp_path / "own.rrd")
     assert code == 0 and "no accuracy" in out and "f1b.png" in err
     res = tmp_path / "robot_frames-results.jsonl"
     lines = [json.loads(s) for s in res.read_text().splitlines()]
     assert [Path(x["frame"]).name for x in lines] == ["f0.png", "f1.png", "f1b.png", "f2.png"]
     assert "skipped" in lines[2] and all("dots" in x and "heading" in x for x in lines if "skipped" not in x)
     assert (tmp_path / "own.rrd").stat().st_size > 10_000
-    code, out, _ = run(capsys, "eval", own, "--no-dark", "--out", tmp_path / "r2.jsonl", "--json")
+    code, out, _ = cli("eval", own, "--no-dark", "--out", tmp_path / "r2.jsonl", "--json")
     r = json.loads(out)
     assert code == 0 and r["frames"] == 3 and r["frames_skipped"] == 1 and r["accuracy"] is None
     # never overwrites the results without --force
-    code, _, err = run(capsys, "eval", own, "--no-dark", "--out", tmp_path / "r2.jsonl")
+    code, _, err = cli("eval", own, "--no-dark", "--out", tmp_path / "r2.jsonl")
     assert code == 2 and "--force" in err
 
 
@@ -171,21 +157,21 @@ def _small_frame(d):
         (lambda d: (d / "labels.jsonl").unlink(), "no labels.jsonl"),
     ],
 )
-def test_bad_datasets_are_one_line_errors(smoke, tmp_path, capsys, how, words):
+def test_bad_datasets_are_one_line_errors(smoke, tmp_path, cli, how, words):
     d = _broken(smoke, tmp_path, how)
-    code, _, err = run(capsys, "eval", d)
+    code, _, err = cli("eval", d)
     assert code == 2 and words in err and err.count("\n") == 1, err
 
 
-def test_a_corrupt_frame_is_skipped_and_counted(smoke, tmp_path, capsys):
+def test_a_corrupt_frame_is_skipped_and_counted(smoke, tmp_path, cli):
     d = _broken(smoke, tmp_path, lambda d: (d / "frames" / "000002.png").write_bytes(b"\x89PNG broken"))
-    code, out, err = run(capsys, "eval", d, "--json")
+    code, out, err = cli("eval", d, "--json")
     r = json.loads(out)
     assert code == 0 and r["frames"] == 5 and r["frames_skipped"] == 1
     assert r["skipped"][0]["frame"] == "frames/000002.png" and "000002.png" in err
 
 
-def test_each_camera_is_read_with_its_own_workflow_profile(tmp_path, capsys):
+def test_each_camera_is_read_with_its_own_workflow_profile(tmp_path, cli):
     recipe = {
         "schema_version": 1,
         "name": "one-perturbed",
@@ -205,12 +191,12 @@ def test_each_camera_is_read_with_its_own_workflow_profile(tmp_path, capsys):
     d = tmp_path / "D"
     assert main(["dataset", "generate", str(tmp_path / "r.json"), "--out", str(d)]) == 0
     assert (d / "calibration" / "cam0_0.png").exists() and (d / "profiles" / "cam0.json").exists()
-    code, out, _ = run(capsys, "eval", d, "--json")
+    code, out, _ = cli("eval", d, "--json")
     own = json.loads(out)
     assert code == 0 and own["profile"] == "per camera" and own["dot_recall"] >= 0.95
     from calibration.profiles import default_profile_path
 
-    code, out, _ = run(capsys, "eval", d, "--json", "--profile", default_profile_path())
+    code, out, _ = cli("eval", d, "--json", "--profile", default_profile_path())
     bad = json.loads(out)
     # calibration matters: the shipped profile reads this mirror worse (README accuracy table)
     assert bad["dot_recall"] < own["dot_recall"]
@@ -219,10 +205,10 @@ def test_each_camera_is_read_with_its_own_workflow_profile(tmp_path, capsys):
     assert own_cam["profile_floor_err_mm_median"] < 3.0 < bad_cam["profile_floor_err_mm_median"]
 
 
-def test_given_profile(smoke, tmp_path, capsys):
+def test_given_profile(smoke, tmp_path, cli):
     from calibration.profiles import default_profile_path
 
-    code, out, _ = run(capsys, "eval", smoke, "--profile", default_profile_path(), "--json")
+    code, out, _ = cli("eval", smoke, "--profile", default_profile_path(), "--json")
     assert code == 0 and json.loads(out)["profile"].endswith("default.json")
-    code, _, err = run(capsys, "eval", smoke, "--profile", tmp_path / "none.json")
+    code, _, err = cli("eval", smoke, "--profile", tmp_path / "none.json")
     assert code == 2 and "none.json" in err
