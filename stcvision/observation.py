@@ -284,10 +284,11 @@ class CellObservation:
     #: ``heading_error_rad``: the consensus of every mark, not just the newest row
     pattern_rotation_rad: float | None = None
     #: the robot's offset (right, up; cell units) from the red lights in view, which stand at
-    #: cell centres: an absolute reference, unlike the marks it laid itself; None without lights
+    #: cell centres: an absolute reference, unlike the marks it laid itself; None unless two or
+    #: more lights at distinct cells are well in view (one light cannot tell an offset from a turn)
     landmark_offset: tuple[float, float] | None = None
-    #: how far the red lights in view are still turned about the robot (rad, counter-clockwise)
-    #: after the rotation by ``heading_error_rad``; None without a light over 1.2 sub-cells away
+    #: how far those lights are still turned about their centroid (rad, counter-clockwise) after
+    #: the rotation by ``heading_error_rad`` (2-D Procrustes); None when ``landmark_offset`` is
     landmark_rotation_rad: float | None = None
 
     def lit(self, box: int) -> bool:
@@ -392,15 +393,15 @@ def observe_cell(
         resid = rru - 2.0 * np.round(rru / 2.0)
         # well inside the ground view (a blob cut by its border has a biased centroid)
         near = (np.abs(resid) < 0.6).all(axis=1) & (np.hypot(*(rru - ROBOT_IN_CELL).T) < 2.6)
-        if near.any():
+        obs_p = rru[near]
+        exp_p = obs_p - resid[near]
+        # two lights or more at distinct cell centres: with one, a sideways offset and a rotation
+        # look alike (1 cm at 40 cm is 1.4 degrees), so fit both at once (2-D Procrustes of where
+        # they are against where they should be)
+        if len(np.unique(np.round(exp_p / 2.0), axis=0)) >= 2:
             landmark = tuple(float(v) for v in -np.median(resid[near], axis=0))
-            # their bearing from the robot against where they should be: the rotation left
-            far = near & (np.hypot(*(rru - ROBOT_IN_CELL).T) > 1.2)
-            if far.any():
-                obs_v = rru[far] - ROBOT_IN_CELL
-                exp_v = obs_v - resid[far]
-                ang = np.arctan2(obs_v[:, 1], obs_v[:, 0]) - np.arctan2(exp_v[:, 1], exp_v[:, 0])
-                landmark_rot = float(np.median((ang + np.pi) % (2 * np.pi) - np.pi))
+            a, b = obs_p - obs_p.mean(axis=0), exp_p - exp_p.mean(axis=0)
+            landmark_rot = float(np.arctan2((b[:, 0] * a[:, 1] - b[:, 1] * a[:, 0]).sum(), (b * a).sum()))
     _, _, rnb = assign_boxes(rru, np.full(len(rru), -1)) if len(rru) else (None, None, np.zeros(0, int))
     neighbours = {}
     for i, name in enumerate(NEIGHBOURS):

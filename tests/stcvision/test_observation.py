@@ -54,3 +54,40 @@ def test_corner_order_is_the_plus_outline_counter_clockwise():
     pts = np.array(CORNER_ORDER, float)
     area = 0.5 * np.sum(pts[:, 0] * np.roll(pts[:, 1], -1) - np.roll(pts[:, 0], -1) * pts[:, 1])
     assert area == pytest.approx(20.0)  # five 2x2 cells, counter-clockwise (positive)
+
+
+def test_red_lights_give_the_robots_offset_and_residual_heading(default_profile):
+    """Red lights stand at cell centres: with two or more well in view the observation says
+    where the robot stands off its sub-cell centre and how far the heading fit is still off."""
+    from sim_camera.camera import SyntheticCamera
+    from sim_camera.scenarios import cell_scene
+    from stcvision.observation import ObservationParams
+    from stcvision.pipeline import Pipeline, PipelineParams
+
+    cam = SyntheticCamera()
+    rng = np.random.default_rng(5)
+    pipe = Pipeline(default_profile, PipelineParams(observation=ObservationParams(pose_estimates=True)))
+    pipe.set_dark(cam.median_dark(8, rng=rng))
+    checked = 0
+    for _ in range(16):
+        sc = cell_scene(rng, obstacle_fraction=0.35, position_error_m=0.01, heading_error_deg=(-2, 2))
+        res = pipe.process(
+            cam.render(sc.pose, rng=rng, t_s=sc.t_s, phosphor=sc.phosphor, red_lights_m=sc.red_lights_m).image
+        )
+        o = res.observation
+        if o.landmark_offset is None:
+            assert o.landmark_rotation_rad is None
+            continue
+        heading = round(sc.pose.heading_rad / (np.pi / 2)) * np.pi / 2
+        herr = (sc.pose.heading_rad - heading + np.pi) % (2 * np.pi) - np.pi
+        up = np.array([np.cos(heading), np.sin(heading)])
+        right = np.array([up[1], -up[0]])
+        xy = np.array([sc.pose.x_m, sc.pose.y_m])
+        d = (xy - sc.board.subcell_center_m(*sc.board.subcell_at(xy))) / sc.board.subcell_m
+        # within 0.04 sub-cell sides (6.4 mm) of the truth
+        assert np.allclose(o.landmark_offset, (d @ right, d @ up), atol=0.04), (o.landmark_offset, d)
+        # what is left of the heading after the newest row's fit, within 0.25 degrees
+        left = res.heading.heading_error_rad - herr
+        assert abs(np.degrees(o.landmark_rotation_rad - left)) < 0.25
+        checked += 1
+    assert checked >= 4
