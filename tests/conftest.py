@@ -21,3 +21,17 @@ def default_camera():
     from sim_camera.camera import SyntheticCamera
 
     return SyntheticCamera()
+
+
+@pytest.fixture
+def cli(capsys):
+    """Run ``stcvision ARGV...`` in-process; returns (exit code, stdout, stderr)."""
+    from stcvision.cli import main
+
+    def run(*argv) -> tuple[int, str, str]:
+        capsys.readouterr()
+        code = main([str(a) for a in argv])
+        out = capsys.readouterr()
+        return code, out.out, out.err
+
+    return run

@@ -80,60 +80,33 @@ def test_rim_of_the_real_opencv_catadioptric_sample(peer_data):
     assert rim.residual_px < 1.5
 
 
-def test_calibrate_cli_end_to_end(tmp_path, capsys):
+def test_calibrate_cli_end_to_end(tmp_path, cli):
     cam = SyntheticCamera()
     frame = calibration_frame(cam)
-    cv2.imwrite(str(tmp_path / "lights.png"), frame)
+    lights = tmp_path / "lights.png"
+    cv2.imwrite(str(lights), frame)
     out = tmp_path / "p.json"
     # without a terminal and without --yes: refuse, write nothing
-    assert main(["calibrate", "transform", str(tmp_path / "lights.png"), "--out", str(out)]) == 2
-    assert "--yes" in capsys.readouterr().err and not out.exists()
-    assert main(["calibrate", "transform", str(tmp_path / "lights.png"), "--out", str(out), "--yes", "--json"]) == 0
-    r = json.loads(capsys.readouterr().out)
+    code, _, err = cli("calibrate", "transform", lights, "--out", out)
+    assert code == 2 and "--yes" in err and not out.exists()
+    code, stdout, _ = cli("calibrate", "transform", lights, "--out", out, "--yes", "--json")
+    assert code == 0
+    r = json.loads(stdout)
     assert r["line_err_mm_median"] < 1.0 and (tmp_path / "p.preview.png").exists()
     # never overwrite without --force
-    assert main(["calibrate", "transform", str(tmp_path / "lights.png"), "--out", str(out), "--yes"]) == 2
-    assert "--force" in capsys.readouterr().err
+    code, _, err = cli("calibrate", "transform", lights, "--out", out, "--yes")
+    assert code == 2 and "--force" in err
     # neighbours from a file a person made
     pts = tmp_path / "pts.json"
     pts.write_text(json.dumps(nominal_corners_px(0.16, 312.5, 360).tolist()))
-    assert (
-        main(
-            [
-                "calibrate",
-                "neighbors",
-                str(tmp_path / "lights.png"),
-                "--profile",
-                str(out),
-                "--points",
-                str(pts),
-                "--yes",
-                "--json",
-            ]
-        )
-        == 0
-    )
-    assert len(json.loads(capsys.readouterr().out)["corners_px"]) == 12
+    code, stdout, _ = cli("calibrate", "neighbors", lights, "--profile", out, "--points", pts, "--yes", "--json")
+    assert code == 0 and len(json.loads(stdout)["corners_px"]) == 12
     pts.write_text(json.dumps([[1, 2]] * 11))
-    assert (
-        main(
-            [
-                "calibrate",
-                "neighbors",
-                str(tmp_path / "lights.png"),
-                "--profile",
-                str(out),
-                "--points",
-                str(pts),
-                "--yes",
-            ]
-        )
-        == 2
-    )
-    assert "12" in capsys.readouterr().err
+    code, _, err = cli("calibrate", "neighbors", lights, "--profile", out, "--points", pts, "--yes")
+    assert code == 2 and "12" in err
     # rim on the same frame
-    assert main(["calibrate", "rim", str(tmp_path / "lights.png"), "--json"]) == 0
-    assert json.loads(capsys.readouterr().out)["radius_px"] == pytest.approx(223.4, abs=1.0)
+    code, stdout, _ = cli("calibrate", "rim", lights, "--json")
+    assert code == 0 and json.loads(stdout)["radius_px"] == pytest.approx(223.4, abs=1.0)
 
 
 def test_dark_stacking_cli(tmp_path, capsys):

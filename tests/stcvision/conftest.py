@@ -12,20 +12,6 @@ def default_profile():
     return default_profile()
 
 
-@pytest.fixture
-def cli(capsys):
-    """Run ``stcvision ARGV...`` in-process; returns (exit code, stdout, stderr)."""
-    from stcvision.cli import main
-
-    def run(*argv) -> tuple[int, str, str]:
-        capsys.readouterr()
-        code = main([str(a) for a in argv])
-        out = capsys.readouterr()
-        return code, out.out, out.err
-
-    return run
-
-
 @pytest.fixture(scope="session")
 def smoke(tmp_path_factory):
     """The tiny shipped 'smoke' recipe generated once per session (read-only: copy it before changing it)."""
