@@ -57,6 +57,17 @@ def test_webcam_exposure_fails_where_exposure_control_succeeds():
     assert auto["max_mark_age_read_s"] > 2 * horizon  # it had to read marks the webcam cannot see
 
 
+def test_red_light_landmarks_keep_the_robot_on_its_sub_cells():
+    """On a 5x5 board the robot's own marks cannot show its heading drift; the red lights can.
+    Without them it ends up more than 2 cm off and misreads a box; with them it stays within
+    1.5 cm and covers the board."""
+    board = Board.random((5, 5), obstacle_fraction=0.15, rng=np.random.default_rng(1))
+    blind = run_cover(board, CoverConfig(perception="camera", exposure="auto", seed=1, use_landmarks=False))
+    seeing = run_cover(board, CoverConfig(perception="camera", exposure="auto", seed=1))
+    assert blind["max_position_error_m"] > 0.02 and not complete(blind)
+    assert seeing["max_position_error_m"] < 0.015 and complete(seeing), seeing
+
+
 def test_oracle_mode_closed_loop_on_random_and_pythonrobotics_boards(peer_data):
     for seed in range(10):
         rng = np.random.default_rng(300 + seed)
