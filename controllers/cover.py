@@ -47,7 +47,7 @@ from controllers.stc import (
     step,
 )
 
-__all__ = ["CoverConfig", "RobotTiming", "draw_floor", "run_cover"]
+__all__ = ["CoverConfig", "RobotTiming", "draw_floor", "is_complete", "run_cover"]
 
 #: ``--exposure auto``: a short frame at the seed's webcam setting (red lights, fresh marks) and a
 #: long one for the dim old marks: (exposure_s, gain). Measured: a third rung (8 s at gain 1, taken
@@ -123,23 +123,20 @@ def _merge(a: StcObservation, b: StcObservation) -> StcObservation:
 
 
 class _Camera:
-    """Camera + pipeline at the robot, with dark frames per exposure setting."""
+    """Camera + pipeline at the robot: one pipeline per exposure setting, each holding the dark
+    frame taken at its exposure (so no dark frame is re-prepared between the short and the long
+    frame of a decision)."""
 
     def __init__(self, board, cfg: CoverConfig, rng: np.random.Generator):
-        from calibration.profiles import default_profile
         from sim_camera.camera import SyntheticCamera
-        from stcvision.pipeline import Pipeline
 
         self.cam = SyntheticCamera()
         self.board = board
         self.lights = board.red_lights_m()
         self.rng = rng
         self.cfg = cfg
-        from stcvision.observation import ObservationParams
-        from stcvision.pipeline import PipelineParams
-
-        self.pipe = Pipeline(default_profile(), PipelineParams(observation=ObservationParams(pose_estimates=True)))
-        self.darks: dict = {}
+        self.pipes: dict = {}
+        self.pipe = None  # the pipeline that read the last frame (for the recording)
         if cfg.exposure == "auto":
             self.ladder = AUTO_LADDER
         elif cfg.exposure == "webcam":
@@ -153,13 +150,19 @@ class _Camera:
         e, g = self.ladder[k]
         return self.cam.sensor.replace(exposure_s=e, gain=g)
 
-    def _dark(self, k: int):
-        if k not in self.darks:
-            self.darks[k] = self.cam.median_dark(8, rng=self.rng, sensor=self._sensor(k))
-        return self.darks[k]
+    def _pipeline(self, k: int):
+        if k not in self.pipes:
+            from calibration.profiles import default_profile
+            from stcvision.observation import ObservationParams
+            from stcvision.pipeline import Pipeline, PipelineParams
+
+            pipe = Pipeline(default_profile(), PipelineParams(observation=ObservationParams(pose_estimates=True)))
+            pipe.set_dark(self.cam.median_dark(8, rng=self.rng, sensor=self._sensor(k)))
+            self.pipes[k] = pipe
+        return self.pipes[k]
 
     def shoot(self, pose, t_s: float, phosphor, k: int = 0):
-        """Returns (pipeline result, capture seconds, truth frame)."""
+        """Returns (pipeline result, capture seconds)."""
         from sim_camera.camera import Pose
 
         s = self._sensor(k)
@@ -171,28 +174,35 @@ class _Camera:
             for i in range(self.cfg.n_stack)
         ]
         img = imgs[0] if len(imgs) == 1 else np.mean(np.stack(imgs), axis=0).round().astype(np.uint8)
-        dark = self._dark(k)
-        if self.pipe.dark is not dark:
-            self.pipe.set_dark(dark)
+        self.pipe = self._pipeline(k)
         res = self.pipe.process(img)
         self.frames += 1
         return res, s.exposure_s * self.cfg.n_stack
 
     def observe(self, pose, t_s, phosphor):
-        """One observation: (StcObservation, the result to log, seconds spent, long frames)."""
+        """One observation: (StcObservation, the result to log, seconds spent, long frames):
+        every rung of the exposure ladder, what any of them sees of the marks merged."""
         res, dt = self.shoot(pose, t_s, phosphor, 0)
         obs = _to_stc_obs(res.observation)
-        if len(self.ladder) == 1:
-            return obs, res, dt, 0
-        used, dt_all, res_k = 0, dt, res
         for k in range(1, len(self.ladder)):
-            if k >= 2 and not any(not n.has_marks and not n.has_red for n in obs.neighbours):
-                break  # nothing left that only a longer frame could show
-            res_k, dt_k = self.shoot(pose, t_s + dt_all, phosphor, k)
-            dt_all += dt_k
-            obs = _merge(obs, _to_stc_obs(res_k.observation))
-            used = k
-        return obs, res_k, dt_all, used
+            res, dt_k = self.shoot(pose, t_s + dt, phosphor, k)
+            dt += dt_k
+            obs = _merge(obs, _to_stc_obs(res.observation))
+        return obs, res, dt, len(self.ladder) - 1
+
+
+def is_complete(summary: dict) -> bool:
+    """A run of :func:`run_cover` is complete when every reachable sub-cell was covered exactly
+    once, the robot finished back in its start cell, and (camera mode) made no decision the
+    oracle would not have made."""
+    return bool(
+        summary["finished"]
+        and summary["returned_to_start"]
+        and summary["abort_reason"] is None
+        and summary["subcells_covered"] == summary["subcells_reachable"]
+        and summary["subcells_covered_more_than_once"] == 0
+        and summary["decision_errors"] == 0
+    )
 
 
 def run_cover(board, cfg: CoverConfig = CoverConfig(), *, recorder=None, on_end=None) -> dict:

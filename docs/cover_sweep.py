@@ -18,19 +18,8 @@ from concurrent.futures import ProcessPoolExecutor
 import numpy as np
 
 
-def complete(r: dict) -> bool:
-    return bool(
-        r["finished"]
-        and r["returned_to_start"]
-        and r["abort_reason"] is None
-        and r["subcells_covered"] == r["subcells_reachable"]
-        and r["subcells_covered_more_than_once"] == 0
-        and r["decision_errors"] == 0
-    )
-
-
 def one_run(task: tuple[int, int, str]) -> dict:
-    from controllers.cover import CoverConfig, run_cover
+    from controllers.cover import CoverConfig, is_complete, run_cover
     from sim_camera.board import Board
 
     n, seed, exposure = task
@@ -39,7 +28,7 @@ def one_run(task: tuple[int, int, str]) -> dict:
     # wander for thousands, so stop it at ten per reachable sub-cell (it has failed long before)
     cap = 10 * 4 * int(board.reachable_cells().sum())
     r = run_cover(board, CoverConfig(perception="camera", exposure=exposure, seed=seed, max_decisions=cap))
-    return {"cells": n, "seed": seed, "exposure": exposure, "complete": complete(r), **r}
+    return {"cells": n, "seed": seed, "exposure": exposure, "complete": is_complete(r), **r}
 
 
 def main() -> None:

@@ -10,20 +10,10 @@ import numpy as np
 import pytest
 
 from controllers.cover import CoverConfig, run_cover
+from controllers.cover import is_complete as complete
 from sim_camera.board import Board
 from sim_camera.camera import SyntheticCamera, visibility_horizon_s
 from stcvision.cli import main
-
-
-def complete(r):
-    return (
-        r["finished"]
-        and r["returned_to_start"]
-        and r["abort_reason"] is None
-        and r["subcells_covered"] == r["subcells_reachable"]
-        and r["subcells_covered_more_than_once"] == 0
-        and r["decision_errors"] == 0
-    )
 
 
 def small_board(seed):
