@@ -52,7 +52,8 @@ __all__ = ["CoverConfig", "RobotTiming", "draw_floor", "is_complete", "run_cover
 #: ``--exposure auto``: a short frame at the seed's webcam setting (red lights, fresh marks) and a
 #: long one for the dim old marks: (exposure_s, gain). Measured: a third rung (8 s at gain 1, taken
 #: only when a free neighbour still looks unmarked) reads older neighbours but the extra time lets
-#: the heading drift further; on 6 boards each of 4x4..7x7 cells it completed 14 runs, as without.
+#: the heading drift further; on 6 boards each of 4x4..7x7 cells it completed 14 runs, as without
+#: (with an earlier landmark fit).
 AUTO_LADDER = ((1 / 30, 16.0), (2.0, 4.0))
 
 
