@@ -33,11 +33,13 @@ from stcvision.stages import (
     HeadingParams,
     RedLights,
     RedParams,
+    RowParams,
     UnwarpMap,
     check_frame,
     estimate_background,
     find_dots,
     find_red,
+    find_rows,
     fit_heading,
     hot_pixels,
     noise_gain,
@@ -49,7 +51,7 @@ from stcvision.stages import (
 
 __all__ = ["Pipeline", "PipelineParams", "PipelineResult", "STAGES"]
 
-STAGES = ("dark", "window", "unwarp", "channels", "dots", "red", "heading", "observe")
+STAGES = ("dark", "window", "unwarp", "channels", "dots", "rows", "red", "heading", "observe")
 
 
 @dataclass(frozen=True, kw_only=True, slots=True)
@@ -60,6 +62,7 @@ class PipelineParams:
     pedestal_dn: int = 10
     channels: ChannelParams = field(default_factory=ChannelParams)
     dots: DotParams = field(default_factory=DotParams)
+    rows: RowParams = field(default_factory=RowParams)
     red: RedParams = field(default_factory=RedParams)
     heading: HeadingParams = field(default_factory=HeadingParams)
     observation: ObservationParams = field(default_factory=ObservationParams)
@@ -222,13 +225,26 @@ class Pipeline:
             ground_to_robot=self.profile.ground_to_robot,
         )
         t.append(clock())
+        all_dots = find_rows(
+            marks,
+            dots,
+            gain=self.gain,
+            background_dn=bg,
+            noise_dn=noise,
+            px_per_m=self.profile.ground_px_per_m,
+            window_px=w,
+            params=p.rows,
+            dot_params=p.dots,
+            ground_to_robot=self.profile.ground_to_robot,
+        )
+        t.append(clock())
         red = find_red(obstacle, p.red, window_area=area)
         t.append(clock())
         heading = fit_heading(dots, p.heading)
         t.append(clock())
         herr = heading.heading_error_rad if (heading.ok and p.use_heading) else 0.0
         obs = observe_cell(
-            dots,
+            all_dots,
             red.xy_px,
             red.peak_dn,
             self.geometry,
@@ -239,7 +255,7 @@ class Pipeline:
         t.append(clock())
         stage_ms = {name: (t[i + 1] - t[i]) / 1e6 for i, name in enumerate(STAGES)}
         return PipelineResult(
-            frame, self.dark, p.pedestal_dn, g, r, obstacle, marks, dots, red, heading, obs, stage_ms, area
+            frame, self.dark, p.pedestal_dn, g, r, obstacle, marks, all_dots, red, heading, obs, stage_ms, area
         )
 
     def ground_view(self, image: np.ndarray) -> np.ndarray:

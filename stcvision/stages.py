@@ -20,6 +20,7 @@ __all__ = [
     "ChannelParams",
     "DotParams",
     "Dots",
+    "RowParams",
     "HeadingFit",
     "HeadingParams",
     "RedLights",
@@ -33,6 +34,7 @@ __all__ = [
     "filter_channels",
     "find_dots",
     "find_red",
+    "find_rows",
     "fit_heading",
     "hot_pixels",
     "recalibrate_turn",
@@ -298,9 +300,21 @@ class Dots:
     threshold_snr: float
     noise_dn: float
     background_dn: float
+    #: (N,) bool: found as part of a faint row by :func:`find_rows`, not singly (None: none are)
+    from_row: np.ndarray | None = None
 
     def __len__(self) -> int:
         return len(self.strength)
+
+    def single(self) -> Dots:
+        """Only the dots found singly (the heading fit wants those: row dots sit on a grid)."""
+        if self.from_row is None or not self.from_row.any():
+            return self
+        k = ~self.from_row
+        return Dots(
+            self.xy_px[k], self.xy_m[k], self.strength[k], self.snr[k], self.lit[k],
+            self.threshold_snr, self.noise_dn, self.background_dn,
+        )  # fmt: skip
 
     @property
     def n_lit(self) -> int:
@@ -439,24 +453,165 @@ def find_dots(
             break
     kept_a = np.asarray(kept, int)
     n = len(kept_a)
-    xy = np.zeros((n, 2))
-    if n:  # intensity-weighted centroids above background, all dots at once
-        h, wid = marks.shape
-        r = params.centroid_px
-        off = np.arange(-r, r + 1)
-        py = np.clip(ys[kept_a][:, None, None] + off[None, :, None], 0, h - 1)
-        px = np.clip(xs[kept_a][:, None, None] + off[None, None, :], 0, wid - 1)
-        per_px = background_dn * (area if marks.dtype != np.uint8 else 1)  # sums hold w*w pixels
-        patch = np.maximum(marks[py, px].astype(np.float32) - np.float32(per_px), 0)
-        tot = patch.sum(axis=(1, 2))
-        tot = np.where(tot > 0, tot, 1)
-        xy[:, 0] = np.where(patch.sum(axis=(1, 2)) > 0, (px * patch).sum(axis=(1, 2)) / tot, xs[kept_a])
-        xy[:, 1] = np.where(patch.sum(axis=(1, 2)) > 0, (py * patch).sum(axis=(1, 2)) / tot, ys[kept_a])
+    per_px = background_dn * (area if marks.dtype != np.uint8 else 1)  # sums hold w*w pixels
+    xy = _centroids(marks, xs[kept_a], ys[kept_a], params.centroid_px, per_px)
     snr_k = vals[kept_a].astype(float) if n else np.zeros(0)
     strength = mean[kept_a] if n else np.zeros(0)
     xy_m = ground_to_robot(xy) if (ground_to_robot is not None and n) else np.zeros((n, 2))
     return Dots(
         xy, xy_m, strength, snr_k, snr_k >= params.k_sigma, float(params.k_sigma), float(noise_dn), float(background_dn)
+    )
+
+
+def _centroids(marks: np.ndarray, xs: np.ndarray, ys: np.ndarray, r: int, per_px: float) -> np.ndarray:
+    """Intensity-weighted centroids above ``per_px`` in the (2r+1)^2 squares around (xs, ys),
+    all at once; the integer position where the square holds nothing above it."""
+    n = len(xs)
+    xy = np.zeros((n, 2))
+    if not n:
+        return xy
+    h, wid = marks.shape
+    off = np.arange(-r, r + 1)
+    py = np.clip(ys[:, None, None] + off[None, :, None], 0, h - 1)
+    px = np.clip(xs[:, None, None] + off[None, None, :], 0, wid - 1)
+    patch = np.maximum(marks[py, px].astype(np.float32) - np.float32(per_px), 0)
+    tot = patch.sum(axis=(1, 2))
+    safe = np.where(tot > 0, tot, 1)
+    xy[:, 0] = np.where(tot > 0, (px * patch).sum(axis=(1, 2)) / safe, xs)
+    xy[:, 1] = np.where(tot > 0, (py * patch).sum(axis=(1, 2)) / safe, ys)
+    return xy
+
+
+# --------------------------------------------------------------------------- rows
+@dataclass(frozen=True, kw_only=True, slots=True)
+class RowParams:
+    """Faint-row search: a mark is a row of ``n_dots`` UV dots ``spacing_m`` apart (the robot's
+    rear LEDs; ``sim_camera.phosphor.LED_OFFSETS_M``: 4 LEDs 3 cm apart) parallel to a grid axis.
+    Old marks fade below the single-dot threshold well before all four of their dots are lost
+    in the noise: summing the four window SNRs at the row's spacing (a matched filter for the
+    row) gains sqrt(4) = 2 in SNR, i.e. the same frame reads marks about 1.9x older (the
+    afterglow falls as t^-1.1).
+
+    A row is accepted where ``sum / sqrt(n_dots) >= k_sigma``, every one of its dots is at least
+    ``min_dot_snr`` and no more than ``spread_snr`` below the row's mean (a mark's dots are
+    about equally bright), and the floor one spacing beyond either end is below ``end_max_snr`` (else
+    it is a real row's dots shifted by one: three real dots and one of noise). Single dots are clipped at the dot threshold, and rows are sought only
+    where the dot search found nothing (no row dot, nor the floor beyond its ends, within a lit
+    dot's blur), so a bright dot cannot make a row of noise. ``k_sigma``
+    is set by the same argument as :class:`DotParams` (heavier-than-Gaussian tail; measured on
+    rendered frames without marks: see tests/stcvision/test_rows.py).
+    """
+
+    enabled: bool = True
+    spacing_m: float = 0.03
+    n_dots: int = 4
+    k_sigma: float = 5.5
+    min_dot_snr: float = 0.0
+    end_max_snr: float = 2.5
+    spread_snr: float = 2.5
+    max_rows: int = 40
+
+
+def find_rows(
+    marks: np.ndarray,
+    dots: Dots,
+    *,
+    gain: np.ndarray,
+    background_dn: float,
+    noise_dn: float,
+    px_per_m: float,
+    window_px: int,
+    params: RowParams = RowParams(),
+    dot_params: DotParams = DotParams(),
+    ground_to_robot=None,
+) -> Dots:
+    """Rows of ``params.n_dots`` faint dots along either ground-view axis that the dot search
+    missed; returns ``dots`` with the rows' dots appended (``lit=True``, ``from_row=True``,
+    ``snr`` the row's SNR). ``marks``: the uint16 window sums the dot search ran on."""
+    area = window_px * window_px
+    if not params.enabled or marks.dtype != np.uint16:
+        return dots
+    noise_dn = max(noise_dn, 0.3)
+    z = cv2.addWeighted(marks, 1.0 / area, marks, 0.0, -background_dn, dtype=cv2.CV_32F)
+    z /= gain * np.float32(noise_dn)
+    np.minimum(z, np.float32(dot_params.k_sigma), out=z)
+    b = dot_params.blackout_px
+    # found already: black out each lit dot, as far as its blur still shows above 1 sigma
+    reach = np.ceil(dot_params.tail_sigma_px * np.sqrt(2 * np.log(np.maximum(dots.snr[dots.lit], 1.0)))) + 1
+    occ = np.zeros(z.shape, np.uint8)
+    for (x, y), r in zip(np.round(dots.xy_px[dots.lit]).astype(int), np.maximum(reach, b).astype(int), strict=True):
+        occ[max(y - r, 0) : y + r + 1, max(x - r, 0) : x + r + 1] = 1
+    h, w = z.shape
+    n = params.n_dots
+    step = params.spacing_m * px_per_m
+    offs = np.round((np.arange(n) - (n - 1) / 2) * step).astype(int)
+    # one spacing beyond either end: a row shifted along a real one by a dot has a dot there
+    ends = np.round(np.array([-1, 1]) * ((n + 1) / 2) * step).astype(int)
+    m = int(np.abs(ends).max())
+    if 2 * m + 2 * b >= min(h, w):
+        return dots
+    found_x, found_y, found_s, found_o = [], [], [], []
+    for axis in (0, 1):  # 0: rows along x (top/bottom edges), 1: along y (left/right edges)
+        pad = ((m, m), (0, 0)) if axis else ((0, 0), (m, m))
+        zp = np.pad(z, pad, constant_values=-1e3)
+        op = np.pad(occ, pad, constant_values=1)
+        parts = [zp[m + o : m + o + h, :] if axis else zp[:, m + o : m + o + w] for o in offs]
+        total = parts[0].copy()
+        low = parts[0].copy()
+        for p in parts[1:]:
+            total += p
+            np.minimum(low, p, out=low)
+        stat = total / np.float32(math.sqrt(n))
+        # the dots of one mark are about equally bright (same age, same charge): three bright
+        # dots and a gap are not a row
+        stat[(low < params.min_dot_snr) | (low < total / np.float32(n) - np.float32(params.spread_snr))] = 0.0
+        for o in ends:
+            beyond = zp[m + o : m + o + h, :] if axis else zp[:, m + o : m + o + w]
+            stat[beyond >= params.end_max_snr] = 0.0
+        # rows are sought only where the dot search found nothing, beyond the ends included
+        for o in (*offs, *ends):
+            stat[(op[m + o : m + o + h, :] if axis else op[:, m + o : m + o + w]) > 0] = 0.0
+        # one row, one peak: suppress over a window as long as the row and a dot wide
+        k = (2 * b + 1, 2 * m + 1) if axis else (2 * m + 1, 2 * b + 1)
+        peaks = cv2.dilate(stat, np.ones((k[1], k[0]), np.uint8))
+        cand = (stat >= params.k_sigma) & (stat >= peaks)
+        e = window_px // 2 + 1
+        cand[:e], cand[-e:], cand[:, :e], cand[:, -e:] = False, False, False, False
+        ys, xs = np.nonzero(cand)
+        found_x.append(xs)
+        found_y.append(ys)
+        found_s.append(stat[ys, xs])
+        found_o.append(np.full(len(xs), axis))
+    xs, ys, st, ax = (np.concatenate(v) for v in (found_x, found_y, found_s, found_o))
+    order = np.argsort(-st, kind="stable")[: params.max_rows]
+    new_xy, new_s = [], []
+    for i in order:  # strongest first; a row may not share a dot with one already accepted
+        x0, y0, a = int(xs[i]), int(ys[i]), int(ax[i])
+        pts = np.array([(x0, y0 + o) if a else (x0 + o, y0) for o in offs], float)
+        if new_xy and (np.abs(np.concatenate(new_xy)[:, None, :] - pts[None]).max(axis=2) <= b).any():
+            continue
+        new_xy.append(pts)
+        new_s.append(np.full(n, st[i]))
+    if not new_xy:
+        return dots
+    pts = np.concatenate(new_xy)
+    ix = np.round(pts).astype(int)
+    xy = _centroids(marks, ix[:, 0], ix[:, 1], dot_params.centroid_px, background_dn * area)
+    snr = np.concatenate(new_s)
+    strength = z[ix[:, 1], ix[:, 0]] * gain[ix[:, 1], ix[:, 0]] * noise_dn
+    xy_m = ground_to_robot(xy) if ground_to_robot is not None else np.zeros((len(xy), 2))
+    k = len(dots)
+    from_row = np.zeros(k, bool) if dots.from_row is None else dots.from_row
+    return Dots(
+        np.concatenate([dots.xy_px.reshape(-1, 2), xy]),
+        np.concatenate([dots.xy_m.reshape(-1, 2), xy_m]),
+        np.concatenate([dots.strength, strength]),
+        np.concatenate([dots.snr, snr]),
+        np.concatenate([dots.lit, np.ones(len(xy), bool)]),
+        dots.threshold_snr,
+        dots.noise_dn,
+        dots.background_dn,
+        np.concatenate([from_row, np.ones(len(xy), bool)]),
     )
 
 

@@ -46,7 +46,7 @@ def test_pipeline_json_and_rerun_recording(rendered, tmp_path, capsys):
     assert f["observation"]["boxes"]["3"]["lit"] and f["observation"]["boxes"]["5"]["lit"]
     assert not f["observation"]["boxes"]["1"]["lit"]
     assert f["heading"]["ok"] and abs(f["heading"]["heading_error_deg"] - 3.0) < 0.5
-    assert set(f["stage_ms"]) == {"dark", "window", "unwarp", "channels", "dots", "red", "heading", "observe"}
+    assert set(f["stage_ms"]) == {"dark", "window", "unwarp", "channels", "dots", "rows", "red", "heading", "observe"}
     rerun = shutil.which("rerun", path=str(Path(__import__("sys").executable).parent))
     assert rerun, "the rerun CLI ships with rerun-sdk"
     assert subprocess.run([rerun, "rrd", "verify", str(rrd)], capture_output=True).returncode == 0
