@@ -494,12 +494,14 @@ class RowParams:
 
     A row is accepted where ``sum / sqrt(n_dots) >= k_sigma``, every one of its dots is at least
     ``min_dot_snr`` and no more than ``spread_snr`` below the row's mean (a mark's dots are
-    about equally bright), and the floor one spacing beyond either end is below ``end_max_snr`` (else
-    it is a real row's dots shifted by one: three real dots and one of noise). Single dots are clipped at the dot threshold, and rows are sought only
-    where the dot search found nothing (no row dot, nor the floor beyond its ends, within a lit
-    dot's blur), so a bright dot cannot make a row of noise. ``k_sigma``
-    is set by the same argument as :class:`DotParams` (heavier-than-Gaussian tail; measured on
-    rendered frames without marks: see tests/stcvision/test_rows.py).
+    about equally bright), and the floor one spacing beyond either end is below
+    ``end_max_snr`` (else it is a real row shifted by one dot: three real dots and one of
+    noise). Single dots are clipped at the dot threshold, and rows are sought only where the dot
+    search found nothing (no row dot, nor the floor beyond its ends, within a lit dot's blur),
+    so a bright dot cannot make a row of noise. ``k_sigma`` is set by the same argument as
+    :class:`DotParams` (heavier-than-Gaussian tail); no row is found on rendered frames without
+    old marks (tests/stcvision/test_rows.py). The gain is an extension of the horizon, not
+    a new one: "read" means "read in most frames" a little further out in age.
     """
 
     enabled: bool = True
