@@ -36,12 +36,14 @@ import numpy as np
 from controllers.stc import (
     COMPASS_VEC,
     Action,
+    LookObs,
     MarkFloor,
     NeighbourObs,
     StcObservation,
     StcPhase,
     decide,
     initial_state,
+    look_oracle,
     observe_oracle,
     start_heading,
     step,
@@ -55,6 +57,16 @@ __all__ = ["CoverConfig", "RobotTiming", "draw_floor", "is_complete", "run_cover
 #: the heading drift further; on 6 boards each of 4x4..7x7 cells it completed 14 runs, as without
 #: (with an earlier landmark fit).
 AUTO_LADDER = ((1 / 30, 16.0), (2.0, 4.0))
+#: ``--exposure auto``, long frames: (exposure_s, gain), shortest first. Each is used while the
+#: robot's clock (the oldest age any mark can have) is within its visibility horizon at
+#: ``AUTO_REACH_M`` (``sim_camera.camera.visibility_horizon_s``: the camera's calibration of the
+#: phosphor, measured once per robot); gain 4 keeps the 8-bit quantisation below the dark
+#: current's noise at every length. 60 s frames were tried and read fewer boxes than 30 s ones
+#: (the fresh mark's bloom), so the ladder stops at 30 s.
+AUTO_LONG = ((2.0, 4.0), (4.0, 4.0), (8.0, 4.0), (16.0, 4.0), (30.0, 4.0))
+#: the farthest mark a decision or a look must read: box 2 is 0.27 m from the robot, the near
+#: sub-cells of the cell ahead 0.16-0.35 m
+AUTO_REACH_M = 0.45
 
 
 @dataclass(frozen=True, kw_only=True, slots=True)
@@ -138,14 +150,28 @@ class _Camera:
         self.cfg = cfg
         self.pipes: dict = {}
         self.pipe = None  # the pipeline that read the last frame (for the recording)
+        self.horizons: tuple[float, ...] = ()
         if cfg.exposure == "auto":
-            self.ladder = AUTO_LADDER
+            from sim_camera.camera import visibility_horizon_s
+
+            self.ladder = AUTO_LADDER[:1] + AUTO_LONG
+            self.horizons = tuple(
+                visibility_horizon_s(self.cam, sensor=self._sensor(k), rho_m=AUTO_REACH_M)
+                for k in range(1, len(self.ladder))
+            )
         elif cfg.exposure == "webcam":
             self.ladder = AUTO_LADDER[:1]
         else:
             e = float(cfg.exposure)
             self.ladder = ((e, cfg.gain if cfg.gain is not None else max(1.0, min(16.0, 16.0 * (1 / 30) / e * 4))),)
         self.frames = 0
+
+    def long_rung(self, t_s: float) -> int | None:
+        """The ladder rung for old marks at clock ``t_s``: the shortest whose horizon covers the
+        oldest mark there can be (the last one beyond them all); None without exposure control."""
+        if not self.horizons:
+            return None
+        return 1 + next((k for k, h in enumerate(self.horizons) if h >= t_s), len(self.horizons) - 1)
 
     def _sensor(self, k: int):
         e, g = self.ladder[k]
@@ -180,16 +206,42 @@ class _Camera:
         self.frames += 1
         return res, s.exposure_s * self.cfg.n_stack
 
-    def observe(self, pose, t_s, phosphor):
-        """One observation: (StcObservation, the result to log, seconds spent, long frames):
-        every rung of the exposure ladder, what any of them sees of the marks merged."""
+    def observe(self, pose, t_s, phosphor, *, fresh: bool = False):
+        """One observation: (StcObservation, the short frame's result, the long frame's result
+        or None, seconds spent, the long rung used or 0): the short frame, and with exposure
+        control a long one at the rung the clock asks for, what either sees of the marks
+        merged. The pose comes from the short frame, whose red lights do not saturate.
+        ``fresh``: the cell was entered as a child the look found unmarked, so no old mark can
+        be in it and the short frame (red lights, the neighbours' recent marks) is enough; the
+        looks check the rest."""
         res, dt = self.shoot(pose, t_s, phosphor, 0)
         obs = _to_stc_obs(res.observation)
-        for k in range(1, len(self.ladder)):
-            res, dt_k = self.shoot(pose, t_s + dt, phosphor, k)
+        k = self.long_rung(t_s)
+        if k is None or fresh:
+            return obs, res, None, dt, 0
+        long, dt_k = self.shoot(pose, t_s + dt, phosphor, k)
+        return _merge(obs, _to_stc_obs(long.observation)), res, long, dt + dt_k, k
+
+    def look(self, pose, t_s, phosphor):
+        """The look at the cell ahead: (marked, the short frame's result (for the pose), the
+        long frame's result or None, seconds spent), the long frame at the rung the clock asks
+        for (the short frame alone without exposure control)."""
+        from stcvision.observation import marks_ahead
+
+        short, dt = self.shoot(pose, t_s, phosphor, 0)
+        k = self.long_rung(t_s)
+        long = None
+        if k is not None:
+            long, dt_k = self.shoot(pose, t_s + dt, phosphor, k)
             dt += dt_k
-            obs = _merge(obs, _to_stc_obs(res.observation))
-        return obs, res, dt, len(self.ladder) - 1
+        res = long if long is not None else short
+        herr = res.heading.heading_error_rad if res.heading.ok else 0.0
+        geo = self.pipe.geometry  # one profile: every rung's pipeline has the same geometry
+        n = marks_ahead(res.dots, geo, heading_error_rad=herr, offset=res.observation.position_offset)
+        if long is not None:  # what the short frame sees counts too (it is never less right)
+            sh = short.heading.heading_error_rad if short.heading.ok else 0.0
+            n = max(n, marks_ahead(short.dots, geo, heading_error_rad=sh))
+        return n >= 2, short, long, dt
 
 
 def is_complete(summary: dict) -> bool:
@@ -235,7 +287,7 @@ def run_cover(board, cfg: CoverConfig = CoverConfig(), *, recorder=None, on_end=
     camera = _Camera(board, cfg, rng) if cfg.perception == "camera" else None
     state = initial_state()
     t = 0.0
-    moves = turns = decisions = decision_errors = 0
+    moves = turns = decisions = decision_errors = looks = look_errors = 0
     max_age_read = 0.0
     exposure_steps = []
     abort = None
@@ -267,7 +319,9 @@ def run_cover(board, cfg: CoverConfig = CoverConfig(), *, recorder=None, on_end=
         off = observation.landmark_offset if cfg.use_landmarks else None
         if off is None:
             off = observation.position_offset
-        return current if off is None else offset_to_world(off)
+        if off is None or max(abs(off[0]), abs(off[1])) > 0.3:  # 5 cm: not believable
+            return current
+        return offset_to_world(off)
 
     def heading_estimate(res):
         """The heading error: the newest row's, less what the red lights (absolute, when in view)
@@ -287,6 +341,13 @@ def run_cover(board, cfg: CoverConfig = CoverConfig(), *, recorder=None, on_end=
         dur = abs(angle) / est_rate
         hdg = _wrap(hdg + math.copysign(1.0, angle) * true_rate(t) * dur)
         t += dur
+
+    def correct_heading(res):
+        """Two or more red lights in view say how far the heading has drifted: take it out."""
+        if cfg.use_landmarks and res.observation.landmark_rotation_rad is not None:
+            e = heading_estimate(res)
+            if e is not None and abs(e) > math.radians(0.5):
+                rotate_by(-e)
 
     def measure_heading():
         """The heading fit on the newest row (camera), or the truth with the pipeline's noise;
@@ -314,33 +375,50 @@ def run_cover(board, cfg: CoverConfig = CoverConfig(), *, recorder=None, on_end=
         laid_at[(sub, edge)] = t + tm.led_on_s
         t += tm.led_on_s
 
+    o_dec = None  # what the oracle decided at this cell's decision (camera mode)
+
+    def check_commit(outcome: tuple):
+        """A decision is committed when the robot leaves its cell or stops: it is an error if
+        the oracle, deciding in the same state, would have done otherwise (the looks before
+        entering a child may revise a first reading, as they are meant to)."""
+        nonlocal decision_errors, first_error, o_dec
+        expected, o_dec = o_dec, None
+        if expected is None or expected == outcome:
+            return
+        decision_errors += 1
+        if first_error is None:
+            ideal = board.subcell_center_m(*sub)
+            first_error = {
+                "decision": decisions,
+                "t_s": t,
+                "subcell": dec_at["subcell"],
+                "camera": dec_at["camera"],
+                "oracle": dec_at["oracle"],
+                "pos_err_m": math.hypot(x - ideal[0], y - ideal[1]),
+                "heading_err_deg": math.degrees(heading_error()),
+            }
+
+    dec_at: dict = {}
     while decisions < cfg.max_decisions:
         obs = None
         if state.phase is StcPhase.DECIDE and not state.closing:
             decisions += 1
             o_obs = observe_oracle(floor, board, sub, hc, camera_view=True)
             if camera is not None:
-                obs, res, dt, k = camera.observe((x, y, hdg), t, phosphor)
+                obs, res, long, dt, k = camera.observe((x, y, hdg), t, phosphor, fresh=state.fresh)
                 exposure_steps.append(k)
                 t += tm.settle_s + dt
                 offset_est = where_am_i(res.observation, offset_est)
-                if cfg.use_landmarks and res.observation.landmark_rotation_rad is not None:
-                    e = heading_estimate(res)
-                    if e is not None and abs(e) > math.radians(0.5):
-                        rotate_by(-e)  # the lights say the heading has drifted: take it out
-                if step(state, obs) != step(state, o_obs):  # what the oracle would do in this state
-                    decision_errors += 1
-                    if first_error is None:
-                        ideal = board.subcell_center_m(*sub)
-                        first_error = {
-                            "decision": decisions,
-                            "t_s": t,
-                            "subcell": sub,
-                            "camera": obs,
-                            "oracle": o_obs,
-                            "pos_err_m": math.hypot(x - ideal[0], y - ideal[1]),
-                            "heading_err_deg": math.degrees(heading_error()),
-                        }
+                correct_heading(res)
+                res = long or res  # the recording shows the frame that read the old marks
+                od = decide(o_obs, at_start=state.at_start)
+                if od.done:
+                    o_dec = ("done",)
+                elif od.final:
+                    o_dec = ("stop", od.target, od.parent)
+                else:
+                    o_dec = ("leave", od.target, od.parent, od.child is None and o_obs.landing_marked[od.target])
+                dec_at = {"subcell": sub, "camera": obs, "oracle": o_obs}
             else:
                 t += tm.settle_s
                 obs = o_obs
@@ -367,7 +445,44 @@ def run_cover(board, cfg: CoverConfig = CoverConfig(), *, recorder=None, on_end=
             for (s_, _edge), t_laid in laid_at.items():
                 if abs(s_[0] // 2 - sub[0] // 2) + abs(s_[1] // 2 - sub[1] // 2) <= 1:
                     max_age_read = max(max_age_read, t - t_laid)
+        elif state.phase is StcPhase.LOOK:
+            looks += 1
+            if camera is not None:
+                marked, res, long, dt = camera.look((x, y, hdg), t, phosphor)
+                t += tm.settle_s + dt
+                # the sub-cell grid is the same in every heading: the long frame's rows and
+                # lights say where the robot stands before it drives into the child
+                offset_est = where_am_i(res.observation, offset_est)
+                correct_heading(res)
+                res = long or res
+                obs = LookObs(marked)
+                if marked != look_oracle(floor, sub, hc).marked:
+                    look_errors += 1
+                    if cfg.trace:
+                        di, dj = COMPASS_VEC[hc]
+                        ahead = ((sub[0] + di) // 2, (sub[1] + dj) // 2)
+                        seen = [
+                            (s_, e_, round(t - t_l), round(float(np.hypot(*(board.subcell_center_m(*s_) - (x, y)))), 2))
+                            for (s_, e_), t_l in laid_at.items()
+                            if (s_[0] // 2, s_[1] // 2) == ahead
+                        ]
+                        print(f"look error at {sub} heading {hc}: camera {marked}, t={t:.0f}, marks ahead {seen}")
+                if recorder is not None:
+                    recorder.decision(
+                        decisions, t, (x, y, hdg), phosphor, visits, res, camera.pipe,
+                        f"**look** from sub-cell {sub}: the cell ahead is {'marked' if marked else 'unmarked'}",
+                    )  # fmt: skip
+            else:
+                t += tm.settle_s
+                obs = look_oracle(floor, sub, hc)
+        prev = state
         state, action = step(state, obs)
+        if action is Action.DONE and prev.phase is StcPhase.DECIDE and not prev.closing:
+            check_commit(("done",))
+        elif action is Action.DONE and prev.phase is not StcPhase.DECIDE:
+            check_commit(("stop", prev.target, prev.parent))
+        elif action is Action.FORWARD and state.phase is StcPhase.DECIDE:
+            check_commit(("leave", prev.target, prev.parent, state.closing))
         if cfg.trace:
             print(
                 f"t={t:7.1f} {action.name:10s} sub={sub} hc={hc} herr={math.degrees(heading_error()):+.2f} "
@@ -448,6 +563,8 @@ def run_cover(board, cfg: CoverConfig = CoverConfig(), *, recorder=None, on_end=
         "moves": moves,
         "turns": turns,
         "decisions": decisions,
+        "looks": looks,
+        "look_errors": look_errors,
         "sim_time_s": t,
         "wall_s": time.perf_counter() - wall0,
         "decision_errors": decision_errors,

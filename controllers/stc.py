@@ -74,11 +74,13 @@ __all__ = [
     "Decision",
     "MarkFloor",
     "NeighbourObs",
+    "LookObs",
     "StcObservation",
     "StcPhase",
     "StcState",
     "decide",
     "initial_state",
+    "look_oracle",
     "observe_oracle",
     "run_oracle",
     "start_heading",
@@ -98,6 +100,7 @@ class Action(enum.Enum):
     TURN_LEFT = "turn_left"  # 90 deg counter-clockwise in place
     TURN_RIGHT = "turn_right"  # 90 deg clockwise in place
     MARK = "mark"  # rear LEDs on without moving (only to lay the start mark)
+    LOOK = "look"  # before leaving into a child: look at the cell ahead (the next tick gets a LookObs)
     DONE = "done"
 
 
@@ -108,6 +111,7 @@ class StcPhase(enum.Enum):
     DECIDE = 3  # just entered a cell (sub-cell 0, heading up): read the floor and decide
     MOVE = 4  # walking the cell's sub-cells counter-clockwise towards the exit
     DONE = 5
+    LOOK = 6  # at the exit into a child, facing it: is the cell ahead really unmarked?
 
 
 @dataclass(frozen=True, slots=True)
@@ -121,6 +125,13 @@ class StcState:
     final: bool = False  # stop in sub-cell ``target`` instead of leaving the cell
     closing: bool = False  # this exit lands on a marked sub-cell: the tour closes there
     at_start: bool = False  # the first decision, on the start sub-cell
+    # what the decision found, kept so that a look at the exit can revise the exit
+    parent: int = 3  # entry-frame direction of the parent
+    free: int = 0  # bit d: neighbour d looked free (no mark, no red light) at the decision
+    is_start: bool = False  # this is the start cell (its virtual parent is the last candidate)
+    land_parent: bool = False  # the sub-cell beyond the exit to the parent is marked
+    child: bool = False  # the exit ``target`` leads into a child (not back to the parent)
+    fresh: bool = False  # DECIDE: this cell was just entered as a child the look found unmarked
 
 
 def initial_state() -> StcState:
@@ -150,6 +161,13 @@ class StcObservation:
 
 
 @dataclass(frozen=True, slots=True)
+class LookObs:
+    """What the look before leaving into a child reports: any mark in the cell ahead."""
+
+    marked: bool
+
+
+@dataclass(frozen=True, slots=True)
 class Decision:
     visited: tuple[bool, bool, bool]  # sub-cells 1, 2, 3
     parent: int  # entry-frame direction of the parent (virtual parent in the start cell)
@@ -174,21 +192,44 @@ def decide(obs: StcObservation, *, at_start: bool = False) -> Decision:
             parent = m - 1
             break
     free = [not (n.has_red or n.has_marks) for n in obs.neighbours]
-    child = None
-    for k in (1, 2, 3):
-        d = (parent + k) % 4
-        if free[d]:
-            child = d
-            break
-    if child is None and is_start and free[parent]:
-        child = parent
+    child = _next_child(parent, free, is_start)
     if child is not None:
         return Decision(v[1:], parent, child, is_start, False, child, False)
     return Decision(v[1:], parent, None, is_start, False, parent, is_start)
 
 
-def step(state: StcState, obs: StcObservation | None) -> tuple[StcState, Action]:
-    """One controller tick. ``obs`` is only read in the ``DECIDE`` phase."""
+def _next_child(parent: int, free, is_start: bool, after: int | None = None) -> int | None:
+    """The first free neighbour counter-clockwise from the parent (the virtual parent last in
+    the start cell), or the first after ``after`` in that order; None if there is none."""
+    order = [(parent + k) % 4 for k in (1, 2, 3)] + ([parent] if is_start else [])
+    if after is not None:
+        order = order[order.index(after) + 1 :]
+    return next((d for d in order if free[d]), None)
+
+
+def _plan(dec_parent: int, free, is_start: bool, land_parent: bool, child: int | None, **kw) -> StcState:
+    """The MOVE state towards ``child``, or back to the parent when there is none."""
+    mask = sum(1 << d for d in range(4) if free[d])
+    if child is not None:
+        target, final, closing = child, False, False
+    else:  # back to the parent; in the start cell: stop in its sub-cell instead
+        target, final = dec_parent, is_start
+        closing = not final and land_parent
+    return StcState(
+        phase=StcPhase.MOVE, target=target, final=final, closing=closing, parent=dec_parent, free=mask,
+        is_start=is_start, land_parent=land_parent, child=child is not None, **kw,
+    )  # fmt: skip
+
+
+def step(state: StcState, obs: StcObservation | LookObs | None) -> tuple[StcState, Action]:
+    """One controller tick. ``obs`` is read in the ``DECIDE`` phase (a :class:`StcObservation`)
+    and the ``LOOK`` phase (a :class:`LookObs`).
+
+    Before leaving into a child the robot looks at it once more, from the sub-cell next to it
+    (``Action.LOOK``): from there a visited neighbour's marks are 2-3x closer than from the
+    decision's sub-cell, so an old mark the decision missed is still read. If the child turns
+    out marked, the exit moves on to the next free neighbour counter-clockwise (or the parent).
+    The state stays constant-size: the four "looked free" bits and the parent direction."""
     ph = state.phase
     if ph is StcPhase.INIT:
         return dataclasses.replace(state, phase=StcPhase.START_MARK), Action.TURN_LEFT
@@ -206,16 +247,26 @@ def step(state: StcState, obs: StcObservation | None) -> tuple[StcState, Action]
         dec = decide(obs, at_start=state.at_start)
         if dec.done:
             return StcState(phase=StcPhase.DONE), Action.DONE
-        closing = dec.child is None and not dec.final and obs.landing_marked[dec.target]
-        state = StcState(phase=StcPhase.MOVE, sub=0, heading=1, target=dec.target, final=dec.final, closing=closing)
+        free = [not (n.has_red or n.has_marks) for n in obs.neighbours]
+        state = _plan(dec.parent, free, dec.is_start, bool(obs.landing_marked[dec.parent]), dec.child)
+    if ph is StcPhase.LOOK:
+        if not isinstance(obs, LookObs):
+            raise ValueError("the LOOK phase needs a LookObs")
+        if not obs.marked:  # a new cell indeed: enter it
+            return StcState(phase=StcPhase.DECIDE, fresh=True), Action.FORWARD
+        free = [bool(state.free >> d & 1) and d != state.target for d in range(4)]
+        nxt = _next_child(state.parent, free, state.is_start, after=state.target)
+        state = _plan(state.parent, free, state.is_start, state.land_parent, nxt, sub=state.sub, heading=state.heading)
     m, r, j = state.sub, state.heading, state.target
     if state.final and m == j:
         return StcState(phase=StcPhase.DONE, sub=m, heading=r, target=j, final=True), Action.DONE
     want = j if m == j else (m + 1) % 4
     if r == want:
+        if m == j and state.child:  # look at the child before entering it
+            return dataclasses.replace(state, phase=StcPhase.LOOK), Action.LOOK
         if m == j:  # leave the cell: new entry frame in the next cell
             return StcState(phase=StcPhase.DECIDE, closing=state.closing), Action.FORWARD
-        return dataclasses.replace(state, sub=m + 1), Action.FORWARD
+        return dataclasses.replace(state, sub=(m + 1) % 4), Action.FORWARD
     if (want - r) % 4 in (1, 2):
         return dataclasses.replace(state, heading=(r + 1) % 4), Action.TURN_LEFT
     return dataclasses.replace(state, heading=(r - 1) % 4), Action.TURN_RIGHT
@@ -284,6 +335,13 @@ def observe_oracle(
     return StcObservation(boxes, tuple(neigh), start, other, tuple(landing))
 
 
+def look_oracle(floor: MarkFloor, robot_subcell: tuple[int, int], heading: int) -> LookObs:
+    """The perfect look at the cell ahead of a robot in ``robot_subcell`` heading ``heading``."""
+    di, dj = COMPASS_VEC[heading]
+    i, j = robot_subcell[0] + di, robot_subcell[1] + dj
+    return LookObs(floor.cell_has_marks(i // 2, j // 2))
+
+
 def start_heading(board) -> int:
     """Compass heading in which the board's start sub-cell is the lower-right one of its cell."""
     i, j = board.start_subcell
@@ -315,7 +373,7 @@ def run_oracle(board, *, max_steps: int = 1_000_000, keep_mismatches: int = 20, 
     cell_visited = np.zeros(board.shape_cells, bool)
     cell_visited[start_cell] = True
     state = initial_state()
-    moves = turns = marks = steps = decisions = collisions = box_violations = 0
+    moves = turns = marks = steps = decisions = collisions = box_violations = looks = 0
     mismatches: list[dict] = []
     box_patterns: dict[tuple[int, ...], int] = {}
     n_mismatch = 0
@@ -324,7 +382,9 @@ def run_oracle(board, *, max_steps: int = 1_000_000, keep_mismatches: int = 20, 
         steps += 1
         deciding = state.phase is StcPhase.DECIDE and not state.closing  # closing: DONE without looking
         obs = observe_oracle(floor, board, s, h, camera_view=camera_view) if deciding else None
-        if obs is not None:
+        if state.phase is StcPhase.LOOK:
+            obs = look_oracle(floor, s, h)
+        if deciding:
             decisions += 1
             dec = decide(obs, at_start=state.at_start)
             bad = _check_decision(dec, obs, board, s, h, visits, parent_of, cell_visited, start_cell, moves)
@@ -360,6 +420,8 @@ def run_oracle(board, *, max_steps: int = 1_000_000, keep_mismatches: int = 20, 
         elif action is Action.MARK:
             floor.mark(s, (h + 2) % 4)
             marks += 1
+        elif action is Action.LOOK:
+            looks += 1
         elif action is Action.DONE:
             finished = True
             break
@@ -380,6 +442,7 @@ def run_oracle(board, *, max_steps: int = 1_000_000, keep_mismatches: int = 20, 
         "moves": moves,
         "turns": turns,
         "marks": marks,
+        "looks": looks,
         "steps": steps,
         "decisions": decisions,
         "collisions": collisions,

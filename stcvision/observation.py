@@ -40,6 +40,7 @@ __all__ = [
     "CellObservation",
     "NeighbourReading",
     "ObservationParams",
+    "marks_ahead",
     "observe_cell",
 ]
 
@@ -328,6 +329,10 @@ class ObservationParams:
     #: also estimate the rows' lean and the red-light landmarks (for a controller correcting its
     #: pose; costs ~0.4 ms with many dots in view, so off for plain frame reading)
     pose_estimates: bool = False
+    #: how far out (m, from the robot) red lights serve as landmarks: the pipeline finds them
+    #: in a wide, coarse ground view of the red channel (the main view reaches ~0.55 m); far
+    #: lights pin the robot down where no light is near (open floor)
+    landmark_range_m: float = 0.85
 
 
 def observe_cell(
@@ -339,6 +344,8 @@ def observe_cell(
     red_threshold_dn: float,
     heading_error_rad: float = 0.0,
     params: ObservationParams = ObservationParams(),
+    landmark_px: np.ndarray | None = None,
+    subcell_m: float | None = None,
 ) -> CellObservation:
     """Classify the five boxes and the four neighbours.
 
@@ -347,6 +354,10 @@ def observe_cell(
     dots : stcvision.stages.Dots -- all candidates (lit and not) in the ground view.
     red_px, red_strength : (M, 2) ground-view centroids and peak values of red blobs.
     heading_error_rad : rotate the ground view back by this much (from the heading fit).
+    landmark_px : (L, 2) red-light centroids for the landmark fit, in the ground view's pixel
+        coordinates (may lie beyond its edges: from a wider view); default ``red_px``, within
+        2.6 sub-cells of the robot.
+    subcell_m : the sub-cell side, to turn ``params.landmark_range_m`` into cell units.
     """
     ru = _rotate(geometry.to_cell(dots.xy_px), heading_error_rad) if len(dots) else np.zeros((0, 2))
     orient = np.full(len(ru), -1)
@@ -389,19 +400,36 @@ def observe_cell(
     # red lights stand at cell centres (even coordinates in cell units): absolute landmarks
     landmark = None
     landmark_rot = None
-    if len(rru) and params.pose_estimates:
-        resid = rru - 2.0 * np.round(rru / 2.0)
-        # well inside the ground view (a blob cut by its border has a biased centroid)
-        near = (np.abs(resid) < 0.6).all(axis=1) & (np.hypot(*(rru - ROBOT_IN_CELL).T) < 2.6)
-        obs_p = rru[near]
+    if landmark_px is not None and subcell_m:
+        lru = _rotate(geometry.to_cell(landmark_px), heading_error_rad) if len(landmark_px) else np.zeros((0, 2))
+        reach = params.landmark_range_m / subcell_m
+    else:
+        lru, reach = rru, 2.6  # well inside the ground view (a blob cut by its border is biased)
+    if len(lru) and params.pose_estimates:
+        rru_l = lru
+        resid = rru_l - 2.0 * np.round(rru_l / 2.0)
+        near = (np.abs(resid) < 0.6).all(axis=1) & (np.hypot(*(rru_l - ROBOT_IN_CELL).T) < reach)
+        obs_p = rru_l[near]
         exp_p = obs_p - resid[near]
         # two lights or more at distinct cell centres: with one, a sideways offset and a rotation
         # look alike (1 cm at 40 cm is 1.4 degrees), so fit both at once (2-D Procrustes of where
         # they are against where they should be)
         if len(np.unique(np.round(exp_p / 2.0), axis=0)) >= 2:
-            landmark = tuple(float(v) for v in -np.median(resid[near], axis=0))
-            a, b = obs_p - obs_p.mean(axis=0), exp_p - exp_p.mean(axis=0)
-            landmark_rot = float(np.arctan2((b[:, 0] * a[:, 1] - b[:, 1] * a[:, 0]).sum(), (b * a).sum()))
+            # weighted: a light's centroid error grows about as its distance squared (measured:
+            # ~2 mm at 0.4 m, ~5 mm at 0.65 m, unbiased), so its weight falls as distance^-4
+            rob = np.asarray(ROBOT_IN_CELL)
+            wgt = 1.0 / np.maximum(np.hypot(*(obs_p - rob).T), 1.5) ** 4
+            wgt = wgt / wgt.sum()
+            mo, me = wgt @ obs_p, wgt @ exp_p
+            a, b = obs_p - mo, exp_p - me
+            cross = (wgt * (b[:, 0] * a[:, 1] - b[:, 1] * a[:, 0])).sum()
+            th = float(np.arctan2(cross, (wgt * (b * a).sum(axis=1)).sum()))
+            landmark_rot = th
+            # the robot in the lights' (grid) frame: undo the rotation about the robot, so a far
+            # light's swing under a small heading residual is not read as an offset
+            c, s_ = math.cos(-th), math.sin(-th)
+            d = mo - rob
+            landmark = tuple(float(v) for v in me - np.array([c * d[0] - s_ * d[1], s_ * d[0] + c * d[1]]) - rob)
     _, _, rnb = assign_boxes(rru, np.full(len(rru), -1)) if len(rru) else (None, None, np.zeros(0, int))
     neighbours = {}
     for i, name in enumerate(NEIGHBOURS):
@@ -431,3 +459,20 @@ def observe_cell(
         landmark,
         landmark_rot,
     )
+
+
+def marks_ahead(
+    dots, geometry: CellGeometry, *, heading_error_rad: float = 0.0, offset: tuple[float, float] | None = None
+) -> int:
+    """Lit dots in the cell just ahead of the robot: the cell whose lower-right sub-cell is the
+    one in front of the robot's (where an STC robot lands when it leaves into a child). The
+    robot stands in the front-right sub-cell of its own cell as it leaves, so that cell is
+    ``[-1, 1] x [0, 2]`` in cell units and its own cell lies wholly behind ``up = 0``.
+    ``offset``: the robot's offset from its sub-cell centre (``CellObservation.position_offset``).
+    """
+    if not len(dots):
+        return 0
+    ru = _rotate(geometry.to_cell(dots.xy_px[dots.lit]), heading_error_rad)
+    if offset is not None:
+        ru = ru + np.asarray(offset)
+    return int(((np.abs(ru[:, 0]) < 1) & (ru[:, 1] > 0) & (ru[:, 1] < 2)).sum())

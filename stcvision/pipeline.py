@@ -169,6 +169,13 @@ class Pipeline:
         inside = np.hypot(uu - profile.center_px[0], vv - profile.center_px[1]) < 0.95 * profile.rim_radius_px
         self._sample = (vv[inside] * w + uu[inside]).ravel()
         self.dark = None
+        # the wide, coarse ground view for far red-light landmarks (pose estimates only)
+        self.wide = None
+        if self.params.observation.pose_estimates and self.params.observation.landmark_range_m > 0:
+            reach = self.params.observation.landmark_range_m + 0.1
+            n = 160
+            self._wide_profile = profile.replace(ground_size_px=n, ground_px_per_m=(n - 1) / (2 * reach))
+            self.wide = UnwarpMap.from_profile(self._wide_profile)
         if dark is not None:
             self.set_dark(dark)
 
@@ -241,6 +248,16 @@ class Pipeline:
         red = find_red(obstacle, p.red, window_area=area)
         t.append(clock())
         heading = fit_heading(dots, p.heading)
+        landmark_px = None
+        if self.wide is not None:
+            wide_obst, _ = separate_channels(
+                unwarp(gs, self.wide), unwarp(rs, self.wide), p.channels, window_area=area, leak_threshold=leak
+            )
+            far = find_red(wide_obst, p.red, window_area=area)
+            xy_m = np.zeros((0, 2))
+            if len(far):
+                xy_m = self._refine_lights(r, self._wide_profile.ground_to_robot(far.xy_px))
+            landmark_px = self.profile.robot_to_ground(xy_m)
         t.append(clock())
         herr = heading.heading_error_rad if (heading.ok and p.use_heading) else 0.0
         obs = observe_cell(
@@ -251,12 +268,43 @@ class Pipeline:
             red_threshold_dn=p.channels.red_threshold_dn,
             heading_error_rad=herr,
             params=p.observation,
+            landmark_px=landmark_px,
+            subcell_m=self.profile.subcell_m,
         )
         t.append(clock())
         stage_ms = {name: (t[i + 1] - t[i]) / 1e6 for i, name in enumerate(STAGES)}
         return PipelineResult(
             frame, self.dark, p.pedestal_dn, g, r, obstacle, marks, all_dots, red, heading, obs, stage_ms, area
         )
+
+    def _refine_lights(self, red: np.ndarray, xy_m: np.ndarray, *, half: int = 6) -> np.ndarray:
+        """Robot-frame positions of red lights found in the coarse wide view, refined on the
+        full-resolution mirror image: the centroid of the pixels above half the peak in a patch
+        around each (a far light covers a few pixels there, each ~2 cm of floor at 0.85 m, so
+        the coarse view alone is off by up to a centimetre). Lights that cannot be refined (at
+        the image edge, nothing above the pedestal) are dropped."""
+        uv = self.profile.robot_to_image(xy_m)
+        h, w = red.shape
+        ped = float(self.params.pedestal_dn)
+        out = []
+        for u, v in uv:
+            if not (np.isfinite(u) and np.isfinite(v)):
+                continue
+            u0, v0 = int(round(u)), int(round(v))
+            if u0 - half < 0 or v0 - half < 0 or u0 + half >= w or v0 + half >= h:
+                continue
+            patch = red[v0 - half : v0 + half + 1, u0 - half : u0 + half + 1].astype(np.float32) - ped
+            top = float(patch.max())
+            if top <= 0:
+                continue
+            wgt = np.maximum(patch - 0.5 * top, 0.0)
+            yy, xx = np.mgrid[-half : half + 1, -half : half + 1]
+            tot = float(wgt.sum())
+            out.append((u0 + float((xx * wgt).sum()) / tot, v0 + float((yy * wgt).sum()) / tot))
+        if not out:
+            return np.zeros((0, 2))
+        xy = self.profile.image_to_robot(np.array(out))
+        return xy[np.isfinite(xy).all(axis=1)]
 
     def ground_view(self, image: np.ndarray) -> np.ndarray:
         """8-bit colour ground view of an image, as the stages see it (window means)."""

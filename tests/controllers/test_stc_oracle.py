@@ -17,6 +17,7 @@ from controllers.stc import (
     StcState,
     decide,
     initial_state,
+    look_oracle,
     observe_oracle,
     run_oracle,
     start_heading,
@@ -119,6 +120,8 @@ def _final_state(board):
     floor = MarkFloor(board.shape_subcells)
     for _ in range(100_000):
         obs = observe_oracle(floor, board, s, h) if state.phase is StcPhase.DECIDE else None
+        if state.phase is StcPhase.LOOK:
+            obs = look_oracle(floor, s, h)
         state, action = step(state, obs)
         states.append(state)
         if action is Action.DONE:
@@ -146,7 +149,7 @@ def test_state_is_constant_size_scalars():
             v = getattr(st, f.name)
             assert isinstance(v, (bool, int, enum.Enum)), (f.name, type(v))
             if isinstance(v, int) and not isinstance(v, bool):
-                assert 0 <= v < 4
+                assert 0 <= v < (16 if f.name == "free" else 4)  # free: four bits
     with pytest.raises(dataclasses.FrozenInstanceError):
         small[0].phase = StcPhase.DONE
 
