@@ -33,7 +33,7 @@ def one_run(task: tuple[int, int, str]) -> dict:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--sizes", default="2,3,4,5,6,7", help="board sizes in cells (default 2,3,4,5,6,7)")
+    ap.add_argument("--sizes", default="2,3,4,5,6,7,8,10", help="board sizes in cells (default 2,...,8,10)")
     ap.add_argument("--runs", type=int, default=6, help="boards per size (default 6)")
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--json", action="store_true", help="print every run as one JSON object per line")
@@ -48,17 +48,19 @@ def main() -> None:
         return
     print(
         "| board (cells) | webcam 1/30 s: complete runs | exposure control: complete runs "
-        "| oldest mark read (auto, median) |"
+        "| oldest mark read (auto, median) | robot time (auto, median) | wall time (auto, median) |"
     )
-    print("|---|---|---|---|")
+    print("|---|---|---|---|---|---|")
     for n in sizes:
         web = [r for r in runs if r["cells"] == n and r["exposure"] == "webcam"]
         auto = [r for r in runs if r["cells"] == n and r["exposure"] == "auto"]
         ok = [r["max_mark_age_read_s"] for r in auto if r["complete"]]
         age = f"{statistics.median(ok):.0f} s" if ok else "—"
+        sim = statistics.median(r["sim_time_s"] for r in auto)
+        wall = statistics.median(r["wall_s"] for r in auto)
         print(
             f"| {n}x{n} | {sum(r['complete'] for r in web)}/{len(web)} "
-            f"| {sum(r['complete'] for r in auto)}/{len(auto)} | {age} |"
+            f"| {sum(r['complete'] for r in auto)}/{len(auto)} | {age} | {sim:,.0f} s | {wall:.1f} s |"
         )
 
 

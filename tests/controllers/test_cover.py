@@ -120,3 +120,57 @@ def test_cover_cli_bad_input(capsys, argv, words):
     assert main(argv) == 2
     err = capsys.readouterr().err
     assert words in err and err.count("\n") == 1
+
+
+def _look_frame(marks, *, age_s, exposure_s=2.0, gain=4.0, seed=0):
+    """A robot about to leave its cell northwards (front-right sub-cell, heading north) on a
+    free 6x6 board, with marks ``(sub-cell, edge direction)`` of age ``age_s``: what
+    ``marks_ahead`` counts on one frame."""
+    from calibration.profiles import default_profile
+    from sim_camera.camera import Pose
+    from sim_camera.phosphor import PhosphorLayer, mark_dots_m
+    from stcvision.observation import marks_ahead
+    from stcvision.pipeline import Pipeline
+
+    board = Board(np.zeros((12, 12), bool), (7, 5))
+    cam = SyntheticCamera()
+    rng = np.random.default_rng(seed)
+    sensor = cam.sensor.replace(exposure_s=exposure_s, gain=gain)
+    layer = PhosphorLayer()
+    for sub, edge in marks:
+        layer.charge(
+            mark_dots_m(board.subcell_center_m(*sub), edge, board.subcell_m), t_start_s=-age_s - 3, duration_s=3
+        )
+    x, y = board.subcell_center_m(6, 5)
+    pipe = Pipeline(default_profile(), dark=cam.median_dark(8, rng=rng, sensor=sensor))
+    img = cam.render(
+        Pose(float(x), float(y), np.pi / 2), rng=rng, phosphor=layer, red_lights_m=board.red_lights_m(), sensor=sensor
+    ).image
+    res = pipe.process(img)
+    herr = res.heading.heading_error_rad if res.heading.ok else 0.0
+    return marks_ahead(res.dots, pipe.geometry, heading_error_rad=herr, offset=res.observation.position_offset)
+
+
+def test_the_look_reads_the_cell_ahead_and_only_it():
+    # the far corner of the cell ahead (its upper-left sub-cell's top edge, ~0.4 m away) at an
+    # age where the 2 s frame's single-dot horizon there (~700 s) has passed
+    assert _look_frame([((4, 4), (0, 1))], age_s=900.0) >= 2
+    # marks of the robot's own cell on the border with the cell ahead, of the cell to the left
+    # and of the cell beyond: none of them is in the cell ahead
+    own = [((6, 4), (0, 1)), ((6, 5), (-1, 0)), ((7, 4), (0, 1))]
+    others = [((5, 3), (1, 0)), ((3, 5), (0, -1))]
+    assert _look_frame(own + others, age_s=30.0) == 0
+
+
+def test_exposure_rungs_follow_the_clock():
+    """Auto exposure: the long frame is the shortest whose horizon at the look's reach covers
+    the oldest mark there can be (the clock); the horizons grow with the rung."""
+    from controllers.cover import AUTO_LONG, _Camera
+
+    board = Board.random((3, 3), obstacle_fraction=0.0, rng=np.random.default_rng(0))
+    cam = _Camera(board, CoverConfig(exposure="auto"), np.random.default_rng(0))
+    assert len(cam.horizons) == len(AUTO_LONG) and all(np.diff(cam.horizons) > 0)
+    assert cam.long_rung(0.0) == 1
+    assert cam.long_rung(cam.horizons[0] + 1) == 2
+    assert cam.long_rung(1e9) == len(AUTO_LONG)
+    assert _Camera(board, CoverConfig(exposure="webcam"), np.random.default_rng(0)).long_rung(500.0) is None

@@ -227,3 +227,46 @@ def test_camera_view_oracle_closes_the_tour_from_the_floor(seed):
         assert r["subcells_covered"] == r["subcells_reachable"], r
         assert r["subcells_covered_more_than_once"] == 0, r
         assert r["decision_mismatches"] == 0, r["mismatch_examples"]
+
+
+def test_a_look_that_finds_marks_moves_the_exit_on():
+    """The decision took the forward neighbour for new; the look from sub-cell 1 finds marks
+    there, so the robot walks on to the left neighbour, looks again and enters it."""
+    from controllers.stc import LookObs
+
+    s, a = step(StcState(phase=StcPhase.DECIDE), _obs(marks=(0, 0, 0, 1), red=(1, 0, 0, 0)))
+    assert a is Action.FORWARD and s.sub == 1 and s.target == 1  # 0 -> 1, towards the exit forward
+    s, a = step(s, None)
+    assert a is Action.LOOK and s.phase is StcPhase.LOOK
+    s, a = step(s, LookObs(marked=True))  # forward was visited after all: on to the left one
+    assert a is Action.TURN_LEFT and s.target == 2 and s.child
+    s, a = step(s, None)
+    assert a is Action.FORWARD and s.sub == 2
+    s, a = step(s, None)
+    assert a is Action.LOOK
+    s, a = step(s, LookObs(marked=False))
+    assert a is Action.FORWARD and s.phase is StcPhase.DECIDE and s.fresh
+
+
+def test_looks_that_find_every_child_marked_return_to_the_parent():
+    from controllers.stc import LookObs
+
+    s, a = step(StcState(phase=StcPhase.DECIDE), _obs(marks=(0, 0, 1, 1)))
+    assert a is Action.TURN_RIGHT and s.target == 0  # right looked free: face it
+    s, a = step(s, None)
+    assert a is Action.LOOK
+    s, a = step(s, LookObs(marked=True))  # right: visited; forward looked free
+    assert (a, s.target, s.child) == (Action.TURN_LEFT, 1, True)
+    s, a = step(s, None)
+    assert a is Action.FORWARD and s.sub == 1
+    s, a = step(s, None)
+    assert a is Action.LOOK
+    s, a = step(s, LookObs(marked=True))  # nothing else free: back to the parent (sub-cell 3)
+    assert s.target == 3 and not s.child and not s.final
+    actions = []
+    for _ in range(8):
+        s, a = step(s, None)
+        actions.append(a)
+        if s.phase is StcPhase.DECIDE:
+            break
+    assert Action.LOOK not in actions and actions[-1] is Action.FORWARD and s.phase is StcPhase.DECIDE

@@ -91,3 +91,40 @@ def test_red_lights_give_the_robots_offset_and_residual_heading(default_profile)
         assert abs(np.degrees(o.landmark_rotation_rad - left)) < 0.25
         checked += 1
     assert checked >= 4
+
+
+def test_far_red_lights_pin_the_robot_down_in_open_floor(default_profile):
+    """On a 10x10 board with few obstacles, lights within 0.4 m are rare; out to 0.85 m (the
+    wide red view, refined on the mirror image) most frames have two or more, and the
+    weighted fit stays within ~1 cm of the truth (measured: median 1.9 mm, max 6.8 mm)."""
+    from sim_camera.camera import SyntheticCamera
+    from sim_camera.scenarios import cell_scene
+    from stcvision.observation import ObservationParams
+    from stcvision.pipeline import Pipeline, PipelineParams
+
+    cam = SyntheticCamera()
+    rng = np.random.default_rng(5)
+    dark = cam.median_dark(8, rng=rng)
+    near = Pipeline(
+        default_profile, PipelineParams(observation=ObservationParams(pose_estimates=True, landmark_range_m=0))
+    )
+    far = Pipeline(default_profile, PipelineParams(observation=ObservationParams(pose_estimates=True)), dark=dark)
+    near.set_dark(dark)
+    n_near = n_far = 0
+    errs = []
+    for _ in range(24):
+        sc = cell_scene(rng, cells=(10, 10), obstacle_fraction=0.1, position_error_m=0.01, heading_error_deg=(-2, 2))
+        img = cam.render(sc.pose, rng=rng, t_s=sc.t_s, phosphor=sc.phosphor, red_lights_m=sc.red_lights_m).image
+        n_near += near.process(img).observation.landmark_offset is not None
+        o = far.process(img).observation
+        if o.landmark_offset is None:
+            continue
+        n_far += 1
+        heading = round(sc.pose.heading_rad / (np.pi / 2)) * np.pi / 2
+        up = np.array([np.cos(heading), np.sin(heading)])
+        right = np.array([up[1], -up[0]])
+        xy = np.array([sc.pose.x_m, sc.pose.y_m])
+        d = (xy - sc.board.subcell_center_m(*sc.board.subcell_at(xy))) / sc.board.subcell_m
+        errs.append(1000 * sc.board.subcell_m * np.hypot(*(np.array(o.landmark_offset) - (d @ right, d @ up))))
+    assert n_far >= 0.7 * 24 and n_far >= 3 * max(n_near, 1), (n_near, n_far)
+    assert np.median(errs) < 3.0 and max(errs) < 10.0, errs
