@@ -412,7 +412,14 @@ def run_cover(board, cfg: CoverConfig = CoverConfig(), *, recorder=None, on_end=
                 correct_heading(res)
                 res = long or res  # the recording shows the frame that read the old marks
                 od = decide(o_obs, at_start=state.at_start)
-                if od.done:
+                dc = decide(obs, at_start=state.at_start)
+                if (dc.visited, dc.parent, dc.is_start, dc.done) != (od.visited, od.parent, od.is_start, od.done):
+                    # what the cell says of itself (visited sub-cells, parent, start, end) was
+                    # misread: no look can mend that
+                    o_dec = ("misread",)
+                    if cfg.trace:
+                        print(f"misread at {sub}: camera {obs}, oracle {o_obs}, fresh {state.fresh}")
+                elif od.done:
                     o_dec = ("done",)
                 elif od.final:
                     o_dec = ("stop", od.target, od.parent)
@@ -485,7 +492,8 @@ def run_cover(board, cfg: CoverConfig = CoverConfig(), *, recorder=None, on_end=
             check_commit(("leave", prev.target, prev.parent, state.closing))
         if cfg.trace:
             print(
-                f"t={t:7.1f} {action.name:10s} sub={sub} hc={hc} herr={math.degrees(heading_error()):+.2f} "
+                f"t={t:7.1f} {action.name:10s} sub={sub} hc={hc} {state.phase.name} tgt={state.target} "
+                f"par={state.parent} free={state.free:04b} herr={math.degrees(heading_error()):+.2f} "
                 f"pos={100 * float(np.hypot(*true_offset())):.2f}cm est={100 * float(np.hypot(*offset_est)):.2f}cm"
             )
         if action is Action.DONE:

@@ -53,6 +53,16 @@ and the final return from it lands on the start sub-cell: the controller sees th
 its own sub-cell 0 with sub-cells 1-3 all visited and stops (``DONE``). Otherwise it covers the
 start cell's remaining sub-cells and stops beside the start sub-cell.
 
+Neighbour choice
+----------------
+A neighbour is a candidate child when it shows no red light and no mark *and* its exit can be
+reached through unvisited sub-cells (the exit towards ``d`` is from sub-cell ``d``, reached via
+``1..d``). A correct tour never needs more (the oracle runs never meet the difference); with a
+camera, a neighbour that looks new beyond a visited sub-cell has marks it missed, and walking
+there would cover sub-cells twice. Before entering a child the robot looks at it once more
+from the sub-cell next to it (:data:`Action.LOOK`); if it is marked after all the exit moves on
+to the next candidate, or back to the parent.
+
 Controller
 ----------
 :func:`step` ``(StcState, StcObservation) -> (StcState, Action)`` is a pure function over a
@@ -191,11 +201,22 @@ def decide(obs: StcObservation, *, at_start: bool = False) -> Decision:
         if not v[m - 1] and v[m]:
             parent = m - 1
             break
-    free = [not (n.has_red or n.has_marks) for n in obs.neighbours]
+    free = _free(obs, v)
     child = _next_child(parent, free, is_start)
     if child is not None:
         return Decision(v[1:], parent, child, is_start, False, child, False)
     return Decision(v[1:], parent, None, is_start, False, parent, is_start)
+
+
+def _free(obs: StcObservation, visited) -> list[bool]:
+    """Per direction: the neighbour shows no red light and no mark, and its exit can be reached
+    through unvisited sub-cells only (the exit to direction ``d`` is from sub-cell ``d``, reached
+    through sub-cells ``1..d``). In a correct tour every new neighbour is reachable so; one that
+    looks new beyond a visited sub-cell has marks the camera missed."""
+    return [
+        not (n.has_red or n.has_marks) and not any(visited[k] for k in range(1, d + 1))
+        for d, n in enumerate(obs.neighbours)
+    ]
 
 
 def _next_child(parent: int, free, is_start: bool, after: int | None = None) -> int | None:
@@ -247,7 +268,7 @@ def step(state: StcState, obs: StcObservation | LookObs | None) -> tuple[StcStat
         dec = decide(obs, at_start=state.at_start)
         if dec.done:
             return StcState(phase=StcPhase.DONE), Action.DONE
-        free = [not (n.has_red or n.has_marks) for n in obs.neighbours]
+        free = _free(obs, (False, *dec.visited))
         state = _plan(dec.parent, free, dec.is_start, bool(obs.landing_marked[dec.parent]), dec.child)
     if ph is StcPhase.LOOK:
         if not isinstance(obs, LookObs):

@@ -163,9 +163,14 @@ def test_decide_table_cases():
     # new cell: parent behind, first free neighbour counter-clockwise after it = right
     d = decide(_obs(marks=(0, 0, 0, 1)))
     assert (d.parent, d.child, d.target, d.final) == (3, 0, 0, False)
-    # sub-cells 2, 3 visited (boxes 2 and 4): parent forward, left neighbour is the next one
+    # sub-cells 2, 3 visited (boxes 2 and 4): parent forward; the left and back neighbours look
+    # new, but their exits lie beyond visited sub-cells (a tour never leaves so: their marks
+    # were missed), so the next one counter-clockwise that can be reached is the right one
     d = decide(_obs(boxes=(0, 1, 0, 1, 0), marks=(0, 1, 0, 0)))
-    assert d.visited == (False, True, True) and (d.parent, d.child) == (1, 2)
+    assert d.visited == (False, True, True) and (d.parent, d.child) == (1, 0)
+    # the same cell with the right neighbour taken: back to the parent
+    d = decide(_obs(boxes=(0, 1, 0, 1, 0), marks=(1, 1, 0, 0)))
+    assert (d.parent, d.child, d.target) == (1, None, 1)
     # sub-cells 1..3 visited via boxes 1 / 3 / 4: parent right, nothing free -> return right
     d = decide(_obs(boxes=(1, 0, 1, 1, 0), marks=(1, 1, 1, 1)))
     assert (d.parent, d.child, d.target, d.final) == (0, None, 0, False)
