@@ -188,7 +188,7 @@ class _Camera:
             self.pipes[k] = pipe
         return self.pipes[k]
 
-    def shoot(self, pose, t_s: float, phosphor, k: int = 0):
+    def shoot(self, pose, t_s: float, phosphor, k: int = 0, *, heading_error_rad: float | None = None):
         """Returns (pipeline result, capture seconds)."""
         from sim_camera.camera import Pose
 
@@ -202,7 +202,7 @@ class _Camera:
         ]
         img = imgs[0] if len(imgs) == 1 else np.mean(np.stack(imgs), axis=0).round().astype(np.uint8)
         self.pipe = self._pipeline(k)
-        res = self.pipe.process(img)
+        res = self.pipe.process(img, heading_error_rad=heading_error_rad)
         self.frames += 1
         return res, s.exposure_s * self.cfg.n_stack
 
@@ -219,7 +219,7 @@ class _Camera:
         k = self.long_rung(t_s)
         if k is None or fresh:
             return obs, res, None, dt, 0
-        long, dt_k = self.shoot(pose, t_s + dt, phosphor, k)
+        long, dt_k = self.shoot(pose, t_s + dt, phosphor, k, heading_error_rad=_fit(res))
         return _merge(obs, _to_stc_obs(long.observation)), res, long, dt + dt_k, k
 
     def look(self, pose, t_s, phosphor):
@@ -231,17 +231,21 @@ class _Camera:
         short, dt = self.shoot(pose, t_s, phosphor, 0)
         k = self.long_rung(t_s)
         long = None
+        herr = _fit(short)  # the long frame's recent rows all saturate: its own fit is unsure
         if k is not None:
-            long, dt_k = self.shoot(pose, t_s + dt, phosphor, k)
+            long, dt_k = self.shoot(pose, t_s + dt, phosphor, k, heading_error_rad=herr)
             dt += dt_k
         res = long if long is not None else short
-        herr = res.heading.heading_error_rad if res.heading.ok else 0.0
         geo = self.pipe.geometry  # one profile: every rung's pipeline has the same geometry
-        n = marks_ahead(res.dots, geo, heading_error_rad=herr, offset=res.observation.position_offset)
+        n = marks_ahead(res.dots, geo, heading_error_rad=herr or 0.0, offset=res.observation.position_offset)
         if long is not None:  # what the short frame sees counts too (it is never less right)
-            sh = short.heading.heading_error_rad if short.heading.ok else 0.0
-            n = max(n, marks_ahead(short.dots, geo, heading_error_rad=sh))
+            n = max(n, marks_ahead(short.dots, geo, heading_error_rad=herr or 0.0))
         return n >= 2, short, long, dt
+
+
+def _fit(res) -> float | None:
+    """A frame's heading fit (None if it failed)."""
+    return res.heading.heading_error_rad if res.heading.ok else None
 
 
 def is_complete(summary: dict) -> bool:
@@ -346,6 +350,11 @@ def run_cover(board, cfg: CoverConfig = CoverConfig(), *, recorder=None, on_end=
         """Two or more red lights in view say how far the heading has drifted: take it out."""
         if cfg.use_landmarks and res.observation.landmark_rotation_rad is not None:
             e = heading_estimate(res)
+            if cfg.trace and e is not None:
+                print(
+                    f"   lights: heading error {math.degrees(e):+.2f} (true {math.degrees(heading_error()):+.2f}), "
+                    f"offset {res.observation.landmark_offset}"
+                )
             if e is not None and abs(e) > math.radians(0.5):
                 rotate_by(-e)
 

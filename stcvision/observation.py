@@ -93,6 +93,11 @@ class CellGeometry:
         return {k: self.to_ground(_rotate(v, heading_error_rad)) for k, v in polys.items()}
 
 
+#: a red light's centroid error (1 sigma, cell units = sub-cell sides) within ~0.4 m of the robot
+#: (measured on rendered frames: ~2 mm); it grows as the distance squared beyond
+LIGHT_SIGMA = 0.0125
+
+
 def _sq(c, h):
     c = np.asarray(c, float)
     return np.array([c + (h, -h), c + (h, h), c + (-h, h), c + (-h, -h)])
@@ -333,6 +338,9 @@ class ObservationParams:
     #: in a wide, coarse ground view of the red channel (the main view reaches ~0.55 m); far
     #: lights pin the robot down where no light is near (open floor)
     landmark_range_m: float = 0.85
+    #: report the lights' rotation (and offset) only when their spread fixes the rotation to
+    #: this (1 sigma, from the centroid errors' model): two lights close together far away do not
+    landmark_max_sigma_rad: float = math.radians(0.5)
 
 
 def observe_cell(
@@ -416,20 +424,25 @@ def observe_cell(
         # they are against where they should be)
         if len(np.unique(np.round(exp_p / 2.0), axis=0)) >= 2:
             # weighted: a light's centroid error grows about as its distance squared (measured:
-            # ~2 mm at 0.4 m, ~5 mm at 0.65 m, unbiased), so its weight falls as distance^-4
+            # ~2 mm at 0.4 m, ~5 mm at 0.65 m, unbiased): sigma_i = LIGHT_SIGMA * max(d / 2.5, 1)^2
             rob = np.asarray(ROBOT_IN_CELL)
-            wgt = 1.0 / np.maximum(np.hypot(*(obs_p - rob).T), 1.5) ** 4
-            wgt = wgt / wgt.sum()
+            sig = LIGHT_SIGMA * np.maximum(np.hypot(*(obs_p - rob).T) / 2.5, 1.0) ** 2
+            info = 1.0 / sig**2
+            wgt = info / info.sum()
             mo, me = wgt @ obs_p, wgt @ exp_p
             a, b = obs_p - mo, exp_p - me
-            cross = (wgt * (b[:, 0] * a[:, 1] - b[:, 1] * a[:, 0])).sum()
-            th = float(np.arctan2(cross, (wgt * (b * a).sum(axis=1)).sum()))
-            landmark_rot = th
-            # the robot in the lights' (grid) frame: undo the rotation about the robot, so a far
-            # light's swing under a small heading residual is not read as an offset
-            c, s_ = math.cos(-th), math.sin(-th)
-            d = mo - rob
-            landmark = tuple(float(v) for v in me - np.array([c * d[0] - s_ * d[1], s_ * d[0] + c * d[1]]) - rob)
+            # how well the lights fix a rotation: lights close together (or all in a line
+            # through the robot) do not; then neither the rotation nor the offset is reported
+            sig_th = 1.0 / math.sqrt(max(float((info * (b * b).sum(axis=1)).sum()), 1e-12))
+            if sig_th <= params.landmark_max_sigma_rad:
+                cross = (wgt * (b[:, 0] * a[:, 1] - b[:, 1] * a[:, 0])).sum()
+                th = float(np.arctan2(cross, (wgt * (b * a).sum(axis=1)).sum()))
+                landmark_rot = th
+                # the robot in the lights' (grid) frame: undo the rotation about the robot, so a
+                # far light's swing under a small heading residual is not read as an offset
+                c, s_ = math.cos(-th), math.sin(-th)
+                d = mo - rob
+                landmark = tuple(float(v) for v in me - np.array([c * d[0] - s_ * d[1], s_ * d[0] + c * d[1]]) - rob)
     _, _, rnb = assign_boxes(rru, np.full(len(rru), -1)) if len(rru) else (None, None, np.zeros(0, int))
     neighbours = {}
     for i, name in enumerate(NEIGHBOURS):

@@ -199,8 +199,14 @@ class Pipeline:
         c.reshape(-1)[self._hot_g if ch == 1 else self._hot_r] = ped  # defect-pixel map
         return c
 
-    def process(self, frame: np.ndarray, *, dark: np.ndarray | None = None) -> PipelineResult:
-        """Run every stage on one (H, W, 3) uint8 BGR frame."""
+    def process(
+        self, frame: np.ndarray, *, dark: np.ndarray | None = None, heading_error_rad: float | None = None
+    ) -> PipelineResult:
+        """Run every stage on one (H, W, 3) uint8 BGR frame.
+
+        ``heading_error_rad``: read the cell with this heading error instead of this frame's own
+        fit -- e.g. the fit of a short frame taken at the same pose, for a long one in which
+        every recent row saturates (the newest row is then no longer the brightest)."""
         check_frame(frame)
         self.profile.check_frame(frame.shape)
         if dark is not None and dark is not self.dark:
@@ -260,6 +266,8 @@ class Pipeline:
             landmark_px = self.profile.robot_to_ground(xy_m)
         t.append(clock())
         herr = heading.heading_error_rad if (heading.ok and p.use_heading) else 0.0
+        if heading_error_rad is not None:
+            herr = float(heading_error_rad)
         obs = observe_cell(
             all_dots,
             red.xy_px,
