@@ -102,6 +102,13 @@ class CoverConfig:
     trace: bool = False  # heading from the lean of all rows in view, not the newest only
 
 
+#: the red lights' estimates are used as long as they are this sure (1 sigma): the offset within
+#: 0.03 sub-cell sides (5 mm), the heading within 0.3 degrees for the turn-time recalibration
+#: (the newest row's fit is 0.25 deg); a drift correction needs 2.5 sigma whatever the spread
+LANDMARK_OFFSET_SIGMA = 0.03
+LANDMARK_TURN_SIGMA_RAD = math.radians(0.3)
+
+
 def _wrap(a: float) -> float:
     return (a + math.pi) % (2 * math.pi) - math.pi
 
@@ -321,6 +328,8 @@ def run_cover(board, cfg: CoverConfig = CoverConfig(), *, recorder=None, on_end=
         """The robot's offset from its sub-cell centre: from the red lights in view when there
         are any (they stand at cell centres: an absolute reference), else from its own marks."""
         off = observation.landmark_offset if cfg.use_landmarks else None
+        if off is not None and observation.landmark_offset_sigma > LANDMARK_OFFSET_SIGMA:
+            off = None  # too unsure: the marks say it better
         if off is None:
             off = observation.position_offset
         if off is None or max(abs(off[0]), abs(off[1])) > 0.3:  # 5 cm: not believable
@@ -334,6 +343,8 @@ def run_cover(board, cfg: CoverConfig = CoverConfig(), *, recorder=None, on_end=
             return None
         o = res.observation
         left = o.landmark_rotation_rad if cfg.use_landmarks else None
+        if left is not None and o.landmark_rotation_sigma_rad > LANDMARK_TURN_SIGMA_RAD:
+            left = None  # too unsure to take over from the consensus of the marks
         if left is None and cfg.use_mark_consensus:
             left = o.pattern_rotation_rad
         return res.heading.heading_error_rad - (left if left is not None else 0.0)
@@ -355,7 +366,9 @@ def run_cover(board, cfg: CoverConfig = CoverConfig(), *, recorder=None, on_end=
                     f"   lights: heading error {math.degrees(e):+.2f} (true {math.degrees(heading_error()):+.2f}), "
                     f"offset {res.observation.landmark_offset}"
                 )
-            if e is not None and abs(e) > math.radians(0.5):
+            sig = res.observation.landmark_rotation_sigma_rad
+            # only a drift the lights show clearly (2.5 sigma), and never by a hair
+            if e is not None and abs(e) > max(math.radians(0.5), 2.5 * sig):
                 rotate_by(-e)
 
     def measure_heading():

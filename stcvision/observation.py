@@ -296,6 +296,10 @@ class CellObservation:
     #: how far those lights are still turned about their centroid (rad, counter-clockwise) after
     #: the rotation by ``heading_error_rad`` (2-D Procrustes); None when ``landmark_offset`` is
     landmark_rotation_rad: float | None = None
+    #: 1-sigma uncertainties of ``landmark_rotation_rad`` (rad) and ``landmark_offset`` (cell
+    #: units), from the lights' centroid-error model and their spread
+    landmark_rotation_sigma_rad: float | None = None
+    landmark_offset_sigma: float | None = None
 
     def lit(self, box: int) -> bool:
         return self.boxes[box - 1].lit
@@ -340,7 +344,7 @@ class ObservationParams:
     landmark_range_m: float = 0.85
     #: report the lights' rotation (and offset) only when their spread fixes the rotation to
     #: this (1 sigma, from the centroid errors' model): two lights close together far away do not
-    landmark_max_sigma_rad: float = math.radians(0.5)
+    landmark_max_sigma_rad: float = math.radians(1.0)
 
 
 def observe_cell(
@@ -408,6 +412,8 @@ def observe_cell(
     # red lights stand at cell centres (even coordinates in cell units): absolute landmarks
     landmark = None
     landmark_rot = None
+    landmark_sig = None
+    landmark_off_sig = None
     if landmark_px is not None and subcell_m:
         lru = _rotate(geometry.to_cell(landmark_px), heading_error_rad) if len(landmark_px) else np.zeros((0, 2))
         reach = params.landmark_range_m / subcell_m
@@ -434,6 +440,7 @@ def observe_cell(
             # how well the lights fix a rotation: lights close together (or all in a line
             # through the robot) do not; then neither the rotation nor the offset is reported
             sig_th = 1.0 / math.sqrt(max(float((info * (b * b).sum(axis=1)).sum()), 1e-12))
+            landmark_sig = sig_th
             if sig_th <= params.landmark_max_sigma_rad:
                 cross = (wgt * (b[:, 0] * a[:, 1] - b[:, 1] * a[:, 0])).sum()
                 th = float(np.arctan2(cross, (wgt * (b * a).sum(axis=1)).sum()))
@@ -443,6 +450,7 @@ def observe_cell(
                 c, s_ = math.cos(-th), math.sin(-th)
                 d = mo - rob
                 landmark = tuple(float(v) for v in me - np.array([c * d[0] - s_ * d[1], s_ * d[0] + c * d[1]]) - rob)
+                landmark_off_sig = math.sqrt(1.0 / float(info.sum()) + (sig_th * float(np.hypot(*d))) ** 2)
     _, _, rnb = assign_boxes(rru, np.full(len(rru), -1)) if len(rru) else (None, None, np.zeros(0, int))
     neighbours = {}
     for i, name in enumerate(NEIGHBOURS):
@@ -471,6 +479,8 @@ def observe_cell(
         lean,
         landmark,
         landmark_rot,
+        landmark_sig if landmark_rot is not None else None,
+        landmark_off_sig,
     )
 
 
