@@ -172,6 +172,7 @@ class _Camera:
             e = float(cfg.exposure)
             self.ladder = ((e, cfg.gain if cfg.gain is not None else max(1.0, min(16.0, 16.0 * (1 / 30) / e * 4))),)
         self.frames = 0
+        self.long_frames = 0
 
     def long_rung(self, t_s: float) -> int | None:
         """The ladder rung for old marks at clock ``t_s``: the shortest whose horizon covers the
@@ -211,6 +212,7 @@ class _Camera:
         self.pipe = self._pipeline(k)
         res = self.pipe.process(img, heading_error_rad=heading_error_rad)
         self.frames += 1
+        self.long_frames += k > 0
         return res, s.exposure_s * self.cfg.n_stack
 
     def observe(self, pose, t_s, phosphor, *, fresh: bool = False):
@@ -300,7 +302,6 @@ def run_cover(board, cfg: CoverConfig = CoverConfig(), *, recorder=None, on_end=
     t = 0.0
     moves = turns = decisions = decision_errors = looks = look_errors = 0
     max_age_read = 0.0
-    exposure_steps = []
     abort = None
     finished = False
     first_error = None
@@ -427,8 +428,7 @@ def run_cover(board, cfg: CoverConfig = CoverConfig(), *, recorder=None, on_end=
             decisions += 1
             o_obs = observe_oracle(floor, board, sub, hc, camera_view=True)
             if camera is not None:
-                obs, res, long, dt, k = camera.observe((x, y, hdg), t, phosphor, fresh=state.fresh)
-                exposure_steps.append(k)
+                obs, res, long, dt, _ = camera.observe((x, y, hdg), t, phosphor, fresh=state.fresh)
                 t += tm.settle_s + dt
                 offset_est = where_am_i(res.observation, offset_est)
                 correct_heading(res)
@@ -603,7 +603,7 @@ def run_cover(board, cfg: CoverConfig = CoverConfig(), *, recorder=None, on_end=
         "turn_time_s_final": turn_s,
         "turn_rate_error_pct": 100 * (rate_gain - 1),
         "frames": camera.frames if camera is not None else 0,
-        "long_exposures": int(sum(k > 0 for k in exposure_steps)),
+        "long_exposures": camera.long_frames if camera is not None else 0,
     }
     if first_error is not None:
         fe = first_error
