@@ -535,14 +535,21 @@ def find_rows(
         return dots
     noise_dn = max(noise_dn, 0.3)
     z = cv2.addWeighted(marks, 1.0 / area, marks, 0.0, -background_dn, dtype=cv2.CV_32F)
-    z /= gain * np.float32(noise_dn)
-    np.minimum(z, np.float32(dot_params.k_sigma), out=z)
+    z = cv2.divide(z, gain, scale=1.0 / noise_dn)
+    cv2.min(z, float(dot_params.k_sigma), dst=z)
     b = dot_params.blackout_px
-    # found already: black out each lit dot, as far as its blur still shows above 1 sigma
+    # found already: black out each lit dot, as far as its blur still shows above 1 sigma; no
+    # row through it (-1e3), nor ending next to it (occ)
     reach = np.ceil(dot_params.tail_sigma_px * np.sqrt(2 * np.log(np.maximum(dots.snr[dots.lit], 1.0)))) + 1
     occ = np.zeros(z.shape, np.uint8)
-    for (x, y), r in zip(np.round(dots.xy_px[dots.lit]).astype(int), np.maximum(reach, b).astype(int), strict=True):
-        occ[max(y - r, 0) : y + r + 1, max(x - r, 0) : x + r + 1] = 1
+    lit_xy = np.clip(np.round(dots.xy_px[dots.lit]).astype(int), 0, [z.shape[1] - 1, z.shape[0] - 1])
+    reach = np.maximum(reach, b).astype(int)
+    for r in np.unique(reach):  # one dilation per blur reach (a handful), not one slice per dot
+        seeds = np.zeros(z.shape, np.uint8)
+        sel = lit_xy[reach == r]
+        seeds[sel[:, 1], sel[:, 0]] = 1
+        cv2.bitwise_or(occ, cv2.dilate(seeds, np.ones((2 * r + 1, 2 * r + 1), np.uint8)), dst=occ)
+    np.copyto(z, np.float32(-1e3), where=occ.view(bool))
     h, w = z.shape
     n = params.n_dots
     step = params.spacing_m * px_per_m
@@ -550,44 +557,41 @@ def find_rows(
     # one spacing beyond either end: a row shifted along a real one by a dot has a dot there
     ends = np.round(np.array([-1, 1]) * ((n + 1) / 2) * step).astype(int)
     m = int(np.abs(ends).max())
-    if 2 * m + 2 * b >= min(h, w):
+    e = max(m, window_px // 2 + 1)  # rows reaching beyond the image are not sought
+    if 2 * e >= min(h, w):
         return dots
-    found_x, found_y, found_s, found_o = [], [], [], []
+    thr = np.float32(params.k_sigma * math.sqrt(n))
+    xs_l, ys_l, st_l, ax_l = [], [], [], []
     for axis in (0, 1):  # 0: rows along x (top/bottom edges), 1: along y (left/right edges)
-        pad = ((m, m), (0, 0)) if axis else ((0, 0), (m, m))
-        zp = np.pad(z, pad, constant_values=-1e3)
-        op = np.pad(occ, pad, constant_values=1)
-        parts = [zp[m + o : m + o + h, :] if axis else zp[:, m + o : m + o + w] for o in offs]
-        total = parts[0].copy()
-        low = parts[0].copy()
-        for p in parts[1:]:
-            total += p
-            np.minimum(low, p, out=low)
-        stat = total / np.float32(math.sqrt(n))
-        # the dots of one mark are about equally bright (same age, same charge): three bright
-        # dots and a gap are not a row
-        stat[(low < params.min_dot_snr) | (low < total / np.float32(n) - np.float32(params.spread_snr))] = 0.0
+        # the row sum: one small correlation (OpenCV), then every other test only where it passes
+        k = np.zeros((1, 2 * m + 1), np.float32)
+        k[0, offs + m] = 1.0
+        total = cv2.filter2D(z, -1, k.T if axis else k, borderType=cv2.BORDER_CONSTANT)
+        total[:e], total[-e:], total[:, :e], total[:, -e:] = 0, 0, 0, 0
+        hits = cv2.findNonZero(cv2.compare(total, float(thr), cv2.CMP_GE))
+        if hits is None:
+            continue
+        hits = hits.reshape(-1, 2)
+        xs, ys = hits[:, 0], hits[:, 1]
+        pos = [(ys + o, xs) if axis else (ys, xs + o) for o in offs]
+        vals = np.stack([z[p] for p in pos])
+        low = vals.min(axis=0)
+        ok = (low >= params.min_dot_snr) & (low >= vals.mean(axis=0) - params.spread_snr)
         for o in ends:
-            beyond = zp[m + o : m + o + h, :] if axis else zp[:, m + o : m + o + w]
-            stat[beyond >= params.end_max_snr] = 0.0
-        # rows are sought only where the dot search found nothing, beyond the ends included
-        for o in (*offs, *ends):
-            stat[(op[m + o : m + o + h, :] if axis else op[:, m + o : m + o + w]) > 0] = 0.0
-        # one row, one peak: suppress over a window as long as the row and a dot wide
-        k = (2 * b + 1, 2 * m + 1) if axis else (2 * m + 1, 2 * b + 1)
-        peaks = cv2.dilate(stat, np.ones((k[1], k[0]), np.uint8))
-        cand = (stat >= params.k_sigma) & (stat >= peaks)
-        e = window_px // 2 + 1
-        cand[:e], cand[-e:], cand[:, :e], cand[:, -e:] = False, False, False, False
-        ys, xs = np.nonzero(cand)
-        found_x.append(xs)
-        found_y.append(ys)
-        found_s.append(stat[ys, xs])
-        found_o.append(np.full(len(xs), axis))
-    xs, ys, st, ax = (np.concatenate(v) for v in (found_x, found_y, found_s, found_o))
-    order = np.argsort(-st, kind="stable")[: params.max_rows]
+            p = (ys + o, xs) if axis else (ys, xs + o)
+            ok &= (z[p] < params.end_max_snr) & (occ[p] == 0)
+        xs_l.append(xs[ok])
+        ys_l.append(ys[ok])
+        st_l.append(total[ys[ok], xs[ok]] / np.float32(math.sqrt(n)))
+        ax_l.append(np.full(int(ok.sum()), axis))
+    if not xs_l:
+        return dots
+    xs, ys, st, ax = (np.concatenate(v) for v in (xs_l, ys_l, st_l, ax_l))
+    order = np.argsort(-st, kind="stable")
     new_xy, new_s = [], []
     for i in order:  # strongest first; a row may not share a dot with one already accepted
+        if len(new_xy) >= params.max_rows:
+            break
         x0, y0, a = int(xs[i]), int(ys[i]), int(ax[i])
         pts = np.array([(x0, y0 + o) if a else (x0 + o, y0) for o in offs], float)
         if new_xy and (np.abs(np.concatenate(new_xy)[:, None, :] - pts[None]).max(axis=2) <= b).any():
