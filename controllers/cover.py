@@ -99,6 +99,9 @@ class CoverConfig:
     #: red lights as absolute references: position from any light in view, heading from two or
     #: more (measured on 6 random boards per size: complete runs 5x5 3/6 -> 5/6, 6x6 0/6 -> 3/6)
     use_landmarks: bool = True
+    #: with exposure control, after each turn also a 2 s frame for the lean of all rows: it sees
+    #: the rows of many minutes, the webcam frame those of the last one or two
+    consensus_frame: bool = True
     trace: bool = False  # heading from the lean of all rows in view, not the newest only
 
 
@@ -337,9 +340,10 @@ def run_cover(board, cfg: CoverConfig = CoverConfig(), *, recorder=None, on_end=
             return current
         return offset_to_world(off)
 
-    def heading_estimate(res):
+    def heading_estimate(res, rows=None):
         """The heading error: the newest row's, less what the red lights (absolute, when in view)
-        or the lean of all rows (the consensus of older marks) say is left over."""
+        or the lean of all rows (the consensus of older marks; from ``rows``, a long frame read
+        with the same heading, when given: it sees many more of them) say is left over."""
         if not res.heading.ok:
             return None
         o = res.observation
@@ -348,6 +352,8 @@ def run_cover(board, cfg: CoverConfig = CoverConfig(), *, recorder=None, on_end=
             left = None  # too unsure to take over from the consensus of the marks
         if left is None and cfg.use_mark_consensus:
             left = o.pattern_rotation_rad
+            if rows is not None and rows.observation.pattern_rotation_rad is not None:
+                left = rows.observation.pattern_rotation_rad
         return res.heading.heading_error_rad - (left if left is not None else 0.0)
 
     def rotate_by(angle):
@@ -385,9 +391,13 @@ def run_cover(board, cfg: CoverConfig = CoverConfig(), *, recorder=None, on_end=
         offset_est = where_am_i(res.observation, offset_est)
         if not res.heading.ok:
             return None
+        rows = None
+        if cfg.consensus_frame and len(camera.ladder) > 1:
+            rows, dt = camera.shoot((x, y, hdg), t, phosphor, 1, heading_error_rad=res.heading.heading_error_rad)
+            t += dt
         # the newest row carries the heading error the robot had when laying it; the lean of
         # all the rows in view (the consensus of older marks) takes that out
-        return heading_estimate(res)
+        return heading_estimate(res, rows)
 
     def lay_mark():
         nonlocal t
@@ -409,6 +419,8 @@ def run_cover(board, cfg: CoverConfig = CoverConfig(), *, recorder=None, on_end=
         if expected is None or expected == outcome:
             return
         decision_errors += 1
+        if cfg.trace:
+            print(f"decision error at {sub}: the oracle would {expected}, the robot did {outcome}")
         if first_error is None:
             ideal = board.subcell_center_m(*sub)
             first_error = {
