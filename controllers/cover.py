@@ -19,10 +19,14 @@ runs it on a board with honest time and honest marks:
   the floor's record of marks). In camera mode every decision is also compared with the oracle's
   decision in the same state (``decision_errors``).
 * **Exposure**: ``webcam`` (1/30 s, gain 16: the seed's camera), a fixed ``exposure_s``, or
-  ``auto``: every observation takes a short webcam frame (red lights without bloom, fresh marks)
-  and a long one (2 s, gain 4) for the dim old marks; a mark counts if either frame sees it, red
-  lights come from the short frame -- the seed's proposal, "a camera with a fully controlled
-  integration time". Dark frames are taken once per setting, at the matching exposure.
+  ``auto``: every observation takes a short webcam frame (red lights without bloom, fresh marks,
+  the pose) and, where old marks may matter (returns to a parent, the looks), a long one whose
+  length follows the robot's clock (:data:`AUTO_LONG`, 2-30 s at gain 4); a mark counts if
+  either frame sees it -- the seed's proposal, "a camera with a fully controlled integration
+  time". After each turn a 2 s frame gives the lean of all rows (the heading consensus). Dark
+  frames are taken once per setting, at the matching exposure.
+* **Looks**: before entering a child the robot looks at it from the sub-cell next to it
+  (:data:`controllers.stc.Action.LOOK`); a marked child moves the exit on.
 """
 
 from __future__ import annotations
@@ -51,11 +55,8 @@ from controllers.stc import (
 
 __all__ = ["CoverConfig", "RobotTiming", "draw_floor", "is_complete", "run_cover"]
 
-#: ``--exposure auto``: a short frame at the seed's webcam setting (red lights, fresh marks) and a
-#: long one for the dim old marks: (exposure_s, gain). Measured: a third rung (8 s at gain 1, taken
-#: only when a free neighbour still looks unmarked) reads older neighbours but the extra time lets
-#: the heading drift further; on 6 boards each of 4x4..7x7 cells it completed 14 runs, as without
-#: (with an earlier landmark fit).
+#: the short frame of every observation (the seed's webcam: red lights, fresh marks, the pose) and
+#: the 2 s frame taken after each turn for the lean of all rows: (exposure_s, gain)
 AUTO_LADDER = ((1 / 30, 16.0), (2.0, 4.0))
 #: ``--exposure auto``, long frames: (exposure_s, gain), shortest first. Each is used while the
 #: robot's clock (the oldest age any mark can have) is within its visibility horizon at
@@ -96,8 +97,8 @@ class CoverConfig:
     heading_sigma_oracle_rad: float = math.radians(0.25)  # the pipeline's measured heading RMS
     position_sigma_oracle_m: float = 0.001  # the marks' position read-out (measured: ~1 mm)
     use_mark_consensus: bool = True
-    #: red lights as absolute references: position from any light in view, heading from two or
-    #: more (measured on 6 random boards per size: complete runs 5x5 3/6 -> 5/6, 6x6 0/6 -> 3/6)
+    #: red lights as absolute references, near and far (offset, heading, with their
+    #: uncertainties; README "Red lights as landmarks")
     use_landmarks: bool = True
     #: with exposure control, after each turn also a 2 s frame for the lean of all rows: it sees
     #: the rows of many minutes, the webcam frame those of the last one or two
