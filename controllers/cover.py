@@ -31,6 +31,7 @@ runs it on a board with honest time and honest marks:
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import time
 from dataclasses import dataclass, field
@@ -55,9 +56,9 @@ from controllers.stc import (
 
 __all__ = ["CoverConfig", "RobotTiming", "draw_floor", "is_complete", "run_cover"]
 
-#: the short frame of every observation (the seed's webcam: red lights, fresh marks, the pose) and
-#: the 2 s frame taken after each turn for the lean of all rows: (exposure_s, gain)
-AUTO_LADDER = ((1 / 30, 16.0), (2.0, 4.0))
+#: the short frame of every observation: the seed's webcam (red lights, fresh marks, the pose):
+#: (exposure_s, gain)
+WEBCAM = (1 / 30, 16.0)
 #: ``--exposure auto``, long frames: (exposure_s, gain), shortest first. Each is used while the
 #: robot's clock (the oldest age any mark can have) is within its visibility horizon at
 #: ``AUTO_REACH_M`` (``sim_camera.camera.visibility_horizon_s``: the camera's calibration of the
@@ -100,8 +101,8 @@ class CoverConfig:
     #: red lights as absolute references, near and far (offset, heading, with their
     #: uncertainties; README "Red lights as landmarks")
     use_landmarks: bool = True
-    #: with exposure control, after each turn also a 2 s frame for the lean of all rows: it sees
-    #: the rows of many minutes, the webcam frame those of the last one or two
+    #: with exposure control, after each turn also a frame at the shortest long rung (2 s) for the
+    #: lean of all rows: it sees the rows of many minutes, the webcam frame the last one or two
     consensus_frame: bool = True
     trace: bool = False  # heading from the lean of all rows in view, not the newest only
 
@@ -165,13 +166,13 @@ class _Camera:
         if cfg.exposure == "auto":
             from sim_camera.camera import visibility_horizon_s
 
-            self.ladder = AUTO_LADDER[:1] + AUTO_LONG
+            self.ladder = (WEBCAM, *AUTO_LONG)
             self.horizons = tuple(
                 visibility_horizon_s(self.cam, sensor=self._sensor(k), rho_m=AUTO_REACH_M)
                 for k in range(1, len(self.ladder))
             )
         elif cfg.exposure == "webcam":
-            self.ladder = AUTO_LADDER[:1]
+            self.ladder = (WEBCAM,)
         else:
             e = float(cfg.exposure)
             self.ladder = ((e, cfg.gain if cfg.gain is not None else max(1.0, min(16.0, 16.0 * (1 / 30) / e * 4))),)
@@ -195,7 +196,12 @@ class _Camera:
             from stcvision.observation import ObservationParams
             from stcvision.pipeline import Pipeline, PipelineParams
 
-            pipe = Pipeline(default_profile(), PipelineParams(observation=ObservationParams(pose_estimates=True)))
+            # the pose comes from the short frame: a long one needs no far red lights (two more
+            # remaps and the refinement per frame), only its rows and their lean
+            obs = ObservationParams(pose_estimates=True)
+            if k > 0:
+                obs = dataclasses.replace(obs, landmark_range_m=0.0)
+            pipe = Pipeline(default_profile(), PipelineParams(observation=obs))
             pipe.set_dark(self.cam.median_dark(8, rng=self.rng, sensor=self._sensor(k)))
             self.pipes[k] = pipe
         return self.pipes[k]
@@ -464,13 +470,13 @@ def run_cover(board, cfg: CoverConfig = CoverConfig(), *, recorder=None, on_end=
             else:
                 t += tm.settle_s
                 obs = o_obs
+                dc = decide(obs, at_start=state.at_start)
                 offset_est = true_offset() + rng.normal(0, cfg.position_sigma_oracle_m, 2)
             if recorder is not None:
-                d = decide(obs, at_start=state.at_start)
                 text = (
                     f"**decision {decisions}** at sub-cell {sub}, t = {t:.0f} s\n\n"
-                    f"visited 1-3: {d.visited}, parent {d.parent}, child {d.child}, "
-                    f"target {d.target}{' (stop there)' if d.final else ''}\n\n"
+                    f"visited 1-3: {dc.visited}, parent {dc.parent}, child {dc.child}, "
+                    f"target {dc.target}{' (stop there)' if dc.final else ''}\n\n"
                     f"boxes {obs.boxes}, start mark {obs.start_mark}"
                 )
                 recorder.decision(

@@ -186,6 +186,9 @@ class Decision:
     done: bool  # back on the start sub-cell with the whole cell covered
     target: int  # sub-cell to go to (and leave from unless ``final``)
     final: bool
+    #: per direction: a candidate child (no red light, no mark, exit reachable); ``child`` is the
+    #: first of them counter-clockwise after the parent, the looks may move on to the next
+    free: tuple[bool, bool, bool, bool] = (False, False, False, False)
 
 
 def decide(obs: StcObservation, *, at_start: bool = False) -> Decision:
@@ -204,19 +207,19 @@ def decide(obs: StcObservation, *, at_start: bool = False) -> Decision:
     free = _free(obs, v)
     child = _next_child(parent, free, is_start)
     if child is not None:
-        return Decision(v[1:], parent, child, is_start, False, child, False)
-    return Decision(v[1:], parent, None, is_start, False, parent, is_start)
+        return Decision(v[1:], parent, child, is_start, False, child, False, free)
+    return Decision(v[1:], parent, None, is_start, False, parent, is_start, free)
 
 
-def _free(obs: StcObservation, visited) -> list[bool]:
+def _free(obs: StcObservation, visited) -> tuple[bool, ...]:
     """Per direction: the neighbour shows no red light and no mark, and its exit can be reached
     through unvisited sub-cells only (the exit to direction ``d`` is from sub-cell ``d``, reached
     through sub-cells ``1..d``). In a correct tour every new neighbour is reachable so; one that
     looks new beyond a visited sub-cell has marks the camera missed."""
-    return [
+    return tuple(
         not (n.has_red or n.has_marks) and not any(visited[k] for k in range(1, d + 1))
         for d, n in enumerate(obs.neighbours)
-    ]
+    )
 
 
 def _next_child(parent: int, free, is_start: bool, after: int | None = None) -> int | None:
@@ -268,8 +271,7 @@ def step(state: StcState, obs: StcObservation | LookObs | None) -> tuple[StcStat
         dec = decide(obs, at_start=state.at_start)
         if dec.done:
             return StcState(phase=StcPhase.DONE), Action.DONE
-        free = _free(obs, (False, *dec.visited))
-        state = _plan(dec.parent, free, dec.is_start, bool(obs.landing_marked[dec.parent]), dec.child)
+        state = _plan(dec.parent, dec.free, dec.is_start, bool(obs.landing_marked[dec.parent]), dec.child)
     if ph is StcPhase.LOOK:
         if not isinstance(obs, LookObs):
             raise ValueError("the LOOK phase needs a LookObs")

@@ -420,10 +420,9 @@ def observe_cell(
     else:
         lru, reach = rru, 2.6  # well inside the ground view (a blob cut by its border is biased)
     if len(lru) and params.pose_estimates:
-        rru_l = lru
-        resid = rru_l - 2.0 * np.round(rru_l / 2.0)
-        near = (np.abs(resid) < 0.6).all(axis=1) & (np.hypot(*(rru_l - ROBOT_IN_CELL).T) < reach)
-        obs_p = rru_l[near]
+        resid = lru - 2.0 * np.round(lru / 2.0)
+        near = (np.abs(resid) < 0.6).all(axis=1) & (np.hypot(*(lru - ROBOT_IN_CELL).T) < reach)
+        obs_p = lru[near]
         exp_p = obs_p - resid[near]
         # two lights or more at distinct cell centres: with one, a sideways offset and a rotation
         # look alike (1 cm at 40 cm is 1.4 degrees), so fit both at once (2-D Procrustes of where

@@ -254,17 +254,8 @@ class Pipeline:
         red = find_red(obstacle, p.red, window_area=area)
         t.append(clock())
         heading = fit_heading(dots, p.heading)
-        landmark_px = None
-        if self.wide is not None:
-            wide_obst, _ = separate_channels(
-                unwarp(gs, self.wide), unwarp(rs, self.wide), p.channels, window_area=area, leak_threshold=leak
-            )
-            far = find_red(wide_obst, p.red, window_area=area)
-            xy_m = np.zeros((0, 2))
-            if len(far):
-                xy_m = self._refine_lights(r, self._wide_profile.ground_to_robot(far.xy_px))
-            landmark_px = self.profile.robot_to_ground(xy_m)
         t.append(clock())
+        landmark_px = self._far_lights(gs, rs, r, leak) if self.wide is not None else None
         herr = heading.heading_error_rad if (heading.ok and p.use_heading) else 0.0
         if heading_error_rad is not None:
             herr = float(heading_error_rad)
@@ -284,6 +275,19 @@ class Pipeline:
         return PipelineResult(
             frame, self.dark, p.pedestal_dn, g, r, obstacle, marks, all_dots, red, heading, obs, stage_ms, area
         )
+
+    def _far_lights(self, gs: np.ndarray, rs: np.ndarray, red: np.ndarray, leak: float) -> np.ndarray:
+        """Red lights out to ``landmark_range_m`` for the landmark fit, as ground-view pixels of
+        the main view (beyond its edges too): found in the wide, coarse view of the window sums
+        ``gs``, ``rs`` and refined on the dark-subtracted red channel ``red``."""
+        p = self.params
+        area = p.dots.window_px**2
+        obst, _ = separate_channels(
+            unwarp(gs, self.wide), unwarp(rs, self.wide), p.channels, window_area=area, leak_threshold=leak
+        )
+        far = find_red(obst, p.red, window_area=area)
+        xy_m = self._refine_lights(red, self._wide_profile.ground_to_robot(far.xy_px)) if len(far) else np.zeros((0, 2))
+        return self.profile.robot_to_ground(xy_m)
 
     def _refine_lights(self, red: np.ndarray, xy_m: np.ndarray, *, half: int = 6) -> np.ndarray:
         """Robot-frame positions of red lights found in the coarse wide view, refined on the

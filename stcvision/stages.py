@@ -306,16 +306,6 @@ class Dots:
     def __len__(self) -> int:
         return len(self.strength)
 
-    def single(self) -> Dots:
-        """Only the dots found singly (the heading fit wants those: row dots sit on a grid)."""
-        if self.from_row is None or not self.from_row.any():
-            return self
-        k = ~self.from_row
-        return Dots(
-            self.xy_px[k], self.xy_m[k], self.strength[k], self.snr[k], self.lit[k],
-            self.threshold_snr, self.noise_dn, self.background_dn,
-        )  # fmt: skip
-
     @property
     def n_lit(self) -> int:
         return int(self.lit.sum())
