@@ -104,6 +104,12 @@ class CoverConfig:
     #: with exposure control, after each turn also a frame at the shortest long rung (2 s) for the
     #: lean of all rows: it sees the rows of many minutes, the webcam frame the last one or two
     consensus_frame: bool = True
+    #: with exposure control, the long frame's rung is the shortest whose visibility horizon at
+    #: this distance (m) covers the robot's clock: for a decision (its boxes and the near
+    #: sub-cells of its neighbours) and for a look (the near sub-cells of the cell ahead)
+    offset_from_long: bool = True
+    decision_reach_m: float = 0.45
+    look_reach_m: float = 0.45
     trace: bool = False  # heading from the lean of all rows in view, not the newest only
 
 
@@ -147,30 +153,18 @@ def _merge(a: StcObservation, b: StcObservation) -> StcObservation:
     )
 
 
-class _Camera:
-    """Camera + pipeline at the robot: one pipeline per exposure setting, each holding the dark
-    frame taken at its exposure (so no dark frame is re-prepared between the short and the long
-    frame of a decision)."""
+class _Exposures:
+    """The frames a robot's camera takes: the ladder of (exposure_s, gain) settings, the short
+    webcam frame first, and which long rung the robot's clock asks for."""
 
-    def __init__(self, board, cfg: CoverConfig, rng: np.random.Generator):
+    def __init__(self, cfg: CoverConfig):
         from sim_camera.camera import SyntheticCamera
 
         self.cam = SyntheticCamera()
-        self.board = board
-        self.lights = board.red_lights_m()
-        self.rng = rng
         self.cfg = cfg
-        self.pipes: dict = {}
-        self.pipe = None  # the pipeline that read the last frame (for the recording)
-        self.horizons: tuple[float, ...] = ()
+        self._horizons: dict[float, tuple[float, ...]] = {}
         if cfg.exposure == "auto":
-            from sim_camera.camera import visibility_horizon_s
-
             self.ladder = (WEBCAM, *AUTO_LONG)
-            self.horizons = tuple(
-                visibility_horizon_s(self.cam, sensor=self._sensor(k), rho_m=AUTO_REACH_M)
-                for k in range(1, len(self.ladder))
-            )
         elif cfg.exposure == "webcam":
             self.ladder = (WEBCAM,)
         else:
@@ -179,16 +173,108 @@ class _Camera:
         self.frames = 0
         self.long_frames = 0
 
-    def long_rung(self, t_s: float) -> int | None:
-        """The ladder rung for old marks at clock ``t_s``: the shortest whose horizon covers the
-        oldest mark there can be (the last one beyond them all); None without exposure control."""
-        if not self.horizons:
+    def horizons(self, reach_m: float = AUTO_REACH_M) -> tuple[float, ...]:
+        """The long rungs' visibility horizons (s) for a dot ``reach_m`` from the robot."""
+        if reach_m not in self._horizons:
+            from sim_camera.camera import visibility_horizon_s
+
+            self._horizons[reach_m] = tuple(
+                visibility_horizon_s(self.cam, sensor=self._sensor(k), rho_m=reach_m)
+                for k in range(1, len(self.ladder))
+            )
+        return self._horizons[reach_m]
+
+    def long_rung(self, t_s: float, reach_m: float = AUTO_REACH_M) -> int | None:
+        """The ladder rung for old marks up to ``reach_m`` away at clock ``t_s``: the shortest
+        whose horizon covers the oldest mark there can be (the last one beyond them all); None
+        without exposure control."""
+        if len(self.ladder) < 2:
             return None
-        return 1 + next((k for k, h in enumerate(self.horizons) if h >= t_s), len(self.horizons) - 1)
+        hs = self.horizons(reach_m)
+        return 1 + next((k for k, h in enumerate(hs) if h >= t_s), len(hs) - 1)
 
     def _sensor(self, k: int):
         e, g = self.ladder[k]
         return self.cam.sensor.replace(exposure_s=e, gain=g)
+
+    def frame_s(self, k: int) -> float:
+        """Counts a frame at rung ``k``; returns the seconds it takes (``n_stack`` exposures)."""
+        self.frames += 1
+        self.long_frames += k > 0
+        return self.ladder[k][0] * self.cfg.n_stack
+
+
+#: ``--perception ideal``: a row of four dots is accepted at a mean dot SNR of 3 (the row search's
+#: 6 sigma on the sum of four, halved) where a lone dot needs Rose's 5; in the horizon that is
+#: as if (5/3)^2 frames were stacked
+ROW_EQUIVALENT_STACK = (5.0 / 3.0) ** 2
+
+
+class _Ideal(_Exposures):
+    """The physics-limited camera (``--perception ideal``): it takes the same frames as the
+    camera and spends the same time, but instead of rendering and reading them it sees exactly
+    the marks with a dot whose age is within the frame's visibility horizon at its distance
+    (:func:`sim_camera.camera.visibility_horizon_s`, the Rose criterion on the camera model; for
+    a row of four dots with ``rows``), and nothing else. No pipeline error and no drift beyond
+    the oracle's: what it cannot do, no pipeline on this camera can."""
+
+    RHO = np.arange(0.05, 1.0, 0.01)
+
+    def __init__(self, cfg: CoverConfig, board, *, rows: bool = True):
+        super().__init__(cfg)
+        from sim_camera.camera import visibility_horizon_s
+
+        self.board = board
+        n = (ROW_EQUIVALENT_STACK if rows else 1.0) * cfg.n_stack
+        self.curves = [
+            np.array([visibility_horizon_s(self.cam, sensor=self._sensor(k), rho_m=r, n_stack=n) for r in self.RHO])
+            for k in range(len(self.ladder))
+        ]
+
+    def floor_seen(self, xy, t_s: float, phosphor, marks: list, rungs) -> MarkFloor:
+        """The marks (``marks``: the (sub-cell, edge) of every four dots laid, in order) that
+        frames at ``rungs`` taken from ``xy`` at ``t_s`` see."""
+        seen = MarkFloor(self.board.shape_subcells)
+        if not marks:
+            return seen
+        d = np.hypot(*(phosphor.xy_m - np.asarray(xy)).T)
+        h = np.max([np.interp(d, self.RHO, self.curves[k], left=0.0, right=0.0) for k in rungs], axis=0)
+        vis = (phosphor.ages_s(t_s) <= h).reshape(-1, 4).any(axis=1)
+        for (sub, edge), v in zip(marks, vis, strict=True):
+            if v:
+                seen.mark(sub, edge)
+        return seen
+
+    def _rungs(self, t_s: float, reach_m: float, short_only: bool = False) -> list[int]:
+        k = self.long_rung(t_s, reach_m)
+        return [0] if k is None or short_only else [0, k]
+
+    def observe(self, xy, t_s, phosphor, marks, sub, hc, *, fresh: bool = False):
+        """(StcObservation, seconds spent): the frames :meth:`_Camera.observe` takes."""
+        rungs = self._rungs(t_s, self.cfg.decision_reach_m, fresh)
+        dt = sum(self.frame_s(r) for r in rungs)
+        seen = self.floor_seen(xy, t_s, phosphor, marks, rungs)
+        return observe_oracle(seen, self.board, sub, hc, camera_view=True), dt
+
+    def look(self, xy, t_s, phosphor, marks, sub, hc):
+        """(marked, seconds spent): the frames :meth:`_Camera.look` takes."""
+        rungs = self._rungs(t_s, self.cfg.look_reach_m)
+        dt = sum(self.frame_s(r) for r in rungs)
+        return look_oracle(self.floor_seen(xy, t_s, phosphor, marks, rungs), sub, hc).marked, dt
+
+
+class _Camera(_Exposures):
+    """Camera + pipeline at the robot: one pipeline per exposure setting, each holding the dark
+    frame taken at its exposure (so no dark frame is re-prepared between the short and the long
+    frame of a decision)."""
+
+    def __init__(self, board, cfg: CoverConfig, rng: np.random.Generator):
+        super().__init__(cfg)
+        self.board = board
+        self.lights = board.red_lights_m()
+        self.rng = rng
+        self.pipes: dict = {}
+        self.pipe = None  # the pipeline that read the last frame (for the recording)
 
     def _pipeline(self, k: int):
         if k not in self.pipes:
@@ -221,9 +307,7 @@ class _Camera:
         img = imgs[0] if len(imgs) == 1 else np.mean(np.stack(imgs), axis=0).round().astype(np.uint8)
         self.pipe = self._pipeline(k)
         res = self.pipe.process(img, heading_error_rad=heading_error_rad)
-        self.frames += 1
-        self.long_frames += k > 0
-        return res, s.exposure_s * self.cfg.n_stack
+        return res, self.frame_s(k)
 
     def observe(self, pose, t_s, phosphor, *, fresh: bool = False):
         """One observation: (StcObservation, the short frame's result, the long frame's result
@@ -235,7 +319,7 @@ class _Camera:
         looks check the rest."""
         res, dt = self.shoot(pose, t_s, phosphor, 0)
         obs = _to_stc_obs(res.observation)
-        k = self.long_rung(t_s)
+        k = self.long_rung(t_s, self.cfg.decision_reach_m)
         if k is None or fresh:
             return obs, res, None, dt, 0
         long, dt_k = self.shoot(pose, t_s + dt, phosphor, k, heading_error_rad=_fit(res))
@@ -248,7 +332,7 @@ class _Camera:
         from stcvision.observation import marks_ahead
 
         short, dt = self.shoot(pose, t_s, phosphor, 0)
-        k = self.long_rung(t_s)
+        k = self.long_rung(t_s, self.cfg.look_reach_m)
         long = None
         herr = _fit(short)  # the long frame's recent rows all saturate: its own fit is unsure
         if k is not None:
@@ -308,6 +392,9 @@ def run_cover(board, cfg: CoverConfig = CoverConfig(), *, recorder=None, on_end=
     visits = np.zeros((rows, cols), int)
     visits[sub] += 1
     camera = _Camera(board, cfg, rng) if cfg.perception == "camera" else None
+    phys = _Ideal(cfg, board) if cfg.perception == "ideal" else None
+    sees = camera or phys  # what takes frames and spends their time
+    marks: list = []  # (sub-cell, edge) of every four dots laid, for the ideal camera
     state = initial_state()
     t = 0.0
     moves = turns = decisions = decision_errors = looks = look_errors = 0
@@ -335,12 +422,15 @@ def run_cover(board, cfg: CoverConfig = CoverConfig(), *, recorder=None, on_end=
         right = np.array([up[1], -up[0]])
         return D * (off_ru[0] * right + off_ru[1] * up)
 
-    def where_am_i(observation, current):
+    def where_am_i(observation, current, long=None):
         """The robot's offset from its sub-cell centre: from the red lights in view when there
-        are any (they stand at cell centres: an absolute reference), else from its own marks."""
+        are any (they stand at cell centres: an absolute reference), else from its own marks --
+        those of the long frame ``long`` when given, the consensus of many older marks."""
         off = observation.landmark_offset if cfg.use_landmarks else None
         if off is not None and observation.landmark_offset_sigma > LANDMARK_OFFSET_SIGMA:
             off = None  # too unsure: the marks say it better
+        if off is None and long is not None and cfg.offset_from_long:
+            off = long.observation.position_offset
         if off is None:
             off = observation.position_offset
         if off is None or max(abs(off[0]), abs(off[1])) > 0.3:  # 5 cm: not believable
@@ -391,6 +481,8 @@ def run_cover(board, cfg: CoverConfig = CoverConfig(), *, recorder=None, on_end=
         nonlocal t, offset_est
         if camera is None:
             t += tm.settle_s
+            if phys is not None:  # the frames' time: the newest row and the consensus frame
+                t += phys.frame_s(0) + (phys.frame_s(1) if cfg.consensus_frame and len(phys.ladder) > 1 else 0.0)
             offset_est = true_offset() + rng.normal(0, cfg.position_sigma_oracle_m, 2)
             return heading_error() + rng.normal(0, cfg.heading_sigma_oracle_rad)
         res, dt = camera.shoot((x, y, hdg), t, phosphor)
@@ -412,6 +504,7 @@ def run_cover(board, cfg: CoverConfig = CoverConfig(), *, recorder=None, on_end=
         phosphor.charge(xy, t_start_s=t, duration_s=tm.led_on_s)
         edge = (hc + 2) % 4
         floor.mark(sub, edge)
+        marks.append((sub, edge))
         laid_at[(sub, edge)] = t + tm.led_on_s
         t += tm.led_on_s
 
@@ -446,12 +539,17 @@ def run_cover(board, cfg: CoverConfig = CoverConfig(), *, recorder=None, on_end=
         if state.phase is StcPhase.DECIDE and not state.closing:
             decisions += 1
             o_obs = observe_oracle(floor, board, sub, hc, camera_view=True)
-            if camera is not None:
-                obs, res, long, dt, _ = camera.observe((x, y, hdg), t, phosphor, fresh=state.fresh)
-                t += tm.settle_s + dt
-                offset_est = where_am_i(res.observation, offset_est)
-                correct_heading(res)
-                res = long or res  # the recording shows the frame that read the old marks
+            if sees is not None:
+                if camera is not None:
+                    obs, res, long, dt, _ = camera.observe((x, y, hdg), t, phosphor, fresh=state.fresh)
+                    t += tm.settle_s + dt
+                    offset_est = where_am_i(res.observation, offset_est, long)
+                    correct_heading(res)
+                    res = long or res  # the recording shows the frame that read the old marks
+                else:
+                    obs, dt = phys.observe((x, y), t, phosphor, marks, sub, hc, fresh=state.fresh)
+                    t += tm.settle_s + dt
+                    offset_est = true_offset() + rng.normal(0, cfg.position_sigma_oracle_m, 2)
                 od = decide(o_obs, at_start=state.at_start)
                 dc = decide(obs, at_start=state.at_start)
                 if (dc.visited, dc.parent, dc.is_start, dc.done) != (od.visited, od.parent, od.is_start, od.done):
@@ -495,14 +593,19 @@ def run_cover(board, cfg: CoverConfig = CoverConfig(), *, recorder=None, on_end=
                     max_age_read = max(max_age_read, t - t_laid)
         elif state.phase is StcPhase.LOOK:
             looks += 1
-            if camera is not None:
-                marked, res, long, dt = camera.look((x, y, hdg), t, phosphor)
-                t += tm.settle_s + dt
-                # the sub-cell grid is the same in every heading: the long frame's rows and
-                # lights say where the robot stands before it drives into the child
-                offset_est = where_am_i(res.observation, offset_est)
-                correct_heading(res)
-                res = long or res
+            if sees is not None:
+                if camera is not None:
+                    marked, res, long, dt = camera.look((x, y, hdg), t, phosphor)
+                    t += tm.settle_s + dt
+                    # the sub-cell grid is the same in every heading: the long frame's rows and
+                    # lights say where the robot stands before it drives into the child
+                    offset_est = where_am_i(res.observation, offset_est, long)
+                    correct_heading(res)
+                    res = long or res
+                else:
+                    marked, dt = phys.look((x, y), t, phosphor, marks, sub, hc)
+                    t += tm.settle_s + dt
+                    offset_est = true_offset() + rng.normal(0, cfg.position_sigma_oracle_m, 2)
                 obs = LookObs(marked)
                 if marked != look_oracle(floor, sub, hc).marked:
                     look_errors += 1
@@ -515,7 +618,7 @@ def run_cover(board, cfg: CoverConfig = CoverConfig(), *, recorder=None, on_end=
                             if (s_[0] // 2, s_[1] // 2) == ahead
                         ]
                         print(f"look error at {sub} heading {hc}: camera {marked}, t={t:.0f}, marks ahead {seen}")
-                if recorder is not None:
+                if recorder is not None and camera is not None:
                     recorder.decision(
                         decisions, t, (x, y, hdg), phosphor, visits, res, camera.pipe,
                         f"**look** from sub-cell {sub}: the cell ahead is {'marked' if marked else 'unmarked'}",
@@ -621,8 +724,8 @@ def run_cover(board, cfg: CoverConfig = CoverConfig(), *, recorder=None, on_end=
         "max_position_error_m": max_pos_err,
         "turn_time_s_final": turn_s,
         "turn_rate_error_pct": 100 * (rate_gain - 1),
-        "frames": camera.frames if camera is not None else 0,
-        "long_exposures": camera.long_frames if camera is not None else 0,
+        "frames": sees.frames if sees is not None else 0,
+        "long_exposures": sees.long_frames if sees is not None else 0,
     }
     if first_error is not None:
         fe = first_error

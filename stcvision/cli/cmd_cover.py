@@ -18,7 +18,13 @@ def add_parser(p):
     src.add_argument("--board", type=pair(int), metavar="WxH", help="random board of W x H cells (default 4x4)")
     p.add_argument("--obstacle-fraction", type=float, default=0.15, help="for --board (default 0.15)")
     p.add_argument("--start", type=pair(int), metavar="I,J", help="start sub-cell (row, column)")
-    p.add_argument("--perception", choices=("camera", "oracle"), default="camera")
+    p.add_argument(
+        "--perception",
+        choices=("camera", "oracle", "ideal"),
+        default="camera",
+        help="camera: render and read every frame; oracle: the floor's ground truth; ideal: the marks the "
+        "frames could show at all (the physics-limited camera, no pipeline)",
+    )
     ex = p.add_mutually_exclusive_group()
     ex.add_argument("--exposure-s", type=float, metavar="X", help="fixed exposure in seconds")
     ex.add_argument(

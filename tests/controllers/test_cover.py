@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from controllers.cover import CoverConfig, run_cover
+from controllers.cover import AUTO_LONG, CoverConfig, run_cover
 from controllers.cover import is_complete as complete
 from sim_camera.board import Board
 from sim_camera.camera import SyntheticCamera, visibility_horizon_s
@@ -165,13 +165,14 @@ def test_the_look_reads_the_cell_ahead_and_only_it():
 def test_exposure_rungs_follow_the_clock():
     """Auto exposure: the long frame is the shortest whose horizon at the look's reach covers
     the oldest mark there can be (the clock); the horizons grow with the rung."""
-    from controllers.cover import AUTO_LONG, _Camera
+    from controllers.cover import _Camera
 
     board = Board.random((3, 3), obstacle_fraction=0.0, rng=np.random.default_rng(0))
     cam = _Camera(board, CoverConfig(exposure="auto"), np.random.default_rng(0))
-    assert len(cam.horizons) == len(AUTO_LONG) and all(np.diff(cam.horizons) > 0)
+    assert len(cam.horizons()) == len(AUTO_LONG) and all(np.diff(cam.horizons()) > 0)
+    assert all(np.array(cam.horizons(0.25)) > cam.horizons())  # nearer marks stay visible longer
     assert cam.long_rung(0.0) == 1
-    assert cam.long_rung(cam.horizons[0] + 1) == 2
+    assert cam.long_rung(cam.horizons()[0] + 1) == 2
     assert cam.long_rung(1e9) == len(AUTO_LONG)
     assert _Camera(board, CoverConfig(exposure="webcam"), np.random.default_rng(0)).long_rung(500.0) is None
 
@@ -188,3 +189,41 @@ def test_a_long_frame_after_each_turn_keeps_the_heading_on_open_floor():
     assert without["max_position_error_m"] > 0.03 and without["decision_errors"] > 0
     assert with_["max_position_error_m"] < 0.02 and with_["decision_errors"] == 0
     assert with_["subcells_covered_more_than_once"] == 0 and with_["subcells_covered"] >= 200
+
+
+def test_ideal_camera_sees_exactly_the_marks_within_the_horizon():
+    """--perception ideal: a mark is seen iff one of its dots is younger than the frame's
+    horizon at its distance (the Rose criterion), so a webcam frame sees a 30 s old mark 0.25 m
+    away, not a 200 s old one, and nothing under the robot's body (inside the mirror's blind
+    circle); a 30 s frame sees the 200 s old one too."""
+    from controllers.cover import _Ideal
+    from sim_camera.phosphor import PhosphorLayer
+
+    board = Board.random((3, 3), obstacle_fraction=0.0, rng=np.random.default_rng(0))
+    ph = PhosphorLayer()
+    marks = []
+    # rows of four dots across the x axis at 0.25 m (laid at t = -30 s and -200 s) and at 0.02 m
+    for (sub, edge), y, t_end in ((((0, 0), 0), 0.25, -30.0), (((1, 1), 1), -0.25, -200.0), (((2, 2), 2), 0.02, -5.0)):
+        ph.charge([[x, y] for x in (-0.045, -0.015, 0.015, 0.045)], t_start_s=t_end - 3.0, duration_s=3.0)
+        marks.append((sub, edge))
+    web = _Ideal(CoverConfig(exposure="webcam"), board, rows=False)
+    seen = web.floor_seen((0.0, 0.0), 0.0, ph, marks, [0])
+    assert seen.has((0, 0), 0) and not seen.has((1, 1), 1) and not seen.has((2, 2), 2)
+    auto = _Ideal(CoverConfig(exposure="auto"), board, rows=False)
+    seen = auto.floor_seen((0.0, 0.0), 0.0, ph, marks, [0, len(AUTO_LONG)])
+    assert seen.has((0, 0), 0) and seen.has((1, 1), 1) and not seen.has((2, 2), 2)
+
+
+def test_ideal_camera_bounds_what_any_pipeline_can_do():
+    """The physics-limited camera spends the camera's time and sees what its frames could show
+    at all. On six 10x10 boards it reproduces the seed's limitation (at webcam settings the
+    first wrong decision within 15 minutes) and, with exposure control, covers every board."""
+    for seed in range(6):
+        board = Board.random((10, 10), obstacle_fraction=0.15, rng=np.random.default_rng(seed))
+        auto = run_cover(board, CoverConfig(perception="ideal", exposure="auto", seed=seed))
+        assert complete(auto), (seed, auto)
+        if auto["subcells_reachable"] < 100:
+            continue  # a walled-in start: nothing to forget
+        web = run_cover(board, CoverConfig(perception="ideal", exposure="webcam", seed=seed, max_decisions=400))
+        assert web["decision_errors"] > 0 and web["first_decision_error"]["t_s"] < 900, (seed, web)
+        assert auto["long_exposures"] > 0 and auto["sim_time_s"] > web["first_decision_error"]["t_s"]
