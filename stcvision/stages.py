@@ -502,6 +502,13 @@ class RowParams:
     end_max_snr: float = 2.5
     spread_snr: float = 2.5
     max_rows: int = 40
+    #: rows through one found dot (see :func:`find_rows`): the other three dots must each reach
+    #: ``anchor_min_snr`` and together ``3 * anchor_mean_snr``; anchors brighter than
+    #: ``anchor_max_snr`` are not completed (the rest of their row would have been found)
+    anchored: bool = True
+    anchor_min_snr: float = 1.0
+    anchor_mean_snr: float = 2.5
+    anchor_max_snr: float = 11.0
 
 
 def find_rows(
@@ -519,7 +526,15 @@ def find_rows(
 ) -> Dots:
     """Rows of ``params.n_dots`` faint dots along either ground-view axis that the dot search
     missed; returns ``dots`` with the rows' dots appended (``lit=True``, ``from_row=True``,
-    ``snr`` the row's SNR). ``marks``: the uint16 window sums the dot search ran on."""
+    ``snr`` the row's SNR). ``marks``: the uint16 window sums the dot search ran on.
+
+    Two searches. *Anchored rows*: a fading mark's brightest dot often passes the dot threshold
+    while its other three do not (each dot's SNR scatters by +-1 about the mark's), and a row
+    may not run through a found dot. So each found dot that stands alone (no lit dot at the
+    row's other places or one spacing beyond its ends) is tried as one dot of a row: 4 places
+    x 2 axes, 8 hypotheses, where the free search tries every pixel; with so few trials the
+    other three need less (``anchor_min_snr`` each, ``anchor_mean_snr`` on average). *Free
+    rows*: where the dot search found nothing, the matched filter below."""
     area = window_px * window_px
     if not params.enabled or marks.dtype != np.uint16:
         return dots
@@ -544,7 +559,6 @@ def find_rows(
     dark = cv2.compare(marks, 0, cv2.CMP_EQ)
     ring = 2 * b + 1
     cv2.bitwise_or(occ, cv2.dilate(dark, np.ones((ring, ring), np.uint8)) // 255, dst=occ)
-    np.copyto(z, np.float32(-1e3), where=occ.view(bool))
     h, w = z.shape
     n = params.n_dots
     step = params.spacing_m * px_per_m
@@ -555,6 +569,8 @@ def find_rows(
     e = max(m, window_px // 2 + 1)  # rows reaching beyond the image are not sought
     if 2 * e >= min(h, w):
         return dots
+    new_xy, new_s = _anchored_rows(z, occ, dots, lit_xy, offs, ends, e, params) if params.anchored else ([], [])
+    np.copyto(z, np.float32(-1e3), where=occ.view(bool))
     thr = np.float32(params.k_sigma * math.sqrt(n))
     xs_l, ys_l, st_l, ax_l = [], [], [], []
     for axis in (0, 1):  # 0: rows along x (top/bottom edges), 1: along y (left/right edges)
@@ -579,11 +595,10 @@ def find_rows(
         ys_l.append(ys[ok])
         st_l.append(total[ys[ok], xs[ok]] / np.float32(math.sqrt(n)))
         ax_l.append(np.full(int(ok.sum()), axis))
-    if not xs_l:
+    if not xs_l and not new_xy:
         return dots
-    xs, ys, st, ax = (np.concatenate(v) for v in (xs_l, ys_l, st_l, ax_l))
+    xs, ys, st, ax = (np.concatenate(v) if v else np.zeros(0) for v in (xs_l, ys_l, st_l, ax_l))
     order = np.argsort(-st, kind="stable")
-    new_xy, new_s = [], []
     for i in order:  # strongest first; a row may not share a dot with one already accepted
         if len(new_xy) >= params.max_rows:
             break
@@ -614,6 +629,51 @@ def find_rows(
         dots.background_dn,
         np.concatenate([from_row, np.ones(len(xy), bool)]),
     )
+
+
+def _anchored_rows(z, occ, dots: Dots, lit_xy, offs, ends, edge: int, params: RowParams):
+    """Rows through one found dot (:func:`find_rows`): lists of the three added points ((3, 2)
+    float ground px) and their SNRs. ``z``: per-pixel SNR clipped at the dot threshold, before
+    the black-out; ``occ``: the lit dots' blur masks."""
+    h, w = z.shape
+    out_xy: list[np.ndarray] = []
+    out_s: list[np.ndarray] = []
+    snr = dots.snr[dots.lit]
+    for (x0, y0), s0 in zip(lit_xy, snr, strict=True):
+        if s0 > params.anchor_max_snr or not (edge <= x0 < w - edge and edge <= y0 < h - edge):
+            continue
+        best = None
+        for axis in (0, 1):
+            for k in range(len(offs)):
+                rel = offs - offs[k]
+                others = np.delete(rel, k)
+                ex = ends - offs[k] + (offs[0] + offs[-1]) // 2
+                pos = [(y0 + o, x0) if axis else (y0, x0 + o) for o in (*others, *ex)]
+                if any(not (1 <= py < h - 1 and 1 <= px < w - 1) or occ[py, px] for py, px in pos):
+                    continue  # another lit dot on the row or next to it: not a lone dot
+                # each dot: the best of the three pixels across the row (a lean of a degree or two)
+                vals = [
+                    float((z[py, px - 1 : px + 2] if axis else z[py - 1 : py + 2, px]).max())
+                    for py, px in pos[: len(others)]
+                ]
+                tail = [z[py, px] for py, px in pos[len(others) :]]
+                total = float(sum(vals))
+                if (
+                    min(vals) >= params.anchor_min_snr
+                    and total >= len(others) * params.anchor_mean_snr
+                    and max(tail) < params.end_max_snr
+                    and (best is None or total > best[0])
+                ):
+                    pts = np.array([(px, py) for py, px in pos[: len(others)]], float)
+                    best = (total, pts)
+        if best is None:
+            continue
+        pts = best[1]
+        if out_xy and (np.abs(np.concatenate(out_xy)[:, None, :] - pts[None]).max(axis=2) <= 2).any():
+            continue
+        out_xy.append(pts)
+        out_s.append(np.full(len(pts), (best[0] + min(float(s0), float(params.k_sigma))) / (len(pts) + 1)))
+    return out_xy, out_s
 
 
 # --------------------------------------------------------------------------- heading
