@@ -107,7 +107,6 @@ class CoverConfig:
     #: with exposure control, the long frame's rung is the shortest whose visibility horizon at
     #: this distance (m) covers the robot's clock: for a decision (its boxes and the near
     #: sub-cells of its neighbours) and for a look (the near sub-cells of the cell ahead)
-    offset_from_long: bool = True
     decision_reach_m: float = 0.45
     look_reach_m: float = 0.45
     trace: bool = False  # heading from the lean of all rows in view, not the newest only
@@ -422,15 +421,12 @@ def run_cover(board, cfg: CoverConfig = CoverConfig(), *, recorder=None, on_end=
         right = np.array([up[1], -up[0]])
         return D * (off_ru[0] * right + off_ru[1] * up)
 
-    def where_am_i(observation, current, long=None):
+    def where_am_i(observation, current):
         """The robot's offset from its sub-cell centre: from the red lights in view when there
-        are any (they stand at cell centres: an absolute reference), else from its own marks --
-        those of the long frame ``long`` when given, the consensus of many older marks."""
+        are any (they stand at cell centres: an absolute reference), else from its own marks."""
         off = observation.landmark_offset if cfg.use_landmarks else None
         if off is not None and observation.landmark_offset_sigma > LANDMARK_OFFSET_SIGMA:
             off = None  # too unsure: the marks say it better
-        if off is None and long is not None and cfg.offset_from_long:
-            off = long.observation.position_offset
         if off is None:
             off = observation.position_offset
         if off is None or max(abs(off[0]), abs(off[1])) > 0.3:  # 5 cm: not believable
@@ -543,7 +539,7 @@ def run_cover(board, cfg: CoverConfig = CoverConfig(), *, recorder=None, on_end=
                 if camera is not None:
                     obs, res, long, dt, _ = camera.observe((x, y, hdg), t, phosphor, fresh=state.fresh)
                     t += tm.settle_s + dt
-                    offset_est = where_am_i(res.observation, offset_est, long)
+                    offset_est = where_am_i(res.observation, offset_est)
                     correct_heading(res)
                     res = long or res  # the recording shows the frame that read the old marks
                 else:
@@ -599,7 +595,7 @@ def run_cover(board, cfg: CoverConfig = CoverConfig(), *, recorder=None, on_end=
                     t += tm.settle_s + dt
                     # the sub-cell grid is the same in every heading: the long frame's rows and
                     # lights say where the robot stands before it drives into the child
-                    offset_est = where_am_i(res.observation, offset_est, long)
+                    offset_est = where_am_i(res.observation, offset_est)
                     correct_heading(res)
                     res = long or res
                 else:
@@ -680,7 +676,10 @@ def run_cover(board, cfg: CoverConfig = CoverConfig(), *, recorder=None, on_end=
             t += turn_s
             hc = (hc + (3 if action is Action.TURN_LEFT else 1)) % 4
             turns += 1
+            true_before = heading_error()
             err = measure_heading()
+            if cfg.trace and err is not None:
+                print(f"   turn: heading error {math.degrees(true_before):+.3f}, measured {math.degrees(err):+.3f}")
             if err is not None:
                 turned = math.pi / 2 + sign * (err - est_err)  # what this turn really did
                 rec = recalibrate_turn(turn_s, turned)
