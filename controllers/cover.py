@@ -58,14 +58,22 @@ __all__ = ["CoverConfig", "RobotTiming", "draw_floor", "is_complete", "run_cover
 
 #: the short frame of every observation: the seed's webcam (red lights, fresh marks, the pose):
 #: (exposure_s, gain)
-WEBCAM = (1 / 30, 16.0)
+WEBCAM = (1 / 30, 16.0, 1)
 #: ``--exposure auto``, long frames: (exposure_s, gain), shortest first. Each is used while the
 #: robot's clock (the oldest age any mark can have) is within its visibility horizon at
 #: ``AUTO_REACH_M`` (``sim_camera.camera.visibility_horizon_s``: the camera's calibration of the
 #: phosphor, measured once per robot); gain 4 keeps the 8-bit quantisation below the dark
 #: current's noise at every length. 60 s frames were tried and read fewer boxes than 30 s ones
 #: (the fresh mark's bloom), so the ladder stops at 30 s.
-AUTO_LONG = ((2.0, 4.0), (4.0, 4.0), (8.0, 4.0), (16.0, 4.0), (30.0, 4.0))
+AUTO_LONG = (
+    (2.0, 4.0, 1),
+    (4.0, 4.0, 1),
+    (8.0, 4.0, 1),
+    (16.0, 4.0, 1),
+    (30.0, 4.0, 1),
+    (30.0, 4.0, 2),
+    (30.0, 4.0, 4),
+)
 #: the farthest mark a decision or a look must read: box 2 is 0.27 m from the robot, the near
 #: sub-cells of the cell ahead 0.16-0.35 m
 AUTO_REACH_M = 0.45
@@ -105,10 +113,11 @@ class CoverConfig:
     #: lean of all rows: it sees the rows of many minutes, the webcam frame the last one or two
     consensus_frame: bool = True
     #: with exposure control, the long frame's rung is the shortest whose visibility horizon at
-    #: this distance (m) covers the robot's clock: for a decision (its boxes and the near
-    #: sub-cells of its neighbours) and for a look (the near sub-cells of the cell ahead)
-    decision_reach_m: float = 0.45
-    look_reach_m: float = 0.45
+    #: this distance (m) covers the robot's clock: for a decision, its boxes (box 2 is 0.27 m
+    #: away; a neighbour's marks it misses, the look before entering finds), and for a look, the
+    #: cell ahead (its near sub-cells' marks 0.1-0.25 m, its far ones' from 0.3 m)
+    decision_reach_m: float = 0.30
+    look_reach_m: float = 0.35
     trace: bool = False  # heading from the lean of all rows in view, not the newest only
 
 
@@ -168,7 +177,7 @@ class _Exposures:
             self.ladder = (WEBCAM,)
         else:
             e = float(cfg.exposure)
-            self.ladder = ((e, cfg.gain if cfg.gain is not None else max(1.0, min(16.0, 16.0 * (1 / 30) / e * 4))),)
+            self.ladder = ((e, cfg.gain if cfg.gain is not None else max(1.0, min(16.0, 16.0 * (1 / 30) / e * 4)), 1),)
         self.frames = 0
         self.long_frames = 0
 
@@ -178,7 +187,7 @@ class _Exposures:
             from sim_camera.camera import visibility_horizon_s
 
             self._horizons[reach_m] = tuple(
-                visibility_horizon_s(self.cam, sensor=self._sensor(k), rho_m=reach_m)
+                visibility_horizon_s(self.cam, sensor=self._sensor(k), rho_m=reach_m, n_stack=self.stack(k))
                 for k in range(1, len(self.ladder))
             )
         return self._horizons[reach_m]
@@ -193,14 +202,18 @@ class _Exposures:
         return 1 + next((k for k, h in enumerate(hs) if h >= t_s), len(hs) - 1)
 
     def _sensor(self, k: int):
-        e, g = self.ladder[k]
+        e, g, _ = self.ladder[k]
         return self.cam.sensor.replace(exposure_s=e, gain=g)
 
+    def stack(self, k: int) -> int:
+        """How many frames rung ``k`` averages."""
+        return self.ladder[k][2] * self.cfg.n_stack
+
     def frame_s(self, k: int) -> float:
-        """Counts a frame at rung ``k``; returns the seconds it takes (``n_stack`` exposures)."""
+        """Counts a frame at rung ``k``; returns the seconds it takes (all its exposures)."""
         self.frames += 1
         self.long_frames += k > 0
-        return self.ladder[k][0] * self.cfg.n_stack
+        return self.ladder[k][0] * self.stack(k)
 
 
 #: ``--perception ideal``: a row of four dots is accepted at a mean dot SNR of 3 (the row search's
@@ -224,9 +237,14 @@ class _Ideal(_Exposures):
         from sim_camera.camera import visibility_horizon_s
 
         self.board = board
-        n = (ROW_EQUIVALENT_STACK if rows else 1.0) * cfg.n_stack
+        n = ROW_EQUIVALENT_STACK if rows else 1.0
         self.curves = [
-            np.array([visibility_horizon_s(self.cam, sensor=self._sensor(k), rho_m=r, n_stack=n) for r in self.RHO])
+            np.array(
+                [
+                    visibility_horizon_s(self.cam, sensor=self._sensor(k), rho_m=r, n_stack=n * self.stack(k))
+                    for r in self.RHO
+                ]
+            )
             for k in range(len(self.ladder))
         ]
 
@@ -276,7 +294,9 @@ class _Camera(_Exposures):
         self.pipe = None  # the pipeline that read the last frame (for the recording)
 
     def _pipeline(self, k: int):
-        if k not in self.pipes:
+        """The pipeline (and dark frame) of rung ``k``'s exposure and gain: stacked rungs share it."""
+        key = self.ladder[k][:2]
+        if key not in self.pipes:
             from calibration.profiles import default_profile
             from stcvision.observation import ObservationParams
             from stcvision.pipeline import Pipeline, PipelineParams
@@ -288,8 +308,8 @@ class _Camera(_Exposures):
                 obs = dataclasses.replace(obs, landmark_range_m=0.0)
             pipe = Pipeline(default_profile(), PipelineParams(observation=obs))
             pipe.set_dark(self.cam.median_dark(8, rng=self.rng, sensor=self._sensor(k)))
-            self.pipes[k] = pipe
-        return self.pipes[k]
+            self.pipes[key] = pipe
+        return self.pipes[key]
 
     def shoot(self, pose, t_s: float, phosphor, k: int = 0, *, heading_error_rad: float | None = None):
         """Returns (pipeline result, capture seconds)."""
@@ -301,7 +321,7 @@ class _Camera(_Exposures):
             self.cam.render(
                 p, rng=self.rng, t_s=t_s + i * s.exposure_s, phosphor=phosphor, red_lights_m=self.lights, sensor=s
             ).image
-            for i in range(self.cfg.n_stack)
+            for i in range(self.stack(k))
         ]
         img = imgs[0] if len(imgs) == 1 else np.mean(np.stack(imgs), axis=0).round().astype(np.uint8)
         self.pipe = self._pipeline(k)

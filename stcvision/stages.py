@@ -530,8 +530,9 @@ def find_rows(
 
     Two searches. *Anchored rows*: a fading mark's brightest dot often passes the dot threshold
     while its other three do not (each dot's SNR scatters by +-1 about the mark's), and a row
-    may not run through a found dot. So each found dot that stands alone (no lit dot at the
-    row's other places or one spacing beyond its ends) is tried as one dot of a row: 4 places
+    may not run through a found dot. So each found dot that stands alone (no other lit dot
+    within 1.5 spacings, none at the row's other places or one spacing beyond its ends) is
+    tried as one dot of a row: 4 places
     x 2 axes, 8 hypotheses, where the free search tries every pixel; with so few trials the
     other three need less (``anchor_min_snr`` each, ``anchor_mean_snr`` on average). *Free
     rows*: where the dot search found nothing, the matched filter below."""
@@ -569,7 +570,7 @@ def find_rows(
     e = max(m, window_px // 2 + 1)  # rows reaching beyond the image are not sought
     if 2 * e >= min(h, w):
         return dots
-    new_xy, new_s = _anchored_rows(z, occ, dots, lit_xy, offs, ends, e, params) if params.anchored else ([], [])
+    new_xy, new_s = _anchored_rows(z, occ, dots, step, n, params) if params.anchored else ([], [])
     np.copyto(z, np.float32(-1e3), where=occ.view(bool))
     thr = np.float32(params.k_sigma * math.sqrt(n))
     xs_l, ys_l, st_l, ax_l = [], [], [], []
@@ -631,41 +632,44 @@ def find_rows(
     )
 
 
-def _anchored_rows(z, occ, dots: Dots, lit_xy, offs, ends, edge: int, params: RowParams):
-    """Rows through one found dot (:func:`find_rows`): lists of the three added points ((3, 2)
+def _anchored_rows(z, occ, dots: Dots, step: float, n: int, params: RowParams):
+    """Rows through one found dot (:func:`find_rows`): lists of the added points ((n - 1, 2)
     float ground px) and their SNRs. ``z``: per-pixel SNR clipped at the dot threshold, before
-    the black-out; ``occ``: the lit dots' blur masks."""
+    the black-out; ``occ``: the lit dots' blur masks; ``step``: the dot spacing (px)."""
     h, w = z.shape
     out_xy: list[np.ndarray] = []
     out_s: list[np.ndarray] = []
+    xy_lit = dots.xy_px[dots.lit].reshape(-1, 2)
     snr = dots.snr[dots.lit]
-    for (x0, y0), s0 in zip(lit_xy, snr, strict=True):
-        if s0 > params.anchor_max_snr or not (edge <= x0 < w - edge and edge <= y0 < h - edge):
+    near = 1.5 * step
+    reach = int(np.ceil((n + 1) * step)) + 2
+    for i, ((xf, yf), s0) in enumerate(zip(xy_lit, snr, strict=True)):
+        if s0 > params.anchor_max_snr or not (reach <= xf < w - reach and reach <= yf < h - reach):
             continue
+        d2 = ((xy_lit - (xf, yf)) ** 2).sum(axis=1)
+        d2[i] = np.inf
+        if d2.min() <= near * near:
+            continue  # a dot of a row already found (with one lit neighbour it reads as a mark)
         best = None
         for axis in (0, 1):
-            for k in range(len(offs)):
-                rel = offs - offs[k]
-                others = np.delete(rel, k)
-                ex = ends - offs[k] + (offs[0] + offs[-1]) // 2
-                pos = [(y0 + o, x0) if axis else (y0, x0 + o) for o in (*others, *ex)]
-                if any(not (1 <= py < h - 1 and 1 <= px < w - 1) or occ[py, px] for py, px in pos):
+            u = np.array([0.0, 1.0]) if axis else np.array([1.0, 0.0])
+            for k in range(n):
+                # the other dots and one spacing beyond either end, from the anchor's centroid
+                places = [j - k for j in range(n) if j != k] + [-1 - k, n - k]
+                pts = np.round(np.array([xf, yf]) + np.outer(places, u) * step).astype(int)
+                if occ[pts[:, 1], pts[:, 0]].any():
                     continue  # another lit dot on the row or next to it: not a lone dot
-                # each dot: the best of the three pixels across the row (a lean of a degree or two)
-                vals = [
-                    float((z[py, px - 1 : px + 2] if axis else z[py - 1 : py + 2, px]).max())
-                    for py, px in pos[: len(others)]
-                ]
-                tail = [z[py, px] for py, px in pos[len(others) :]]
-                total = float(sum(vals))
+                # each place: the best of the three pixels across the row (a lean of a degree or two)
+                vals = [float((z[py, px - 1 : px + 2] if axis else z[py - 1 : py + 2, px]).max()) for px, py in pts]
+                dots_v, ends_v = vals[: n - 1], vals[n - 1 :]
+                total = sum(dots_v)
                 if (
-                    min(vals) >= params.anchor_min_snr
-                    and total >= len(others) * params.anchor_mean_snr
-                    and max(tail) < params.end_max_snr
+                    min(dots_v) >= params.anchor_min_snr
+                    and total >= (n - 1) * params.anchor_mean_snr
+                    and max(ends_v) < params.end_max_snr
                     and (best is None or total > best[0])
                 ):
-                    pts = np.array([(px, py) for py, px in pos[: len(others)]], float)
-                    best = (total, pts)
+                    best = (total, pts[: n - 1].astype(float))
         if best is None:
             continue
         pts = best[1]

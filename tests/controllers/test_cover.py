@@ -47,16 +47,20 @@ def test_webcam_exposure_fails_where_exposure_control_succeeds():
     assert auto["max_mark_age_read_s"] > 2 * horizon  # it had to read marks the webcam cannot see
 
 
-@pytest.mark.parametrize("seed", [2, 3])
-def test_red_light_landmarks_keep_the_robot_on_its_sub_cells(seed):
-    """On a 5x5 board the robot's own marks cannot show its heading drift; the red lights can.
-    Without them it strays 4.7 / 5.7 cm from its sub-cells (the reading survives it); with them
-    it stays within 1.3 cm."""
-    board = Board.random((5, 5), obstacle_fraction=0.15, rng=np.random.default_rng(seed))
-    blind = run_cover(board, CoverConfig(perception="camera", exposure="auto", seed=seed, use_landmarks=False))
-    seeing = run_cover(board, CoverConfig(perception="camera", exposure="auto", seed=seed))
-    assert blind["max_position_error_m"] > 0.04
-    assert seeing["max_position_error_m"] < 0.015 and complete(seeing), seeing
+def test_red_light_landmarks_keep_the_robot_on_its_sub_cells():
+    """On 5x5 boards the robot's own marks cannot show its heading drift; the red lights can.
+    Without them it strays 1.2-5.3 cm from its sub-cells on four boards (mean 2.8 cm); with
+    them it stays within 1 cm (mean 0.8 cm) and covers every board."""
+    blind, seeing = [], []
+    for seed in range(1, 5):
+        board = Board.random((5, 5), obstacle_fraction=0.15, rng=np.random.default_rng(seed))
+        r = run_cover(board, CoverConfig(perception="camera", exposure="auto", seed=seed, use_landmarks=False))
+        blind.append(r["max_position_error_m"])
+        r = run_cover(board, CoverConfig(perception="camera", exposure="auto", seed=seed))
+        assert complete(r), r
+        seeing.append(r["max_position_error_m"])
+    assert max(seeing) < 0.012 and max(blind) > 0.04
+    assert np.mean(blind) > 2.5 * np.mean(seeing), (blind, seeing)
 
 
 def test_oracle_mode_closed_loop_on_random_and_pythonrobotics_boards(peer_data):
@@ -175,6 +179,9 @@ def test_exposure_rungs_follow_the_clock():
     assert cam.long_rung(0.0) == 1
     assert cam.long_rung(cam.horizons()[0] + 1) == 2
     assert cam.long_rung(1e9) == len(AUTO_LONG)
+    # beyond the 30 s frame, 30 s frames stacked: 2 and 4 of them
+    assert [cam.stack(k) for k in range(len(cam.ladder))][-3:] == [1, 2, 4]
+    assert cam.frame_s(len(AUTO_LONG)) == 120.0
     assert _Camera(board, CoverConfig(exposure="webcam"), np.random.default_rng(0)).long_rung(500.0) is None
 
 
