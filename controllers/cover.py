@@ -118,6 +118,9 @@ class CoverConfig:
     #: cell ahead (its near sub-cells' marks 0.1-0.25 m, its far ones' from 0.3 m)
     decision_reach_m: float = 0.30
     look_reach_m: float = 0.35
+    #: ``perception="ideal"``: every visibility horizon times this (``inf``: it sees every mark,
+    #: so a run measures how long the tour takes with the frames it needs)
+    ideal_horizon_factor: float = 1.0
     trace: bool = False  # heading from the lean of all rows in view, not the newest only
 
 
@@ -247,6 +250,9 @@ class _Ideal(_Exposures):
             )
             for k in range(len(self.ladder))
         ]
+        if cfg.ideal_horizon_factor != 1.0:
+            for c in self.curves:
+                c[c > 0] *= cfg.ideal_horizon_factor
 
     def floor_seen(self, xy, t_s: float, phosphor, marks: list, rungs) -> MarkFloor:
         """The marks (``marks``: the (sub-cell, edge) of every four dots laid, in order) that
