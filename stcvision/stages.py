@@ -643,13 +643,23 @@ def _anchored_rows(z, occ, dots: Dots, step: float, n: int, params: RowParams):
     snr = dots.snr[dots.lit]
     near = 1.5 * step
     reach = int(np.ceil((n + 1) * step)) + 2
-    for i, ((xf, yf), s0) in enumerate(zip(xy_lit, snr, strict=True)):
-        if s0 > params.anchor_max_snr or not (reach <= xf < w - reach and reach <= yf < h - reach):
-            continue
-        d2 = ((xy_lit - (xf, yf)) ** 2).sum(axis=1)
-        d2[i] = np.inf
-        if d2.min() <= near * near:
-            continue  # a dot of a row already found (with one lit neighbour it reads as a mark)
+    if not len(xy_lit):
+        return out_xy, out_s
+    # lone dots only: no other lit dot within 1.5 spacings (else it is a dot of a row found
+    # already, which reads as a mark with one lit neighbour)
+    d2 = ((xy_lit[:, None, :] - xy_lit[None, :, :]) ** 2).sum(axis=2)
+    np.fill_diagonal(d2, np.inf)
+    lone = (
+        (d2.min(axis=1) > near * near)
+        & (snr <= params.anchor_max_snr)
+        & (xy_lit[:, 0] >= reach)
+        & (xy_lit[:, 0] < w - reach)
+        & (xy_lit[:, 1] >= reach)
+        & (xy_lit[:, 1] < h - reach)
+    )
+    for i in np.flatnonzero(lone):
+        xf, yf = xy_lit[i]
+        s0 = snr[i]
         best = None
         for axis in (0, 1):
             u = np.array([0.0, 1.0]) if axis else np.array([1.0, 0.0])
