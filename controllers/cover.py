@@ -129,6 +129,9 @@ class CoverConfig:
 #: (the newest row's fit is 0.25 deg); a drift correction needs 2.5 sigma whatever the spread
 LANDMARK_OFFSET_SIGMA = 0.03
 LANDMARK_TURN_SIGMA_RAD = math.radians(0.3)
+#: a heading correction this large at a decision or a look means its frames were read askew (box
+#: 2, 0.27 m away, moves 0.5 cm per degree): they are taken again
+REOBSERVE_RAD = math.radians(1.0)
 
 
 def _wrap(a: float) -> float:
@@ -483,8 +486,9 @@ def run_cover(board, cfg: CoverConfig = CoverConfig(), *, recorder=None, on_end=
         hdg = _wrap(hdg + math.copysign(1.0, angle) * true_rate(t) * dur)
         t += dur
 
-    def correct_heading(res):
-        """Two or more red lights in view say how far the heading has drifted: take it out."""
+    def correct_heading(res) -> float:
+        """Two or more red lights in view say how far the heading has drifted: take it out.
+        Returns the rotation made (rad)."""
         if cfg.use_landmarks and res.observation.landmark_rotation_rad is not None:
             e = heading_estimate(res)
             if cfg.trace and e is not None:
@@ -496,6 +500,8 @@ def run_cover(board, cfg: CoverConfig = CoverConfig(), *, recorder=None, on_end=
             # only a drift the lights show clearly (2.5 sigma), and never by a hair
             if e is not None and abs(e) > max(math.radians(0.5), 2.5 * sig):
                 rotate_by(-e)
+                return -e
+        return 0.0
 
     def measure_heading():
         """The heading fit on the newest row (camera), or the truth with the pipeline's noise;
@@ -511,7 +517,17 @@ def run_cover(board, cfg: CoverConfig = CoverConfig(), *, recorder=None, on_end=
         t += tm.settle_s + dt
         offset_est = where_am_i(res.observation, offset_est)
         if not res.heading.ok:
-            return None
+            # no newest row to fit: the red lights, when they are sure enough, else the newest
+            # row of a 2 s frame (a turn left uncorrected leaves the next cell read askew)
+            o = res.observation
+            if cfg.use_landmarks and o.landmark_rotation_rad is not None:
+                if o.landmark_rotation_sigma_rad <= LANDMARK_TURN_SIGMA_RAD:
+                    return -o.landmark_rotation_rad
+            if len(camera.ladder) < 2:
+                return None
+            res, dt = camera.shoot((x, y, hdg), t, phosphor, 1)
+            t += dt
+            return res.heading.heading_error_rad if res.heading.ok else None
         rows = None
         if cfg.consensus_frame and len(camera.ladder) > 1:
             rows, dt = camera.shoot((x, y, hdg), t, phosphor, 1, heading_error_rad=res.heading.heading_error_rad)
@@ -563,10 +579,13 @@ def run_cover(board, cfg: CoverConfig = CoverConfig(), *, recorder=None, on_end=
             o_obs = observe_oracle(floor, board, sub, hc, camera_view=True)
             if sees is not None:
                 if camera is not None:
-                    obs, res, long, dt, _ = camera.observe((x, y, hdg), t, phosphor, fresh=state.fresh)
-                    t += tm.settle_s + dt
-                    offset_est = where_am_i(res.observation, offset_est)
-                    correct_heading(res)
+                    for _ in range(2):
+                        obs, res, long, dt, _ = camera.observe((x, y, hdg), t, phosphor, fresh=state.fresh)
+                        t += tm.settle_s + dt
+                        offset_est = where_am_i(res.observation, offset_est)
+                        # the lights showed a large drift: the frames were read askew, look again
+                        if abs(correct_heading(res)) < REOBSERVE_RAD:
+                            break
                     res = long or res  # the recording shows the frame that read the old marks
                 else:
                     obs, dt = phys.observe((x, y), t, phosphor, marks, sub, hc, fresh=state.fresh)
@@ -617,12 +636,14 @@ def run_cover(board, cfg: CoverConfig = CoverConfig(), *, recorder=None, on_end=
             looks += 1
             if sees is not None:
                 if camera is not None:
-                    marked, res, long, dt = camera.look((x, y, hdg), t, phosphor)
-                    t += tm.settle_s + dt
-                    # the sub-cell grid is the same in every heading: the long frame's rows and
-                    # lights say where the robot stands before it drives into the child
-                    offset_est = where_am_i(res.observation, offset_est)
-                    correct_heading(res)
+                    for _ in range(2):
+                        marked, res, long, dt = camera.look((x, y, hdg), t, phosphor)
+                        t += tm.settle_s + dt
+                        # the sub-cell grid is the same in every heading: the long frame's rows
+                        # and lights say where the robot stands before it drives into the child
+                        offset_est = where_am_i(res.observation, offset_est)
+                        if abs(correct_heading(res)) < REOBSERVE_RAD:
+                            break
                     res = long or res
                 else:
                     marked, dt = phys.look((x, y), t, phosphor, marks, sub, hc)
