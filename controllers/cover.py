@@ -21,10 +21,15 @@ runs it on a board with honest time and honest marks:
 * **Exposure**: ``webcam`` (1/30 s, gain 16: the seed's camera), a fixed ``exposure_s``, or
   ``auto``: every observation takes a short webcam frame (red lights without bloom, fresh marks,
   the pose) and, where old marks may matter (returns to a parent, the looks), a long one whose
-  length follows the robot's clock (:data:`AUTO_LONG`, 2-30 s at gain 4); a mark counts if
-  either frame sees it -- the seed's proposal, "a camera with a fully controlled integration
-  time". After each turn a 2 s frame gives the lean of all rows (the heading consensus). Dark
-  frames are taken once per setting, at the matching exposure.
+  length follows the robot's clock (:data:`AUTO_LONG`: 2-30 s at gain 4, then two and four 30 s
+  frames stacked: the issue's "frame stacking"), sized for what the frame must read
+  (``CoverConfig.decision_reach_m``, ``look_reach_m``); a mark counts if either frame sees it
+  -- the seed's proposal, "a camera with a fully controlled integration time". After each turn
+  a 2 s frame gives the lean of all rows (the heading consensus). Dark frames are taken once per
+  setting, at the matching exposure. A decision or look whose frames the red lights show were
+  taken more than a degree askew is observed again.
+* **Perception** ``ideal``: the physics-limited camera (:class:`_Ideal`), the same frames and
+  time, but it sees exactly the marks within the frames' visibility horizon.
 * **Looks**: before entering a child the robot looks at it from the sub-cell next to it
   (:data:`controllers.stc.Action.LOOK`); a marked child moves the exit on.
 """
@@ -57,14 +62,16 @@ from controllers.stc import (
 __all__ = ["CoverConfig", "RobotTiming", "draw_floor", "is_complete", "run_cover"]
 
 #: the short frame of every observation: the seed's webcam (red lights, fresh marks, the pose):
-#: (exposure_s, gain)
+#: (exposure_s, gain, frames averaged)
 WEBCAM = (1 / 30, 16.0, 1)
-#: ``--exposure auto``, long frames: (exposure_s, gain), shortest first. Each is used while the
-#: robot's clock (the oldest age any mark can have) is within its visibility horizon at
-#: ``AUTO_REACH_M`` (``sim_camera.camera.visibility_horizon_s``: the camera's calibration of the
+#: ``--exposure auto``, long frames: (exposure_s, gain, frames averaged), shortest first. Each is
+#: used while the robot's clock (the oldest age any mark can have) is within its visibility
+#: horizon at the distance the frame must read (``CoverConfig.decision_reach_m``,
+#: ``look_reach_m``; ``sim_camera.camera.visibility_horizon_s``: the camera's calibration of the
 #: phosphor, measured once per robot); gain 4 keeps the 8-bit quantisation below the dark
 #: current's noise at every length. 60 s frames were tried and read fewer boxes than 30 s ones
-#: (the fresh mark's bloom), so the ladder stops at 30 s.
+#: (the fresh mark's bloom), so beyond 30 s the ladder stacks 30 s frames (issue 6: "frame
+#: stacking"): averaging n frames divides the noise variance by n.
 AUTO_LONG = (
     (2.0, 4.0, 1),
     (4.0, 4.0, 1),
@@ -74,8 +81,8 @@ AUTO_LONG = (
     (30.0, 4.0, 2),
     (30.0, 4.0, 4),
 )
-#: the farthest mark a decision or a look must read: box 2 is 0.27 m from the robot, the near
-#: sub-cells of the cell ahead 0.16-0.35 m
+#: the far side of the cell ahead (its near sub-cells' marks are 0.1-0.25 m away, its far
+#: ones' up to 0.45 m): the default distance for :meth:`_Exposures.horizons`
 AUTO_REACH_M = 0.45
 
 
