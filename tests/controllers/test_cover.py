@@ -236,11 +236,11 @@ def test_ideal_camera_bounds_what_any_pipeline_can_do():
         assert auto["long_exposures"] > 0 and auto["sim_time_s"] > web["first_decision_error"]["t_s"]
 
 
-def test_the_maps_are_beyond_the_physics_at_the_lego_defaults(peer_data):
+def test_on_a_map_the_default_frames_outlast_the_marks(peer_data):
     """spiral_stc_test.png with exposure control, by the physics-limited camera: a tour with the
-    frames it needs lasts ~37,600 s of robot time (seen with every horizon infinite), and the
-    marks it must read by then are beyond what even 4 stacked 30 s frames show (a row 0.27 m
-    away: ~21,400 s): the first wrong decision comes at ~30,700 s."""
+    frames the default policy takes lasts ~37,600 s of robot time (seen with every horizon
+    infinite), and the marks it must read by then are beyond what even 4 stacked 30 s frames
+    show (a row 0.27 m away: ~21,400 s): the first wrong decision comes at ~30,700 s."""
     board = Board.from_file(peer_data / "pythonrobotics_maps" / "spiral_stc_test.png")
     ideal = run_cover(board, CoverConfig(perception="ideal", exposure="auto"))
     unlimited = run_cover(board, CoverConfig(perception="ideal", exposure="auto", ideal_horizon_factor=float("inf")))
