@@ -432,7 +432,7 @@ def run_cover(board, cfg: CoverConfig = CoverConfig(), *, recorder=None, on_end=
     marks: list = []  # (sub-cell, edge) of every four dots laid, for the ideal camera
     state = initial_state()
     t = 0.0
-    moves = turns = decisions = decision_errors = looks = look_errors = 0
+    moves = turns = decisions = decision_errors = looks = look_errors = reobserved = 0
     max_age_read = 0.0
     abort = None
     finished = False
@@ -586,13 +586,14 @@ def run_cover(board, cfg: CoverConfig = CoverConfig(), *, recorder=None, on_end=
             o_obs = observe_oracle(floor, board, sub, hc, camera_view=True)
             if sees is not None:
                 if camera is not None:
-                    for _ in range(2):
+                    for attempt in range(2):
                         obs, res, long, dt, _ = camera.observe((x, y, hdg), t, phosphor, fresh=state.fresh)
                         t += tm.settle_s + dt
                         offset_est = where_am_i(res.observation, offset_est)
                         # the lights showed a large drift: the frames were read askew, look again
                         if abs(correct_heading(res)) < REOBSERVE_RAD:
                             break
+                        reobserved += attempt == 0  # (a second askew reading is kept)
                     res = long or res  # the recording shows the frame that read the old marks
                 else:
                     obs, dt = phys.observe((x, y), t, phosphor, marks, sub, hc, fresh=state.fresh)
@@ -643,7 +644,7 @@ def run_cover(board, cfg: CoverConfig = CoverConfig(), *, recorder=None, on_end=
             looks += 1
             if sees is not None:
                 if camera is not None:
-                    for _ in range(2):
+                    for attempt in range(2):
                         marked, res, long, dt = camera.look((x, y, hdg), t, phosphor)
                         t += tm.settle_s + dt
                         # the sub-cell grid is the same in every heading: the long frame's rows
@@ -651,6 +652,7 @@ def run_cover(board, cfg: CoverConfig = CoverConfig(), *, recorder=None, on_end=
                         offset_est = where_am_i(res.observation, offset_est)
                         if abs(correct_heading(res)) < REOBSERVE_RAD:
                             break
+                        reobserved += attempt == 0  # (a second askew reading is kept)
                     res = long or res
                 else:
                     marked, dt = phys.look((x, y), t, phosphor, marks, sub, hc)
@@ -770,6 +772,7 @@ def run_cover(board, cfg: CoverConfig = CoverConfig(), *, recorder=None, on_end=
         "decisions": decisions,
         "looks": looks,
         "look_errors": look_errors,
+        "reobserved": reobserved,
         "sim_time_s": t,
         "wall_s": time.perf_counter() - wall0,
         "decision_errors": decision_errors,
