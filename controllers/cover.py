@@ -40,6 +40,7 @@ import dataclasses
 import math
 import time
 from dataclasses import dataclass, field
+from functools import partial
 
 import numpy as np
 
@@ -205,11 +206,16 @@ class _Exposures:
             )
         return self._horizons[reach_m]
 
+    @property
+    def controlled(self) -> bool:
+        """Exposure control: long frames besides the short one."""
+        return len(self.ladder) > 1
+
     def long_rung(self, t_s: float, reach_m: float = AUTO_REACH_M) -> int | None:
         """The ladder rung for old marks up to ``reach_m`` away at clock ``t_s``: the shortest
         whose horizon covers the oldest mark there can be (the last one beyond them all); None
         without exposure control."""
-        if len(self.ladder) < 2:
+        if not self.controlled:
             return None
         hs = self.horizons(reach_m)
         return 1 + next((k for k, h in enumerate(hs) if h >= t_s), len(hs) - 1)
@@ -252,12 +258,7 @@ class _Ideal(_Exposures):
         self.board = board
         n = ROW_EQUIVALENT_STACK if rows else 1.0
         self.curves = [
-            np.array(
-                [
-                    visibility_horizon_s(self.cam, sensor=self._sensor(k), rho_m=r, n_stack=n * self.stack(k))
-                    for r in self.RHO
-                ]
-            )
+            visibility_horizon_s(self.cam, sensor=self._sensor(k), rho_m=self.RHO, n_stack=n * self.stack(k))
             for k in range(len(self.ladder))
         ]
         if cfg.ideal_horizon_factor != 1.0:
@@ -346,7 +347,7 @@ class _Camera(_Exposures):
 
     def observe(self, pose, t_s, phosphor, *, fresh: bool = False):
         """One observation: (StcObservation, the short frame's result, the long frame's result
-        or None, seconds spent, the long rung used or 0): the short frame, and with exposure
+        or None, seconds spent): the short frame, and with exposure
         control a long one at the rung the clock asks for, what either sees of the marks
         merged. The pose comes from the short frame, whose red lights do not saturate.
         ``fresh``: the cell was entered as a child the look found unmarked, so no old mark can
@@ -356,9 +357,9 @@ class _Camera(_Exposures):
         obs = _to_stc_obs(res.observation)
         k = self.long_rung(t_s, self.cfg.decision_reach_m)
         if k is None or fresh:
-            return obs, res, None, dt, 0
+            return obs, res, None, dt
         long, dt_k = self.shoot(pose, t_s + dt, phosphor, k, heading_error_rad=_fit(res))
-        return _merge(obs, _to_stc_obs(long.observation)), res, long, dt + dt_k, k
+        return _merge(obs, _to_stc_obs(long.observation)), res, long, dt + dt_k
 
     def look(self, pose, t_s, phosphor):
         """The look at the cell ahead: (marked, the short frame's result (for the pose), the
@@ -451,6 +452,10 @@ def run_cover(board, cfg: CoverConfig = CoverConfig(), *, recorder=None, on_end=
         ideal = board.subcell_center_m(*sub)
         return np.array([x - ideal[0], y - ideal[1]])
 
+    def oracle_offset():
+        """Without the camera's marks: the truth with the marks' read-out noise."""
+        return true_offset() + rng.normal(0, cfg.position_sigma_oracle_m, 2)
+
     def offset_to_world(off_ru):
         """Entry-frame (right, up) cell units -> world metres, for the current compass heading."""
         up = np.array([math.cos(_compass_to_rad(hc)), math.sin(_compass_to_rad(hc))])
@@ -517,8 +522,8 @@ def run_cover(board, cfg: CoverConfig = CoverConfig(), *, recorder=None, on_end=
         if camera is None:
             t += tm.settle_s
             if phys is not None:  # the frames' time: the newest row and the consensus frame
-                t += phys.frame_s(0) + (phys.frame_s(1) if cfg.consensus_frame and len(phys.ladder) > 1 else 0.0)
-            offset_est = true_offset() + rng.normal(0, cfg.position_sigma_oracle_m, 2)
+                t += phys.frame_s(0) + (phys.frame_s(1) if cfg.consensus_frame and phys.controlled else 0.0)
+            offset_est = oracle_offset()
             return heading_error() + rng.normal(0, cfg.heading_sigma_oracle_rad)
         res, dt = camera.shoot((x, y, hdg), t, phosphor)
         t += tm.settle_s + dt
@@ -530,18 +535,34 @@ def run_cover(board, cfg: CoverConfig = CoverConfig(), *, recorder=None, on_end=
             if cfg.use_landmarks and o.landmark_rotation_rad is not None:
                 if o.landmark_rotation_sigma_rad <= LANDMARK_TURN_SIGMA_RAD:
                     return -o.landmark_rotation_rad
-            if len(camera.ladder) < 2:
+            if not camera.controlled:
                 return None
             res, dt = camera.shoot((x, y, hdg), t, phosphor, 1)
             t += dt
             return res.heading.heading_error_rad if res.heading.ok else None
         rows = None
-        if cfg.consensus_frame and len(camera.ladder) > 1:
+        if cfg.consensus_frame and camera.controlled:
             rows, dt = camera.shoot((x, y, hdg), t, phosphor, 1, heading_error_rad=res.heading.heading_error_rad)
             t += dt
         # the newest row carries the heading error the robot had when laying it; the lean of
         # all the rows in view (the consensus of older marks) takes that out
         return heading_estimate(res, rows)
+
+    def read_camera(take):
+        """A decision's or a look's frames: ``take(pose, t) -> (reading, short frame's result,
+        long frame's result or None, seconds)``. The short frame says where the robot stands
+        and, with the red lights, how far its heading has drifted; a drift over
+        :data:`REOBSERVE_RAD` means the frames were read askew, so they are taken once more.
+        Returns (reading, the frame that read the old marks, for the recording)."""
+        nonlocal t, offset_est, reobserved
+        for attempt in range(2):
+            reading, short, long, dt = take((x, y, hdg), t)
+            t += tm.settle_s + dt
+            offset_est = where_am_i(short.observation, offset_est)
+            if abs(correct_heading(short)) < REOBSERVE_RAD:
+                break
+            reobserved += attempt == 0  # (a second askew reading is kept)
+        return reading, long or short
 
     def lay_mark():
         nonlocal t
@@ -586,19 +607,11 @@ def run_cover(board, cfg: CoverConfig = CoverConfig(), *, recorder=None, on_end=
             o_obs = observe_oracle(floor, board, sub, hc, camera_view=True)
             if sees is not None:
                 if camera is not None:
-                    for attempt in range(2):
-                        obs, res, long, dt, _ = camera.observe((x, y, hdg), t, phosphor, fresh=state.fresh)
-                        t += tm.settle_s + dt
-                        offset_est = where_am_i(res.observation, offset_est)
-                        # the lights showed a large drift: the frames were read askew, look again
-                        if abs(correct_heading(res)) < REOBSERVE_RAD:
-                            break
-                        reobserved += attempt == 0  # (a second askew reading is kept)
-                    res = long or res  # the recording shows the frame that read the old marks
+                    obs, res = read_camera(partial(camera.observe, phosphor=phosphor, fresh=state.fresh))
                 else:
                     obs, dt = phys.observe((x, y), t, phosphor, marks, sub, hc, fresh=state.fresh)
                     t += tm.settle_s + dt
-                    offset_est = true_offset() + rng.normal(0, cfg.position_sigma_oracle_m, 2)
+                    offset_est = oracle_offset()
                 od = decide(o_obs, at_start=state.at_start)
                 dc = decide(obs, at_start=state.at_start)
                 if (dc.visited, dc.parent, dc.is_start, dc.done) != (od.visited, od.parent, od.is_start, od.done):
@@ -618,7 +631,7 @@ def run_cover(board, cfg: CoverConfig = CoverConfig(), *, recorder=None, on_end=
                 t += tm.settle_s
                 obs = o_obs
                 dc = decide(obs, at_start=state.at_start)
-                offset_est = true_offset() + rng.normal(0, cfg.position_sigma_oracle_m, 2)
+                offset_est = oracle_offset()
             if recorder is not None:
                 text = (
                     f"**decision {decisions}** at sub-cell {sub}, t = {t:.0f} s\n\n"
@@ -644,20 +657,11 @@ def run_cover(board, cfg: CoverConfig = CoverConfig(), *, recorder=None, on_end=
             looks += 1
             if sees is not None:
                 if camera is not None:
-                    for attempt in range(2):
-                        marked, res, long, dt = camera.look((x, y, hdg), t, phosphor)
-                        t += tm.settle_s + dt
-                        # the sub-cell grid is the same in every heading: the long frame's rows
-                        # and lights say where the robot stands before it drives into the child
-                        offset_est = where_am_i(res.observation, offset_est)
-                        if abs(correct_heading(res)) < REOBSERVE_RAD:
-                            break
-                        reobserved += attempt == 0  # (a second askew reading is kept)
-                    res = long or res
+                    marked, res = read_camera(partial(camera.look, phosphor=phosphor))
                 else:
                     marked, dt = phys.look((x, y), t, phosphor, marks, sub, hc)
                     t += tm.settle_s + dt
-                    offset_est = true_offset() + rng.normal(0, cfg.position_sigma_oracle_m, 2)
+                    offset_est = oracle_offset()
                 obs = LookObs(marked)
                 if marked != look_oracle(floor, sub, hc).marked:
                     look_errors += 1
@@ -732,10 +736,9 @@ def run_cover(board, cfg: CoverConfig = CoverConfig(), *, recorder=None, on_end=
             t += turn_s
             hc = (hc + (3 if action is Action.TURN_LEFT else 1)) % 4
             turns += 1
-            true_before = heading_error()
-            err = measure_heading()
+            err = measure_heading()  # (takes frames, does not turn)
             if cfg.trace and err is not None:
-                print(f"   turn: heading error {math.degrees(true_before):+.3f}, measured {math.degrees(err):+.3f}")
+                print(f"   turn: heading error {math.degrees(heading_error()):+.3f}, measured {math.degrees(err):+.3f}")
             if err is not None:
                 turned = math.pi / 2 + sign * (err - est_err)  # what this turn really did
                 rec = recalibrate_turn(turn_s, turned)

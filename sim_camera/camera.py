@@ -363,35 +363,34 @@ def visibility_horizon_s(
     *,
     sensor: SensorParams | None = None,
     law=None,
-    rho_m: float = 0.25,
+    rho_m=0.25,
     charge_s: float = 3.0,
-    n_stack: int = 1,
+    n_stack: float = 1,
     max_age_s: float = 36000.0,
-) -> float:
+):
     """Age (s) beyond which a dot charged for ``charge_s`` at ``rho_m`` from the robot is no
     longer detectable (expected SNR < :data:`ROSE_SNR` in a 3x3 window), for these settings.
 
     Averaging ``n_stack`` frames divides the noise variance by ``n_stack``. Returns 0 if the
-    dot is never detectable and ``inf`` if it still is at ``max_age_s``.
+    dot is never detectable and ``inf`` if it still is at ``max_age_s``. ``rho_m`` may be an
+    array of distances (one rendering for them all): the result is then an array too.
     """
     from sim_camera.phosphor import AfterglowLaw, PhosphorLayer
 
     s = sensor or camera.sensor
     law = law or AfterglowLaw()
+    rho = np.atleast_1d(np.asarray(rho_m, float))
     layer = PhosphorLayer(law)
-    # a direction away from the image axes, where no special symmetry helps
-    layer.charge([[rho_m * np.cos(0.7), rho_m * np.sin(0.7)]], t_start_s=-charge_s, duration_s=charge_s)
+    # a direction away from the image axes, where no special symmetry helps; each dot's expected
+    # electrons and blur are its own, so the dots may share the ray
+    layer.charge(np.outer(rho, [np.cos(0.7), np.sin(0.7)]), t_start_s=-charge_s, duration_s=charge_s)
     _, info = camera.signal(Pose(0.0, 0.0, 0.0), t_s=0.0, phosphor=layer, sensor=s)
     d = info["dots"]
-    if not d["visible"][0]:
-        return 0.0
-    e0, cov = d["total_e"][0], d["cov_px"][0]
     ages = np.geomspace(0.1, max_age_s, 4000)
     rel = law.luminance_cd_m2(ages, charge_s) / law.luminance_cd_m2(0.0, charge_s)
-    snr = detection_snr(e0 * rel, np.broadcast_to(cov, (len(ages), 2, 2)), s) * np.sqrt(n_stack)
-    below = snr < ROSE_SNR
-    if below[0]:
-        return 0.0
-    if not below.any():
-        return float("inf")
-    return float(ages[np.argmax(below)])
+    total = np.asarray(d["total_e"], float)[:, None] * rel[None, :]
+    cov = np.broadcast_to(np.asarray(d["cov_px"], float)[:, None], (len(rho), len(ages), 2, 2))
+    below = detection_snr(total, cov, s) * np.sqrt(n_stack) < ROSE_SNR
+    out = np.where(below.any(axis=1), ages[np.argmax(below, axis=1)], np.inf)
+    out = np.where(below[:, 0] | ~np.asarray(d["visible"], bool), 0.0, out)
+    return float(out[0]) if np.ndim(rho_m) == 0 else out

@@ -7,8 +7,9 @@ centred window and a noiseless dark frame). A box counts as marked if ``min_dots
 should be found (the observation needs that many), and is left out (ambiguous) if its
 ``min_dots``-th brightest dot lies between ``snr_ambiguous`` and ``snr_visible`` -- at the edge
 of the visibility horizon. ``snr_ambiguous`` is 1.5: the faint-row search reads a row of four
-dots whose SNRs average ~2.75 (sum / 2 >= 5.5), and noise lets it read some a little fainter;
-such a box is really marked, so reading it either way is not held against the pipeline.
+dots whose SNRs average 3 (sum / 2 >= 6), or, through one found dot, 2.5 for the other three,
+and noise lets it read some a little fainter; such a box is really marked, so reading it either
+way is not held against the pipeline.
 """
 
 from __future__ import annotations

@@ -486,9 +486,10 @@ class RowParams:
     ``min_dot_snr`` and no more than ``spread_snr`` below the row's mean (a mark's dots are
     about equally bright), and the floor one spacing beyond either end is below
     ``end_max_snr`` (else it is a real row shifted by one dot: three real dots and one of
-    noise). Single dots are clipped at the dot threshold, and rows are sought only where the dot
-    search found nothing (no row dot, nor the floor beyond its ends, within a lit dot's blur),
-    so a bright dot cannot make a row of noise. ``k_sigma`` is set by the same argument as
+    noise). Single dots are clipped at the dot threshold, and free rows are sought only where the
+    dot search found nothing (no row dot, nor the floor beyond its ends, within a lit dot's
+    blur), so a bright dot cannot make a row of noise; a lone found dot of at most
+    ``anchor_max_snr`` may anchor a row (:func:`find_rows`). ``k_sigma`` is set by the same argument as
     :class:`DotParams` (heavier-than-Gaussian tail), a little higher still: a closed-loop run
     makes hundreds of looks, and at 5.5 one of them found a row of noise (5.7) on a 2 s frame;
     no row is found on rendered frames without old marks (tests/stcvision/test_rows.py).
@@ -532,10 +533,10 @@ def find_rows(
     while its other three do not (each dot's SNR scatters by +-1 about the mark's), and a row
     may not run through a found dot. So each found dot that stands alone (no other lit dot
     within 1.5 spacings, none at the row's other places or one spacing beyond its ends) is
-    tried as one dot of a row: 4 places
-    x 2 axes, 8 hypotheses, where the free search tries every pixel; with so few trials the
-    other three need less (``anchor_min_snr`` each, ``anchor_mean_snr`` on average). *Free
-    rows*: where the dot search found nothing, the matched filter below."""
+    tried as one dot of a row: 4 places x 2 axes, 8 hypotheses, where the free search tries
+    every pixel; with so few trials the other three need less (``anchor_min_snr`` each,
+    ``anchor_mean_snr`` on average). *Free rows*: where the dot search found nothing, the
+    matched filter below."""
     area = window_px * window_px
     if not params.enabled or marks.dtype != np.uint16:
         return dots

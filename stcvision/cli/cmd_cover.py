@@ -3,8 +3,10 @@ pipeline -> finite-state controller -> robot), with honest time and fading marks
 
 The board comes from --map (text or PNG, one pixel = one sub-cell) or --board WxH (random, with
 --obstacle-fraction). --perception camera renders every observation and reads it with the
-vision pipeline; oracle reads the floor's ground truth. --exposure webcam is the seed's camera
-(1/30 s); auto adds a long (2 s) frame for dim old marks; or give --exposure-s X.
+vision pipeline; oracle reads the floor's ground truth; ideal sees exactly the marks the frames
+could show (the physics-limited camera, no pipeline). --exposure webcam is the seed's camera
+(1/30 s); auto adds long frames sized by the robot's clock (2-30 s, then stacked 30 s frames) for
+the dim old marks; or give --exposure-s X.
 """
 
 from __future__ import annotations
