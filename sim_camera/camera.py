@@ -366,7 +366,7 @@ def visibility_horizon_s(
     rho_m=0.25,
     charge_s: float = 3.0,
     n_stack: float = 1,
-    max_age_s: float = 36000.0,
+    max_age_s: float = 1.0e6,
 ):
     """Age (s) beyond which a dot charged for ``charge_s`` at ``rho_m`` from the robot is no
     longer detectable (expected SNR < :data:`ROSE_SNR` in a 3x3 window), for these settings.

@@ -93,9 +93,51 @@ class CellGeometry:
         return {k: self.to_ground(_rotate(v, heading_error_rad)) for k, v in polys.items()}
 
 
-#: a red light's centroid error (1 sigma, cell units = sub-cell sides) within ~0.4 m of the robot
-#: (measured on rendered frames: ~2 mm); it grows as the distance squared beyond
-LIGHT_SIGMA = 0.0125
+#: the sub-cell side (m) the light errors are converted with when the caller gives none
+_SUBCELL_M = 0.16
+
+
+def light_sigma_m(d_m) -> tuple[np.ndarray, np.ndarray]:
+    """A red light's position error (1 sigma, m) at ``d_m`` metres from the robot, along the
+    ray from the robot (radial) and across it (tangential). Measured on rendered frames (lights
+    at cell centres 0.3-1.2 m away, 440 found): across the ray 0.8-1.3 mm at every distance --
+    the mirror keeps the azimuth -- along it 1.5 mm at 0.3 m, 4 mm at 0.7 m, 10 mm (and a bias
+    of up to -18 mm) at 1.1-1.2 m, where the mirror squeezes the floor radially. The model is a
+    little above both, bias included: 1.5 mm across, ``1.5 mm + 15 mm * d^3`` along."""
+    d = np.asarray(d_m, float)
+    return 0.0015 + 0.015 * d**3, np.full_like(d, 0.0015)
+
+
+def _landmark_fit(obs_p: np.ndarray, exp_p: np.ndarray, rob: np.ndarray, subcell_m: float):
+    """Weighted least squares of ``exp = R(-th) (obs - rob) + rob + offset`` (cell units) for
+    lights seen at ``obs_p`` that stand at ``exp_p``, each weighted by its error ellipse
+    (:func:`light_sigma_m`). Returns (th, offset, sigma of th, sigma of the offset: the larger
+    axis of its ellipse) or None if the lights do not fix all three."""
+    v = obs_p - rob
+    dist = np.hypot(*v.T)
+    u = v / np.maximum(dist, 1e-9)[:, None]
+    sr, st = light_sigma_m(dist * subcell_m)
+    sr, st = sr / subcell_m, st / subcell_m
+    uu = u[:, :, None] * u[:, None, :]
+    w = uu / (sr**2)[:, None, None] + (np.eye(2) - uu) / (st**2)[:, None, None]  # inverse covariances
+    th, off = 0.0, np.zeros(2)
+    for _ in range(2):  # once linearised about 0, once about the first answer
+        c, s_ = math.cos(-th), math.sin(-th)
+        rv = np.column_stack([c * v[:, 0] - s_ * v[:, 1], s_ * v[:, 0] + c * v[:, 1]])
+        r = exp_p - (rv + rob + off)
+        a = np.zeros((len(v), 2, 3))
+        a[:, 0, 0], a[:, 1, 0] = rv[:, 1], -rv[:, 0]  # d/d(th) of R(-th) v
+        a[:, :, 1:] = np.eye(2)
+        at_w = np.einsum("nki,nkl->nil", a, w)
+        n = np.einsum("nil,nlj->ij", at_w, a)
+        if np.linalg.cond(n) > 1e10:
+            return None
+        cov = np.linalg.inv(n)
+        step = cov @ np.einsum("nil,nl->i", at_w, r)
+        th += float(step[0])
+        off = off + step[1:]
+    sig_off = math.sqrt(float(np.linalg.eigvalsh(cov[1:, 1:]).max()))
+    return th, tuple(float(x) for x in off), math.sqrt(float(cov[0, 0])), sig_off
 
 
 def _sq(c, h):
@@ -341,7 +383,7 @@ class ObservationParams:
     #: how far out (m, from the robot) red lights serve as landmarks: the pipeline finds them
     #: in a wide, coarse ground view of the red channel (the main view reaches ~0.55 m); far
     #: lights pin the robot down where no light is near (open floor)
-    landmark_range_m: float = 0.85
+    landmark_range_m: float = 1.25
     #: report the lights' rotation (and offset) only when their spread fixes the rotation to
     #: this (1 sigma, from the centroid errors' model): two lights close together far away do not
     landmark_max_sigma_rad: float = math.radians(1.0)
@@ -425,31 +467,19 @@ def observe_cell(
         obs_p = lru[near]
         exp_p = obs_p - resid[near]
         # two lights or more at distinct cell centres: with one, a sideways offset and a rotation
-        # look alike (1 cm at 40 cm is 1.4 degrees), so fit both at once (2-D Procrustes of where
-        # they are against where they should be)
+        # look alike (1 cm at 40 cm is 1.4 degrees), so fit both at once: where the lights are
+        # against where they should be, ``exp = R(-th) (obs - rob) + rob + offset``, linearised
+        # in the small rotation ``th`` and weighted by each light's error ellipse (its bearing is
+        # much surer than its range: :func:`light_sigma_m`)
         if len(np.unique(np.round(exp_p / 2.0), axis=0)) >= 2:
-            # weighted: a light's centroid error grows about as its distance squared (measured:
-            # ~2 mm at 0.4 m, ~5 mm at 0.65 m, unbiased): sigma_i = LIGHT_SIGMA * max(d / 2.5, 1)^2
-            rob = np.asarray(ROBOT_IN_CELL)
-            sig = LIGHT_SIGMA * np.maximum(np.hypot(*(obs_p - rob).T) / 2.5, 1.0) ** 2
-            info = 1.0 / sig**2
-            wgt = info / info.sum()
-            mo, me = wgt @ obs_p, wgt @ exp_p
-            a, b = obs_p - mo, exp_p - me
-            # how well the lights fix a rotation: lights close together (or all in a line
-            # through the robot) do not; then neither the rotation nor the offset is reported
-            sig_th = 1.0 / math.sqrt(max(float((info * (b * b).sum(axis=1)).sum()), 1e-12))
-            landmark_sig = sig_th
-            if sig_th <= params.landmark_max_sigma_rad:
-                cross = (wgt * (b[:, 0] * a[:, 1] - b[:, 1] * a[:, 0])).sum()
-                th = float(np.arctan2(cross, (wgt * (b * a).sum(axis=1)).sum()))
-                landmark_rot = th
-                # the robot in the lights' (grid) frame: undo the rotation about the robot, so a
-                # far light's swing under a small heading residual is not read as an offset
-                c, s_ = math.cos(-th), math.sin(-th)
-                d = mo - rob
-                landmark = tuple(float(v) for v in me - np.array([c * d[0] - s_ * d[1], s_ * d[0] + c * d[1]]) - rob)
-                landmark_off_sig = math.sqrt(1.0 / float(info.sum()) + (sig_th * float(np.hypot(*d))) ** 2)
+            fit = _landmark_fit(obs_p, exp_p, np.asarray(ROBOT_IN_CELL), subcell_m or _SUBCELL_M)
+            if fit is not None:
+                th, off, sig_th, off_sig = fit
+                landmark_sig = sig_th
+                if sig_th <= params.landmark_max_sigma_rad:
+                    landmark_rot = th
+                    landmark = off
+                    landmark_off_sig = off_sig
     _, _, rnb = assign_boxes(rru, np.full(len(rru), -1)) if len(rru) else (None, None, np.zeros(0, int))
     neighbours = {}
     for i, name in enumerate(NEIGHBOURS):
