@@ -79,8 +79,7 @@ AUTO_LONG = (
     (8.0, 4.0, 1),
     (16.0, 4.0, 1),
     (30.0, 4.0, 1),
-    (30.0, 4.0, 2),
-    (30.0, 4.0, 4),
+    *((30.0, 4.0, n) for n in (2, 3, 4, 5, 6, 8, 10, 12, 16, 20, 24, 32, 40, 48, 64)),
 )
 #: the far side of the cell ahead (its near sub-cells' marks are 0.1-0.25 m away, its far
 #: ones' up to 0.45 m): the default distance for :meth:`_Exposures.horizons`
@@ -126,9 +125,16 @@ class CoverConfig:
     #: cell ahead (its near sub-cells' marks 0.1-0.25 m, its far ones' from 0.3 m)
     decision_reach_m: float = 0.30
     look_reach_m: float = 0.35
+    #: a long frame is sized so that a dot at the reach, as old as the clock, still has this SNR:
+    #: Rose's 5 (what a lone dot needs); the row search accepts a row of four at a mean of 3
+    #: (:data:`ROW_EQUIVALENT_STACK`), but at its threshold it finds a row only half the time
+    sizing_snr: float = 5.0
     #: ``perception="ideal"``: every visibility horizon times this (``inf``: it sees every mark,
     #: so a run measures how long the tour takes with the frames it needs)
     ideal_horizon_factor: float = 1.0
+    #: with exposure control, stop (``abort_reason`` "out of sight") once the clock is past the
+    #: longest frame's horizon at ``decision_reach_m``: the robot knows its camera's limit
+    stop_out_of_sight: bool = True
     trace: bool = False  # heading from the lean of all rows in view, not the newest only
 
 
@@ -175,6 +181,12 @@ def _merge(a: StcObservation, b: StcObservation) -> StcObservation:
     )
 
 
+#: a row of four dots is accepted at a mean dot SNR of 3 (the row search's 6 sigma on the sum of
+#: four, halved) where a lone dot needs Rose's 5; in the horizon that is as if (5/3)^2 frames
+#: were stacked
+ROW_EQUIVALENT_STACK = (5.0 / 3.0) ** 2
+
+
 class _Exposures:
     """The frames a robot's camera takes: the ladder of (exposure_s, gain) settings, the short
     webcam frame first, and which long rung the robot's clock asks for."""
@@ -198,10 +210,11 @@ class _Exposures:
     def horizons(self, reach_m: float = AUTO_REACH_M) -> tuple[float, ...]:
         """The long rungs' visibility horizons (s) for a dot ``reach_m`` from the robot."""
         if reach_m not in self._horizons:
-            from sim_camera.camera import visibility_horizon_s
+            from sim_camera.camera import ROSE_SNR, visibility_horizon_s
 
+            eq = (ROSE_SNR / self.cfg.sizing_snr) ** 2  # as if that many more frames were stacked
             self._horizons[reach_m] = tuple(
-                visibility_horizon_s(self.cam, sensor=self._sensor(k), rho_m=reach_m, n_stack=self.stack(k))
+                visibility_horizon_s(self.cam, sensor=self._sensor(k), rho_m=reach_m, n_stack=eq * self.stack(k))
                 for k in range(1, len(self.ladder))
             )
         return self._horizons[reach_m]
@@ -233,12 +246,6 @@ class _Exposures:
         self.frames += 1
         self.long_frames += k > 0
         return self.ladder[k][0] * self.stack(k)
-
-
-#: ``--perception ideal``: a row of four dots is accepted at a mean dot SNR of 3 (the row search's
-#: 6 sigma on the sum of four, halved) where a lone dot needs Rose's 5; in the horizon that is
-#: as if (5/3)^2 frames were stacked
-ROW_EQUIVALENT_STACK = (5.0 / 3.0) ** 2
 
 
 class _Ideal(_Exposures):
@@ -308,12 +315,17 @@ class _Camera(_Exposures):
         self.lights = board.red_lights_m()
         self.rng = rng
         self.pipes: dict = {}
+        self.darks: dict = {}
         self.pipe = None  # the pipeline that read the last frame (for the recording)
 
     def _pipeline(self, k: int):
-        """The pipeline (and dark frame) of rung ``k``'s exposure and gain: stacked rungs share it."""
-        key = self.ladder[k][:2]
-        if key not in self.pipes:
+        """The pipeline of rung ``k``'s exposure and gain (stacked rungs share it), holding the
+        dark frame of rung ``k``: for a stack of n frames a master dark of 8n frames at the same
+        exposure (taken once, before the run, lens capped), so that its own noise stays well
+        below the stack's."""
+        e, g, _ = self.ladder[k]
+        n = self.stack(k)
+        if (e, g) not in self.pipes:
             from calibration.profiles import default_profile
             from stcvision.observation import ObservationParams
             from stcvision.pipeline import Pipeline, PipelineParams
@@ -323,24 +335,28 @@ class _Camera(_Exposures):
             obs = ObservationParams(pose_estimates=True)
             if k > 0:
                 obs = dataclasses.replace(obs, landmark_range_m=0.0)
-            pipe = Pipeline(default_profile(), PipelineParams(observation=obs))
-            pipe.set_dark(self.cam.median_dark(8, rng=self.rng, sensor=self._sensor(k)))
-            self.pipes[key] = pipe
-        return self.pipes[key]
+            self.pipes[(e, g)] = Pipeline(default_profile(), PipelineParams(observation=obs))
+        if (e, g, n) not in self.darks:
+            s = self._sensor(k)
+            self.darks[(e, g, n)] = (
+                self.cam.median_dark(8, rng=self.rng, sensor=s)
+                if n == 1
+                else self.cam.dark_frame(rng=self.rng, sensor=s, n_avg=8 * n)
+            )
+        pipe = self.pipes[(e, g)]
+        if pipe.dark is not self.darks[(e, g, n)]:
+            pipe.set_dark(self.darks[(e, g, n)])
+        return pipe
 
     def shoot(self, pose, t_s: float, phosphor, k: int = 0, *, heading_error_rad: float | None = None):
-        """Returns (pipeline result, capture seconds)."""
+        """Returns (pipeline result, capture seconds). A stacked rung is the average of its
+        frames (:meth:`sim_camera.camera.SyntheticCamera.render`, ``n_avg``)."""
         from sim_camera.camera import Pose
 
-        s = self._sensor(k)
-        p = Pose(*pose)
-        imgs = [
-            self.cam.render(
-                p, rng=self.rng, t_s=t_s + i * s.exposure_s, phosphor=phosphor, red_lights_m=self.lights, sensor=s
-            ).image
-            for i in range(self.stack(k))
-        ]
-        img = imgs[0] if len(imgs) == 1 else np.mean(np.stack(imgs), axis=0).round().astype(np.uint8)
+        img = self.cam.render(
+            Pose(*pose), rng=self.rng, t_s=t_s, phosphor=phosphor, red_lights_m=self.lights, sensor=self._sensor(k),
+            n_avg=self.stack(k),
+        ).image  # fmt: skip
         self.pipe = self._pipeline(k)
         res = self.pipe.process(img, heading_error_rad=heading_error_rad)
         return res, self.frame_s(k)
@@ -603,6 +619,19 @@ def run_cover(board, cfg: CoverConfig = CoverConfig(), *, recorder=None, on_end=
     while decisions < cfg.max_decisions:
         obs = None
         if state.phase is StcPhase.DECIDE and not state.closing:
+            if (
+                cfg.stop_out_of_sight
+                and sees is not None
+                and sees.controlled
+                and t > sees.horizons(cfg.decision_reach_m)[-1]
+            ):
+                # the robot knows its camera: past this clock even its longest frame may miss
+                # the marks it must read, and every decision from here on would be a guess
+                abort = (
+                    f"out of sight: at {t:.0f} s the marks may be older than the longest frame sees "
+                    f"{cfg.decision_reach_m:.2f} m away ({sees.horizons(cfg.decision_reach_m)[-1]:.0f} s)"
+                )
+                break
             decisions += 1
             o_obs = observe_oracle(floor, board, sub, hc, camera_view=True)
             if sees is not None:

@@ -249,8 +249,14 @@ class SyntheticCamera:
         sensor: SensorParams | None = None,
         board=None,
         truth: bool = False,
+        n_avg: int = 1,
     ) -> Frame:
         """Render one dark-room frame (phosphor dots + red lights) at sim time ``t_s``.
+
+        ``n_avg`` > 1 renders the average of that many frames taken back to back from ``t_s``
+        (frame stacking; :func:`sim_camera.sensor.expose`), the scene as it is at the middle of
+        the stack: the marks a long stack must read are hundreds of seconds old or more and fade
+        by a few per cent over it, and the fresh ones saturate in every frame anyway.
 
         Parameters
         ----------
@@ -268,8 +274,10 @@ class SyntheticCamera:
             Attach ground truth (slower: a few ms).
         """
         s = sensor or self.sensor
+        if n_avg > 1:
+            t_s = t_s + 0.5 * (n_avg - 1) * s.exposure_s
         sig, info = self.signal(pose, t_s=t_s, phosphor=phosphor, red_lights_m=red_lights_m, sensor=s)
-        image = expose(sig, s, self.pattern, rng)
+        image = expose(sig, s, self.pattern, rng, n_avg=n_avg)
         gt = None
         if truth:
             from sim_camera.truth import build_truth
@@ -277,11 +285,14 @@ class SyntheticCamera:
             gt = build_truth(self, pose, s, info, t_s=t_s, phosphor=phosphor, red_lights_m=red_lights_m, board=board)
         return Frame(image, gt)
 
-    def dark_frame(self, *, rng: np.random.Generator, sensor: SensorParams | None = None) -> np.ndarray:
-        """One frame with the lens capped (or the room dark and empty) at the given settings."""
+    def dark_frame(
+        self, *, rng: np.random.Generator, sensor: SensorParams | None = None, n_avg: int = 1
+    ) -> np.ndarray:
+        """One frame with the lens capped (or the room dark and empty) at the given settings;
+        with ``n_avg`` > 1 the average of that many (a master dark for stacked frames)."""
         s = sensor or self.sensor
         self._scratch.fill(0)
-        return expose(self._scratch, s, self.pattern, rng)
+        return expose(self._scratch, s, self.pattern, rng, n_avg=n_avg)
 
     def median_dark(self, n: int = 16, *, rng: np.random.Generator, sensor: SensorParams | None = None) -> np.ndarray:
         """The median of ``n`` dark frames at the given settings: what a user captures once

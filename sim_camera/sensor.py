@@ -190,8 +190,16 @@ def expose(
     s: SensorParams,
     pattern: FixedPattern,
     rng: np.random.Generator,
+    *,
+    n_avg: int = 1,
 ) -> np.ndarray:
     """Turn expected signal electrons into one noisy 8-bit BGR frame.
+
+    ``n_avg`` > 1: the average of that many frames of the same scene taken back to back (frame
+    stacking, or a master dark frame): the fixed pattern is the same in each, the shot and read
+    noise are independent, so the average is one frame whose temporal noise has ``1/n_avg`` of
+    the variance. It is quantised once (the average of ``n_avg`` 8-bit frames, rounded back to
+    8 bits, differs from it by a fraction of a DN of rounding noise).
 
     Parameters
     ----------
@@ -214,6 +222,10 @@ def expose(
     _, var0, mean0, dark_max = _dark_terms(s, pattern)
     fw = np.float32(s.full_well_e)
     np.add(e, var0, out=tmp)
+    if n_avg != 1:
+        if not (isinstance(n_avg, int | np.integer) and n_avg >= 1):
+            raise BadInputError(f"expose: n_avg must be a whole number of frames >= 1, got {n_avg!r}")
+        tmp *= np.float32(1.0 / n_avg)
     np.sqrt(tmp, out=tmp)
     idx = rng.integers(0, 65536, size=e.shape, dtype=np.uint16)
     np.take(_LUT, idx, out=noise)

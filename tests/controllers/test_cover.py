@@ -179,9 +179,10 @@ def test_exposure_rungs_follow_the_clock():
     assert cam.long_rung(0.0) == 1
     assert cam.long_rung(cam.horizons()[0] + 1) == 2
     assert cam.long_rung(1e9) == len(AUTO_LONG)
-    # beyond the 30 s frame, 30 s frames stacked: 2 and 4 of them
-    assert [cam.stack(k) for k in range(len(cam.ladder))][-3:] == [1, 2, 4]
-    assert cam.frame_s(len(AUTO_LONG)) == 120.0
+    # beyond the 30 s frame, 30 s frames stacked, from 2 to 64 of them
+    stacks = [cam.stack(k) for k in range(len(cam.ladder))]
+    assert stacks[5:7] == [1, 2] and stacks[-1] == 64 and all(np.diff(stacks[5:]) > 0)
+    assert cam.frame_s(len(AUTO_LONG)) == 64 * 30.0
     assert _Camera(board, CoverConfig(exposure="webcam"), np.random.default_rng(0)).long_rung(500.0) is None
 
 
@@ -240,18 +241,23 @@ def test_ideal_camera_bounds_what_any_pipeline_can_do():
         assert auto["long_exposures"] > 0 and auto["sim_time_s"] > web["first_decision_error"]["t_s"]
 
 
-def test_on_a_map_the_default_frames_outlast_the_marks(peer_data):
-    """spiral_stc_test.png with exposure control, by the physics-limited camera: a tour with the
-    frames the default policy takes lasts ~37,600 s of robot time (seen with every horizon
-    infinite), and the marks it must read by then are beyond what even 4 stacked 30 s frames
-    show (a row 0.27 m away: ~21,400 s): the first wrong decision comes at ~30,700 s."""
+def test_on_a_map_the_tour_outruns_its_marks_unless_frames_sit_at_the_row_threshold(peer_data):
+    """spiral_stc_test.png by the physics-limited camera. Each return to a cell reads marks as
+    old as the tour so far, so a longer tour needs longer frames, and a return's frame grows as
+    ~T^2.2 (the afterglow falls as t^-1.1, the noise as the square root of the exposure): the
+    tour either converges or runs away. Frames sized for a lone dot (Rose's SNR 5, the default)
+    run past the longest frame (64 x 30 s) at ~45,700 s: "out of sight", 456 of 1,024
+    sub-cells. Sized at exactly the row search's threshold (a row of four at a mean SNR of 3)
+    with the thriftiest reaches, the tour converges: complete in ~21,500 s. Ask for SNR 3.5
+    and it runs away again (979 sub-cells at ~67,000 s)."""
     board = Board.from_file(peer_data / "pythonrobotics_maps" / "spiral_stc_test.png")
-    ideal = run_cover(board, CoverConfig(perception="ideal", exposure="auto"))
-    unlimited = run_cover(board, CoverConfig(perception="ideal", exposure="auto", ideal_horizon_factor=float("inf")))
-    assert complete(unlimited) and unlimited["sim_time_s"] > 30_000
-    assert not complete(ideal)
-    first = ideal["first_decision_error"]["t_s"]
-    assert 20_000 < first < unlimited["sim_time_s"]
+    thrift = dict(perception="ideal", exposure="auto", consensus_frame=False, decision_reach_m=0.27, look_reach_m=0.33)
+    default = run_cover(board, CoverConfig(perception="ideal", exposure="auto"))
+    assert default["abort_reason"].startswith("out of sight") and default["subcells_covered"] < 600
+    edge = run_cover(board, CoverConfig(sizing_snr=3.0, **thrift))
+    assert complete(edge) and 18_000 < edge["sim_time_s"] < 26_000
+    margin = run_cover(board, CoverConfig(sizing_snr=3.5, **thrift))
+    assert margin["abort_reason"].startswith("out of sight") and margin["sim_time_s"] > 2.5 * edge["sim_time_s"]
 
 
 @pytest.mark.parametrize("seed", [0, 3])

@@ -11,6 +11,7 @@ from sim_camera.camera import ROSE_SNR, Pose, SyntheticCamera, visibility_horizo
 from sim_camera.phosphor import PhosphorLayer
 from sim_camera.scene import EXAMPLE_SCENE, Scene
 from sim_camera.sensor import SensorParams, expose
+from stcvision.errors import BadInputError
 
 
 def _rngs(n, seed=0):
@@ -62,6 +63,29 @@ def test_temporal_noise_of_a_uniform_signal(default_camera):
     expected = np.sqrt((S + dark + s.read_noise_e**2) * s.dn_per_e**2 + 1 / 12)
     ok = ~cam.pattern.hot
     assert np.median(std[ok]) == pytest.approx(np.median(expected[ok]), rel=0.05)
+
+
+def test_a_stack_rendered_at_once_matches_the_average_of_its_frames(default_camera):
+    """``n_avg``: the average of 8 frames of a uniform signal, rendered at once, has the mean and
+    the temporal spread of 8 frames rendered one by one and averaged (within the 10 % a
+    16-sample spread estimate allows), and 1/sqrt(8) of one frame's spread."""
+    cam = default_camera
+    s = cam.sensor.replace(exposure_s=30.0, gain=4.0, prnu_sigma=0.0)
+    S = 400.0
+    ok = ~cam.pattern.hot
+
+    def frame(r, n):
+        return expose(np.full((*cam.shape, 3), S, np.float32), s, cam.pattern, r, n_avg=n)[..., 1].astype(float)
+
+    at_once = np.stack([frame(r, 8) for r in _rngs(16, seed=7)])
+    by_hand = np.stack([np.mean([frame(q, 1) for q in _rngs(8, seed=100 + i)], 0) for i in range(16)])
+    single = np.stack([frame(r, 1) for r in _rngs(16, seed=9)])
+    sd_once, sd_hand = np.median(at_once.std(0, ddof=1)[ok]), np.median(by_hand.std(0, ddof=1)[ok])
+    assert sd_once == pytest.approx(sd_hand, rel=0.1)
+    assert sd_once == pytest.approx(np.median(single.std(0, ddof=1)[ok]) / np.sqrt(8), rel=0.1)
+    assert np.median(np.abs(at_once.mean(0) - by_hand.mean(0))[ok]) < 0.2
+    with pytest.raises(BadInputError, match="n_avg"):
+        expose(np.zeros((*cam.shape, 3), np.float32), s, cam.pattern, np.random.default_rng(0), n_avg=0)
 
 
 def test_red_light_leaks_into_green_by_the_configured_crosstalk(default_camera):
