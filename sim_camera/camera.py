@@ -285,9 +285,7 @@ class SyntheticCamera:
             gt = build_truth(self, pose, s, info, t_s=t_s, phosphor=phosphor, red_lights_m=red_lights_m, board=board)
         return Frame(image, gt)
 
-    def dark_frame(
-        self, *, rng: np.random.Generator, sensor: SensorParams | None = None, n_avg: int = 1
-    ) -> np.ndarray:
+    def dark_frame(self, *, rng: np.random.Generator, sensor: SensorParams | None = None, n_avg: int = 1) -> np.ndarray:
         """One frame with the lens capped (or the room dark and empty) at the given settings;
         with ``n_avg`` > 1 the average of that many (a master dark for stacked frames)."""
         s = sensor or self.sensor
