@@ -198,23 +198,25 @@ class SyntheticCamera:
         # veiling glare around them. Only sources that saturate are worth the wider patches.
         peak = core.max(axis=(1, 2)) * max(bgr)
         for k in np.flatnonzero(peak > s.full_well_e):
-            self._spill(view, iu[k], iv[k], core[k], total[k], bgr, s)
+            self._spill(out, iu[k], iv[k], core[k], total[k], bgr, s)
         return info
 
-    def _spill(self, view, u0, v0, core, total, bgr, s: SensorParams) -> None:
+    def _spill(self, out, u0, v0, core, total, bgr, s: SensorParams) -> None:
+        """Bloom (the excess over the full well) and glare around one saturating source, added
+        to ``out`` (H, W, 3) on the window of the kernels that falls inside the frame."""
         h, w = self.shape
         r = _GLARE_HALF
-        us, vs = np.arange(u0 - r, u0 + r + 1), np.arange(v0 - r, v0 + r + 1)
-        mu, mv = (us >= 0) & (us < w), (vs >= 0) & (vs < h)
-        flat = (vs[mv][:, None] * w + us[mu][None, :]).ravel()
-        kb = _BLOOM_KERNEL[np.ix_(mv, mu)].ravel()
-        kg = _GLARE_KERNEL[np.ix_(mv, mu)].ravel()
-        for ch in range(3):
-            if bgr[ch] <= 0:
-                continue
-            excess = np.maximum(core * bgr[ch] - s.full_well_e, 0.0).sum()
-            add = kb * (s.bloom_fraction * excess) + kg * (s.glare_fraction * total * bgr[ch])
-            view[flat, ch] += add.astype(np.float32)
+        v_lo, v_hi, u_lo, u_hi = max(v0 - r, 0), min(v0 + r + 1, h), max(u0 - r, 0), min(u0 + r + 1, w)
+        if v_lo >= v_hi or u_lo >= u_hi:
+            return
+        ks = (slice(v_lo - (v0 - r), v_hi - (v0 - r)), slice(u_lo - (u0 - r), u_hi - (u0 - r)))
+        kb, kg = _BLOOM_KERNEL[ks], _GLARE_KERNEL[ks]
+        c = np.asarray(bgr, float)
+        excess = np.maximum(core[None] * c[:, None, None] - s.full_well_e, 0.0).sum(axis=(1, 2))
+        a = np.where(c > 0, s.bloom_fraction * excess, 0.0)
+        b = s.glare_fraction * total * c
+        add = kb[..., None] * a + kg[..., None] * b
+        out[v_lo:v_hi, u_lo:u_hi] += add.astype(np.float32)
 
     # ------------------------------------------------------------------ public API
     def signal(
