@@ -262,10 +262,11 @@ def test_on_a_map_the_tour_outruns_its_marks_unless_frames_sit_at_the_row_thresh
 
 @pytest.mark.parametrize("seed", [0, 3])
 def test_camera_mode_covers_12x12_boards_with_exposure_control(seed):
-    """The largest boards of the sweep (docs/cover_sweep.py: 5 of 6 complete): 488 / 508
-    sub-cells from rendered frames, marks read up to ~2.5 h old (frames stacked to 4 x 30 s);
-    on each, frames the red lights showed to be over a degree askew were taken again (1 and 6
-    times; before that, seed 3 read a 4 degree askew cell wrongly at 6,990 s)."""
+    """The largest boards of the sweep (docs/cover_sweep.py: 5 of 6 complete; 14x14 is beyond
+    the physics at the Lego defaults): 488 / 508 sub-cells from rendered frames, marks read up
+    to ~2.5 h old (stacks of a few 30 s frames); on each, frames the red lights showed to be
+    over a degree askew were taken again (1 and 5 times in the sweep; before that existed,
+    seed 3 read a 4 degree askew cell wrongly at 6,990 s)."""
     board = Board.random((12, 12), obstacle_fraction=0.15, rng=np.random.default_rng(seed))
     r = run_cover(board, CoverConfig(perception="camera", exposure="auto", seed=seed))
     assert complete(r), {k: v for k, v in r.items() if k != "first_decision_error"}
