@@ -21,13 +21,14 @@ runs it on a board with honest time and honest marks:
 * **Exposure**: ``webcam`` (1/30 s, gain 16: the seed's camera), a fixed ``exposure_s``, or
   ``auto``: every observation takes a short webcam frame (red lights without bloom, fresh marks,
   the pose) and, where old marks may matter (returns to a parent, the looks), a long one whose
-  length follows the robot's clock (:data:`AUTO_LONG`: 2-30 s at gain 4, then two and four 30 s
+  length follows the robot's clock (:data:`AUTO_LONG`: 2-30 s at gain 4, then 2 to 64 30 s
   frames stacked: the issue's "frame stacking"), sized for what the frame must read
-  (``CoverConfig.decision_reach_m``, ``look_reach_m``); a mark counts if either frame sees it
-  -- the seed's proposal, "a camera with a fully controlled integration time". After each turn
-  a 2 s frame gives the lean of all rows (the heading consensus). Dark frames are taken once per
-  setting, at the matching exposure. A decision or look whose frames the red lights show were
-  taken more than a degree askew is observed again.
+  (``CoverConfig.decision_reach_m``, ``look_reach_m``, ``sizing_snr``); a mark counts if either
+  frame sees it -- the seed's proposal, "a camera with a fully controlled integration time".
+  After each turn a 2 s frame gives the lean of all rows (the heading consensus). Dark frames
+  are taken once per setting, at the matching exposure (a master dark of 8n frames for a stack
+  of n). A decision or look whose frames the red lights show were taken more than a degree
+  askew is observed again. Past the longest frame's horizon the robot stops ("out of sight").
 * **Perception** ``ideal``: the physics-limited camera (:class:`_Ideal`), the same frames and
   time, but it sees exactly the marks within the frames' visibility horizon.
 * **Looks**: before entering a child the robot looks at it from the sub-cell next to it
