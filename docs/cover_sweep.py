@@ -14,6 +14,7 @@ from __future__ import annotations
 import argparse
 import json
 import statistics
+import sys
 from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
@@ -43,8 +44,16 @@ def main() -> None:
     kinds = (("webcam", "camera"), ("auto", "camera"), ("auto", "ideal"))
     # the longest runs first, so the pool is not left waiting on one at the end
     tasks = [(n, s, e, p) for n in sorted(sizes, reverse=True) for e, p in kinds for s in range(args.runs)]
+    runs = []
     with ProcessPoolExecutor(args.workers) as ex:
-        runs = list(ex.map(one_run, tasks))
+        for r in ex.map(one_run, tasks):  # progress on stderr: the large boards take minutes each
+            runs.append(r)
+            print(
+                f"[{len(runs)}/{len(tasks)}] {r['cells']}x{r['cells']} seed {r['seed']} {r['exposure']} "
+                f"{r['perception']}: {'complete' if r['complete'] else r['abort_reason'] or 'incomplete'}",
+                file=sys.stderr,
+                flush=True,
+            )
     if args.json:
         for r in runs:
             print(json.dumps(r, default=str))
