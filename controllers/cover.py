@@ -234,6 +234,21 @@ class _Exposures:
         hs = self.horizons(reach_m)
         return 1 + next((k for k, h in enumerate(hs) if h >= t_s), len(hs) - 1)
 
+    def out_of_sight(self, t_s: float) -> str | None:
+        """Why the robot stops at clock ``t_s``, or None: with exposure control it knows its
+        camera, and once the clock is past the longest frame's horizon at the decision's reach
+        even that frame may miss the marks it must read: every decision would be a guess."""
+        if not self.controlled:
+            return None
+        reach = self.cfg.decision_reach_m
+        limit = self.horizons(reach)[-1]
+        if t_s <= limit:
+            return None
+        return (
+            f"out of sight: at {t_s:.0f} s the marks may be older than the longest frame sees "
+            f"{reach:.2f} m away ({limit:.0f} s)"
+        )
+
     def _sensor(self, k: int):
         e, g, _ = self.ladder[k]
         return self.cam.sensor.replace(exposure_s=e, gain=g)
@@ -620,18 +635,8 @@ def run_cover(board, cfg: CoverConfig = CoverConfig(), *, recorder=None, on_end=
     while decisions < cfg.max_decisions:
         obs = None
         if state.phase is StcPhase.DECIDE and not state.closing:
-            if (
-                cfg.stop_out_of_sight
-                and sees is not None
-                and sees.controlled
-                and t > sees.horizons(cfg.decision_reach_m)[-1]
-            ):
-                # the robot knows its camera: past this clock even its longest frame may miss
-                # the marks it must read, and every decision from here on would be a guess
-                abort = (
-                    f"out of sight: at {t:.0f} s the marks may be older than the longest frame sees "
-                    f"{cfg.decision_reach_m:.2f} m away ({sees.horizons(cfg.decision_reach_m)[-1]:.0f} s)"
-                )
+            abort = sees.out_of_sight(t) if cfg.stop_out_of_sight and sees is not None else None
+            if abort is not None:
                 break
             decisions += 1
             o_obs = observe_oracle(floor, board, sub, hc, camera_view=True)

@@ -108,12 +108,13 @@ def light_sigma_m(d_m) -> tuple[np.ndarray, np.ndarray]:
     return 0.0015 + 0.015 * d**3, np.full_like(d, 0.0015)
 
 
-def _landmark_fit(obs_p: np.ndarray, exp_p: np.ndarray, rob: np.ndarray, subcell_m: float):
-    """Weighted least squares of ``exp = R(-th) (obs - rob) + rob + offset`` (cell units) for
-    lights seen at ``obs_p`` that stand at ``exp_p``, each weighted by its error ellipse
-    (:func:`light_sigma_m`). Returns (th, offset, sigma of th, sigma of the offset: the larger
-    axis of its ellipse) or None if the lights do not fix all three."""
-    v = obs_p - rob
+def _landmark_fit(obs_p: np.ndarray, exp_p: np.ndarray, subcell_m: float):
+    """Weighted least squares of ``exp = R(-th) (obs - robot) + robot + offset`` (cell units,
+    rotation about the robot as :func:`_rotate`) for lights seen at ``obs_p`` that stand at
+    ``exp_p``, each weighted by its error ellipse (:func:`light_sigma_m`). Returns (th, offset,
+    sigma of th, sigma of the offset: the larger axis of its ellipse) or None if the lights do
+    not fix all three."""
+    v = obs_p - ROBOT_IN_CELL
     dist = np.hypot(*v.T)
     u = v / np.maximum(dist, 1e-9)[:, None]
     sr, st = light_sigma_m(dist * subcell_m)
@@ -122,9 +123,8 @@ def _landmark_fit(obs_p: np.ndarray, exp_p: np.ndarray, rob: np.ndarray, subcell
     w = uu / (sr**2)[:, None, None] + (np.eye(2) - uu) / (st**2)[:, None, None]  # inverse covariances
     th, off = 0.0, np.zeros(2)
     for _ in range(2):  # once linearised about 0, once about the first answer
-        c, s_ = math.cos(-th), math.sin(-th)
-        rv = np.column_stack([c * v[:, 0] - s_ * v[:, 1], s_ * v[:, 0] + c * v[:, 1]])
-        r = exp_p - (rv + rob + off)
+        rv = _rotate(obs_p, -th) - ROBOT_IN_CELL
+        r = exp_p - (rv + ROBOT_IN_CELL + off)
         a = np.zeros((len(v), 2, 3))
         a[:, 0, 0], a[:, 1, 0] = rv[:, 1], -rv[:, 0]  # d/d(th) of R(-th) v
         a[:, :, 1:] = np.eye(2)
@@ -472,7 +472,7 @@ def observe_cell(
         # in the small rotation ``th`` and weighted by each light's error ellipse (its bearing is
         # much surer than its range: :func:`light_sigma_m`)
         if len(np.unique(np.round(exp_p / 2.0), axis=0)) >= 2:
-            fit = _landmark_fit(obs_p, exp_p, np.asarray(ROBOT_IN_CELL), subcell_m or _SUBCELL_M)
+            fit = _landmark_fit(obs_p, exp_p, subcell_m or _SUBCELL_M)
             if fit is not None:
                 th, off, sig_th, off_sig = fit
                 landmark_sig = sig_th
