@@ -27,8 +27,8 @@ reaches it stops "1.5cm away from the can", as the seed reports.
 
 Tongue: the chemical layer's concentration at the turning centre (TASTI 2 moved its tongue
 there, seed 001 sec. IV) plus Gaussian noise. Pheromone detector: binary reading of the pheromone
-layer at the body centre (seed 000 sec. 3), with :class:`LeakyIntegrator` implementing the
-paper's leaky integrator + threshold crossing counter (sec. 4; constants assumed).
+layer at the body centre (seed 000 sec. 3); the robot's leaky integrator and crossing counter
+(sec. 4) are the Buffon controller's, in :mod:`controllers.buffon.counter`.
 """
 
 from __future__ import annotations
@@ -43,7 +43,6 @@ __all__ = [
     "CapacitiveRingParams",
     "IrParams",
     "IrSensors",
-    "LeakyIntegrator",
     "PheromoneDetector",
     "SensorSuite",
     "TongueSensor",
@@ -205,36 +204,6 @@ class PheromoneDetector:
             return False
         p = self.robot.body.position
         return layer.read_xy(p.x, p.y)
-
-
-@dataclass(kw_only=True, slots=True)
-class LeakyIntegrator:
-    """The Buffon paper's filter (seed 000 sec. 4): "The output of the pheromone sensor (a binary
-    value) is first filtered by a leaky integrator ... and then thresholded".
-
-    level <- level + rate * (x - level); a *crossing* is counted when the level rises through
-    ``threshold`` (and it must fall below ``threshold - hysteresis`` before the next one).
-    The constants are not in the paper; rate 0.3 per step and threshold 0.5 suppress one-pixel
-    artefacts of the rasterised trail while a real crossing (several steps on the trail) counts.
-    """
-
-    rate: float = 0.3
-    threshold: float = 0.5
-    hysteresis: float = 0.2
-    level: float = 0.0
-    above: bool = False
-    crossings: int = 0
-
-    def update(self, x: float | bool) -> bool:
-        """Feed one reading; return True if this step completed a new crossing."""
-        self.level += self.rate * (float(x) - self.level)
-        if not self.above and self.level >= self.threshold:
-            self.above = True
-            self.crossings += 1
-            return True
-        if self.above and self.level < self.threshold - self.hysteresis:
-            self.above = False
-        return False
 
 
 class SensorSuite:

@@ -71,7 +71,7 @@ def run(args) -> dict:
     import math
     from pathlib import Path
 
-    from controllers.explorer import Explorer
+    from controllers.buffon import Explorer
     from sim_camera.draw import draw_world
     from sim_camera.robot import KHEPERA
     from stcvision.fileio import write_image

@@ -6,7 +6,7 @@ import math
 import numpy as np
 import pytest
 
-from controllers.explorer import Explorer
+from controllers.buffon import Explorer
 from sim_camera.arenas import CircleArena
 from sim_camera.batch import PointRobotBatch
 from sim_camera.draw import draw_world, world_to_px

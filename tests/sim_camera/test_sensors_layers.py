@@ -13,11 +13,12 @@ from sim_camera.sensors import (
     CapacitiveRingParams,
     IrParams,
     IrSensors,
-    LeakyIntegrator,
     capacitive_signal_for_can,
     ir_response,
 )
 from sim_camera.world import World
+
+from controllers.buffon.counter import LeakyIntegrator
 
 
 def test_ir_response_curve():

@@ -1,0 +1,324 @@
+"""Buffon's method on many robots at once: the fast Monte-Carlo path (numba).
+
+Each trial is one robot making the two visits of sec. 4 (seed ``000_65e7c97ffd15e972.txt``):
+both start at the central bottom of the nest, heading away from the bottom wall within +-15
+degrees (sec. 3.1); the first lays a pheromone trail of width w, the second reads it with the
+binary detector at its centre, filters it (:mod:`controllers.buffon.counter`) and counts the
+crossings. The trials of an experiment are independent worlds, so robots never meet.
+
+One step of one robot, in the order of the pymunk path (:mod:`controllers.buffon.pymunk_path`):
+
+1. six IR ray casts from the rim (:func:`sim_camera.fastworld.ray_cast`), the Khepera response
+   :func:`sim_camera.sensors.ir_response` plus Gaussian noise, clipped to [0, 1];
+2. the behaviour of sec. 3.2 (:func:`controllers.buffon.behaviour.explorer_core`, the same source
+   as the scalar controller) gives the wheel speeds;
+3. the wheels move the body as :class:`sim_camera.robot.DiffDriveRobot` does (true wheel
+   diameters and wheelbase, motor gain, slip noise ``slip_k * sqrt(|d|)`` per wheel), with the
+   heading at the step's midpoint;
+4. frictionless contact (:func:`sim_camera.fastworld.push_out`);
+5. visit 1 marks the trail along the step; visit 2 reads the cell under the centre and counts.
+
+Randomness: trial i has its own stream ``SeedSequence(seed).spawn(...)[i]``, split into four
+components (start heading, behaviour draws, IR noise, wheel slip), so a trial's counts do not
+depend on how many trials run beside it, on the chunk size, or on the worker that runs it.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numba
+import numpy as np
+
+from controllers.buffon.behaviour import ExplorerParams, explorer_core_nb, wheel_speeds_nb
+from controllers.buffon.counter import CounterParams, integrate_nb
+from controllers.buffon.nests import BODY_LENGTH_M, Nest
+from sim_camera.fastworld import StaticGeometry, cell_span, deposit_segment, inside_polygon, push_out, ray_cast, read_cell
+from sim_camera.robot import KHEPERA, DiffDriveParams
+from sim_camera.sensors import IrParams
+from stcvision.errors import BadInputError
+
+__all__ = ["TrialSet", "VisitConfig", "run_trials", "start_headings", "start_pose", "trial_seeds"]
+
+N_DRAWS = 10  # per robot-step: u_n, u_nbar, 6 IR noise, 2 wheel slip
+START_HEADING_SPREAD_RAD = math.radians(15)  # sec. 3.1: "varied within +-15 degrees of the wall"
+START_CLEARANCE_BODY_LENGTHS = 1.0  # the start's centre is one body length above the bottom wall
+GRID_BUDGET_BYTES = 512 * 2**20  # trail rasters held at once
+MAX_TRAIL_CELLS = 64_000_000
+
+
+@dataclass(frozen=True, kw_only=True, slots=True)
+class VisitConfig:
+    """Everything a trial needs besides the nest and its seed.
+
+    visit_steps : steps of each visit (sec. 4: 50,000).
+    trail_width_u : pheromone trail width in body lengths (sec. 4: 0.1).
+    dt_s : world step (the pymunk world's default, 0.05 s).
+    """
+
+    visit_steps: int = 50_000
+    trail_width_u: float = 0.1
+    dt_s: float = 0.05
+    robot: DiffDriveParams = KHEPERA
+    ir: IrParams = IrParams()
+    behaviour: ExplorerParams = ExplorerParams()
+    counter: CounterParams = CounterParams()
+
+    def __post_init__(self):
+        if not (isinstance(self.visit_steps, int) and self.visit_steps > 0):
+            raise BadInputError(f"visit steps must be a positive integer; got {self.visit_steps!r}")
+        if not (math.isfinite(self.trail_width_u) and self.trail_width_u > 0):
+            raise BadInputError(f"trail width must be a positive number of body lengths; got {self.trail_width_u!r}")
+
+    @property
+    def trail_width_m(self) -> float:
+        return self.trail_width_u * BODY_LENGTH_M
+
+    def kernel_params(self) -> np.ndarray:
+        """The constants the kernel reads, in :data:`_P` order."""
+        rb, ir, b, c = self.robot, self.ir, self.behaviour, self.counter
+        from sim_camera.odometry import true_wheel_diameters_m
+
+        dl, dr = true_wheel_diameters_m(rb.wheel_diameter_m, rb.ed)
+        vals = {
+            "dt": self.dt_s, "gamma": b.gamma, "front_thr": b.front_sum_threshold, "side_thr": b.side_threshold,
+            "speed_scale": b.speed_scale_m_s, "noise": b.noise, "esc_min": b.escape_min, "esc_max": b.escape_max,
+            "vmax": rb.max_wheel_speed_m_s, "radius": rb.radius_m, "b_true": rb.wheelbase_m * rb.eb,
+            "dl_ratio": dl / rb.wheel_diameter_m, "dr_ratio": dr / rb.wheel_diameter_m, "slip_k": rb.slip_k,
+            "ir_sat": ir.saturation_m, "ir_range": ir.range_m, "ir_sigma": ir.noise_sigma,
+            "rate": c.rate, "thr": c.threshold, "hyst": c.hysteresis, "half_w": 0.5 * self.trail_width_m,
+        }  # fmt: skip
+        return np.array([vals[k] for k in _P], dtype=np.float64)
+
+
+_P = (
+    "dt", "gamma", "front_thr", "side_thr", "speed_scale", "noise", "esc_min", "esc_max", "vmax", "radius",
+    "b_true", "dl_ratio", "dr_ratio", "slip_k", "ir_sat", "ir_range", "ir_sigma", "rate", "thr", "hyst", "half_w",
+)  # fmt: skip
+_I = {k: i for i, k in enumerate(_P)}
+# state columns
+X, Y, TH, R, WL, WR, LEVEL, PLEN, ABOVE, GAIN, BLIND = range(11)
+N_STATE = 11
+
+
+@numba.njit(cache=True, nogil=True)
+def _ir_reading(d, sat, rng_m, noise):
+    v = 0.0
+    if d < rng_m:
+        v = min(1.0, max(0.0, (rng_m - d) / (rng_m - sat))) ** 2
+    return min(1.0, max(0.0, v + noise))
+
+
+@numba.njit(cache=True, nogil=True)
+def _chunk(st, crossings, draws, grids, lay, geo, outer, trail, prm, ir_ang, rec):
+    """Advance every robot of ``st`` (N, N_STATE) by ``draws.shape[1]`` steps. ``grids`` (N, H, W)
+    uint8 trail rasters; ``lay``: visit 1 (lay) or 2 (sense); ``rec`` (R, S, 3): x, y, crossed for
+    the first R robots. Returns the number of containment failures (must stay 0)."""
+    caps, ox, oy, cell, ny, nx, offsets, index = geo
+    gox, goy, gcell = trail
+    dt, gamma, front_thr, side_thr, k = prm[0], prm[1], prm[2], prm[3], prm[4]
+    noise, esc_min, esc_max, vmax, radius = prm[5], prm[6], prm[7], prm[8], prm[9]
+    b_true, dl_ratio, dr_ratio, slip_k = prm[10], prm[11], prm[12], prm[13]
+    ir_sat, ir_range, ir_sigma = prm[14], prm[15], prm[16]
+    rate, thr, hyst, half_w = prm[17], prm[18], prm[19], prm[20]
+    n_ir = ir_ang.shape[0]
+    ir_cos, ir_sin = np.cos(ir_ang), np.sin(ir_ang)
+    ir = np.empty(6)
+    escapes = 0
+    for j in range(st.shape[0]):
+        x, y, th = st[j, 0], st[j, 1], st[j, 2]
+        r, wl, wr, level, plen = st[j, 3], st[j, 4], st[j, 5], st[j, 6], st[j, 7]
+        above = st[j, 8] > 0.5
+        gain = st[j, 9]
+        blind = st[j, 10]
+        grid = grids[j]
+        for s in range(draws.shape[1]):
+            dj = draws[j, s]
+            lo, hi = cell_span(x, y, ox, oy, cell, ny, nx, offsets)
+            if lo == hi:  # no solid within reach: the readings are noise around 0
+                for q in range(n_ir):
+                    ir[q] = _ir_reading(np.inf, ir_sat, ir_range, ir_sigma * dj[2 + q])
+            else:
+                ct, st_ = math.cos(th), math.sin(th)
+                for q in range(n_ir):
+                    c = ct * ir_cos[q] - st_ * ir_sin[q]
+                    sn = st_ * ir_cos[q] + ct * ir_sin[q]
+                    d = ray_cast(caps, ox, oy, cell, ny, nx, offsets, index, x, y,
+                                 x + radius * c, y + radius * sn, c, sn, ir_range)  # fmt: skip
+                    ir[q] = _ir_reading(d, ir_sat, ir_range, ir_sigma * dj[2 + q])
+            n = -noise + 2.0 * noise * dj[0]
+            nbar = esc_min + (esc_max - esc_min) * dj[1]
+            r, wl, wr, rbar = explorer_core_nb(r, wl, wr, ir[0], ir[1], ir[2], ir[3], ir[4], ir[5],
+                                               n, nbar, gamma, front_thr, side_thr)  # fmt: skip
+            ml, mr = wheel_speeds_nb(rbar, k)
+            ml = min(vmax, max(-vmax, ml))
+            mr = min(vmax, max(-vmax, mr))
+            dl = ml * dt * gain * dl_ratio
+            dr = mr * dt * gain * dr_ratio
+            if slip_k > 0.0:
+                dl += slip_k * math.sqrt(abs(dl)) * dj[8]
+                dr += slip_k * math.sqrt(abs(dr)) * dj[9]
+            v = 0.5 * (dl + dr)
+            dth = (dr - dl) / b_true
+            mid = th + 0.5 * dth
+            nx_, ny_, _ = push_out(caps, ox, oy, cell, ny, nx, offsets, index,
+                                   x + v * math.cos(mid), y + v * math.sin(mid), radius)  # fmt: skip
+            th += dth
+            plen += math.hypot(nx_ - x, ny_ - y)
+            crossed = False
+            if lay:
+                deposit_segment(grid, gox, goy, gcell, half_w, x, y, nx_, ny_)
+            x, y = nx_, ny_
+            if not lay:
+                level, above, crossed = integrate_nb(level, above, float(read_cell(grid, gox, goy, gcell, x, y)),
+                                                     rate, thr, hyst)  # fmt: skip
+                if crossed:
+                    crossings[j] += 1
+                if above:
+                    blind += 1.0
+            if (s & 15) == 0 and not inside_polygon(outer, x, y):
+                escapes += 1
+            if j < rec.shape[0]:
+                rec[j, s, 0] = x
+                rec[j, s, 1] = y
+                rec[j, s, 2] = 1.0 if crossed else 0.0
+        st[j, 0], st[j, 1], st[j, 2] = x, y, th
+        st[j, 3], st[j, 4], st[j, 5], st[j, 6], st[j, 7] = r, wl, wr, level, plen
+        st[j, 8] = 1.0 if above else 0.0
+        st[j, 10] = blind
+    return escapes
+
+
+@dataclass(frozen=True, slots=True)
+class TrialSet:
+    """Per-trial results (lengths in body lengths)."""
+
+    l1_u: np.ndarray
+    l2_u: np.ndarray
+    crossings: np.ndarray
+    blind_fraction: np.ndarray  # share of the second visit's steps spent counted-in (the counter is blind)
+    escapes: int
+    robot_steps: int
+    wall_s: float
+    trails: dict = field(default_factory=dict)  # recorded trial: 'visit1', 'visit2' (S, 3) arrays
+
+    @property
+    def nbc(self) -> np.ndarray:
+        """Normalised Buffon count (sec. 4): crossings / second-visit length (per body length)."""
+        return self.crossings / self.l2_u
+
+
+def start_pose(nest: Nest, robot: DiffDriveParams = KHEPERA) -> tuple[float, float]:
+    """The central bottom of the nest (sec. 3.1), one body length above the wall."""
+    x, y, _ = nest.arena.start_pose(START_CLEARANCE_BODY_LENGTHS * BODY_LENGTH_M)
+    return x, y
+
+
+def _trail_grid_shape(nest: Nest, cell_m: float) -> tuple[int, int]:
+    xmin, ymin, xmax, ymax = nest.arena.bounds_m
+    shape = (math.ceil((ymax - ymin) / cell_m) + 1, math.ceil((xmax - xmin) / cell_m) + 1)
+    if shape[0] * shape[1] > MAX_TRAIL_CELLS:
+        raise BadInputError(
+            f"nest {nest.spec!r} with a {cell_m / BODY_LENGTH_M * 2:g} u trail needs a {shape[0]}x{shape[1]} raster; "
+            "use a wider trail or a smaller nest"
+        )
+    return shape
+
+
+def trial_seeds(seed: int | np.random.SeedSequence, trials: int) -> list[list[np.random.SeedSequence]]:
+    """Per trial, four seed streams: start heading, behaviour draws, IR noise, wheel slip.
+    Trial i's streams depend only on ``seed`` and i, never on how many trials run."""
+    root = seed if isinstance(seed, np.random.SeedSequence) else np.random.SeedSequence(seed)
+    kids = [np.random.SeedSequence(root.entropy, spawn_key=(*root.spawn_key, i)) for i in range(trials)]
+    return [k.spawn(4) for k in kids]
+
+
+def start_headings(start_rng: np.random.Generator) -> tuple[float, float]:
+    """The two visits' start headings: away from the bottom wall within +-15 degrees."""
+    return tuple(math.pi / 2 + start_rng.uniform(-START_HEADING_SPREAD_RAD, START_HEADING_SPREAD_RAD, 2))
+
+
+def run_trials(
+    nest: Nest,
+    config: VisitConfig = VisitConfig(),
+    *,
+    trials: int = 100,
+    seed: int | np.random.SeedSequence = 0,
+    chunk_steps: int = 4096,
+    record_trial: int | None = None,
+    progress: Callable[[int], None] | None = None,
+) -> TrialSet:
+    """Run ``trials`` independent two-visit trials of Buffon's method in ``nest``.
+
+    ``progress(n)`` is called with the robot-steps done after each chunk (for a progress bar).
+    ``record_trial`` keeps that trial's two paths (x, y, crossed per step) in ``TrialSet.trails``.
+    """
+    if not (isinstance(trials, int) and trials > 0):
+        raise BadInputError(f"trials must be a positive integer; got {trials!r}")
+    t0 = time.perf_counter()
+    rb = config.robot
+    geo = StaticGeometry.from_arena(nest.arena, reach_m=rb.radius_m + config.ir.range_m + 0.005)
+    cell = 0.5 * config.trail_width_m  # as sim_camera.layers.PheromoneLayer
+    gshape = _trail_grid_shape(nest, cell)
+    xmin, ymin = nest.arena.bounds_m[:2]
+    trail = (xmin, ymin, cell)
+    group = int(max(1, min(trials, GRID_BUDGET_BYTES // (gshape[0] * gshape[1]))))
+    prm = config.kernel_params()
+    ir_ang = np.array(config.ir.angles_rad, dtype=np.float64)
+    sx, sy = start_pose(nest, rb)
+    streams = [[np.random.default_rng(s) for s in ss] for ss in trial_seeds(seed, trials)]
+    gains = np.array([_motor_gain(rb, s[0]) for s in streams])
+    headings = np.array([start_headings(s[0]) for s in streams])
+    l1 = np.zeros(trials)
+    l2 = np.zeros(trials)
+    crossings = np.zeros(trials, dtype=np.int64)
+    blind = np.zeros(trials)
+    escapes = 0
+    trails: dict = {}
+    grids = np.zeros((group, *gshape), dtype=np.uint8)
+    for g0 in range(0, trials, group):
+        idx = np.arange(g0, min(trials, g0 + group))
+        grids[: len(idx)] = 0
+        rec_row = None if record_trial is None or record_trial not in idx else int(record_trial - g0)
+        for visit, lay in ((1, True), (2, False)):
+            st = np.zeros((len(idx), N_STATE))
+            st[:, X], st[:, Y], st[:, GAIN] = sx, sy, gains[idx]
+            st[:, TH] = headings[idx, visit - 1]
+            cx = crossings[idx].copy()
+            recorded = []
+            for s0 in range(0, config.visit_steps, chunk_steps):
+                n = min(chunk_steps, config.visit_steps - s0)
+                draws = _draws(streams, idx, n)
+                rec = np.zeros((0 if rec_row is None else rec_row + 1, n, 3))
+                escapes += _chunk(st, cx, draws, grids, lay, geo.arrays, geo.outer, trail, prm, ir_ang, rec)
+                if rec_row is not None:
+                    recorded.append(rec[rec_row].copy())
+                if progress is not None:
+                    progress(n * len(idx))
+            (l1 if lay else l2)[idx] = st[:, PLEN] / BODY_LENGTH_M
+            if not lay:
+                crossings[idx] = cx
+                blind[idx] = st[:, BLIND] / config.visit_steps
+            if rec_row is not None:
+                trails[f"visit{visit}"] = np.concatenate(recorded)
+    steps = 2 * trials * config.visit_steps
+    return TrialSet(l1, l2, crossings, blind, int(escapes), steps, time.perf_counter() - t0, trails)
+
+
+def _motor_gain(rb: DiffDriveParams, rng: np.random.Generator) -> float:
+    s = rb.speed_gain_spread
+    return float(rng.uniform(1 - s, 1 + s)) if s > 0 else 1.0
+
+
+def _draws(streams, idx, n: int) -> np.ndarray:
+    d = np.empty((len(idx), n, N_DRAWS))
+    for row, i in enumerate(idx):
+        _, beh, ir, slip = streams[i]
+        d[row, :, 0:2] = beh.random((n, 2))
+        d[row, :, 2:8] = ir.standard_normal((n, 6))
+        d[row, :, 8:10] = slip.standard_normal((n, 2))
+    return d
+

@@ -1,0 +1,245 @@
+"""The Buffon explorer's runs, as the CLI calls them: measure one nest, reproduce the paper,
+compare the batched path with the pymunk one, recompute the wall correction.
+
+Each returns a JSON-serialisable dict. Progress bars (tqdm) and files are here, around the
+simulation; nothing in the simulation prints, plots or logs.
+"""
+
+from __future__ import annotations
+
+import io
+import math
+import time
+from pathlib import Path
+
+import numpy as np
+
+from controllers.buffon.batched import VisitConfig, run_trials
+from controllers.buffon.estimate import (
+    AREA_VISIT_STEPS,
+    WALL_CORRECTION,
+    WALL_CORRECTION_REFERENCE,
+    calibrate_wall_correction,
+    summarise,
+)
+from controllers.buffon.experiments import PAPER_VISIT_STEPS, experiment_cases
+from controllers.buffon.nests import BODY_LENGTH_M, parse_nest
+from stcvision.errors import BadInputError, FileExistsRefusedError
+from stcvision.fileio import write_bytes_atomic
+
+__all__ = ["calibrate", "compare", "format_text", "measure", "reproduce"]
+
+STORE_NAME = "sweep.jsonl"
+
+
+def _bar(total: int, desc: str):
+    from tqdm import tqdm
+
+    return tqdm(total=total, desc=desc, unit="step", unit_scale=True, disable=None, leave=False)
+
+
+def measure(nest_spec: str, barrier: str | None = None, *, trials: int = 100, visit_steps: int = AREA_VISIT_STEPS,
+            trail_width_u: float = 0.1, seed: int = 0, rrd: str | None = None, force: bool = False) -> dict:  # fmt: skip
+    """Run ``trials`` trials in one nest; the nest's nBC and area figures."""
+    nest = parse_nest(nest_spec, barrier)
+    config = VisitConfig(visit_steps=visit_steps, trail_width_u=trail_width_u)
+    if seed < 0:
+        raise BadInputError(f"--seed must be >= 0; got {seed}")
+    if rrd is not None and Path(rrd).exists() and not force:
+        raise FileExistsRefusedError(f"{rrd} exists; refusing to overwrite it (use --force)")
+    with _bar(2 * trials * visit_steps, f"buffon {nest.label}") as bar:
+        ts = run_trials(nest, config, trials=trials, seed=seed, record_trial=0 if rrd else None, progress=bar.update)
+    out = {"nest": nest.spec, "barrier": nest.barrier, "visit_steps": visit_steps, "trail_width_u": trail_width_u,
+           "seed": seed, **summarise(ts, nest.area_u2),
+           "robot_steps": ts.robot_steps, "robot_steps_per_s": ts.robot_steps / ts.wall_s, "wall_s": ts.wall_s}  # fmt: skip
+    if rrd:
+        from controllers.buffon.rr import record_trial
+
+        record_trial(rrd, nest, ts.trails["visit1"], ts.trails["visit2"])
+        out["rrd"] = str(rrd)
+    return out
+
+
+def format_text(r: dict) -> str:
+    if "claims" in r:
+        return r["summary_text"]
+    if "paths" in r:
+        return "\n".join(f"{k}: {v}" for k, v in r.items() if k != "paths")
+    if "wall_correction_measured" in r:
+        return (f"wall correction on {r['reference']}: measured {r['wall_correction_measured']:.3f}, "
+                f"95 % interval {r['ci95']}, shipped {r['wall_correction_shipped']:.3f}")  # fmt: skip
+    ci = r["area_ci95"] or [float("nan")] * 2
+    lines = [
+        f"nest {r['nest']}{' ' + r['barrier'] if r['barrier'] else ''}: true area {r['area_true']:,.1f} u^2",
+        f"nBC median {r['nbc_median']:.4f} (IQR {r['nbc_q1']:.4f}-{r['nbc_q3']:.4f}) over {r['trials']} trials; "
+        f"crossings median {r['crossings_median']:.0f}",
+        f"area estimate median {_num(r['area_estimate_median'])} u^2, 95 % CI {_num(ci[0])}-{_num(ci[1])}; "
+        f"median |error| {_pct(r['area_rel_error_median'])} (raw formula {_pct(r['area_raw_rel_error_median'])})",
+        f"{r['robot_steps']:,} robot-steps in {r['wall_s']:.1f} s ({r['robot_steps_per_s']:,.0f}/s)",
+    ]
+    return "\n".join(lines)
+
+
+def _num(x) -> str:
+    return "inf" if x is None else f"{x:,.1f}"
+
+
+def _pct(x) -> str:
+    return "n/a" if x is None else f"{x:.1%}"
+
+
+# ----------------------------------------------------------------------------- output folder
+def _out_dir(out: str | Path, force: bool, names: tuple[str, ...]) -> Path:
+    """The output folder: new, empty, one of our runs (it holds our store), or --force."""
+    out = Path(out)
+    if out.exists() and not out.is_dir():
+        raise BadInputError(f"--out {out} is a file; expected a folder")
+    ours = (out / STORE_NAME).exists()
+    clash = [n for n in names if (out / n).exists()]
+    if clash and not ours and not force:
+        raise FileExistsRefusedError(f"{out / clash[0]} exists and {out} holds no Buffon run; use --force")
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as e:
+        raise BadInputError(f"cannot create --out {out}: {e.strerror}") from None
+    return out
+
+
+def _save_fig(path: Path, fig) -> Path:
+    import matplotlib.pyplot as plt
+
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=110)
+    plt.close(fig)
+    return write_bytes_atomic(path, buf.getvalue(), overwrite=True)
+
+
+def _run_tasks(tasks, out: Path, sweep, desc: str):
+    from stcvision.sweep import run_sweep
+
+    report = run_sweep(tasks, out / STORE_NAME, sweep, desc=desc)
+    if report.failed:
+        first = next(iter(report.failed.values()))
+        raise BadInputError(f"{len(report.failed)} of {len(tasks)} tasks failed (first: {first}); re-run to retry them")
+    return report
+
+
+# --------------------------------------------------------------------------------- reproduce
+REPRODUCE_FILES = ("nests.csv", "summary.md", "fig3_patterns.png", "fig4_shape.png", "fig5_compactness.png",
+                   "fig6_barriers.png", "fig7_thickness.png", "area_accuracy.png")  # fmt: skip
+
+
+def reproduce(out: str | Path, *, trials: int = 100, seed: int = 0, sweep=None, force: bool = False) -> dict:
+    """Every experiment set of sec. 5 plus the absolute-area set, through the sweep runner."""
+    from controllers.buffon import report
+    from stcvision.sweep import SweepOptions, Task
+
+    out = _out_dir(out, force, REPRODUCE_FILES)
+    cases = experiment_cases()
+    tasks = {c: Task(experiment="controllers.buffon.experiments:nest_task", params=c.params(trials), seed=seed)
+             for c in cases}  # fmt: skip
+    t0 = time.perf_counter()
+    rep = _run_tasks(list(tasks.values()), out, sweep or SweepOptions(), "buffon reproduce (nests)")
+    results = {c: rep.results[t.key] for c, t in tasks.items()}
+    steps = sum(r["robot_steps"] for r in results.values())
+    busy = sum(r["wall_s"] for r in results.values())
+    write_bytes_atomic(out / "nests.csv", report.table_csv(cases, results).encode(), overwrite=True)
+    report.write_figures(out, cases, results, _patterns(seed), save=_save_fig)
+    wall = time.perf_counter() - t0
+    text = report.claims(cases, results, trials=trials, wall_s=wall, steps_per_s=steps / busy)
+    write_bytes_atomic(out / "summary.md", text.encode(), overwrite=True)
+    return {"out": str(out), "nests": len(cases), "trials": trials, "robot_steps": steps,
+            "robot_steps_per_s_per_worker": steps / busy, "wall_s": wall, "sweep": rep.summary(),
+            "claims": True, "summary_text": text}  # fmt: skip
+
+
+def _patterns(seed: int) -> dict:
+    """Fig. 3: one trial in the smallest, a middle and the standard circle (paths in u)."""
+    out = {}
+    for d in (10, 50, 100):
+        nest = parse_nest(f"circle:{d}")
+        ts = run_trials(nest, VisitConfig(visit_steps=PAPER_VISIT_STEPS), trials=1, seed=seed, record_trial=0)
+        scale = np.array([1 / BODY_LENGTH_M, 1 / BODY_LENGTH_M, 1.0])
+        outline = nest.arena.outer_vertices() / BODY_LENGTH_M
+        out[f"circle, diameter {d} u"] = (outline, ts.trails["visit1"] * scale, ts.trails["visit2"] * scale)
+    return out
+
+
+# ----------------------------------------------------------------------------------- compare
+PYMUNK_CHUNK_TRIALS = 5
+
+
+def compare(nest_spec: str, barrier: str | None, *, out: str | Path, trials: int = 100, visit_steps: int = 3000,
+            trail_width_u: float = 0.1, seed: int = 0, sweep=None, force: bool = False) -> dict:  # fmt: skip
+    """nBC of the pymunk path and the batched path on the same nest: two-sample tests."""
+    from scipy import stats
+
+    from stcvision.sweep import SweepOptions, Task
+
+    nest = parse_nest(nest_spec, barrier)
+    out = _out_dir(out, force, ("compare.md", "compare.png"))
+    base = {"spec": nest_spec, "barrier": barrier, "trail_width_u": trail_width_u, "visit_steps": visit_steps}
+    batched = Task(experiment="controllers.buffon.experiments:nest_task", params={**base, "trials": trials}, seed=seed)
+    chunks = [Task(experiment="controllers.buffon.experiments:pymunk_task",
+                   params={**base, "trials": min(PYMUNK_CHUNK_TRIALS, trials - k), "chunk": k}, seed=seed)
+              for k in range(0, trials, PYMUNK_CHUNK_TRIALS)]  # fmt: skip
+    rep = _run_tasks([batched, *chunks], out, sweep or SweepOptions(), f"buffon compare {nest.label}")
+    rb = rep.results[batched.key]
+    rp = [rep.results[t.key] for t in chunks]
+    nbc_b = np.array(rb["nbc"])
+    nbc_p = np.concatenate([r["nbc"] for r in rp])
+    mw = stats.mannwhitneyu(nbc_p, nbc_b, alternative="two-sided")
+    ks = stats.ks_2samp(nbc_p, nbc_b)
+    p_steps = sum(r["robot_steps"] for r in rp) / sum(r["wall_s"] for r in rp)
+    res = {"nest": nest.spec, "barrier": barrier, "trials": trials, "visit_steps": visit_steps,
+           "nbc_median_pymunk": float(np.median(nbc_p)), "nbc_median_batched": float(np.median(nbc_b)),
+           "nbc_iqr_pymunk": np.percentile(nbc_p, [25, 75]).tolist(),
+           "nbc_iqr_batched": np.percentile(nbc_b, [25, 75]).tolist(),
+           "l1_median_pymunk": float(np.median(np.concatenate([r["l1_u"] for r in rp]))),
+           "l1_median_batched": float(np.median(rb["l1_u"])),
+           "mannwhitney_p": float(mw.pvalue), "ks_p": float(ks.pvalue), "agree_at_5pct": bool(min(mw.pvalue, ks.pvalue) >= 0.05),
+           "escapes_pymunk": int(sum(r["escapes"] for r in rp)), "escapes_batched": int(rb["escapes"]),
+           "robot_steps_per_s_pymunk": p_steps, "robot_steps_per_s_batched": rb["robot_steps"] / rb["wall_s"],
+           "paths": True}  # fmt: skip
+    res["speed_ratio"] = res["robot_steps_per_s_batched"] / p_steps
+    _compare_outputs(out, res, nbc_p, nbc_b)
+    return res
+
+
+def _compare_outputs(out: Path, res: dict, nbc_p, nbc_b) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(6, 4))
+    for x, label in ((nbc_p, "pymunk path"), (nbc_b, "batched path")):
+        ax.ecdf(x, label=f"{label} (median {np.median(x):.4f})")
+    ax.set(xlabel="nBC", ylabel="fraction of trials",
+           title=f"{res['nest']} {res['barrier'] or ''}: MWU p={res['mannwhitney_p']:.2f}, KS p={res['ks_p']:.2f}")  # fmt: skip
+    ax.legend()
+    _save_fig(out / "compare.png", fig)
+    md = ["# Batched path vs pymunk path", "", "| figure | pymunk | batched |", "|---|---:|---:|"]
+    for k in ("nbc_median", "l1_median", "escapes", "robot_steps_per_s"):
+        md.append(f"| {k} | {res[k + '_pymunk']:.4g} | {res[k + '_batched']:.4g} |")
+    md += ["", f"Mann-Whitney U p = {res['mannwhitney_p']:.3g}; Kolmogorov-Smirnov p = {res['ks_p']:.3g} "
+           f"({res['trials']} trials each, {res['visit_steps']:,} steps per visit)."]  # fmt: skip
+    write_bytes_atomic(out / "compare.md", "\n".join(md).encode(), overwrite=True)
+
+
+# --------------------------------------------------------------------------------- calibrate
+def calibrate(*, trials: int = 100, seed: int = 0) -> dict:
+    """The wall correction measured on the reference nest (the shipped one stays fixed)."""
+    from controllers.buffon.estimate import area_estimates, median_ci95
+
+    nest = parse_nest(WALL_CORRECTION_REFERENCE)
+    config = VisitConfig(visit_steps=AREA_VISIT_STEPS)
+    with _bar(2 * trials * config.visit_steps, "buffon calibrate") as bar:
+        ts = run_trials(nest, config, trials=trials, seed=seed, progress=bar.update)
+    k = calibrate_wall_correction(ts, nest.area_u2)
+    per_trial = nest.area_u2 / area_estimates(ts, correction=1.0)
+    ci = median_ci95(per_trial)
+    return {"reference": nest.spec, "trials": trials, "visit_steps": config.visit_steps,
+            "wall_correction_measured": k, "ci95": ci, "wall_correction_shipped": WALL_CORRECTION,
+            "area_true": nest.area_u2, "escapes": ts.escapes, "wall_s": ts.wall_s,
+            "shipped_inside_ci": bool(ci is not None and ci[0] <= WALL_CORRECTION <= ci[1]) if not math.isnan(k) else False}  # fmt: skip
