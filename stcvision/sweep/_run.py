@@ -14,7 +14,14 @@ from stcvision.errors import BadInputError, StcVisionError
 from stcvision.sweep._store import Store
 from stcvision.sweep._task import Task, resolve_experiment, run_task
 
-__all__ = ["SweepOptions", "SweepReport", "add_sweep_arguments", "machine_workers", "run_sweep", "sweep_options_from_args"]
+__all__ = [
+    "SweepOptions",
+    "SweepReport",
+    "add_sweep_arguments",
+    "machine_workers",
+    "run_sweep",
+    "sweep_options_from_args",
+]
 
 _DASK_MISSING = "--scheduler needs Dask: pip install 'stcvision[dask]' (dask[distributed])"
 
@@ -239,7 +246,9 @@ def run_sweep(
                 bar.update(1)
                 if failed:
                     bar.set_postfix(failed=len(failed), refresh=False)
-    ordered = {t.key: (done[t.key] if t.key in done else results[t.key]) for t in tasks if t.key in done or t.key in results}
+    ordered = {
+        t.key: (done[t.key] if t.key in done else results[t.key]) for t in tasks if t.key in done or t.key in results
+    }
     return SweepReport(
         desc=desc,
         total=len(tasks),

@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
+from stcvision.errors import StcVisionError
 from stcvision.sweep._run import SweepOptions, add_sweep_arguments, run_sweep, sweep_options_from_args
 from stcvision.sweep._task import Task
 
@@ -62,7 +63,13 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--sleep-s", type=float, default=0.0)
     add_sweep_arguments(ap)
     args = ap.parse_args(argv)
-    rep = run_sweep(draws_tasks(args.n, sleep_s=args.sleep_s), args.store, sweep_options_from_args(args), desc="draws")
+    try:
+        rep = run_sweep(
+            draws_tasks(args.n, sleep_s=args.sleep_s), args.store, sweep_options_from_args(args), desc="draws"
+        )
+    except StcVisionError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
     print(rep.summary(), file=sys.stderr)
     return 0 if not rep.failed else 1
 

@@ -41,7 +41,9 @@ def _utc() -> str:
 
 
 def _header() -> bytes:
-    return (json.dumps({"kind": STORE_KIND, "schema_version": STORE_SCHEMA_VERSION, "created_utc": _utc()}) + "\n").encode()
+    return (
+        json.dumps({"kind": STORE_KIND, "schema_version": STORE_SCHEMA_VERSION, "created_utc": _utc()}) + "\n"
+    ).encode()
 
 
 def _parse(path: Path, data: bytes) -> tuple[list[dict], int]:
@@ -71,7 +73,11 @@ def _parse(path: Path, data: bytes) -> tuple[list[dict], int]:
             rec = json.loads(line)
         except json.JSONDecodeError as exc:
             raise BadInputError(f"{path} line {i} is not valid JSON ({exc.msg}); the store is damaged") from None
-        if not isinstance(rec, dict) or not isinstance(rec.get("key"), str) or rec.get("status") not in ("ok", "failed"):
+        if (
+            not isinstance(rec, dict)
+            or not isinstance(rec.get("key"), str)
+            or rec.get("status") not in ("ok", "failed")
+        ):
             raise BadInputError(f"{path} line {i} is not a task record (key, status ok/failed)")
         records.append(rec)
     return records, end
@@ -117,7 +123,9 @@ class Store:
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:
             os.close(fd)
-            raise StcVisionError(f"sweep store {path} is in use by another sweep; wait for it or use another store")
+            raise StcVisionError(
+                f"sweep store {path} is in use by another sweep; wait for it or use another store"
+            ) from None
         self._fd = fd
         if self._fresh:
             os.ftruncate(fd, 0)
