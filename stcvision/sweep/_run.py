@@ -77,6 +77,7 @@ class SweepReport:
     backend: str
     results: Mapping[str, dict] = field(default_factory=lambda: MappingProxyType({}))
     failed: Mapping[str, str] = field(default_factory=lambda: MappingProxyType({}))
+    skipped_keys: frozenset[str] = frozenset()  # the tasks counted in ``skipped``
     store: str = ""
 
     @property
@@ -258,5 +259,6 @@ def run_sweep(
         backend=opts.backend,
         results=MappingProxyType(ordered),
         failed=MappingProxyType({t.key: failed[t.key] for t in tasks if t.key in failed}),
+        skipped_keys=frozenset(t.key for t in tasks if t.key in done),
         store=str(store_path),
     )
