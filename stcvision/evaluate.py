@@ -30,7 +30,9 @@ __all__ = [
     "Evaluation",
     "compare",
     "evaluate_dataset",
+    "evaluate_frames",
     "evaluate_images",
+    "summarize_evaluation",
     "write_report",
 ]
 
@@ -168,6 +170,18 @@ class FrameRecord:
             "badness": round(self.badness, 3),
         }
 
+    def to_record(self) -> dict:
+        """Everything, as plain JSON types (what a sweep task returns); see :meth:`from_record`."""
+        import dataclasses
+
+        return dataclasses.asdict(self)
+
+    @classmethod
+    def from_record(cls, d: dict) -> FrameRecord:
+        from stcvision.scoring import FrameScore
+
+        return cls(**{**d, "score": FrameScore(**d["score"])})
+
 
 @dataclass
 class Evaluation:
@@ -206,14 +220,31 @@ def _progress(total: int, label: str):
 
 
 def evaluate_dataset(ds, *, default_profile, profile=None, progress=None) -> Evaluation:
-    """Run and score the pipeline on every frame of ``ds`` (a :class:`stcvision.datasets.Dataset`).
+    """Run and score the pipeline on every frame of ``ds`` (a :class:`stcvision.datasets.Dataset`)
+    in this process: :func:`evaluate_frames` on all of them, then :func:`summarize_evaluation`.
 
     ``profile`` (a Profile) is used for every frame if given; otherwise each camera's own
     profile from the dataset (``profiles/CAM.json``) if it has one, else ``default_profile``.
     A frame that cannot be decoded is skipped and counted; a frame of the wrong size is an error.
     """
+    bar = (progress or _progress)(len(ds.labels), f"eval {ds.root.name}")
+    records, skipped = evaluate_frames(
+        ds, range(len(ds.labels)), default_profile=default_profile, profile=profile, on_frame=bar
+    )
+    close = getattr(bar, "close", None)
+    if close:
+        close()
+    return summarize_evaluation(ds, records, skipped, profile=profile)
+
+
+def evaluate_frames(
+    ds, indices, *, default_profile, profile=None, on_frame=None
+) -> tuple[list[FrameRecord], list[dict]]:
+    """Run and score the pipeline on the frames ``indices`` of ``ds`` (label order): one
+    :class:`FrameRecord` per readable frame, and ``{"frame", "reason"}`` per frame that could not
+    be decoded (skipped). ``on_frame(1)`` is called after each frame (progress)."""
     from stcvision.fileio import read_image
-    from stcvision.pipeline import STAGES, Pipeline
+    from stcvision.pipeline import Pipeline
     from stcvision.profile import Profile
     from stcvision.scoring import score_frame
 
@@ -250,13 +281,13 @@ def evaluate_dataset(ds, *, default_profile, profile=None, progress=None) -> Eva
 
     records: list[FrameRecord] = []
     skipped: list[dict] = []
-    bar = (progress or _progress)(len(ds.labels), f"eval {ds.root.name}")
-    for i, lab in enumerate(ds.labels):
+    bar = on_frame or (lambda n=1: None)
+    for i in indices:
+        lab = ds.labels[i]
         path = ds.root / lab["frame"]
         try:
             img = read_image(path, what="frame")
         except BadInputError as exc:
-            print(f"stcvision eval: skipped {path}: {exc}", file=sys.stderr)
             skipped.append({"frame": lab["frame"], "reason": str(exc)})
             bar(1)
             continue
@@ -298,9 +329,15 @@ def evaluate_dataset(ds, *, default_profile, profile=None, progress=None) -> Eva
         rec.badness = _badness(sc, cell is not None)
         records.append(rec)
         bar(1)
-    close = getattr(bar, "close", None)
-    if close:
-        close()
+    return records, skipped
+
+
+def summarize_evaluation(ds, records: list[FrameRecord], skipped: list[dict], *, profile=None) -> Evaluation:
+    """The summary of :func:`evaluate_dataset` from the frames' records (in any grouping: the
+    records of several :func:`evaluate_frames` calls, e.g. the tasks of a sweep)."""
+    from stcvision.pipeline import STAGES
+
+    records = sorted(records, key=lambda r: r.index)
     if not records:
         raise BadInputError(f"no frame of {ds.root} could be read ({len(skipped)} skipped)")
 

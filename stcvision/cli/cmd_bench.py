@@ -1,6 +1,10 @@
 """Measure speed on one core: the synthetic camera's render time (640x480 with noise) and the
 vision pipeline's per-frame time (all stages, and each stage). Reports medians over repeats.
 
+--sweep measures instead the sweep runner's own cost per task (stcvision.sweep): no-op tasks
+in this process, on the local pool and on a Dask cluster (--scheduler, or a LocalCluster of two
+single-threaded worker processes started for the purpose).
+
 This is the benchmark behind the performance goals (../shared/DESIGN.md): tests never time
 anything.
 """
@@ -11,6 +15,39 @@ from __future__ import annotations
 def add_parser(p):
     p.add_argument("--frames", type=int, default=200, metavar="N", help="frames to time (default 200)")
     p.add_argument("--seed", type=int, default=0, help="seed of the benchmark scene (default 0)")
+    p.add_argument("--sweep", action="store_true", help="measure the sweep runner's cost per task instead")
+    p.add_argument("--tasks", type=int, default=1000, metavar="N", help="--sweep: no-op tasks per backend (1000)")
+    p.add_argument("--scheduler", metavar="tcp://HOST:PORT", help="--sweep: a Dask cluster (default: a LocalCluster)")
+
+
+def _bench_sweep(args) -> dict:
+    import tempfile
+    from pathlib import Path
+
+    from stcvision.errors import BadInputError, StcVisionError
+    from stcvision.sweep import SweepOptions, machine_workers
+    from stcvision.sweep._selftest import measure_overhead
+
+    if args.tasks < 1:
+        raise BadInputError(f"--tasks must be >= 1, got {args.tasks}")
+    rows = []
+    with tempfile.TemporaryDirectory(prefix="stcvision-bench-") as tmp:
+        store = Path(tmp) / "sweep.jsonl"
+        for opts in (SweepOptions(workers=1), SweepOptions(workers=max(2, machine_workers()))):
+            rows.append(measure_overhead(opts, store, args.tasks))
+        if args.scheduler:
+            rows.append(measure_overhead(SweepOptions(scheduler=args.scheduler), store, args.tasks))
+        else:
+            try:
+                from distributed import LocalCluster
+            except ImportError:
+                raise StcVisionError(
+                    "--sweep needs Dask for its cluster figure: pip install 'stcvision[dask]'"
+                ) from None
+            with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as c:
+                rows.append(measure_overhead(SweepOptions(scheduler=c.scheduler_address), store, args.tasks))
+                rows[-1]["backend"] = "dask LocalCluster (2 worker processes, 1 thread each)"
+    return {"sweep_overhead": rows}
 
 
 def _median_ms(fn, n: int) -> float:
@@ -58,6 +95,8 @@ def benchmark_scene(seed: int = 0):
 
 
 def run(args):
+    if args.sweep:
+        return _bench_sweep(args)
     import cv2
     import numpy as np
 
@@ -90,6 +129,12 @@ def run(args):
 
 
 def format_text(r):
+    if "sweep_overhead" in r:
+        return "\n".join(
+            f"sweep, {x['backend']}: {x['ms_per_task']:.2f} ms per no-op task ({x['tasks']} tasks in "
+            f"{x['wall_s']:.2f} s, store writes and pool start-up / client connection included)"
+            for x in r["sweep_overhead"]
+        )
     lines = [
         f"render: {r['render_ms_per_frame']:.2f} ms/frame ({r['render_frames_per_s']:.0f} frames/s), "
         f"{r['frame_size_px'][0]}x{r['frame_size_px'][1]} with noise, {r['dots_on_floor']} dots on the floor, 1 thread"

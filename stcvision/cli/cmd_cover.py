@@ -7,13 +7,26 @@ vision pipeline; oracle reads the floor's ground truth; ideal sees exactly the m
 could show (the physics-limited camera, no pipeline). --exposure webcam is the seed's camera
 (1/30 s); auto adds long frames sized by the robot's clock (2-30 s, then stacked 30 s frames) for
 the dim old marks; or give --exposure-s X.
+
+  stcvision cover sweep --sizes 2,3,4 --runs 6 --out DIR [--workers N | --scheduler tcp://H:P]
+
+runs the robot over boards x seeds x exposure modes x perceptions through the sweep runner
+(resumable; see README 'Scaling out') and writes a table (summary.md, table.csv, runs.csv) and a
+plot (coverage.png) of complete runs and sub-cells covered vs board size.
 """
 
 from __future__ import annotations
 
 
 def add_parser(p):
+    import argparse
+
     from stcvision.cli._args import pair
+
+    p.formatter_class = argparse.RawDescriptionHelpFormatter  # keep the usage lines of the docstring
+    # 'stcvision cover --board 4x4' stays a flat command; a leading 'sweep' is an optional sub-action
+    sub = p.add_subparsers(dest="action", metavar="{sweep}", parser_class=type(p))
+    _add_sweep_parser(sub)
 
     src = p.add_mutually_exclusive_group()
     src.add_argument("--map", metavar="FILE", help="board map: .txt ('.', '#', 'S') or .png")
@@ -40,20 +53,84 @@ def add_parser(p):
     p.add_argument("--force", action="store_true", help="overwrite --rrd")
 
 
-def load_board(args):
+def _add_sweep_parser(sub):
+    import argparse
+
+    from stcvision.cli._args import positive
+    from stcvision.sweep import add_sweep_arguments
+
+    def ints(text):
+        try:
+            return [int(t) for t in text.split(",")]
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{text!r} is not comma-separated integers (e.g. 2,3,4)") from None
+
+    def words(text):
+        return [t for t in text.split(",") if t]
+
+    s = sub.add_parser(
+        "sweep",
+        help="coverage over boards x seeds x exposure modes x perceptions: a table and a plot",
+        description="Run the STC robot over random boards (sizes x seeds) for every exposure mode and "
+        "perception, through the sweep runner (resumable: OUT/sweep.jsonl), and write summary.md, table.csv, "
+        "runs.csv and coverage.png (complete runs and sub-cells covered vs board size).",
+    )
+    s.add_argument(
+        "--sizes",
+        type=ints,
+        default=[2, 3, 4, 5, 6, 7, 8, 10, 12],
+        metavar="N,N,...",
+        help="board sizes in cells per side (default 2,...,8,10,12)",
+    )
+    s.add_argument("--runs", type=positive(int), default=6, help="boards (seeds 0..runs-1) per size (default 6)")
+    s.add_argument(
+        "--exposures",
+        type=words,
+        default=["webcam", "auto"],
+        metavar="E,E,...",
+        help="exposure modes: webcam, auto or seconds (default webcam,auto)",
+    )
+    s.add_argument(
+        "--perceptions",
+        type=words,
+        default=["camera", "ideal"],
+        metavar="P,P,...",
+        help="camera, ideal (the physics-limited camera) or oracle (default camera,ideal)",
+    )
+    s.add_argument("--obstacle-fraction", type=float, default=0.15, help="obstacle cells of the boards (default 0.15)")
+    s.add_argument(
+        "--decisions-per-subcell",
+        type=positive(int),
+        default=10,
+        help="stop a run after this many decisions per reachable sub-cell (default 10)",
+    )
+    s.add_argument("--out", required=True, metavar="DIR", help="folder for the store, the tables and the plot")
+    s.add_argument("--force", action="store_true", help="overwrite tables/plot in a folder that holds no cover sweep")
+    s.add_argument("--json", action="store_true", help="print the result as one JSON object")
+    add_sweep_arguments(s)
+
+
+def random_board(w: int, h: int, obstacle_fraction: float, seed: int):
+    """The random board of ``--board WxH --obstacle-fraction F --seed S`` (also the sweep's)."""
     import numpy as np
 
     from sim_camera.board import Board
     from stcvision.errors import BadInputError
 
+    if w < 1 or h < 1:
+        raise BadInputError(f"--board must be at least 1x1 cells, got {w}x{h}")
+    if not 0 <= obstacle_fraction < 1:
+        raise BadInputError(f"--obstacle-fraction must be in [0, 1), got {obstacle_fraction}")
+    return Board.random((h, w), obstacle_fraction=obstacle_fraction, rng=np.random.default_rng(seed))
+
+
+def load_board(args):
+    from sim_camera.board import Board
+
     if args.map:
         return Board.from_file(args.map, start_subcell=args.start)
     w, h = args.board if args.board else (4, 4)
-    if w < 1 or h < 1:
-        raise BadInputError(f"--board must be at least 1x1 cells, got {w}x{h}")
-    if not 0 <= args.obstacle_fraction < 1:
-        raise BadInputError(f"--obstacle-fraction must be in [0, 1), got {args.obstacle_fraction}")
-    board = Board.random((h, w), obstacle_fraction=args.obstacle_fraction, rng=np.random.default_rng(args.seed))
+    board = random_board(w, h, args.obstacle_fraction, args.seed)
     if args.start:
         board = Board(board.blocked, args.start, board.subcell_m)
     return board
@@ -61,6 +138,11 @@ def load_board(args):
 
 def run(args):
     from pathlib import Path
+
+    if getattr(args, "action", None) == "sweep":
+        from stcvision.cli.cover_sweep import sweep_cover
+
+        return sweep_cover(args)
 
     from controllers.cover import CoverConfig, run_cover
     from stcvision.errors import FileExistsRefusedError
@@ -89,6 +171,10 @@ def run(args):
 
 
 def format_text(r):
+    if r.get("action") == "sweep":
+        from stcvision.cli.cover_sweep import format_text as sweep_text
+
+        return sweep_text(r)
     rows = [
         (
             "board",

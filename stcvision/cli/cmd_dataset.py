@@ -1,13 +1,15 @@
 """Make and check labelled frame sets (format: datasets/README.md).
 
-  stcvision dataset generate RECIPE.json --out DIR [--seed S]
+  stcvision dataset generate RECIPE.json --out DIR [--seed S] [--workers N | --scheduler tcp://H:P] [--fresh]
   stcvision dataset check DIR
 
 generate renders a recipe (datasets/recipes/*.json) into DIR: frames/*.png, dark/*.png,
 labels.jsonl (ground truth per frame), manifest.json, and the calibration lights-on frames and
-profiles where the recipe asks. Same recipe and seed give byte-identical files; re-running
-skips finished frames (resume after an interruption); a folder holding another recipe or seed
-is refused. Generated sets belong in the git-ignored datasets/generated/.
+profiles where the recipe asks. Same recipe and seed give byte-identical files, whatever the
+number of workers or the backend (chunks of frames are tasks of the sweep runner; README
+'Scaling out'); re-running skips finished chunks (resume after an interruption), --fresh renders
+everything again; a folder holding another recipe or seed is refused. Generated sets belong in
+the git-ignored datasets/generated/.
 """
 
 from __future__ import annotations
@@ -33,6 +35,9 @@ def add_parser(p):
     )
     g.add_argument("--seed", type=int, help="seed (default: the recipe's seed)")
     g.add_argument("--json", action="store_true", help="print the result as one JSON object")
+    from stcvision.sweep import add_sweep_arguments
+
+    add_sweep_arguments(g)
     c = sub.add_parser(
         "check",
         help="validate a dataset folder",
@@ -65,11 +70,12 @@ def run(args):
         }
     from stcvision.cli.dataset_generate import generate
     from stcvision.datasets import load_recipe
+    from stcvision.sweep import sweep_options_from_args
 
     recipe = load_recipe(args.recipe)
     seed = recipe.seed if args.seed is None else args.seed
     out = Path(args.out) if args.out else Path("datasets") / "generated" / f"{recipe.name}-seed{seed}"
-    r = generate(recipe, out, seed=seed)
+    r = generate(recipe, out, seed=seed, options=sweep_options_from_args(args))
     r["step"] = "generate"
     return r
 

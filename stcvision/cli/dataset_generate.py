@@ -1,30 +1,40 @@
 """Render a recipe into a dataset folder (see :mod:`stcvision.datasets` for the format).
 
+The work is a sweep (:mod:`stcvision.sweep`) of coarse tasks, each writing its files into the
+folder: one per camera (calibration frames and profile), one per group (its dark frame) and one
+per chunk of up to :data:`FRAMES_PER_TASK` frames of a group (frames and labels). Each task's
+result (the labels of its frames) goes to the folder's ``.sweep.jsonl`` as it finishes, so an
+interrupted run resumes where it stopped; the store is removed when the dataset is complete.
+With ``--scheduler`` the folder must be on a filesystem every worker sees.
+
 Here, under the CLI, because it needs the simulator (``sim_camera``) and the calibration
 workflow (``calibration``): DESIGN.md lets only ``stcvision/cli/`` reach across packages.
 """
 
 from __future__ import annotations
 
+import functools
 import json
 import shutil
-from collections.abc import Callable
 from pathlib import Path
-from typing import Any
 
-from stcvision.datasets import (  # noqa: F401
+from stcvision.datasets import (
     DATASET_SCHEMA_VERSION,
     Recipe,
     _frame_name,
     _is_empty,
     _key,
-    _Progress,
     _stream,
+    parse_recipe,
 )
-from stcvision.errors import BadInputError, FileExistsRefusedError  # noqa: F401
-from stcvision.fileio import dumps, read_json, write_bytes_atomic, write_json  # noqa: F401
+from stcvision.errors import BadInputError, FileExistsRefusedError
+from stcvision.fileio import dumps, read_json, write_bytes_atomic, write_json
 
-__all__ = ["generate"]
+__all__ = ["FRAMES_PER_TASK", "calibrate_camera", "generate", "render_dark", "render_frames"]
+
+#: frames per task: ~1-2 s of rendering, far above the sweep's per-task cost (ms)
+FRAMES_PER_TASK = 25
+STORE = ".sweep.jsonl"
 
 
 def _plan(recipe: Recipe, seed: int) -> tuple[dict, list[dict]]:
@@ -67,42 +77,10 @@ def _plan(recipe: Recipe, seed: int) -> tuple[dict, list[dict]]:
     return cameras, groups
 
 
-def generate(
-    recipe: Recipe,
-    out: str | Path,
-    *,
-    seed: int | None = None,
-    progress: Callable[[int, str], Any] | None = None,
-) -> dict:
-    """Render ``recipe`` into the dataset folder ``out`` (resuming a partial one).
-
-    Parameters
-    ----------
-    recipe : Recipe
-    out : folder; empty, missing, or a partial/complete dataset of the same recipe and seed
-    seed : overrides the recipe's ``seed``
-    progress : called as ``progress(total, label)`` to make a callable that is called once per
-        finished item (default: a text bar on stderr when it is a terminal)
-
-    Returns a summary dict (counts of rendered and skipped frames).
-    """
-    import numpy as np
-
-    from sim_camera.camera import SyntheticCamera
-    from sim_camera.optics import MirrorCameraParams
-    from sim_camera.scenarios import cell_scene
-    from sim_camera.sensor import SensorParams
+def _manifest(recipe: Recipe, seed: int, cameras: dict, groups: list) -> dict:
     from stcvision import __version__
-    from stcvision.fileio import write_image
 
-    out = Path(out)
-    seed = recipe.seed if seed is None else int(seed)
-    if seed < 0:
-        raise BadInputError(f"--seed must be >= 0, got {seed}")
-    if out.exists() and not out.is_dir():
-        raise BadInputError(f"{out} is a file; expected a dataset folder")
-    cameras, groups = _plan(recipe, seed)
-    manifest = {
+    return {
         "schema_version": DATASET_SCHEMA_VERSION,
         "kind": "stcvision-dataset",
         "recipe_name": recipe.name,
@@ -124,124 +102,224 @@ def generate(
         },
         "labels": "labels.jsonl",
     }
-    sizes = {(c["optics"]["width_px"], c["optics"]["height_px"]) for c in cameras.values()}
-    if len(sizes) > 1:
-        raise BadInputError(f"recipe {recipe.name}: cameras of different image sizes {sorted(sizes)}; expected one")
-    mpath = out / "manifest.json"
-    if not _is_empty(out):
-        if not mpath.exists():
-            raise FileExistsRefusedError(f"{out} is not empty and holds no dataset; choose an empty or new folder")
-        old = read_json(mpath, what="dataset manifest")
-        if not isinstance(old, dict) or old.get("recipe") != recipe.raw or old.get("seed") != seed:
-            name = old.get("recipe_name") if isinstance(old, dict) else None
-            oseed = old.get("seed") if isinstance(old, dict) else None
-            raise FileExistsRefusedError(
-                f"{out} holds a dataset of recipe {name!r} seed {oseed}, not {recipe.name!r} seed {seed}; "
-                "choose another folder"
-            )
-    write_json(mpath, manifest, overwrite=True)
 
-    # labels already made: labels.jsonl of an earlier run, and per-frame parts
+
+# ------------------------------------------------------------------------------ tasks (on workers)
+@functools.lru_cache(maxsize=4)
+def _camera(optics_json: str, pattern_seed: int):
+    """A camera per optics + pattern (building one takes ~1 s: kept for the worker's next task)."""
+    from sim_camera.camera import SyntheticCamera
+    from sim_camera.optics import MirrorCameraParams
+
+    return SyntheticCamera(MirrorCameraParams.from_dict(json.loads(optics_json)), pattern_seed=pattern_seed)
+
+
+def _task_plan(params: dict) -> tuple[Recipe, int, dict, list, Path]:
+    recipe = parse_recipe(params["recipe"])
+    cameras, groups = _plan(recipe, params["seed"])
+    return recipe, params["seed"], cameras, groups, Path(params["out"])
+
+
+def _cam(cameras: dict, cid: str):
+    c = cameras[cid]
+    return _camera(json.dumps(c["optics"], sort_keys=True), c["pattern_seed"])
+
+
+def calibrate_camera(params: dict, seed) -> dict:
+    """Task: camera ``params["camera"]``'s lights-on calibration frames and, if the recipe asks,
+    its profile from the calibration workflow. The dataset's seed streams are used (not the
+    sweep's), so the files do not depend on how the work was split."""
+    from calibration.defaults import calibrate_simulated, calibration_frame
+    from stcvision.fileio import write_image
+
+    recipe, _, cameras, _, out = _task_plan(params)
+    cid = params["camera"]
+    c, cam = cameras[cid], _cam(cameras, cid)
+    for j, name in enumerate(c["calibration_frames"]):
+        write_image(out / name, calibration_frame(cam, seed=c["calibration_seeds"][j]), overwrite=True)
+    if c["profile"]:
+        prof = calibrate_simulated(cam, seed=c["calibration_seeds"][0])
+        prov = {**prof.provenance, "camera": f"dataset camera {cid}", "frame": f"{cid}_0 of the dataset"}
+        prof.replace(provenance=prov).save(out / c["profile"], overwrite=True)
+    return {"calibration_frames": len(c["calibration_frames"]), "profiles": int(bool(c["profile"]))}
+
+
+def render_dark(params: dict, seed) -> dict:
+    """Task: the median dark frame of group ``params["group"]`` (stream ``(1, group)``)."""
+    from sim_camera.sensor import SensorParams
+    from stcvision.fileio import write_image
+
+    recipe, dseed, cameras, groups, out = _task_plan(params)
+    gi = params["group"]
+    g = groups[gi]
+    sensor = SensorParams.from_dict(g["sensor"])
+    dark = _cam(cameras, g["camera"]).median_dark(recipe.dark_frames, rng=_stream(dseed, 1, gi), sensor=sensor)
+    write_image(out / g["dark"], dark, overwrite=True)
+    return {"darks": 1}
+
+
+def render_frames(params: dict, seed) -> dict:
+    """Task: frames ``params["first"]`` to ``params["stop"] - 1`` of group ``params["group"]``;
+    frame ``k`` draws its scene and noise from ``SeedSequence(dataset seed, spawn_key=(0, k))``
+    alone. Returns their label lines."""
+    import numpy as np
+
+    from sim_camera.scenarios import cell_scene
+    from sim_camera.sensor import SensorParams
+    from stcvision.fileio import write_image
+
+    _, dseed, cameras, groups, out = _task_plan(params)
+    g = groups[params["group"]]
+    sensor = SensorParams.from_dict(g["sensor"])
+    scene_kw = {k: tuple(v) if isinstance(v, list) else v for k, v in g["scene"].items()}
+    cam = _cam(cameras, g["camera"])
+    labels = {}
+    for k in range(params["first"], params["stop"]):
+        scene_rng, noise_rng = (
+            np.random.default_rng(s) for s in np.random.SeedSequence(dseed, spawn_key=(0, k)).spawn(2)
+        )
+        for _ in range(50):  # a dense random board may have no free cell with a free parent
+            try:
+                s = cell_scene(scene_rng, **scene_kw)
+                break
+            except ValueError:
+                continue
+        else:
+            raise BadInputError(f"group {g['name']}: no usable board in 50 tries; lower obstacle_fraction")
+        f = cam.render(
+            s.pose,
+            rng=noise_rng,
+            t_s=s.t_s,
+            phosphor=s.phosphor,
+            red_lights_m=s.red_lights_m,
+            board=s.board,
+            sensor=sensor,
+            truth=True,
+        )
+        name = _frame_name(k)
+        label = {"frame": name, "index": k, "group": g["name"], "camera": g["camera"], "dark": g["dark"]}
+        label.update(f.truth)
+        label["marks"] = s.marks
+        write_image(out / name, f.image, overwrite=True)
+        labels[name] = dumps(label, indent=None)
+    return {"labels": labels}
+
+
+# ------------------------------------------------------------------------------ the driver
+def _check_folder(out: Path, recipe: Recipe, seed: int) -> None:
+    if out.exists() and not out.is_dir():
+        raise BadInputError(f"{out} is a file; expected a dataset folder")
+    mpath = out / "manifest.json"
+    if _is_empty(out):
+        return
+    if not mpath.exists():
+        raise FileExistsRefusedError(f"{out} is not empty and holds no dataset; choose an empty or new folder")
+    old = read_json(mpath, what="dataset manifest")
+    if not isinstance(old, dict) or old.get("recipe") != recipe.raw or old.get("seed") != seed:
+        name = old.get("recipe_name") if isinstance(old, dict) else None
+        oseed = old.get("seed") if isinstance(old, dict) else None
+        raise FileExistsRefusedError(
+            f"{out} holds a dataset of recipe {name!r} seed {oseed}, not {recipe.name!r} seed {seed}; "
+            "choose another folder"
+        )
+
+
+def _old_labels(lpath: Path) -> dict[str, str]:
+    """Labels of an earlier complete run (a frame deleted since is rendered again)."""
     labels: dict[str, str] = {}
-    lpath, parts = out / "labels.jsonl", out / ".parts"
     if lpath.exists():
         for line in lpath.read_text(encoding="utf-8").splitlines():
             try:
                 labels[json.loads(line)["frame"]] = line
             except (json.JSONDecodeError, KeyError, TypeError):
                 continue
-    if parts.is_dir():
-        for p in sorted(parts.glob("*.json")):
-            text = p.read_text(encoding="utf-8").strip()
-            try:
-                labels[json.loads(text)["frame"]] = text
-            except (json.JSONDecodeError, KeyError, TypeError):
-                p.unlink()
+    return labels
 
-    cams: dict[str, Any] = {}
 
-    def camera(cid: str):
-        if cid not in cams:
-            c = cameras[cid]
-            cams[cid] = SyntheticCamera(MirrorCameraParams.from_dict(c["optics"]), pattern_seed=c["pattern_seed"])
-        return cams[cid]
+def generate(recipe: Recipe, out: str | Path, *, seed: int | None = None, options=None) -> dict:
+    """Render ``recipe`` into the dataset folder ``out`` (resuming a partial one).
 
-    todo = [k for k in range(recipe.n_frames) if not ((out / _frame_name(k)).exists() and _frame_name(k) in labels)]
-    bar = (progress or (lambda total, label: _Progress(total, label)))(
-        len(todo) + len(groups) + len(cameras), f"generate {recipe.name}"
-    )
-    made = {"calibration_frames": 0, "profiles": 0, "darks": 0, "frames": 0}
-    # calibration frames and profiles, per camera
+    Parameters
+    ----------
+    recipe : Recipe
+    out : folder; empty, missing, or a partial/complete dataset of the same recipe and seed
+    seed : overrides the recipe's ``seed``
+    options : :class:`stcvision.sweep.SweepOptions` (workers, Dask scheduler, fresh); default:
+        a local pool sized to the machine. ``fresh`` renders everything again.
+
+    Files already there (an earlier, complete or interrupted run) are kept: a calibration
+    camera, dark frame or chunk of frames is rendered only if a file or label of it is missing.
+    Returns a summary dict (counts of rendered and skipped frames). A failed task is a one-line
+    error naming it; the next run retries it.
+    """
+    from stcvision.sweep import SweepOptions, Task, run_sweep
+
+    options = options or SweepOptions()
+    out = Path(out)
+    seed = recipe.seed if seed is None else int(seed)
+    if seed < 0:
+        raise BadInputError(f"--seed must be >= 0, got {seed}")
+    cameras, groups = _plan(recipe, seed)
+    sizes = {(c["optics"]["width_px"], c["optics"]["height_px"]) for c in cameras.values()}
+    if len(sizes) > 1:
+        raise BadInputError(f"recipe {recipe.name}: cameras of different image sizes {sorted(sizes)}; expected one")
+    if out.exists() and not out.is_dir():
+        raise BadInputError(f"{out} is a file; expected a dataset folder")
+    _check_folder(out, recipe, seed)
+    manifest = _manifest(recipe, seed, cameras, groups)
+    mpath, lpath = out / "manifest.json", out / "labels.jsonl"
+    write_json(mpath, manifest, overwrite=True)
+
+    labels = {} if options.fresh else _old_labels(lpath)
+
+    def have(name: str) -> bool:
+        return not options.fresh and (out / name).exists()
+
+    base = {"out": str(out.resolve()), "recipe": recipe.raw, "seed": seed}
+    tasks = []
     for cid, c in cameras.items():
-        for j, name in enumerate(c["calibration_frames"]):
-            if not (out / name).exists():
-                from calibration.defaults import calibration_frame
-
-                write_image(out / name, calibration_frame(camera(cid), seed=c["calibration_seeds"][j]), overwrite=True)
-                made["calibration_frames"] += 1
-        if c["profile"] and not (out / c["profile"]).exists():
-            from calibration.defaults import calibrate_simulated
-
-            prof = calibrate_simulated(camera(cid), seed=c["calibration_seeds"][0])
-            prov = {**prof.provenance, "camera": f"dataset camera {cid}", "frame": f"{cid}_0 of the dataset"}
-            prof.replace(provenance=prov).save(out / c["profile"], overwrite=True)
-            made["profiles"] += 1
-        bar(1)
-    # dark frames, per group
+        if not all(have(n) for n in c["calibration_frames"]) or (c["profile"] and not have(c["profile"])):
+            tasks.append(Task(experiment=f"{__name__}:calibrate_camera", params={**base, "camera": cid}, seed=seed))
     for gi, g in enumerate(groups):
-        if not (out / g["dark"]).exists():
-            sensor = SensorParams.from_dict(g["sensor"])
-            dark = camera(g["camera"]).median_dark(recipe.dark_frames, rng=_stream(seed, 1, gi), sensor=sensor)
-            write_image(out / g["dark"], dark, overwrite=True)
-            made["darks"] += 1
-        bar(1)
-    # frames
-    todo_set = set(todo)
-    for g in groups:
-        sensor = SensorParams.from_dict(g["sensor"])
-        scene_kw = {k: tuple(v) if isinstance(v, list) else v for k, v in g["scene"].items()}
-        for k in range(g["first_frame"], g["first_frame"] + g["n"]):
-            if k not in todo_set:
+        if not have(g["dark"]):
+            tasks.append(Task(experiment=f"{__name__}:render_dark", params={**base, "group": gi}, seed=seed))
+    n_done_frames = 0
+    for gi, g in enumerate(groups):
+        stop = g["first_frame"] + g["n"]
+        for first in range(g["first_frame"], stop, FRAMES_PER_TASK):
+            ks = range(first, min(first + FRAMES_PER_TASK, stop))
+            if all(have(_frame_name(k)) and _frame_name(k) in labels for k in ks):
+                n_done_frames += len(ks)
                 continue
-            scene_rng, noise_rng = (
-                np.random.default_rng(s) for s in np.random.SeedSequence(seed, spawn_key=(0, k)).spawn(2)
-            )
-            for _ in range(50):  # a dense random board may have no free cell with a free parent
-                try:
-                    s = cell_scene(scene_rng, **scene_kw)
-                    break
-                except ValueError:
-                    continue
-            else:
-                raise BadInputError(f"group {g['name']}: no usable board in 50 tries; lower obstacle_fraction")
-            f = camera(g["camera"]).render(
-                s.pose,
-                rng=noise_rng,
-                t_s=s.t_s,
-                phosphor=s.phosphor,
-                red_lights_m=s.red_lights_m,
-                board=s.board,
-                sensor=sensor,
-                truth=True,
-            )
-            name = _frame_name(k)
-            label = {"frame": name, "index": k, "group": g["name"], "camera": g["camera"], "dark": g["dark"]}
-            label.update(f.truth)
-            label["marks"] = s.marks
-            line = dumps(label, indent=None)
-            write_image(out / name, f.image, overwrite=True)
-            write_bytes_atomic(parts / f"{k:06d}.json", (line + "\n").encode(), overwrite=True)
-            labels[name] = line
-            made["frames"] += 1
-            bar(1)
-    close = getattr(bar, "close", None)
-    if close:
-        close()
+            params = {**base, "group": gi, "first": ks.start, "stop": ks.stop}
+            tasks.append(Task(experiment=f"{__name__}:render_frames", params=params, seed=seed))
+    report = run_sweep(tasks, out / STORE, options, desc=f"generate {recipe.name}")
+    if report.failed:
+        key, err = next(iter(report.failed.items()))
+        task = next(t for t in tasks if t.key == key)
+        what = task.experiment.split(":")[1]
+        raise BadInputError(
+            f"{len(report.failed)} of {len(tasks)} tasks failed, e.g. {what} "
+            f"{ {k: v for k, v in task.params.items() if k not in base} }: {err}; re-run to retry them"
+        )
+    made = {"calibration_frames": 0, "profiles": 0, "darks": 0, "frames": 0}
+    for t in tasks:
+        r = report.results[t.key]
+        labels.update(r.get("labels", {}))
+        if t.key in report.skipped_keys:  # done by an interrupted earlier run
+            continue
+        made["frames"] += len(r.get("labels", {}))
+        for k in ("calibration_frames", "profiles", "darks"):
+            made[k] += r.get(k, 0)
+    missing = [_frame_name(k) for k in range(recipe.n_frames) if not (out / _frame_name(k)).exists()]
+    if missing:
+        raise BadInputError(f"{out / missing[0]} is missing though its task is done; re-run with --fresh")
     text = "".join(labels[_frame_name(k)] + "\n" for k in range(recipe.n_frames))
     write_bytes_atomic(lpath, text.encode(), overwrite=True)
-    shutil.rmtree(parts, ignore_errors=True)
     manifest["complete"] = True
     write_json(mpath, manifest, overwrite=True)
+    (out / STORE).unlink(missing_ok=True)
+    shutil.rmtree(out / ".parts", ignore_errors=True)  # per-frame labels of versions before the sweep
     return {
         "out": str(out),
         "recipe": recipe.name,
@@ -253,4 +331,6 @@ def generate(
         "calibration_frames_rendered": made["calibration_frames"],
         "profiles_made": made["profiles"],
         "cameras": len(cameras),
+        "tasks": report.total,
+        "sweep": report.summary(),
     }

@@ -18,5 +18,5 @@ def smoke(tmp_path_factory):
     from stcvision.cli import main
 
     d = tmp_path_factory.mktemp("smoke") / "D"
-    assert main(["dataset", "generate", str(SMOKE_RECIPE), "--out", str(d)]) == 0
+    assert main(["dataset", "generate", str(SMOKE_RECIPE), "--out", str(d), "--workers", "1"]) == 0
     return d

@@ -48,6 +48,7 @@ def test_smoke_dataset_layout(smoke, cli):
 
 
 def test_generation_is_deterministic(smoke, tmp_path):
+    # `smoke` was made in-process (--workers 1), this by the default pool (one process per CPU)
     assert main(["dataset", "generate", str(SMOKE), "--out", str(tmp_path / "again")]) == 0
     assert files(tmp_path / "again") == files(smoke)
 
@@ -57,31 +58,39 @@ def test_resume_renders_only_what_is_missing(smoke, tmp_path, cli):
     shutil.copytree(smoke, d)
     (d / "frames" / "000004.png").unlink()
     (d / "dark" / "webcam.png").unlink()
-    code, out, _ = cli("dataset", "generate", SMOKE, "--out", d, "--json")
+    code, out, _ = cli("dataset", "generate", SMOKE, "--out", d, "--json", "--workers", "1")
     r = json.loads(out)
-    assert code == 0 and r["frames_rendered"] == 1 and r["frames_skipped"] == 5 and r["darks_rendered"] == 1
+    # the chunk of frame 4 (group exp250ms: frames 3-5, one task) is rendered again, and the dark
+    assert code == 0 and r["frames_rendered"] == 3 and r["frames_skipped"] == 3 and r["darks_rendered"] == 1
+    assert r["tasks"] == 2
     assert files(d) == files(smoke)
 
 
-def test_interrupted_run_resumes_from_per_frame_labels(smoke, tmp_path, cli):
-    # as after a kill: labels only in .parts/, no labels.jsonl, manifest not complete
+def test_a_failed_chunk_leaves_an_incomplete_dataset_that_the_next_run_finishes(smoke, tmp_path, cli, monkeypatch):
+    import stcvision.cli.dataset_generate as dg
+
+    real = dg.render_frames
+
+    def broken(params, seed):
+        if params["group"] == 1:
+            raise OSError("disk full")
+        return real(params, seed)
+
     d = tmp_path / "D"
-    shutil.copytree(smoke, d)
-    lines = (d / "labels.jsonl").read_text().splitlines()
-    (d / ".parts").mkdir()
-    for k, line in enumerate(lines[:3]):
-        (d / ".parts" / f"{k:06d}.json").write_text(line + "\n")
-    (d / "labels.jsonl").unlink()
-    for k in range(3, 6):
-        (d / "frames" / f"{k:06d}.png").unlink()
-    m = json.loads((d / "manifest.json").read_text())
-    m["complete"] = False
-    (d / "manifest.json").write_text(json.dumps(m))
+    monkeypatch.setattr(dg, "render_frames", broken)  # in-process (--workers 1) tasks see the patch
+    code, _, err = cli("dataset", "generate", SMOKE, "--out", d, "--workers", "1")
+    assert code == 2 and "1 of 4 tasks failed" in err and "OSError: disk full" in err and err.count("\n") == 1
+    assert not (d / "labels.jsonl").exists() and (d / ".sweep.jsonl").exists()
     code, _, err = cli("eval", d)
     assert code == 2 and "incomplete" in err and err.count("\n") == 1
-    code, out, _ = cli("dataset", "generate", SMOKE, "--out", d, "--json")
-    assert code == 0 and json.loads(out)["frames_rendered"] == 3
-    assert files(d) == files(smoke)
+    monkeypatch.setattr(dg, "render_frames", real)
+    code, out, _ = cli("dataset", "generate", SMOKE, "--out", d, "--workers", "1", "--json")
+    r = json.loads(out)
+    # the three finished tasks (calibration-free smoke: 2 darks, group 0's chunk) are not run again
+    assert code == 0 and r["frames_rendered"] == 3 and r["frames_skipped"] == 3 and r["darks_rendered"] == 0
+    assert files(d) == files(smoke)  # the store is gone, the files are those of an uninterrupted run
+    code, out, _ = cli("dataset", "generate", SMOKE, "--out", d, "--workers", "1", "--fresh", "--json")
+    assert code == 0 and json.loads(out)["frames_rendered"] == 6 and files(d) == files(smoke)
 
 
 def test_frame_k_does_not_depend_on_earlier_frames(tmp_path):
@@ -89,9 +98,10 @@ def test_frame_k_does_not_depend_on_earlier_frames(tmp_path):
     a = parse_recipe({**base, "groups": [{"name": "g", "n": 3}]})
     b = parse_recipe({**base, "groups": [{"name": "first", "n": 1}, {"name": "g", "n": 3}]})
     from stcvision.cli.dataset_generate import generate
+    from stcvision.sweep import SweepOptions
 
-    generate(a, tmp_path / "a", progress=lambda total, label: lambda n=1: None)
-    generate(b, tmp_path / "b", progress=lambda total, label: lambda n=1: None)
+    generate(a, tmp_path / "a", options=SweepOptions(workers=1))
+    generate(b, tmp_path / "b", options=SweepOptions(workers=2))
     # frame index k has the same scene and noise whatever the groups before it
     for k in (1, 2):
         assert (tmp_path / "a" / "frames" / f"{k:06d}.png").read_bytes() == (

@@ -212,3 +212,29 @@ def test_given_profile(smoke, tmp_path, cli):
     assert code == 0 and json.loads(out)["profile"].endswith("default.json")
     code, _, err = cli("eval", smoke, "--profile", tmp_path / "none.json")
     assert code == 2 and "none.json" in err
+
+
+def _untimed(d):
+    """An eval summary without its timings (which differ run to run) and the sweep's line."""
+    if isinstance(d, dict):
+        return {k: _untimed(v) for k, v in d.items() if "ms" not in k.split("_") and k != "sweep"}
+    if isinstance(d, list):
+        return [_untimed(v) for v in d]
+    return d
+
+
+def test_eval_in_chunks_on_a_pool_equals_one_in_process_pass_and_resumes(smoke, tmp_path, cli, monkeypatch):
+    import stcvision.cli.cmd_eval as ce
+
+    code, out, _ = cli("eval", smoke, "--json", "--workers", "1")
+    one = json.loads(out)
+    monkeypatch.setattr(ce, "FRAMES_PER_TASK", 2)  # three tasks of two frames
+    store = tmp_path / "eval.jsonl"
+    code, out, _ = cli("eval", smoke, "--json", "--workers", "2", "--store", store)
+    pool = json.loads(out)
+    assert code == 0 and "3 tasks" in pool["sweep"] and "local pool of 2" in pool["sweep"]
+    assert _untimed(pool) == _untimed(one) and pool["frames"] == 6
+    assert len(store.read_text().splitlines()) == 1 + 3  # header + one line per chunk
+    code, out, _ = cli("eval", smoke, "--json", "--workers", "2", "--store", store)
+    again = json.loads(out)
+    assert "3 skipped as done" in again["sweep"] and again == {**pool, "sweep": again["sweep"]}
