@@ -86,8 +86,11 @@ class StaticGeometry:
         caps = np.ascontiguousarray(np.concatenate(rows, axis=0), dtype=np.float64)
 
         xmin, ymin, xmax, ymax = arena.bounds_m
-        cell = float(reach_m)
-        pad = 2 * cell
+        # small cells keep each cell's list short (a cell lists what is within reach of any of its
+        # points), bounded so that the grid stays within _MAX_GRID_CELLS
+        extent = max(xmax - xmin, ymax - ymin) + 4 * reach_m
+        cell = max(0.25 * float(reach_m), extent / math.sqrt(_MAX_GRID_CELLS))
+        pad = 2 * reach_m
         ox, oy = xmin - pad, ymin - pad
         nx = math.ceil((xmax - xmin + 2 * pad) / cell)
         ny = math.ceil((ymax - ymin + 2 * pad) / cell)

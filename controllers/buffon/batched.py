@@ -20,7 +20,7 @@ One step of one robot, in the order of the pymunk path (:mod:`controllers.buffon
 
 Randomness: trial i has its own stream ``SeedSequence(seed).spawn(...)[i]``, split into four
 components (start heading, behaviour draws, IR noise, wheel slip), so a trial's counts do not
-depend on how many trials run beside it, on the chunk size, or on the worker that runs it.
+depend on how many trials run beside it or on the worker that runs it.
 """
 
 from __future__ import annotations
@@ -41,12 +41,9 @@ from sim_camera.robot import KHEPERA, DiffDriveParams
 from sim_camera.sensors import IrParams
 from stcvision.errors import BadInputError
 
-__all__ = ["TrialSet", "VisitConfig", "run_trials", "start_headings", "start_pose", "trial_seeds"]
+__all__ = ["TrialSet", "VisitConfig", "run_trials", "start_headings", "trial_seeds"]
 
-N_DRAWS = 10  # per robot-step: u_n, u_nbar, 6 IR noise, 2 wheel slip
 START_HEADING_SPREAD_RAD = math.radians(15)  # sec. 3.1: "varied within +-15 degrees of the wall"
-START_CLEARANCE_BODY_LENGTHS = 1.0  # the start's centre is one body length above the bottom wall
-GRID_BUDGET_BYTES = 512 * 2**20  # trail rasters held at once
 MAX_TRAIL_CELLS = 64_000_000
 
 
@@ -98,7 +95,6 @@ _P = (
     "dt", "gamma", "front_thr", "side_thr", "speed_scale", "noise", "esc_min", "esc_max", "vmax", "radius",
     "b_true", "dl_ratio", "dr_ratio", "slip_k", "ir_sat", "ir_range", "ir_sigma", "rate", "thr", "hyst", "half_w",
 )  # fmt: skip
-_I = {k: i for i, k in enumerate(_P)}
 # state columns
 X, Y, TH, R, WL, WR, LEVEL, PLEN, ABOVE, GAIN, BLIND = range(11)
 N_STATE = 11
@@ -113,10 +109,12 @@ def _ir_reading(d, sat, rng_m, noise):
 
 
 @numba.njit(cache=True, nogil=True)
-def _chunk(st, crossings, draws, grids, lay, geo, outer, trail, prm, ir_ang, rec):
-    """Advance every robot of ``st`` (N, N_STATE) by ``draws.shape[1]`` steps. ``grids`` (N, H, W)
-    uint8 trail rasters; ``lay``: visit 1 (lay) or 2 (sense); ``rec`` (R, S, 3): x, y, crossed for
-    the first R robots. Returns the number of containment failures (must stay 0)."""
+def _visit(st, beh, irg, slip, steps, grid, lay, geo, outer, trail, prm, ir_ang, rec):
+    """Advance one robot (state ``st``, (N_STATE,)) by ``steps`` steps, drawing from its own
+    generators (numba runs numpy's Generator algorithms, bit for bit): ``beh`` the behaviour's
+    n and nbar, ``irg`` the IR noise, ``slip`` the wheel slip. ``grid``: the trail raster; ``lay``:
+    visit 1 (lay) or 2 (sense); ``rec`` (steps or 0, 3): x, y, crossed per step. Returns
+    (crossings, containment failures)."""
     caps, ox, oy, cell, ny, nx, offsets, index = geo
     gox, goy, gcell = trail
     dt, gamma, front_thr, side_thr, k = prm[0], prm[1], prm[2], prm[3], prm[4]
@@ -127,69 +125,67 @@ def _chunk(st, crossings, draws, grids, lay, geo, outer, trail, prm, ir_ang, rec
     n_ir = ir_ang.shape[0]
     ir_cos, ir_sin = np.cos(ir_ang), np.sin(ir_ang)
     ir = np.empty(6)
+    x, y, th = st[X], st[Y], st[TH]
+    r, wl, wr, level, plen = st[R], st[WL], st[WR], st[LEVEL], st[PLEN]
+    above = st[ABOVE] > 0.5
+    gain, blind = st[GAIN], st[BLIND]
+    crossings = 0
     escapes = 0
-    for j in range(st.shape[0]):
-        x, y, th = st[j, 0], st[j, 1], st[j, 2]
-        r, wl, wr, level, plen = st[j, 3], st[j, 4], st[j, 5], st[j, 6], st[j, 7]
-        above = st[j, 8] > 0.5
-        gain = st[j, 9]
-        blind = st[j, 10]
-        grid = grids[j]
-        for s in range(draws.shape[1]):
-            dj = draws[j, s]
-            lo, hi = cell_span(x, y, ox, oy, cell, ny, nx, offsets)
-            if lo == hi:  # no solid within reach: the readings are noise around 0
-                for q in range(n_ir):
-                    ir[q] = _ir_reading(np.inf, ir_sat, ir_range, ir_sigma * dj[2 + q])
-            else:
-                ct, st_ = math.cos(th), math.sin(th)
-                for q in range(n_ir):
-                    c = ct * ir_cos[q] - st_ * ir_sin[q]
-                    sn = st_ * ir_cos[q] + ct * ir_sin[q]
-                    d = ray_cast(caps, ox, oy, cell, ny, nx, offsets, index, x, y,
-                                 x + radius * c, y + radius * sn, c, sn, ir_range)  # fmt: skip
-                    ir[q] = _ir_reading(d, ir_sat, ir_range, ir_sigma * dj[2 + q])
-            n = -noise + 2.0 * noise * dj[0]
-            nbar = esc_min + (esc_max - esc_min) * dj[1]
-            r, wl, wr, rbar = explorer_core_nb(r, wl, wr, ir[0], ir[1], ir[2], ir[3], ir[4], ir[5],
-                                               n, nbar, gamma, front_thr, side_thr)  # fmt: skip
-            ml, mr = wheel_speeds_nb(rbar, k)
-            ml = min(vmax, max(-vmax, ml))
-            mr = min(vmax, max(-vmax, mr))
-            dl = ml * dt * gain * dl_ratio
-            dr = mr * dt * gain * dr_ratio
-            if slip_k > 0.0:
-                dl += slip_k * math.sqrt(abs(dl)) * dj[8]
-                dr += slip_k * math.sqrt(abs(dr)) * dj[9]
-            v = 0.5 * (dl + dr)
-            dth = (dr - dl) / b_true
-            mid = th + 0.5 * dth
-            nx_, ny_, _ = push_out(caps, ox, oy, cell, ny, nx, offsets, index,
-                                   x + v * math.cos(mid), y + v * math.sin(mid), radius)  # fmt: skip
-            th += dth
-            plen += math.hypot(nx_ - x, ny_ - y)
-            crossed = False
-            if lay:
-                deposit_segment(grid, gox, goy, gcell, half_w, x, y, nx_, ny_)
-            x, y = nx_, ny_
-            if not lay:
-                level, above, crossed = integrate_nb(level, above, float(read_cell(grid, gox, goy, gcell, x, y)),
-                                                     rate, thr, hyst)  # fmt: skip
-                if crossed:
-                    crossings[j] += 1
-                if above:
-                    blind += 1.0
-            if (s & 15) == 0 and not inside_polygon(outer, x, y):
-                escapes += 1
-            if j < rec.shape[0]:
-                rec[j, s, 0] = x
-                rec[j, s, 1] = y
-                rec[j, s, 2] = 1.0 if crossed else 0.0
-        st[j, 0], st[j, 1], st[j, 2] = x, y, th
-        st[j, 3], st[j, 4], st[j, 5], st[j, 6], st[j, 7] = r, wl, wr, level, plen
-        st[j, 8] = 1.0 if above else 0.0
-        st[j, 10] = blind
-    return escapes
+    recording = rec.shape[0] > 0
+    for s in range(steps):
+        # 1. six IR rays from the rim (sim_camera.sensors.IrSensors), noise from their stream
+        lo, hi = cell_span(x, y, ox, oy, cell, ny, nx, offsets)
+        if lo == hi:  # no solid within reach: the readings are noise around 0
+            for q in range(n_ir):
+                ir[q] = _ir_reading(np.inf, ir_sat, ir_range, ir_sigma * irg.standard_normal())
+        else:
+            ct, st_ = math.cos(th), math.sin(th)
+            for q in range(n_ir):
+                c = ct * ir_cos[q] - st_ * ir_sin[q]
+                sn = st_ * ir_cos[q] + ct * ir_sin[q]
+                d = ray_cast(caps, ox, oy, cell, ny, nx, offsets, index, x, y,
+                             x + radius * c, y + radius * sn, c, sn, ir_range)  # fmt: skip
+                ir[q] = _ir_reading(d, ir_sat, ir_range, ir_sigma * irg.standard_normal())
+        # 2. the behaviour of sec. 3.2 (the scalar controller's own equations)
+        n = -noise + 2.0 * noise * beh.random()
+        nbar = esc_min + (esc_max - esc_min) * beh.random()
+        r, wl, wr, rbar = explorer_core_nb(r, wl, wr, ir[0], ir[1], ir[2], ir[3], ir[4], ir[5],
+                                           n, nbar, gamma, front_thr, side_thr)  # fmt: skip
+        ml, mr = wheel_speeds_nb(rbar, k)
+        # 3. wheels -> body, as sim_camera.robot.DiffDriveRobot._pre_step
+        dl = min(vmax, max(-vmax, ml)) * dt * gain * dl_ratio
+        dr = min(vmax, max(-vmax, mr)) * dt * gain * dr_ratio
+        if slip_k > 0.0:
+            n0, n1 = slip.standard_normal(), slip.standard_normal()
+            dl += slip_k * math.sqrt(abs(dl)) * n0
+            dr += slip_k * math.sqrt(abs(dr)) * n1
+        v = 0.5 * (dl + dr)
+        dth = (dr - dl) / b_true
+        mid = th + 0.5 * dth
+        # 4. frictionless contact
+        nx_, ny_, _ = push_out(caps, ox, oy, cell, ny, nx, offsets, index,
+                               x + v * math.cos(mid), y + v * math.sin(mid), radius)  # fmt: skip
+        th += dth
+        plen += math.hypot(nx_ - x, ny_ - y)
+        # 5. lay the trail, or read it and count
+        crossed = False
+        if lay:
+            deposit_segment(grid, gox, goy, gcell, half_w, x, y, nx_, ny_)
+        x, y = nx_, ny_
+        if not lay:
+            level, above, crossed = integrate_nb(level, above, float(read_cell(grid, gox, goy, gcell, x, y)),
+                                                 rate, thr, hyst)  # fmt: skip
+            crossings += crossed
+            blind += above
+        if (s & 15) == 0 and not inside_polygon(outer, x, y):
+            escapes += 1
+        if recording:
+            rec[s, 0], rec[s, 1], rec[s, 2] = x, y, 1.0 if crossed else 0.0
+    st[X], st[Y], st[TH] = x, y, th
+    st[R], st[WL], st[WR], st[LEVEL], st[PLEN] = r, wl, wr, level, plen
+    st[ABOVE] = 1.0 if above else 0.0
+    st[BLIND] = blind
+    return crossings, escapes
 
 
 @dataclass(frozen=True, slots=True)
@@ -209,12 +205,6 @@ class TrialSet:
     def nbc(self) -> np.ndarray:
         """Normalised Buffon count (sec. 4): crossings / second-visit length (per body length)."""
         return self.crossings / self.l2_u
-
-
-def start_pose(nest: Nest, robot: DiffDriveParams = KHEPERA) -> tuple[float, float]:
-    """The central bottom of the nest (sec. 3.1), one body length above the wall."""
-    x, y, _ = nest.arena.start_pose(START_CLEARANCE_BODY_LENGTHS * BODY_LENGTH_M)
-    return x, y
 
 
 def _trail_grid_shape(nest: Nest, cell_m: float) -> tuple[int, int]:
@@ -247,13 +237,12 @@ def run_trials(
     *,
     trials: int = 100,
     seed: int | np.random.SeedSequence = 0,
-    chunk_steps: int = 4096,
     record_trial: int | None = None,
     progress: Callable[[int], None] | None = None,
 ) -> TrialSet:
     """Run ``trials`` independent two-visit trials of Buffon's method in ``nest``.
 
-    ``progress(n)`` is called with the robot-steps done after each chunk (for a progress bar).
+    ``progress(n)`` is called with the robot-steps done after each visit (for a progress bar).
     ``record_trial`` keeps that trial's two paths (x, y, crossed per step) in ``TrialSet.trails``.
     """
     if not (isinstance(trials, int) and trials > 0):
@@ -262,63 +251,38 @@ def run_trials(
     rb = config.robot
     geo = StaticGeometry.from_arena(nest.arena, reach_m=rb.radius_m + config.ir.range_m + 0.005)
     cell = 0.5 * config.trail_width_m  # as sim_camera.layers.PheromoneLayer
-    gshape = _trail_grid_shape(nest, cell)
     xmin, ymin = nest.arena.bounds_m[:2]
     trail = (xmin, ymin, cell)
-    group = int(max(1, min(trials, GRID_BUDGET_BYTES // (gshape[0] * gshape[1]))))
+    grid = np.zeros(_trail_grid_shape(nest, cell), dtype=np.uint8)
     prm = config.kernel_params()
     ir_ang = np.array(config.ir.angles_rad, dtype=np.float64)
-    sx, sy = start_pose(nest, rb)
-    streams = [[np.random.default_rng(s) for s in ss] for ss in trial_seeds(seed, trials)]
-    gains = np.array([_motor_gain(rb, s[0]) for s in streams])
-    headings = np.array([start_headings(s[0]) for s in streams])
-    l1 = np.zeros(trials)
-    l2 = np.zeros(trials)
-    crossings = np.zeros(trials, dtype=np.int64)
-    blind = np.zeros(trials)
+    sx, sy = nest.start_xy
+    out = np.zeros((4, trials))  # l1, l2, crossings, blind
     escapes = 0
     trails: dict = {}
-    grids = np.zeros((group, *gshape), dtype=np.uint8)
-    for g0 in range(0, trials, group):
-        idx = np.arange(g0, min(trials, g0 + group))
-        grids[: len(idx)] = 0
-        rec_row = None if record_trial is None or record_trial not in idx else int(record_trial - g0)
-        for visit, lay in ((1, True), (2, False)):
-            st = np.zeros((len(idx), N_STATE))
-            st[:, X], st[:, Y], st[:, GAIN] = sx, sy, gains[idx]
-            st[:, TH] = headings[idx, visit - 1]
-            cx = crossings[idx].copy()
-            recorded = []
-            for s0 in range(0, config.visit_steps, chunk_steps):
-                n = min(chunk_steps, config.visit_steps - s0)
-                draws = _draws(streams, idx, n)
-                rec = np.zeros((0 if rec_row is None else rec_row + 1, n, 3))
-                escapes += _chunk(st, cx, draws, grids, lay, geo.arrays, geo.outer, trail, prm, ir_ang, rec)
-                if rec_row is not None:
-                    recorded.append(rec[rec_row].copy())
-                if progress is not None:
-                    progress(n * len(idx))
-            (l1 if lay else l2)[idx] = st[:, PLEN] / BODY_LENGTH_M
-            if not lay:
-                crossings[idx] = cx
-                blind[idx] = st[:, BLIND] / config.visit_steps
-            if rec_row is not None:
-                trails[f"visit{visit}"] = np.concatenate(recorded)
+    for i, seeds in enumerate(trial_seeds(seed, trials)):
+        start, beh, irg, slip = (np.random.default_rng(s) for s in seeds)
+        gain = _motor_gain(rb, start)
+        grid[:] = 0
+        for visit, heading in enumerate(start_headings(start), 1):
+            st = np.zeros(N_STATE)
+            st[X], st[Y], st[TH], st[GAIN] = sx, sy, heading, gain
+            rec = np.zeros((config.visit_steps if i == record_trial else 0, 3))
+            n, e = _visit(st, beh, irg, slip, config.visit_steps, grid, visit == 1, geo.arrays, geo.outer, trail,
+                          prm, ir_ang, rec)  # fmt: skip
+            escapes += e
+            out[visit - 1, i] = st[PLEN] / BODY_LENGTH_M
+            if visit == 2:
+                out[2, i], out[3, i] = n, st[BLIND] / config.visit_steps
+            if len(rec):
+                trails[f"visit{visit}"] = rec
+            if progress is not None:
+                progress(config.visit_steps)
     steps = 2 * trials * config.visit_steps
-    return TrialSet(l1, l2, crossings, blind, int(escapes), steps, time.perf_counter() - t0, trails)
+    return TrialSet(out[0], out[1], out[2].astype(np.int64), out[3], int(escapes), steps, time.perf_counter() - t0,
+                    trails)  # fmt: skip
 
 
 def _motor_gain(rb: DiffDriveParams, rng: np.random.Generator) -> float:
     s = rb.speed_gain_spread
     return float(rng.uniform(1 - s, 1 + s)) if s > 0 else 1.0
-
-
-def _draws(streams, idx, n: int) -> np.ndarray:
-    d = np.empty((len(idx), n, N_DRAWS))
-    for row, i in enumerate(idx):
-        _, beh, ir, slip = streams[i]
-        d[row, :, 0:2] = beh.random((n, 2))
-        d[row, :, 2:8] = ir.standard_normal((n, 6))
-        d[row, :, 8:10] = slip.standard_normal((n, 2))
-    return d
-

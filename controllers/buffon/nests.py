@@ -50,6 +50,7 @@ __all__ = [
 BODY_LENGTH_M = 2 * KHEPERA.radius_m  # the paper's unit: the robot's diameter (55 mm)
 STANDARD_DIAMETER_U = 100.0  # sec. 3.1: "Circular nest with diameter 100 units ... standard size"
 STANDARD_AREA_U2 = math.pi * (STANDARD_DIAMETER_U / 2) ** 2
+START_CLEARANCE_BODY_LENGTHS = 1.0  # the start's centre is one body length above the bottom wall
 _MAX_EXTENT_U = 2000.0  # the batched path's near grid and trail raster must fit in memory
 
 
@@ -70,6 +71,13 @@ class Nest:
     def area_u2(self) -> float:
         """True free floor area (outer area minus barrier footprints), body lengths squared."""
         return self.arena.area_m2 / BODY_LENGTH_M**2
+
+    @property
+    def start_xy(self) -> tuple[float, float]:
+        """Where both visits start (m): the central bottom of the nest (sec. 3.1: "the robot began
+        its exploration from the central bottom part of the nest"), one body length above the wall."""
+        x, y, _ = self.arena.start_pose(START_CLEARANCE_BODY_LENGTHS * BODY_LENGTH_M)
+        return x, y
 
     @property
     def label(self) -> str:
@@ -199,9 +207,16 @@ def parse_nest(spec: str, barrier: str | None = None, *, robot_radius_m: float =
         btype, frac = parse_barrier(barrier)
         arena = arena.with_parts(barriers=arena.centred_barriers(btype, frac, DEFAULT_BARRIER_THICKNESS_M))
         _check_not_cut(arena, spec, barrier, robot_radius_m)
-    if not arena.contains([arena.start_pose(1.2 * robot_radius_m)[:2]], margin_m=robot_radius_m)[0]:
-        raise BadInputError(f"nest {spec!r}: too small for a robot {2 * robot_radius_m / BODY_LENGTH_M:g} u across")
-    return Nest(spec=spec, barrier=barrier, arena=arena)
+    nest = Nest(spec=spec, barrier=barrier, arena=arena)
+    try:
+        start = nest.start_xy
+    except BadInputError:
+        start = None
+    if start is None or not arena.contains([start], margin_m=START_CLEARANCE_BODY_LENGTHS * BODY_LENGTH_M * 0.99)[0]:
+        raise BadInputError(
+            f"nest {spec!r}: too small: the robot starts {START_CLEARANCE_BODY_LENGTHS:g} body length from every wall"
+        )
+    return nest
 
 
 def _check_not_cut(arena: Arena, spec: str, barrier: str, robot_radius_m: float) -> None:

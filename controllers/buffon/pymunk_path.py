@@ -19,7 +19,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from controllers.buffon.batched import TrialSet, VisitConfig, start_headings, start_pose, trial_seeds
+from controllers.buffon.batched import TrialSet, VisitConfig, start_headings, trial_seeds
 from controllers.buffon.behaviour import Explorer
 from controllers.buffon.counter import LeakyIntegrator
 from controllers.buffon.nests import BODY_LENGTH_M, Nest
@@ -58,7 +58,7 @@ def run_trial_pymunk(nest: Nest, config: VisitConfig, seeds, *, progress=None) -
     beh = np.random.default_rng(ss_beh)
     w1, w2 = ss_world.spawn(2)
     layer = PheromoneLayer(nest.arena.bounds_m, width_m=config.trail_width_m)
-    x, y = start_pose(nest, config.robot)
+    x, y = nest.start_xy
     l1, _, _, e1 = _visit(nest, config, layer, (x, y, h1), w1, beh, lay=True, progress=progress)
     l2, n, blind, e2 = _visit(nest, config, layer, (x, y, h2), w2, beh, lay=False, progress=progress)
     return l1, l2, n, blind / config.visit_steps, e1 + e2

@@ -1,0 +1,142 @@
+"""`stcvision buffon`: the measurement, its recording, bad input, reproduce and compare."""
+
+import json
+
+import pytest
+
+import controllers.buffon.run as buffon_run
+from controllers.buffon.experiments import Case
+
+
+def test_measure_json_keys_and_containment(cli):
+    code, out, err = cli("buffon", "--nest", "circle:20", "--trials", 5, "--visit-steps", 3000, "--json")
+    assert code == 0, err
+    r = json.loads(out)
+    for k in ("nbc_median", "nbc_q1", "nbc_q3", "area_true", "area_estimate_median", "area_rel_error_median",
+              "area_ci95", "crossings_median", "trials", "robot_steps_per_s", "wall_s"):  # fmt: skip
+        assert k in r
+    assert r["trials"] == 5 and r["escapes"] == 0
+    assert r["area_true"] == pytest.approx(314.159, rel=1e-4)
+    assert r["robot_steps"] == 2 * 5 * 3000
+
+
+def test_measure_text_and_rrd(cli, tmp_path):
+    rrd = tmp_path / "t.rrd"
+    code, out, err = cli("buffon", "--nest", "square:15", "--barrier", "bar:0.5", "--trials", 2, "--visit-steps",
+                         2000, "--rrd", rrd)  # fmt: skip
+    assert code == 0, err
+    assert "nBC median" in out and rrd.stat().st_size > 10_000
+    code, _, err = cli("buffon", "--nest", "square:15", "--trials", 2, "--visit-steps", 100, "--rrd", rrd)
+    assert code == 2 and "exists" in err and "--force" in err
+
+
+def _bowtie(tmp_path):
+    p = tmp_path / "bowtie.json"
+    p.write_text(json.dumps([[0, 0], [20, 20], [20, 0], [0, 20]]))
+    return p
+
+
+@pytest.mark.parametrize(
+    "argv,needle",
+    [
+        (["--nest", "circle:-5"], "positive"),
+        (["--nest", "circle:abc"], "number"),
+        (["--nest", "blob:3"], "expected circle:DIAMETER"),
+        (["--nest", "ellipse:100"], "expected circle:DIAMETER"),
+        (["--nest", "ellipse:1000:0.5"], "RATIO"),
+        (["--nest", "circle:0.8"], "too small"),
+        (["--nest", "circle:20", "--barrier", "plus:0.97"], "cuts nest"),
+        (["--nest", "circle:20", "--barrier", "bar:1.5"], "FRACTION"),
+        (["--nest", "circle:20", "--barrier", "wall:0.5"], "bar:FRACTION"),
+        (["--nest", "circle:20", "--trials", "0"], "must be > 0"),
+        (["--nest", "circle:20", "--visit-steps", "-3"], "must be > 0"),
+        (["--nest", "circle:20", "--trail-width", "0"], "must be > 0"),
+        (["--nest", "circle:1e9"], "larger than"),
+        ([], "--nest is required"),
+    ],
+)
+def test_bad_input_is_one_line_and_exit_2(cli, capsys, argv, needle):
+    try:
+        code, out, err = cli("buffon", *argv)
+    except SystemExit as e:  # argparse's own usage errors
+        code, err = e.code, capsys.readouterr().err
+    assert code == 2
+    assert needle in err and len(err.strip().splitlines()) == 1 and "Traceback" not in err
+
+
+def test_bad_polygon_files(cli, tmp_path):
+    code, _, err = cli("buffon", "--nest", f"polygon:{_bowtie(tmp_path)}")
+    assert code == 2 and "intersects itself" in err
+    two = tmp_path / "two.json"
+    two.write_text("[[0, 0], [10, 0]]")
+    code, _, err = cli("buffon", "--nest", f"polygon:{two}")
+    assert code == 2 and "at least 3 vertices" in err
+    bad = tmp_path / "bad.json"
+    bad.write_text('{"x": 1}')
+    code, _, err = cli("buffon", "--nest", f"polygon:{bad}")
+    assert code == 2 and "[x, y]" in err
+    code, _, err = cli("buffon", "--nest", f"polygon:{tmp_path / 'missing.json'}")
+    assert code == 2 and "does not exist" in err
+
+
+def _mini_cases():
+    steps = 1500
+    circ = [Case(family="circles", spec=f"circle:{d}", visit_steps=steps, x=3.14159 * d * d / 4) for d in (10, 20, 50, 100)]
+    sq = [Case(family="squares", spec=f"square:{d * 0.886227:.6g}", visit_steps=steps, x=c.x)
+          for d, c in zip((10, 20, 50, 100), circ, strict=True)]  # fmt: skip
+    return [
+        *circ,
+        *sq,
+        Case(family="ellipses", spec="ellipse:7853.98:4", visit_steps=steps, x=4.0),
+        Case(family="bar", spec="circle:100", barrier="bar:0.5", visit_steps=steps, x=0.5),
+        Case(family="plus", spec="circle:100", barrier="plus:0.5", visit_steps=steps, x=0.5),
+        Case(family="thickness", spec="circle:10", trail_width_u=0.4, visit_steps=steps, x=circ[0].x),
+        Case(family="thickness", spec="circle:100", trail_width_u=0.4, visit_steps=steps, x=circ[-1].x),
+        Case(family="accuracy", spec="circle:100", visit_steps=2 * steps, x=0),
+    ]
+
+
+def test_reproduce_writes_figures_table_and_claims(cli, tmp_path, monkeypatch):
+    monkeypatch.setattr(buffon_run, "experiment_cases", _mini_cases)
+    monkeypatch.setattr(buffon_run, "_patterns", lambda seed: {
+        k: v for k, v in _real_patterns(seed).items()
+    })  # fmt: skip
+    out = tmp_path / "rep"
+    code, stdout, err = cli("buffon", "reproduce", "--out", out, "--trials", 3, "--workers", 1, "--json")
+    assert code == 0, err
+    r = json.loads(stdout)
+    assert r["nests"] == len(_mini_cases())
+    for name in buffon_run.REPRODUCE_FILES:
+        assert (out / name).stat().st_size > 0, name
+    summary = (out / "summary.md").read_text()
+    for claim in ("Circle ~ square", "log-linearly", "compactness", "barrier", "Thicker trails", "Absolute area"):
+        assert claim in summary
+    assert len((out / "nests.csv").read_text().splitlines()) == len(_mini_cases()) + 1
+    # a second run finds every nest done in its store
+    code, stdout, err = cli("buffon", "reproduce", "--out", out, "--trials", 3, "--workers", 1, "--json")
+    assert code == 0 and f"{len(_mini_cases())} skipped as done" in json.loads(stdout)["sweep"]
+
+
+def _real_patterns(seed):
+    import numpy as np
+
+    outline = np.array([[0, 0], [1, 0], [1, 1]], float)
+    path = np.c_[np.random.default_rng(seed).random((50, 2)), np.zeros(50)]
+    return {"stand-in": (outline, path, path)}
+
+
+def test_reproduce_refuses_a_foreign_folder(cli, tmp_path):
+    (tmp_path / "summary.md").write_text("mine")
+    code, _, err = cli("buffon", "reproduce", "--out", tmp_path, "--trials", 1, "--workers", 1)
+    assert code == 2 and "holds no Buffon run" in err
+    assert (tmp_path / "summary.md").read_text() == "mine"
+
+
+def test_compare_runs_both_paths(cli, tmp_path):
+    code, out, err = cli("buffon", "compare", "--nest", "circle:15", "--trials", 6, "--visit-steps", 600, "--out",
+                         tmp_path, "--workers", 1, "--json")  # fmt: skip
+    assert code == 0, err
+    r = json.loads(out)
+    assert r["escapes_pymunk"] == 0 and r["escapes_batched"] == 0
+    assert 0 <= r["mannwhitney_p"] <= 1 and r["speed_ratio"] > 1
+    assert (tmp_path / "compare.png").exists() and (tmp_path / "compare.md").exists()
