@@ -36,7 +36,15 @@ import numpy as np
 from controllers.buffon.behaviour import ExplorerParams, explorer_core_nb, wheel_speeds_nb
 from controllers.buffon.counter import CounterParams, integrate_nb
 from controllers.buffon.nests import BODY_LENGTH_M, Nest
-from sim_camera.fastworld import StaticGeometry, cell_span, deposit_segment, inside_polygon, push_out, ray_cast, read_cell
+from sim_camera.fastworld import (
+    StaticGeometry,
+    cell_span,
+    deposit_segment,
+    inside_polygon,
+    push_out,
+    ray_cast,
+    read_cell,
+)
 from sim_camera.robot import KHEPERA, DiffDriveParams
 from sim_camera.sensors import IrParams
 from stcvision.errors import BadInputError
@@ -81,20 +89,54 @@ class VisitConfig:
 
         dl, dr = true_wheel_diameters_m(rb.wheel_diameter_m, rb.ed)
         vals = {
-            "dt": self.dt_s, "gamma": b.gamma, "front_thr": b.front_sum_threshold, "side_thr": b.side_threshold,
-            "speed_scale": b.speed_scale_m_s, "noise": b.noise, "esc_min": b.escape_min, "esc_max": b.escape_max,
-            "vmax": rb.max_wheel_speed_m_s, "radius": rb.radius_m, "b_true": rb.wheelbase_m * rb.eb,
-            "dl_ratio": dl / rb.wheel_diameter_m, "dr_ratio": dr / rb.wheel_diameter_m, "slip_k": rb.slip_k,
-            "ir_sat": ir.saturation_m, "ir_range": ir.range_m, "ir_sigma": ir.noise_sigma,
-            "rate": c.rate, "thr": c.threshold, "hyst": c.hysteresis, "half_w": 0.5 * self.trail_width_m,
-        }  # fmt: skip
+            "dt": self.dt_s,
+            "gamma": b.gamma,
+            "front_thr": b.front_sum_threshold,
+            "side_thr": b.side_threshold,
+            "speed_scale": b.speed_scale_m_s,
+            "noise": b.noise,
+            "esc_min": b.escape_min,
+            "esc_max": b.escape_max,
+            "vmax": rb.max_wheel_speed_m_s,
+            "radius": rb.radius_m,
+            "b_true": rb.wheelbase_m * rb.eb,
+            "dl_ratio": dl / rb.wheel_diameter_m,
+            "dr_ratio": dr / rb.wheel_diameter_m,
+            "slip_k": rb.slip_k,
+            "ir_sat": ir.saturation_m,
+            "ir_range": ir.range_m,
+            "ir_sigma": ir.noise_sigma,
+            "rate": c.rate,
+            "thr": c.threshold,
+            "hyst": c.hysteresis,
+            "half_w": 0.5 * self.trail_width_m,
+        }
         return np.array([vals[k] for k in _P], dtype=np.float64)
 
 
 _P = (
-    "dt", "gamma", "front_thr", "side_thr", "speed_scale", "noise", "esc_min", "esc_max", "vmax", "radius",
-    "b_true", "dl_ratio", "dr_ratio", "slip_k", "ir_sat", "ir_range", "ir_sigma", "rate", "thr", "hyst", "half_w",
-)  # fmt: skip
+    "dt",
+    "gamma",
+    "front_thr",
+    "side_thr",
+    "speed_scale",
+    "noise",
+    "esc_min",
+    "esc_max",
+    "vmax",
+    "radius",
+    "b_true",
+    "dl_ratio",
+    "dr_ratio",
+    "slip_k",
+    "ir_sat",
+    "ir_range",
+    "ir_sigma",
+    "rate",
+    "thr",
+    "hyst",
+    "half_w",
+)
 # state columns
 X, Y, TH, R, WL, WR, LEVEL, PLEN, ABOVE, GAIN, BLIND = range(11)
 N_STATE = 11
@@ -143,14 +185,16 @@ def _visit(st, beh, irg, slip, steps, grid, lay, geo, outer, trail, prm, ir_ang,
             for q in range(n_ir):
                 c = ct * ir_cos[q] - st_ * ir_sin[q]
                 sn = st_ * ir_cos[q] + ct * ir_sin[q]
-                d = ray_cast(caps, ox, oy, cell, ny, nx, offsets, index, x, y,
-                             x + radius * c, y + radius * sn, c, sn, ir_range)  # fmt: skip
+                d = ray_cast(
+                    caps, ox, oy, cell, ny, nx, offsets, index, x, y, x + radius * c, y + radius * sn, c, sn, ir_range
+                )
                 ir[q] = _ir_reading(d, ir_sat, ir_range, ir_sigma * irg.standard_normal())
         # 2. the behaviour of sec. 3.2 (the scalar controller's own equations)
         n = -noise + 2.0 * noise * beh.random()
         nbar = esc_min + (esc_max - esc_min) * beh.random()
-        r, wl, wr, rbar = explorer_core_nb(r, wl, wr, ir[0], ir[1], ir[2], ir[3], ir[4], ir[5],
-                                           n, nbar, gamma, front_thr, side_thr)  # fmt: skip
+        r, wl, wr, rbar = explorer_core_nb(
+            r, wl, wr, ir[0], ir[1], ir[2], ir[3], ir[4], ir[5], n, nbar, gamma, front_thr, side_thr
+        )
         ml, mr = wheel_speeds_nb(rbar, k)
         # 3. wheels -> body, as sim_camera.robot.DiffDriveRobot._pre_step
         dl = min(vmax, max(-vmax, ml)) * dt * gain * dl_ratio
@@ -163,8 +207,9 @@ def _visit(st, beh, irg, slip, steps, grid, lay, geo, outer, trail, prm, ir_ang,
         dth = (dr - dl) / b_true
         mid = th + 0.5 * dth
         # 4. frictionless contact
-        nx_, ny_, _ = push_out(caps, ox, oy, cell, ny, nx, offsets, index,
-                               x + v * math.cos(mid), y + v * math.sin(mid), radius)  # fmt: skip
+        nx_, ny_, _ = push_out(
+            caps, ox, oy, cell, ny, nx, offsets, index, x + v * math.cos(mid), y + v * math.sin(mid), radius
+        )
         th += dth
         plen += math.hypot(nx_ - x, ny_ - y)
         # 5. lay the trail, or read it and count
@@ -173,8 +218,9 @@ def _visit(st, beh, irg, slip, steps, grid, lay, geo, outer, trail, prm, ir_ang,
             deposit_segment(grid, gox, goy, gcell, half_w, x, y, nx_, ny_)
         x, y = nx_, ny_
         if not lay:
-            level, above, crossed = integrate_nb(level, above, float(read_cell(grid, gox, goy, gcell, x, y)),
-                                                 rate, thr, hyst)  # fmt: skip
+            level, above, crossed = integrate_nb(
+                level, above, float(read_cell(grid, gox, goy, gcell, x, y)), rate, thr, hyst
+            )
             crossings += crossed
             blind += above
         if (s & 15) == 0 and not inside_polygon(outer, x, y):
@@ -268,8 +314,9 @@ def run_trials(
             st = np.zeros(N_STATE)
             st[X], st[Y], st[TH], st[GAIN] = sx, sy, heading, gain
             rec = np.zeros((config.visit_steps if i == record_trial else 0, 3))
-            n, e = _visit(st, beh, irg, slip, config.visit_steps, grid, visit == 1, geo.arrays, geo.outer, trail,
-                          prm, ir_ang, rec)  # fmt: skip
+            n, e = _visit(
+                st, beh, irg, slip, config.visit_steps, grid, visit == 1, geo.arrays, geo.outer, trail, prm, ir_ang, rec
+            )
             escapes += e
             out[visit - 1, i] = st[PLEN] / BODY_LENGTH_M
             if visit == 2:
@@ -279,8 +326,9 @@ def run_trials(
             if progress is not None:
                 progress(config.visit_steps)
     steps = 2 * trials * config.visit_steps
-    return TrialSet(out[0], out[1], out[2].astype(np.int64), out[3], int(escapes), steps, time.perf_counter() - t0,
-                    trails)  # fmt: skip
+    return TrialSet(
+        out[0], out[1], out[2].astype(np.int64), out[3], int(escapes), steps, time.perf_counter() - t0, trails
+    )
 
 
 def _motor_gain(rb: DiffDriveParams, rng: np.random.Generator) -> float:

@@ -109,9 +109,21 @@ def explorer_step(
     n = rng.uniform(-params.noise, params.noise)
     nbar = rng.uniform(params.escape_min, params.escape_max)
     r, wl, wr, rbar = explorer_core(
-        state.r, state.w_l, state.w_r, i0, i1, i2, i3, i4, i5, n, nbar,
-        params.gamma, params.front_sum_threshold, params.side_threshold,
-    )  # fmt: skip
+        state.r,
+        state.w_l,
+        state.w_r,
+        i0,
+        i1,
+        i2,
+        i3,
+        i4,
+        i5,
+        n,
+        nbar,
+        params.gamma,
+        params.front_sum_threshold,
+        params.side_threshold,
+    )
     return ExplorerState(r, wl, wr, rbar), wheel_speeds(rbar, params.speed_scale_m_s)
 
 
@@ -124,9 +136,21 @@ def _step_batch(r, wl, wr, ir, n, nbar, gamma, front_thr, side_thr, k):
     ro, wlo, wro = np.empty(m), np.empty(m), np.empty(m)
     for j in range(m):
         ro[j], wlo[j], wro[j], rbar[j] = explorer_core_nb(
-            r[j], wl[j], wr[j], ir[j, 0], ir[j, 1], ir[j, 2], ir[j, 3], ir[j, 4], ir[j, 5],
-            n[j], nbar[j], gamma, front_thr, side_thr,
-        )  # fmt: skip
+            r[j],
+            wl[j],
+            wr[j],
+            ir[j, 0],
+            ir[j, 1],
+            ir[j, 2],
+            ir[j, 3],
+            ir[j, 4],
+            ir[j, 5],
+            n[j],
+            nbar[j],
+            gamma,
+            front_thr,
+            side_thr,
+        )
         ml[j], mr[j] = wheel_speeds_nb(rbar[j], k)
     return ro, wlo, wro, rbar, ml, mr
 
@@ -139,10 +163,17 @@ def explorer_step_batch(r, w_l, w_r, ir, n, nbar, params: ExplorerParams = Explo
     """
     f = np.ascontiguousarray
     return _step_batch(
-        f(r, dtype=float), f(w_l, dtype=float), f(w_r, dtype=float), f(ir, dtype=float),
-        f(n, dtype=float), f(nbar, dtype=float),
-        params.gamma, params.front_sum_threshold, params.side_threshold, params.speed_scale_m_s,
-    )  # fmt: skip
+        f(r, dtype=float),
+        f(w_l, dtype=float),
+        f(w_r, dtype=float),
+        f(ir, dtype=float),
+        f(n, dtype=float),
+        f(nbar, dtype=float),
+        params.gamma,
+        params.front_sum_threshold,
+        params.side_threshold,
+        params.speed_scale_m_s,
+    )
 
 
 class Explorer:

@@ -85,9 +85,13 @@ def median_ci95(x: np.ndarray, seed: int = 0) -> list[float] | None:
     if np.all(x == x[0]):
         return [float(x[0]), float(x[0])]
     res = stats.bootstrap(
-        (x,), np.median, confidence_level=0.95, n_resamples=2000, method="percentile",
+        (x,),
+        np.median,
+        confidence_level=0.95,
+        n_resamples=2000,
+        method="percentile",
         rng=np.random.default_rng(seed),
-    )  # fmt: skip
+    )
     return [float(res.confidence_interval.low), float(res.confidence_interval.high)]
 
 

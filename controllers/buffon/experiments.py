@@ -73,10 +73,13 @@ def experiment_cases() -> list[Case]:
     cases = [Case(family="circles", spec=_circle(d), x=area(d)) for d in CIRCLE_DIAMETERS_U]
     cases += [Case(family="squares", spec=_square_of_circle(d), x=area(d)) for d in CIRCLE_DIAMETERS_U]
     cases += [
-        Case(family="ellipses", spec=f"ellipse:{STANDARD_AREA_U2:.6g}:{eccentricity_to_ratio(e):.6g}",
-             x=eccentricity_to_ratio(e))
+        Case(
+            family="ellipses",
+            spec=f"ellipse:{STANDARD_AREA_U2:.6g}:{eccentricity_to_ratio(e):.6g}",
+            x=eccentricity_to_ratio(e),
+        )
         for e in ECCENTRICITIES
-    ]  # fmt: skip
+    ]
     for fam, kind in (("bar", "bar"), ("plus", "plus")):
         cases += [Case(family=fam, spec=std, barrier=f"{kind}:{f:g}", x=f) for f in BARRIER_FRACTIONS]
     cases += [
@@ -122,5 +125,11 @@ def pymunk_task(params: dict, seed: np.random.SeedSequence) -> dict:
     nest = parse_nest(params["spec"], params.get("barrier"))
     config = VisitConfig(visit_steps=int(params["visit_steps"]), trail_width_u=float(params["trail_width_u"]))
     ts = run_trials_pymunk(nest, config, trials=int(params["trials"]), seed=seed)
-    return {"nbc": ts.nbc.tolist(), "l1_u": ts.l1_u.tolist(), "crossings": ts.crossings.tolist(),
-            "escapes": ts.escapes, "robot_steps": ts.robot_steps, "wall_s": ts.wall_s}  # fmt: skip
+    return {
+        "nbc": ts.nbc.tolist(),
+        "l1_u": ts.l1_u.tolist(),
+        "crossings": ts.crossings.tolist(),
+        "escapes": ts.escapes,
+        "robot_steps": ts.robot_steps,
+        "wall_s": ts.wall_s,
+    }

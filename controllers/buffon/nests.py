@@ -124,7 +124,9 @@ def _self_intersects(v: np.ndarray) -> bool:
     a, b = v, np.roll(v, -1, axis=0)
 
     def orient(p, q, r):
-        return np.sign((q[..., 0] - p[..., 0]) * (r[..., 1] - p[..., 1]) - (q[..., 1] - p[..., 1]) * (r[..., 0] - p[..., 0]))
+        return np.sign(
+            (q[..., 0] - p[..., 0]) * (r[..., 1] - p[..., 1]) - (q[..., 1] - p[..., 1]) * (r[..., 0] - p[..., 0])
+        )
 
     for i in range(n):
         j = np.arange(i + 1, n)
@@ -144,9 +146,7 @@ def _self_intersects(v: np.ndarray) -> bool:
 def _boxes_overlap(pa, pb, qa, qb):
     lo = np.minimum(qa, qb)
     hi = np.maximum(qa, qb)
-    return np.all(
-        (np.maximum(np.minimum(pa, pb), lo) <= np.minimum(np.maximum(pa, pb), hi) + 1e-12), axis=-1
-    )
+    return np.all((np.maximum(np.minimum(pa, pb), lo) <= np.minimum(np.maximum(pa, pb), hi) + 1e-12), axis=-1)
 
 
 def _overlap_beyond_vertex(pa, pb, qa, qb):

@@ -66,15 +66,17 @@ def run_trial_pymunk(nest: Nest, config: VisitConfig, seeds, *, progress=None) -
 
 def run_trials_pymunk(
     nest: Nest,
-    config: VisitConfig = VisitConfig(),
+    config: VisitConfig | None = None,
     *,
     trials: int = 100,
     seed: int | np.random.SeedSequence = 0,
     progress: Callable[[int], None] | None = None,
 ) -> TrialSet:
     """``trials`` trials on the pymunk world (same result type as the batched path)."""
+    config = config or VisitConfig()
     t0 = time.perf_counter()
     rows = [run_trial_pymunk(nest, config, s, progress=progress) for s in trial_seeds(seed, trials)]
     l1, l2, n, blind, esc = (np.array(c) for c in zip(*rows, strict=True))
-    return TrialSet(l1, l2, n.astype(np.int64), blind, int(esc.sum()), 2 * trials * config.visit_steps,
-                    time.perf_counter() - t0)  # fmt: skip
+    return TrialSet(
+        l1, l2, n.astype(np.int64), blind, int(esc.sum()), 2 * trials * config.visit_steps, time.perf_counter() - t0
+    )

@@ -26,11 +26,31 @@ from scipy import stats
 __all__ = ["claims", "table_csv", "write_figures"]
 
 CSV_COLUMNS = (
-    "family", "spec", "barrier", "trail_width_u", "visit_steps", "x", "area_true", "trials", "nbc_median",
-    "nbc_q1", "nbc_q3", "crossings_median", "l1_median_u", "blind_fraction_median", "area_estimate_median",
-    "area_rel_error_median", "area_bias", "area_ci95_lo", "area_ci95_hi", "area_raw_median", "area_raw_bias",
-    "area_raw_rel_error_median", "escapes", "wall_s",
-)  # fmt: skip
+    "family",
+    "spec",
+    "barrier",
+    "trail_width_u",
+    "visit_steps",
+    "x",
+    "area_true",
+    "trials",
+    "nbc_median",
+    "nbc_q1",
+    "nbc_q3",
+    "crossings_median",
+    "l1_median_u",
+    "blind_fraction_median",
+    "area_estimate_median",
+    "area_rel_error_median",
+    "area_bias",
+    "area_ci95_lo",
+    "area_ci95_hi",
+    "area_raw_median",
+    "area_raw_bias",
+    "area_raw_rel_error_median",
+    "escapes",
+    "wall_s",
+)
 
 
 def _rows(cases, results):
@@ -71,8 +91,10 @@ def _iqr_overlap(a: dict, b: dict) -> bool:
 def _shape_claim(cases, results) -> list[str]:
     circles, rc = _family(cases, results, "circles")
     _, rs = _family(cases, results, "squares")
-    lines = ["| area (u^2) | circle nBC | square nBC | square/circle | medians in each other's IQR | Mann-Whitney p |",
-             "|---:|---:|---:|---:|:---:|---:|"]  # fmt: skip
+    lines = [
+        "| area (u^2) | circle nBC | square nBC | square/circle | medians in each other's IQR | Mann-Whitney p |",
+        "|---:|---:|---:|---:|:---:|---:|",
+    ]
     inside = 0
     ps = []
     for c, a, b in zip(circles, rc, rs, strict=True):
@@ -80,13 +102,17 @@ def _shape_claim(cases, results) -> list[str]:
         ok = _iqr_overlap(a, b)
         inside += ok
         ps.append(p)
-        lines.append(f"| {c.x:,.0f} | {a['nbc_median']:.4f} | {b['nbc_median']:.4f} | "
-                     f"{b['nbc_median'] / a['nbc_median']:.3f} | {'yes' if ok else 'no'} | {p:.3g} |")  # fmt: skip
+        lines.append(
+            f"| {c.x:,.0f} | {a['nbc_median']:.4f} | {b['nbc_median']:.4f} | "
+            f"{b['nbc_median'] / a['nbc_median']:.3f} | {'yes' if ok else 'no'} | {p:.3g} |"
+        )
     n_sig = sum(p < 0.05 for p in ps)
     verdict = "holds" if inside >= len(circles) - 2 else "does not hold"
-    head = (f"**Circle ~ square at equal area: {verdict}.** In {inside} of {len(circles)} sizes each median lies "
-            f"inside the other's interquartile range; the Mann-Whitney U test finds a difference at the 5 % level "
-            f"in {n_sig} of {len(circles)} sizes.")  # fmt: skip
+    head = (
+        f"**Circle ~ square at equal area: {verdict}.** In {inside} of {len(circles)} sizes each median lies "
+        f"inside the other's interquartile range; the Mann-Whitney U test finds a difference at the 5 % level "
+        f"in {n_sig} of {len(circles)} sizes."
+    )
     return [head, "", *lines]
 
 
@@ -102,13 +128,20 @@ def _loglinear_claim(cases, results) -> list[str]:
     lin_all = stats.linregress(np.log(area[2:]), nbc[2:])
     peak = int(np.argmax(nbc))
     verdict = "holds" if lin_all.slope < 0 and lin_all.rvalue**2 > 0.9 else "holds only in part"
-    head = (f"**nBC falls log-linearly with area: {verdict}.** Beyond the blended smallest nests the median nBC "
-            f"falls with ln(area) (R^2 {lin_all.rvalue**2:.3f}); the log-log slope is close to Buffon's -1, so "
-            f"the fall is really a power law that a log-linear fit approximates over one decade. As in the paper, "
-            f"the smallest nests read lower than expected: nBC peaks at the {peak + 1}. smallest circle "
-            f"({area[peak]:,.0f} u^2).")  # fmt: skip
-    return [head, "", "| fit | slope of nBC on ln A | R^2 | slope of ln nBC on ln A | R^2 |",
-            "|---|---:|---:|---:|---:|", *out]  # fmt: skip
+    head = (
+        f"**nBC falls log-linearly with area: {verdict}.** Beyond the blended smallest nests the median nBC "
+        f"falls with ln(area) (R^2 {lin_all.rvalue**2:.3f}); the log-log slope is close to Buffon's -1, so "
+        f"the fall is really a power law that a log-linear fit approximates over one decade. As in the paper, "
+        f"the smallest nests read lower than expected: nBC peaks at the {peak + 1}. smallest circle "
+        f"({area[peak]:,.0f} u^2)."
+    )
+    return [
+        head,
+        "",
+        "| fit | slope of nBC on ln A | R^2 | slope of ln nBC on ln A | R^2 |",
+        "|---|---:|---:|---:|---:|",
+        *out,
+    ]
 
 
 def _no_difference_claim(cases, results, fam: str, title: str, xlabel: str) -> list[str]:
@@ -116,13 +149,20 @@ def _no_difference_claim(cases, results, fam: str, title: str, xlabel: str) -> l
     sel, rr = _family(cases, results, fam)
     h = stats.kruskal(base["nbc"], *[r["nbc"] for r in rr])
     verdict = "holds" if h.pvalue >= 0.05 else "does not hold"
-    lines = [f"| {xlabel} | nBC median | IQR | / standard |", "|---:|---:|---|---:|",
-             f"| standard circle | {base['nbc_median']:.4f} | {base['nbc_q1']:.4f}-{base['nbc_q3']:.4f} | 1.000 |"]  # fmt: skip
+    lines = [
+        f"| {xlabel} | nBC median | IQR | / standard |",
+        "|---:|---:|---|---:|",
+        f"| standard circle | {base['nbc_median']:.4f} | {base['nbc_q1']:.4f}-{base['nbc_q3']:.4f} | 1.000 |",
+    ]
     for c, r in zip(sel, rr, strict=True):
-        lines.append(f"| {c.x:g} | {r['nbc_median']:.4f} | {r['nbc_q1']:.4f}-{r['nbc_q3']:.4f} | "
-                     f"{r['nbc_median'] / base['nbc_median']:.3f} |")  # fmt: skip
-    head = (f"**{title}: {verdict}** at the 5 % level (Kruskal-Wallis H = {h.statistic:.2f}, p = {h.pvalue:.3g}, "
-            f"{len(rr) + 1} groups of {len(base['nbc'])} trials).")
+        lines.append(
+            f"| {c.x:g} | {r['nbc_median']:.4f} | {r['nbc_q1']:.4f}-{r['nbc_q3']:.4f} | "
+            f"{r['nbc_median'] / base['nbc_median']:.3f} |"
+        )
+    head = (
+        f"**{title}: {verdict}** at the 5 % level (Kruskal-Wallis H = {h.statistic:.2f}, p = {h.pvalue:.3g}, "
+        f"{len(rr) + 1} groups of {len(base['nbc'])} trials)."
+    )
     return [head, "", *lines]
 
 
@@ -139,16 +179,20 @@ def _thickness_claim(cases, results) -> list[str]:
     wmax = widths[-1]
     small, large = ratio[(wmax, sizes[0])], ratio[(wmax, sizes[-1])]
     verdict = "holds" if small < large and small < 1 else "does not hold"
-    head = (f"**Thicker trails blend in small nests: {verdict}.** Median nBC at width w over that at 0.1 u: at "
-            f"{wmax:g} u it is {small:.3f} in the smallest nest and {large:.3f} in the standard one; blending "
-            f"reaches larger nests as the trail thickens (sec. 5.4).")  # fmt: skip
+    head = (
+        f"**Thicker trails blend in small nests: {verdict}.** Median nBC at width w over that at 0.1 u: at "
+        f"{wmax:g} u it is {small:.3f} in the smallest nest and {large:.3f} in the standard one; blending "
+        f"reaches larger nests as the trail thickens (sec. 5.4)."
+    )
     return [head, "", *lines]
 
 
 def _accuracy_lines(cases, results) -> list[str]:
-    lines = ["| family | visit steps | nests | median estimate / true (raw) | median \\|error\\| (raw) | "
-             "median estimate / true | median \\|error\\| | worst nest's median \\|error\\| |",
-             "|---|---:|---:|---:|---:|---:|---:|---:|"]  # fmt: skip
+    lines = [
+        "| family | visit steps | nests | median estimate / true (raw) | median \\|error\\| (raw) | "
+        "median estimate / true | median \\|error\\| | worst nest's median \\|error\\| |",
+        "|---|---:|---:|---:|---:|---:|---:|---:|",
+    ]
     for fam in dict.fromkeys(c.family for c in cases):
         for steps in sorted({c.visit_steps for c in cases if c.family == fam}):
             rr = [results[c] for c in cases if c.family == fam and c.visit_steps == steps]
@@ -157,32 +201,52 @@ def _accuracy_lines(cases, results) -> list[str]:
             cor = np.median([r["area_estimate_median"] / r["area_true"] for r in rr])
             cor_e = np.median([r["area_rel_error_median"] for r in rr])
             worst = max(r["area_rel_error_median"] for r in rr)
-            lines.append(f"| {fam} | {steps:,} | {len(rr)} | {raw:.3f} | {raw_e:.1%} | {cor:.3f} | {cor_e:.1%} | "
-                         f"{worst:.1%} |")  # fmt: skip
+            lines.append(
+                f"| {fam} | {steps:,} | {len(rr)} | {raw:.3f} | {raw_e:.1%} | {cor:.3f} | {cor_e:.1%} | {worst:.1%} |"
+            )
     return lines
 
 
 def claims(cases, results, *, trials: int, wall_s: float | None = None, steps_per_s: float | None = None) -> str:
     """``summary.md``: claim by claim, whether the paper's conclusions hold here."""
-    out = ["# Buffon's needle: the paper's experiments reproduced", "",
-           f"Seed 000 (Girgin & Sahin, CMU-RI-TR-03-42). {len(cases)} nests, {trials} trials each, two visits per "
-           "trial; lengths in body lengths u (55 mm). Figures: `fig3_patterns.png` ... `fig7_thickness.png`, "
-           "`area_accuracy.png`; every nest in `nests.csv`.", ""]  # fmt: skip
+    out = [
+        "# Buffon's needle: the paper's experiments reproduced",
+        "",
+        f"Seed 000 (Girgin & Sahin, CMU-RI-TR-03-42). {len(cases)} nests, {trials} trials each, two visits per "
+        "trial; lengths in body lengths u (55 mm). Figures: `fig3_patterns.png` ... `fig7_thickness.png`, "
+        "`area_accuracy.png`; every nest in `nests.csv`.",
+        "",
+    ]
     if wall_s is not None:
         out += [f"Wall time {wall_s:,.0f} s; {steps_per_s:,.0f} robot-steps/s over the whole run.", ""]
     out += ["## 5.1 Shape", "", *_shape_claim(cases, results), "", *_loglinear_claim(cases, results), ""]
-    out += ["## 5.2 Compactness", "",
-            *_no_difference_claim(cases, results, "ellipses", "nBC is independent of compactness", "r1/r2"), ""]
+    out += [
+        "## 5.2 Compactness",
+        "",
+        *_no_difference_claim(cases, results, "ellipses", "nBC is independent of compactness", "r1/r2"),
+        "",
+    ]
     for fam, sym in (("bar", "|"), ("plus", "+")):
-        out += [f"## 5.3 Barriers ({sym})", "",
-                *_no_difference_claim(cases, results, fam, f"a {sym} barrier makes no significant difference",
-                                      "barrier length / diameter"), ""]  # fmt: skip
+        out += [
+            f"## 5.3 Barriers ({sym})",
+            "",
+            *_no_difference_claim(
+                cases, results, fam, f"a {sym} barrier makes no significant difference", "barrier length / diameter"
+            ),
+            "",
+        ]
     out += ["## 5.4 Pheromone thickness", "", *_thickness_claim(cases, results), ""]
-    out += ["## Absolute area (beyond the paper)", "",
-            "A = 2 L1 L2 / (pi N) per trial; *raw* is that formula, the other columns add the dead-time correction "
-            "(the counter's blind fraction, measured by the robot) and the one wall factor calibrated on the "
-            "standard circle (see the README). `accuracy` repeats the standard-area nests with visits long enough "
-            "for the paths to mix.", "", *_accuracy_lines(cases, results), ""]  # fmt: skip
+    out += [
+        "## Absolute area (beyond the paper)",
+        "",
+        "A = 2 L1 L2 / (pi N) per trial; *raw* is that formula, the other columns add the dead-time correction "
+        "(the counter's blind fraction, measured by the robot) and the one wall factor calibrated on the "
+        "standard circle (see the README). `accuracy` repeats the standard-area nests with visits long enough "
+        "for the paths to mix.",
+        "",
+        *_accuracy_lines(cases, results),
+        "",
+    ]
     return "\n".join(out)
 
 
@@ -244,16 +308,26 @@ def _fig_shape(cases, results):
     x = np.array([c.x for c in circles])
     _errbar(a, x * 0.97, rc, label="circle", color="tab:blue")
     _errbar(a, x * 1.03, rs, label="square", color="tab:orange")
-    a.set(xscale="log", yscale="log", xlabel="area (u^2)", ylabel="nBC (crossings per u)",
-          title="(a) median nBC, interquartile bars")  # fmt: skip
+    a.set(
+        xscale="log",
+        yscale="log",
+        xlabel="area (u^2)",
+        ylabel="nBC (crossings per u)",
+        title="(a) median nBC, interquartile bars",
+    )
     a.legend()
     mc = [r["nbc_median"] for r in rc]
     ms = [r["nbc_median"] for r in rs]
     b.plot(ms, mc, "o")
     lim = [min(mc + ms) * 0.8, max(mc + ms) * 1.2]
     b.plot(lim, lim, "k--", lw=1, label="y = x")
-    b.set(xscale="log", yscale="log", xlabel="square nBC (median)", ylabel="circle nBC (median)",
-          title="(b) circle vs square")  # fmt: skip
+    b.set(
+        xscale="log",
+        yscale="log",
+        xlabel="square nBC (median)",
+        ylabel="circle nBC (median)",
+        title="(b) circle vs square",
+    )
     b.legend()
     fig.suptitle("Fig. 4: shape")
     return fig

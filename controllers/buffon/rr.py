@@ -29,8 +29,11 @@ __all__ = ["record_trial"]
 def _blueprint() -> rrb.Blueprint:
     return rrb.Blueprint(
         rrb.Horizontal(
-            rrb.Spatial2DView(origin="/", contents=["nest/**", "first_visit/**", "second_visit/**", "crossings/**"],
-                              name="nest (north up)"),  # fmt: skip
+            rrb.Spatial2DView(
+                origin="/",
+                contents=["nest/**", "first_visit/**", "second_visit/**", "crossings/**"],
+                name="nest (north up)",
+            ),
             rrb.TimeSeriesView(origin="nbc", name="nBC over the second visit"),
             column_shares=[3, 2],
         ),

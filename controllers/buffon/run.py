@@ -8,7 +8,6 @@ simulation; nothing in the simulation prints, plots or logs.
 from __future__ import annotations
 
 import io
-import math
 import time
 from pathlib import Path
 
@@ -38,8 +37,17 @@ def _bar(total: int, desc: str):
     return tqdm(total=total, desc=desc, unit="step", unit_scale=True, disable=None, leave=False)
 
 
-def measure(nest_spec: str, barrier: str | None = None, *, trials: int = 100, visit_steps: int = AREA_VISIT_STEPS,
-            trail_width_u: float = 0.1, seed: int = 0, rrd: str | None = None, force: bool = False) -> dict:  # fmt: skip
+def measure(
+    nest_spec: str,
+    barrier: str | None = None,
+    *,
+    trials: int = 100,
+    visit_steps: int = AREA_VISIT_STEPS,
+    trail_width_u: float = 0.1,
+    seed: int = 0,
+    rrd: str | None = None,
+    force: bool = False,
+) -> dict:
     """Run ``trials`` trials in one nest; the nest's nBC and area figures."""
     nest = parse_nest(nest_spec, barrier)
     config = VisitConfig(visit_steps=visit_steps, trail_width_u=trail_width_u)
@@ -49,9 +57,17 @@ def measure(nest_spec: str, barrier: str | None = None, *, trials: int = 100, vi
         raise FileExistsRefusedError(f"{rrd} exists; refusing to overwrite it (use --force)")
     with _bar(2 * trials * visit_steps, f"buffon {nest.label}") as bar:
         ts = run_trials(nest, config, trials=trials, seed=seed, record_trial=0 if rrd else None, progress=bar.update)
-    out = {"nest": nest.spec, "barrier": nest.barrier, "visit_steps": visit_steps, "trail_width_u": trail_width_u,
-           "seed": seed, **summarise(ts, nest.area_u2),
-           "robot_steps": ts.robot_steps, "robot_steps_per_s": ts.robot_steps / ts.wall_s, "wall_s": ts.wall_s}  # fmt: skip
+    out = {
+        "nest": nest.spec,
+        "barrier": nest.barrier,
+        "visit_steps": visit_steps,
+        "trail_width_u": trail_width_u,
+        "seed": seed,
+        **summarise(ts, nest.area_u2),
+        "robot_steps": ts.robot_steps,
+        "robot_steps_per_s": ts.robot_steps / ts.wall_s,
+        "wall_s": ts.wall_s,
+    }
     if rrd:
         from controllers.buffon.rr import record_trial
 
@@ -66,8 +82,10 @@ def format_text(r: dict) -> str:
     if "paths" in r:
         return "\n".join(f"{k}: {v}" for k, v in r.items() if k != "paths")
     if "wall_correction_measured" in r:
-        return (f"wall correction on {r['reference']}: measured {r['wall_correction_measured']:.3f}, "
-                f"95 % interval {r['ci95']}, shipped {r['wall_correction_shipped']:.3f}")  # fmt: skip
+        return (
+            f"wall correction on {r['reference']}: measured {r['wall_correction_measured']:.3f}, "
+            f"95 % interval {r['ci95']}, shipped {r['wall_correction_shipped']:.3f}"
+        )
     ci = r["area_ci95"] or [float("nan")] * 2
     lines = [
         f"nest {r['nest']}{' ' + r['barrier'] if r['barrier'] else ''}: true area {r['area_true']:,.1f} u^2",
@@ -125,8 +143,16 @@ def _run_tasks(tasks, out: Path, sweep, desc: str):
 
 
 # --------------------------------------------------------------------------------- reproduce
-REPRODUCE_FILES = ("nests.csv", "summary.md", "fig3_patterns.png", "fig4_shape.png", "fig5_compactness.png",
-                   "fig6_barriers.png", "fig7_thickness.png", "area_accuracy.png")  # fmt: skip
+REPRODUCE_FILES = (
+    "nests.csv",
+    "summary.md",
+    "fig3_patterns.png",
+    "fig4_shape.png",
+    "fig5_compactness.png",
+    "fig6_barriers.png",
+    "fig7_thickness.png",
+    "area_accuracy.png",
+)
 
 
 def reproduce(out: str | Path, *, trials: int = 100, seed: int = 0, sweep=None, force: bool = False) -> dict:
@@ -136,8 +162,10 @@ def reproduce(out: str | Path, *, trials: int = 100, seed: int = 0, sweep=None, 
 
     out = _out_dir(out, force, REPRODUCE_FILES)
     cases = experiment_cases()
-    tasks = {c: Task(experiment="controllers.buffon.experiments:nest_task", params=c.params(trials), seed=seed)
-             for c in cases}  # fmt: skip
+    tasks = {
+        c: Task(experiment="controllers.buffon.experiments:nest_task", params=c.params(trials), seed=seed)
+        for c in cases
+    }
     t0 = time.perf_counter()
     rep = _run_tasks(list(tasks.values()), out, sweep or SweepOptions(), "buffon reproduce (nests)")
     results = {c: rep.results[t.key] for c, t in tasks.items()}
@@ -148,9 +176,17 @@ def reproduce(out: str | Path, *, trials: int = 100, seed: int = 0, sweep=None, 
     wall = time.perf_counter() - t0
     text = report.claims(cases, results, trials=trials, wall_s=wall, steps_per_s=steps / busy)
     write_bytes_atomic(out / "summary.md", text.encode(), overwrite=True)
-    return {"out": str(out), "nests": len(cases), "trials": trials, "robot_steps": steps,
-            "robot_steps_per_s_per_worker": steps / busy, "wall_s": wall, "sweep": rep.summary(),
-            "claims": True, "summary_text": text}  # fmt: skip
+    return {
+        "out": str(out),
+        "nests": len(cases),
+        "trials": trials,
+        "robot_steps": steps,
+        "robot_steps_per_s_per_worker": steps / busy,
+        "wall_s": wall,
+        "sweep": rep.summary(),
+        "claims": True,
+        "summary_text": text,
+    }
 
 
 def _patterns(seed: int) -> dict:
@@ -169,8 +205,18 @@ def _patterns(seed: int) -> dict:
 PYMUNK_CHUNK_TRIALS = 5
 
 
-def compare(nest_spec: str, barrier: str | None, *, out: str | Path, trials: int = 100, visit_steps: int = 3000,
-            trail_width_u: float = 0.1, seed: int = 0, sweep=None, force: bool = False) -> dict:  # fmt: skip
+def compare(
+    nest_spec: str,
+    barrier: str | None,
+    *,
+    out: str | Path,
+    trials: int = 100,
+    visit_steps: int = 3000,
+    trail_width_u: float = 0.1,
+    seed: int = 0,
+    sweep=None,
+    force: bool = False,
+) -> dict:
     """nBC of the pymunk path and the batched path on the same nest: two-sample tests."""
     from scipy import stats
 
@@ -180,9 +226,14 @@ def compare(nest_spec: str, barrier: str | None, *, out: str | Path, trials: int
     out = _out_dir(out, force, ("compare.md", "compare.png"))
     base = {"spec": nest_spec, "barrier": barrier, "trail_width_u": trail_width_u, "visit_steps": visit_steps}
     batched = Task(experiment="controllers.buffon.experiments:nest_task", params={**base, "trials": trials}, seed=seed)
-    chunks = [Task(experiment="controllers.buffon.experiments:pymunk_task",
-                   params={**base, "trials": min(PYMUNK_CHUNK_TRIALS, trials - k), "chunk": k}, seed=seed)
-              for k in range(0, trials, PYMUNK_CHUNK_TRIALS)]  # fmt: skip
+    chunks = [
+        Task(
+            experiment="controllers.buffon.experiments:pymunk_task",
+            params={**base, "trials": min(PYMUNK_CHUNK_TRIALS, trials - k), "chunk": k},
+            seed=seed,
+        )
+        for k in range(0, trials, PYMUNK_CHUNK_TRIALS)
+    ]
     rep = _run_tasks([batched, *chunks], out, sweep or SweepOptions(), f"buffon compare {nest.label}")
     rb = rep.results[batched.key]
     rp = [rep.results[t.key] for t in chunks]
@@ -191,16 +242,26 @@ def compare(nest_spec: str, barrier: str | None, *, out: str | Path, trials: int
     mw = stats.mannwhitneyu(nbc_p, nbc_b, alternative="two-sided")
     ks = stats.ks_2samp(nbc_p, nbc_b)
     p_steps = sum(r["robot_steps"] for r in rp) / sum(r["wall_s"] for r in rp)
-    res = {"nest": nest.spec, "barrier": barrier, "trials": trials, "visit_steps": visit_steps,
-           "nbc_median_pymunk": float(np.median(nbc_p)), "nbc_median_batched": float(np.median(nbc_b)),
-           "nbc_iqr_pymunk": np.percentile(nbc_p, [25, 75]).tolist(),
-           "nbc_iqr_batched": np.percentile(nbc_b, [25, 75]).tolist(),
-           "l1_median_pymunk": float(np.median(np.concatenate([r["l1_u"] for r in rp]))),
-           "l1_median_batched": float(np.median(rb["l1_u"])),
-           "mannwhitney_p": float(mw.pvalue), "ks_p": float(ks.pvalue), "agree_at_5pct": bool(min(mw.pvalue, ks.pvalue) >= 0.05),
-           "escapes_pymunk": int(sum(r["escapes"] for r in rp)), "escapes_batched": int(rb["escapes"]),
-           "robot_steps_per_s_pymunk": p_steps, "robot_steps_per_s_batched": rb["robot_steps"] / rb["wall_s"],
-           "paths": True}  # fmt: skip
+    res = {
+        "nest": nest.spec,
+        "barrier": barrier,
+        "trials": trials,
+        "visit_steps": visit_steps,
+        "nbc_median_pymunk": float(np.median(nbc_p)),
+        "nbc_median_batched": float(np.median(nbc_b)),
+        "nbc_iqr_pymunk": np.percentile(nbc_p, [25, 75]).tolist(),
+        "nbc_iqr_batched": np.percentile(nbc_b, [25, 75]).tolist(),
+        "l1_median_pymunk": float(np.median(np.concatenate([r["l1_u"] for r in rp]))),
+        "l1_median_batched": float(np.median(rb["l1_u"])),
+        "mannwhitney_p": float(mw.pvalue),
+        "ks_p": float(ks.pvalue),
+        "agree_at_5pct": bool(min(mw.pvalue, ks.pvalue) >= 0.05),
+        "escapes_pymunk": int(sum(r["escapes"] for r in rp)),
+        "escapes_batched": int(rb["escapes"]),
+        "robot_steps_per_s_pymunk": p_steps,
+        "robot_steps_per_s_batched": rb["robot_steps"] / rb["wall_s"],
+        "paths": True,
+    }
     res["speed_ratio"] = res["robot_steps_per_s_batched"] / p_steps
     _compare_outputs(out, res, nbc_p, nbc_b)
     return res
@@ -215,15 +276,21 @@ def _compare_outputs(out: Path, res: dict, nbc_p, nbc_b) -> None:
     fig, ax = plt.subplots(figsize=(6, 4))
     for x, label in ((nbc_p, "pymunk path"), (nbc_b, "batched path")):
         ax.ecdf(x, label=f"{label} (median {np.median(x):.4f})")
-    ax.set(xlabel="nBC", ylabel="fraction of trials",
-           title=f"{res['nest']} {res['barrier'] or ''}: MWU p={res['mannwhitney_p']:.2f}, KS p={res['ks_p']:.2f}")  # fmt: skip
+    ax.set(
+        xlabel="nBC",
+        ylabel="fraction of trials",
+        title=f"{res['nest']} {res['barrier'] or ''}: MWU p={res['mannwhitney_p']:.2f}, KS p={res['ks_p']:.2f}",
+    )
     ax.legend()
     _save_fig(out / "compare.png", fig)
     md = ["# Batched path vs pymunk path", "", "| figure | pymunk | batched |", "|---|---:|---:|"]
     for k in ("nbc_median", "l1_median", "escapes", "robot_steps_per_s"):
         md.append(f"| {k} | {res[k + '_pymunk']:.4g} | {res[k + '_batched']:.4g} |")
-    md += ["", f"Mann-Whitney U p = {res['mannwhitney_p']:.3g}; Kolmogorov-Smirnov p = {res['ks_p']:.3g} "
-           f"({res['trials']} trials each, {res['visit_steps']:,} steps per visit)."]  # fmt: skip
+    md += [
+        "",
+        f"Mann-Whitney U p = {res['mannwhitney_p']:.3g}; Kolmogorov-Smirnov p = {res['ks_p']:.3g} "
+        f"({res['trials']} trials each, {res['visit_steps']:,} steps per visit).",
+    ]
     write_bytes_atomic(out / "compare.md", "\n".join(md).encode(), overwrite=True)
 
 
@@ -239,7 +306,34 @@ def calibrate(*, trials: int = 100, seed: int = 0) -> dict:
     k = calibrate_wall_correction(ts, nest.area_u2)
     per_trial = nest.area_u2 / area_estimates(ts, correction=1.0)
     ci = median_ci95(per_trial)
-    return {"reference": nest.spec, "trials": trials, "visit_steps": config.visit_steps,
-            "wall_correction_measured": k, "ci95": ci, "wall_correction_shipped": WALL_CORRECTION,
-            "area_true": nest.area_u2, "escapes": ts.escapes, "wall_s": ts.wall_s,
-            "shipped_inside_ci": bool(ci is not None and ci[0] <= WALL_CORRECTION <= ci[1]) if not math.isnan(k) else False}  # fmt: skip
+    return {
+        "reference": nest.spec,
+        "trials": trials,
+        "visit_steps": config.visit_steps,
+        "wall_correction_measured": k,
+        "ci95": ci,
+        "wall_correction_shipped": WALL_CORRECTION,
+        "area_true": nest.area_u2,
+        "escapes": ts.escapes,
+        "wall_s": ts.wall_s,
+        "shipped_inside_ci": bool(ci is not None and ci[0] <= WALL_CORRECTION <= ci[1]),
+    }
+
+
+# ------------------------------------------------------------------------------------- bench
+def bench(*, spec: str = "circle:30", seed: int = 0) -> dict:
+    """Robot-steps per second of the batched path and of the pymunk path on the same nest and
+    behaviour, measured one after the other in this process (one core)."""
+    from controllers.buffon.pymunk_path import run_trials_pymunk
+
+    nest = parse_nest(spec)
+    run_trials(nest, VisitConfig(visit_steps=100), trials=1, seed=seed)  # compile (cached) and warm up
+    ts = run_trials(nest, VisitConfig(visit_steps=50_000), trials=4, seed=seed)
+    tp = run_trials_pymunk(nest, VisitConfig(visit_steps=1500), trials=1, seed=seed)
+    fast, slow = ts.robot_steps / ts.wall_s, tp.robot_steps / tp.wall_s
+    return {
+        "buffon_nest": spec,
+        "buffon_robot_steps_per_s": fast,
+        "buffon_pymunk_robot_steps_per_s": slow,
+        "buffon_speedup": fast / slow,
+    }

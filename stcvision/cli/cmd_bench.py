@@ -118,6 +118,9 @@ def run(args):
         "render_frames_per_s": 1000.0 / render_ms,
         "threads": 1,
     }
+    from controllers.buffon.run import bench as bench_buffon
+
+    result.update(bench_buffon(seed=args.seed))
     try:
         from stcvision.pipeline import bench_pipeline
     except ImportError:
@@ -139,6 +142,11 @@ def format_text(r):
         f"render: {r['render_ms_per_frame']:.2f} ms/frame ({r['render_frames_per_s']:.0f} frames/s), "
         f"{r['frame_size_px'][0]}x{r['frame_size_px'][1]} with noise, {r['dots_on_floor']} dots on the floor, 1 thread"
     ]
+    if "buffon_robot_steps_per_s" in r:
+        lines.append(
+            f"buffon ({r['buffon_nest']}): batched {r['buffon_robot_steps_per_s']:,.0f} robot-steps/s, pymunk "
+            f"{r['buffon_pymunk_robot_steps_per_s']:,.0f} robot-steps/s ({r['buffon_speedup']:.0f}x), 1 thread"
+        )
     if "pipeline_ms_per_frame" in r:
         lines.append(f"pipeline: {r['pipeline_ms_per_frame']:.3f} ms/frame (median, all stages, 1 thread)")
         for k, v in r["stage_ms"].items():

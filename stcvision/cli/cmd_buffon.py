@@ -28,10 +28,13 @@ def add_parser(p):
     sub = p.add_subparsers(dest="action", metavar="{reproduce,compare,calibrate}", parser_class=type(p))
     _nest_arguments(p, required=False)
     p.add_argument(
-        "--visit-steps", type=positive(int), default=AREA_VISIT_STEPS, metavar="N",
+        "--visit-steps",
+        type=positive(int),
+        default=AREA_VISIT_STEPS,
+        metavar="N",
         help=f"steps of 0.05 s per visit (default {AREA_VISIT_STEPS:,}: long enough for the paths to mix through a "
         "standard nest; the paper's 50,000 leave a single trial ~15 %% off)",
-    )  # fmt: skip
+    )
     p.add_argument("--trials", type=positive(int), default=100, help="independent trials (default 100)")
     p.add_argument("--seed", type=int, default=0, help="seed of every trial's streams (default 0)")
     p.add_argument("--rrd", metavar="OUT.rrd", help="record trial 0 in rerun (nest, trail, path, crossings, nBC)")
@@ -45,20 +48,32 @@ def add_parser(p):
 def _nest_arguments(p, *, required: bool) -> None:
     from stcvision.cli._args import positive
 
-    p.add_argument("--nest", required=required, metavar="SPEC",
-                   help="circle:DIAMETER | square:SIDE | ellipse:AREA:RATIO | polygon:FILE (body lengths)")  # fmt: skip
+    p.add_argument(
+        "--nest",
+        required=required,
+        metavar="SPEC",
+        help="circle:DIAMETER | square:SIDE | ellipse:AREA:RATIO | polygon:FILE (body lengths)",
+    )
     p.add_argument("--barrier", metavar="B", help="bar:FRACTION (|) or plus:FRACTION (+), centred")
-    p.add_argument("--trail-width", type=positive(float), default=0.1, metavar="W",
-                   help="pheromone trail width in body lengths (default 0.1, the paper's)")  # fmt: skip
+    p.add_argument(
+        "--trail-width",
+        type=positive(float),
+        default=0.1,
+        metavar="W",
+        help="pheromone trail width in body lengths (default 0.1, the paper's)",
+    )
 
 
 def _add_reproduce(sub):
     from stcvision.cli._args import positive
     from stcvision.sweep import add_sweep_arguments
 
-    s = sub.add_parser("reproduce", help="the paper's five experiment sets and trail thickness: figures, CSV, summary",
-                       description="Run every nest of sec. 5 (and the absolute-area set) through the sweep runner "
-                       "(resumable: DIR/sweep.jsonl) and write the figures, nests.csv and summary.md.")  # fmt: skip
+    s = sub.add_parser(
+        "reproduce",
+        help="the paper's five experiment sets and trail thickness: figures, CSV, summary",
+        description="Run every nest of sec. 5 (and the absolute-area set) through the sweep runner "
+        "(resumable: DIR/sweep.jsonl) and write the figures, nests.csv and summary.md.",
+    )
     s.add_argument("--out", required=True, metavar="DIR")
     s.add_argument("--trials", type=positive(int), default=100, help="trials per nest (default 100)")
     s.add_argument("--seed", type=int, default=0, help="seed of the reproduction (default 0)")
@@ -71,15 +86,23 @@ def _add_compare(sub):
     from stcvision.cli._args import positive
     from stcvision.sweep import add_sweep_arguments
 
-    s = sub.add_parser("compare", help="the batched path against the pymunk path: a two-sample test of nBC",
-                       description="Run the same trials on the pymunk world (one Python call per step) and on the "
-                       "batched path and test whether their nBC distributions differ (Mann-Whitney U and "
-                       "Kolmogorov-Smirnov, two-sided).")  # fmt: skip
+    s = sub.add_parser(
+        "compare",
+        help="the batched path against the pymunk path: a two-sample test of nBC",
+        description="Run the same trials on the pymunk world (one Python call per step) and on the "
+        "batched path and test whether their nBC distributions differ (Mann-Whitney U and "
+        "Kolmogorov-Smirnov, two-sided).",
+    )
     _nest_arguments(s, required=True)
     s.add_argument("--out", required=True, metavar="DIR")
     s.add_argument("--trials", type=positive(int), default=100, help="trials per path (default 100)")
-    s.add_argument("--visit-steps", type=positive(int), default=3000, metavar="N",
-                   help="steps per visit (default 3,000: the pymunk path runs ~3,000 steps/s)")  # fmt: skip
+    s.add_argument(
+        "--visit-steps",
+        type=positive(int),
+        default=3000,
+        metavar="N",
+        help="steps per visit (default 3,000: the pymunk path runs ~3,000 steps/s)",
+    )
     s.add_argument("--seed", type=int, default=0)
     s.add_argument("--force", action="store_true", help="write into a folder that holds other files")
     s.add_argument("--json", action="store_true", help="print the result as one JSON object")
@@ -90,9 +113,12 @@ def _add_calibrate(sub):
     from controllers.buffon.estimate import WALL_CORRECTION_REFERENCE
     from stcvision.cli._args import positive
 
-    s = sub.add_parser("calibrate", help=f"recompute the wall correction on the reference nest ({WALL_CORRECTION_REFERENCE})",
-                       description="Measure A_true / median(A_dt) on the standard circle at the default visit "
-                       "length; the shipped factor is held fixed, this shows where it comes from.")  # fmt: skip
+    s = sub.add_parser(
+        "calibrate",
+        help=f"recompute the wall correction on {WALL_CORRECTION_REFERENCE}",
+        description="Measure A_true / median(A_dt) on the standard circle at the default visit "
+        "length; the shipped factor is held fixed, this shows where it comes from.",
+    )
     s.add_argument("--trials", type=positive(int), default=100, help="trials (default 100)")
     s.add_argument("--seed", type=int, default=0)
     s.add_argument("--json", action="store_true", help="print the result as one JSON object")
@@ -109,17 +135,32 @@ def run(args):
         if args.action == "reproduce":
             return buffon.reproduce(args.out, trials=args.trials, seed=args.seed, sweep=opts, force=args.force)
         return buffon.compare(
-            args.nest, args.barrier, out=args.out, trials=args.trials, visit_steps=args.visit_steps,
-            trail_width_u=args.trail_width, seed=args.seed, sweep=opts, force=args.force,
-        )  # fmt: skip
+            args.nest,
+            args.barrier,
+            out=args.out,
+            trials=args.trials,
+            visit_steps=args.visit_steps,
+            trail_width_u=args.trail_width,
+            seed=args.seed,
+            sweep=opts,
+            force=args.force,
+        )
     if args.action == "calibrate":
         return buffon.calibrate(trials=args.trials, seed=args.seed)
     if not args.nest:
-        raise BadInputError("--nest is required (e.g. --nest circle:100), or give an action: reproduce, compare, calibrate")
+        raise BadInputError(
+            "--nest is required (e.g. --nest circle:100), or give an action: reproduce, compare, calibrate"
+        )
     return buffon.measure(
-        args.nest, args.barrier, trials=args.trials, visit_steps=args.visit_steps, trail_width_u=args.trail_width,
-        seed=args.seed, rrd=args.rrd, force=args.force,
-    )  # fmt: skip
+        args.nest,
+        args.barrier,
+        trials=args.trials,
+        visit_steps=args.visit_steps,
+        trail_width_u=args.trail_width,
+        seed=args.seed,
+        rrd=args.rrd,
+        force=args.force,
+    )
 
 
 def format_text(r: dict) -> str:

@@ -12,8 +12,19 @@ def test_measure_json_keys_and_containment(cli):
     code, out, err = cli("buffon", "--nest", "circle:20", "--trials", 5, "--visit-steps", 3000, "--json")
     assert code == 0, err
     r = json.loads(out)
-    for k in ("nbc_median", "nbc_q1", "nbc_q3", "area_true", "area_estimate_median", "area_rel_error_median",
-              "area_ci95", "crossings_median", "trials", "robot_steps_per_s", "wall_s"):  # fmt: skip
+    for k in (
+        "nbc_median",
+        "nbc_q1",
+        "nbc_q3",
+        "area_true",
+        "area_estimate_median",
+        "area_rel_error_median",
+        "area_ci95",
+        "crossings_median",
+        "trials",
+        "robot_steps_per_s",
+        "wall_s",
+    ):
         assert k in r
     assert r["trials"] == 5 and r["escapes"] == 0
     assert r["area_true"] == pytest.approx(314.159, rel=1e-4)
@@ -22,8 +33,9 @@ def test_measure_json_keys_and_containment(cli):
 
 def test_measure_text_and_rrd(cli, tmp_path):
     rrd = tmp_path / "t.rrd"
-    code, out, err = cli("buffon", "--nest", "square:15", "--barrier", "bar:0.5", "--trials", 2, "--visit-steps",
-                         2000, "--rrd", rrd)  # fmt: skip
+    code, out, err = cli(
+        "buffon", "--nest", "square:15", "--barrier", "bar:0.5", "--trials", 2, "--visit-steps", 2000, "--rrd", rrd
+    )
     assert code == 0, err
     assert "nBC median" in out and rrd.stat().st_size > 10_000
     code, _, err = cli("buffon", "--nest", "square:15", "--trials", 2, "--visit-steps", 100, "--rrd", rrd)
@@ -81,9 +93,13 @@ def test_bad_polygon_files(cli, tmp_path):
 
 def _mini_cases():
     steps = 1500
-    circ = [Case(family="circles", spec=f"circle:{d}", visit_steps=steps, x=3.14159 * d * d / 4) for d in (10, 20, 50, 100)]
-    sq = [Case(family="squares", spec=f"square:{d * 0.886227:.6g}", visit_steps=steps, x=c.x)
-          for d, c in zip((10, 20, 50, 100), circ, strict=True)]  # fmt: skip
+    circ = [
+        Case(family="circles", spec=f"circle:{d}", visit_steps=steps, x=3.14159 * d * d / 4) for d in (10, 20, 50, 100)
+    ]
+    sq = [
+        Case(family="squares", spec=f"square:{d * 0.886227:.6g}", visit_steps=steps, x=c.x)
+        for d, c in zip((10, 20, 50, 100), circ, strict=True)
+    ]
     return [
         *circ,
         *sq,
@@ -98,9 +114,7 @@ def _mini_cases():
 
 def test_reproduce_writes_figures_table_and_claims(cli, tmp_path, monkeypatch):
     monkeypatch.setattr(buffon_run, "experiment_cases", _mini_cases)
-    monkeypatch.setattr(buffon_run, "_patterns", lambda seed: {
-        k: v for k, v in _real_patterns(seed).items()
-    })  # fmt: skip
+    monkeypatch.setattr(buffon_run, "_patterns", lambda seed: {k: v for k, v in _real_patterns(seed).items()})
     out = tmp_path / "rep"
     code, stdout, err = cli("buffon", "reproduce", "--out", out, "--trials", 3, "--workers", 1, "--json")
     assert code == 0, err
@@ -133,8 +147,21 @@ def test_reproduce_refuses_a_foreign_folder(cli, tmp_path):
 
 
 def test_compare_runs_both_paths(cli, tmp_path):
-    code, out, err = cli("buffon", "compare", "--nest", "circle:15", "--trials", 6, "--visit-steps", 600, "--out",
-                         tmp_path, "--workers", 1, "--json")  # fmt: skip
+    code, out, err = cli(
+        "buffon",
+        "compare",
+        "--nest",
+        "circle:15",
+        "--trials",
+        6,
+        "--visit-steps",
+        600,
+        "--out",
+        tmp_path,
+        "--workers",
+        1,
+        "--json",
+    )
     assert code == 0, err
     r = json.loads(out)
     assert r["escapes_pymunk"] == 0 and r["escapes_batched"] == 0

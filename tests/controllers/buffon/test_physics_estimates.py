@@ -51,8 +51,9 @@ def test_push_out_slides_without_tunnelling_through_a_thin_barrier():
     assert touched and y > cy + 0.05  # slid along the barrier
 
 
-@pytest.mark.parametrize("spec,barrier", [("circle:10", None), ("square:20", "plus:0.8"), ("ellipse:300:6", None),
-                                          ("circle:30", "bar:0.9")])  # fmt: skip
+@pytest.mark.parametrize(
+    "spec,barrier", [("circle:10", None), ("square:20", "plus:0.8"), ("ellipse:300:6", None), ("circle:30", "bar:0.9")]
+)
 def test_containment_every_step(spec, barrier):
     nest = parse_nest(spec, barrier)
     ts = run_trials(nest, VisitConfig(visit_steps=6000), trials=3, seed=4, record_trial=1)
@@ -136,8 +137,17 @@ def test_summary_keys_interval_and_corrections():
     nest = parse_nest("circle:30")
     ts = run_trials(nest, VisitConfig(visit_steps=20000), trials=12, seed=3)
     s = summarise(ts, nest.area_u2)
-    for k in ("nbc_median", "nbc_q1", "nbc_q3", "area_true", "area_estimate_median", "area_rel_error_median",
-              "area_ci95", "crossings_median", "trials"):  # fmt: skip
+    for k in (
+        "nbc_median",
+        "nbc_q1",
+        "nbc_q3",
+        "area_true",
+        "area_estimate_median",
+        "area_rel_error_median",
+        "area_ci95",
+        "crossings_median",
+        "trials",
+    ):
         assert k in s
     assert s["nbc_q1"] <= s["nbc_median"] <= s["nbc_q3"]
     lo, hi = s["area_ci95"]
