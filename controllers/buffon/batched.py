@@ -246,6 +246,7 @@ class TrialSet:
     robot_steps: int
     wall_s: float
     trails: dict = field(default_factory=dict)  # recorded trial: 'visit1', 'visit2' (S, 3) arrays
+    cpu_s: float = float("nan")  # process CPU time (honest per-core speed on a shared machine)
 
     @property
     def nbc(self) -> np.ndarray:
@@ -285,50 +286,79 @@ def run_trials(
     seed: int | np.random.SeedSequence = 0,
     record_trial: int | None = None,
     progress: Callable[[int], None] | None = None,
+    threads: int = 1,
 ) -> TrialSet:
     """Run ``trials`` independent two-visit trials of Buffon's method in ``nest``.
 
     ``progress(n)`` is called with the robot-steps done after each visit (for a progress bar).
     ``record_trial`` keeps that trial's two paths (x, y, crossed per step) in ``TrialSet.trails``.
+    ``threads`` > 1 runs trials on that many threads (the compiled loop releases the GIL); the
+    results do not depend on it.
     """
     if not (isinstance(trials, int) and trials > 0):
         raise BadInputError(f"trials must be a positive integer; got {trials!r}")
-    t0 = time.perf_counter()
-    rb = config.robot
-    geo = StaticGeometry.from_arena(nest.arena, reach_m=rb.radius_m + config.ir.range_m + 0.005)
-    cell = 0.5 * config.trail_width_m  # as sim_camera.layers.PheromoneLayer
-    xmin, ymin = nest.arena.bounds_m[:2]
-    trail = (xmin, ymin, cell)
-    grid = np.zeros(_trail_grid_shape(nest, cell), dtype=np.uint8)
-    prm = config.kernel_params()
-    ir_ang = np.array(config.ir.angles_rad, dtype=np.float64)
-    sx, sy = nest.start_xy
-    out = np.zeros((4, trials))  # l1, l2, crossings, blind
-    escapes = 0
-    trails: dict = {}
-    for i, seeds in enumerate(trial_seeds(seed, trials)):
+    if not (isinstance(threads, int) and threads > 0):
+        raise BadInputError(f"threads must be a positive integer; got {threads!r}")
+    t0, c0 = time.perf_counter(), time.process_time()
+    world = _TrialWorld(nest, config)
+    seeds = trial_seeds(seed, trials)
+
+    def one(i: int):
+        return world.trial(seeds[i], record=i == record_trial, progress=progress)
+
+    if threads == 1:
+        rows = [one(i) for i in range(trials)]
+    else:
+        from concurrent.futures import ThreadPoolExecutor
+
+        with ThreadPoolExecutor(max_workers=threads) as pool:
+            rows = list(pool.map(one, range(trials)))
+    l1, l2, n, blind, esc, trails = zip(*rows, strict=True)
+    return TrialSet(
+        np.array(l1), np.array(l2), np.array(n, dtype=np.int64), np.array(blind), int(sum(esc)),
+        2 * trials * config.visit_steps, time.perf_counter() - t0, next((t for t in trails if t), {}),
+        time.process_time() - c0,
+    )  # fmt: skip
+
+
+class _TrialWorld:
+    """What every trial of one nest shares (walls, raster layout, constants), built once."""
+
+    def __init__(self, nest: Nest, config: VisitConfig):
+        rb = config.robot
+        self.config = config
+        self.geo = StaticGeometry.from_arena(nest.arena, reach_m=rb.radius_m + config.ir.range_m + 0.005)
+        cell = 0.5 * config.trail_width_m  # as sim_camera.layers.PheromoneLayer
+        xmin, ymin = nest.arena.bounds_m[:2]
+        self.trail = (xmin, ymin, cell)
+        self.grid_shape = _trail_grid_shape(nest, cell)
+        self.prm = config.kernel_params()
+        self.ir_ang = np.array(config.ir.angles_rad, dtype=np.float64)
+        self.start = nest.start_xy
+
+    def trial(self, seeds, *, record: bool = False, progress=None):
+        """One trial's (L1 u, L2 u, crossings, blind fraction, escapes, recorded paths)."""
+        c = self.config
         start, beh, irg, slip = (np.random.default_rng(s) for s in seeds)
-        gain = _motor_gain(rb, start)
-        grid[:] = 0
+        gain = _motor_gain(c.robot, start)
+        grid = np.zeros(self.grid_shape, dtype=np.uint8)
+        out, trails, escapes = [0.0, 0.0, 0, 0.0], {}, 0
         for visit, heading in enumerate(start_headings(start), 1):
             st = np.zeros(N_STATE)
-            st[X], st[Y], st[TH], st[GAIN] = sx, sy, heading, gain
-            rec = np.zeros((config.visit_steps if i == record_trial else 0, 3))
-            n, e = _visit(
-                st, beh, irg, slip, config.visit_steps, grid, visit == 1, geo.arrays, geo.outer, trail, prm, ir_ang, rec
-            )
+            st[X], st[Y], st[TH], st[GAIN] = *self.start, heading, gain
+            rec = np.zeros((c.visit_steps if record else 0, 3))
+            geo = self.geo
+            n, e = _visit(st, beh, irg, slip, c.visit_steps, grid, visit == 1, geo.arrays, geo.outer, self.trail,
+                          self.prm, self.ir_ang, rec)  # fmt: skip
             escapes += e
-            out[visit - 1, i] = st[PLEN] / BODY_LENGTH_M
+            out[visit - 1] = st[PLEN] / BODY_LENGTH_M
             if visit == 2:
-                out[2, i], out[3, i] = n, st[BLIND] / config.visit_steps
-            if len(rec):
+                out[2], out[3] = n, st[BLIND] / c.visit_steps
+            if record:
                 trails[f"visit{visit}"] = rec
             if progress is not None:
-                progress(config.visit_steps)
-    steps = 2 * trials * config.visit_steps
-    return TrialSet(
-        out[0], out[1], out[2].astype(np.int64), out[3], int(escapes), steps, time.perf_counter() - t0, trails
-    )
+                progress(c.visit_steps)
+        return (*out, escapes, trails)
 
 
 def _motor_gain(rb: DiffDriveParams, rng: np.random.Generator) -> float:

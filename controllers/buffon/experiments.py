@@ -113,6 +113,7 @@ def nest_task(params: dict, seed: np.random.SeedSequence) -> dict:
         blind_fraction=ts.blind_fraction.tolist(),
         robot_steps=ts.robot_steps,
         wall_s=ts.wall_s,
+        cpu_s=ts.cpu_s,
     )
     return out
 

@@ -47,6 +47,7 @@ def measure(
     seed: int = 0,
     rrd: str | None = None,
     force: bool = False,
+    threads: int | None = None,
 ) -> dict:
     """Run ``trials`` trials in one nest; the nest's nBC and area figures."""
     nest = parse_nest(nest_spec, barrier)
@@ -56,7 +57,16 @@ def measure(
     if rrd is not None and Path(rrd).exists() and not force:
         raise FileExistsRefusedError(f"{rrd} exists; refusing to overwrite it (use --force)")
     with _bar(2 * trials * visit_steps, f"buffon {nest.label}") as bar:
-        ts = run_trials(nest, config, trials=trials, seed=seed, record_trial=0 if rrd else None, progress=bar.update)
+        threads = threads or _cores()
+        ts = run_trials(
+            nest,
+            config,
+            trials=trials,
+            seed=seed,
+            record_trial=0 if rrd else None,
+            progress=bar.update,
+            threads=threads,
+        )
     out = {
         "nest": nest.spec,
         "barrier": nest.barrier,
@@ -65,7 +75,9 @@ def measure(
         "seed": seed,
         **summarise(ts, nest.area_u2),
         "robot_steps": ts.robot_steps,
+        "threads": threads,
         "robot_steps_per_s": ts.robot_steps / ts.wall_s,
+        "robot_steps_per_cpu_s": ts.robot_steps / ts.cpu_s,
         "wall_s": ts.wall_s,
     }
     if rrd:
@@ -74,6 +86,12 @@ def measure(
         record_trial(rrd, nest, ts.trails["visit1"], ts.trails["visit2"])
         out["rrd"] = str(rrd)
     return out
+
+
+def _cores() -> int:
+    import os
+
+    return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
 
 
 def format_text(r: dict) -> str:

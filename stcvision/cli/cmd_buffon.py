@@ -37,6 +37,7 @@ def add_parser(p):
     )
     p.add_argument("--trials", type=positive(int), default=100, help="independent trials (default 100)")
     p.add_argument("--seed", type=int, default=0, help="seed of every trial's streams (default 0)")
+    p.add_argument("--threads", type=positive(int), metavar="N", help="threads for the trials (default: one per core)")
     p.add_argument("--rrd", metavar="OUT.rrd", help="record trial 0 in rerun (nest, trail, path, crossings, nBC)")
     p.add_argument("--force", action="store_true", help="overwrite --rrd")
     p.add_argument("--json", action="store_true", help="print the result as one JSON object")
@@ -159,6 +160,7 @@ def run(args):
         trail_width_u=args.trail_width,
         seed=args.seed,
         rrd=args.rrd,
+        threads=args.threads,
         force=args.force,
     )
 
