@@ -67,7 +67,6 @@ def _nest_arguments(p, *, required: bool) -> None:
 
 def _add_reproduce(sub):
     from stcvision.cli._args import positive
-    from stcvision.sweep import add_sweep_arguments
 
     s = sub.add_parser(
         "reproduce",
@@ -75,9 +74,16 @@ def _add_reproduce(sub):
         description="Run every nest of sec. 5 (and the absolute-area set) through the sweep runner "
         "(resumable: DIR/sweep.jsonl) and write the figures, nests.csv and summary.md.",
     )
-    s.add_argument("--out", required=True, metavar="DIR")
     s.add_argument("--trials", type=positive(int), default=100, help="trials per nest (default 100)")
-    s.add_argument("--seed", type=int, default=0, help="seed of the reproduction (default 0)")
+    _folder_run_arguments(s)
+
+
+def _folder_run_arguments(s) -> None:
+    """--out DIR, --seed, --force, --json and the sweep runner's options."""
+    from stcvision.sweep import add_sweep_arguments
+
+    s.add_argument("--out", required=True, metavar="DIR", help="output folder (its sweep.jsonl makes a re-run resume)")
+    s.add_argument("--seed", type=int, default=0, help="seed of the run (default 0)")
     s.add_argument("--force", action="store_true", help="write into a folder that holds other files")
     s.add_argument("--json", action="store_true", help="print the result as one JSON object")
     add_sweep_arguments(s)
@@ -85,7 +91,6 @@ def _add_reproduce(sub):
 
 def _add_compare(sub):
     from stcvision.cli._args import positive
-    from stcvision.sweep import add_sweep_arguments
 
     s = sub.add_parser(
         "compare",
@@ -95,7 +100,6 @@ def _add_compare(sub):
         "Kolmogorov-Smirnov, two-sided).",
     )
     _nest_arguments(s, required=True)
-    s.add_argument("--out", required=True, metavar="DIR")
     s.add_argument("--trials", type=positive(int), default=100, help="trials per path (default 100)")
     s.add_argument(
         "--visit-steps",
@@ -104,10 +108,7 @@ def _add_compare(sub):
         metavar="N",
         help="steps per visit (default 3,000: the pymunk path runs ~3,000 steps/s)",
     )
-    s.add_argument("--seed", type=int, default=0)
-    s.add_argument("--force", action="store_true", help="write into a folder that holds other files")
-    s.add_argument("--json", action="store_true", help="print the result as one JSON object")
-    add_sweep_arguments(s)
+    _folder_run_arguments(s)
 
 
 def _add_calibrate(sub):
