@@ -49,8 +49,18 @@ from sim_camera.robot import KHEPERA, DiffDriveParams
 from sim_camera.sensors import IrParams
 from stcvision.errors import BadInputError
 
-__all__ = ["TrialSet", "VisitConfig", "run_trials", "start_headings", "trial_seeds"]
+__all__ = [
+    "PAPER_TRAIL_WIDTH_U",
+    "PAPER_VISIT_STEPS",
+    "TrialSet",
+    "VisitConfig",
+    "run_trials",
+    "start_headings",
+    "trial_seeds",
+]
 
+PAPER_VISIT_STEPS = 50_000  # sec. 4: "the duration of the first visit is fixed to 50000 steps"
+PAPER_TRAIL_WIDTH_U = 0.1  # sec. 4: "the width of the pheromone is taken as 0.1"
 START_HEADING_SPREAD_RAD = math.radians(15)  # sec. 3.1: "varied within +-15 degrees of the wall"
 MAX_TRAIL_CELLS = 64_000_000
 
@@ -64,8 +74,8 @@ class VisitConfig:
     dt_s : world step (the pymunk world's default, 0.05 s).
     """
 
-    visit_steps: int = 50_000
-    trail_width_u: float = 0.1
+    visit_steps: int = PAPER_VISIT_STEPS
+    trail_width_u: float = PAPER_TRAIL_WIDTH_U
     dt_s: float = 0.05
     robot: DiffDriveParams = KHEPERA
     ir: IrParams = IrParams()

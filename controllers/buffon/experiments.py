@@ -26,19 +26,17 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from controllers.buffon.batched import VisitConfig, run_trials
+from controllers.buffon.batched import PAPER_TRAIL_WIDTH_U, PAPER_VISIT_STEPS, VisitConfig, run_trials
 from controllers.buffon.estimate import AREA_VISIT_STEPS, area_estimates, summarise
 from controllers.buffon.nests import STANDARD_AREA_U2, STANDARD_DIAMETER_U, eccentricity_to_ratio, parse_nest
 
 __all__ = ["Case", "PAPER_VISIT_STEPS", "experiment_cases", "nest_task"]
 
-PAPER_VISIT_STEPS = 50_000  # sec. 4: "the duration of the first visit is fixed to 50000 steps"
 CIRCLE_DIAMETERS_U = tuple(float(d) for d in range(10, 101, 10))
 ECCENTRICITIES = (0.968, 0.994, 0.998)  # sec. 3.1
 BARRIER_FRACTIONS = (0.2, 0.4, 0.6, 0.8, 0.95)
 THICKNESSES_U = (0.2, 0.4, 0.8)
 THICKNESS_DIAMETERS_U = (10.0, 20.0, 30.0, 50.0, 100.0)
-DEFAULT_TRAIL_U = 0.1  # sec. 4: "the width of the pheromone is taken as 0.1"
 
 
 @dataclass(frozen=True, kw_only=True, slots=True)
@@ -48,7 +46,7 @@ class Case:
     family: str
     spec: str
     barrier: str | None = None
-    trail_width_u: float = DEFAULT_TRAIL_U
+    trail_width_u: float = PAPER_TRAIL_WIDTH_U
     visit_steps: int = PAPER_VISIT_STEPS
     x: float = 0.0
 

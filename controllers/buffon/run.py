@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from controllers.buffon.batched import VisitConfig, run_trials
+from controllers.buffon.batched import PAPER_TRAIL_WIDTH_U, PAPER_VISIT_STEPS, VisitConfig, run_trials
 from controllers.buffon.estimate import (
     AREA_VISIT_STEPS,
     WALL_CORRECTION,
@@ -21,7 +21,7 @@ from controllers.buffon.estimate import (
     calibrate_wall_correction,
     summarise,
 )
-from controllers.buffon.experiments import PAPER_VISIT_STEPS, experiment_cases
+from controllers.buffon.experiments import experiment_cases
 from controllers.buffon.nests import BODY_LENGTH_M, parse_nest
 from stcvision.errors import BadInputError, FileExistsRefusedError
 from stcvision.fileio import write_bytes_atomic
@@ -43,7 +43,7 @@ def measure(
     *,
     trials: int = 100,
     visit_steps: int = AREA_VISIT_STEPS,
-    trail_width_u: float = 0.1,
+    trail_width_u: float = PAPER_TRAIL_WIDTH_U,
     seed: int = 0,
     rrd: str | None = None,
     force: bool = False,
@@ -104,12 +104,13 @@ def format_text(r: dict) -> str:
             f"wall correction on {r['reference']}: measured {r['wall_correction_measured']:.3f}, "
             f"95 % interval {r['ci95']}, shipped {r['wall_correction_shipped']:.3f}"
         )
-    ci = r["area_ci95"] or [float("nan")] * 2
+    ci = r["area_ci95"]
+    ci_text = f"{_num(ci[0])}-{_num(ci[1])}" if ci else "n/a (fewer than 3 trials)"
     lines = [
         f"nest {r['nest']}{' ' + r['barrier'] if r['barrier'] else ''}: true area {r['area_true']:,.1f} u^2",
         f"nBC median {r['nbc_median']:.4f} (IQR {r['nbc_q1']:.4f}-{r['nbc_q3']:.4f}) over {r['trials']} trials; "
         f"crossings median {r['crossings_median']:.0f}",
-        f"area estimate median {_num(r['area_estimate_median'])} u^2, 95 % CI {_num(ci[0])}-{_num(ci[1])}; "
+        f"area estimate median {_num(r['area_estimate_median'])} u^2, 95 % CI {ci_text}; "
         f"median |error| {_pct(r['area_rel_error_median'])} (raw formula {_pct(r['area_raw_rel_error_median'])})",
         f"{r['robot_steps']:,} robot-steps in {r['wall_s']:.1f} s ({r['robot_steps_per_s']:,.0f}/s)",
     ]
@@ -230,7 +231,7 @@ def compare(
     out: str | Path,
     trials: int = 100,
     visit_steps: int = 3000,
-    trail_width_u: float = 0.1,
+    trail_width_u: float = PAPER_TRAIL_WIDTH_U,
     seed: int = 0,
     sweep=None,
     force: bool = False,

@@ -47,6 +47,7 @@ def add_parser(p):
 
 
 def _nest_arguments(p, *, required: bool) -> None:
+    from controllers.buffon.batched import PAPER_TRAIL_WIDTH_U
     from stcvision.cli._args import positive
 
     p.add_argument(
@@ -59,9 +60,9 @@ def _nest_arguments(p, *, required: bool) -> None:
     p.add_argument(
         "--trail-width",
         type=positive(float),
-        default=0.1,
+        default=PAPER_TRAIL_WIDTH_U,
         metavar="W",
-        help="pheromone trail width in body lengths (default 0.1, the paper's)",
+        help=f"pheromone trail width in body lengths (default {PAPER_TRAIL_WIDTH_U:g}, the paper's)",
     )
 
 
