@@ -240,7 +240,7 @@ def claims(cases, results, *, trials: int, wall_s: float | None = None, steps_pe
         "## Absolute area (beyond the paper)",
         "",
         "A = 2 L1 L2 / (pi N) per trial; *raw* is that formula, the other columns add the dead-time correction "
-        "(the counter's blind fraction, measured by the robot) and the one wall factor calibrated on the "
+        "(the counter's blind fraction, measured by the robot) and the one correction factor calibrated on the "
         "standard circle (see the README). `accuracy` repeats the standard-area nests with visits long enough "
         "for the paths to mix.",
         "",

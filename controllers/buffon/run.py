@@ -1,5 +1,5 @@
 """The Buffon explorer's runs, as the CLI calls them: measure one nest, reproduce the paper,
-compare the batched path with the pymunk one, recompute the wall correction.
+compare the batched path with the pymunk one, recompute the area correction.
 
 Each returns a JSON-serialisable dict. Progress bars (tqdm) and files are here, around the
 simulation; nothing in the simulation prints, plots or logs.
@@ -15,10 +15,10 @@ import numpy as np
 
 from controllers.buffon.batched import PAPER_TRAIL_WIDTH_U, PAPER_VISIT_STEPS, VisitConfig, run_trials
 from controllers.buffon.estimate import (
+    AREA_CORRECTION,
     AREA_VISIT_STEPS,
-    WALL_CORRECTION,
-    WALL_CORRECTION_REFERENCE,
-    calibrate_wall_correction,
+    CORRECTION_REFERENCE,
+    calibrate_area_correction,
     summarise,
 )
 from controllers.buffon.experiments import experiment_cases
@@ -99,10 +99,10 @@ def format_text(r: dict) -> str:
         return r["summary_text"]
     if "paths" in r:
         return "\n".join(f"{k}: {v}" for k, v in r.items() if k != "paths")
-    if "wall_correction_measured" in r:
+    if "area_correction_measured" in r:
         return (
-            f"wall correction on {r['reference']}: measured {r['wall_correction_measured']:.3f}, "
-            f"95 % interval {r['ci95']}, shipped {r['wall_correction_shipped']:.3f}"
+            f"area correction on {r['reference']}: measured {r['area_correction_measured']:.3f}, "
+            f"95 % interval {r['ci95']}, shipped {r['area_correction_shipped']:.3f}"
         )
     ci = r["area_ci95"]
     ci_text = f"{_num(ci[0])}-{_num(ci[1])}" if ci else "n/a (fewer than 3 trials)"
@@ -114,6 +114,8 @@ def format_text(r: dict) -> str:
         f"median |error| {_pct(r['area_rel_error_median'])} (raw formula {_pct(r['area_raw_rel_error_median'])})",
         f"{r['robot_steps']:,} robot-steps in {r['wall_s']:.1f} s ({r['robot_steps_per_s']:,.0f}/s)",
     ]
+    if r.get("area_warning"):
+        lines.append(f"WARNING: {r['area_warning']}")
     return "\n".join(lines)
 
 
@@ -315,27 +317,27 @@ def _compare_outputs(out: Path, res: dict, nbc_p, nbc_b) -> None:
 
 # --------------------------------------------------------------------------------- calibrate
 def calibrate(*, trials: int = 100, seed: int = 0) -> dict:
-    """The wall correction measured on the reference nest (the shipped one stays fixed)."""
+    """The area correction measured on the reference nest (the shipped one stays fixed)."""
     from controllers.buffon.estimate import area_estimates, median_ci95
 
-    nest = parse_nest(WALL_CORRECTION_REFERENCE)
+    nest = parse_nest(CORRECTION_REFERENCE)
     config = VisitConfig(visit_steps=AREA_VISIT_STEPS)
     with _bar(2 * trials * config.visit_steps, "buffon calibrate") as bar:
         ts = run_trials(nest, config, trials=trials, seed=seed, progress=bar.update)
-    k = calibrate_wall_correction(ts, nest.area_u2)
+    k = calibrate_area_correction(ts, nest.area_u2)
     per_trial = nest.area_u2 / area_estimates(ts, correction=1.0)
     ci = median_ci95(per_trial)
     return {
         "reference": nest.spec,
         "trials": trials,
         "visit_steps": config.visit_steps,
-        "wall_correction_measured": k,
+        "area_correction_measured": k,
         "ci95": ci,
-        "wall_correction_shipped": WALL_CORRECTION,
+        "area_correction_shipped": AREA_CORRECTION,
         "area_true": nest.area_u2,
         "escapes": ts.escapes,
         "wall_s": ts.wall_s,
-        "shipped_inside_ci": bool(ci is not None and ci[0] <= WALL_CORRECTION <= ci[1]),
+        "shipped_inside_ci": bool(ci is not None and ci[0] <= AREA_CORRECTION <= ci[1]),
     }
 
 

@@ -1,7 +1,7 @@
 """Measure a nest's area blind, with Buffon's needle (seed 000, Girgin & Sahin): a Khepera-sized
 explorer makes two visits from the nest's central bottom, lays a pheromone trail on the first,
 counts its crossings on the second; nBC = crossings / second-visit length, and the area is
-A = 2 L1 L2 / (pi N) (with the dead-time and wall corrections; see README). Lengths are in body
+A = 2 L1 L2 / (pi N) (with a dead-time and a calibrated correction; see README). Lengths are in body
 lengths (u = 55 mm).
 
   stcvision buffon --nest circle:100 [--barrier plus:0.5] [--trials 100] [--json] [--rrd R.rrd]
@@ -113,12 +113,12 @@ def _add_compare(sub):
 
 
 def _add_calibrate(sub):
-    from controllers.buffon.estimate import WALL_CORRECTION_REFERENCE
+    from controllers.buffon.estimate import CORRECTION_REFERENCE
     from stcvision.cli._args import positive
 
     s = sub.add_parser(
         "calibrate",
-        help=f"recompute the wall correction on {WALL_CORRECTION_REFERENCE}",
+        help=f"recompute the area correction on {CORRECTION_REFERENCE}",
         description="Measure A_true / median(A_dt) on the standard circle at the default visit "
         "length; the shipped factor is held fixed, this shows where it comes from.",
     )
