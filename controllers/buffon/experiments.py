@@ -26,7 +26,7 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from controllers.buffon.batched import PAPER_TRAIL_WIDTH_U, PAPER_VISIT_STEPS, VisitConfig, run_trials
+from controllers.buffon.batched import PAPER_TRAIL_WIDTH_U, PAPER_VISIT_STEPS, TrialSet, VisitConfig, run_trials
 from controllers.buffon.estimate import AREA_VISIT_STEPS, area_estimates, summarise
 from controllers.buffon.nests import STANDARD_AREA_U2, STANDARD_DIAMETER_U, eccentricity_to_ratio, parse_nest
 
@@ -97,22 +97,41 @@ def experiment_cases() -> list[Case]:
 
 def nest_task(params: dict, seed: np.random.SeedSequence) -> dict:
     """One nest's trial set: the sweep runner's unit of work. ``params`` are a :class:`Case`'s
-    fields plus ``trials``; returns the nest's summary and the per-trial figures."""
+    fields plus ``trials``; returns the per-trial measurements (and the summary of the time)."""
     nest = parse_nest(params["spec"], params.get("barrier"))
     config = VisitConfig(visit_steps=int(params["visit_steps"]), trail_width_u=float(params["trail_width_u"]))
-    ts = run_trials(nest, config, trials=int(params["trials"]), seed=seed)
-    out = summarise(ts, nest.area_u2)
-    out.update(
-        area_estimates=[float(a) if np.isfinite(a) else None for a in area_estimates(ts)],
-        nbc=ts.nbc.tolist(),
-        crossings=ts.crossings.tolist(),
-        l1_u=ts.l1_u.tolist(),
-        l2_u=ts.l2_u.tolist(),
-        blind_fraction=ts.blind_fraction.tolist(),
-        robot_steps=ts.robot_steps,
-        wall_s=ts.wall_s,
-        cpu_s=ts.cpu_s,
-    )
+    return result_of(run_trials(nest, config, trials=int(params["trials"]), seed=seed), nest.area_u2)
+
+
+def result_of(ts: TrialSet, area_true_u2: float) -> dict:
+    """A trial set as stored: what the robots measured, per trial, and the summary computed from
+    it (:func:`refresh` recomputes the summary with the current estimators)."""
+    out = {
+        "crossings": ts.crossings.tolist(),
+        "l1_u": ts.l1_u.tolist(),
+        "l2_u": ts.l2_u.tolist(),
+        "blind_fraction": ts.blind_fraction.tolist(),
+        "escapes": ts.escapes,
+        "robot_steps": ts.robot_steps,
+        "wall_s": ts.wall_s,
+        "cpu_s": ts.cpu_s,
+    }
+    return refresh(out, area_true_u2)
+
+
+def refresh(stored: dict, area_true_u2: float) -> dict:
+    """The stored per-trial measurements with a summary and per-trial estimates made by the
+    estimators of this version (so a stored sweep stays valid when a correction changes)."""
+    ts = TrialSet(
+        np.asarray(stored["l1_u"], float), np.asarray(stored["l2_u"], float),
+        np.asarray(stored["crossings"], np.int64), np.asarray(stored["blind_fraction"], float),
+        int(stored["escapes"]), int(stored["robot_steps"]), float(stored["wall_s"]),
+    )  # fmt: skip
+    keep = ("crossings", "l1_u", "l2_u", "blind_fraction", "escapes", "robot_steps", "wall_s", "cpu_s")
+    out = {k: stored[k] for k in keep if k in stored}
+    out.update(summarise(ts, area_true_u2))
+    out["nbc"] = ts.nbc.tolist()
+    out["area_estimates"] = [float(a) if np.isfinite(a) else None for a in area_estimates(ts)]
     return out
 
 

@@ -21,7 +21,7 @@ from controllers.buffon.estimate import (
     calibrate_area_correction,
     summarise,
 )
-from controllers.buffon.experiments import experiment_cases
+from controllers.buffon.experiments import experiment_cases, refresh
 from controllers.buffon.nests import BODY_LENGTH_M, parse_nest
 from stcvision.errors import BadInputError, FileExistsRefusedError
 from stcvision.fileio import write_bytes_atomic
@@ -189,7 +189,7 @@ def reproduce(out: str | Path, *, trials: int = 100, seed: int = 0, sweep=None, 
     }
     t0 = time.perf_counter()
     rep = _run_tasks(list(tasks.values()), out, sweep or SweepOptions(), "buffon reproduce (nests)")
-    results = {c: rep.results[t.key] for c, t in tasks.items()}
+    results = {c: refresh(rep.results[t.key], rep.results[t.key]["area_true"]) for c, t in tasks.items()}
     steps = sum(r["robot_steps"] for r in results.values())
     busy = sum(r["wall_s"] for r in results.values())
     write_bytes_atomic(out / "nests.csv", report.table_csv(cases, results).encode(), overwrite=True)
