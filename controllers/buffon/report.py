@@ -251,8 +251,9 @@ def claims(cases, results, *, trials: int, wall_s: float | None = None, steps_pe
         "",
         "A = 2 L1 L2 / (pi N) per trial; *raw* is that formula, the other columns add the dead-time correction "
         "(the counter's blind fraction, measured by the robot) and the one correction factor calibrated on the "
-        "standard circle (see the README). `accuracy` repeats the standard-area nests with visits long enough "
-        "for the paths to mix.",
+        "standard circle (see the README) at the default visit length of a measurement, which is why the "
+        "paper-length families (50,000 steps) read low with it. `accuracy` repeats the standard-area nests with "
+        "visits of that length, long enough for the paths to mix.",
         "",
         *_accuracy_lines(cases, results),
         "",
@@ -380,7 +381,8 @@ def _fig_accuracy(cases, results):
         r = results[c]
         est = np.array([np.inf if a is None else a for a in r["area_estimates"]], dtype=float)
         data.append(est / r["area_true"])
-        labels.append(f"{c.family}\n{c.spec.split(':')[0]} {c.x:.3g}" + (" L" if c.family == "accuracy" else ""))
+        width = f" w{c.trail_width_u:g}" if c.family == "thickness" else ""
+        labels.append(f"{c.family}: {c.spec}{' ' + c.barrier if c.barrier else ''}{width}")
     ax.boxplot(data, showfliers=False)
     ax.set_xticks(range(1, len(labels) + 1), labels, rotation=90, fontsize=6)
     ax.axhline(1.0, color="k", lw=1)
