@@ -263,8 +263,6 @@ def generate(recipe: Recipe, out: str | Path, *, seed: int | None = None, option
     sizes = {(c["optics"]["width_px"], c["optics"]["height_px"]) for c in cameras.values()}
     if len(sizes) > 1:
         raise BadInputError(f"recipe {recipe.name}: cameras of different image sizes {sorted(sizes)}; expected one")
-    if out.exists() and not out.is_dir():
-        raise BadInputError(f"{out} is a file; expected a dataset folder")
     _check_folder(out, recipe, seed)
     manifest = _manifest(recipe, seed, cameras, groups)
     mpath, lpath = out / "manifest.json", out / "labels.jsonl"
