@@ -34,9 +34,9 @@ def machine_workers() -> int:
         return os.cpu_count() or 1
 
 
-@dataclass(frozen=True, kw_only=True, slots=True)
+@dataclass(frozen=True, slots=True)
 class SweepOptions:
-    """Where and how a sweep runs.
+    """Where and how a sweep runs (``SweepOptions(workers, scheduler, fresh)``, all optional).
 
     workers : processes of the local pool (None: one per CPU of the machine; 1 runs in this
         process). Ignored with ``scheduler``.
