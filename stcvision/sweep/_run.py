@@ -5,10 +5,9 @@ from __future__ import annotations
 import argparse
 import os
 import time
-from collections.abc import Iterable, Iterator, Mapping
+from collections.abc import Iterable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
-from types import MappingProxyType
 
 from stcvision.errors import BadInputError, StcVisionError
 from stcvision.sweep._store import Store
@@ -64,10 +63,11 @@ class SweepOptions:
         return "in-process" if n == 1 else f"local pool of {n}"
 
 
-@dataclass(frozen=True, kw_only=True, slots=True)
+@dataclass(kw_only=True, slots=True)
 class SweepReport:
-    """What a sweep did. ``results`` (key -> result, successful tasks only, in task order, those
-    done by earlier runs included) and ``failed`` (key -> one-line error) are read-only."""
+    """What a sweep did: a plain record, the caller's to keep or change (the store is the
+    truth). ``results``: key -> result of every successful task, in task order, those done by
+    earlier runs included; ``failed``: key -> one-line error."""
 
     desc: str
     total: int
@@ -75,8 +75,8 @@ class SweepReport:
     ran: int  # tasks run now (succeeded or failed)
     wall_s: float
     backend: str
-    results: Mapping[str, dict] = field(default_factory=lambda: MappingProxyType({}))
-    failed: Mapping[str, str] = field(default_factory=lambda: MappingProxyType({}))
+    results: dict[str, dict] = field(default_factory=dict)
+    failed: dict[str, str] = field(default_factory=dict)
     skipped_keys: frozenset[str] = frozenset()  # the tasks counted in ``skipped``
     store: str = ""
 
@@ -257,8 +257,8 @@ def run_sweep(
         ran=len(todo),
         wall_s=time.perf_counter() - t0,
         backend=opts.backend,
-        results=MappingProxyType(ordered),
-        failed=MappingProxyType({t.key: failed[t.key] for t in tasks if t.key in failed}),
+        results=ordered,
+        failed={t.key: failed[t.key] for t in tasks if t.key in failed},
         skipped_keys=frozenset(t.key for t in tasks if t.key in done),
         store=str(store_path),
     )

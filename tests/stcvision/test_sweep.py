@@ -63,6 +63,7 @@ def test_seed_comes_from_the_key_so_workers_and_order_do_not_matter(tmp_path):
     two = run_sweep(tasks[::-1], tmp_path / "b.jsonl", SweepOptions(workers=2))
     assert one.backend == "in-process" and two.backend == "local pool of 2"
     assert dict(one.results) == dict(two.results) and len(one.results) == 8 and not one.failed
+    assert json.loads(json.dumps(one.results)) == one.results  # plain dicts, ready to save
     assert list(one.results) == [t.key for t in tasks]  # in task order, whatever the finishing order
     t = tasks[5]
     direct = draws(dict(t.params), np.random.SeedSequence(int(t.key, 16)))
