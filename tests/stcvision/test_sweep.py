@@ -94,9 +94,9 @@ def test_dask_cluster_gives_the_local_pools_results(tmp_path, dask_cluster):
 
 
 def test_a_sigkilled_sweep_resumes_with_every_key_once_and_equal_to_an_uninterrupted_run(tmp_path):
-    store, n = tmp_path / "killed.jsonl", 30
+    store, n = tmp_path / "killed.jsonl", 40
     proc = subprocess.Popen(
-        [sys.executable, "-m", "stcvision.sweep._selftest", str(store), str(n), "--workers", "2", "--sleep-s", "0.05"],
+        [sys.executable, "-m", "stcvision.sweep._selftest", str(store), str(n), "--workers", "2", "--sleep-s", "0.1"],
         start_new_session=True,  # its own process group: the kill takes the pool workers too
         stderr=subprocess.DEVNULL,
     )
@@ -111,11 +111,11 @@ def test_a_sigkilled_sweep_resumes_with_every_key_once_and_equal_to_an_uninterru
     assert proc.returncode == -signal.SIGKILL and 6 <= len(before) < n  # killed mid-sweep
     with open(store, "ab") as f:  # and as if the kill had torn a line in half
         f.write(b'{"key": "0123", "status": "o')
-    resumed = run_sweep(draws_tasks(n, sleep_s=0.05), store, SweepOptions(workers=2))
+    resumed = run_sweep(draws_tasks(n, sleep_s=0.1), store, SweepOptions(workers=2))
     assert resumed.skipped == len(before) and resumed.ran == n - len(before) and not resumed.failed
     keys = ok_keys(store)
-    assert sorted(keys) == sorted(t.key for t in draws_tasks(n, sleep_s=0.05)) and len(keys) == len(set(keys)) == n
-    clean = run_sweep(draws_tasks(n, sleep_s=0.05), tmp_path / "clean.jsonl", SweepOptions(workers=2))
+    assert sorted(keys) == sorted(t.key for t in draws_tasks(n, sleep_s=0.1)) and len(keys) == len(set(keys)) == n
+    clean = run_sweep(draws_tasks(n, sleep_s=0.1), tmp_path / "clean.jsonl", SweepOptions(workers=2))
     assert dict(resumed.results) == dict(clean.results)
     assert {r["key"]: r["result"] for r in read_store(store)} == dict(clean.results)
 
