@@ -228,15 +228,16 @@ def run_sweep(
         done = store.done()
         todo = [t for t in tasks if t.key not in done]
         skipped = len(tasks) - len(todo)
-        n = opts.workers or machine_workers()
+        n = min(opts.workers or machine_workers(), max(len(todo), 1))  # no idle processes
+        label = opts.backend if opts.scheduler else SweepOptions(workers=n).backend
         if not todo:
             backend = iter(())
         elif opts.scheduler:
             backend = _dask(todo, opts.scheduler)
-        elif min(n, len(todo)) == 1:
+        elif n == 1:
             backend = _in_process(todo)
         else:
-            backend = _local_pool(todo, min(n, len(todo)))
+            backend = _local_pool(todo, n)
         with tqdm(total=len(tasks), initial=skipped, desc=desc, unit="task", disable=None, dynamic_ncols=True) as bar:
             for task, outcome in backend:
                 store.append(task, outcome)
@@ -256,7 +257,7 @@ def run_sweep(
         skipped=skipped,
         ran=len(todo),
         wall_s=time.perf_counter() - t0,
-        backend=opts.backend,
+        backend=label,
         results=ordered,
         failed={t.key: failed[t.key] for t in tasks if t.key in failed},
         skipped_keys=frozenset(t.key for t in tasks if t.key in done),
