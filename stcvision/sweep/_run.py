@@ -150,13 +150,31 @@ def _in_process(tasks: list[Task]) -> Iterator[tuple[Task, dict]]:
         yield t, run_task(t.experiment, t.params_json(), t.key)
 
 
+#: one thread per worker process: the pool already runs one process per core, and numpy's BLAS
+#: and OpenCV would each start a thread per core in every worker (Dask's nanny sets the first
+#: three for its workers by default)
+ONE_THREAD_ENV = {
+    "OMP_NUM_THREADS": "1",
+    "OPENBLAS_NUM_THREADS": "1",
+    "MKL_NUM_THREADS": "1",
+    "OPENCV_FOR_THREADS_NUM": "1",
+}
+
+
+def _worker_init() -> None:
+    """Runs in each new pool worker before any task (so before numpy or OpenCV is imported)."""
+    os.environ.update(ONE_THREAD_ENV)
+
+
 def _local_pool(tasks: list[Task], workers: int) -> Iterator[tuple[Task, dict]]:
     import multiprocessing
     from concurrent.futures import ProcessPoolExecutor, as_completed
     from concurrent.futures.process import BrokenProcessPool
 
     # spawn: a worker starts clean (no copy of this process's threads, locks or open files)
-    ex = ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn"))
+    ex = ProcessPoolExecutor(
+        max_workers=workers, mp_context=multiprocessing.get_context("spawn"), initializer=_worker_init
+    )
     try:
         futs = {ex.submit(run_task, t.experiment, t.params_json(), t.key): t for t in tasks}
         for fut in as_completed(futs):
