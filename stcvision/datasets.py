@@ -17,9 +17,9 @@ frames; each group names how many frames, the scene parameters of
 Determinism: frame ``k`` draws its scene and its noise from
 ``SeedSequence(seed, spawn_key=(0, k))`` alone, so it does not depend on the frames before it;
 dark frames use ``(1, group)``, calibration frames ``(2, camera, j)``. Same recipe + seed gives
-byte-identical files, and a re-run skips every frame whose PNG and label already exist (each
-file is written atomically; labels are kept per frame in ``.parts/`` until ``labels.jsonl`` is
-written at the end).
+byte-identical files however the work is split, and a re-run skips every finished chunk of
+frames (each file is written atomically; the chunks' labels are kept in the sweep store
+``.sweep.jsonl`` until ``labels.jsonl`` is written at the end).
 
 Generation needs the simulator (``sim_camera``) and the calibration workflow, so it lives with
 the CLI (:mod:`stcvision.cli.dataset_generate`), the one place allowed to reach across packages

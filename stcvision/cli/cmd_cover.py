@@ -83,20 +83,15 @@ def _add_sweep_parser(sub):
         help="board sizes in cells per side (default 2,...,8,10,12)",
     )
     s.add_argument("--runs", type=positive(int), default=6, help="boards (seeds 0..runs-1) per size (default 6)")
-    s.add_argument(
-        "--exposures",
-        type=words,
-        default=["webcam", "auto"],
-        metavar="E,E,...",
-        help="exposure modes: webcam, auto or seconds (default webcam,auto)",
-    )
-    s.add_argument(
-        "--perceptions",
-        type=words,
-        default=["camera", "ideal"],
-        metavar="P,P,...",
-        help="camera, ideal (the physics-limited camera) or oracle (default camera,ideal)",
-    )
+    for flag, default, help_ in (
+        ("--exposures", ["webcam", "auto"], "exposure modes: webcam, auto or seconds (default webcam,auto)"),
+        (
+            "--perceptions",
+            ["camera", "ideal"],
+            "camera, ideal (the physics-limited camera) or oracle (default camera,ideal)",
+        ),
+    ):
+        s.add_argument(flag, type=words, default=default, metavar=f"{flag[2].upper()},...", help=help_)
     s.add_argument("--obstacle-fraction", type=float, default=0.15, help="obstacle cells of the boards (default 0.15)")
     s.add_argument(
         "--decisions-per-subcell",

@@ -263,8 +263,6 @@ def generate(recipe: Recipe, out: str | Path, *, seed: int | None = None, option
     sizes = {(c["optics"]["width_px"], c["optics"]["height_px"]) for c in cameras.values()}
     if len(sizes) > 1:
         raise BadInputError(f"recipe {recipe.name}: cameras of different image sizes {sorted(sizes)}; expected one")
-    if out.exists() and not out.is_dir():
-        raise BadInputError(f"{out} is a file; expected a dataset folder")
     _check_folder(out, recipe, seed)
     manifest = _manifest(recipe, seed, cameras, groups)
     mpath, lpath = out / "manifest.json", out / "labels.jsonl"
@@ -283,13 +281,11 @@ def generate(recipe: Recipe, out: str | Path, *, seed: int | None = None, option
     for gi, g in enumerate(groups):
         if not have(g["dark"]):
             tasks.append(Task(experiment=f"{__name__}:render_dark", params={**base, "group": gi}, seed=seed))
-    n_done_frames = 0
     for gi, g in enumerate(groups):
         stop = g["first_frame"] + g["n"]
         for first in range(g["first_frame"], stop, FRAMES_PER_TASK):
             ks = range(first, min(first + FRAMES_PER_TASK, stop))
             if all(have(_frame_name(k)) and _frame_name(k) in labels for k in ks):
-                n_done_frames += len(ks)
                 continue
             params = {**base, "group": gi, "first": ks.start, "stop": ks.stop}
             tasks.append(Task(experiment=f"{__name__}:render_frames", params=params, seed=seed))
@@ -311,8 +307,11 @@ def generate(recipe: Recipe, out: str | Path, *, seed: int | None = None, option
         made["frames"] += len(r.get("labels", {}))
         for k in ("calibration_frames", "profiles", "darks"):
             made[k] += r.get(k, 0)
-    missing = [_frame_name(k) for k in range(recipe.n_frames) if not (out / _frame_name(k)).exists()]
-    if missing:
+    expected = [_frame_name(k) for k in range(recipe.n_frames)] + [g["dark"] for g in groups]
+    for c in cameras.values():
+        expected += c["calibration_frames"] + ([c["profile"]] if c["profile"] else [])
+    missing = [name for name in expected if not (out / name).exists()]
+    if missing:  # deleted after its task was recorded as done
         raise BadInputError(f"{out / missing[0]} is missing though its task is done; re-run with --fresh")
     text = "".join(labels[_frame_name(k)] + "\n" for k in range(recipe.n_frames))
     write_bytes_atomic(lpath, text.encode(), overwrite=True)

@@ -5,10 +5,9 @@ from __future__ import annotations
 import argparse
 import os
 import time
-from collections.abc import Iterable, Iterator, Mapping
+from collections.abc import Iterable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
-from types import MappingProxyType
 
 from stcvision.errors import BadInputError, StcVisionError
 from stcvision.sweep._store import Store
@@ -34,9 +33,9 @@ def machine_workers() -> int:
         return os.cpu_count() or 1
 
 
-@dataclass(frozen=True, kw_only=True, slots=True)
+@dataclass(frozen=True, slots=True)
 class SweepOptions:
-    """Where and how a sweep runs.
+    """Where and how a sweep runs (``SweepOptions(workers, scheduler, fresh)``, all optional).
 
     workers : processes of the local pool (None: one per CPU of the machine; 1 runs in this
         process). Ignored with ``scheduler``.
@@ -64,10 +63,11 @@ class SweepOptions:
         return "in-process" if n == 1 else f"local pool of {n}"
 
 
-@dataclass(frozen=True, kw_only=True, slots=True)
+@dataclass(kw_only=True, slots=True)
 class SweepReport:
-    """What a sweep did. ``results`` (key -> result, successful tasks only, in task order, those
-    done by earlier runs included) and ``failed`` (key -> one-line error) are read-only."""
+    """What a sweep did: a plain record, the caller's to keep or change (the store is the
+    truth). ``results``: key -> result of every successful task, in task order, those done by
+    earlier runs included; ``failed``: key -> one-line error."""
 
     desc: str
     total: int
@@ -75,8 +75,8 @@ class SweepReport:
     ran: int  # tasks run now (succeeded or failed)
     wall_s: float
     backend: str
-    results: Mapping[str, dict] = field(default_factory=lambda: MappingProxyType({}))
-    failed: Mapping[str, str] = field(default_factory=lambda: MappingProxyType({}))
+    results: dict[str, dict] = field(default_factory=dict)
+    failed: dict[str, str] = field(default_factory=dict)
     skipped_keys: frozenset[str] = frozenset()  # the tasks counted in ``skipped``
     store: str = ""
 
@@ -150,13 +150,31 @@ def _in_process(tasks: list[Task]) -> Iterator[tuple[Task, dict]]:
         yield t, run_task(t.experiment, t.params_json(), t.key)
 
 
+#: one thread per worker process: the pool already runs one process per core, and numpy's BLAS
+#: and OpenCV would each start a thread per core in every worker (Dask's nanny sets the first
+#: three for its workers by default)
+ONE_THREAD_ENV = {
+    "OMP_NUM_THREADS": "1",
+    "OPENBLAS_NUM_THREADS": "1",
+    "MKL_NUM_THREADS": "1",
+    "OPENCV_FOR_THREADS_NUM": "1",
+}
+
+
+def _worker_init() -> None:
+    """Runs in each new pool worker before any task (so before numpy or OpenCV is imported)."""
+    os.environ.update(ONE_THREAD_ENV)
+
+
 def _local_pool(tasks: list[Task], workers: int) -> Iterator[tuple[Task, dict]]:
     import multiprocessing
     from concurrent.futures import ProcessPoolExecutor, as_completed
     from concurrent.futures.process import BrokenProcessPool
 
     # spawn: a worker starts clean (no copy of this process's threads, locks or open files)
-    ex = ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn"))
+    ex = ProcessPoolExecutor(
+        max_workers=workers, mp_context=multiprocessing.get_context("spawn"), initializer=_worker_init
+    )
     try:
         futs = {ex.submit(run_task, t.experiment, t.params_json(), t.key): t for t in tasks}
         for fut in as_completed(futs):
@@ -228,15 +246,16 @@ def run_sweep(
         done = store.done()
         todo = [t for t in tasks if t.key not in done]
         skipped = len(tasks) - len(todo)
-        n = opts.workers or machine_workers()
+        n = min(opts.workers or machine_workers(), max(len(todo), 1))  # no idle processes
+        label = opts.backend if opts.scheduler else SweepOptions(workers=n).backend
         if not todo:
             backend = iter(())
         elif opts.scheduler:
             backend = _dask(todo, opts.scheduler)
-        elif min(n, len(todo)) == 1:
+        elif n == 1:
             backend = _in_process(todo)
         else:
-            backend = _local_pool(todo, min(n, len(todo)))
+            backend = _local_pool(todo, n)
         with tqdm(total=len(tasks), initial=skipped, desc=desc, unit="task", disable=None, dynamic_ncols=True) as bar:
             for task, outcome in backend:
                 store.append(task, outcome)
@@ -256,9 +275,9 @@ def run_sweep(
         skipped=skipped,
         ran=len(todo),
         wall_s=time.perf_counter() - t0,
-        backend=opts.backend,
-        results=MappingProxyType(ordered),
-        failed=MappingProxyType({t.key: failed[t.key] for t in tasks if t.key in failed}),
+        backend=label,
+        results=ordered,
+        failed={t.key: failed[t.key] for t in tasks if t.key in failed},
         skipped_keys=frozenset(t.key for t in tasks if t.key in done),
         store=str(store_path),
     )

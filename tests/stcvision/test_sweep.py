@@ -63,6 +63,7 @@ def test_seed_comes_from_the_key_so_workers_and_order_do_not_matter(tmp_path):
     two = run_sweep(tasks[::-1], tmp_path / "b.jsonl", SweepOptions(workers=2))
     assert one.backend == "in-process" and two.backend == "local pool of 2"
     assert dict(one.results) == dict(two.results) and len(one.results) == 8 and not one.failed
+    assert json.loads(json.dumps(one.results)) == one.results  # plain dicts, ready to save
     assert list(one.results) == [t.key for t in tasks]  # in task order, whatever the finishing order
     t = tasks[5]
     direct = draws(dict(t.params), np.random.SeedSequence(int(t.key, 16)))
@@ -93,9 +94,9 @@ def test_dask_cluster_gives_the_local_pools_results(tmp_path, dask_cluster):
 
 
 def test_a_sigkilled_sweep_resumes_with_every_key_once_and_equal_to_an_uninterrupted_run(tmp_path):
-    store, n = tmp_path / "killed.jsonl", 30
+    store, n = tmp_path / "killed.jsonl", 40
     proc = subprocess.Popen(
-        [sys.executable, "-m", "stcvision.sweep._selftest", str(store), str(n), "--workers", "2", "--sleep-s", "0.05"],
+        [sys.executable, "-m", "stcvision.sweep._selftest", str(store), str(n), "--workers", "2", "--sleep-s", "0.1"],
         start_new_session=True,  # its own process group: the kill takes the pool workers too
         stderr=subprocess.DEVNULL,
     )
@@ -110,11 +111,11 @@ def test_a_sigkilled_sweep_resumes_with_every_key_once_and_equal_to_an_uninterru
     assert proc.returncode == -signal.SIGKILL and 6 <= len(before) < n  # killed mid-sweep
     with open(store, "ab") as f:  # and as if the kill had torn a line in half
         f.write(b'{"key": "0123", "status": "o')
-    resumed = run_sweep(draws_tasks(n, sleep_s=0.05), store, SweepOptions(workers=2))
+    resumed = run_sweep(draws_tasks(n, sleep_s=0.1), store, SweepOptions(workers=2))
     assert resumed.skipped == len(before) and resumed.ran == n - len(before) and not resumed.failed
     keys = ok_keys(store)
-    assert sorted(keys) == sorted(t.key for t in draws_tasks(n, sleep_s=0.05)) and len(keys) == len(set(keys)) == n
-    clean = run_sweep(draws_tasks(n, sleep_s=0.05), tmp_path / "clean.jsonl", SweepOptions(workers=2))
+    assert sorted(keys) == sorted(t.key for t in draws_tasks(n, sleep_s=0.1)) and len(keys) == len(set(keys)) == n
+    clean = run_sweep(draws_tasks(n, sleep_s=0.1), tmp_path / "clean.jsonl", SweepOptions(workers=2))
     assert dict(resumed.results) == dict(clean.results)
     assert {r["key"]: r["result"] for r in read_store(store)} == dict(clean.results)
 
