@@ -29,12 +29,13 @@ search step blocked         avoid
 avoid done                  search step
 avoid blocked               unavoid if anything is owed, else stop (trapped)
 unavoid done                unavoid again, or the detour is over when every counter is 0
-unavoid blocked             search step
+unavoid blocked             the other heading's unavoid if owed (improved), else search step
 ==========================  ==========================================
 
 The detour ends when the avoid moves sum to zero (equation (8)): the robot is back on the search
 path, beyond the obstacle, and the pattern goes on. A detour that does not rejoin the path within
-``max_detour_moves`` moves without a search step stops the robot (reason given).
+``max_detour_moves`` moves without a search step, or four blocked moves in a row (every
+direction tried from one point), stops the robot with that reason.
 
 Policies: ``none`` stops at the first blocked step (the baseline); ``simple`` is the above with
 one avoid heading; ``improved`` (sec. "B. Improved Obstacle Avoidance") adds a second avoid heading
@@ -130,7 +131,7 @@ class Move:
 
 @dataclass(frozen=True, slots=True)
 class Stop:
-    reason: str  # "found", "pattern done", "blocked (policy none)", "trapped", "detour did not rejoin"
+    reason: str  # "found", "pattern done", "blocked (policy none)", "trapped: ...", "detour did not rejoin ..."
 
 
 @dataclass(frozen=True, slots=True)
@@ -146,6 +147,7 @@ class SearchState:
     k2: int = 0
     pending: Move | None = None  # the move whose result the next observation reports
     detour_moves: int = 0  # moves since the last search step (loop guard)
+    blocked_run: int = 0  # consecutive blocked moves
     reason: str = ""
 
     @property
@@ -180,8 +182,13 @@ def _avoid_heading(s: SearchState) -> tuple[SearchState, int]:
     return s, 1
 
 
-def _unavoid(s: SearchState) -> Move:
-    j = 2 if s.k2 != 0 else 1
+def _unavoid(s: SearchState, after: int = 3) -> Move | None:
+    """The next unavoid move: heading 2 before heading 1 (most recent first), only those owed,
+    only indices below ``after`` (the ones not yet tried from this point); None if none is left."""
+    owed = [j for j in (2, 1) if j < after and (s.k2 if j == 2 else s.k1) != 0]
+    if not owed:
+        return None
+    j = owed[0]
     a, k = (s.a2, s.k2) if j == 2 else (s.a1, s.k1)
     heading = a + math.pi if k > 0 else a
     return Move(_wrap(heading), s.config.pattern.step_m, MoveKind.UNAVOID, Phase.UNAVOID, j)
@@ -215,11 +222,14 @@ def step(state: SearchState, obs: SearchObs) -> tuple[SearchState, Move | Stop]:
     cfg = state.config
     done = obs.last_move == "done"
     s = _account(state, done)
+    s = dataclasses.replace(s, blocked_run=0 if done or state.pending is None else s.blocked_run + 1)
     last = state.pending
     if obs.tongue >= cfg.threshold:
         return _stop(s, "found")
     if s.i >= cfg.pattern.n_steps:
         return _stop(s, "pattern done")
+    if s.blocked_run >= 4:  # search step, avoid and unavoid all blocked from this point
+        return _stop(s, "trapped: every move from here is blocked")
     if s.detour_moves >= cfg.max_detour_moves:
         return _stop(s, "detour did not rejoin the search path")
     if last is None:
@@ -243,7 +253,6 @@ def step(state: SearchState, obs: SearchObs) -> tuple[SearchState, Move | Stop]:
         return _go(s, _unavoid(s))
     if last.kind is MoveKind.AVOID:  # done
         return _go(s, _search_move(s, Phase.DETOUR_STEP))
-    # unavoid
-    if done:
-        return _go(s, _unavoid(s))
-    return _go(s, _search_move(s, Phase.DETOUR_STEP))
+    # unavoid: again while it works; when blocked, the other heading's unavoid, then the search step
+    nxt = _unavoid(s) if done else _unavoid(s, after=last.heading_index)
+    return _go(s, nxt if nxt is not None else _search_move(s, Phase.DETOUR_STEP))

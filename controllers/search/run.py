@@ -4,8 +4,10 @@ by dead reckoning.
 
 Executor of a :class:`Move` (TASTI 2's motion layer, seed ``001_c1bae9b25b0dd54b.txt``):
 turn on the spot to the move's heading by the odometry (``rotate_by``), drive the step with the
-capacitive ring watching (``run_until_done(stop_when=ring)``), and if the ring halts the drive or
-the motor stalls, drive back the odometric distance covered -- the move is "blocked" and the
+capacitive ring watching (``run_until_done(stop_when=...)``: halted when the ring's one signal is
+at its stop threshold and has risen 5 noise sigmas since the move began -- the electrodes are in
+parallel over the front half, so next to an obstacle the signal can be above the threshold for a
+move that leads along or away from it), and if the ring halts the drive or the motor stalls, drive back the odometric distance covered -- the move is "blocked" and the
 robot is back at the point it left (sec. V: it "must return to a previous point"). With policy
 ``none`` the robot stays where the ring stopped it. Then the tongue is read.
 
@@ -33,6 +35,7 @@ from stcvision.errors import BadInputError
 __all__ = ["MoveRecord", "SearchRun", "SearchScene", "execute_move", "run_search", "robot_params"]
 
 MOVE_TIMEOUT_S = 60.0
+RING_RISE_SIGMAS = 5.0  # the ring must rise this many noise sigmas above its start to halt a drive
 
 
 @dataclass(frozen=True, kw_only=True, slots=True)
@@ -127,8 +130,18 @@ def execute_move(world: World, robot, move: Move, *, back_off: bool = True) -> s
         robot.rotate_by(turn)
         world.run_until_done(robot, timeout_s=MOVE_TIMEOUT_S)
     ring = robot.sensors.capacitive
+    start = ring.read()
+    margin = RING_RISE_SIGMAS * ring.params.noise_sigma
+
+    def approaching(_w) -> bool:
+        # at the threshold *and* risen since the move began: the nine electrodes are wired in
+        # parallel over the front half (seed sec. IV), so beside an obstacle the signal can sit
+        # above the threshold while the move leads along it or away from it
+        v = ring.read()
+        return v >= ring.stop_threshold and v > start + margin
+
     robot.drive_distance(move.distance_m)
-    res = world.run_until_done(robot, timeout_s=MOVE_TIMEOUT_S, stop_when=lambda w: ring.obstacle_ahead())
+    res = world.run_until_done(robot, timeout_s=MOVE_TIMEOUT_S, stop_when=approaching)
     if res.ok:
         return "done"
     if back_off and res.odometric_distance_m > 0:
