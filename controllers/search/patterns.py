@@ -48,7 +48,10 @@ from stcvision.errors import BadInputError
 __all__ = ["RadialPattern", "SpiralPattern", "planned_points", "radial_turn_rad"]
 
 DEFAULT_STEP_M = 0.141  # seed 001 sec. V: "The step size of the robot search path was 141mm"
-DEFAULT_SPIRAL_MAX_STEPS = 150  # ~1 m radius at step = spacing = 0.141 m
+DEFAULT_SPIRAL_MAX_STEPS = 150  # ~1.3 m radius at the default step and spacing
+# The seed gives no spacing between the spiral's turns. 0.25 m (our choice) is below 0.35 / sqrt(2):
+# with chords of 0.141 m along turns 0.25 m apart every 350 mm patch (sec. V) holds a sampling point.
+DEFAULT_SPIRAL_SPACING_M = 0.25
 
 
 def _positive_int(name: str, v) -> int:
@@ -111,7 +114,7 @@ class RadialPattern:
 
 @dataclass(frozen=True, kw_only=True, slots=True)
 class SpiralPattern:
-    """Archimedes spiral, equal ``spacing_m`` between turns (default = ``step_m``), ``max_steps``
+    """Archimedes spiral, equal ``spacing_m`` between turns (default 0.25 m), ``max_steps``
     chords of ``step_m``."""
 
     step_m: float = DEFAULT_STEP_M
@@ -123,7 +126,7 @@ class SpiralPattern:
 
     def __post_init__(self):
         s = _positive("step length (m)", self.step_m)
-        spacing = s if self.spacing_m is None else _positive("spiral spacing (m)", self.spacing_m)
+        spacing = DEFAULT_SPIRAL_SPACING_M if self.spacing_m is None else _positive("spiral spacing (m)", self.spacing_m)
         n = _positive_int("max steps", self.max_steps)
         b = spacing / (2.0 * math.pi)
 

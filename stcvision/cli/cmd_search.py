@@ -31,7 +31,7 @@ def add_parser(p):
     p.add_argument("--petals", type=int, default=12, help="radial: petals (default 12)")
     p.add_argument("--steps-per-petal", type=int, default=32, help="radial: steps per petal n (default 32)")
     p.add_argument("--step-m", type=float, default=0.141, help="step length between sampling points (default 0.141 m)")
-    p.add_argument("--spacing-m", type=float, default=None, help="spiral: distance between turns (default: the step)")
+    p.add_argument("--spacing-m", type=float, default=None, help="spiral: distance between turns (default 0.25 m)")
     p.add_argument("--max-steps", type=int, default=None, help="cap on search steps (spiral default 150; radial: one flower)")
     p.add_argument("--policy", choices=("none", "simple", "improved"), default="improved", help="obstacle policy")
     p.add_argument("--obstacle", type=pair(float, 3), action="append", default=[], metavar="X,Y,R",
