@@ -82,6 +82,7 @@ def summarise(run) -> dict:
     clearance = float("inf")
     for x, y, r in run.scene.obstacles:
         clearance = min(clearance, float((np.hypot(trail[:, 0] - x, trail[:, 1] - y) - r).min()))
+    first_block = next((m.index for m in run.moves if m.result == "blocked"), None)
     return {
         "found": run.found,
         "stop_reason": run.reason,
@@ -91,6 +92,8 @@ def summarise(run) -> dict:
         "path_length_m": round(run.path_length_m, 4),
         "odometry_error_m": round(float(err[-1]), 4),
         "max_odometry_error_m": round(float(err.max()), 4),
+        # at the sensing point the first blocked move left from (and came back to)
+        "odometry_error_before_obstacle_m": None if first_block is None else round(float(err[first_block]), 4),
         "shadow_area_m2": round(shadow_area_m2(run), 5),
         "phase_counts": {str(k): phases.get(k, 0) for k in (1, 2, 3, 4)},
         "phases_visited": sorted(phases),
