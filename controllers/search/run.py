@@ -179,7 +179,7 @@ def run_search(
 ) -> SearchRun:
     """Run the search until the controller stops. ``seed`` is split into the world's stream and
     the beacon camera's. ``beacon``: a :class:`controllers.search.beacon.Beacon` (or None).
-    ``observer``: an object with ``on_move(record, world, robot)`` (e.g. the rerun recorder).
+    ``observer``: an object with ``on_move(record, world, robot, fixer=)`` (e.g. the rerun recorder).
     ``progress``: callable(search_steps) after each move (a progress bar)."""
     ss_world, ss_beacon = seed.spawn(2)
     world, robot = build_world(scene, config.pattern, seed=ss_world, odometry_noise=odometry_noise)
@@ -218,7 +218,7 @@ def run_search(
         )
         records.append(rec)
         if observer is not None:
-            observer.on_move(rec, world, robot)
+            observer.on_move(rec, world, robot, fixer=fixer)
         if progress is not None:
             progress(st)
         obs = SearchObs(robot.odometry.pose, ring, tongue, result)
