@@ -43,7 +43,9 @@ def build_run(params: dict, seed: np.random.SeedSequence, **kw):
         patch=None if params.get("patch") is None else tuple(map(float, params["patch"])),
     )
     cfg = SearchConfig(
-        pattern=_pattern(params), policy=Policy(params.get("policy", "improved")), threshold=params.get("threshold", 0.5)
+        pattern=_pattern(params),
+        policy=Policy(params.get("policy", "improved")),
+        threshold=params.get("threshold", 0.5),
     )
     return run_search(
         scene,
@@ -138,9 +140,14 @@ def _figures(out, seed: np.random.SeedSequence) -> list[str]:
     s1, s2, s3, s4, s5 = seed.spawn(5)
     ideal = {"odometry_noise": False}
     r6 = build_run({**_RADIAL, **ideal, "policy": "simple", "obstacles": [list(FIG6_OBSTACLE)]}, s1)
-    save(plot_path(r6, "Fig. 6: radial search avoiding an obstacle (simple policy, exact wheels)"), "fig06_radial_obstacle.png")
+    save(
+        plot_path(r6, "Fig. 6: radial search avoiding an obstacle (simple policy, exact wheels)"),
+        "fig06_radial_obstacle.png",
+    )
     r7 = build_run({**_SPIRAL, **ideal, "policy": "simple", "obstacles": [list(FIG7_OBSTACLE)]}, s2)
-    save(plot_path(r7, "Fig. 7: spiral, simple policy: the shadow (red) left of the obstacle"), "fig07_spiral_simple.png")
+    save(
+        plot_path(r7, "Fig. 7: spiral, simple policy: the shadow (red) left of the obstacle"), "fig07_spiral_simple.png"
+    )
     r8 = build_run({**_SPIRAL, **ideal, "policy": "improved", "obstacles": [list(FIG7_OBSTACLE)]}, s3)
     save(plot_path(r8, "Fig. 8: spiral, improved policy"), "fig08_spiral_improved.png")
     r11 = build_run({**_SPIRAL, "policy": "simple"}, s4)
@@ -148,7 +155,9 @@ def _figures(out, seed: np.random.SeedSequence) -> list[str]:
     save(plot_timeline(r11, "Fig. 12: tongue reading and phase (phase 1 only)", 0.5), "fig12_spiral_timeline.png")
     r13 = build_run({**_SPIRAL, "policy": "simple", "obstacles": [list(FIG13_CAN)]}, s5)
     save(plot_path(r13, "Fig. 13: the spiral avoids the can"), "fig13_spiral_can.png")
-    save(plot_timeline(r13, "Fig. 14: tongue reading and phase during the detour", 0.5), "fig14_spiral_can_timeline.png")
+    save(
+        plot_timeline(r13, "Fig. 14: tongue reading and phase during the detour", 0.5), "fig14_spiral_can_timeline.png"
+    )
     return names
 
 

@@ -126,7 +126,9 @@ class SpiralPattern:
 
     def __post_init__(self):
         s = _positive("step length (m)", self.step_m)
-        spacing = DEFAULT_SPIRAL_SPACING_M if self.spacing_m is None else _positive("spiral spacing (m)", self.spacing_m)
+        spacing = (
+            DEFAULT_SPIRAL_SPACING_M if self.spacing_m is None else _positive("spiral spacing (m)", self.spacing_m)
+        )
         n = _positive_int("max steps", self.max_steps)
         b = spacing / (2.0 * math.pi)
 
@@ -155,7 +157,9 @@ class SpiralPattern:
         return len(self.headings_rad)
 
     def describe(self) -> str:
-        return f"spiral {self.n_steps} steps of {self.step_m * 1000:.0f} mm, {self.spacing_m * 1000:.0f} mm between turns"
+        return (
+            f"spiral {self.n_steps} steps of {self.step_m * 1000:.0f} mm, {self.spacing_m * 1000:.0f} mm between turns"
+        )
 
 
 def planned_points(pattern, n: int | None = None) -> np.ndarray:

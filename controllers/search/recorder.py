@@ -77,7 +77,10 @@ class SearchRecorder:
         rec.log("world/true_path", rr.LineStrips2D([_xy(self._true)], colors=[40, 100, 230], radii=0.003))
         rec.log("world/believed_path", rr.LineStrips2D([_xy(self._odo)], colors=[40, 170, 60], radii=0.002))
         rec.log("world/samples", rr.Points2D(_xy(self._samples), radii=0.008, colors=[0, 0, 0]))
-        for name, pose, col in (("robot_true", m.true_pose, [40, 100, 230]), ("robot_believed", m.odo_pose, [40, 170, 60])):
+        for name, pose, col in (
+            ("robot_true", m.true_pose, [40, 100, 230]),
+            ("robot_believed", m.odo_pose, [40, 170, 60]),
+        ):
             x, y, h = pose
             rec.log(f"world/{name}", rr.Points2D(_xy([(x, y)]), radii=robot.params.radius_m, colors=[*col, 60]))
             tip = (x + 0.2 * np.cos(h), y + 0.2 * np.sin(h))

@@ -7,8 +7,9 @@ turn on the spot to the move's heading by the odometry (``rotate_by``), drive th
 capacitive ring watching (``run_until_done(stop_when=...)``: halted when the ring's one signal is
 at its stop threshold and has risen 5 noise sigmas since the move began -- the electrodes are in
 parallel over the front half, so next to an obstacle the signal can be above the threshold for a
-move that leads along or away from it), and if the ring halts the drive or the motor stalls, drive back the odometric distance covered -- the move is "blocked" and the
-robot is back at the point it left (sec. V: it "must return to a previous point"). With policy
+move that leads along or away from it), and if the ring halts the drive or the motor stalls,
+drive back the odometric distance covered -- the move is "blocked" and the robot is back at the
+point it left (sec. V: it "must return to a previous point"). With policy
 ``none`` the robot stays where the ring stopped it. Then the tongue is read.
 
 Coordinates: metres, the start at the origin, heading 0 along +x. The arena is an open square

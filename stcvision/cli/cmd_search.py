@@ -24,7 +24,10 @@ def add_parser(p):
     p._negative_number_matcher = re.compile(r"^-\.?\d")
 
     p.add_argument(
-        "action", nargs="?", choices=("run", "reproduce"), default="run",
+        "action",
+        nargs="?",
+        choices=("run", "reproduce"),
+        default="run",
         help="run (default): one search; reproduce: the paper's figures and tables into --out",
     )
     p.add_argument("--pattern", choices=("radial", "spiral"), default="radial", help="search pattern (default radial)")
@@ -32,16 +35,34 @@ def add_parser(p):
     p.add_argument("--steps-per-petal", type=int, default=32, help="radial: steps per petal n (default 32)")
     p.add_argument("--step-m", type=float, default=0.141, help="step length between sampling points (default 0.141 m)")
     p.add_argument("--spacing-m", type=float, default=None, help="spiral: distance between turns (default 0.25 m)")
-    p.add_argument("--max-steps", type=int, default=None, help="cap on search steps (spiral default 150; radial: one flower)")
+    p.add_argument(
+        "--max-steps", type=int, default=None, help="cap on search steps (spiral default 150; radial: one flower)"
+    )
     p.add_argument("--policy", choices=("none", "simple", "improved"), default="improved", help="obstacle policy")
-    p.add_argument("--obstacle", type=pair(float, 3), action="append", default=[], metavar="X,Y,R",
-                   help="a round obstacle (metres, relative to the start); repeat for more")
+    p.add_argument(
+        "--obstacle",
+        type=pair(float, 3),
+        action="append",
+        default=[],
+        metavar="X,Y,R",
+        help="a round obstacle (metres, relative to the start); repeat for more",
+    )
     p.add_argument("--patch", type=pair(float, 3), metavar="X,Y,R", help="the chemical patch (metres)")
-    p.add_argument("--threshold", type=positive(float), default=0.5,
-                   help="tongue reading that ends the search (patch concentration is 1; default 0.5)")
-    p.add_argument("--odometry-noise", choices=("on", "off"), default="on",
-                   help="on: TASTI 2's wheel errors (Ed, Eb, slip); off: exact wheels (encoder counts only)")
-    p.add_argument("--beacon", action="store_true", help="drop a red two-light beacon at the start and take camera fixes")
+    p.add_argument(
+        "--threshold",
+        type=positive(float),
+        default=0.5,
+        help="tongue reading that ends the search (patch concentration is 1; default 0.5)",
+    )
+    p.add_argument(
+        "--odometry-noise",
+        choices=("on", "off"),
+        default="on",
+        help="on: TASTI 2's wheel errors (Ed, Eb, slip); off: exact wheels (encoder counts only)",
+    )
+    p.add_argument(
+        "--beacon", action="store_true", help="drop a red two-light beacon at the start and take camera fixes"
+    )
     p.add_argument("--seed", type=int, default=0, help="seed of the robot, sensors and camera (default 0)")
     p.add_argument("--rrd", metavar="OUT.rrd", help="rerun recording of the run")
     p.add_argument("--plot", metavar="OUT.png", help="plot of the paths, sampling points and shadow")
@@ -102,8 +123,13 @@ def run(args):
 
     try:
         result = run_search(
-            scene, cfg, seed=np.random.SeedSequence(args.seed), odometry_noise=args.odometry_noise == "on",
-            beacon=beacon, observer=recorder, progress=progress,
+            scene,
+            cfg,
+            seed=np.random.SeedSequence(args.seed),
+            odometry_noise=args.odometry_noise == "on",
+            beacon=beacon,
+            observer=recorder,
+            progress=progress,
         )
     finally:
         bar.close()
@@ -149,8 +175,20 @@ def format_text(r):
     if "figures" in r:
         return f"wrote {len(r['figures'])} figures and {r['summary']}"
     keys = (
-        "pattern", "policy", "found", "stop_reason", "steps", "moves", "blocked_moves", "path_length_m",
-        "odometry_error_m", "max_odometry_error_m", "shadow_area_m2", "phase_counts", "beacon_fixes", "sim_time_s",
+        "pattern",
+        "policy",
+        "found",
+        "stop_reason",
+        "steps",
+        "moves",
+        "blocked_moves",
+        "path_length_m",
+        "odometry_error_m",
+        "max_odometry_error_m",
+        "shadow_area_m2",
+        "phase_counts",
+        "beacon_fixes",
+        "sim_time_s",
     )
     w = max(len(k) for k in keys)
     lines = [f"{k:<{w}}  {r[k]}" for k in keys]
