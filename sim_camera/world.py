@@ -236,25 +236,23 @@ class World:
         t_end = self.time_s + timeout_s
         while robot.busy:
             if stop_when is not None and stop_when(self):
-                res = MotionResult(
-                    "stopped",
-                    robot.odometry.distance_m - robot._prim.get("start_dist", 0.0),
-                    robot._prim.get("t", 0.0),
-                )
-                robot.stop()
-                robot.last_result = res
-                return res
+                return self._interrupt(robot, "stopped")
             if self.time_s >= t_end:
-                res = MotionResult(
-                    "timeout",
-                    robot.odometry.distance_m - robot._prim.get("start_dist", 0.0),
-                    robot._prim.get("t", 0),
-                )
-                robot.stop()
-                robot.last_result = res
-                return res
+                return self._interrupt(robot, "timeout")
             self.step()
         return robot.last_result or MotionResult("done", 0.0, 0.0)
+
+    @staticmethod
+    def _interrupt(robot: DiffDriveRobot, status: str) -> MotionResult:
+        """Stop ``robot``'s primitive where it is; the result says how far it got."""
+        res = MotionResult(
+            status,
+            robot.odometry.distance_m - robot._prim.get("start_dist", 0.0),
+            robot._prim.get("t", 0.0),
+        )
+        robot.stop()
+        robot.last_result = res
+        return res
 
     # -- queries ---------------------------------------------------------------------------
     def ray_distance(self, start, end, robot: DiffDriveRobot | None = None) -> float | None:

@@ -19,21 +19,20 @@ from controllers.search.patterns import planned_points
 __all__ = ["SearchRecorder"]
 
 
+#: time series (entity under ``series/``, view name)
+SERIES = (
+    ("phase", "phase (Fig. 5)"),
+    ("tongue", "tongue"),
+    ("ring", "move blocked (ring or stall)"),
+    ("odometry_error_m", "odometry error (m)"),
+)
+
+
 def _blueprint() -> rrb.Blueprint:
-    return rrb.Blueprint(
-        rrb.Horizontal(
-            rrb.Spatial2DView(origin="world", name="world (north up)"),
-            rrb.Vertical(
-                rrb.TimeSeriesView(origin="series/phase", name="phase (Fig. 5)"),
-                rrb.TimeSeriesView(origin="series/tongue", name="tongue"),
-                rrb.TimeSeriesView(origin="series/ring", name="ring at its threshold"),
-                rrb.TimeSeriesView(origin="series/odometry_error_m", name="odometry error (m)"),
-            ),
-            rrb.Spatial2DView(origin="ground", name="beacon camera: ground view"),
-            column_shares=[3, 2, 2],
-        ),
-        collapse_panels=True,
-    )
+    world = rrb.Spatial2DView(origin="world", name="world (north up)")
+    series = rrb.Vertical(*[rrb.TimeSeriesView(origin=f"series/{k}", name=n) for k, n in SERIES])
+    camera = rrb.Spatial2DView(origin="ground", name="beacon camera: ground view")
+    return rrb.Blueprint(rrb.Horizontal(world, series, camera, column_shares=[3, 2, 2]), collapse_panels=True)
 
 
 def _xy(p) -> np.ndarray:
@@ -43,11 +42,10 @@ def _xy(p) -> np.ndarray:
 
 class SearchRecorder:
     def __init__(self, path: str | Path, scene, pattern) -> None:
+        from stcvision.rr import open_recording
+
         self.path = Path(path)
-        self.path.parent.mkdir(parents=True, exist_ok=True)
-        self.tmp = self.path.with_name(f".{self.path.name}.{os.getpid()}.tmp")
-        self.rec = rr.RecordingStream("stcvision-search")
-        self.rec.save(self.tmp, default_blueprint=_blueprint())
+        self.rec, self.tmp = open_recording(self.path, app_id="stcvision-search", default_blueprint=_blueprint())
         self._true = [(0.0, 0.0)]
         self._odo = [(0.0, 0.0)]
         self._samples = [(0.0, 0.0)]
