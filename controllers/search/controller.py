@@ -17,7 +17,10 @@ Phases (the four circled phases of Fig. 5; Fig. 12 and 14 plot them over time):
    back one avoid move.
 
 Detour (sec. III, equations (6)-(8)): on the first blocked search step the avoid heading ``a1``
-is chosen 90 degrees right of the search heading. Each avoid move adds ``+1`` to its counter,
+is chosen 90 degrees right of the search heading. (Our addition: if that very first avoid move is
+blocked too -- the obstacle stands to the front right, and the ring, one signal over the front
+half, cannot tell -- ``a1`` turns to 90 degrees *left* and the robot goes round the other way,
+clockwise; the rest of the machine is the same.) Each avoid move adds ``+1`` to its counter,
 each unavoid ``-1``; the search steps go on "where possible" in between. The order of tries (so
 that the robot works its way round the obstacle anticlockwise, keeping it on its left):
 
@@ -27,7 +30,7 @@ last move                   next try
 search step done            unavoid (pay back)
 search step blocked         avoid
 avoid done                  search step
-avoid blocked               unavoid if anything is owed, else stop (trapped)
+avoid blocked               unavoid if anything is owed, else avoid to the left (once), else stop
 unavoid done                unavoid again, or the detour is over when every counter is 0
 unavoid blocked             the other heading's unavoid if owed (improved), else search step
 ==========================  ==========================================
@@ -43,7 +46,7 @@ one avoid heading; ``improved`` (sec. "B. Improved Obstacle Avoidance") adds a s
 axis (of ``a1`` or of its unavoid heading ``a1 + pi``: moving along the search path is then moving
 along the avoid axis, and the detour cannot track round the obstacle). ``a2`` is the right angle
 to ``a1`` lying to the right of the search heading (so the robot still keeps the obstacle on its
-left); its moves are counted separately and unwound by their own unavoid moves, the most recent
+left; the left of it after the switch above); its moves are counted separately and unwound by their own unavoid moves, the most recent
 heading first.
 """
 
@@ -143,6 +146,7 @@ class SearchState:
     i: int = 0  # search-path steps taken
     a1: float | None = None  # avoid heading 1 (rad, odometric frame)
     a2: float | None = None  # avoid heading 2 (improved policy)
+    side: int = -1  # -1: avoid to the right of the search heading (the paper's), +1: to the left
     k1: int = 0  # net avoid moves along a1 (equation (8) wants 0)
     k2: int = 0
     pending: Move | None = None  # the move whose result the next observation reports
@@ -176,7 +180,7 @@ def _avoid_heading(s: SearchState) -> tuple[SearchState, int]:
         if min(off, math.pi - off) <= ALIGN_RAD:  # search heading along the avoid axis
             if s.a2 is None:
                 cands = (s.a1 + 0.5 * math.pi, s.a1 - 0.5 * math.pi)
-                a2 = min(cands, key=lambda a: abs(_wrap(a - (th - 0.5 * math.pi))))
+                a2 = min(cands, key=lambda a: abs(_wrap(a - (th + s.side * 0.5 * math.pi))))
                 s = dataclasses.replace(s, a2=_wrap(a2))
             return s, 2
     return s, 1
@@ -239,13 +243,17 @@ def step(state: SearchState, obs: SearchObs) -> tuple[SearchState, Move | Stop]:
         if cfg.policy is Policy.NONE:
             return _stop(s, "blocked (policy none)")
         if not s.in_detour:  # first collision: avoid heading 90 degrees right of the heading
-            s = dataclasses.replace(s, a1=_wrap(cfg.pattern.headings_rad[s.i] - 0.5 * math.pi), a2=None)
+            th = cfg.pattern.headings_rad[s.i]
+            s = dataclasses.replace(s, a1=_wrap(th - 0.5 * math.pi), a2=None, side=-1)
         s, j = _avoid_heading(s)
         a = s.a2 if j == 2 else s.a1
         return _go(s, Move(a, cfg.pattern.step_m, MoveKind.AVOID, Phase.AVOID, j))
     if last.kind is MoveKind.AVOID and not done:
         if s.in_detour:
             return _go(s, _unavoid(s))
+        if s.side == -1:  # the obstacle is to the front right: go round it the other way
+            s = dataclasses.replace(s, a1=_wrap(s.a1 + math.pi), a2=None, side=1)
+            return _go(s, Move(s.a1, cfg.pattern.step_m, MoveKind.AVOID, Phase.AVOID, 1))
         return _stop(s, "trapped: search step and avoid move both blocked")
     if not s.in_detour:
         return _go(s, _search_move(s, Phase.SEARCH))  # the detour is over (equation (8))
