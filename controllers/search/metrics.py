@@ -2,17 +2,21 @@
 of results; nothing here runs the robot).
 
 **Shadow area** (Fig. 7 vs Fig. 8): the part of the pattern's intended sensing footprint that
-was never sampled. The intended footprint is the union of discs of radius ``step_m / sqrt(2)``
-(half the diagonal of a step-sized square: discs of that radius around a lattice of sampling
-points one step apart cover the floor, so a sampling point stands for the floor it would share
-with its neighbours, and a small drift of the whole path does not open slivers between them)
-around the undisturbed pattern's
-sampling points ``p_0 .. p_N`` (equation (5), ``N`` = the search steps the run took), minus the
-floor the tongue cannot reach: within one robot radius plus the ring's stop gap (15 mm) of an
-obstacle, where the body stands in the way. The sampled footprint is the union of the same discs
-around the true positions of every sensing operation (after each move, blocked ones included).
-Shadow = area(intended \\ sampled), rasterised on a 5 mm grid. Without an obstacle it is the
-drift's doing alone (a few cm^2); with one it is what the detour left out.
+was never sampled *because of the detour*. The intended footprint is the union of discs of
+radius ``step_m / sqrt(2)`` (half the diagonal of a step-sized square: discs of that radius
+around a lattice of sampling points one step apart cover the floor, so each sampling point
+stands for the floor it shares with its neighbours) around the undisturbed pattern's sampling
+points ``p_0 .. p_N`` (equation (5), ``N`` = the search steps the run took), minus the floor the
+tongue cannot reach: within one robot radius plus the ring's stop gap (15 mm) of an obstacle,
+where the body stands in the way. The sampled footprint is the union of the same discs around
+the sensing operations (after each move, blocked ones included) **where the robot believes it
+made them** (its odometry, beacon-corrected if it has the beacon): in that frame a run without
+obstacles matches the plan to the encoder count, so the shadow is the detour's doing alone, not
+the drift's. Rasterised on a 5 mm grid.
+
+``unsampled_area_m2`` is the same with the *true* sensing positions: the detour's shadow plus
+what the drift moved the sampling away from (on the open floor: ~0.01-0.02 m^2 on the paper's
+spiral, ~0.3 m^2 on a whole radial flower without the beacon).
 """
 
 from __future__ import annotations
@@ -50,11 +54,12 @@ def _disc_union(points: np.ndarray, radius: float, xs: np.ndarray, ys: np.ndarra
     return np.isfinite(d).reshape(len(ys), len(xs))
 
 
-def footprints(run, grid_m: float = GRID_M):
-    """(xs, ys, intended, sampled) boolean rasters of the two footprints (see module doc)."""
+def footprints(run, grid_m: float = GRID_M, *, frame: str = "believed"):
+    """(xs, ys, intended, sampled) boolean rasters of the two footprints (see module doc);
+    ``frame`` "believed" (the robot's odometry) or "true" for the sensing positions."""
     rho = run.config.pattern.step_m / np.sqrt(2.0)
     planned = run.planned()
-    sampled_pts = sampling_points_true(run)
+    sampled_pts = sampling_points_odo(run) if frame == "believed" else sampling_points_true(run)
     allp = np.vstack([planned, sampled_pts])
     lo = allp.min(axis=0) - rho - grid_m
     hi = allp.max(axis=0) + rho + grid_m
@@ -69,8 +74,8 @@ def footprints(run, grid_m: float = GRID_M):
     return xs, ys, intended, sampled
 
 
-def shadow_area_m2(run, grid_m: float = GRID_M) -> float:
-    _, _, intended, sampled = footprints(run, grid_m)
+def shadow_area_m2(run, grid_m: float = GRID_M, *, frame: str = "believed") -> float:
+    _, _, intended, sampled = footprints(run, grid_m, frame=frame)
     return float((intended & ~sampled).sum()) * grid_m**2
 
 
@@ -95,6 +100,7 @@ def summarise(run) -> dict:
         # at the sensing point the first blocked move left from (and came back to)
         "odometry_error_before_obstacle_m": None if first_block is None else round(float(err[first_block]), 4),
         "shadow_area_m2": round(shadow_area_m2(run), 5),
+        "unsampled_area_m2": round(shadow_area_m2(run, frame="true"), 5),
         "phase_counts": {str(k): phases.get(k, 0) for k in (1, 2, 3, 4)},
         "phases_visited": sorted(phases),
         "beacon_fixes": sum(m.fix is not None for m in run.moves),
