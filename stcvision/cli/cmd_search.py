@@ -42,10 +42,11 @@ def add_parser(p):
     p.add_argument(
         "--obstacle",
         type=pair(float, 3),
-        action="append",
+        action="extend",
+        nargs="+",
         default=[],
         metavar="X,Y,R",
-        help="a round obstacle (metres, relative to the start); repeat for more",
+        help="round obstacles (metres, relative to the start): --obstacle A B or --obstacle A --obstacle B",
     )
     p.add_argument("--patch", type=pair(float, 3), metavar="X,Y,R", help="the chemical patch (metres)")
     p.add_argument(
@@ -141,6 +142,8 @@ def run(args):
         "seed": args.seed,
         "odometry_noise": args.odometry_noise,
         "beacon": bool(args.beacon),
+        "obstacles": [list(o) for o in scene.obstacles],
+        "patch": None if scene.patch is None else list(scene.patch),
         **summarise(result),
         "rrd": args.rrd,
         "plot": args.plot,
