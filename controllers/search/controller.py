@@ -46,8 +46,8 @@ one avoid heading; ``improved`` (sec. "B. Improved Obstacle Avoidance") adds a s
 axis (of ``a1`` or of its unavoid heading ``a1 + pi``: moving along the search path is then moving
 along the avoid axis, and the detour cannot track round the obstacle). ``a2`` is the right angle
 to ``a1`` lying to the right of the search heading (so the robot still keeps the obstacle on its
-left; the left of it after the switch above); its moves are counted separately and unwound by their own unavoid moves, the most recent
-heading first.
+left; the left of it after the switch above); its moves are counted separately and unwound by
+their own unavoid moves, the most recent heading first.
 """
 
 from __future__ import annotations

@@ -9,10 +9,12 @@ stands for the floor it shares with its neighbours) around the undisturbed patte
 points ``p_0 .. p_N`` (equation (5), ``N`` = the search steps the run took), minus the floor the
 tongue cannot reach: within one robot radius plus the ring's stop gap (15 mm) of an obstacle,
 where the body stands in the way. The sampled footprint is the union of the same discs around
-the sensing operations (after each move, blocked ones included) **where the robot believes it
-made them** (its odometry, beacon-corrected if it has the beacon): in that frame a run without
-obstacles matches the plan to the encoder count, so the shadow is the detour's doing alone, not
-the drift's. Rasterised on a 5 mm grid.
+the sensing operations (after each move, blocked ones included) **where the executed moves put
+them on paper**: the start plus the commanded step of every move that was done (a blocked move
+ends where it began). That is the robot's own account without its errors -- what its odometry
+reads, to the encoder count, when nothing disturbs it -- so the shadow is the detour's doing
+alone: neither the drift nor a beacon's corrections change it, only the moves the obstacles
+blocked. Rasterised on a 5 mm grid.
 
 ``unsampled_area_m2`` is the same with the *true* sensing positions: the detour's shadow plus
 what the drift moved the sampling away from (on the open floor: ~0.01-0.02 m^2 on the paper's
@@ -37,6 +39,16 @@ def sampling_points_true(run) -> np.ndarray:
     return np.array([[0.0, 0.0]] + [m.true_pose[:2] for m in run.moves])
 
 
+def sampling_points_commanded(run) -> np.ndarray:
+    """(M + 1, 2) the sensing points as the executed moves put them (start + the commanded step
+    of every done move; a blocked one adds nothing)."""
+    steps = [
+        m.distance_m * np.array([np.cos(m.heading_rad), np.sin(m.heading_rad)]) if m.result == "done" else np.zeros(2)
+        for m in run.moves
+    ]
+    return np.vstack([[0.0, 0.0], np.cumsum(steps, axis=0)]) if steps else np.zeros((1, 2))
+
+
 def sampling_points_odo(run) -> np.ndarray:
     return np.array([[0.0, 0.0]] + [m.odo_pose[:2] for m in run.moves])
 
@@ -54,12 +66,12 @@ def _disc_union(points: np.ndarray, radius: float, xs: np.ndarray, ys: np.ndarra
     return np.isfinite(d).reshape(len(ys), len(xs))
 
 
-def footprints(run, grid_m: float = GRID_M, *, frame: str = "believed"):
+def footprints(run, grid_m: float = GRID_M, *, frame: str = "commanded"):
     """(xs, ys, intended, sampled) boolean rasters of the two footprints (see module doc);
-    ``frame`` "believed" (the robot's odometry) or "true" for the sensing positions."""
+    ``frame`` "commanded" (the executed moves) or "true" for the sensing positions."""
     rho = run.config.pattern.step_m / np.sqrt(2.0)
     planned = run.planned()
-    sampled_pts = sampling_points_odo(run) if frame == "believed" else sampling_points_true(run)
+    sampled_pts = sampling_points_commanded(run) if frame == "commanded" else sampling_points_true(run)
     allp = np.vstack([planned, sampled_pts])
     lo = allp.min(axis=0) - rho - grid_m
     hi = allp.max(axis=0) + rho + grid_m
@@ -74,7 +86,7 @@ def footprints(run, grid_m: float = GRID_M, *, frame: str = "believed"):
     return xs, ys, intended, sampled
 
 
-def shadow_area_m2(run, grid_m: float = GRID_M, *, frame: str = "believed") -> float:
+def shadow_area_m2(run, grid_m: float = GRID_M, *, frame: str = "commanded") -> float:
     _, _, intended, sampled = footprints(run, grid_m, frame=frame)
     return float((intended & ~sampled).sum()) * grid_m**2
 

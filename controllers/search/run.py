@@ -87,6 +87,7 @@ class MoveRecord:
     kind: str  # search / avoid / unavoid
     phase: int  # 1..4 (Fig. 5)
     heading_rad: float  # commanded, odometric frame
+    distance_m: float  # commanded
     result: str  # done / blocked
     true_pose: tuple[float, float, float]
     odo_pose: tuple[float, float, float]  # after the beacon fix, if any
@@ -209,6 +210,7 @@ def run_search(
             kind=action.kind.value,
             phase=action.phase.value,
             heading_rad=action.heading_rad,
+            distance_m=action.distance_m,
             result=result,
             true_pose=robot.pose,
             odo_pose=robot.odometry.pose,
