@@ -162,7 +162,7 @@ def _figures(out, seed: np.random.SeedSequence) -> list[str]:
     return names
 
 
-def reproduce(out, *, n_seeds: int = 10, root_seed: int = 2024) -> dict:
+def reproduce(out, *, n_seeds: int = 8, root_seed: int = 2024) -> dict:
     """Write the figures, the tables over ``n_seeds`` seeds per row and summary.md into ``out``."""
     from pathlib import Path
 

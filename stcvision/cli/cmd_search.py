@@ -68,7 +68,7 @@ def add_parser(p):
     p.add_argument("--rrd", metavar="OUT.rrd", help="rerun recording of the run")
     p.add_argument("--plot", metavar="OUT.png", help="plot of the paths, sampling points and shadow")
     p.add_argument("--out", metavar="DIR", help="reproduce: output folder")
-    p.add_argument("--seeds", type=int, default=20, help="reproduce: seeds per policy for the tables (default 20)")
+    p.add_argument("--seeds", type=int, default=8, help="reproduce: seeds per row of the tables (default 8; 10-20 min)")
     p.add_argument("--force", action="store_true", help="overwrite --rrd, --plot or files in --out")
 
 
