@@ -49,6 +49,9 @@ class SearchScene:
 
     def __post_init__(self):
         rr = TASTI2.radius_m
+        for what, v in [("obstacle", o) for o in self.obstacles] + [("patch", self.patch)] * (self.patch is not None):
+            if len(v) != 3 or not all(isinstance(c, int | float) and math.isfinite(c) for c in v):
+                raise BadInputError(f"{what} {v}: expected three finite numbers x, y, radius (metres)")
         for o in self.obstacles:
             x, y, r = o
             if not r > 0:

@@ -55,6 +55,7 @@ def test_search_prints_the_issue_keys_and_finds_a_reachable_patch(capsys):
         (["--step-m", "0"], "step length"),
         (["--pattern", "spiral", "--max-steps", "0"], "max steps"),
         (["--obstacle", "1,2"], "3 comma-separated"),
+        (["--obstacle", "nan,1,0.1"], "finite"),
         (["reproduce"], "--out"),
     ],
 )
