@@ -121,6 +121,11 @@ class Odometry:
     def pose(self) -> tuple[float, float, float]:
         return (self.x, self.y, self.theta)
 
+    def correct(self, pose: tuple[float, float, float]) -> None:
+        """Replace the estimated pose by an external fix (e.g. a beacon seen by a camera); the
+        counters (path length, turned angle) that running primitives measure against are kept."""
+        self.x, self.y, self.theta = (float(v) for v in pose)
+
     def update(self, counts: tuple[int, int]) -> tuple[float, float, float]:
         dl = (counts[0] - self._last[0]) * self._m_per_count
         dr = (counts[1] - self._last[1]) * self._m_per_count

@@ -10,8 +10,11 @@ from the true wheelbase (see :mod:`sim_camera.odometry` for the error model).
 
 Motion primitives are small state machines advanced by :meth:`World.step`:
 ``drive_distance`` (done when the odometry says so, or "blocked" when the motor stalls against
-something), ``rotate_for`` (open loop: a timed turn, so its angle is off by the motor gain) and
-raw ``set_wheel_speeds``. ``World.run_until_done(robot)`` steps until the primitive ends.
+something), ``rotate_for`` (open loop: a timed turn, so its angle is off by the motor gain),
+``rotate_by`` (closed loop on the odometry: done when the *odometric* heading has turned by the
+angle, so the true angle is off only by what the odometry gets wrong, 1/Eb) and raw
+``set_wheel_speeds``. ``World.run_until_done(robot, stop_when=...)`` steps until the primitive
+ends, or until a sensor condition (e.g. the capacitive ring firing) stops it: status "stopped".
 
 Presets (every number with its source; "assumed" means the seeds give none):
 
@@ -225,6 +228,8 @@ class DiffDriveRobot:
         self._last_inside = (float(pose[0]), float(pose[1]), float(pose[2]))
         self._prim: dict = {}
         self.last_result: MotionResult | None = None
+        # heading change of one encoder count on one wheel (what rotate_by can resolve)
+        self._rad_per_count = math.pi * params.wheel_diameter_m / params.counts_per_rev / params.wheelbase_m
 
     # -- state -----------------------------------------------------------------------------
     @property
@@ -301,6 +306,23 @@ class DiffDriveRobot:
             "start_dist": self.odometry.distance_m,
         }
 
+    def rotate_by(self, angle_rad: float) -> None:
+        """Start turning in place until the *odometry* has turned by ``angle_rad`` (positive =
+        left/counter-clockwise). Closed loop on the encoders: a motor gain error does not matter,
+        a wheelbase error (Eb) and slip do -- the true turn is about ``angle_rad / Eb``."""
+        a = float(angle_rad)
+        if not math.isfinite(a):
+            raise BadInputError(f"rotate_by angle must be a finite number; got {angle_rad!r}")
+        self.mode = MotionMode.ROTATE
+        self.last_result = None
+        self._prim = {
+            "target_rad": abs(a),
+            "dir": 1 if a >= 0 else -1,
+            "start_turned": self.odometry.turned_rad,
+            "t": 0.0,
+            "start_dist": self.odometry.distance_m,
+        }
+
     def leds_on(self) -> None:
         """Switch the rear UV LEDs on (:attr:`leds_lit` is what the phosphor layer reads)."""
         self.leds_lit = True
@@ -330,8 +352,14 @@ class DiffDriveRobot:
             v = p["sign"] * min(p["speed"], max(0.0, remaining) / dt_s)
             cmd = (v, v)
         elif self.mode is MotionMode.ROTATE:
-            frac = min(1.0, max(0.0, p["duration"] - p["t"]) / dt_s)
-            w = p["dir"] * self.params.turn_wheel_speed_m_s * frac
+            v_turn = self.params.turn_wheel_speed_m_s
+            if "target_rad" in p:  # rotate_by: slow down on the last step to land on the angle
+                left = p["target_rad"] - p["dir"] * (self.odometry.turned_rad - p["start_turned"])
+                # (at least 10 % of the turn speed, so the encoders keep counting to the end)
+                frac = min(1.0, max(0.1, left * 0.5 * self.params.wheelbase_m / (v_turn * dt_s)))
+            else:
+                frac = min(1.0, max(0.0, p["duration"] - p["t"]) / dt_s)
+            w = p["dir"] * v_turn * frac
             cmd = (-w, w)
         else:
             cmd = self._cmd
@@ -388,5 +416,10 @@ class DiffDriveRobot:
                 self._finish("blocked")
         elif self.mode is MotionMode.ROTATE:
             p["t"] += dt_s
-            if p["t"] >= p["duration"] - 1e-12:
+            if "target_rad" in p:
+                turned = p["dir"] * (self.odometry.turned_rad - p["start_turned"])
+                # within one encoder count's heading step of the target: done
+                if turned >= p["target_rad"] - self._rad_per_count:
+                    self._finish("done")
+            elif p["t"] >= p["duration"] - 1e-12:
                 self._finish("done")

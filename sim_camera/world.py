@@ -225,21 +225,34 @@ class World:
                 controller(self)
             self.step()
 
-    def run_until_done(self, robot: DiffDriveRobot, timeout_s: float = 120.0) -> MotionResult:
-        """Step until ``robot``'s current primitive ends (or ``timeout_s`` of sim time)."""
+    def run_until_done(self, robot: DiffDriveRobot, timeout_s: float = 120.0, stop_when=None) -> MotionResult:
+        """Step until ``robot``'s current primitive ends (or ``timeout_s`` of sim time).
+
+        ``stop_when``: optional ``callable(world) -> bool`` checked before every step (so a
+        primitive never starts into a condition that already holds) and after it; when it
+        returns True the robot stops where it is and the result's status is "stopped" (e.g. a
+        drive halted by TASTI 2's capacitive ring, ``robot.sensors.capacitive.obstacle_ahead``).
+        """
         t_end = self.time_s + timeout_s
         while robot.busy:
+            if stop_when is not None and stop_when(self):
+                return self._interrupt(robot, "stopped")
             if self.time_s >= t_end:
-                res = MotionResult(
-                    "timeout",
-                    robot.odometry.distance_m - robot._prim.get("start_dist", 0.0),
-                    robot._prim.get("t", 0),
-                )
-                robot.stop()
-                robot.last_result = res
-                return res
+                return self._interrupt(robot, "timeout")
             self.step()
         return robot.last_result or MotionResult("done", 0.0, 0.0)
+
+    @staticmethod
+    def _interrupt(robot: DiffDriveRobot, status: str) -> MotionResult:
+        """Stop ``robot``'s primitive where it is; the result says how far it got."""
+        res = MotionResult(
+            status,
+            robot.odometry.distance_m - robot._prim.get("start_dist", 0.0),
+            robot._prim.get("t", 0.0),
+        )
+        robot.stop()
+        robot.last_result = res
+        return res
 
     # -- queries ---------------------------------------------------------------------------
     def ray_distance(self, start, end, robot: DiffDriveRobot | None = None) -> float | None:

@@ -70,18 +70,25 @@ def blueprint() -> rrb.Blueprint:
     )
 
 
-def open_recording(path: str | Path | None = None, *, spawn: bool = False, app_id: str = "stcvision"):
+def open_recording(
+    path: str | Path | None = None,
+    *,
+    spawn: bool = False,
+    app_id: str = "stcvision",
+    default_blueprint: rrb.Blueprint | None = None,
+):
     """A recording stream writing to ``path`` (.rrd, atomically on :meth:`PipelineLogger.close`)
-    and/or a spawned viewer."""
+    and/or a spawned viewer; ``default_blueprint`` defaults to the pipeline's :func:`blueprint`."""
     rec = rr.RecordingStream(app_id)
+    bp = default_blueprint or blueprint()
     tmp = None
     if path is not None:
         path = Path(path)
         path.parent.mkdir(parents=True, exist_ok=True)
         tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-        rec.save(tmp, default_blueprint=blueprint())
+        rec.save(tmp, default_blueprint=bp)
     if spawn:
-        rec.spawn(default_blueprint=blueprint())
+        rec.spawn(default_blueprint=bp)
     return rec, tmp
 
 

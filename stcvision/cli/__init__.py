@@ -27,6 +27,7 @@ COMMANDS: list[tuple[str, str, str]] = [
     ("pipeline", "stcvision.cli.cmd_pipeline", "run the vision pipeline on frames from disk"),
     ("cover", "stcvision.cli.cmd_cover", "run the ant-like STC robot until it has covered a board"),
     ("buffon", "stcvision.cli.cmd_buffon", "measure a nest's area blind with Buffon's needle; reproduce the paper"),
+    ("search", "stcvision.cli.cmd_search", "run the TASTI 2 chemical-search robot (radial/spiral, obstacle detours)"),
     ("calibrate", "stcvision.cli.cmd_calibrate", "calibrate a camera: dark frames, rim, transformation, neighbours"),
     ("dataset", "stcvision.cli.cmd_dataset", "generate and check labelled frame sets from recipes"),
     ("eval", "stcvision.cli.cmd_eval", "evaluate the pipeline on a dataset or your own frames; compare"),

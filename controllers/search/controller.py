@@ -1,0 +1,266 @@
+"""The TASTI 2 search controller: a pure state machine over a frozen state.
+
+``step(state, obs) -> (state, action)``. The observation is all TASTI 2 has (seed
+``001_c1bae9b25b0dd54b.txt`` sec. IV): its odometric pose, the capacitive ring's verdict, the
+tongue reading at the turning centre and the result of its last move ("done" or "blocked": a
+move is blocked when the ring halted the drive, or the motor stalled; the executor then drives
+back to where the move began -- "must return to a previous point", sec. V). An action is a
+:class:`Move` (turn on the spot to an absolute heading of the odometric frame, drive ``distance_m``,
+sense) or :class:`Stop`.
+
+Phases (the four circled phases of Fig. 5; Fig. 12 and 14 plot them over time):
+
+1. :attr:`Phase.SEARCH` -- take the next step of the search path (no detour outstanding);
+2. :attr:`Phase.AVOID` -- an avoid move, at an absolute avoid heading;
+3. :attr:`Phase.DETOUR_STEP` -- during a detour, the next step of the search path, when free;
+4. :attr:`Phase.UNAVOID` -- during a detour, an unavoid move (opposite an avoid heading) paying
+   back one avoid move.
+
+Detour (sec. III, equations (6)-(8)): on the first blocked search step the avoid heading ``a1``
+is chosen 90 degrees right of the search heading. (Our addition: if that very first avoid move is
+blocked too -- the obstacle stands to the front right, and the ring, one signal over the front
+half, cannot tell -- ``a1`` turns to 90 degrees *left* and the robot goes round the other way,
+clockwise; the rest of the machine is the same.) Each avoid move adds ``+1`` to its counter,
+each unavoid ``-1``; the search steps go on "where possible" in between. The order of tries (so
+that the robot works its way round the obstacle anticlockwise, keeping it on its left):
+
+==========================  ==========================================
+last move                   next try
+==========================  ==========================================
+search step done            unavoid (pay back)
+search step blocked         avoid
+avoid done                  search step
+avoid blocked               unavoid if anything is owed, else avoid to the left (once), else stop
+unavoid done                unavoid again, or the detour is over when every counter is 0
+unavoid blocked             the other heading's unavoid if owed (improved), else search step
+==========================  ==========================================
+
+The detour ends when the avoid moves sum to zero (equation (8)): the robot is back on the search
+path, beyond the obstacle, and the pattern goes on. A detour that does not rejoin the path within
+``max_detour_moves`` moves without a search step, or four blocked moves in a row (every
+direction tried from one point), stops the robot with that reason.
+
+Policies: ``none`` stops at the first blocked step (the baseline); ``simple`` is the above with
+one avoid heading; ``improved`` (sec. "B. Improved Obstacle Avoidance") adds a second avoid heading
+``a2`` at right angles to ``a1`` whenever the search heading is within +-45 degrees of the avoid
+axis (of ``a1`` or of its unavoid heading ``a1 + pi``: moving along the search path is then moving
+along the avoid axis, and the detour cannot track round the obstacle). ``a2`` is the right angle
+to ``a1`` lying to the right of the search heading (so the robot still keeps the obstacle on its
+left; the left of it after the switch above); its moves are counted separately and unwound by
+their own unavoid moves, the most recent heading first.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import enum
+import math
+from dataclasses import dataclass
+
+from stcvision.errors import BadInputError
+
+__all__ = [
+    "Move",
+    "MoveKind",
+    "Phase",
+    "Policy",
+    "SearchConfig",
+    "SearchObs",
+    "SearchState",
+    "Stop",
+    "initial_state",
+    "step",
+]
+
+ALIGN_RAD = math.radians(45.0)  # seed sec. III-B: "within +-45 degrees of each other"
+
+
+class Phase(enum.Enum):
+    SEARCH = 1
+    AVOID = 2
+    DETOUR_STEP = 3
+    UNAVOID = 4
+    DONE = 5
+
+
+class Policy(enum.Enum):
+    NONE = "none"
+    SIMPLE = "simple"
+    IMPROVED = "improved"
+
+
+class MoveKind(enum.Enum):
+    SEARCH = "search"
+    AVOID = "avoid"
+    UNAVOID = "unavoid"
+
+
+@dataclass(frozen=True, kw_only=True, slots=True)
+class SearchConfig:
+    """``pattern`` (:mod:`controllers.search.patterns`), detour ``policy``, the tongue
+    ``threshold`` (sensor units; the seed's robot stopped above 296 Hz, Fig. 12) and the loop
+    guard ``max_detour_moves``."""
+
+    pattern: object
+    policy: Policy = Policy.IMPROVED
+    threshold: float = 0.5
+    max_detour_moves: int = 60
+
+    def __post_init__(self):
+        if not isinstance(self.policy, Policy):
+            raise BadInputError(f"policy must be one of none, simple, improved; got {self.policy!r}")
+        if self.max_detour_moves < 1:
+            raise BadInputError("max_detour_moves must be >= 1")
+
+
+@dataclass(frozen=True, slots=True)
+class SearchObs:
+    """What TASTI 2 senses after a move (or at the start, ``last_move=None``)."""
+
+    pose_odo: tuple[float, float, float]  # dead-reckoned x m, y m, heading rad
+    ring: bool  # the capacitive ring is at its stop threshold now
+    tongue: float  # chemical reading at the turning centre
+    last_move: str | None  # "done", "blocked" or None before the first move
+
+
+@dataclass(frozen=True, slots=True)
+class Move:
+    heading_rad: float  # absolute heading in the odometric frame
+    distance_m: float
+    kind: MoveKind
+    phase: Phase
+    heading_index: int = 0  # 1 or 2 for avoid/unavoid moves: which avoid heading
+
+
+@dataclass(frozen=True, slots=True)
+class Stop:
+    reason: str  # "found", "pattern done", "blocked (policy none)", "trapped: ...", "detour did not rejoin ..."
+
+
+@dataclass(frozen=True, slots=True)
+class SearchState:
+    """Constant-size state: the search step count, the avoid headings and their counters."""
+
+    config: SearchConfig
+    phase: Phase = Phase.SEARCH
+    i: int = 0  # search-path steps taken
+    a1: float | None = None  # avoid heading 1 (rad, odometric frame)
+    a2: float | None = None  # avoid heading 2 (improved policy)
+    side: int = -1  # -1: avoid to the right of the search heading (the paper's), +1: to the left
+    k1: int = 0  # net avoid moves along a1 (equation (8) wants 0)
+    k2: int = 0
+    pending: Move | None = None  # the move whose result the next observation reports
+    detour_moves: int = 0  # moves since the last search step (loop guard)
+    blocked_run: int = 0  # consecutive blocked moves
+    reason: str = ""
+
+    @property
+    def in_detour(self) -> bool:
+        return self.k1 != 0 or self.k2 != 0
+
+
+def initial_state(config: SearchConfig) -> SearchState:
+    return SearchState(config=config)
+
+
+def _wrap(a: float) -> float:
+    return (a + math.pi) % (2.0 * math.pi) - math.pi
+
+
+def _search_move(s: SearchState, phase: Phase) -> Move:
+    p = s.config.pattern
+    return Move(p.headings_rad[s.i], p.step_m, MoveKind.SEARCH, phase)
+
+
+def _avoid_heading(s: SearchState) -> tuple[SearchState, int]:
+    """Which avoid heading the next avoid move takes (and the state with ``a2`` chosen)."""
+    if s.config.policy is Policy.IMPROVED:
+        th = s.config.pattern.headings_rad[s.i]
+        off = abs(_wrap(th - s.a1))
+        if min(off, math.pi - off) <= ALIGN_RAD:  # search heading along the avoid axis
+            if s.a2 is None:
+                cands = (s.a1 + 0.5 * math.pi, s.a1 - 0.5 * math.pi)
+                a2 = min(cands, key=lambda a: abs(_wrap(a - (th + s.side * 0.5 * math.pi))))
+                s = dataclasses.replace(s, a2=_wrap(a2))
+            return s, 2
+    return s, 1
+
+
+def _unavoid(s: SearchState, after: int = 3) -> Move | None:
+    """The next unavoid move: heading 2 before heading 1 (most recent first), only those owed,
+    only indices below ``after`` (the ones not yet tried from this point); None if none is left."""
+    owed = [j for j in (2, 1) if j < after and (s.k2 if j == 2 else s.k1) != 0]
+    if not owed:
+        return None
+    j = owed[0]
+    a, k = (s.a2, s.k2) if j == 2 else (s.a1, s.k1)
+    heading = a + math.pi if k > 0 else a
+    return Move(_wrap(heading), s.config.pattern.step_m, MoveKind.UNAVOID, Phase.UNAVOID, j)
+
+
+def _account(s: SearchState, done: bool) -> SearchState:
+    """Book the result of the pending move."""
+    m = s.pending
+    if m is None or not done:
+        return s
+    if m.kind is MoveKind.SEARCH:
+        return dataclasses.replace(s, i=s.i + 1, detour_moves=0)
+    sign = 1 if m.kind is MoveKind.AVOID else -1
+    if m.heading_index == 2:
+        return dataclasses.replace(s, k2=s.k2 + sign)
+    return dataclasses.replace(s, k1=s.k1 + sign)
+
+
+def _go(s: SearchState, move: Move) -> tuple[SearchState, Move]:
+    return dataclasses.replace(s, phase=move.phase, pending=move, detour_moves=s.detour_moves + 1), move
+
+
+def _stop(s: SearchState, reason: str) -> tuple[SearchState, Stop]:
+    return dataclasses.replace(s, phase=Phase.DONE, pending=None, reason=reason), Stop(reason)
+
+
+def step(state: SearchState, obs: SearchObs) -> tuple[SearchState, Move | Stop]:
+    """One decision after a move (or at the start). Pure: ``state`` is not changed."""
+    if state.phase is Phase.DONE:
+        return state, Stop(state.reason)
+    cfg = state.config
+    done = obs.last_move == "done"
+    s = _account(state, done)
+    s = dataclasses.replace(s, blocked_run=0 if done or state.pending is None else s.blocked_run + 1)
+    last = state.pending
+    if obs.tongue >= cfg.threshold:
+        return _stop(s, "found")
+    if s.i >= cfg.pattern.n_steps:
+        return _stop(s, "pattern done")
+    if s.blocked_run >= 4:  # search step, avoid and unavoid all blocked from this point
+        return _stop(s, "trapped: every move from here is blocked")
+    if s.detour_moves >= cfg.max_detour_moves:
+        return _stop(s, "detour did not rejoin the search path")
+    if last is None:
+        return _go(s, _search_move(s, Phase.SEARCH))
+
+    if last.kind is MoveKind.SEARCH and not done:
+        if cfg.policy is Policy.NONE:
+            return _stop(s, "blocked (policy none)")
+        if not s.in_detour:  # first collision: avoid heading 90 degrees right of the heading
+            th = cfg.pattern.headings_rad[s.i]
+            s = dataclasses.replace(s, a1=_wrap(th - 0.5 * math.pi), a2=None, side=-1)
+        s, j = _avoid_heading(s)
+        a = s.a2 if j == 2 else s.a1
+        return _go(s, Move(a, cfg.pattern.step_m, MoveKind.AVOID, Phase.AVOID, j))
+    if last.kind is MoveKind.AVOID and not done:
+        if s.in_detour:
+            return _go(s, _unavoid(s))
+        if s.side == -1:  # the obstacle is to the front right: go round it the other way
+            s = dataclasses.replace(s, a1=_wrap(s.a1 + math.pi), a2=None, side=1)
+            return _go(s, Move(s.a1, cfg.pattern.step_m, MoveKind.AVOID, Phase.AVOID, 1))
+        return _stop(s, "trapped: search step and avoid move both blocked")
+    if not s.in_detour:
+        return _go(s, _search_move(s, Phase.SEARCH))  # the detour is over (equation (8))
+    if last.kind is MoveKind.SEARCH:  # done, in a detour: pay back
+        return _go(s, _unavoid(s))
+    if last.kind is MoveKind.AVOID:  # done
+        return _go(s, _search_move(s, Phase.DETOUR_STEP))
+    # unavoid: again while it works; when blocked, the other heading's unavoid, then the search step
+    nxt = _unavoid(s) if done else _unavoid(s, after=last.heading_index)
+    return _go(s, nxt if nxt is not None else _search_move(s, Phase.DETOUR_STEP))

@@ -1,0 +1,201 @@
+"""Run the TASTI 2 chemical-search robot (seed 001): a radial "flower" or an Archimedes spiral of
+straight steps, on-the-spot turns and tongue readings, detouring round obstacles by avoid/unavoid
+moves (--policy simple, improved, or none), navigating by dead reckoning; --beacon drops a
+two-light red beacon at the start and corrects the odometry from the catadioptric camera
+whenever the beacon is in view. Coordinates are metres relative to the start, heading 0 = +x.
+
+`stcvision search reproduce --out DIR` regenerates the paper's figures (1, 2, 6, 7, 8, 11-14),
+a summary.md comparing with the paper's statements and the tables of shadow area and odometry
+error over many seeds per policy, with and without the beacon.
+"""
+
+from __future__ import annotations
+
+NESTED = False
+
+
+def add_parser(p):
+    import re
+
+    from stcvision.cli._args import pair, positive
+
+    # "--patch -0.5,0.3,0.175": argparse takes a value starting with "-<digit>" for an option
+    # unless it looks like a number; coordinates lists should read as values
+    p._negative_number_matcher = re.compile(r"^-\.?\d")
+
+    p.add_argument(
+        "action",
+        nargs="?",
+        choices=("run", "reproduce"),
+        default="run",
+        help="run (default): one search; reproduce: the paper's figures and tables into --out",
+    )
+    p.add_argument("--pattern", choices=("radial", "spiral"), default="radial", help="search pattern (default radial)")
+    p.add_argument("--petals", type=int, default=12, help="radial: petals (default 12)")
+    p.add_argument("--steps-per-petal", type=int, default=32, help="radial: steps per petal n (default 32)")
+    p.add_argument("--step-m", type=float, default=0.141, help="step length between sampling points (default 0.141 m)")
+    p.add_argument("--spacing-m", type=float, default=None, help="spiral: distance between turns (default 0.25 m)")
+    p.add_argument(
+        "--max-steps", type=int, default=None, help="cap on search steps (spiral default 150; radial: one flower)"
+    )
+    p.add_argument("--policy", choices=("none", "simple", "improved"), default="improved", help="obstacle policy")
+    p.add_argument(
+        "--obstacle",
+        type=pair(float, 3),
+        action="extend",
+        nargs="+",
+        default=[],
+        metavar="X,Y,R",
+        help="round obstacles (metres, relative to the start): --obstacle A B or --obstacle A --obstacle B",
+    )
+    p.add_argument("--patch", type=pair(float, 3), metavar="X,Y,R", help="the chemical patch (metres)")
+    p.add_argument(
+        "--threshold",
+        type=positive(float),
+        default=0.5,
+        help="tongue reading that ends the search (patch concentration is 1; default 0.5)",
+    )
+    p.add_argument(
+        "--odometry-noise",
+        choices=("on", "off"),
+        default="on",
+        help="on: TASTI 2's wheel errors (Ed, Eb, slip); off: exact wheels (encoder counts only)",
+    )
+    p.add_argument(
+        "--beacon", action="store_true", help="drop a red two-light beacon at the start and take camera fixes"
+    )
+    p.add_argument("--seed", type=int, default=0, help="seed of the robot, sensors and camera (default 0)")
+    p.add_argument("--rrd", metavar="OUT.rrd", help="rerun recording of the run")
+    p.add_argument("--plot", metavar="OUT.png", help="plot of the paths, sampling points and shadow")
+    p.add_argument("--out", metavar="DIR", help="reproduce: output folder")
+    p.add_argument("--seeds", type=int, default=8, help="reproduce: seeds per row of the tables (default 8; 10-20 min)")
+    p.add_argument("--force", action="store_true", help="overwrite --rrd, --plot or files in --out")
+
+
+def _pattern(args):
+    from controllers.search.patterns import RadialPattern, SpiralPattern
+
+    if args.pattern == "radial":
+        return RadialPattern(
+            petals=args.petals, steps_per_petal=args.steps_per_petal, step_m=args.step_m, max_steps=args.max_steps
+        )
+    kw = {} if args.max_steps is None else {"max_steps": args.max_steps}
+    return SpiralPattern(step_m=args.step_m, spacing_m=args.spacing_m, **kw)
+
+
+def _refuse_existing(path, force):
+    from pathlib import Path
+
+    from stcvision.errors import FileExistsRefusedError
+
+    if path and Path(path).exists() and not force:
+        raise FileExistsRefusedError(f"{path} exists; refusing to overwrite it (use --force)")
+
+
+def run(args):
+    if args.action == "reproduce":
+        return _reproduce(args)
+    import numpy as np
+    from tqdm import tqdm
+
+    from controllers.search.controller import Policy, SearchConfig
+    from controllers.search.metrics import summarise
+    from controllers.search.run import SearchScene, run_search
+
+    pattern = _pattern(args)
+    scene = SearchScene(obstacles=tuple(args.obstacle), patch=args.patch)
+    cfg = SearchConfig(pattern=pattern, policy=Policy(args.policy), threshold=args.threshold)
+    for path in (args.rrd, args.plot):
+        _refuse_existing(path, args.force)
+    beacon = None
+    if args.beacon:
+        from controllers.search.beacon import Beacon
+
+        beacon = Beacon()
+    recorder = None
+    if args.rrd:
+        from controllers.search.recorder import SearchRecorder
+
+        recorder = SearchRecorder(args.rrd, scene, pattern)
+    bar = tqdm(total=pattern.n_steps, desc="search steps", unit="step", leave=False)
+
+    def progress(steps):
+        bar.update(steps - bar.n)
+
+    try:
+        result = run_search(
+            scene,
+            cfg,
+            seed=np.random.SeedSequence(args.seed),
+            odometry_noise=args.odometry_noise == "on",
+            beacon=beacon,
+            observer=recorder,
+            progress=progress,
+        )
+    finally:
+        bar.close()
+        if recorder is not None:
+            recorder.close()
+    out = {
+        "pattern": pattern.describe(),
+        "policy": args.policy,
+        "seed": args.seed,
+        "odometry_noise": args.odometry_noise,
+        "beacon": bool(args.beacon),
+        "obstacles": [list(o) for o in scene.obstacles],
+        "patch": None if scene.patch is None else list(scene.patch),
+        **summarise(result),
+        "rrd": args.rrd,
+        "plot": args.plot,
+    }
+    if args.plot:
+        from controllers.search.plots import plot_path, save_figure
+
+        title = f"{pattern.describe()}, policy {args.policy}, seed {args.seed}: {result.reason}"
+        save_figure(plot_path(result, title), args.plot, overwrite=True)
+    return out
+
+
+def _reproduce(args):
+    from pathlib import Path
+
+    from controllers.search.experiments import reproduce
+    from stcvision.errors import BadInputError
+
+    if not args.out:
+        raise BadInputError("search reproduce needs --out DIR")
+    if args.seeds < 1:
+        raise BadInputError(f"--seeds must be >= 1, got {args.seeds}")
+    out = Path(args.out)
+    if out.exists() and any(out.iterdir()) and not args.force:
+        from stcvision.errors import FileExistsRefusedError
+
+        raise FileExistsRefusedError(f"{out} is not empty; refusing to overwrite it (use --force)")
+    return reproduce(out, n_seeds=args.seeds)
+
+
+def format_text(r):
+    if "figures" in r:
+        return f"wrote {len(r['figures'])} figures and {r['summary']}"
+    keys = (
+        "pattern",
+        "policy",
+        "found",
+        "stop_reason",
+        "steps",
+        "moves",
+        "blocked_moves",
+        "path_length_m",
+        "odometry_error_m",
+        "max_odometry_error_m",
+        "shadow_area_m2",
+        "phase_counts",
+        "beacon_fixes",
+        "sim_time_s",
+    )
+    w = max(len(k) for k in keys)
+    lines = [f"{k:<{w}}  {r[k]}" for k in keys]
+    for k in ("plot", "rrd"):
+        if r.get(k):
+            lines.append(f"wrote {r[k]}")
+    return "\n".join(lines)
