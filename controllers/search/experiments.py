@@ -19,7 +19,7 @@ from controllers.search.patterns import RadialPattern, SpiralPattern
 from controllers.search.run import SearchScene, run_search
 from controllers.search.scenarios import FIG6_OBSTACLE, FIG7_OBSTACLE, FIG13_CAN, PAPER_PATCH
 
-__all__ = ["TABLES", "build_run", "reproduce", "run_trial"]
+__all__ = ["TABLES", "build_run", "reproduce", "row_task", "run_trial"]
 
 
 def _pattern(params: dict):
@@ -162,26 +162,46 @@ def _figures(out, seed: np.random.SeedSequence) -> list[str]:
     return names
 
 
-def reproduce(out, *, n_seeds: int = 8, root_seed: int = 2024) -> dict:
-    """Write the figures, the tables over ``n_seeds`` seeds per row and summary.md into ``out``."""
+def row_task(params: dict, seed: np.random.SeedSequence) -> dict:
+    """One row of a table, the sweep runner's unit of work: ``params["run"]`` over ``n_seeds``
+    seeds. The seeds come from ``root_seed`` (part of the task's key), the same for every row, so
+    the rows' runs are paired; ``seed`` (the runner's) is not needed."""
+    return {"runs": [run_trial(params["run"], s) for s in _table_seeds(params["root_seed"], params["n_seeds"])]}
+
+
+def _table_seeds(root_seed: int, n_seeds: int) -> list[np.random.SeedSequence]:
+    return np.random.SeedSequence(root_seed).spawn(2)[1].spawn(n_seeds)
+
+
+def reproduce(out, *, n_seeds: int = 8, root_seed: int = 2024, sweep=None) -> dict:
+    """Write the figures, the tables over ``n_seeds`` seeds per row and summary.md into ``out``;
+    the rows run as tasks of the sweep runner (``sweep``: its options; resumable through
+    ``out/sweep.jsonl``)."""
     from pathlib import Path
 
-    from tqdm import tqdm
-
     from stcvision.fileio import write_bytes_atomic, write_json
+    from stcvision.sweep import SweepOptions, Task, run_sweep
 
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    ss_fig, ss_tab = np.random.SeedSequence(root_seed).spawn(2)
+    ss_fig = np.random.SeedSequence(root_seed).spawn(2)[0]
     figures = _figures(out, ss_fig)
     jobs = [(t, label, params) for t, _, rows in TABLES for label, params in rows]
-    seeds = ss_tab.spawn(n_seeds)  # the same seeds for every row: paired comparisons
-    results: dict[tuple[str, str], list[dict]] = {}
-    with tqdm(total=len(jobs) * n_seeds, desc="search reproduce", unit="run") as bar:
-        for t, label, params in jobs:
-            for s in seeds:
-                results.setdefault((t, label), []).append(run_trial(params, s))
-                bar.update(1)
+    tasks = {
+        (t, label): Task(
+            experiment="controllers.search.experiments:row_task",
+            params={"run": params, "n_seeds": n_seeds, "root_seed": root_seed},
+            seed=root_seed,
+        )
+        for t, label, params in jobs
+    }
+    report = run_sweep(list(tasks.values()), out / "sweep.jsonl", sweep or SweepOptions(), desc="search reproduce")
+    if report.failed:
+        from stcvision.errors import StcVisionError
+
+        first = next(iter(report.failed.values()))
+        raise StcVisionError(f"{len(report.failed)} rows failed (first: {first}); re-run to retry them")
+    results = {k: report.results[task.key]["runs"] for k, task in tasks.items()}
     tables = {
         t: table_markdown(title, [(label, results[(t, label)]) for label, _ in rows]) for t, title, rows in TABLES
     }
@@ -192,7 +212,8 @@ def reproduce(out, *, n_seeds: int = 8, root_seed: int = 2024) -> dict:
         {f"{t}/{label}": results[(t, label)] for t, label, _ in jobs},
         overwrite=True,
     )
-    return {"out": str(out), "figures": figures, "summary": str(out / "summary.md"), "tables": tables}
+    return {"out": str(out), "figures": figures, "summary": str(out / "summary.md"), "tables": tables,
+            "sweep": report.summary()}  # fmt: skip
 
 
 def _summary_markdown(tables: dict, results: dict, figures: list[str], n_seeds: int) -> str:

@@ -70,6 +70,9 @@ def add_parser(p):
     p.add_argument("--out", metavar="DIR", help="reproduce: output folder")
     p.add_argument("--seeds", type=int, default=8, help="reproduce: seeds per row of the tables (default 8; 10-20 min)")
     p.add_argument("--force", action="store_true", help="overwrite --rrd, --plot or files in --out")
+    from stcvision.sweep import add_sweep_arguments
+
+    add_sweep_arguments(p)  # reproduce: where its rows run
 
 
 def _pattern(args):
@@ -166,12 +169,15 @@ def _reproduce(args):
         raise BadInputError("search reproduce needs --out DIR")
     if args.seeds < 1:
         raise BadInputError(f"--seeds must be >= 1, got {args.seeds}")
+    from stcvision.sweep import sweep_options_from_args
+
     out = Path(args.out)
-    if out.exists() and any(out.iterdir()) and not args.force:
+    ours = (out / "sweep.jsonl").exists()  # an earlier (maybe interrupted) reproduction: resume it
+    if out.exists() and any(out.iterdir()) and not ours and not args.force:
         from stcvision.errors import FileExistsRefusedError
 
         raise FileExistsRefusedError(f"{out} is not empty; refusing to overwrite it (use --force)")
-    return reproduce(out, n_seeds=args.seeds)
+    return reproduce(out, n_seeds=args.seeds, sweep=sweep_options_from_args(args))
 
 
 def format_text(r):

@@ -98,3 +98,20 @@ def test_run_trial_is_json_and_deterministic():
     a = run_trial(params, np.random.SeedSequence(11))
     b = run_trial(params, np.random.SeedSequence(11))
     assert a == b and json.loads(json.dumps(a)) == a
+
+
+def test_reproduce_runs_its_rows_on_the_sweep_runner(tmp_path, monkeypatch):
+    """One small table through the sweep runner: paired seeds, a store, a re-run that skips."""
+    import controllers.search.experiments as ex
+    from stcvision.sweep import SweepOptions
+
+    row = {"pattern": "spiral", "max_steps": 6, "policy": "simple"}
+    monkeypatch.setattr(ex, "TABLES", (("t", "a tiny table", [("a", row), ("b", {**row, "policy": "improved"})]),))
+    monkeypatch.setattr(ex, "_figures", lambda out, seed: [])
+    monkeypatch.setattr(ex, "_summary_markdown", lambda tables, results, figures, n: "\n".join(tables.values()))
+    r = ex.reproduce(tmp_path, n_seeds=2, sweep=SweepOptions(workers=1))
+    assert "2 done" in r["sweep"] and (tmp_path / "summary.md").exists()
+    runs = json.loads((tmp_path / "results.json").read_text())
+    assert len(runs["t/a"]) == 2 and runs["t/a"] == runs["t/b"]  # no obstacle: the policies run alike
+    again = ex.reproduce(tmp_path, n_seeds=2, sweep=SweepOptions(workers=1))
+    assert "2 skipped as done" in again["sweep"]
