@@ -350,11 +350,16 @@ def bench(*, spec: str = "circle:30", seed: int = 0) -> dict:
     nest = parse_nest(spec)
     run_trials(nest, VisitConfig(visit_steps=100), trials=1, seed=seed)  # compile (cached) and warm up
     ts = run_trials(nest, VisitConfig(visit_steps=50_000), trials=4, seed=seed)
+    c0 = time.process_time()
     tp = run_trials_pymunk(nest, VisitConfig(visit_steps=1500), trials=1, seed=seed)
+    p_cpu = time.process_time() - c0
     fast, slow = ts.robot_steps / ts.wall_s, tp.robot_steps / tp.wall_s
     return {
         "buffon_nest": spec,
         "buffon_robot_steps_per_s": fast,
         "buffon_pymunk_robot_steps_per_s": slow,
         "buffon_speedup": fast / slow,
+        # CPU time: the per-core figures when other processes share the machine
+        "buffon_robot_steps_per_cpu_s": ts.robot_steps / ts.cpu_s,
+        "buffon_pymunk_robot_steps_per_cpu_s": tp.robot_steps / p_cpu,
     }
