@@ -21,7 +21,7 @@ import numpy as np
 
 
 def one_run(task: tuple[int, int, str, str]) -> dict:
-    from controllers.cover import CoverConfig, is_complete, run_cover
+    from controllers.stc.loop import CoverConfig, is_complete, run_cover
     from sim_camera.board import Board
 
     n, seed, exposure, perception = task

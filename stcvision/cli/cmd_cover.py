@@ -62,7 +62,7 @@ def load_board(args):
 def run(args):
     from pathlib import Path
 
-    from controllers.cover import CoverConfig, run_cover
+    from controllers.stc.loop import CoverConfig, run_cover
     from stcvision.errors import FileExistsRefusedError
 
     board = load_board(args)
@@ -76,11 +76,11 @@ def run(args):
     cfg = CoverConfig(perception=args.perception, exposure=exposure, seed=args.seed)
     recorder = None
     if args.rrd:
-        from controllers.cover_rr import CoverRecorder
+        from controllers.stc.recorder import CoverRecorder
 
         recorder = CoverRecorder(args.rrd, board)
     try:
-        result = run_cover(board, cfg, recorder=recorder)
+        result = run_cover(board, cfg, observers=[recorder])
     finally:
         if recorder is not None:
             recorder.close()

@@ -9,8 +9,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from controllers.cover import AUTO_LONG, CoverConfig, run_cover
-from controllers.cover import is_complete as complete
+from controllers.stc.frames import AUTO_LONG
+from controllers.stc.loop import CoverConfig, run_cover
+from controllers.stc.loop import is_complete as complete
 from sim_camera.board import Board
 from sim_camera.camera import SyntheticCamera, visibility_horizon_s
 from stcvision.cli import main
@@ -170,7 +171,7 @@ def test_the_look_reads_the_cell_ahead_and_only_it():
 def test_exposure_rungs_follow_the_clock():
     """Auto exposure: the long frame is the shortest whose horizon at the look's reach covers
     the oldest mark there can be (the clock); the horizons grow with the rung."""
-    from controllers.cover import _Camera
+    from controllers.stc.frames import RobotCamera as _Camera
 
     board = Board.random((3, 3), obstacle_fraction=0.0, rng=np.random.default_rng(0))
     cam = _Camera(board, CoverConfig(exposure="auto"), np.random.default_rng(0))
@@ -208,7 +209,7 @@ def test_ideal_camera_sees_exactly_the_marks_within_the_horizon():
     horizon at its distance (the Rose criterion), so a webcam frame sees a 30 s old mark 0.25 m
     away, not a 200 s old one, and nothing under the robot's body (inside the mirror's blind
     circle); a 30 s frame sees the 200 s old one too."""
-    from controllers.cover import _Ideal
+    from controllers.stc.frames import IdealCamera as _Ideal
     from sim_camera.phosphor import PhosphorLayer
 
     board = Board.random((3, 3), obstacle_fraction=0.0, rng=np.random.default_rng(0))
