@@ -1,6 +1,6 @@
 """Reproduce the README's coverage table: ``python docs/cover_sweep.py`` (inside .venv).
 
-For each board size, ``--runs`` random boards (``Board.random`` with seed 0..runs-1, 15 %
+For each board size, ``--runs`` random boards (``Board.random`` from the board stream of seed 0..runs-1, 15 %
 obstacle cells, the same seeds as ``stcvision cover --board WxH --seed S``) are covered in
 camera mode at webcam exposure and with exposure control, and by the physics-limited camera
 (``--perception ideal``) with exposure control; a run is complete when every
@@ -17,15 +17,13 @@ import statistics
 import sys
 from concurrent.futures import ProcessPoolExecutor
 
-import numpy as np
-
 
 def one_run(task: tuple[int, int, str, str]) -> dict:
-    from controllers.stc.loop import CoverConfig, is_complete, run_cover
+    from controllers.stc.loop import CoverConfig, is_complete, run_cover, streams
     from sim_camera.board import Board
 
     n, seed, exposure, perception = task
-    board = Board.random((n, n), obstacle_fraction=0.15, rng=np.random.default_rng(seed))
+    board = Board.random((n, n), obstacle_fraction=0.15, rng=streams(seed)["board"])
     # a complete tour makes a few decisions per sub-cell; a robot lost in its own faded marks can
     # wander for thousands, so stop it at ten per reachable sub-cell (it has failed long before)
     cap = 10 * 4 * int(board.reachable_cells().sum())

@@ -25,8 +25,11 @@ Presets (every number with its source; "assumed" means the seeds give none):
 * :data:`LEGO_STC` -- the ant-like STC robot (seed 003). Radius 70 mm so it fits a 0.16 m
   sub-cell (the default board); LEGO 56 mm tyres; wheelbase 0.12 m; NXT-style motor encoders at
   360 counts/rev; cruise 0.08 m/s; turn wheel speed 0.0628 m/s so a nominal 90-degree turn takes
-  1.5 s (exactly: the wheel speed is derived from it); motor gain +-10 % per robot and 20 %/h battery fade (assumed; the seed gives only the
-  qualitative statement above); Ed = 1.005, Eb = 1.03 (assumed: a flexible Lego frame).
+  1.5 s (exactly: the wheel speed is derived from it); motor gain +-10 % per robot and 20 %/h
+  battery fade (assumed; the seed gives only the qualitative statement above); Ed = 1.005,
+  Eb = 1.03 (assumed: a flexible Lego frame).
+* :data:`LEGO_STC_ROBOT` -- the same robot as the coverage loop's kinematic plant sees it
+  (:class:`MarkingRobot`): motion from :data:`LEGO_STC`, LED-on time and timing cited there.
 """
 
 from __future__ import annotations

@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from sim_camera.hardware import WEBCAM, CameraProfile
 from sim_camera.robot import LEGO_STC_ROBOT, MarkingRobot
 
 __all__ = ["LANDMARK_OFFSET_SIGMA", "LANDMARK_TURN_SIGMA_RAD", "REOBSERVE_RAD", "CoverConfig"]
@@ -19,6 +20,8 @@ class CoverConfig:
     seed: int = 0
     #: the robot (motion, timing, marking): :data:`sim_camera.robot.LEGO_STC_ROBOT` by default
     robot: MarkingRobot = LEGO_STC_ROBOT
+    #: the camera's sensor physics (:mod:`sim_camera.hardware`): the seed's webcam by default
+    camera: CameraProfile = WEBCAM
     max_decisions: int = 20000
     heading_sigma_oracle_rad: float = math.radians(0.25)  # the pipeline's measured heading RMS
     position_sigma_oracle_m: float = 0.001  # the marks' position read-out (measured: ~1 mm)

@@ -88,7 +88,7 @@ class Exposures:
     def __init__(self, cfg: CoverConfig):
         from sim_camera.camera import SyntheticCamera
 
-        self.cam = SyntheticCamera()
+        self.cam = SyntheticCamera(sensor=cfg.camera.sensor)
         self.cfg = cfg
         self._horizons: dict[float, tuple[float, ...]] = {}
         if cfg.exposure == "auto":

@@ -11,7 +11,12 @@ loop runs it on a board with honest time and honest marks, from its parts:
 * **observers** (:mod:`controllers.stc.observers`, :mod:`controllers.stc.recorder`): trace,
   rerun recording, the floor's picture.
 
-Random streams: one generator feeds the robot's motion, the camera and the oracle's read-out noise.
+Random streams: one seed, four independent children (``numpy.random.SeedSequence.spawn``), one
+per component (:func:`streams`): the robot's motion (its motors, its first turn time, every
+move's error), the camera (dark frames, every frame's noise), the oracle's read-out noise (the
+pose as the oracle and the physics-limited camera read it) and the board (for callers that draw
+a random board from the run's seed: the CLI). An extra frame therefore never reshuffles the
+motion, and the camera, physics-limited and oracle runs of one seed drive the same robot.
 """
 
 from __future__ import annotations
@@ -57,10 +62,10 @@ def run_cover(board, cfg: CoverConfig | None = None, *, observers=()) -> dict:
     ``observers``: :class:`controllers.stc.observers.Observer` s (None entries are skipped)."""
     wall0 = time.perf_counter()
     cfg = cfg if cfg is not None else CoverConfig()
-    rngs = dict.fromkeys(STREAMS, np.random.default_rng(cfg.seed))  # one stream for all, as before (issue 16.3)
+    rngs = streams(cfg.seed)
     plant = Plant(board, cfg.robot, rngs["motion"])
     floor = Floor(board)
-    see = make_perception(cfg, board, rngs[cfg.perception if cfg.perception == "oracle" else "camera"])
+    see = make_perception(cfg, board, camera_rng=rngs["camera"], oracle_rng=rngs["oracle"])
     watch = Observers([*observers, *([_trace()] if cfg.trace else [])])
     referee = Referee(board, active=see.refereed, report=watch.on_referee)
     state, decisions, looks, finished, abort = initial_state(), 0, 0, False, None
@@ -131,6 +136,7 @@ def _summary(board, cfg, plant, see, referee, *, decisions, looks, finished, abo
     out = {
         "perception": cfg.perception,
         "exposure": cfg.exposure,
+        "camera": cfg.camera.name,
         "robot": cfg.robot.name,
         "board_cells": list(board.shape_cells),
         "subcells_reachable": int(4 * reachable.sum()),

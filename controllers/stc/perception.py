@@ -92,15 +92,9 @@ class OraclePerception:
         return self._heading(plant)
 
 
-class IdealPerception(OraclePerception):
-    """The physics-limited camera: its frames' time, the marks within their horizon, the pose
-    as the oracle reads it."""
-
-    refereed = True
-
-    def __init__(self, cfg: CoverConfig, board, rng: np.random.Generator):
-        super().__init__(cfg, board, rng)
-        self.cam = IdealCamera(cfg, board)
+class _TakesFrames:
+    """What a perception with a camera (``self.cam``: :class:`controllers.stc.frames.Exposures`)
+    reports of its frames, and its camera's limit."""
 
     @property
     def frames(self) -> int:
@@ -112,6 +106,17 @@ class IdealPerception(OraclePerception):
 
     def out_of_sight(self, t_s):
         return self.cam.out_of_sight(t_s) if self.cfg.stop_out_of_sight else None
+
+
+class IdealPerception(_TakesFrames, OraclePerception):
+    """The physics-limited camera: its frames' time, the marks within their horizon, the pose
+    as the oracle reads it."""
+
+    refereed = True
+
+    def __init__(self, cfg: CoverConfig, board, rng: np.random.Generator):
+        super().__init__(cfg, board, rng)
+        self.cam = IdealCamera(cfg, board)
 
     def observe(self, plant, floor, *, fresh):
         obs, dt = self.cam.observe(
@@ -136,7 +141,7 @@ class IdealPerception(OraclePerception):
         return self._heading(plant)
 
 
-class CameraPerception:
+class CameraPerception(_TakesFrames):
     """Rendered frames read by the pipeline; the robot's localisation from them."""
 
     refereed = True
@@ -147,17 +152,6 @@ class CameraPerception:
         self.cam = RobotCamera(board, cfg, rng)
         self.last_frame = None
         self.reobserved = 0
-
-    @property
-    def frames(self) -> int:
-        return self.cam.frames
-
-    @property
-    def long_frames(self) -> int:
-        return self.cam.long_frames
-
-    def out_of_sight(self, t_s):
-        return self.cam.out_of_sight(t_s) if self.cfg.stop_out_of_sight else None
 
     # ------------------------------------------------------------------ the loop's three readings
     def observe(self, plant, floor, *, fresh):
@@ -262,11 +256,17 @@ def entry_offset_to_world(off_ru, hc: int, subcell_m: float) -> np.ndarray:
     return subcell_m * (off_ru[0] * right + off_ru[1] * up)
 
 
-def make_perception(cfg: CoverConfig, board, rng: np.random.Generator) -> Perception:
-    """The perception ``cfg.perception`` names."""
-    kinds = {"oracle": OraclePerception, "ideal": IdealPerception, "camera": CameraPerception}
-    if cfg.perception not in kinds:
-        from stcvision.errors import BadInputError
+def make_perception(
+    cfg: CoverConfig, board, *, camera_rng: np.random.Generator, oracle_rng: np.random.Generator
+) -> Perception:
+    """The perception ``cfg.perception`` names: the camera draws its noise from ``camera_rng``,
+    the oracle and the physics-limited camera their read-out noise from ``oracle_rng``."""
+    if cfg.perception == "camera":
+        return CameraPerception(cfg, board, camera_rng)
+    if cfg.perception == "ideal":
+        return IdealPerception(cfg, board, oracle_rng)
+    if cfg.perception == "oracle":
+        return OraclePerception(cfg, board, oracle_rng)
+    from stcvision.errors import BadInputError
 
-        raise BadInputError(f"perception must be one of {sorted(kinds)}; got {cfg.perception!r}")
-    return kinds[cfg.perception](cfg, board, rng)
+    raise BadInputError(f"perception must be camera, ideal or oracle; got {cfg.perception!r}")

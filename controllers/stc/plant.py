@@ -83,6 +83,7 @@ class Plant:
         self.visits = np.zeros(board.shape_subcells, int)
         self.visits[self.sub] += 1
         self.moves = self.turns = 0
+        self.last_move_error_m = 0.0  # the distance error of the last forward move (drawn)
         self.max_pos_err = 0.0
 
     # ------------------------------------------------------------------ what is true
@@ -156,7 +157,8 @@ class Plant:
         beta = math.atan2(lateral, along)
         est_rate = (math.pi / 2) / self.turn_s
         beta_true = math.copysign(self.true_rate(self.t) * abs(beta) / est_rate, beta)
-        dist = math.hypot(along, lateral) + self.rng.normal(0, self.robot.drive_sigma_m)
+        self.last_move_error_m = self.rng.normal(0, self.robot.drive_sigma_m)
+        dist = math.hypot(along, lateral) + self.last_move_error_m
         self.x += dist * math.cos(self.hdg + beta_true)
         self.y += dist * math.sin(self.hdg + beta_true)
         self.t += 2 * abs(beta) / est_rate + dist / self.robot.drive_speed_m_s

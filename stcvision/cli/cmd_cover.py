@@ -36,13 +36,21 @@ def add_parser(p):
         help="webcam: 1/30 s (the seed's camera); auto: plus a long frame (default: auto)",
     )
     p.add_argument("--seed", type=int, default=0, help="seed of the board, the robot and the camera (default 0)")
+    p.add_argument(
+        "--camera",
+        default="webcam",
+        metavar="NAME|FILE.json",
+        help="camera preset (webcam, lowlight, cooled; --list-cameras) or a camera JSON file (default webcam)",
+    )
+    p.add_argument("--robot", default="lego", metavar="NAME|FILE.json", help="robot preset (lego) or a robot JSON file")
+    p.add_argument("--list-cameras", action="store_true", help="list the camera presets with their sources")
+    p.add_argument("--list-robots", action="store_true", help="list the robot presets with their sources")
     p.add_argument("--rrd", metavar="OUT.rrd", help="rerun recording of the world, the camera stages and each decision")
     p.add_argument("--force", action="store_true", help="overwrite --rrd")
 
 
 def load_board(args):
-    import numpy as np
-
+    from controllers.stc.loop import streams
     from sim_camera.board import Board
     from stcvision.errors import BadInputError
 
@@ -53,7 +61,9 @@ def load_board(args):
         raise BadInputError(f"--board must be at least 1x1 cells, got {w}x{h}")
     if not 0 <= args.obstacle_fraction < 1:
         raise BadInputError(f"--obstacle-fraction must be in [0, 1), got {args.obstacle_fraction}")
-    board = Board.random((h, w), obstacle_fraction=args.obstacle_fraction, rng=np.random.default_rng(args.seed))
+    # the board's own stream of the run's seed (controllers.stc.loop.streams)
+    rng = streams(args.seed)["board"]
+    board = Board.random((h, w), obstacle_fraction=args.obstacle_fraction, rng=rng)
     if args.start:
         board = Board(board.blocked, args.start, board.subcell_m)
     return board
@@ -63,8 +73,14 @@ def run(args):
     from pathlib import Path
 
     from controllers.stc.loop import CoverConfig, run_cover
+    from sim_camera import hardware
     from stcvision.errors import FileExistsRefusedError
 
+    if args.list_cameras:
+        return [hardware.camera_to_dict(c) for c in hardware.CAMERAS.values()]
+    if args.list_robots:
+        return [hardware.robot_to_dict(r) for r in hardware.ROBOTS.values()]
+    camera, robot = hardware.load_camera(args.camera), hardware.load_robot(args.robot)
     board = load_board(args)
     exposure = args.exposure_s if args.exposure_s is not None else (args.exposure or "auto")
     if args.exposure_s is not None and not 0 < args.exposure_s <= 60:
@@ -73,7 +89,7 @@ def run(args):
         raise BadInputError(f"--exposure-s must be in (0, 60] seconds, got {args.exposure_s}")
     if args.rrd and Path(args.rrd).exists() and not args.force:
         raise FileExistsRefusedError(f"{args.rrd} exists; refusing to overwrite it (use --force)")
-    cfg = CoverConfig(perception=args.perception, exposure=exposure, seed=args.seed)
+    cfg = CoverConfig(perception=args.perception, exposure=exposure, seed=args.seed, camera=camera, robot=robot)
     recorder = None
     if args.rrd:
         from controllers.stc.recorder import CoverRecorder
@@ -89,11 +105,20 @@ def run(args):
 
 
 def format_text(r):
+    if isinstance(r, list):  # --list-cameras / --list-robots
+        out = []
+        for p in r:
+            figs = p.get(
+                "sensor", {k: v for k, v in p.items() if k not in ("schema_version", "kind", "name", "sources")}
+            )
+            out.append(f"{p['name']}: " + ", ".join(f"{k} {v}" for k, v in figs.items() if k != "description"))
+            out += [f"    {k}: {v}" for k, v in p["sources"].items()]
+        return "\n".join(out)
     rows = [
         (
             "board",
             f"{r['board_cells'][0]}x{r['board_cells'][1]} cells, perception {r['perception']}, "
-            f"exposure {r['exposure']}",
+            f"exposure {r['exposure']}, camera {r['camera']}, robot {r['robot']}",
         ),
         ("sub-cells covered / reachable", f"{r['subcells_covered']} / {r['subcells_reachable']}"),
         ("covered more than once", str(r["subcells_covered_more_than_once"])),
