@@ -100,6 +100,7 @@ class Exposures:
             self.ladder = ((e, cfg.gain if cfg.gain is not None else max(1.0, min(16.0, 16.0 * (1 / 30) / e * 4)), 1),)
         self.frames = 0
         self.long_frames = 0
+        self.per_rung = [0] * len(self.ladder)  # frames taken at each rung
 
     def horizons(self, reach_m: float = AUTO_REACH_M) -> tuple[float, ...]:
         """The long rungs' visibility horizons (s) for a dot ``reach_m`` from the robot."""
@@ -154,6 +155,7 @@ class Exposures:
         """Counts a frame at rung ``k``; returns the seconds it takes (all its exposures)."""
         self.frames += 1
         self.long_frames += k > 0
+        self.per_rung[k] += 1
         return self.ladder[k][0] * self.stack(k)
 
 

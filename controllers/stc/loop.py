@@ -57,15 +57,18 @@ def is_complete(summary: dict) -> bool:
     )
 
 
-def run_cover(board, cfg: CoverConfig | None = None, *, observers=()) -> dict:
+def run_cover(board, cfg: CoverConfig | None = None, *, observers=(), perception_hook=None) -> dict:
     """Cover ``board`` from its start sub-cell; returns the summary the CLI prints.
-    ``observers``: :class:`controllers.stc.observers.Observer` s (None entries are skipped)."""
+    ``observers``: :class:`controllers.stc.observers.Observer` s (None entries are skipped);
+    ``perception_hook(perception)`` is handed the run's perception (e.g. to read its frames)."""
     wall0 = time.perf_counter()
     cfg = cfg if cfg is not None else CoverConfig()
     rngs = streams(cfg.seed)
     plant = Plant(board, cfg.robot, rngs["motion"])
     floor = Floor(board)
     see = make_perception(cfg, board, camera_rng=rngs["camera"], oracle_rng=rngs["oracle"])
+    if perception_hook is not None:
+        perception_hook(see)
     watch = Observers([*observers, *([_trace()] if cfg.trace else [])])
     referee = Referee(board, active=see.refereed, report=watch.on_referee)
     state, decisions, looks, finished, abort = initial_state(), 0, 0, False, None

@@ -15,6 +15,13 @@ from __future__ import annotations
 def add_parser(p):
     from stcvision.cli._args import pair
 
+    p.add_argument(
+        "action",
+        nargs="?",
+        choices=("plan",),
+        help="plan: what the tour needs of the camera, from the physics-limited camera (exposure auto; seconds): "
+        "does it converge, how long, the oldest mark it reads, the frame lengths it uses",
+    )
     src = p.add_mutually_exclusive_group()
     src.add_argument("--map", metavar="FILE", help="board map: .txt ('.', '#', 'S') or .png")
     src.add_argument("--board", type=pair(int), metavar="WxH", help="random board of W x H cells (default 4x4)")
@@ -82,6 +89,10 @@ def run(args):
         return [hardware.robot_to_dict(r) for r in hardware.ROBOTS.values()]
     camera, robot = hardware.load_camera(args.camera), hardware.load_robot(args.robot)
     board = load_board(args)
+    if args.action == "plan":
+        from controllers.stc.plan import plan
+
+        return plan(board, CoverConfig(seed=args.seed, camera=camera, robot=robot))
     exposure = args.exposure_s if args.exposure_s is not None else (args.exposure or "auto")
     if args.exposure_s is not None and not 0 < args.exposure_s <= 60:
         from stcvision.errors import BadInputError
@@ -114,6 +125,18 @@ def format_text(r):
             out.append(f"{p['name']}: " + ", ".join(f"{k} {v}" for k, v in figs.items() if k != "description"))
             out += [f"    {k}: {v}" for k, v in p["sources"].items()]
         return "\n".join(out)
+    if "converges" in r:  # cover plan
+        sizes = ", ".join(f"{f['frame_s']:g} s x {f['count']}" for f in r["frames"])
+        return "\n".join(
+            [
+                f"board {r['board_cells'][0]}x{r['board_cells'][1]} cells, camera {r['camera']}, robot {r['robot']}",
+                f"converges: {r['converges']}" + ("" if r["converges"] else f" ({r['abort_reason'] or 'incomplete'})"),
+                f"sub-cells covered / reachable: {r['subcells_covered']} / {r['subcells_reachable']}",
+                f"tour: {r['tour_s']:.0f} s; oldest mark read: {r['oldest_mark_read_s']:.0f} s; "
+                f"longest frame sees {r['horizon_limit_s']:.0f} s back",
+                f"frames (length x count): {sizes}",
+            ]
+        )
     rows = [
         (
             "board",

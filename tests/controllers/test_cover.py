@@ -312,3 +312,20 @@ def test_closed_loop_is_deterministic_and_perceptions_share_the_motion_noise():
     assert len(set(ea.values())) == a["moves"]  # each move its own draw
     other_seed = run_cover(board, CoverConfig(perception="oracle", seed=6))
     assert other_seed["turn_rate_error_pct"] != a["turn_rate_error_pct"]
+
+
+def test_cover_plan_says_which_camera_a_map_needs(peer_data, capsys):
+    """`stcvision cover plan` (the physics-limited camera, issue 16.8): on spiral_stc_test.png at
+    the Lego defaults the webcam's tour runs past its longest frame (64 x 30 s), the low-light
+    camera's converges with frames of at most 30 s."""
+    spiral = str(peer_data / "pythonrobotics_maps" / "spiral_stc_test.png")
+    out = {}
+    for camera in ("webcam", "lowlight"):
+        assert main(["cover", "plan", "--map", spiral, "--camera", camera, "--json"]) == 0
+        out[camera] = json.loads(capsys.readouterr().out)
+    web, low = out["webcam"], out["lowlight"]
+    assert not web["converges"] and web["abort_reason"].startswith("out of sight")
+    assert web["longest_frame_s"] == 64 * 30.0 and web["tour_s"] > web["horizon_limit_s"]
+    assert low["converges"] and low["subcells_covered"] == low["subcells_reachable"] == 1024
+    assert low["longest_frame_s"] <= 30.0 and low["oldest_mark_read_s"] < low["tour_s"] < 20_000
+    assert sum(f["frame_s"] * f["count"] for f in low["frames"]) < low["tour_s"]
