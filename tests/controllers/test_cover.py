@@ -251,10 +251,11 @@ def test_on_a_map_the_tour_outruns_its_marks_unless_frames_sit_at_the_row_thresh
     old as the tour so far, so a longer tour needs longer frames, and a return's frame grows as
     ~T^2.2 (the afterglow falls as t^-1.1, the noise as the square root of the exposure): the
     tour either converges or runs away. Frames sized for a lone dot (Rose's SNR 5, the default)
-    run past the longest frame (64 x 30 s) at ~45,700 s: "out of sight", 456 of 1,024
+    run past the longest frame (64 x 30 s) at ~43,800 s: "out of sight", 456 of 1,024
     sub-cells. Sized at exactly the row search's threshold (a row of four at a mean SNR of 3)
-    with the thriftiest reaches, the tour converges: complete in ~21,500 s. Ask for SNR 3.5
-    and it runs away again (979 sub-cells at ~67,000 s)."""
+    with the thriftiest reaches, the tour converges: complete in ~21,100 s. Ask for SNR 3.5
+    and it runs away again (985 sub-cells at ~67,300 s). (Before issue 16's random streams:
+    ~45,700 s, ~21,500 s, 979 at ~67,000 s.)"""
     board = Board.from_file(peer_data / "pythonrobotics_maps" / "spiral_stc_test.png")
     thrift = dict(perception="ideal", exposure="auto", consensus_frame=False, decision_reach_m=0.27, look_reach_m=0.33)
     default = run_cover(board, CoverConfig(perception="ideal", exposure="auto"))
