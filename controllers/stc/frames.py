@@ -81,6 +81,24 @@ def _merge(a: StcObservation, b: StcObservation) -> StcObservation:
 ROW_EQUIVALENT_STACK = (5.0 / 3.0) ** 2
 
 
+def matched_gain(sensor, exposure_s: float, webcam_gain: float) -> float:
+    """The gain at which ``sensor``'s noise in a frame of ``exposure_s`` is as many DN as the
+    seed's webcam's at ``webcam_gain``: the ladder's gains and the pipeline's DN-level
+    thresholds were chosen for the webcam, so another sensor is set to show its noise alike (and
+    its signal at its own, higher SNR). A robot setting, not the world; the webcam's own gain
+    comes back unchanged."""
+    from sim_camera.sensor import SensorParams
+
+    web = SensorParams()
+    if sensor == web:
+        return webcam_gain
+
+    def noise_e(s):
+        return (s.read_noise_e**2 + s.dark_current_e_s * exposure_s) ** 0.5
+
+    return webcam_gain * (sensor.full_well_e / web.full_well_e) * (noise_e(web) / noise_e(sensor))
+
+
 class Exposures:
     """The frames a robot's camera takes: the ladder of (exposure_s, gain) settings, the short
     webcam frame first, and which long rung the robot's clock asks for."""
@@ -92,12 +110,17 @@ class Exposures:
         self.cfg = cfg
         self._horizons: dict[float, tuple[float, ...]] = {}
         if cfg.exposure == "auto":
-            self.ladder = (WEBCAM, *AUTO_LONG)
+            ladder = (WEBCAM, *AUTO_LONG)
         elif cfg.exposure == "webcam":
-            self.ladder = (WEBCAM,)
+            ladder = (WEBCAM,)
         else:
             e = float(cfg.exposure)
-            self.ladder = ((e, cfg.gain if cfg.gain is not None else max(1.0, min(16.0, 16.0 * (1 / 30) / e * 4)), 1),)
+            ladder = ((e, max(1.0, min(16.0, 16.0 * (1 / 30) / e * 4)), 1),)
+        if cfg.gain is not None and cfg.exposure not in ("auto", "webcam"):
+            ladder = ((ladder[0][0], cfg.gain, 1),)
+        else:
+            ladder = tuple((e, matched_gain(self.cam.sensor, e, g), n) for e, g, n in ladder)
+        self.ladder = ladder
         self.frames = 0
         self.long_frames = 0
         self.per_rung = [0] * len(self.ladder)  # frames taken at each rung

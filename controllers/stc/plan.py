@@ -12,6 +12,7 @@ physics-limited camera").
 from __future__ import annotations
 
 import dataclasses
+import math
 
 from controllers.stc.config import CoverConfig
 from controllers.stc.loop import is_complete, run_cover
@@ -26,6 +27,7 @@ def plan(board, cfg: CoverConfig | None = None) -> dict:
     seen: list[IdealPerception] = []
     r = run_cover(board, cfg, perception_hook=seen.append)
     cam = seen[0].cam
+    limit = cam.horizons(cfg.decision_reach_m)[-1]
     frames = [
         {"exposure_s": e, "gain": g, "stack": cam.stack(k), "frame_s": e * cam.stack(k), "count": n}
         for k, ((e, g, _), n) in enumerate(zip(cam.ladder, cam.per_rung, strict=True))
@@ -42,7 +44,8 @@ def plan(board, cfg: CoverConfig | None = None) -> dict:
         "tour_s": r["sim_time_s"],
         "oldest_mark_read_s": r["max_mark_age_read_s"],
         "longest_frame_s": max(f["frame_s"] for f in frames),
-        "horizon_limit_s": cam.horizons(cfg.decision_reach_m)[-1],
+        # how old a mark the longest frame still sees at the decision's reach (None: any age)
+        "horizon_limit_s": limit if math.isfinite(limit) else None,
         "frames": frames,
         "wall_s": r["wall_s"],
     }

@@ -132,8 +132,8 @@ def format_text(r):
                 f"board {r['board_cells'][0]}x{r['board_cells'][1]} cells, camera {r['camera']}, robot {r['robot']}",
                 f"converges: {r['converges']}" + ("" if r["converges"] else f" ({r['abort_reason'] or 'incomplete'})"),
                 f"sub-cells covered / reachable: {r['subcells_covered']} / {r['subcells_reachable']}",
-                f"tour: {r['tour_s']:.0f} s; oldest mark read: {r['oldest_mark_read_s']:.0f} s; "
-                f"longest frame sees {r['horizon_limit_s']:.0f} s back",
+                f"tour: {r['tour_s']:.0f} s; oldest mark read: {r['oldest_mark_read_s']:.0f} s; longest frame sees "
+                + (f"{r['horizon_limit_s']:.0f} s back" if r["horizon_limit_s"] is not None else "marks of any age"),
                 f"frames (length x count): {sizes}",
             ]
         )
