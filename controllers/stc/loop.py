@@ -28,6 +28,7 @@ import numpy as np
 from controllers.stc.config import CoverConfig
 from controllers.stc.fsm import Action, LookObs, StcPhase, decide, initial_state, step
 from controllers.stc.observers import Observers, Reading
+from controllers.stc.oracle import coverage
 from controllers.stc.perception import make_perception
 from controllers.stc.plant import Floor, Plant
 from controllers.stc.referee import Referee
@@ -130,22 +131,15 @@ def _trace():
 
 
 def _summary(board, cfg, plant, see, referee, *, decisions, looks, finished, abort, wall_s) -> dict:
-    reachable = board.reachable_cells()
-    start = tuple(board.start_subcell)
-    closed = finished and plant.sub == start and plant.moves > 0
-    repeat = plant.visits.copy()
-    if closed:  # the tour closes on the start sub-cell: that last arrival is not a second coverage
-        repeat[plant.sub] -= 1
+    cov = coverage(board, plant.visits, plant.sub, finished=finished, moves=plant.moves)
     out = {
         "perception": cfg.perception,
         "exposure": cfg.exposure,
         "camera": cfg.camera.name,
         "robot": cfg.robot.name,
         "board_cells": list(board.shape_cells),
-        "subcells_reachable": int(4 * reachable.sum()),
-        "subcells_covered": int((plant.visits > 0).sum()),
-        "subcells_covered_more_than_once": int((repeat > 1).sum()),
-        "returned_to_start": (plant.sub[0] // 2, plant.sub[1] // 2) == board.start_cell,
+        **{k: cov[k] for k in ("subcells_reachable", "subcells_covered", "subcells_covered_more_than_once")},
+        "returned_to_start": cov["returned_to_start"],
         "finished": finished,
         "abort_reason": abort,
         "moves": plant.moves,

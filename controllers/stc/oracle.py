@@ -17,7 +17,7 @@ from controllers.stc.fsm import Action, LookObs, NeighbourObs, StcObservation, S
 from controllers.stc.geometry import BOXES, COMPASS_NAMES, COMPASS_VEC, frame_compass, frame_subcells, start_heading
 from stcvision.stcgrid import START_MARKS
 
-__all__ = ["MarkFloor", "look_oracle", "observe_oracle", "run_oracle"]
+__all__ = ["MarkFloor", "coverage", "look_oracle", "observe_oracle", "run_oracle"]
 
 
 class MarkFloor:
@@ -151,20 +151,8 @@ def run_oracle(board, *, max_steps: int = 1_000_000, keep_mismatches: int = 20, 
         elif action is Action.DONE:
             finished = True
             break
-    reachable = board.reachable_cells()
-    # the tour closes on the start sub-cell: that last arrival is not a second coverage
-    closed_loop = finished and s == tuple(board.start_subcell) and moves > 0
-    repeat = visits.copy()
-    if closed_loop:
-        repeat[s] -= 1
     return {
-        "subcells_reachable": int(4 * reachable.sum()),
-        "subcells_covered": int((visits > 0).sum()),
-        "subcells_covered_more_than_once": int((repeat > 1).sum()),
-        "closed_loop": closed_loop,
-        "subcells_uncovered_reachable": int((~(visits > 0) & np.repeat(np.repeat(reachable, 2, 0), 2, 1)).sum()),
-        "returned_to_start": (s[0] // 2, s[1] // 2) == start_cell,
-        "finished": finished,
+        **coverage(board, visits, s, finished=finished, moves=moves),
         "moves": moves,
         "turns": turns,
         "marks": marks,
@@ -177,6 +165,26 @@ def run_oracle(board, *, max_steps: int = 1_000_000, keep_mismatches: int = 20, 
         "decision_mismatches": n_mismatch,
         "mismatch_examples": mismatches,
         "final_subcell": s,
+    }
+
+
+def coverage(board, visits: np.ndarray, final_sub: tuple[int, int], *, finished: bool, moves: int) -> dict:
+    """What a tour covered (``visits``: per sub-cell) and where it ended. The tour closes on the
+    start sub-cell: that last arrival is not a second coverage (``closed_loop``); every other
+    re-entry counts."""
+    reachable = board.reachable_cells()
+    closed_loop = finished and tuple(final_sub) == tuple(board.start_subcell) and moves > 0
+    repeat = visits.copy()
+    if closed_loop:
+        repeat[final_sub] -= 1
+    return {
+        "subcells_reachable": int(4 * reachable.sum()),
+        "subcells_covered": int((visits > 0).sum()),
+        "subcells_covered_more_than_once": int((repeat > 1).sum()),
+        "closed_loop": closed_loop,
+        "subcells_uncovered_reachable": int((~(visits > 0) & np.repeat(np.repeat(reachable, 2, 0), 2, 1)).sum()),
+        "returned_to_start": (final_sub[0] // 2, final_sub[1] // 2) == board.start_cell,
+        "finished": finished,
     }
 
 
