@@ -21,8 +21,9 @@ JSON (``schema_version`` 1; unit-suffixed keys)::
 A camera file may set any other ``SensorParams`` field too; unknown keys and other schema
 versions are refused with a one-line reason (:class:`stcvision.errors.BadInputError`).
 
-Limitation: frames are 8-bit whatever ``adc_bits`` says (issue 16.5 is not done): with a
-sensor of a large full well and little noise, the ladder's gains quantise faint marks away.
+Limitation: frames are 8-bit whatever ``adc_bits`` says (issue 16.5 is not done); the coverage
+loop sets a non-webcam sensor's gains so that its noise shows as many DN as the webcam's
+(:func:`controllers.stc.frames.matched_gain`), else its faint marks would be quantised away.
 """
 
 from __future__ import annotations
