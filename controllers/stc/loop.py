@@ -158,6 +158,8 @@ def _summary(board, cfg, plant, see, referee, *, decisions, looks, finished, abo
         "frames": see.frames,
         "long_exposures": see.long_frames,
     }
+    # the referee's verdict: the robot's "finished" says only that it believes it is done
+    out["complete"] = is_complete(out)
     if referee.first_error is not None:
         out["first_decision_error"] = referee.first_error
     return out

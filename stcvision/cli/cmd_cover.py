@@ -145,6 +145,7 @@ def format_text(r):
         ),
         ("sub-cells covered / reachable", f"{r['subcells_covered']} / {r['subcells_reachable']}"),
         ("covered more than once", str(r["subcells_covered_more_than_once"])),
+        ("complete (every sub-cell once, back, no error)", str(r["complete"])),
         ("finished / back in start cell", f"{r['finished']} / {r['returned_to_start']}"),
         ("abort reason", str(r["abort_reason"])),
         ("moves / turns / decisions", f"{r['moves']} / {r['turns']} / {r['decisions']}"),

@@ -97,9 +97,10 @@ def test_cover_cli_json_and_rerun_recording(tmp_path, capsys):
         "wall_s",
         "decision_errors",
         "max_mark_age_read_s",
+        "complete",
     ):
         assert key in r
-    assert complete(r)
+    assert complete(r) and r["complete"]
     rerun = shutil.which("rerun", path=str(Path(sys.executable).parent))
     assert subprocess.run([rerun, "rrd", "verify", str(rrd)], capture_output=True).returncode == 0
     text = subprocess.run([rerun, "rrd", "print", "-v", str(rrd)], capture_output=True, text=True).stdout
