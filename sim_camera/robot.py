@@ -27,9 +27,12 @@ Presets (every number with its source; "assumed" means the seeds give none):
   uncalibrated errors Borenstein & Feng 1996 report for their platforms.
 * :data:`LEGO_STC` -- the ant-like STC robot (seed 003). Radius 70 mm so it fits a 0.16 m
   sub-cell (the default board); LEGO 56 mm tyres; wheelbase 0.12 m; NXT-style motor encoders at
-  360 counts/rev; cruise 0.08 m/s; turn wheel speed 0.063 m/s so a nominal 90-degree turn takes
-  1.5 s; motor gain +-10 % per robot and 20 %/h battery fade (assumed; the seed gives only the
-  qualitative statement above); Ed = 1.005, Eb = 1.03 (assumed: a flexible Lego frame).
+  360 counts/rev; cruise 0.08 m/s; turn wheel speed 0.0628 m/s so a nominal 90-degree turn takes
+  1.5 s (exactly: the wheel speed is derived from it); motor gain +-10 % per robot and 20 %/h
+  battery fade (assumed; the seed gives only the qualitative statement above); Ed = 1.005,
+  Eb = 1.03 (assumed: a flexible Lego frame).
+* :data:`LEGO_STC_ROBOT` -- the same robot as the coverage loop's kinematic plant sees it
+  (:class:`MarkingRobot`): motion from :data:`LEGO_STC`, LED-on time and timing cited there.
 """
 
 from __future__ import annotations
@@ -47,9 +50,11 @@ from stcvision.errors import BadInputError
 __all__ = [
     "KHEPERA",
     "LEGO_STC",
+    "LEGO_STC_ROBOT",
     "TASTI2",
     "DiffDriveParams",
     "DiffDriveRobot",
+    "MarkingRobot",
     "MotionMode",
     "MotionResult",
 ]
@@ -144,7 +149,7 @@ LEGO_STC = DiffDriveParams(
     wheel_diameter_m=0.056,
     max_wheel_speed_m_s=0.15,
     cruise_speed_m_s=0.08,
-    turn_wheel_speed_m_s=0.0628,
+    turn_wheel_speed_m_s=0.12 * (math.pi / 2) / (2 * 1.5),  # b x 90 deg / (2 x 1.5 s): 0.0628 m/s
     encoder_lines_per_rev=90,
     mass_kg=0.8,
     ed=1.005,
@@ -423,3 +428,79 @@ class DiffDriveRobot:
                     self._finish("done")
             elif p["t"] >= p["duration"] - 1e-12:
                 self._finish("done")
+
+
+@dataclass(frozen=True, kw_only=True, slots=True)
+class MarkingRobot:
+    """A robot that marks the floor as it covers it (the ant-like STC robot), as the coverage
+    loop's kinematic plant sees it: one sub-cell per forward move, timed 90-degree turns.
+
+    :meth:`from_body` takes the motion figures from a :class:`DiffDriveParams` preset (one source
+    for every number); a JSON profile gives them directly (:mod:`sim_camera.hardware`)."""
+
+    name: str
+    drive_speed_m_s: float  # cruise speed of a forward move
+    turn_90_s: float  # a nominal robot's 90-degree timed turn
+    rate_spread: float  # turn rate off nominal by U(-s, s) per robot (motor gain)
+    fade_per_h: float  # the turn rate fades by this fraction per hour (battery; floor 0.5)
+    led_on_s: float  # rear UV LEDs on before every forward move
+    drive_sigma_m: float  # distance error of one forward move (1 sigma)
+    initial_turn_error: float  # the turn time T set before the run is off by this (1 sigma, relative)
+    settle_s: float  # stop, take a webcam frame and decide
+    #: where each figure comes from (figure name -> citation)
+    sources: tuple[tuple[str, str], ...] = ()
+
+    def __post_init__(self):
+        for k in ("drive_speed_m_s", "turn_90_s", "led_on_s"):
+            v = getattr(self, k)
+            if not (isinstance(v, int | float) and math.isfinite(v) and v > 0):
+                raise BadInputError(f"robot {self.name!r}: {k} must be a positive number; got {v!r}")
+        for k in ("rate_spread", "fade_per_h", "drive_sigma_m", "initial_turn_error", "settle_s"):
+            v = getattr(self, k)
+            if not (isinstance(v, int | float) and math.isfinite(v) and v >= 0):
+                raise BadInputError(f"robot {self.name!r}: {k} must be a number >= 0; got {v!r}")
+        if self.rate_spread >= 1:
+            raise BadInputError(f"robot {self.name!r}: rate_spread must be below 1; got {self.rate_spread}")
+
+    @classmethod
+    def from_body(cls, body: DiffDriveParams, **kw) -> MarkingRobot:
+        """The cruise speed, the nominal 90-degree turn (``pi / 2`` over
+        :attr:`DiffDriveParams.nominal_turn_rate_rad_s`), the motor gain spread and the battery
+        fade from ``body``; the rest from ``kw``."""
+        return cls(
+            name=kw.pop("name", body.name),
+            drive_speed_m_s=body.cruise_speed_m_s,
+            turn_90_s=(math.pi / 2) / body.nominal_turn_rate_rad_s,
+            rate_spread=body.speed_gain_spread,
+            fade_per_h=body.battery_fade_per_h,
+            **kw,
+        )
+
+
+#: The seed 003 Lego robot for the coverage loop: motion from :data:`LEGO_STC` (see the module
+#: docstring for its sources), marking and timing figures cited below.
+LEGO_STC_ROBOT = MarkingRobot.from_body(
+    LEGO_STC,
+    name="lego",
+    led_on_s=3.0,
+    drive_sigma_m=0.002,
+    initial_turn_error=0.01,
+    settle_s=0.3,
+    sources=(
+        ("drive_speed_m_s", "LEGO_STC.cruise_speed_m_s (assumed: a slow Lego robot, 2 s per 16 cm sub-cell)"),
+        ("turn_90_s", "LEGO_STC: 1.5 s (assumed), its turn wheel speed over its 0.12 m wheelbase"),
+        (
+            "rate_spread",
+            "LEGO_STC.speed_gain_spread (assumed; seed 003: 'a 90 degree turn, wasn't actually 90 degree')",
+        ),
+        ("fade_per_h", "LEGO_STC.battery_fade_per_h (assumed; seed 003: 'Because of the battery decay')"),
+        ("led_on_s", "seed 003: the rear UV LEDs are switched on 'for a few seconds'"),
+        ("drive_sigma_m", "assumed: 2 mm per 16 cm move (a Lego frame on wheels, no encoder feedback)"),
+        (
+            "initial_turn_error",
+            "seed 003: 'We initially set T to a time that let's the robot do the first rotation accurate "
+            "enough' -- 1 % assumed",
+        ),
+        ("settle_s", "assumed: stop, one webcam frame (1/30 s) and the pipeline"),
+    ),
+)

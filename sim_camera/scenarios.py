@@ -31,18 +31,18 @@ class CellScene:
         self.t_s = t_s
 
 
-def _free_cell_with_free_back(board: Board, rng, heading4: int):
+def _free_cell_with_free_back(board: Board, rng, heading_rad: float):
     """A free cell whose 'back' neighbour (the parent the robot came from) is free too."""
+    right, up, _ = entry_frame(heading_rad)
+    back = NEIGHBOURS["back"][0] * right + NEIGHBOURS["back"][1] * up  # world (x east, y north)
+    di, dj = -round(back[1]), round(back[0])  # board rows run north to south
     cr, cc = board.shape_cells
-    cand = []
-    for ci in range(cr):
-        for cj in range(cc):
-            if not board.cell_free[ci, cj]:
-                continue
-            # back neighbour in cell indices: heading north (1) -> back is south (ci + 1)
-            di, dj = {0: (0, -1), 1: (1, 0), 2: (0, 1), 3: (-1, 0)}[heading4]
-            if board.is_cell_free(ci + di, cj + dj):
-                cand.append((ci, cj))
+    cand = [
+        (ci, cj)
+        for ci in range(cr)
+        for cj in range(cc)
+        if board.cell_free[ci, cj] and board.is_cell_free(ci + di, cj + dj)
+    ]
     if not cand:
         raise ValueError("board has no free cell with a free neighbour")
     return cand[rng.integers(len(cand))]
@@ -64,9 +64,8 @@ def cell_scene(
 ) -> CellScene:
     """A random STC entry situation (see the module docstring)."""
     board = Board.random(cells, obstacle_fraction=obstacle_fraction, rng=rng, subcell_m=subcell_m)
-    h4 = int(rng.integers(4))
-    ci, cj = _free_cell_with_free_back(board, rng, h4)
-    heading = h4 * np.pi / 2
+    heading = int(rng.integers(4)) * np.pi / 2  # a world angle, a multiple of 90 degrees
+    ci, cj = _free_cell_with_free_back(board, rng, heading)
     right, up, _ = entry_frame(heading)
     D = board.subcell_m
     centre = board.cell_center_m(ci, cj)
@@ -102,6 +101,6 @@ def cell_scene(
         if board.is_cell_free(nci, ncj) and rng.random() < neighbour_mark_prob:
             k = int(rng.integers(4))
             sr, su = SUBCELL_SIGNS[k]
-            edge = [(1, 0), (0, 1), (-1, 0), (0, -1)][rng.integers(4)]
+            edge = list(NEIGHBOURS.values())[rng.integers(4)]  # any of the four edges
             lay(nc + D / 2 * (sr * right + su * up), edge, rng.uniform(*age_range_s), name)
     return CellScene(board, pose, layer, marks)

@@ -1,19 +1,7 @@
 """The per-cell observation the ant-like STC controller consumes.
 
-Geometry (``../shared/DESIGN.md``): in the entry frame the robot stands in sub-cell 0 (lower
-right) of its cell; sub-cells are numbered counter-clockwise 0..3; five boxes can be lit:
-
-==== ========== =====================
-box  sub-cell   edge
-==== ========== =====================
-1    1          right (exterior)
-2    2          top (exterior)
-3    2          right (shared with 1)
-4    3          top (shared with 2)
-5    1          bottom (shared with 0)
-==== ========== =====================
-
-Sub-cell 1 is visited iff box 1 or 5 is lit, 2 iff box 2 or 3, 3 iff box 4.
+Geometry: :mod:`stcvision.stcgrid` (the entry frame, sub-cells 0..3, the five boxes, the
+start mark; shared with the controller).
 
 Where the cells are in the ground view comes from the profile's neighbours calibration (the 12
 corners of the five cells), through a homography to *cell units* (the entry frame in units of
@@ -32,6 +20,7 @@ import cv2
 import numpy as np
 
 from stcvision.profile import CORNER_ORDER, ROBOT_IN_CELL
+from stcvision.stcgrid import BOXES, DIRECTIONS, NEIGHBOURS, START_MARKS, SUBCELLS, VISITED_BY
 
 __all__ = [
     "BOXES",
@@ -43,13 +32,6 @@ __all__ = [
     "marks_ahead",
     "observe_cell",
 ]
-
-#: box -> (sub-cell, edge direction (right, up))
-BOXES = {1: (1, (1, 0)), 2: (2, (0, 1)), 3: (2, (1, 0)), 4: (3, (0, 1)), 5: (1, (0, -1))}
-#: sub-cell -> sign of its centre (right, up) in cell units
-SUBCELLS = {0: (1, -1), 1: (1, 1), 2: (-1, 1), 3: (-1, -1)}
-#: neighbour -> direction (right, up); counter-clockwise order starting at "right"
-NEIGHBOURS = {"right": (1, 0), "forward": (0, 1), "left": (-1, 0), "back": (0, -1)}
 
 
 @dataclass(frozen=True, eq=False)
@@ -191,8 +173,9 @@ def assign_boxes(ru: np.ndarray, orient: np.ndarray | None = None) -> tuple[np.n
         orient = row_orientation(ru)
     inside = (np.abs(r) < 1) & (np.abs(u) < 1)
     right, up = r >= 0, u >= 0
-    sub = np.where(right & ~up, 0, np.where(right & up, 1, np.where(~right & up, 2, 3)))
-    sub = np.where(inside, sub, -1)
+    sub = np.full(len(ru), -1)
+    for k, (sr, su) in SUBCELLS.items():
+        sub[inside & (right == (sr > 0)) & (up == (su > 0))] = k
     lr = r - np.where(right, 0.5, -0.5)
     lu = u - np.where(up, 0.5, -0.5)
     horiz = np.where(orient == 1, True, np.where(orient == 0, False, np.abs(lr) > np.abs(lu)))
@@ -201,9 +184,10 @@ def assign_boxes(ru: np.ndarray, orient: np.ndarray | None = None) -> tuple[np.n
     box = np.zeros(len(ru), int)
     for b, (k, (ber, beu)) in BOXES.items():
         box[(sub == k) & (er == ber) & (eu == beu)] = b
-    # the start mark (controllers.stc): sub-cell m along its exterior edge in direction m, coded
-    # as box -m (m = 1, 2, 3; sub-cell 0's is under the robot)
-    for m, (ser, seu) in ((1, (0, 1)), (2, (-1, 0)), (3, (0, -1))):
+    # the start mark: sub-cell m along its exterior edge in direction m, coded as box -m
+    # (m = 1, 2, 3; sub-cell 0's is under the robot)
+    for m in (1, 2, 3):
+        ser, seu = DIRECTIONS[START_MARKS[m]]
         box[(sub == m) & (er == ser) & (eu == seu)] = -m
     nb = np.full(len(ru), -1)
     for i, (dr, du) in enumerate(NEIGHBOURS.values()):
@@ -432,7 +416,7 @@ def observe_cell(
         lit_sel = sel & dots.lit
         boxes.append(BoxReading(b, bool(lit_sel.sum() >= params.min_dots), conf, int(lit_sel.sum())))
     lit_b = {b.box: b.lit for b in boxes}
-    visited = {1: lit_b[1] or lit_b[5], 2: lit_b[2] or lit_b[3], 3: lit_b[4]}
+    visited = {m: any(lit_b[b] for b in boxes_) for m, boxes_ in VISITED_BY.items()}
     stray = int(((sub >= 0) & (box == 0) & dots.lit).sum()) if len(ru) else 0
     start_mark = None
     for m in (1, 2, 3):

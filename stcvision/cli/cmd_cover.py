@@ -8,7 +8,11 @@ could show (the physics-limited camera, no pipeline). --exposure webcam is the s
 (1/30 s); auto adds long frames sized by the robot's clock (2-30 s, then stacked 30 s frames) for
 the dim old marks; or give --exposure-s X.
 
+  stcvision cover plan --map M --camera C [--robot R]
   stcvision cover sweep --sizes 2,3,4 --runs 6 --out DIR [--workers N | --scheduler tcp://H:P]
+
+plan says what the tour needs of the camera, from the physics-limited camera (exposure auto):
+does it converge, how long, the oldest mark it reads, the frame lengths it uses. sweep
 
 runs the robot over boards x seeds x exposure modes x perceptions through the sweep runner
 (resumable; see README 'Scaling out') and writes a table (summary.md, table.csv, runs.csv) and a
@@ -21,18 +25,20 @@ from __future__ import annotations
 def add_parser(p):
     import argparse
 
-    from stcvision.cli._args import pair
-
     p.formatter_class = argparse.RawDescriptionHelpFormatter  # keep the usage lines of the docstring
-    # 'stcvision cover --board 4x4' stays a flat command; a leading 'sweep' is an optional sub-action
-    sub = p.add_subparsers(dest="action", metavar="{sweep}", parser_class=type(p))
+    # 'stcvision cover --board 4x4' stays a flat command; a leading 'plan' or 'sweep' is a sub-action
+    sub = p.add_subparsers(dest="action", metavar="{plan,sweep}", parser_class=type(p))
     _add_sweep_parser(sub)
-
-    src = p.add_mutually_exclusive_group()
-    src.add_argument("--map", metavar="FILE", help="board map: .txt ('.', '#', 'S') or .png")
-    src.add_argument("--board", type=pair(int), metavar="WxH", help="random board of W x H cells (default 4x4)")
-    p.add_argument("--obstacle-fraction", type=float, default=0.15, help="for --board (default 0.15)")
-    p.add_argument("--start", type=pair(int), metavar="I,J", help="start sub-cell (row, column)")
+    plan = sub.add_parser(
+        "plan",
+        help="what the tour needs of the camera, from the physics-limited camera",
+        description="Does the tour converge with this camera and robot, how long does it take, the oldest mark "
+        "it must read, the frame lengths it uses (the physics-limited camera, exposure auto; seconds).",
+    )
+    _add_board_arguments(plan)
+    _add_hardware_arguments(plan)
+    plan.add_argument("--json", action="store_true", help="print the result as one JSON object")
+    _add_board_arguments(p)
     p.add_argument(
         "--perception",
         choices=("camera", "oracle", "ideal"),
@@ -48,9 +54,32 @@ def add_parser(p):
         default=None,
         help="webcam: 1/30 s (the seed's camera); auto: plus a long frame (default: auto)",
     )
-    p.add_argument("--seed", type=int, default=0, help="seed of the board, the robot and the camera (default 0)")
+    _add_hardware_arguments(p)
+    p.add_argument("--list-cameras", action="store_true", help="list the camera presets with their sources")
+    p.add_argument("--list-robots", action="store_true", help="list the robot presets with their sources")
     p.add_argument("--rrd", metavar="OUT.rrd", help="rerun recording of the world, the camera stages and each decision")
     p.add_argument("--force", action="store_true", help="overwrite --rrd")
+
+
+def _add_board_arguments(p) -> None:
+    from stcvision.cli._args import pair
+
+    src = p.add_mutually_exclusive_group()
+    src.add_argument("--map", metavar="FILE", help="board map: .txt ('.', '#', 'S') or .png")
+    src.add_argument("--board", type=pair(int), metavar="WxH", help="random board of W x H cells (default 4x4)")
+    p.add_argument("--obstacle-fraction", type=float, default=0.15, help="for --board (default 0.15)")
+    p.add_argument("--start", type=pair(int), metavar="I,J", help="start sub-cell (row, column)")
+    p.add_argument("--seed", type=int, default=0, help="seed of the board, the robot and the camera (default 0)")
+
+
+def _add_hardware_arguments(p) -> None:
+    p.add_argument(
+        "--camera",
+        default="webcam",
+        metavar="NAME|FILE.json",
+        help="camera preset (webcam, lowlight, cooled; --list-cameras) or a camera JSON file (default webcam)",
+    )
+    p.add_argument("--robot", default="lego", metavar="NAME|FILE.json", help="robot preset (lego) or a robot JSON file")
 
 
 def _add_sweep_parser(sub):
@@ -90,6 +119,7 @@ def _add_sweep_parser(sub):
             ["camera", "ideal"],
             "camera, ideal (the physics-limited camera) or oracle (default camera,ideal)",
         ),
+        ("--cameras", ["webcam"], "camera presets or JSON files (webcam, lowlight, cooled; default webcam)"),
     ):
         s.add_argument(flag, type=words, default=default, metavar=f"{flag[2].upper()},...", help=help_)
     s.add_argument("--obstacle-fraction", type=float, default=0.15, help="obstacle cells of the boards (default 0.15)")
@@ -106,9 +136,9 @@ def _add_sweep_parser(sub):
 
 
 def random_board(w: int, h: int, obstacle_fraction: float, seed: int):
-    """The random board of ``--board WxH --obstacle-fraction F --seed S`` (also the sweep's)."""
-    import numpy as np
-
+    """The random board of ``--board WxH --obstacle-fraction F --seed S`` (also the sweep's): drawn
+    from the board's own stream of the run's seed (:func:`controllers.stc.loop.streams`)."""
+    from controllers.stc.loop import streams
     from sim_camera.board import Board
     from stcvision.errors import BadInputError
 
@@ -116,7 +146,7 @@ def random_board(w: int, h: int, obstacle_fraction: float, seed: int):
         raise BadInputError(f"--board must be at least 1x1 cells, got {w}x{h}")
     if not 0 <= obstacle_fraction < 1:
         raise BadInputError(f"--obstacle-fraction must be in [0, 1), got {obstacle_fraction}")
-    return Board.random((h, w), obstacle_fraction=obstacle_fraction, rng=np.random.default_rng(seed))
+    return Board.random((h, w), obstacle_fraction=obstacle_fraction, rng=streams(seed)["board"])
 
 
 def load_board(args):
@@ -134,15 +164,25 @@ def load_board(args):
 def run(args):
     from pathlib import Path
 
-    if getattr(args, "action", None) == "sweep":
+    if args.action == "sweep":
         from stcvision.cli.cover_sweep import sweep_cover
 
         return sweep_cover(args)
 
-    from controllers.cover import CoverConfig, run_cover
+    from controllers.stc.loop import CoverConfig, run_cover
+    from sim_camera import hardware
     from stcvision.errors import FileExistsRefusedError
 
+    if getattr(args, "list_cameras", False):
+        return [hardware.camera_to_dict(c) for c in hardware.CAMERAS.values()]
+    if getattr(args, "list_robots", False):
+        return [hardware.robot_to_dict(r) for r in hardware.ROBOTS.values()]
+    camera, robot = hardware.load_camera(args.camera), hardware.load_robot(args.robot)
     board = load_board(args)
+    if args.action == "plan":
+        from controllers.stc.plan import plan
+
+        return plan(board, CoverConfig(seed=args.seed, camera=camera, robot=robot))
     exposure = args.exposure_s if args.exposure_s is not None else (args.exposure or "auto")
     if args.exposure_s is not None and not 0 < args.exposure_s <= 60:
         from stcvision.errors import BadInputError
@@ -150,14 +190,14 @@ def run(args):
         raise BadInputError(f"--exposure-s must be in (0, 60] seconds, got {args.exposure_s}")
     if args.rrd and Path(args.rrd).exists() and not args.force:
         raise FileExistsRefusedError(f"{args.rrd} exists; refusing to overwrite it (use --force)")
-    cfg = CoverConfig(perception=args.perception, exposure=exposure, seed=args.seed)
+    cfg = CoverConfig(perception=args.perception, exposure=exposure, seed=args.seed, camera=camera, robot=robot)
     recorder = None
     if args.rrd:
-        from controllers.cover_rr import CoverRecorder
+        from controllers.stc.recorder import CoverRecorder
 
         recorder = CoverRecorder(args.rrd, board)
     try:
-        result = run_cover(board, cfg, recorder=recorder)
+        result = run_cover(board, cfg, observers=[recorder])
     finally:
         if recorder is not None:
             recorder.close()
@@ -166,18 +206,40 @@ def run(args):
 
 
 def format_text(r):
-    if r.get("action") == "sweep":
+    if isinstance(r, dict) and r.get("action") == "sweep":
         from stcvision.cli.cover_sweep import format_text as sweep_text
 
         return sweep_text(r)
+    if isinstance(r, list):  # --list-cameras / --list-robots
+        out = []
+        for p in r:
+            figs = p.get(
+                "sensor", {k: v for k, v in p.items() if k not in ("schema_version", "kind", "name", "sources")}
+            )
+            out.append(f"{p['name']}: " + ", ".join(f"{k} {v}" for k, v in figs.items() if k != "description"))
+            out += [f"    {k}: {v}" for k, v in p["sources"].items()]
+        return "\n".join(out)
+    if "converges" in r:  # cover plan
+        sizes = ", ".join(f"{f['frame_s']:g} s x {f['count']}" for f in r["frames"])
+        return "\n".join(
+            [
+                f"board {r['board_cells'][0]}x{r['board_cells'][1]} cells, camera {r['camera']}, robot {r['robot']}",
+                f"converges: {r['converges']}" + ("" if r["converges"] else f" ({r['abort_reason'] or 'incomplete'})"),
+                f"sub-cells covered / reachable: {r['subcells_covered']} / {r['subcells_reachable']}",
+                f"tour: {r['tour_s']:.0f} s; oldest mark read: {r['oldest_mark_read_s']:.0f} s; longest frame sees "
+                + (f"{r['horizon_limit_s']:.0f} s back" if r["horizon_limit_s"] is not None else "marks of any age"),
+                f"frames (length x count): {sizes}",
+            ]
+        )
     rows = [
         (
             "board",
             f"{r['board_cells'][0]}x{r['board_cells'][1]} cells, perception {r['perception']}, "
-            f"exposure {r['exposure']}",
+            f"exposure {r['exposure']}, camera {r['camera']}, robot {r['robot']}",
         ),
         ("sub-cells covered / reachable", f"{r['subcells_covered']} / {r['subcells_reachable']}"),
         ("covered more than once", str(r["subcells_covered_more_than_once"])),
+        ("complete (every sub-cell once, back, no error)", str(r["complete"])),
         ("finished / back in start cell", f"{r['finished']} / {r['returned_to_start']}"),
         ("abort reason", str(r["abort_reason"])),
         ("moves / turns / decisions", f"{r['moves']} / {r['turns']} / {r['decisions']}"),

@@ -23,26 +23,23 @@ def run(args) -> dict:
 
     import numpy as np
 
-    from controllers.cover import CoverConfig, draw_floor, run_cover
-    from controllers.cover_rr import CoverRecorder
+    from controllers.stc.loop import CoverConfig, run_cover
+    from controllers.stc.observers import FloorPicture
+    from controllers.stc.recorder import CoverRecorder
     from sim_camera.board import Board
     from stcvision.fileio import write_image
 
     out = Path(args.out)
     board = Board.random(DEFAULT_CELLS, obstacle_fraction=0.15, rng=np.random.default_rng(0))
     recorder = CoverRecorder(out / "demo.rrd", board)
-    picture = {}
-
-    def keep(**state):
-        picture["img"] = draw_floor(board, state["phosphor"], state["visits"], state["pose"], state["t_s"])
-
+    picture = FloorPicture(board)
     try:
         result = run_cover(
-            board, CoverConfig(perception="camera", exposure="auto", seed=args.seed), recorder=recorder, on_end=keep
+            board, CoverConfig(perception="camera", exposure="auto", seed=args.seed), observers=[recorder, picture]
         )
     finally:
         recorder.close()
-    write_image(out / "coverage.png", picture["img"], overwrite=True)
+    write_image(out / "coverage.png", picture.image, overwrite=True)
     result["files"] = [str(out / "demo.rrd"), str(out / "coverage.png")]
     return result
 

@@ -1,6 +1,7 @@
-"""``stcvision cover sweep``: STC coverage over boards x seeds x exposure modes x perceptions.
+"""``stcvision cover sweep``: STC coverage over boards x seeds x exposure modes x perceptions x
+camera presets.
 
-One task is one whole run of :func:`controllers.cover.run_cover` (seconds to minutes: far above
+One task is one whole run of :func:`controllers.stc.loop.run_cover` (seconds to minutes: far above
 the sweep's per-task cost), run through :mod:`stcvision.sweep` (local pool or Dask cluster,
 results kept in ``OUT/sweep.jsonl`` as each run ends). Run ``(N, seed S, exposure E, perception
 P)`` is the board and robot of ``stcvision cover --board NxN --seed S --exposure E --perception
@@ -46,7 +47,7 @@ def cover_run(params: dict, seed) -> dict:
     """One board run (the sweep's task). ``params``: cells, seed, exposure, perception,
     obstacle_fraction, decisions_per_subcell. ``seed`` (the sweep's stream) is not used: the
     run's own ``params["seed"]`` makes it the same run as ``stcvision cover --seed``."""
-    from controllers.cover import CoverConfig, is_complete, run_cover
+    from controllers.stc.loop import CoverConfig, is_complete, run_cover
     from stcvision.cli.cmd_cover import random_board
 
     n = params["cells"]
@@ -54,8 +55,14 @@ def cover_run(params: dict, seed) -> dict:
     # a complete tour makes a few decisions per sub-cell; a robot lost in its own faded marks can
     # wander for thousands, so it is stopped at decisions_per_subcell per reachable sub-cell
     cap = params["decisions_per_subcell"] * int(board.reachable_cells().sum()) * 4
+    from sim_camera import hardware
+
     cfg = CoverConfig(
-        perception=params["perception"], exposure=params["exposure"], seed=params["seed"], max_decisions=cap
+        perception=params["perception"],
+        exposure=params["exposure"],
+        seed=params["seed"],
+        max_decisions=cap,
+        camera=hardware.load_camera(params.get("camera", "webcam")),
     )
     r = run_cover(board, cfg)
     return {**params, "complete": is_complete(r), **{k: r[k] for k in RUN_FIELDS}}
@@ -78,6 +85,7 @@ def plan(
     runs: int,
     exposures: Sequence[str],
     perceptions: Sequence[str],
+    cameras: Sequence[str] = ("webcam",),
     *,
     obstacle_fraction: float = 0.15,
     decisions_per_subcell: int = 10,
@@ -94,6 +102,10 @@ def plan(
     for p in perceptions:
         if p not in ("camera", "oracle", "ideal"):
             raise BadInputError(f"perception {p!r} is not camera, oracle or ideal")
+    from sim_camera import hardware
+
+    for c in cameras:
+        hardware.load_camera(c)  # an unknown preset or a bad file: one line, exit 2
     return [
         Task(
             experiment=EXPERIMENT,
@@ -102,6 +114,7 @@ def plan(
                 "seed": s,
                 "exposure": _exposure(e),
                 "perception": p,
+                "camera": c,
                 "obstacle_fraction": obstacle_fraction,
                 "decisions_per_subcell": decisions_per_subcell,
             },
@@ -110,6 +123,7 @@ def plan(
         for n in sorted(set(sizes), reverse=True)
         for e in exposures
         for p in perceptions
+        for c in cameras
         for s in range(runs)
     ]
 
@@ -119,18 +133,20 @@ def _median(v):
 
 
 def summarise(runs: list[dict]) -> list[dict]:
-    """One row per (board size, exposure, perception): complete runs, sub-cells covered, times."""
+    """One row per (board size, exposure, perception, camera): complete runs, sub-cells covered, times."""
     groups: dict[tuple, list[dict]] = {}
-    for r in sorted(runs, key=lambda r: (r["cells"], str(r["exposure"]), r["perception"], r["seed"])):
-        groups.setdefault((r["cells"], str(r["exposure"]), r["perception"]), []).append(r)
+    key = lambda r: (r["cells"], str(r["exposure"]), r["perception"], r.get("camera", "webcam"))  # noqa: E731
+    for r in sorted(runs, key=lambda r: (*key(r), r["seed"])):
+        groups.setdefault(key(r), []).append(r)
     rows = []
-    for (n, e, p), rs in groups.items():
+    for (n, e, p, c), rs in groups.items():
         ok = [r for r in rs if r["complete"]]
         rows.append(
             {
                 "cells": n,
                 "exposure": e,
                 "perception": p,
+                "camera": c,
                 "runs": len(rs),
                 "complete": len(ok),
                 "subcells_reachable_mean": statistics.fmean(r["subcells_reachable"] for r in rs),
@@ -157,13 +173,14 @@ def markdown_table(rows: list[dict]) -> str:
         return "—" if v is None else format(v, fmt)
 
     out = [
-        "| board (cells) | exposure | perception | complete runs | sub-cells covered (mean / reachable) "
+        "| board (cells) | exposure | perception | camera | complete runs | sub-cells covered (mean / reachable) "
         "| oldest mark read (complete, median) | robot time (median) | wall time (median) |",
-        "|---|---|---|---|---|---|---|---|",
+        "|---|---|---|---|---|---|---|---|---|",
     ]
     for r in rows:
         out.append(
-            f"| {r['cells']}x{r['cells']} | {r['exposure']} | {r['perception']} | {r['complete']}/{r['runs']} "
+            f"| {r['cells']}x{r['cells']} | {r['exposure']} | {r['perception']} | {r['camera']} "
+            f"| {r['complete']}/{r['runs']} "
             f"| {r['subcells_covered_mean']:.1f} / {r['subcells_reachable_mean']:.1f} "
             f"| {num(r['oldest_mark_read_s_median_complete'], ',.0f')} s | {num(r['sim_time_s_median'], ',.0f')} s "
             f"| {num(r['wall_s_median'], '.1f')} s |"
@@ -175,7 +192,7 @@ def _replay(r: dict) -> str:
     return (
         f"stcvision cover --board {r['cells']}x{r['cells']} --seed {r['seed']} --perception {r['perception']} "
         + (f"--exposure {r['exposure']}" if isinstance(r["exposure"], str) else f"--exposure-s {r['exposure']}")
-        + f" --obstacle-fraction {r['obstacle_fraction']} --rrd run.rrd"
+        + f" --obstacle-fraction {r['obstacle_fraction']} --camera {r.get('camera', 'webcam')} --rrd run.rrd"
     )
 
 
@@ -189,15 +206,16 @@ def plot(rows: list[dict]) -> bytes:
     fig, (a, b) = plt.subplots(1, 2, figsize=(11, 4.2), constrained_layout=True)
     from matplotlib.ticker import MaxNLocator
 
-    kinds = sorted({(r["exposure"], r["perception"]) for r in rows})
+    kinds = sorted({(str(r["exposure"]), r["perception"], r["camera"]) for r in rows})
     markers, styles = "osD^v<>", ("-", "--", ":", "-.")
-    for i, (e, p) in enumerate(kinds):
-        rs = sorted((r for r in rows if (r["exposure"], r["perception"]) == (e, p)), key=lambda r: r["cells"])
+    for i, (e, p, c) in enumerate(kinds):
+        rs = sorted((r for r in rows if (str(r["exposure"]), r["perception"], r["camera"]) == (e, p, c)),
+                    key=lambda r: r["cells"])  # fmt: skip
         x = [r["cells"] for r in rs]
         # overlapping lines stay visible: a marker and a dash per kind, hollow markers of decreasing size
         style = dict(marker=markers[i % 7], ls=styles[i % 4], mfc="none", ms=10 - 1.2 * (i % 5), alpha=0.85)
-        a.plot(x, [r["complete"] / r["runs"] for r in rs], label=f"{p}, exposure {e}", **style)
-        b.plot(x, [r["covered_fraction_mean"] for r in rs], label=f"{p}, exposure {e}", **style)
+        a.plot(x, [r["complete"] / r["runs"] for r in rs], label=f"{p}, {c}, exposure {e}", **style)
+        b.plot(x, [r["covered_fraction_mean"] for r in rs], label=f"{p}, {c}, exposure {e}", **style)
     a.set(xlabel="board size (cells per side)", ylabel="complete runs (fraction)", ylim=(-0.05, 1.05))
     b.set(xlabel="board size (cells per side)", ylabel="sub-cells covered / reachable (mean)", ylim=(-0.05, 1.05))
     a.set_title("complete tours")
@@ -233,7 +251,7 @@ def write_outputs(out: Path, runs: list[dict], report_summary: str) -> list[str]
         "",
         "A run is complete when every reachable sub-cell was covered exactly once, the robot finished "
         "back in its start cell and (camera) made no decision the oracle would not have made "
-        "(`controllers.cover.is_complete`). Boards: `Board.random`, seed = run seed.",
+        "(`controllers.stc.loop.is_complete`). Boards: `Board.random`, seed = run seed.",
         "",
         markdown_table(rows),
         "",
@@ -245,12 +263,13 @@ def write_outputs(out: Path, runs: list[dict], report_summary: str) -> list[str]
     if failed:
         md += ["## Incomplete runs (replay one with the command)", ""]
         md += [
-            f"- {r['cells']}x{r['cells']} seed {r['seed']} {r['perception']} {r['exposure']}: "
+            f"- {r['cells']}x{r['cells']} seed {r['seed']} {r['perception']} {r.get('camera', 'webcam')} "
+            f"{r['exposure']}: "
             f"{r['abort_reason'] or 'incomplete'} -- `{_replay(r)}`"
             for r in failed
         ]
         md.append("")
-    run_fields = ("cells", "seed", "exposure", "perception", "obstacle_fraction", "complete", *RUN_FIELDS)
+    run_fields = ("cells", "seed", "exposure", "perception", "camera", "obstacle_fraction", "complete", *RUN_FIELDS)
     files = {
         "runs.csv": _csv(runs, run_fields),
         "table.csv": _csv(rows, list(rows[0]) if rows else ["cells"]),
@@ -273,6 +292,7 @@ def sweep_cover(args) -> dict:
         args.runs,
         args.exposures,
         args.perceptions,
+        args.cameras,
         obstacle_fraction=args.obstacle_fraction,
         decisions_per_subcell=args.decisions_per_subcell,
     )

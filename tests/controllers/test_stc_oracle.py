@@ -7,22 +7,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from controllers.stc import (
-    COMPASS_VEC,
-    Action,
-    MarkFloor,
-    NeighbourObs,
-    StcObservation,
-    StcPhase,
-    StcState,
-    decide,
-    initial_state,
-    look_oracle,
-    observe_oracle,
-    run_oracle,
-    start_heading,
-    step,
-)
+from controllers.stc.fsm import Action, NeighbourObs, StcObservation, StcPhase, StcState, decide, initial_state, step
+from controllers.stc.geometry import COMPASS_VEC, start_heading
+from controllers.stc.oracle import MarkFloor, look_oracle, observe_oracle, run_oracle
 from sim_camera.board import Board
 
 MAPS = Path(__file__).resolve().parents[2].parent / "shared" / "peer_data" / "pythonrobotics_maps"
@@ -202,7 +189,7 @@ def test_step_start_sequence_and_done_is_absorbing():
 
 def test_checker_catches_a_wrong_box_rule(monkeypatch):
     """The ground-truth check is not vacuous: drop box 5 from the 'sub-cell 1 visited' rule."""
-    import controllers.stc as stc
+    import controllers.stc.oracle as stc
 
     real = stc.decide
 
@@ -237,7 +224,7 @@ def test_camera_view_oracle_closes_the_tour_from_the_floor(seed):
 def test_a_look_that_finds_marks_moves_the_exit_on():
     """The decision took the forward neighbour for new; the look from sub-cell 1 finds marks
     there, so the robot walks on to the left neighbour, looks again and enters it."""
-    from controllers.stc import LookObs
+    from controllers.stc.fsm import LookObs
 
     s, a = step(StcState(phase=StcPhase.DECIDE), _obs(marks=(0, 0, 0, 1), red=(1, 0, 0, 0)))
     assert a is Action.FORWARD and s.sub == 1 and s.target == 1  # 0 -> 1, towards the exit forward
@@ -254,7 +241,7 @@ def test_a_look_that_finds_marks_moves_the_exit_on():
 
 
 def test_looks_that_find_every_child_marked_return_to_the_parent():
-    from controllers.stc import LookObs
+    from controllers.stc.fsm import LookObs
 
     s, a = step(StcState(phase=StcPhase.DECIDE), _obs(marks=(0, 0, 1, 1)))
     assert a is Action.TURN_RIGHT and s.target == 0  # right looked free: face it

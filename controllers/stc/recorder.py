@@ -12,6 +12,7 @@ import numpy as np
 import rerun as rr
 import rerun.blueprint as rrb
 
+from controllers.stc.observers import Observer, Reading
 from stcvision.rr import PipelineLogger
 
 __all__ = ["CoverRecorder"]
@@ -36,8 +37,10 @@ def _blueprint() -> rrb.Blueprint:
     )
 
 
-class CoverRecorder:
-    """Writes ``path`` (.rrd) atomically on :meth:`close`."""
+class CoverRecorder(Observer):
+    """An observer of a coverage run (:func:`controllers.stc.loop.run_cover`, ``observers=``):
+    every decision, and every look read from a rendered frame. Writes ``path`` (.rrd) atomically
+    on :meth:`close`."""
 
     def __init__(self, path: str | Path, board) -> None:
         self.path = Path(path)
@@ -72,6 +75,23 @@ class CoverRecorder:
         self.rec.log(
             "world/red_lights", rr.Points2D(self._xy(b.red_lights_m()), colors=[255, 0, 0], radii=0.01), static=True
         )
+
+    def on_reading(self, ev: Reading) -> None:
+        p = ev.plant
+        if ev.kind == "look":
+            if ev.frame is None:
+                return
+            text = f"**look** from sub-cell {p.sub}: the cell ahead is {'marked' if ev.marked else 'unmarked'}"
+        else:
+            d, o = ev.decision, ev.obs
+            text = (
+                f"**decision {ev.k}** at sub-cell {p.sub}, t = {p.t:.0f} s\n\n"
+                f"visited 1-3: {d.visited}, parent {d.parent}, child {d.child}, "
+                f"target {d.target}{' (stop there)' if d.final else ''}\n\n"
+                f"boxes {o.boxes}, start mark {o.start_mark}"
+            )
+        result, pipeline = ev.frame if ev.frame is not None else (None, None)
+        self.decision(ev.k, p.t, p.pose, ev.floor.phosphor, p.visits, result, pipeline, text)
 
     def decision(self, k: int, t_s: float, pose, phosphor, visits, result, pipeline, text: str) -> None:
         rec = self.rec

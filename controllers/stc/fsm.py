@@ -1,16 +1,8 @@
-"""Ant-like STC (seed ``003_01c9be04038c8c46.txt``) as a pure O(1)-memory logic layer, with an
-ORACLE grid simulation to verify it (no physics, no camera).
+"""Ant-like STC (seed ``003_01c9be04038c8c46.txt``) as a pure O(1)-memory finite-state machine
+(no physics, no camera); :mod:`controllers.stc.oracle` runs it on a grid against the truth.
 
-Geometry (``../shared/DESIGN.md``, "The ant-like STC geometry")
----------------------------------------------------------------
-The robot occupies one sub-cell; a cell is 2x2 sub-cells. Every decision is taken on entering a
-cell, in the **entry frame** (robot heading "up"), where the robot stands in sub-cell 0 =
-lower-right; sub-cells are numbered counter-clockwise 0 (lower-right), 1 (upper-right),
-2 (upper-left), 3 (lower-left). Directions in the entry frame are numbered counter-clockwise too:
-``0`` right, ``1`` forward, ``2`` left, ``3`` back. Sub-cell ``m`` is left either towards the
-next sub-cell ``m + 1`` (direction ``m + 1``) or out of the cell (direction ``m``), so the exit
-to the neighbour in direction ``d`` is always from sub-cell ``d`` and lands in the neighbour's
-sub-cell 0 of its own entry frame (the right-hand side of the spanning-tree edge).
+The geometry (entry frame, sub-cells 0..3, directions 0 right 1 forward 2 left 3 back) is
+:mod:`controllers.stc.geometry`'s.
 
 Marking: just before every forward move the robot marks the sub-cell it leaves on its rear edge
 (the edge opposite the direction of travel). The five-box table of DESIGN.md is used as is:
@@ -77,32 +69,20 @@ import dataclasses
 import enum
 from dataclasses import dataclass
 
-import numpy as np
+from stcvision.stcgrid import VISITED_BY
 
 __all__ = [
     "Action",
     "Decision",
-    "MarkFloor",
-    "NeighbourObs",
     "LookObs",
+    "NeighbourObs",
     "StcObservation",
     "StcPhase",
     "StcState",
     "decide",
     "initial_state",
-    "look_oracle",
-    "observe_oracle",
-    "run_oracle",
-    "start_heading",
     "step",
 ]
-
-#: Compass headings, clockwise: 0 N, 1 E, 2 S, 3 W; (row, column) steps (row 0 = north).
-COMPASS_VEC = ((-1, 0), (0, 1), (1, 0), (0, -1))
-COMPASS_NAMES = "NESW"
-
-#: The five boxes as (sub-cell, entry-frame edge direction), directions 0 right 1 up 2 left 3 down.
-BOXES = ((1, 0), (2, 1), (2, 0), (3, 1), (1, 3))
 
 
 class Action(enum.Enum):
@@ -194,8 +174,7 @@ class Decision:
 def decide(obs: StcObservation, *, at_start: bool = False) -> Decision:
     """The ant-like STC decision from one observation (pure, no memory). ``at_start``: the very
     first decision, standing on the start sub-cell (whose start mark the camera cannot see)."""
-    b = obs.boxes
-    v = (False, bool(b[0] or b[4]), bool(b[1] or b[2]), bool(b[3]))
+    v = (False, *(any(obs.boxes[b - 1] for b in VISITED_BY[m]) for m in (1, 2, 3)))
     is_start = obs.start_mark is not None or at_start
     if is_start and obs.start_mark == 0 and v[1] and v[2] and v[3]:
         return Decision(v[1:], 3, None, True, True, 0, True)
@@ -293,223 +272,3 @@ def step(state: StcState, obs: StcObservation | LookObs | None) -> tuple[StcStat
     if (want - r) % 4 in (1, 2):
         return dataclasses.replace(state, heading=(r + 1) % 4), Action.TURN_LEFT
     return dataclasses.replace(state, heading=(r - 1) % 4), Action.TURN_RIGHT
-
-
-# ---------------------------------------------------------------------------------- oracle
-class MarkFloor:
-    """The marks on the floor: per sub-cell, the set of marked edges (compass 0..3)."""
-
-    def __init__(self, shape_subcells: tuple[int, int]):
-        rows, cols = shape_subcells
-        self.shape = (int(rows), int(cols))
-        self.edges: dict[tuple[int, int], set[int]] = {}
-        self.cell_count = np.zeros((rows // 2, cols // 2), int)
-
-    def mark(self, sub: tuple[int, int], edge: int) -> None:
-        s = self.edges.setdefault((int(sub[0]), int(sub[1])), set())
-        if edge % 4 not in s:
-            s.add(edge % 4)
-            self.cell_count[sub[0] // 2, sub[1] // 2] += 1
-
-    def has(self, sub: tuple[int, int], edge: int) -> bool:
-        return edge % 4 in self.edges.get((sub[0], sub[1]), ())
-
-    def cell_has_marks(self, ci: int, cj: int) -> bool:
-        cr, cc = self.cell_count.shape
-        return bool(0 <= ci < cr and 0 <= cj < cc and self.cell_count[ci, cj] > 0)
-
-
-def _frame_compass(h: int, d: int) -> int:
-    """Compass direction of entry-frame direction ``d`` when the robot heads ``h``."""
-    return (h + 1 - d) % 4
-
-
-def _frame_subcells(sub: tuple[int, int], h: int) -> list[tuple[int, int]]:
-    up, left = COMPASS_VEC[h], COMPASS_VEC[(h + 3) % 4]
-    i, j = sub
-    return [(i, j), (i + up[0], j + up[1]), (i + up[0] + left[0], j + up[1] + left[1]), (i + left[0], j + left[1])]
-
-
-def observe_oracle(
-    floor: MarkFloor, board, robot_subcell: tuple[int, int], heading: int, *, camera_view: bool = False
-) -> StcObservation:
-    """The perfect camera: what the vision should report with the robot in ``robot_subcell``
-    heading ``heading`` (compass), taking that pose as the entry frame. ``camera_view``: what a
-    real camera can see -- marks in the robot's own sub-cell are under its body, so a start mark
-    there is not reported."""
-    subs = _frame_subcells(robot_subcell, heading)
-    boxes = tuple(floor.has(subs[m], _frame_compass(heading, d)) for m, d in BOXES)
-    start = None
-    for m in range(1 if camera_view else 0, 4):
-        if floor.has(subs[m], _frame_compass(heading, m)):
-            start = m
-            break
-    ci, cj = robot_subcell[0] // 2, robot_subcell[1] // 2
-    total = int(floor.cell_count[ci, cj])
-    other = total - sum(boxes) - (start is not None)
-    neigh = []
-    landing = []
-    for d in range(4):
-        di, dj = COMPASS_VEC[_frame_compass(heading, d)]
-        a, b = ci + di, cj + dj
-        neigh.append(NeighbourObs(has_marks=floor.cell_has_marks(a, b), has_red=not board.is_cell_free(a, b)))
-        land = (subs[d][0] + di, subs[d][1] + dj)
-        landing.append(bool(floor.edges.get(land)))
-    return StcObservation(boxes, tuple(neigh), start, other, tuple(landing))
-
-
-def look_oracle(floor: MarkFloor, robot_subcell: tuple[int, int], heading: int) -> LookObs:
-    """The perfect look at the cell ahead of a robot in ``robot_subcell`` heading ``heading``."""
-    di, dj = COMPASS_VEC[heading]
-    i, j = robot_subcell[0] + di, robot_subcell[1] + dj
-    return LookObs(floor.cell_has_marks(i // 2, j // 2))
-
-
-def start_heading(board) -> int:
-    """Compass heading in which the board's start sub-cell is the lower-right one of its cell."""
-    i, j = board.start_subcell
-    for h in range(4):
-        subs = _frame_subcells((i, j), h)
-        if all(s[0] // 2 == i // 2 and s[1] // 2 == j // 2 for s in subs):
-            return h
-    raise AssertionError("unreachable")  # pragma: no cover
-
-
-def run_oracle(board, *, max_steps: int = 1_000_000, keep_mismatches: int = 20, camera_view: bool = False) -> dict:
-    """Run :func:`step` against :func:`observe_oracle` on ``board``.
-
-    The true visit history and spanning tree are kept here, outside the controller, only to
-    check every decision (box inference, parent, chosen neighbour, start/done recognition).
-
-    ``subcells_covered_more_than_once`` does not count the last move that closes the tour onto
-    the start sub-cell (``closed_loop`` is then ``True``); every other re-entry counts.
-    """
-    rows, cols = board.shape_subcells
-    s = tuple(board.start_subcell)
-    h = start_heading(board)
-    start_cell = board.start_cell
-    floor = MarkFloor((rows, cols))
-    visits = np.zeros((rows, cols), int)
-    visits[s] += 1
-    vh = COMPASS_VEC[h]
-    parent_of = {start_cell: (start_cell[0] - vh[0], start_cell[1] - vh[1])}  # virtual parent
-    cell_visited = np.zeros(board.shape_cells, bool)
-    cell_visited[start_cell] = True
-    state = initial_state()
-    moves = turns = marks = steps = decisions = collisions = box_violations = looks = 0
-    mismatches: list[dict] = []
-    box_patterns: dict[tuple[int, ...], int] = {}
-    n_mismatch = 0
-    finished = False
-    while steps < max_steps:
-        steps += 1
-        deciding = state.phase is StcPhase.DECIDE and not state.closing  # closing: DONE without looking
-        obs = observe_oracle(floor, board, s, h, camera_view=camera_view) if deciding else None
-        if state.phase is StcPhase.LOOK:
-            obs = look_oracle(floor, s, h)
-        if deciding:
-            decisions += 1
-            dec = decide(obs, at_start=state.at_start)
-            bad = _check_decision(dec, obs, board, s, h, visits, parent_of, cell_visited, start_cell, moves)
-            if not dec.done:
-                box_violations += obs.other_marks > 0
-                key = tuple(k + 1 for k, lit in enumerate(obs.boxes) if lit)
-                box_patterns[key] = box_patterns.get(key, 0) + 1
-            if bad:
-                n_mismatch += 1
-                if len(mismatches) < keep_mismatches:
-                    mismatches.append({"subcell": s, "heading": COMPASS_NAMES[h], **bad})
-        state, action = step(state, obs)
-        if action is Action.FORWARD:
-            floor.mark(s, (h + 2) % 4)
-            di, dj = COMPASS_VEC[h]
-            n = (s[0] + di, s[1] + dj)
-            if not (0 <= n[0] < rows and 0 <= n[1] < cols) or board.blocked[n]:
-                collisions += 1
-                break
-            c_old, c_new = (s[0] // 2, s[1] // 2), (n[0] // 2, n[1] // 2)
-            if c_new != c_old and c_new not in parent_of:
-                parent_of[c_new] = c_old
-            cell_visited[c_new] = True
-            visits[n] += 1
-            s = n
-            moves += 1
-        elif action is Action.TURN_LEFT:
-            h = (h + 3) % 4
-            turns += 1
-        elif action is Action.TURN_RIGHT:
-            h = (h + 1) % 4
-            turns += 1
-        elif action is Action.MARK:
-            floor.mark(s, (h + 2) % 4)
-            marks += 1
-        elif action is Action.LOOK:
-            looks += 1
-        elif action is Action.DONE:
-            finished = True
-            break
-    reachable = board.reachable_cells()
-    # the tour closes on the start sub-cell: that last arrival is not a second coverage
-    closed_loop = finished and s == tuple(board.start_subcell) and moves > 0
-    repeat = visits.copy()
-    if closed_loop:
-        repeat[s] -= 1
-    return {
-        "subcells_reachable": int(4 * reachable.sum()),
-        "subcells_covered": int((visits > 0).sum()),
-        "subcells_covered_more_than_once": int((repeat > 1).sum()),
-        "closed_loop": closed_loop,
-        "subcells_uncovered_reachable": int((~(visits > 0) & np.repeat(np.repeat(reachable, 2, 0), 2, 1)).sum()),
-        "returned_to_start": (s[0] // 2, s[1] // 2) == start_cell,
-        "finished": finished,
-        "moves": moves,
-        "turns": turns,
-        "marks": marks,
-        "looks": looks,
-        "steps": steps,
-        "decisions": decisions,
-        "collisions": collisions,
-        "box_table_violations": box_violations,
-        "box_patterns": box_patterns,
-        "decision_mismatches": n_mismatch,
-        "mismatch_examples": mismatches,
-        "final_subcell": s,
-    }
-
-
-def _check_decision(dec, obs, board, s, h, visits, parent_of, cell_visited, start_cell, moves) -> dict:
-    """Differences between ``dec`` and the ground truth from the true history ({} if none)."""
-    subs = _frame_subcells(s, h)
-    cell = (s[0] // 2, s[1] // 2)
-    bad = {}
-    true_start = cell == start_cell
-    if dec.is_start != true_start:
-        bad["is_start"] = (dec.is_start, true_start)
-    true_done = s == tuple(board.start_subcell) and moves > 0
-    if dec.done != true_done:
-        bad["done"] = (dec.done, true_done)
-    if true_done:
-        return bad
-    # sub-cell 0 is never visited on entry; 1..3 visited iff the robot has stood there
-    true_v = tuple(bool(visits[subs[m]] > 0) for m in (1, 2, 3))
-    if visits[subs[0]] != 1:
-        bad["entry_subcell_visits"] = int(visits[subs[0]])
-    if dec.visited != true_v:
-        bad["visited"] = (dec.visited, true_v)
-    p = parent_of[cell]
-    pc = {COMPASS_VEC[c]: c for c in range(4)}[(p[0] - cell[0], p[1] - cell[1])]
-    true_parent = (h + 1 - pc) % 4
-    if dec.parent != true_parent:
-        bad["parent"] = (dec.parent, true_parent)
-    cr, cc = board.shape_cells
-
-    def truly_new(d):
-        di, dj = COMPASS_VEC[_frame_compass(h, d)]
-        a, b = cell[0] + di, cell[1] + dj
-        return board.is_cell_free(a, b) and not cell_visited[a, b]
-
-    order = [(true_parent + k) % 4 for k in (1, 2, 3)] + ([true_parent] if true_start else [])
-    true_child = next((d for d in order if truly_new(d)), None)
-    if dec.child != true_child:
-        bad["child"] = (dec.child, true_child)
-    return bad

@@ -1,0 +1,61 @@
+"""The coverage run's settings (:class:`CoverConfig`) and the localisation limits."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from sim_camera.hardware import WEBCAM, CameraProfile
+from sim_camera.robot import LEGO_STC_ROBOT, MarkingRobot
+
+__all__ = ["LANDMARK_OFFSET_SIGMA", "LANDMARK_TURN_SIGMA_RAD", "REOBSERVE_RAD", "CoverConfig"]
+
+
+@dataclass(frozen=True, kw_only=True)
+class CoverConfig:
+    perception: str = "camera"  # "camera", "ideal" or "oracle"
+    exposure: str | float = "webcam"  # "webcam", "auto" or an exposure in seconds
+    gain: float | None = None
+    n_stack: int = 1
+    seed: int = 0
+    #: the robot (motion, timing, marking): :data:`sim_camera.robot.LEGO_STC_ROBOT` by default
+    robot: MarkingRobot = LEGO_STC_ROBOT
+    #: the camera's sensor physics (:mod:`sim_camera.hardware`): the seed's webcam by default
+    camera: CameraProfile = WEBCAM
+    max_decisions: int = 20000
+    heading_sigma_oracle_rad: float = math.radians(0.25)  # the pipeline's measured heading RMS
+    position_sigma_oracle_m: float = 0.001  # the marks' position read-out (measured: ~1 mm)
+    use_mark_consensus: bool = True
+    #: red lights as absolute references, near and far (offset, heading, with their
+    #: uncertainties; README "Red lights as landmarks")
+    use_landmarks: bool = True
+    #: with exposure control, after each turn also a frame at the shortest long rung (2 s) for the
+    #: lean of all rows: it sees the rows of many minutes, the webcam frame the last one or two
+    consensus_frame: bool = True
+    #: with exposure control, the long frame's rung is the shortest whose visibility horizon at
+    #: this distance (m) covers the robot's clock: for a decision, its boxes (box 2 is 0.27 m
+    #: away; a neighbour's marks it misses, the look before entering finds), and for a look, the
+    #: cell ahead (its near sub-cells' marks 0.1-0.25 m, its far ones' from 0.3 m)
+    decision_reach_m: float = 0.30
+    look_reach_m: float = 0.35
+    #: a long frame is sized so that a dot at the reach, as old as the clock, still has this SNR:
+    #: Rose's 5 (what a lone dot needs); the row search accepts a row of four at a mean of 3
+    #: (:data:`ROW_EQUIVALENT_STACK`), but at its threshold it finds a row only half the time
+    sizing_snr: float = 5.0
+    #: ``perception="ideal"``: every visibility horizon times this (``inf``: it sees every mark,
+    #: so a run measures how long the tour takes with the frames it needs)
+    ideal_horizon_factor: float = 1.0
+    #: with exposure control, stop (``abort_reason`` "out of sight") once the clock is past the
+    #: longest frame's horizon at ``decision_reach_m``: the robot knows its camera's limit
+    stop_out_of_sight: bool = True
+    trace: bool = False  # heading from the lean of all rows in view, not the newest only
+
+
+#: the red lights' estimates are used as long as they are this sure (1 sigma): the offset within
+#: 0.03 sub-cell sides (5 mm), the heading within 0.3 degrees for the turn-time recalibration
+#: (the newest row's fit is 0.25 deg); a drift correction needs 2.5 sigma whatever the spread
+LANDMARK_OFFSET_SIGMA = 0.03
+LANDMARK_TURN_SIGMA_RAD = math.radians(0.3)
+#: a heading correction this large at a decision or a look means its frames were read askew (box
+#: 2, 0.27 m away, moves 0.5 cm per degree): they are taken again
+REOBSERVE_RAD = math.radians(1.0)

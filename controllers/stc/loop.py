@@ -1,0 +1,165 @@
+"""Closed-loop ant-like STC coverage: perception -> finite-state controller -> plant, with a
+referee and observers watching.
+
+The controller (:mod:`controllers.stc.fsm`) decides from one observation per cell entry; the
+loop runs it on a board with honest time and honest marks, from its parts:
+
+* the **plant** (:mod:`controllers.stc.plant`): the robot's true motion, clock, turn time and the
+  floor it marks;
+* **perception** (:mod:`controllers.stc.perception`): camera, physics-limited camera or oracle;
+* the **referee** (:mod:`controllers.stc.referee`): what the oracle would have decided;
+* **observers** (:mod:`controllers.stc.observers`, :mod:`controllers.stc.recorder`): trace,
+  rerun recording, the floor's picture.
+
+Random streams: one seed, four independent children (``numpy.random.SeedSequence.spawn``), one
+per component (:func:`streams`): the robot's motion (its motors, its first turn time, every
+move's error), the camera (dark frames, every frame's noise), the oracle's read-out noise (the
+pose as the oracle and the physics-limited camera read it) and the board (for callers that draw
+a random board from the run's seed: the CLI). An extra frame therefore never reshuffles the
+motion, and the camera, physics-limited and oracle runs of one seed drive the same robot.
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from controllers.stc.config import CoverConfig
+from controllers.stc.fsm import Action, LookObs, StcPhase, decide, initial_state, step
+from controllers.stc.observers import Observers, Reading
+from controllers.stc.oracle import coverage
+from controllers.stc.perception import make_perception
+from controllers.stc.plant import Floor, Plant
+from controllers.stc.referee import Referee
+
+__all__ = ["CoverConfig", "is_complete", "run_cover", "streams"]
+
+STREAMS = ("motion", "camera", "oracle", "board")
+
+
+def streams(seed: int) -> dict[str, np.random.Generator]:
+    """One generator per component, independent children of ``seed``: :data:`STREAMS`."""
+    kids = np.random.SeedSequence(seed).spawn(len(STREAMS))
+    return {name: np.random.default_rng(k) for name, k in zip(STREAMS, kids, strict=True)}
+
+
+def is_complete(summary: dict) -> bool:
+    """A run of :func:`run_cover` is complete when every reachable sub-cell was covered exactly
+    once, the robot finished back in its start cell, and (camera mode) made no decision the
+    oracle would not have made."""
+    return bool(
+        summary["finished"]
+        and summary["returned_to_start"]
+        and summary["abort_reason"] is None
+        and summary["subcells_covered"] == summary["subcells_reachable"]
+        and summary["subcells_covered_more_than_once"] == 0
+        and summary["decision_errors"] == 0
+    )
+
+
+def run_cover(board, cfg: CoverConfig | None = None, *, observers=(), perception_hook=None) -> dict:
+    """Cover ``board`` from its start sub-cell; returns the summary the CLI prints.
+    ``observers``: :class:`controllers.stc.observers.Observer` s (None entries are skipped);
+    ``perception_hook(perception)`` is handed the run's perception (e.g. to read its frames)."""
+    wall0 = time.perf_counter()
+    cfg = cfg if cfg is not None else CoverConfig()
+    rngs = streams(cfg.seed)
+    plant = Plant(board, cfg.robot, rngs["motion"])
+    floor = Floor(board)
+    see = make_perception(cfg, board, camera_rng=rngs["camera"], oracle_rng=rngs["oracle"])
+    if perception_hook is not None:
+        perception_hook(see)
+    watch = Observers([*observers, *([_trace()] if cfg.trace else [])])
+    referee = Referee(board, active=see.refereed, report=watch.on_referee)
+    state, decisions, looks, finished, abort = initial_state(), 0, 0, False, None
+    while decisions < cfg.max_decisions:
+        obs = None
+        if state.phase is StcPhase.DECIDE and not state.closing:
+            abort = see.out_of_sight(plant.t)
+            if abort is not None:
+                break
+            decisions += 1
+            obs = see.observe(plant, floor, fresh=state.fresh)
+            watch.on_reading(Reading("decision", decisions, plant, floor, obs=obs,
+                                     decision=decide(obs, at_start=state.at_start), frame=see.last_frame))  # fmt: skip
+            referee.decision(plant, floor, obs, state, decisions)
+        elif state.phase is StcPhase.LOOK:
+            looks += 1
+            obs = LookObs(see.look(plant, floor))
+            referee.look(plant, floor, obs.marked)
+            watch.on_reading(Reading("look", decisions, plant, floor, marked=obs.marked, frame=see.last_frame))
+        prev = state
+        state, action = step(state, obs)
+        referee.step(prev, state, action, plant, decisions)
+        watch.on_step(plant, state, action)
+        if action is Action.DONE:
+            finished = True
+            break
+        abort = _act(action, plant, floor, see, watch)
+        if abort is not None:
+            abort = f"{abort} (decision {decisions})" if abort.startswith("drove") else abort
+            break
+    else:
+        abort = f"gave up after {cfg.max_decisions} decisions"
+    watch.on_end(plant, floor)
+    return _summary(board, cfg, plant, see, referee, decisions=decisions, looks=looks, finished=finished,
+                    abort=abort, wall_s=time.perf_counter() - wall0)  # fmt: skip
+
+
+def _act(action: Action, plant: Plant, floor: Floor, see, watch) -> str | None:
+    """The plant carries out ``action``; after a turn the perception measures the heading for
+    the recalibration. Returns why the run must stop, or None."""
+    if action is Action.MARK:
+        plant.lay_mark(floor)
+    elif action is Action.FORWARD:
+        plant.lay_mark(floor)
+        return plant.forward()
+    elif action in (Action.TURN_LEFT, Action.TURN_RIGHT):
+        left = action is Action.TURN_LEFT
+        plant.turn(left)
+        err = see.heading_after_turn(plant, floor)  # (takes frames, does not turn)
+        watch.on_turn(plant, err)
+        plant.finish_turn(left, err)
+    return None
+
+
+def _trace():
+    from controllers.stc.observers import Trace
+
+    return Trace()
+
+
+def _summary(board, cfg, plant, see, referee, *, decisions, looks, finished, abort, wall_s) -> dict:
+    cov = coverage(board, plant.visits, plant.sub, finished=finished, moves=plant.moves)
+    out = {
+        "perception": cfg.perception,
+        "exposure": cfg.exposure,
+        "camera": cfg.camera.name,
+        "robot": cfg.robot.name,
+        "board_cells": list(board.shape_cells),
+        **{k: cov[k] for k in ("subcells_reachable", "subcells_covered", "subcells_covered_more_than_once")},
+        "returned_to_start": cov["returned_to_start"],
+        "finished": finished,
+        "abort_reason": abort,
+        "moves": plant.moves,
+        "turns": plant.turns,
+        "decisions": decisions,
+        "looks": looks,
+        "look_errors": referee.look_errors,
+        "reobserved": getattr(see, "reobserved", 0),
+        "sim_time_s": plant.t,
+        "wall_s": wall_s,
+        "decision_errors": referee.decision_errors,
+        "max_mark_age_read_s": referee.max_age_read,
+        "max_position_error_m": plant.max_pos_err,
+        "turn_time_s_final": plant.turn_s,
+        "turn_rate_error_pct": 100 * (plant.rate_gain - 1),
+        "frames": see.frames,
+        "long_exposures": see.long_frames,
+    }
+    # the referee's verdict: the robot's "finished" says only that it believes it is done
+    out["complete"] = is_complete(out)
+    if referee.first_error is not None:
+        out["first_decision_error"] = referee.first_error
+    return out

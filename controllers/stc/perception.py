@@ -1,0 +1,272 @@
+"""Perception: what the robot reads at a decision, at a look and after a turn, behind one small
+interface (:class:`Perception`), three ways:
+
+* :class:`OraclePerception` -- the floor's record of marks (no camera); the pose read-out has
+  the pipeline's measured noise;
+* :class:`IdealPerception` -- the physics-limited camera (:class:`controllers.stc.frames.IdealCamera`):
+  the camera's frames and time, exactly the marks within their visibility horizon;
+* :class:`CameraPerception` -- rendered frames read by the vision pipeline, and the robot's
+  localisation from them: where it stands (red lights, else its own marks), its heading error
+  (the newest row's fit less the lean the red lights or all rows show), frames taken again when
+  the red lights show them askew.
+
+A perception may spend the robot's time (``plant.wait``) and, with the red lights, correct a
+drift it sees (``plant.rotate_by``); it sets the robot's belief of its offset
+(``plant.offset_est``). It never moves the robot to another sub-cell and never decides.
+"""
+
+from __future__ import annotations
+
+import math
+from functools import partial
+from typing import Protocol
+
+import numpy as np
+
+from controllers.stc.config import LANDMARK_OFFSET_SIGMA, LANDMARK_TURN_SIGMA_RAD, REOBSERVE_RAD, CoverConfig
+from controllers.stc.frames import IdealCamera, RobotCamera
+from controllers.stc.fsm import StcObservation
+from controllers.stc.oracle import look_oracle, observe_oracle
+from controllers.stc.plant import Floor, Plant
+from stcvision.stcgrid import entry_axes
+
+__all__ = ["CameraPerception", "IdealPerception", "OraclePerception", "Perception", "make_perception"]
+
+
+class Perception(Protocol):
+    """The interface the loop sees."""
+
+    #: its decisions are compared with the oracle's (the referee), as the oracle's own are not
+    refereed: bool
+    #: the frame a decision or a look was read from, for the observers: (pipeline result,
+    #: pipeline), or None when there is no rendered frame
+    last_frame: tuple | None
+    frames: int
+    long_frames: int
+
+    def out_of_sight(self, t_s: float) -> str | None: ...
+
+    def observe(self, plant: Plant, floor: Floor, *, fresh: bool) -> StcObservation: ...
+
+    def look(self, plant: Plant, floor: Floor) -> bool: ...
+
+    def heading_after_turn(self, plant: Plant, floor: Floor) -> float | None: ...
+
+
+class OraclePerception:
+    """The floor's record, read as the camera would see it (no start mark under the robot)."""
+
+    refereed = False
+    last_frame = None
+    frames = long_frames = 0
+
+    def __init__(self, cfg: CoverConfig, board, rng: np.random.Generator):
+        self.cfg = cfg
+        self.board = board
+        self.rng = rng  # the read-out noise of the pose
+
+    def out_of_sight(self, t_s: float) -> str | None:
+        return None
+
+    def _offset(self, plant: Plant) -> np.ndarray:
+        """The truth with the marks' read-out noise."""
+        return plant.true_offset() + self.rng.normal(0, self.cfg.position_sigma_oracle_m, 2)
+
+    def _heading(self, plant: Plant) -> float:
+        """The truth with the pipeline's measured heading noise."""
+        return plant.heading_error() + self.rng.normal(0, self.cfg.heading_sigma_oracle_rad)
+
+    def observe(self, plant, floor, *, fresh):
+        plant.wait(self.cfg.robot.settle_s)
+        obs = observe_oracle(floor.record, self.board, plant.sub, plant.hc, camera_view=True)
+        plant.offset_est = self._offset(plant)
+        return obs
+
+    def look(self, plant, floor):
+        plant.wait(self.cfg.robot.settle_s)
+        return look_oracle(floor.record, plant.sub, plant.hc).marked
+
+    def heading_after_turn(self, plant, floor):
+        plant.wait(self.cfg.robot.settle_s)
+        plant.offset_est = self._offset(plant)
+        return self._heading(plant)
+
+
+class _TakesFrames:
+    """What a perception with a camera (``self.cam``: :class:`controllers.stc.frames.Exposures`)
+    reports of its frames, and its camera's limit."""
+
+    @property
+    def frames(self) -> int:
+        return self.cam.frames
+
+    @property
+    def long_frames(self) -> int:
+        return self.cam.long_frames
+
+    def out_of_sight(self, t_s):
+        return self.cam.out_of_sight(t_s) if self.cfg.stop_out_of_sight else None
+
+
+class IdealPerception(_TakesFrames, OraclePerception):
+    """The physics-limited camera: its frames' time, the marks within their horizon, the pose
+    as the oracle reads it."""
+
+    refereed = True
+
+    def __init__(self, cfg: CoverConfig, board, rng: np.random.Generator):
+        super().__init__(cfg, board, rng)
+        self.cam = IdealCamera(cfg, board)
+
+    def observe(self, plant, floor, *, fresh):
+        obs, dt = self.cam.observe(
+            (plant.x, plant.y), plant.t, floor.phosphor, floor.laid, plant.sub, plant.hc, fresh=fresh
+        )
+        plant.wait(self.cfg.robot.settle_s + dt)
+        plant.offset_est = self._offset(plant)
+        return obs
+
+    def look(self, plant, floor):
+        marked, dt = self.cam.look((plant.x, plant.y), plant.t, floor.phosphor, floor.laid, plant.sub, plant.hc)
+        plant.wait(self.cfg.robot.settle_s + dt)
+        plant.offset_est = self._offset(plant)
+        return marked
+
+    def heading_after_turn(self, plant, floor):
+        # the frames' time: the newest row and the consensus frame
+        cam = self.cam
+        plant.wait(self.cfg.robot.settle_s)
+        plant.wait(cam.frame_s(0) + (cam.frame_s(1) if self.cfg.consensus_frame and cam.controlled else 0.0))
+        plant.offset_est = self._offset(plant)
+        return self._heading(plant)
+
+
+class CameraPerception(_TakesFrames):
+    """Rendered frames read by the pipeline; the robot's localisation from them."""
+
+    refereed = True
+
+    def __init__(self, cfg: CoverConfig, board, rng: np.random.Generator):
+        self.cfg = cfg
+        self.board = board
+        self.cam = RobotCamera(board, cfg, rng)
+        self.last_frame = None
+        self.reobserved = 0
+
+    # ------------------------------------------------------------------ the loop's three readings
+    def observe(self, plant, floor, *, fresh):
+        obs, res = self._read(plant, partial(self.cam.observe, phosphor=floor.phosphor, fresh=fresh))
+        self.last_frame = (res, self.cam.pipe)
+        return obs
+
+    def look(self, plant, floor):
+        marked, res = self._read(plant, partial(self.cam.look, phosphor=floor.phosphor))
+        self.last_frame = (res, self.cam.pipe)
+        return marked
+
+    def heading_after_turn(self, plant, floor):
+        """The heading fit on the newest row; the marks in view also say where the robot stands."""
+        cam, cfg = self.cam, self.cfg
+        res, dt = cam.shoot(plant.pose, plant.t, floor.phosphor)
+        plant.wait(cfg.robot.settle_s + dt)
+        plant.offset_est = self._where(res.observation, plant)
+        if not res.heading.ok:
+            # no newest row to fit: the red lights, when they are sure enough, else the newest
+            # row of a 2 s frame (a turn left uncorrected leaves the next cell read askew)
+            o = res.observation
+            if cfg.use_landmarks and o.landmark_rotation_rad is not None:
+                if o.landmark_rotation_sigma_rad <= LANDMARK_TURN_SIGMA_RAD:
+                    return -o.landmark_rotation_rad
+            if not cam.controlled:
+                return None
+            res, dt = cam.shoot(plant.pose, plant.t, floor.phosphor, 1)
+            plant.wait(dt)
+            return res.heading.heading_error_rad if res.heading.ok else None
+        rows = None
+        if cfg.consensus_frame and cam.controlled:
+            rows, dt = cam.shoot(
+                plant.pose, plant.t, floor.phosphor, 1, heading_error_rad=res.heading.heading_error_rad
+            )
+            plant.wait(dt)
+        # the newest row carries the heading error the robot had when laying it; the lean of
+        # all the rows in view (the consensus of older marks) takes that out
+        return self._heading(res, rows)
+
+    # ------------------------------------------------------------------ localisation
+    def _read(self, plant, take):
+        """A decision's or a look's frames: ``take(pose, t) -> (reading, short frame's result,
+        long frame's result or None, seconds)``. The short frame says where the robot stands
+        and, with the red lights, how far its heading has drifted; a drift over
+        :data:`REOBSERVE_RAD` means the frames were read askew, so they are taken once more.
+        Returns (reading, the frame that read the old marks)."""
+        for attempt in range(2):
+            reading, short, long, dt = take(plant.pose, plant.t)
+            plant.wait(self.cfg.robot.settle_s + dt)
+            plant.offset_est = self._where(short.observation, plant)
+            if abs(self._correct_heading(short, plant)) < REOBSERVE_RAD:
+                break
+            self.reobserved += attempt == 0  # (a second askew reading is kept)
+        return reading, long or short
+
+    def _where(self, observation, plant) -> np.ndarray:
+        """The robot's offset from its sub-cell centre (world, m): from the red lights in view
+        when there are any (they stand at cell centres: an absolute reference), else from its
+        own marks; the belief so far when neither is believable."""
+        off = observation.landmark_offset if self.cfg.use_landmarks else None
+        if off is not None and observation.landmark_offset_sigma > LANDMARK_OFFSET_SIGMA:
+            off = None  # too unsure: the marks say it better
+        if off is None:
+            off = observation.position_offset
+        if off is None or max(abs(off[0]), abs(off[1])) > 0.3:  # 5 cm: not believable
+            return plant.offset_est
+        return entry_offset_to_world(off, plant.hc, self.board.subcell_m)
+
+    def _heading(self, res, rows=None) -> float | None:
+        """The heading error: the newest row's, less what the red lights (absolute, when in view)
+        or the lean of all rows (the consensus of older marks; from ``rows``, a long frame read
+        with the same heading, when given: it sees many more of them) say is left over."""
+        if not res.heading.ok:
+            return None
+        cfg, o = self.cfg, res.observation
+        left = o.landmark_rotation_rad if cfg.use_landmarks else None
+        if left is not None and o.landmark_rotation_sigma_rad > LANDMARK_TURN_SIGMA_RAD:
+            left = None  # too unsure to take over from the consensus of the marks
+        if left is None and cfg.use_mark_consensus:
+            left = o.pattern_rotation_rad
+            if rows is not None and rows.observation.pattern_rotation_rad is not None:
+                left = rows.observation.pattern_rotation_rad
+        return res.heading.heading_error_rad - (left if left is not None else 0.0)
+
+    def _correct_heading(self, res, plant) -> float:
+        """Two or more red lights in view say how far the heading has drifted: take it out.
+        Returns the rotation made (rad)."""
+        if self.cfg.use_landmarks and res.observation.landmark_rotation_rad is not None:
+            e = self._heading(res)
+            sig = res.observation.landmark_rotation_sigma_rad
+            # only a drift the lights show clearly (2.5 sigma), and never by a hair
+            if e is not None and abs(e) > max(math.radians(0.5), 2.5 * sig):
+                plant.rotate_by(-e)
+                return -e
+        return 0.0
+
+
+def entry_offset_to_world(off_ru, hc: int, subcell_m: float) -> np.ndarray:
+    """Entry-frame (right, up) offset in sub-cell sides -> world metres for compass heading ``hc``."""
+    right, up = entry_axes(hc)
+    return subcell_m * (off_ru[0] * right + off_ru[1] * up)
+
+
+def make_perception(
+    cfg: CoverConfig, board, *, camera_rng: np.random.Generator, oracle_rng: np.random.Generator
+) -> Perception:
+    """The perception ``cfg.perception`` names: the camera draws its noise from ``camera_rng``,
+    the oracle and the physics-limited camera their read-out noise from ``oracle_rng``."""
+    if cfg.perception == "camera":
+        return CameraPerception(cfg, board, camera_rng)
+    if cfg.perception == "ideal":
+        return IdealPerception(cfg, board, oracle_rng)
+    if cfg.perception == "oracle":
+        return OraclePerception(cfg, board, oracle_rng)
+    from stcvision.errors import BadInputError
+
+    raise BadInputError(f"perception must be camera, ideal or oracle; got {cfg.perception!r}")

@@ -1,0 +1,51 @@
+"""``stcvision cover plan``: "what camera do I need?" answered by the physics-limited camera.
+
+It runs the tour with ``perception="ideal"`` (the camera's frames and time, exactly the marks
+within their visibility horizon; no rendering, no pipeline: seconds), at the given camera and
+robot profiles with exposure control, and reports whether the tour converges (complete: every
+reachable sub-cell once, back at the start) or runs past the longest frame ("out of sight"), how
+long it takes, the oldest mark a decision had to read, and the frames it takes (length x count).
+It is an upper bound: a real pipeline does no better than the physics (README, "The
+physics-limited camera").
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+from controllers.stc.config import CoverConfig
+from controllers.stc.loop import is_complete, run_cover
+from controllers.stc.perception import IdealPerception
+
+__all__ = ["plan"]
+
+
+def plan(board, cfg: CoverConfig | None = None) -> dict:
+    """The physics-limited tour of ``board`` with ``cfg``'s camera and robot (exposure auto)."""
+    cfg = dataclasses.replace(cfg or CoverConfig(), perception="ideal", exposure="auto")
+    seen: list[IdealPerception] = []
+    r = run_cover(board, cfg, perception_hook=seen.append)
+    cam = seen[0].cam
+    limit = cam.horizons(cfg.decision_reach_m)[-1]
+    frames = [
+        {"exposure_s": e, "gain": g, "stack": cam.stack(k), "frame_s": e * cam.stack(k), "count": n}
+        for k, ((e, g, _), n) in enumerate(zip(cam.ladder, cam.per_rung, strict=True))
+        if n
+    ]
+    return {
+        "camera": cfg.camera.name,
+        "robot": cfg.robot.name,
+        "board_cells": r["board_cells"],
+        "subcells_reachable": r["subcells_reachable"],
+        "subcells_covered": r["subcells_covered"],
+        "converges": is_complete(r),
+        "abort_reason": r["abort_reason"],
+        "tour_s": r["sim_time_s"],
+        "oldest_mark_read_s": r["max_mark_age_read_s"],
+        "longest_frame_s": max(f["frame_s"] for f in frames),
+        # how old a mark the longest frame still sees at the decision's reach (None: any age)
+        "horizon_limit_s": limit if math.isfinite(limit) else None,
+        "frames": frames,
+        "wall_s": r["wall_s"],
+    }

@@ -1,0 +1,110 @@
+"""The referee: at every decision of a camera (or physics-limited camera) run, what the oracle
+would have decided in the same state, from the floor's record; a decision is an error when the
+robot commits to something else. Also counts the looks that read the cell ahead wrongly and
+the oldest mark a decision had to read. It watches; it never changes what the robot does."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+
+from controllers.stc.fsm import Action, StcObservation, StcPhase, StcState, decide
+from controllers.stc.geometry import COMPASS_VEC, cell_of
+from controllers.stc.oracle import look_oracle, observe_oracle
+from controllers.stc.plant import Floor, Plant
+
+__all__ = ["Referee"]
+
+
+class Referee:
+    """``active``: compare with the oracle (a run on the oracle's own observations is not).
+    ``report(kind, text)`` hears of every misread, decision error and look error."""
+
+    def __init__(self, board, *, active: bool, report: Callable[[str, str], None] = lambda kind, text: None):
+        self.board = board
+        self.active = active
+        self.report = report
+        self.decision_errors = 0
+        self.look_errors = 0
+        self.max_age_read = 0.0
+        self.first_error: dict | None = None
+        self._expected: tuple | None = None  # what the oracle decided at this cell's decision
+        self._at: dict = {}
+
+    def decision(self, plant: Plant, floor: Floor, obs: StcObservation, state: StcState, k: int) -> None:
+        """The robot decided from ``obs`` at its ``k``-th decision (state ``state``)."""
+        self.max_age_read = max(self.max_age_read, floor.oldest_near(plant.sub, plant.t))
+        if not self.active:
+            return
+        o_obs = observe_oracle(floor.record, self.board, plant.sub, plant.hc, camera_view=True)
+        od = decide(o_obs, at_start=state.at_start)
+        dc = decide(obs, at_start=state.at_start)
+        if (dc.visited, dc.parent, dc.is_start, dc.done) != (od.visited, od.parent, od.is_start, od.done):
+            # what the cell says of itself (visited sub-cells, parent, start, end) was misread:
+            # no look can mend that
+            self._expected = ("misread",)
+            self.report("misread", f"misread at {plant.sub}: camera {obs}, oracle {o_obs}, fresh {state.fresh}")
+        elif od.done:
+            self._expected = ("done",)
+        elif od.final:
+            self._expected = ("stop", od.target, od.parent)
+        else:
+            self._expected = ("leave", od.target, od.parent, od.child is None and o_obs.landing_marked[od.target])
+        self._at = {"decision": k, "subcell": plant.sub, "camera": obs, "oracle": o_obs}
+
+    def look(self, plant: Plant, floor: Floor, marked: bool) -> None:
+        if not self.active or marked == look_oracle(floor.record, plant.sub, plant.hc).marked:
+            return
+        self.look_errors += 1
+        di, dj = COMPASS_VEC[plant.hc]
+        ahead = cell_of((plant.sub[0] + di, plant.sub[1] + dj))
+        seen = [
+            (s, e, round(plant.t - t), round(math.dist(self.board.subcell_center_m(*s), (plant.x, plant.y)), 2))
+            for (s, e), t in floor.laid_at.items()
+            if cell_of(s) == ahead
+        ]
+        self.report(
+            "look error",
+            f"look error at {plant.sub} heading {plant.hc}: camera {marked}, t={plant.t:.0f}, marks ahead {seen}",
+        )
+
+    def step(self, prev: StcState, state: StcState, action: Action, plant: Plant, k: int) -> None:
+        """The controller went from ``prev`` to ``state`` with ``action``: a decision is
+        committed when the robot leaves its cell or stops (the looks before entering a child may
+        revise a first reading, as they are meant to)."""
+        if action is Action.DONE and prev.phase is StcPhase.DECIDE and not prev.closing:
+            self._commit(("done",), plant, k)
+        elif action is Action.DONE and prev.phase is not StcPhase.DECIDE:
+            self._commit(("stop", prev.target, prev.parent), plant, k)
+        elif action is Action.FORWARD and state.phase is StcPhase.DECIDE:
+            self._commit(("leave", prev.target, prev.parent, state.closing), plant, k)
+
+    def _commit(self, outcome: tuple, plant: Plant, k: int) -> None:
+        expected, self._expected = self._expected, None
+        if expected is None or expected == outcome:
+            return
+        self.decision_errors += 1
+        self.report("decision error", f"decision error at {plant.sub}: the oracle would {expected}, did {outcome}")
+        if self.first_error is None:
+            at = self._at
+            self.first_error = {
+                "decision": k,
+                "t_s": round(plant.t, 1),
+                "subcell": list(at["subcell"]),
+                "position_error_m": round(math.hypot(*plant.true_offset()), 4),
+                "heading_error_deg": round(math.degrees(plant.heading_error()), 2),
+                **_compare(at["camera"], at["oracle"]),
+            }
+
+
+def _compare(cam: StcObservation, ora: StcObservation) -> dict:
+    return {
+        "camera_boxes": list(cam.boxes),
+        "oracle_boxes": list(ora.boxes),
+        "camera_neighbours": [[n.has_marks, n.has_red] for n in cam.neighbours],
+        "oracle_neighbours": [[n.has_marks, n.has_red] for n in ora.neighbours],
+        "camera_landing": list(cam.landing_marked),
+        "oracle_landing": list(ora.landing_marked),
+        "camera_start_mark": cam.start_mark,
+        "oracle_start_mark": ora.start_mark,
+    }
