@@ -34,7 +34,7 @@ def test_tiny_cover_sweep_writes_table_and_plot_and_replays(tmp_path, cli):
     assert all(x["complete"] == x["runs"] == "2" for x in rows)
     assert all(float(x["subcells_covered_mean"]) == float(x["subcells_reachable_mean"]) for x in rows)
     md = (out / "summary.md").read_text()
-    assert "| 3x3 | webcam | oracle | 2/2 |" in md and "coverage.png" in md
+    assert "| 3x3 | webcam | oracle | webcam | 2/2 |" in md and "coverage.png" in md
     # a run of the table is the run 'stcvision cover' makes with the same board, seed and settings
     runs = list(csv.DictReader((out / "runs.csv").open()))
     row = next(x for x in runs if (x["cells"], x["seed"], x["exposure"]) == ("3", "1", "webcam"))
@@ -65,3 +65,17 @@ def test_cover_sweep_refusals(tmp_path, cli):
     ):
         code, _, err = cli("cover", "sweep", "--runs", "1", "--out", tmp_path / "x", *bad)
         assert code == 2 and words in err and err.count("\n") == 1, err
+
+
+def test_cover_sweep_over_camera_presets(tmp_path, cli):
+    out = tmp_path / "cams"
+    argv = ("cover", "sweep", "--sizes", "2", "--runs", "1", "--exposures", "auto", "--perceptions", "ideal",
+            "--cameras", "webcam,lowlight", "--out", out, "--workers", "1", "--json")  # fmt: skip
+    code, text, err = cli(*argv)
+    assert code == 0, err
+    rows = json.loads(text)["table"]
+    assert sorted(r["camera"] for r in rows) == ["lowlight", "webcam"]
+    runs = list(csv.DictReader((out / "runs.csv").open()))
+    assert sorted(x["camera"] for x in runs) == ["lowlight", "webcam"]
+    code, _, err = cli("cover", "sweep", "--sizes", "2", "--cameras", "nope", "--out", tmp_path / "x")
+    assert code == 2 and "unknown camera" in err
