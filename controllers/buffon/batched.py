@@ -148,8 +148,8 @@ _P = (
     "half_w",
 )
 # state columns
-X, Y, TH, R, WL, WR, LEVEL, PLEN, ABOVE, GAIN, BLIND = range(11)
-N_STATE = 11
+X, Y, TH, R, WL, WR, LEVEL, PLEN, ABOVE, GAIN, BLIND, ESC = range(12)
+N_STATE = 12
 
 
 @numba.njit(cache=True, nogil=True)
@@ -180,7 +180,7 @@ def _visit(st, beh, irg, slip, steps, grid, lay, geo, outer, trail, prm, ir_ang,
     x, y, th = st[X], st[Y], st[TH]
     r, wl, wr, level, plen = st[R], st[WL], st[WR], st[LEVEL], st[PLEN]
     above = st[ABOVE] > 0.5
-    gain, blind = st[GAIN], st[BLIND]
+    gain, blind, esc = st[GAIN], st[BLIND], st[ESC]
     crossings = 0
     escapes = 0
     recording = rec.shape[0] > 0
@@ -202,8 +202,8 @@ def _visit(st, beh, irg, slip, steps, grid, lay, geo, outer, trail, prm, ir_ang,
         # 2. the behaviour of sec. 3.2 (the scalar controller's own equations)
         n = -noise + 2.0 * noise * beh.random()
         nbar = esc_min + (esc_max - esc_min) * beh.random()
-        r, wl, wr, rbar = explorer_core_nb(
-            r, wl, wr, ir[0], ir[1], ir[2], ir[3], ir[4], ir[5], n, nbar, gamma, front_thr, side_thr
+        r, wl, wr, esc, rbar = explorer_core_nb(
+            r, wl, wr, esc, ir[0], ir[1], ir[2], ir[3], ir[4], ir[5], n, nbar, gamma, front_thr, side_thr
         )
         ml, mr = wheel_speeds_nb(rbar, k)
         # 3. wheels -> body, as sim_camera.robot.DiffDriveRobot._pre_step
@@ -241,6 +241,7 @@ def _visit(st, beh, irg, slip, steps, grid, lay, geo, outer, trail, prm, ir_ang,
     st[R], st[WL], st[WR], st[LEVEL], st[PLEN] = r, wl, wr, level, plen
     st[ABOVE] = 1.0 if above else 0.0
     st[BLIND] = blind
+    st[ESC] = esc
     return crossings, escapes
 
 

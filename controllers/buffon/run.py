@@ -323,7 +323,7 @@ def calibrate(*, trials: int = 100, seed: int = 0) -> dict:
     nest = parse_nest(CORRECTION_REFERENCE)
     config = VisitConfig(visit_steps=AREA_VISIT_STEPS)
     with _bar(2 * trials * config.visit_steps, "buffon calibrate") as bar:
-        ts = run_trials(nest, config, trials=trials, seed=seed, progress=bar.update)
+        ts = run_trials(nest, config, trials=trials, seed=seed, progress=bar.update, threads=_cores())
     k = calibrate_area_correction(ts, nest.area_u2)
     per_trial = nest.area_u2 / area_estimates(ts, correction=1.0)
     ci = median_ci95(per_trial)

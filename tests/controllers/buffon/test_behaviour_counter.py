@@ -50,10 +50,27 @@ def test_escape_rule_turns_away_by_nbar():
     assert new.w_l > new.w_r  # the left wall is still perceived
     new, _ = explorer_step(ExplorerState(), [0, 0.8, 0.8, 0.8, 0.8, 0], _Fixed(0.5, 0.0))
     assert new.rbar == pytest.approx(0.3)  # sign(0) taken as +1 (documented)
+    # the escape keeps its direction while it lasts, whatever w_r - w_l does meanwhile ...
+    s = ExplorerState(0.0, 0.1, 0.6, escape=-1.0)
+    new, _ = explorer_step(s, [0.99, 0, 0, 0, 0, 0], _Fixed(0.5, 1.0))
+    assert new.rbar == pytest.approx(-1.0) and new.escape == -1.0
+    # ... and ends with it
+    new, _ = explorer_step(new, [0, 0, 0, 0, 0, 0], _Fixed(0.5, 1.0))
+    assert new.escape == 0.0
+
+
+def test_activations_stay_within_the_shunting_bounds():
+    """Saturated sensors (an acute corner) for 500 steps: r in [-1, 1], w in [0, 1], no NaN
+    (the unclipped Euler step diverges: r <- -1.9 r + c)."""
+    rng = np.random.default_rng(0)
+    s = ExplorerState()
+    for _ in range(500):
+        s, (ml, mr) = explorer_step(s, rng.uniform(0.9, 1.0, 6), rng)
+        assert -1 <= s.r <= 1 and 0 <= s.w_l <= 1 and 0 <= s.w_r <= 1 and np.isfinite([ml, mr]).all()
 
 
 def test_clipping_of_r_plus_n():
-    new, (ml, mr) = explorer_step(ExplorerState(r=20.0), [0] * 6, _Fixed(1.0, 0.5))  # r' = 0.1 r = 2
+    new, (ml, mr) = explorer_step(ExplorerState(r=20.0), [0] * 6, _Fixed(1.0, 0.5))  # r' = 0.1 r = 2, clipped to 1
     assert new.rbar == 1.0 and ml == pytest.approx(-0.19) and mr == pytest.approx(0.19)
 
 
@@ -61,23 +78,24 @@ def test_scalar_and_batched_twin_agree_step_for_step():
     rng = np.random.default_rng(3)
     n_robots, steps = 64, 200
     p = ExplorerParams()
-    r, wl, wr = np.zeros(n_robots), np.zeros(n_robots), np.zeros(n_robots)
+    r, wl, wr, esc = np.zeros(n_robots), np.zeros(n_robots), np.zeros(n_robots), np.zeros(n_robots)
     states = [ExplorerState() for _ in range(n_robots)]
     for _ in range(steps):
         ir = np.clip(rng.normal(0.2, 0.4, (n_robots, 6)), 0, 1)
         u = rng.random((n_robots, 2))
         n = -p.noise + 2 * p.noise * u[:, 0]
         nbar = p.escape_min + (p.escape_max - p.escape_min) * u[:, 1]
-        r, wl, wr, rbar, ml, mr = explorer_step_batch(r, wl, wr, ir, n, nbar, p)
+        r, wl, wr, esc, rbar, ml, mr = explorer_step_batch(r, wl, wr, esc, ir, n, nbar, p)
         for j in range(n_robots):
             states[j], (sl, sr) = explorer_step(states[j], ir[j], _Fixed(*u[j]), p)
-            assert (states[j].r, states[j].w_l, states[j].w_r, states[j].rbar) == (r[j], wl[j], wr[j], rbar[j])
+            s = states[j]
+            assert (s.r, s.w_l, s.w_r, s.escape, s.rbar) == (r[j], wl[j], wr[j], esc[j], rbar[j])
             assert (sl, sr) == (ml[j], mr[j])
     assert np.abs(rbar).max() > 0.5  # the escape and clipping branches were exercised
 
 
 def test_core_is_the_same_function_compiled():
-    args = (0.1, 0.2, 0.3, 0.9, 0.5, 0.6, 0.7, 0.4, 0.2, 0.05, 0.8, 0.5, 2.7, 0.95)
+    args = (0.1, 0.2, 0.3, 0.0, 0.9, 0.5, 0.6, 0.7, 0.4, 0.2, 0.05, 0.8, 0.5, 2.7, 0.95)
     from controllers.buffon.behaviour import explorer_core_nb
 
     assert explorer_core_nb(*args) == explorer_core(*args)
