@@ -6,6 +6,7 @@ import math
 import numpy as np
 import pytest
 
+from controllers.buffon.counter import LeakyIntegrator
 from sim_camera.arenas import CircleObstacle, SquareArena
 from sim_camera.layers import ChemicalLayer, ChemicalPatch, PheromoneLayer, PolygonPatch
 from sim_camera.robot import KHEPERA, TASTI2
@@ -17,8 +18,6 @@ from sim_camera.sensors import (
     ir_response,
 )
 from sim_camera.world import World
-
-from controllers.buffon.counter import LeakyIntegrator
 
 
 def test_ir_response_curve():
