@@ -535,13 +535,9 @@ REPORT_FILES = (
 
 
 def _png(fig, path: Path, overwrite: bool) -> None:
-    import io
+    from stcvision.fileio import write_figure
 
-    from stcvision.fileio import write_bytes_atomic
-
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=100, metadata={"Software": None})
-    write_bytes_atomic(path, buf.getvalue(), overwrite=overwrite)
+    write_figure(path, fig, overwrite=overwrite, dpi=100, metadata={"Software": None})
 
 
 def _pct(v) -> str:
@@ -593,7 +589,6 @@ def write_report(ev: Evaluation, outdir: str | Path, *, overwrite: bool = False)
     axes[0].legend(title="exposure", fontsize=8)
     fig.tight_layout()
     _png(fig, out / "recall_vs_age.png", overwrite)
-    plt.close(fig)
 
     # heading error histogram
     head = [r.score.heading_err_deg for r in recs if r.score.heading_err_deg is not None]
@@ -606,7 +601,6 @@ def write_report(ev: Evaluation, outdir: str | Path, *, overwrite: bool = False)
     ax.set_title(f"Heading error: RMS {_num(s['heading_err_deg_rms'], '.3f')} deg over {len(head)} fits")
     fig.tight_layout()
     _png(fig, out / "heading_error_hist.png", overwrite)
-    plt.close(fig)
 
     # confusion matrices
     for key, fname, what in (
@@ -629,7 +623,6 @@ def write_report(ev: Evaluation, outdir: str | Path, *, overwrite: bool = False)
         ax.set_title(what)
         fig.tight_layout()
         _png(fig, out / fname, overwrite)
-        plt.close(fig)
 
     # per-stage timing
     stages = list(s["stage_ms_median"])
@@ -642,7 +635,6 @@ def write_report(ev: Evaluation, outdir: str | Path, *, overwrite: bool = False)
     ax.grid(True, axis="y", alpha=0.3)
     fig.tight_layout()
     _png(fig, out / "stage_timing.png", overwrite)
-    plt.close(fig)
 
     write_json(out / "eval.json", s, overwrite=overwrite)
     lines = "".join(dumps(r.to_dict(), indent=None) + "\n" for r in recs)

@@ -17,7 +17,7 @@ import numpy as np
 
 from stcvision.errors import BadInputError, FileExistsRefusedError
 
-__all__ = ["read_image", "read_json", "write_bytes_atomic", "write_image", "write_json"]
+__all__ = ["figure_png", "read_image", "read_json", "write_bytes_atomic", "write_figure", "write_image", "write_json"]
 
 
 def write_bytes_atomic(path: str | os.PathLike, data: bytes, *, overwrite: bool = False) -> Path:
@@ -91,6 +91,23 @@ def write_image(path: str | os.PathLike, image: np.ndarray, *, overwrite: bool =
     if not ok:
         raise BadInputError(f"cannot encode an image as {path.suffix!r}; expected .png or .jpg")
     return write_bytes_atomic(path, buf.tobytes(), overwrite=overwrite)
+
+
+def figure_png(fig, *, dpi: int = 110, **savefig_kw) -> bytes:
+    """A matplotlib figure as PNG bytes; the figure is closed (plots are made once, then saved)."""
+    import io
+
+    import matplotlib.pyplot as plt
+
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=dpi, **savefig_kw)
+    plt.close(fig)
+    return buf.getvalue()
+
+
+def write_figure(path: str | os.PathLike, fig, *, overwrite: bool = False, dpi: int = 110, **savefig_kw) -> Path:
+    """Save a matplotlib figure as PNG, atomically (see :func:`figure_png`)."""
+    return write_bytes_atomic(path, figure_png(fig, dpi=dpi, **savefig_kw), overwrite=overwrite)
 
 
 def read_image(path: str | os.PathLike, *, color: bool = True, what: str = "image") -> np.ndarray:

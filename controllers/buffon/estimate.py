@@ -60,11 +60,10 @@ __all__ = [
 ]
 
 # Visits long enough for the two paths to mix through a nest of the standard area. Measured,
-# median |error| of one trial (100 trials per nest, `stcvision buffon reproduce`): at the paper's
-# 50,000 steps (sec. 4) 16 % (circle) and 14 % (square), the paths cover about half the nest; at
-# 150,000 steps 4.6 / 4.4 %, but 13-16 % in the elongated ellipses and 12 % with a 90 % + barrier;
-# at 300,000 steps (40 trials) 3 % in circle and square, 4.5 % with the + barrier, 7 % in the
-# ellipse of r1/r2 = 9.1 and still 15 % in that of 15.8 (a 400 u corridor the paths cannot mix).
+# median |error| of one trial (100 trials per nest, `stcvision buffon reproduce`, table in the
+# README): at the paper's 50,000 steps (sec. 4) 19 % (circle) and 17 % (square) by the raw
+# formula; at 300,000 steps 2.6-6.1 % over eight standard-area nests and 10.1 % in the ellipse of
+# r1/r2 = 15.8 (a 400 u corridor along which the paths mix slowly).
 AREA_VISIT_STEPS = 300_000
 
 MAX_BLIND_FRACTION = 0.3
@@ -126,6 +125,7 @@ def summarise(ts, area_true_u2: float, *, correction: float = AREA_CORRECTION) -
     est = area_estimates(ts, correction=correction)
     raw = area_estimates(ts, dead_time=False, correction=1.0)
     q1, med, q3 = np.percentile(nbc, [25, 50, 75])
+    warning = _warning(ts)
     return {
         "trials": len(nbc),
         "nbc_median": float(med),
@@ -144,8 +144,8 @@ def summarise(ts, area_true_u2: float, *, correction: float = AREA_CORRECTION) -
         "area_raw_rel_error_median": _finite(np.median(np.abs(raw - area_true_u2) / area_true_u2)),
         "area_raw_bias": _finite(np.median(raw) / area_true_u2 - 1.0),
         "area_correction": correction,
-        "area_warning": _warning(ts),
-        "area_trusted": _warning(ts) is None,
+        "area_warning": warning,
+        "area_trusted": warning is None,
         "escapes": int(ts.escapes),
     }
 

@@ -18,12 +18,11 @@ of sec. 5-6 is checked with a stated test:
 from __future__ import annotations
 
 import io
-from pathlib import Path
 
 import numpy as np
 from scipy import stats
 
-__all__ = ["claims", "table_csv", "write_figures"]
+__all__ = ["claims", "figures", "table_csv"]
 
 CSV_COLUMNS = (
     "family",
@@ -262,12 +261,12 @@ def claims(cases, results, *, trials: int, wall_s: float | None = None, steps_pe
 
 
 # ----------------------------------------------------------------------------------- figures
-def write_figures(out: Path, cases, results, patterns: dict, *, save) -> list[Path]:
-    """Every figure as PNG through ``save(path, fig)``; returns the paths."""
+def figures(cases, results, patterns: dict) -> dict:
+    """Every figure of the reproduction, by file name (matplotlib figures; the caller saves them)."""
     import matplotlib
 
     matplotlib.use("Agg")
-    figs = {
+    return {
         "fig3_patterns.png": _fig_patterns(patterns),
         "fig4_shape.png": _fig_shape(cases, results),
         "fig5_compactness.png": _fig_set(cases, results, ("ellipses",), "compactness r1/r2", log=True),
@@ -275,10 +274,6 @@ def write_figures(out: Path, cases, results, patterns: dict, *, save) -> list[Pa
         "fig7_thickness.png": _fig_thickness(cases, results),
         "area_accuracy.png": _fig_accuracy(cases, results),
     }
-    paths = []
-    for name, fig in figs.items():
-        paths.append(save(out / name, fig))
-    return paths
 
 
 def _plt():

@@ -7,7 +7,6 @@ simulation; nothing in the simulation prints, plots or logs.
 
 from __future__ import annotations
 
-import io
 import time
 from pathlib import Path
 
@@ -24,7 +23,8 @@ from controllers.buffon.estimate import (
 from controllers.buffon.experiments import experiment_cases, refresh
 from controllers.buffon.nests import BODY_LENGTH_M, parse_nest
 from stcvision.errors import BadInputError, FileExistsRefusedError
-from stcvision.fileio import write_bytes_atomic
+from stcvision.fileio import write_bytes_atomic, write_figure
+from stcvision.sweep import machine_workers
 
 __all__ = ["calibrate", "compare", "format_text", "measure", "reproduce"]
 
@@ -57,7 +57,7 @@ def measure(
     if rrd is not None and Path(rrd).exists() and not force:
         raise FileExistsRefusedError(f"{rrd} exists; refusing to overwrite it (use --force)")
     with _bar(2 * trials * visit_steps, f"buffon {nest.label}") as bar:
-        threads = threads or _cores()
+        threads = threads or machine_workers()
         ts = run_trials(
             nest,
             config,
@@ -86,12 +86,6 @@ def measure(
         record_trial(rrd, nest, ts.trails["visit1"], ts.trails["visit2"])
         out["rrd"] = str(rrd)
     return out
-
-
-def _cores() -> int:
-    import os
-
-    return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
 
 
 def format_text(r: dict) -> str:
@@ -129,28 +123,9 @@ def _pct(x) -> str:
 
 # ----------------------------------------------------------------------------- output folder
 def _out_dir(out: str | Path, force: bool, names: tuple[str, ...]) -> Path:
-    """The output folder: new, empty, one of our runs (it holds our store), or --force."""
-    out = Path(out)
-    if out.exists() and not out.is_dir():
-        raise BadInputError(f"--out {out} is a file; expected a folder")
-    ours = (out / STORE_NAME).exists()
-    clash = [n for n in names if (out / n).exists()]
-    if clash and not ours and not force:
-        raise FileExistsRefusedError(f"{out / clash[0]} exists and {out} holds no Buffon run; use --force")
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-    except OSError as e:
-        raise BadInputError(f"cannot create --out {out}: {e.strerror}") from None
-    return out
+    from stcvision.sweep import output_folder
 
-
-def _save_fig(path: Path, fig) -> Path:
-    import matplotlib.pyplot as plt
-
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=110)
-    plt.close(fig)
-    return write_bytes_atomic(path, buf.getvalue(), overwrite=True)
+    return output_folder(out, names, store=STORE_NAME, force=force, what="Buffon run")
 
 
 def _run_tasks(tasks, out: Path, sweep, desc: str):
@@ -193,7 +168,8 @@ def reproduce(out: str | Path, *, trials: int = 100, seed: int = 0, sweep=None, 
     steps = sum(r["robot_steps"] for r in results.values())
     busy = sum(r["wall_s"] for r in results.values())
     write_bytes_atomic(out / "nests.csv", report.table_csv(cases, results).encode(), overwrite=True)
-    report.write_figures(out, cases, results, _patterns(seed), save=_save_fig)
+    for name, fig in report.figures(cases, results, _patterns(seed)).items():
+        write_figure(out / name, fig, overwrite=True)
     wall = time.perf_counter() - t0
     text = report.claims(cases, results, trials=trials, wall_s=wall, steps_per_s=steps / busy)
     write_bytes_atomic(out / "summary.md", text.encode(), overwrite=True)
@@ -303,7 +279,7 @@ def _compare_outputs(out: Path, res: dict, nbc_p, nbc_b) -> None:
         title=f"{res['nest']} {res['barrier'] or ''}: MWU p={res['mannwhitney_p']:.2f}, KS p={res['ks_p']:.2f}",
     )
     ax.legend()
-    _save_fig(out / "compare.png", fig)
+    write_figure(out / "compare.png", fig, overwrite=True)
     md = ["# Batched path vs pymunk path", "", "| figure | pymunk | batched |", "|---|---:|---:|"]
     for k in ("nbc_median", "l1_median", "escapes", "robot_steps_per_s"):
         md.append(f"| {k} | {res[k + '_pymunk']:.4g} | {res[k + '_batched']:.4g} |")
@@ -323,7 +299,7 @@ def calibrate(*, trials: int = 100, seed: int = 0) -> dict:
     nest = parse_nest(CORRECTION_REFERENCE)
     config = VisitConfig(visit_steps=AREA_VISIT_STEPS)
     with _bar(2 * trials * config.visit_steps, "buffon calibrate") as bar:
-        ts = run_trials(nest, config, trials=trials, seed=seed, progress=bar.update, threads=_cores())
+        ts = run_trials(nest, config, trials=trials, seed=seed, progress=bar.update, threads=machine_workers())
     k = calibrate_area_correction(ts, nest.area_u2)
     per_trial = nest.area_u2 / area_estimates(ts, correction=1.0)
     ci = median_ci95(per_trial)

@@ -21,16 +21,9 @@ def _figure(*args, **kw):
 
 
 def save_figure(fig, path, *, overwrite: bool = True) -> None:
-    import io
+    from stcvision.fileio import write_figure
 
-    import matplotlib.pyplot as plt
-
-    from stcvision.fileio import write_bytes_atomic
-
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=110, bbox_inches="tight")
-    plt.close(fig)
-    write_bytes_atomic(path, buf.getvalue(), overwrite=overwrite)
+    write_figure(path, fig, overwrite=overwrite, bbox_inches="tight")
 
 
 def _scene(ax, scene) -> None:

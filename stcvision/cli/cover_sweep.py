@@ -19,7 +19,7 @@ import statistics
 from collections.abc import Sequence
 from pathlib import Path
 
-from stcvision.errors import BadInputError, FileExistsRefusedError
+from stcvision.errors import BadInputError
 
 __all__ = ["cover_run", "plan", "summarise", "sweep_cover", "write_outputs"]
 
@@ -224,21 +224,9 @@ def plot(rows: list[dict]) -> bytes:
         ax.grid(alpha=0.3)
         ax.xaxis.set_major_locator(MaxNLocator(integer=True))
     b.legend(fontsize=8, loc="lower left")
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=110)
-    plt.close(fig)
-    return buf.getvalue()
+    from stcvision.fileio import figure_png
 
-
-def check_out(out: Path, *, force: bool) -> None:
-    """OUT may be new, empty, a previous cover sweep's folder (its store is there), or --force."""
-    if out.exists() and not out.is_dir():
-        raise BadInputError(f"{out} is a file; expected a folder for the sweep's outputs")
-    if force or (out / STORE).exists():
-        return
-    taken = [name for name in OUTPUTS if (out / name).exists()]
-    if taken:
-        raise FileExistsRefusedError(f"{out / taken[0]} exists and {out} holds no cover sweep; use --force")
+    return figure_png(fig)
 
 
 def write_outputs(out: Path, runs: list[dict], report_summary: str) -> list[str]:
@@ -283,10 +271,10 @@ def write_outputs(out: Path, runs: list[dict], report_summary: str) -> list[str]
 
 def sweep_cover(args) -> dict:
     """The ``cover sweep`` action: plan, run through the sweep, write the table and the plot."""
-    from stcvision.sweep import run_sweep, sweep_options_from_args
+    from stcvision.sweep import output_folder, run_sweep, sweep_options_from_args
 
     out = Path(args.out)
-    check_out(out, force=args.force)
+    output_folder(out, OUTPUTS, store=STORE, force=args.force, what="cover sweep")
     tasks = plan(
         args.sizes,
         args.runs,
@@ -296,7 +284,6 @@ def sweep_cover(args) -> dict:
         obstacle_fraction=args.obstacle_fraction,
         decisions_per_subcell=args.decisions_per_subcell,
     )
-    out.mkdir(parents=True, exist_ok=True)
     report = run_sweep(tasks, out / STORE, sweep_options_from_args(args), desc="cover sweep")
     runs = list(report.results.values())
     files = write_outputs(out, runs, report.summary()) if runs else []

@@ -26,6 +26,7 @@ from stcvision.sweep._run import (
     SweepReport,
     add_sweep_arguments,
     machine_workers,
+    output_folder,
     run_sweep,
     sweep_options_from_args,
 )
@@ -38,6 +39,7 @@ __all__ = [
     "Task",
     "add_sweep_arguments",
     "machine_workers",
+    "output_folder",
     "read_store",
     "run_sweep",
     "seed_sequence",

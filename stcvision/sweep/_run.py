@@ -25,6 +25,25 @@ __all__ = [
 _DASK_MISSING = "--scheduler needs Dask: pip install 'stcvision[dask]' (dask[distributed])"
 
 
+def output_folder(out: str | os.PathLike, outputs: Iterable[str], *, store: str, force: bool, what: str) -> Path:
+    """Check and create a sweep's output folder: new, holding none of ``outputs``, holding its
+    ``store`` (an earlier run of the same command: it resumes and rewrites its outputs), or
+    ``force``. Anything else is a user's folder, refused in one line naming ``what`` runs there."""
+    out = Path(out)
+    if out.exists() and not out.is_dir():
+        raise BadInputError(f"{out} is a file; expected a folder for the {what}'s outputs")
+    taken = [name for name in outputs if (out / name).exists()]
+    if taken and not force and not (out / store).exists():
+        from stcvision.errors import FileExistsRefusedError
+
+        raise FileExistsRefusedError(f"{out / taken[0]} exists and {out} holds no {what}; use --force")
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as e:
+        raise BadInputError(f"cannot create the folder {out}: {e.strerror}") from None
+    return out
+
+
 def machine_workers() -> int:
     """The CPUs this process may run on (the default size of the local pool)."""
     try:

@@ -114,7 +114,7 @@ def _mini_cases():
 
 def test_reproduce_writes_figures_table_and_claims(cli, tmp_path, monkeypatch):
     monkeypatch.setattr(buffon_run, "experiment_cases", _mini_cases)
-    monkeypatch.setattr(buffon_run, "_patterns", lambda seed: {k: v for k, v in _real_patterns(seed).items()})
+    monkeypatch.setattr(buffon_run, "_patterns", _stand_in_patterns)
     out = tmp_path / "rep"
     code, stdout, err = cli("buffon", "reproduce", "--out", out, "--trials", 3, "--workers", 1, "--json")
     assert code == 0, err
@@ -131,7 +131,7 @@ def test_reproduce_writes_figures_table_and_claims(cli, tmp_path, monkeypatch):
     assert code == 0 and f"{len(_mini_cases())} skipped as done" in json.loads(stdout)["sweep"]
 
 
-def _real_patterns(seed):
+def _stand_in_patterns(seed):
     import numpy as np
 
     outline = np.array([[0, 0], [1, 0], [1, 1]], float)
