@@ -566,7 +566,6 @@ def write_report(ev: Evaluation, outdir: str | Path, *, overwrite: bool = False)
         if taken:
             raise FileExistsRefusedError(f"{out} already holds {', '.join(taken)}; use --force to overwrite")
     s, recs = ev.summary, ev.records
-    written = []
 
     # recall vs mark age, per exposure: of the dots that should be found, and of all visible dots
     fig, axes = plt.subplots(1, 2, figsize=(11, 4.2), sharey=True)
@@ -731,5 +730,4 @@ def write_report(ev: Evaluation, outdir: str | Path, *, overwrite: bool = False)
     md += ["", "## Plots", ""]
     md += [f"![{n}]({n})" for n in REPORT_FILES if n.endswith(".png")]
     write_bytes_atomic(out / "summary.md", ("\n".join(md) + "\n").encode(), overwrite=overwrite)
-    written = [str(out / n) for n in REPORT_FILES]
-    return written
+    return [str(out / n) for n in REPORT_FILES]

@@ -33,6 +33,11 @@ __all__ = [
     "observe_cell",
 ]
 
+# sub-cell of a point by its quadrant: [right, up] -> index (from stcgrid.SUBCELLS, built once)
+_SUB_OF_QUADRANT = np.full((2, 2), -1)
+for _k, (_sr, _su) in SUBCELLS.items():
+    _SUB_OF_QUADRANT[int(_sr > 0), int(_su > 0)] = _k
+
 
 @dataclass(frozen=True, eq=False)
 class CellGeometry:
@@ -173,9 +178,7 @@ def assign_boxes(ru: np.ndarray, orient: np.ndarray | None = None) -> tuple[np.n
         orient = row_orientation(ru)
     inside = (np.abs(r) < 1) & (np.abs(u) < 1)
     right, up = r >= 0, u >= 0
-    sub = np.full(len(ru), -1)
-    for k, (sr, su) in SUBCELLS.items():
-        sub[inside & (right == (sr > 0)) & (up == (su > 0))] = k
+    sub = np.where(inside, _SUB_OF_QUADRANT[right.astype(int), up.astype(int)], -1)
     lr = r - np.where(right, 0.5, -0.5)
     lu = u - np.where(up, 0.5, -0.5)
     horiz = np.where(orient == 1, True, np.where(orient == 0, False, np.abs(lr) > np.abs(lu)))

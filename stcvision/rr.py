@@ -29,7 +29,7 @@ import numpy as np
 import rerun as rr
 import rerun.blueprint as rrb
 
-__all__ = ["ENTITY_PATHS", "PipelineLogger", "blueprint", "open_recording"]
+__all__ = ["ENTITY_PATHS", "PipelineLogger", "blueprint", "finish_recording", "open_recording"]
 
 ENTITY_PATHS = (
     "raw",
@@ -90,6 +90,15 @@ def open_recording(
     if spawn:
         rec.spawn(default_blueprint=bp)
     return rec, tmp
+
+
+def finish_recording(rec: rr.RecordingStream, tmp: Path | None, final: str | Path | None) -> None:
+    """Flush ``rec`` and, if it writes to the temporary file ``tmp``, move it to ``final``
+    atomically (the other half of :func:`open_recording`)."""
+    rec.flush()
+    if tmp is not None:
+        rec.disconnect()
+        os.replace(tmp, final)
 
 
 class PipelineLogger:
@@ -180,11 +189,8 @@ class PipelineLogger:
 
     def close(self) -> None:
         """Flush, and move the recording into place atomically."""
-        self.rec.flush()
-        if self._tmp is not None:
-            self.rec.disconnect()
-            os.replace(self._tmp, self._final)
-            self._tmp = None
+        finish_recording(self.rec, self._tmp, self._final)
+        self._tmp = None
 
 
 def observation_markdown(result) -> str:

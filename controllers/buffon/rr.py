@@ -14,7 +14,6 @@ Timeline ``step`` (the second visit's step), one frame per ``every`` steps.
 
 from __future__ import annotations
 
-import os
 from pathlib import Path
 
 import numpy as np
@@ -49,15 +48,13 @@ def _xy(p) -> np.ndarray:
 def record_trial(path: str | Path, nest, visit1: np.ndarray, visit2: np.ndarray, *, frames: int = 250) -> Path:
     """Write ``path`` (.rrd, atomically): the trial whose paths are ``visit1``, ``visit2``
     ((S, 3) arrays x m, y m, crossed), as recorded by :func:`controllers.buffon.batched.run_trials`."""
+    from stcvision.rr import finish_recording, open_recording
+
     path = Path(path)
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    rec = rr.RecordingStream("stcvision-buffon")
-    rec.save(tmp, default_blueprint=_blueprint())
+    rec, tmp = open_recording(path, app_id="stcvision-buffon", default_blueprint=_blueprint())
     try:
         _log(rec, nest, visit1, visit2, frames)
-        rec.flush()
-        rec.disconnect()
-        os.replace(tmp, path)
+        finish_recording(rec, tmp, path)
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise

@@ -132,9 +132,7 @@ def _run_tasks(tasks, out: Path, sweep, desc: str):
     from stcvision.sweep import run_sweep
 
     report = run_sweep(tasks, out / STORE_NAME, sweep, desc=desc)
-    if report.failed:
-        first = next(iter(report.failed.values()))
-        raise BadInputError(f"{len(report.failed)} of {len(tasks)} tasks failed (first: {first}); re-run to retry them")
+    report.raise_if_failed("nests' tasks")
     return report
 
 

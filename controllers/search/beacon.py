@@ -35,9 +35,6 @@ class BeaconFix:
     y_m: float
     heading_rad: float
 
-    def corrected(self, odo_pose) -> tuple[float, float, float]:
-        return (self.x_m, self.y_m, self.heading_rad)
-
     def as_tuple(self) -> tuple[float, float, float]:
         return (self.x_m, self.y_m, self.heading_rad)
 
@@ -98,7 +95,6 @@ class BeaconFixer:
         self.rng = np.random.default_rng(ss_noise)
         self.profile = default_profile()
         self.pipeline = Pipeline(self.profile, dark=self.camera.median_dark(8, rng=self.rng))
-        self.frames = 0
         self.last_result = None  # the pipeline's last result (for a recorder)
 
     def fix(self) -> BeaconFix | None:
@@ -111,7 +107,6 @@ class BeaconFixer:
             return None
         frame = self.camera.render(Pose(*self.robot.pose), rng=self.rng, red_lights_m=self.lights)
         res = self.pipeline.process(frame.image)
-        self.frames += 1
         self.last_result = res
         if len(res.red) != 2:
             return None

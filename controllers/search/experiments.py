@@ -196,11 +196,7 @@ def reproduce(out, *, n_seeds: int = 8, root_seed: int = 2024, sweep=None) -> di
         for t, label, params in jobs
     }
     report = run_sweep(list(tasks.values()), out / "sweep.jsonl", sweep or SweepOptions(), desc="search reproduce")
-    if report.failed:
-        from stcvision.errors import StcVisionError
-
-        first = next(iter(report.failed.values()))
-        raise StcVisionError(f"{len(report.failed)} rows failed (first: {first}); re-run to retry them")
+    report.raise_if_failed("table rows")
     results = {k: report.results[task.key]["runs"] for k, task in tasks.items()}
     tables = {
         t: table_markdown(title, [(label, results[(t, label)]) for label, _ in rows]) for t, title, rows in TABLES

@@ -7,7 +7,6 @@ up). The file is written atomically on :meth:`close`."""
 
 from __future__ import annotations
 
-import os
 from pathlib import Path
 
 import numpy as np
@@ -48,7 +47,6 @@ class SearchRecorder:
         self.rec, self.tmp = open_recording(self.path, app_id="stcvision-search", default_blueprint=_blueprint())
         self._true = [(0.0, 0.0)]
         self._odo = [(0.0, 0.0)]
-        self._samples = [(0.0, 0.0)]
         self._fixes: list = []
         self._pipe_logger = None
         rec = self.rec
@@ -71,10 +69,10 @@ class SearchRecorder:
         rec.set_time("sim_time", duration=float(m.t_s))
         self._true.append(m.true_pose[:2])
         self._odo.append(m.odo_pose[:2])
-        self._samples.append(m.true_pose[:2])
-        rec.log("world/true_path", rr.LineStrips2D([_xy(self._true)], colors=[40, 100, 230], radii=0.003))
+        true_xy = _xy(self._true)  # the robot senses where it truly stands after each move
+        rec.log("world/true_path", rr.LineStrips2D([true_xy], colors=[40, 100, 230], radii=0.003))
         rec.log("world/believed_path", rr.LineStrips2D([_xy(self._odo)], colors=[40, 170, 60], radii=0.002))
-        rec.log("world/samples", rr.Points2D(_xy(self._samples), radii=0.008, colors=[0, 0, 0]))
+        rec.log("world/samples", rr.Points2D(true_xy, radii=0.008, colors=[0, 0, 0]))
         for name, pose, col in (
             ("robot_true", m.true_pose, [40, 100, 230]),
             ("robot_believed", m.odo_pose, [40, 170, 60]),
@@ -102,6 +100,6 @@ class SearchRecorder:
             fixer.last_result = None
 
     def close(self) -> None:
-        self.rec.flush()
-        self.rec.disconnect()
-        os.replace(self.tmp, self.path)
+        from stcvision.rr import finish_recording
+
+        finish_recording(self.rec, self.tmp, self.path)

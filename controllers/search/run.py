@@ -203,7 +203,7 @@ def run_search(
         before = robot.odometry.pose
         fix = fixer.fix() if fixer is not None else None
         if fix is not None:
-            robot.odometry.correct(fix.corrected(before))
+            robot.odometry.correct(fix.as_tuple())
         tongue = sensors.tongue.read()
         ring = sensors.capacitive.obstacle_ahead()
         st = state.i + (1 if (result == "done" and action.kind.value == "search") else 0)

@@ -8,11 +8,11 @@ before step 13, and a larger obstacle where the spiral turns by more than 45 deg
 
 from __future__ import annotations
 
-from controllers.search.patterns import RadialPattern, SpiralPattern
+from controllers.search.patterns import SpiralPattern
 from sim_camera.layers import TASTI2_SALT_PATCH_DIAMETER_M
 from sim_camera.sensors import CapacitiveRingParams
 
-__all__ = ["FIG6_OBSTACLE", "FIG7_OBSTACLE", "FIG13_CAN", "PAPER_PATCH", "paper_radial", "paper_spiral"]
+__all__ = ["FIG6_OBSTACLE", "FIG7_OBSTACLE", "FIG13_CAN", "PAPER_PATCH", "paper_spiral"]
 
 _R = 0.5 * TASTI2_SALT_PATCH_DIAMETER_M
 #: the salt patch, first sampled on the spiral's step 21 (Figs. 11-14)
@@ -27,7 +27,3 @@ FIG6_OBSTACLE = (0.75, 0.45, 0.08)
 
 def paper_spiral(max_steps: int = 60) -> SpiralPattern:
     return SpiralPattern(max_steps=max_steps)
-
-
-def paper_radial(**kw) -> RadialPattern:
-    return RadialPattern(**kw)

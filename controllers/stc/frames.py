@@ -215,9 +215,8 @@ class IdealCamera(Exposures):
         d = np.hypot(*(phosphor.xy_m - np.asarray(xy)).T)
         h = np.max([np.interp(d, self.RHO, self.curves[k], left=0.0, right=0.0) for k in rungs], axis=0)
         vis = (phosphor.ages_s(t_s) <= h).reshape(-1, 4).any(axis=1)
-        for (sub, edge), v in zip(marks, vis, strict=True):
-            if v:
-                seen.mark(sub, edge)
+        for i in np.flatnonzero(vis):
+            seen.mark(*marks[i])
         return seen
 
     def _rungs(self, t_s: float, reach_m: float, short_only: bool = False) -> list[int]:

@@ -27,7 +27,7 @@ import numpy as np
 
 from controllers.stc.config import CoverConfig
 from controllers.stc.fsm import Action, LookObs, StcPhase, decide, initial_state, step
-from controllers.stc.observers import Observers, Reading
+from controllers.stc.observers import Observers, Reading, Trace
 from controllers.stc.oracle import coverage
 from controllers.stc.perception import make_perception
 from controllers.stc.plant import Floor, Plant
@@ -70,7 +70,7 @@ def run_cover(board, cfg: CoverConfig | None = None, *, observers=(), perception
     see = make_perception(cfg, board, camera_rng=rngs["camera"], oracle_rng=rngs["oracle"])
     if perception_hook is not None:
         perception_hook(see)
-    watch = Observers([*observers, *([_trace()] if cfg.trace else [])])
+    watch = Observers([*observers, *([Trace()] if cfg.trace else [])])
     referee = Referee(board, active=see.refereed, report=watch.on_referee)
     state, decisions, looks, finished, abort = initial_state(), 0, 0, False, None
     while decisions < cfg.max_decisions:
@@ -124,12 +124,6 @@ def _act(action: Action, plant: Plant, floor: Floor, see, watch) -> str | None:
     return None
 
 
-def _trace():
-    from controllers.stc.observers import Trace
-
-    return Trace()
-
-
 def _summary(board, cfg, plant, see, referee, *, decisions, looks, finished, abort, wall_s) -> dict:
     cov = coverage(board, plant.visits, plant.sub, finished=finished, moves=plant.moves)
     out = {
@@ -147,7 +141,7 @@ def _summary(board, cfg, plant, see, referee, *, decisions, looks, finished, abo
         "decisions": decisions,
         "looks": looks,
         "look_errors": referee.look_errors,
-        "reobserved": getattr(see, "reobserved", 0),
+        "reobserved": see.reobserved,
         "sim_time_s": plant.t,
         "wall_s": wall_s,
         "decision_errors": referee.decision_errors,

@@ -212,7 +212,6 @@ def _check_decision(dec, obs, board, s, h, visits, parent_of, cell_visited, star
     true_parent = (h + 1 - pc) % 4
     if dec.parent != true_parent:
         bad["parent"] = (dec.parent, true_parent)
-    cr, cc = board.shape_cells
 
     def truly_new(d):
         di, dj = COMPASS_VEC[frame_compass(h, d)]

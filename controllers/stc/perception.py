@@ -43,6 +43,8 @@ class Perception(Protocol):
     last_frame: tuple | None
     frames: int
     long_frames: int
+    #: decisions and looks observed again because their frames were read askew (camera only)
+    reobserved: int
 
     def out_of_sight(self, t_s: float) -> str | None: ...
 
@@ -58,7 +60,7 @@ class OraclePerception:
 
     refereed = False
     last_frame = None
-    frames = long_frames = 0
+    frames = long_frames = reobserved = 0
 
     def __init__(self, cfg: CoverConfig, board, rng: np.random.Generator):
         self.cfg = cfg

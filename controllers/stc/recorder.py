@@ -5,7 +5,6 @@ timelines. World coordinates are drawn with north up (y flipped for the 2-D view
 
 from __future__ import annotations
 
-import os
 from pathlib import Path
 
 import numpy as np
@@ -13,7 +12,7 @@ import rerun as rr
 import rerun.blueprint as rrb
 
 from controllers.stc.observers import Observer, Reading
-from stcvision.rr import PipelineLogger
+from stcvision.rr import PipelineLogger, finish_recording, open_recording
 
 __all__ = ["CoverRecorder"]
 
@@ -44,10 +43,7 @@ class CoverRecorder(Observer):
 
     def __init__(self, path: str | Path, board) -> None:
         self.path = Path(path)
-        self.path.parent.mkdir(parents=True, exist_ok=True)
-        self.tmp = self.path.with_name(f".{self.path.name}.{os.getpid()}.tmp")
-        self.rec = rr.RecordingStream("stcvision-cover")
-        self.rec.save(self.tmp, default_blueprint=_blueprint())
+        self.rec, self.tmp = open_recording(self.path, app_id="stcvision-cover", default_blueprint=_blueprint())
         self.board = board
         self._pipe_logger = None
         self._static()
@@ -121,6 +117,4 @@ class CoverRecorder(Observer):
             self._pipe_logger.log(result, frame=k, sim_time_s=t_s)
 
     def close(self) -> None:
-        self.rec.flush()
-        self.rec.disconnect()
-        os.replace(self.tmp, self.path)
+        finish_recording(self.rec, self.tmp, self.path)

@@ -80,7 +80,6 @@ def _sweep_dataset(args, ds, profile):
     import tempfile
     from pathlib import Path
 
-    from stcvision.errors import BadInputError
     from stcvision.evaluate import FrameRecord, summarize_evaluation
     from stcvision.sweep import Task, run_sweep, sweep_options_from_args
 
@@ -108,9 +107,7 @@ def _sweep_dataset(args, ds, profile):
     else:
         with tempfile.TemporaryDirectory(prefix="stcvision-eval-") as tmp:
             report = run_sweep(tasks, Path(tmp) / "sweep.jsonl", opts, desc=f"eval {ds.root.name}")
-    if report.failed:
-        err = next(iter(report.failed.values())).split(": ", 1)[-1]
-        raise BadInputError(f"{len(report.failed)} of {len(tasks)} chunks of {ds.root} failed: {err}")
+    report.raise_if_failed(f"chunks of {ds.root}")
     records, skipped = [], []
     for r in report.results.values():
         records += [FrameRecord.from_record(d) for d in r["records"]]

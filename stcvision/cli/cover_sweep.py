@@ -229,10 +229,10 @@ def plot(rows: list[dict]) -> bytes:
     return figure_png(fig)
 
 
-def write_outputs(out: Path, runs: list[dict], report_summary: str) -> list[str]:
+def write_outputs(out: Path, runs: list[dict], rows: list[dict], report_summary: str) -> list[str]:
+    """runs.csv, table.csv (``rows``: :func:`summarise` of ``runs``), summary.md, coverage.png."""
     from stcvision.fileio import write_bytes_atomic
 
-    rows = summarise(runs)
     failed = [r for r in runs if not r["complete"]]
     md = [
         "# STC coverage sweep",
@@ -286,12 +286,13 @@ def sweep_cover(args) -> dict:
     )
     report = run_sweep(tasks, out / STORE, sweep_options_from_args(args), desc="cover sweep")
     runs = list(report.results.values())
-    files = write_outputs(out, runs, report.summary()) if runs else []
+    rows = summarise(runs)
+    files = write_outputs(out, runs, rows, report.summary()) if runs else []
     return {
         "action": "sweep",
         "out": str(out),
         "files": files,
-        "table": summarise(runs),
+        "table": rows,
         "tasks": report.total,
         "skipped": report.skipped,
         "failed": dict(report.failed),

@@ -290,14 +290,12 @@ def generate(recipe: Recipe, out: str | Path, *, seed: int | None = None, option
             params = {**base, "group": gi, "first": ks.start, "stop": ks.stop}
             tasks.append(Task(experiment=f"{__name__}:render_frames", params=params, seed=seed))
     report = run_sweep(tasks, out / STORE, options, desc=f"generate {recipe.name}")
-    if report.failed:
-        key, err = next(iter(report.failed.items()))
+
+    def name(key: str) -> str:
         task = next(t for t in tasks if t.key == key)
-        what = task.experiment.split(":")[1]
-        raise BadInputError(
-            f"{len(report.failed)} of {len(tasks)} tasks failed, e.g. {what} "
-            f"{ {k: v for k, v in task.params.items() if k not in base} }: {err}; re-run to retry them"
-        )
+        return f"{task.experiment.split(':')[1]} { {k: v for k, v in task.params.items() if k not in base} }"
+
+    report.raise_if_failed("tasks", name)
     made = {"calibration_frames": 0, "profiles": 0, "darks": 0, "frames": 0}
     for t in tasks:
         r = report.results[t.key]

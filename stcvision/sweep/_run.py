@@ -99,6 +99,15 @@ class SweepReport:
     skipped_keys: frozenset[str] = frozenset()  # the tasks counted in ``skipped``
     store: str = ""
 
+    def raise_if_failed(self, what: str = "tasks", name=None) -> None:
+        """One line, exit 2, if any task failed: ``N of M <what> failed[, e.g. <name(key)>]:
+        <its error>; re-run to retry them`` (the store keeps every error; a re-run retries)."""
+        if not self.failed:
+            return
+        key, err = next(iter(self.failed.items()))
+        which = f", e.g. {name(key)}" if name is not None else ""
+        raise BadInputError(f"{len(self.failed)} of {self.total} {what} failed{which}: {err}; re-run to retry them")
+
     @property
     def tasks_per_s(self) -> float | None:
         return self.ran / self.wall_s if self.ran and self.wall_s > 0 else None
