@@ -553,10 +553,22 @@ def write_report(ev: Evaluation, outdir: str | Path, *, overwrite: bool = False)
     import matplotlib
 
     matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    from stcvision.errors import FileExistsRefusedError
     from stcvision.fileio import dumps, write_bytes_atomic, write_json
+
+    out = _report_folder(outdir, overwrite)
+    s, recs = ev.summary, ev.records
+    for name, fig in _report_figures(s, recs).items():
+        _png(fig, out / name, overwrite)
+    write_json(out / "eval.json", s, overwrite=overwrite)
+    lines = "".join(dumps(r.to_dict(), indent=None) + "\n" for r in recs)
+    write_bytes_atomic(out / "frames.jsonl", lines.encode(), overwrite=overwrite)
+    md = _summary_lines(s) + _age_and_worst_lines(s)
+    write_bytes_atomic(out / "summary.md", ("\n".join(md) + "\n").encode(), overwrite=overwrite)
+    return [str(out / n) for n in REPORT_FILES]
+
+
+def _report_folder(outdir: str | Path, overwrite: bool) -> Path:
+    from stcvision.errors import FileExistsRefusedError
 
     out = Path(outdir)
     if out.exists() and not out.is_dir():
@@ -565,7 +577,26 @@ def write_report(ev: Evaluation, outdir: str | Path, *, overwrite: bool = False)
         taken = [n for n in REPORT_FILES if (out / n).exists()]
         if taken:
             raise FileExistsRefusedError(f"{out} already holds {', '.join(taken)}; use --force to overwrite")
-    s, recs = ev.summary, ev.records
+    return out
+
+
+def _report_figures(s: dict, recs) -> dict:
+    """The report's plots by file name."""
+    figs = {
+        "recall_vs_age.png": _plot_recall_vs_age(s),
+        "heading_error_hist.png": _plot_heading_errors(s, recs),
+    }
+    for key, fname, what in (
+        ("box_confusion", "box_confusion.png", "box marked"),
+        ("obstacle_confusion", "obstacle_confusion.png", "neighbour has a red light"),
+    ):
+        figs[fname] = _plot_confusion(np.array(s[key]), what)
+    figs["stage_timing.png"] = _plot_stage_timing(s, recs)
+    return figs
+
+
+def _plot_recall_vs_age(s: dict):
+    import matplotlib.pyplot as plt
 
     # recall vs mark age, per exposure: of the dots that should be found, and of all visible dots
     fig, axes = plt.subplots(1, 2, figsize=(11, 4.2), sharey=True)
@@ -587,7 +618,11 @@ def write_report(ev: Evaluation, outdir: str | Path, *, overwrite: bool = False)
     axes[0].set_ylabel("dots found (%)")
     axes[0].legend(title="exposure", fontsize=8)
     fig.tight_layout()
-    _png(fig, out / "recall_vs_age.png", overwrite)
+    return fig
+
+
+def _plot_heading_errors(s: dict, recs):
+    import matplotlib.pyplot as plt
 
     # heading error histogram
     head = [r.score.heading_err_deg for r in recs if r.score.heading_err_deg is not None]
@@ -599,29 +634,29 @@ def write_report(ev: Evaluation, outdir: str | Path, *, overwrite: bool = False)
     ax.set_ylabel("frames")
     ax.set_title(f"Heading error: RMS {_num(s['heading_err_deg_rms'], '.3f')} deg over {len(head)} fits")
     fig.tight_layout()
-    _png(fig, out / "heading_error_hist.png", overwrite)
+    return fig
 
-    # confusion matrices
-    for key, fname, what in (
-        ("box_confusion", "box_confusion.png", "box marked"),
-        ("obstacle_confusion", "obstacle_confusion.png", "neighbour has a red light"),
-    ):
-        c = np.array(s[key])
-        fig, ax = plt.subplots(figsize=(4.2, 3.8))
-        ax.imshow(c, cmap="Blues")
-        for i in range(2):
-            for j in range(2):
-                dark_cell = c[i, j] > 0.5 * max(c.max(), 1)
-                ax.text(
-                    j, i, str(c[i, j]), ha="center", va="center", color="white" if dark_cell else "black", fontsize=13
-                )
-        ax.set_xticks([0, 1], ["no", "yes"])
-        ax.set_yticks([0, 1], ["no", "yes"])
-        ax.set_xlabel("pipeline read")
-        ax.set_ylabel("truth")
-        ax.set_title(what)
-        fig.tight_layout()
-        _png(fig, out / fname, overwrite)
+
+def _plot_confusion(c: np.ndarray, what: str):
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(4.2, 3.8))
+    ax.imshow(c, cmap="Blues")
+    for i in range(2):
+        for j in range(2):
+            dark_cell = c[i, j] > 0.5 * max(c.max(), 1)
+            ax.text(j, i, str(c[i, j]), ha="center", va="center", color="white" if dark_cell else "black", fontsize=13)
+    ax.set_xticks([0, 1], ["no", "yes"])
+    ax.set_yticks([0, 1], ["no", "yes"])
+    ax.set_xlabel("pipeline read")
+    ax.set_ylabel("truth")
+    ax.set_title(what)
+    fig.tight_layout()
+    return fig
+
+
+def _plot_stage_timing(s: dict, recs):
+    import matplotlib.pyplot as plt
 
     # per-stage timing
     stages = list(s["stage_ms_median"])
@@ -633,12 +668,11 @@ def write_report(ev: Evaluation, outdir: str | Path, *, overwrite: bool = False)
     ax.set_title(f"Pipeline stages (median total {_num(s['ms_per_frame_median'])} ms per frame)")
     ax.grid(True, axis="y", alpha=0.3)
     fig.tight_layout()
-    _png(fig, out / "stage_timing.png", overwrite)
+    return fig
 
-    write_json(out / "eval.json", s, overwrite=overwrite)
-    lines = "".join(dumps(r.to_dict(), indent=None) + "\n" for r in recs)
-    write_bytes_atomic(out / "frames.jsonl", lines.encode(), overwrite=overwrite)
 
+def _summary_lines(s: dict) -> list[str]:
+    """summary.md up to the per-camera table."""
     md = [
         f"# Evaluation of `{s['dataset']}`",
         "",
@@ -695,6 +729,12 @@ def write_report(ev: Evaluation, outdir: str | Path, *, overwrite: bool = False)
             f"{_num(m['dot_loc_err_mm_median'], '.2f', ' mm')} | {_num(m['heading_err_deg_rms'], '.3f', ' deg')} | "
             f"{_pct(m['box_accuracy'])} |"
         )
+    return md
+
+
+def _age_and_worst_lines(s: dict) -> list[str]:
+    """summary.md from the recall by age on."""
+    md: list[str] = []
     md += [
         "",
         "## Recall by mark age",
@@ -703,8 +743,9 @@ def write_report(ev: Evaluation, outdir: str | Path, *, overwrite: bool = False)
         "|---|---|---|---|---|",
     ]
     vis = {tuple(b["age_s"]): b for b in s["visible_detected_by_age"]}
+    by_age = {tuple(x["age_s"]): x for x in s["by_age"]}
     for key in sorted(vis, key=lambda a: a[0]):
-        b = next((x for x in s["by_age"] if tuple(x["age_s"]) == key), None)
+        b = by_age.get(key)
         hi = "inf" if key[1] is None else key[1]
         md.append(
             f"| {key[0]}-{hi} | {b['expected'] if b else 0} | {_pct(b['recall'] if b else None)} | "
@@ -729,5 +770,4 @@ def write_report(ev: Evaluation, outdir: str | Path, *, overwrite: bool = False)
         md += ["", "## Skipped frames", ""] + [f"- `{k['frame']}`: {k['reason']}" for k in s["skipped"]]
     md += ["", "## Plots", ""]
     md += [f"![{n}]({n})" for n in REPORT_FILES if n.endswith(".png")]
-    write_bytes_atomic(out / "summary.md", ("\n".join(md) + "\n").encode(), overwrite=overwrite)
-    return [str(out / n) for n in REPORT_FILES]
+    return md
