@@ -25,6 +25,16 @@ def test_every_preset_figure_has_a_source_and_the_webcam_is_the_default_sensor()
     assert LEGO_STC_ROBOT.drive_speed_m_s == LEGO_STC.cruise_speed_m_s
     assert LEGO_STC_ROBOT.turn_90_s == pytest.approx(1.5, abs=1e-12)
     assert LEGO_STC_ROBOT.rate_spread == LEGO_STC.speed_gain_spread
+    # ... and follows it: a faster body gives a faster marking robot
+    import dataclasses
+
+    from sim_camera.robot import MarkingRobot
+
+    fast = dataclasses.replace(LEGO_STC, cruise_speed_m_s=0.1, turn_wheel_speed_m_s=2 * LEGO_STC.turn_wheel_speed_m_s)
+    from_body = {"drive_speed_m_s", "turn_90_s", "rate_spread", "fade_per_h"}
+    rest = {f.name: getattr(LEGO_STC_ROBOT, f.name) for f in dataclasses.fields(MarkingRobot)}
+    moved = MarkingRobot.from_body(fast, **{k: v for k, v in rest.items() if k not in from_body})
+    assert moved.drive_speed_m_s == 0.1 and moved.turn_90_s == pytest.approx(0.75, abs=1e-12)
     # the better cameras collect more electrons per second of a faint mark and add less noise
     web, cooled = hardware.CAMERAS["webcam"].sensor, hardware.CAMERAS["cooled"].sensor
     assert cooled.e_per_cd_m2_s > web.e_per_cd_m2_s and cooled.dark_current_e_s < web.dark_current_e_s
