@@ -29,7 +29,6 @@ loop sets a non-webcam sensor's gains so that its noise shows as many DN as the 
 from __future__ import annotations
 
 import dataclasses
-import json
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -172,10 +171,9 @@ def _read(spec: str, kind: str, presets: dict) -> dict | object:
         raise BadInputError(f"unknown {kind} {spec!r}; expected one of {', '.join(presets)} or a .json file")
     if not p.is_file():
         raise BadInputError(f"{kind} file {spec} does not exist")
-    try:
-        d = json.loads(p.read_text())
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as e:
-        raise BadInputError(f"{kind} file {spec} is not readable JSON ({e})") from None
+    from stcvision.fileio import read_json
+
+    d = read_json(p, what=f"{kind} file")
     if not isinstance(d, dict):
         raise BadInputError(f"{kind} file {spec} must hold one JSON object")
     if d.get("schema_version") != SCHEMA_VERSION:

@@ -8,6 +8,7 @@ replaced when the caller says so (``overwrite=True``): nothing a user made is lo
 from __future__ import annotations
 
 import json
+import math
 import os
 import tempfile
 from pathlib import Path
@@ -75,11 +76,32 @@ def read_json(path: str | os.PathLike, *, what: str = "JSON file") -> Any:
     except (OSError, UnicodeDecodeError) as exc:
         raise BadInputError(f"cannot read {what} {path}: {exc}") from None
     try:
-        return json.loads(text)
+        return json.loads(text, parse_constant=_refuse_constant, parse_float=_finite_float)
     except json.JSONDecodeError as exc:
         raise BadInputError(
             f"{what} {path} is not valid JSON ({exc.msg} at line {exc.lineno}); expected a JSON object"
         ) from None
+    except _NotFinite as exc:
+        raise BadInputError(f"{what} {path} holds the number {exc}; expected finite numbers only") from None
+    except RecursionError:  # found by fuzzing: '[' * 100000
+        raise BadInputError(f"{what} {path} is nested too deeply to read; expected a JSON object") from None
+    except ValueError:  # found by fuzzing: an integer of more than sys.get_int_max_str_digits() digits
+        raise BadInputError(f"{what} {path} holds an integer too long to read; expected ordinary numbers") from None
+
+
+class _NotFinite(ValueError):
+    pass
+
+
+def _refuse_constant(name: str):
+    raise _NotFinite(name)  # NaN, Infinity, -Infinity: not JSON, and never a valid field value
+
+
+def _finite_float(text: str) -> float:
+    v = float(text)
+    if not math.isfinite(v):  # 1e999
+        raise _NotFinite(text)
+    return v
 
 
 def write_image(path: str | os.PathLike, image: np.ndarray, *, overwrite: bool = False) -> Path:

@@ -56,7 +56,7 @@ def test_profiles_round_trip_through_json(tmp_path):
     [
         ('{"schema_version": 2, "kind": "camera"}', "schema_version must be 1"),
         ("[1, 2]", "one JSON object"),
-        ("{not json", "not readable JSON"),
+        ("{not json", "not valid JSON"),
         ('{"schema_version": 1, "kind": "camera", "sensor": {"read_noise_e": 1}}', "at least"),
         ('{"schema_version": 1, "kind": "robot"}', "is a 'robot' profile"),
     ],
