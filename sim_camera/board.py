@@ -37,6 +37,9 @@ __all__ = ["DEFAULT_SUBCELL_M", "Board"]
 DEFAULT_SUBCELL_M = 0.16
 
 _TEXT_CHARS = {".": False, "#": True, "S": False}
+#: the most cells a random board may have (1000 x 1000): bounds its memory (a scene asking for
+#: 2^70 cells failed deep in numpy, found by fuzzing)
+MAX_RANDOM_CELLS = 1_000_000
 
 
 def _check_even(shape: tuple[int, int], source: str) -> None:
@@ -168,6 +171,8 @@ class Board:
         cr, cc = (int(v) for v in cells_shape)
         if cr < 1 or cc < 1:
             raise MapError(f"board must have at least 1x1 cells, got {cr}x{cc}")
+        if cr * cc > MAX_RANDOM_CELLS:
+            raise MapError(f"board of {cr}x{cc} cells is too large; expected at most {MAX_RANDOM_CELLS:,} cells")
         if not 0.0 <= obstacle_fraction < 1.0:
             raise MapError(f"obstacle_fraction must be in [0, 1), got {obstacle_fraction}")
         cells = rng.random((cr, cc)) < obstacle_fraction

@@ -9,6 +9,8 @@ dots, red lights, and overrides of the camera, sensor and afterglow parameters. 
 from __future__ import annotations
 
 import copy
+import dataclasses
+import math
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -85,11 +87,13 @@ _KEYS = {
 
 
 def _num(d: dict, key: str, where: str, default=None) -> float:
+    if not isinstance(d, dict):
+        raise BadInputError(f"{where} must be an object, got {d!r}")
     v = d.get(key, default)
     if v is None:
         raise BadInputError(f"{where}: missing {key!r}")
-    if isinstance(v, bool) or not isinstance(v, int | float):
-        raise BadInputError(f"{where}: {key!r} must be a number, got {v!r}")
+    if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
+        raise BadInputError(f"{where}: {key!r} must be a finite number, got {v!r}")
     return float(v)
 
 
@@ -97,10 +101,19 @@ def _pair(v, where: str, kind=float) -> tuple:
     if (
         not isinstance(v, list | tuple)
         or len(v) != 2
-        or not all(isinstance(x, int | float) and not isinstance(x, bool) for x in v)
+        or not all(isinstance(x, int | float) and not isinstance(x, bool) and math.isfinite(x) for x in v)
     ):
-        raise BadInputError(f"{where} must be a list of 2 numbers, got {v!r}")
+        raise BadInputError(f"{where} must be a list of 2 finite numbers, got {v!r}")
+    if kind is int and not all(float(x).is_integer() for x in v):
+        raise BadInputError(f"{where} must be a list of 2 integers, got {v!r}")
     return tuple(kind(x) for x in v)
+
+
+def _list(d: dict, key: str) -> list:
+    v = d.get(key, [])
+    if not isinstance(v, list):
+        raise BadInputError(f"scene {key} must be a list, got {v!r}")
+    return v
 
 
 @dataclass(frozen=True, eq=False)
@@ -136,20 +149,20 @@ class Scene:
         board = _board(d.get("board"), D, base_dir)
         pose = _pose(d.get("robot"), board)
         t_s = _num(d, "time_s", "scene", 0.0)
-        law = AfterglowLaw(**_overrides(d.get("afterglow", {}), "afterglow"))
+        law = _afterglow(d.get("afterglow", {}))
         layer = PhosphorLayer(law)
-        for k, m in enumerate(d.get("marks", [])):
+        for k, m in enumerate(_list(d, "marks")):
             where = f"scene marks[{k}]"
             if not isinstance(m, dict):
                 raise BadInputError(f"{where} must be an object")
             ij = _pair(m.get("subcell"), f"{where}.subcell", int)
             edge = m.get("edge")
-            if edge not in EDGES:
+            if not isinstance(edge, str) or edge not in EDGES:
                 raise BadInputError(f"{where}.edge is {edge!r}; expected one of N, E, S, W")
             age, charge = _num(m, "age_s", where), _num(m, "charge_s", where, 3.0)
             xy = mark_dots_m(board.subcell_center_m(*ij), EDGES[edge], board.subcell_m)
             layer.charge(xy, t_start_s=t_s - age - charge, duration_s=charge)
-        for k, dot in enumerate(d.get("dots", [])):
+        for k, dot in enumerate(_list(d, "dots")):
             where = f"scene dots[{k}]"
             xy = [_num(dot, "x_m", where), _num(dot, "y_m", where)]
             age, charge = _num(dot, "age_s", where), _num(dot, "charge_s", where, 3.0)
@@ -177,16 +190,31 @@ def _overrides(v, name: str) -> dict:
     return copy.deepcopy(v)
 
 
+def _afterglow(v) -> AfterglowLaw:
+    """The afterglow law with the scene's overrides (unknown or non-numeric ones refused: found
+    by fuzzing, they were a TypeError)."""
+    d = _overrides(v, "afterglow")
+    names = {f.name for f in dataclasses.fields(AfterglowLaw)}
+    unknown = set(d) - names
+    if unknown:
+        raise BadInputError(f"scene afterglow has unknown key(s) {sorted(unknown)}; expected some of {sorted(names)}")
+    return AfterglowLaw(**{k: _num(d, k, "scene afterglow") for k in d})
+
+
 def _board(b, D: float, base_dir: Path | None) -> Board:
     if not isinstance(b, dict) or len(b) != 1:
         raise BadInputError("scene board must be an object with exactly one of: text, file, random")
     ((kind, v),) = b.items()
     if kind == "text":
-        text = "\n".join(v) if isinstance(v, list) else v
-        if not isinstance(text, str):
+        if isinstance(v, list) and all(isinstance(row, str) for row in v):
+            v = "\n".join(v)
+        if not isinstance(v, str):
             raise BadInputError("scene board.text must be a list of strings")
+        text = v
         return Board.from_text(text, subcell_m=D, source="scene board.text")
     if kind == "file":
+        if not isinstance(v, str) or not v:
+            raise BadInputError(f"scene board.file must be the path of a .txt or .png map, got {v!r}")
         path = Path(v)
         if base_dir is not None and not path.is_absolute():
             path = base_dir / path
@@ -196,7 +224,10 @@ def _board(b, D: float, base_dir: Path | None) -> Board:
             raise BadInputError("scene board.random must be an object {cells, obstacle_fraction, seed}")
         cells = _pair(v.get("cells"), "scene board.random.cells", int)
         frac = _num(v, "obstacle_fraction", "scene board.random", 0.1)
-        seed = int(_num(v, "seed", "scene board.random", 0))
+        seed = _num(v, "seed", "scene board.random", 0)
+        if seed < 0 or not seed.is_integer():
+            raise BadInputError(f"scene board.random seed must be a non-negative integer, got {v.get('seed')!r}")
+        seed = int(seed)
         return Board.random(cells, obstacle_fraction=frac, rng=np.random.default_rng(seed), subcell_m=D)
     raise BadInputError(f"scene board kind {kind!r} unknown; expected text, file or random")
 
