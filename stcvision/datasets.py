@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import math
 import sys
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -80,6 +81,10 @@ _RECIPE_KEYS = {
     "scene",
     "groups",
 }
+#: scene parameters that are age ranges [a, b] in seconds (0 <= a <= b)
+_RANGES = ("age_range_s", "fresh_age_s")
+#: the largest board side (cells) a recipe's scenes may have (a frame sees the five cells around the robot)
+_MAX_CELLS_SIDE = 100
 _GROUP_KEYS = {"name", "n", "scene", "camera", "sensor", "pattern_seed", "description"}
 _CALIB_KEYS = {"lights_on_frames", "profiles"}
 
@@ -130,18 +135,32 @@ def _scene(d: dict, where: str) -> dict:
         kind = SCENE_KEYS.get(k)
         if kind is None:
             raise BadInputError(f"{where}: unknown scene parameter {k!r}; expected some of {sorted(SCENE_KEYS)}")
-        num = isinstance(v, int | float) and not isinstance(v, bool)
-        pair = isinstance(v, list) and len(v) == 2 and all(isinstance(x, int | float) for x in v)
+        num = _finite(v)
+        pair = isinstance(v, list) and len(v) == 2 and all(_finite(x) for x in v)
         if kind == "number" and not num:
-            raise BadInputError(f"{where}: scene parameter {k} must be a number, got {v!r}")
+            raise BadInputError(f"{where}: scene parameter {k} must be a finite number, got {v!r}")
         if kind == "pair" and not pair:
-            raise BadInputError(f"{where}: scene parameter {k} must be a pair [a, b] of numbers, got {v!r}")
+            raise BadInputError(f"{where}: scene parameter {k} must be a pair [a, b] of finite numbers, got {v!r}")
         if kind == "number_or_pair" and not (num or pair):
-            raise BadInputError(f"{where}: scene parameter {k} must be a number or a pair [a, b], got {v!r}")
+            raise BadInputError(f"{where}: scene parameter {k} must be a finite number or a pair [a, b], got {v!r}")
+        if k in _RANGES and not 0 <= v[0] <= v[1]:
+            raise BadInputError(f"{where}: scene parameter {k} must be a range [a, b] with 0 <= a <= b, got {v!r}")
         out[k] = tuple(v) if isinstance(v, list) else v
     if "cells" in out:
+        if not all(float(x).is_integer() and 1 <= x <= _MAX_CELLS_SIDE for x in out["cells"]):
+            raise BadInputError(
+                f"{where}: scene parameter cells must be 2 integers in 1..{_MAX_CELLS_SIDE}, got {d['cells']!r}"
+            )
         out["cells"] = tuple(int(x) for x in out["cells"])
     return out
+
+
+def _is_name(v: Any) -> bool:
+    return isinstance(v, str) and v.replace("-", "").replace("_", "").isalnum() and v.isascii()
+
+
+def _finite(v: Any) -> bool:
+    return isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v)
 
 
 def parse_recipe(d: Any, *, where: str = "recipe") -> Recipe:
@@ -154,8 +173,8 @@ def parse_recipe(d: Any, *, where: str = "recipe") -> Recipe:
     if unknown:
         raise BadInputError(f"{where}: unknown key(s) {sorted(unknown)}; expected some of {sorted(_RECIPE_KEYS)}")
     name = d.get("name")
-    if not isinstance(name, str) or not name:
-        raise BadInputError(f"{where}: 'name' must be a non-empty string")
+    if not _is_name(name):  # it names the output folder: no '/', '..' or hidden names
+        raise BadInputError(f"{where}: 'name' must be a non-empty string of letters, digits, '-' and '_'")
     calib = _obj(d.get("calibration", {}), f"{where}: calibration")
     unknown = set(calib) - _CALIB_KEYS
     if unknown:
@@ -176,7 +195,7 @@ def parse_recipe(d: Any, *, where: str = "recipe") -> Recipe:
         if unknown:
             raise BadInputError(f"{gw}: unknown key(s) {sorted(unknown)}; expected some of {sorted(_GROUP_KEYS)}")
         gname = g.get("name")
-        if not isinstance(gname, str) or not gname or not gname.replace("-", "").replace("_", "").isalnum():
+        if not _is_name(gname):
             raise BadInputError(f"{gw}: 'name' must be a non-empty string of letters, digits, '-' and '_'")
         if gname in names:
             raise BadInputError(f"{gw}: group name {gname!r} is used twice")
