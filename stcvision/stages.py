@@ -54,6 +54,15 @@ def check_frame(frame: np.ndarray, name: str = "frame") -> None:
         raise BadInputError(f"{name} has shape {frame.shape}; expected (H, W, 3) BGR")
 
 
+def _check_image(image, name: str, dtypes=(np.uint8, np.uint16), ndims=(2, 3)) -> None:
+    """Entry contract of the stages below (found by fuzzing: None, 0-d, empty or float arrays
+    failed inside OpenCV or numpy): a non-empty numpy image of one of ``dtypes``."""
+    if not isinstance(image, np.ndarray) or image.ndim not in ndims or image.size == 0 or image.dtype not in dtypes:
+        got = f"{image.shape} {image.dtype}" if isinstance(image, np.ndarray) else type(image).__name__
+        want = " or ".join(np.dtype(d).name for d in dtypes)
+        raise BadInputError(f"{name} must be a non-empty {'-D or '.join(map(str, ndims))}-D {want} image, got {got}")
+
+
 # --------------------------------------------------------------------------- dark frame
 def subtract_dark(
     frame: np.ndarray,
@@ -150,6 +159,7 @@ def unwarp(image: np.ndarray, umap: UnwarpMap) -> np.ndarray:
     ----------
     image : (H, W) or (H, W, 3) uint8, the profile's image size.
     """
+    _check_image(image, "image", (np.uint8, np.uint16, np.float32))
     h, w = image.shape[:2]
     if (w, h) != umap.image_size_px:
         raise BadInputError(
@@ -203,7 +213,8 @@ def filter_channels(
     faint halo (lens glare, blooming) carries green by crosstalk far beyond the pixels bright
     enough to count as the light itself.
     """
-    if image.ndim != 3 or image.shape[2] != 3 or image.dtype not in (np.uint8, np.uint16):
+    _check_image(image, "image", ndims=(3,))
+    if image.shape[2] != 3:
         raise BadInputError(f"image must be (H, W, 3) uint8 or uint16, got {image.shape} {image.dtype}")
     return separate_channels(
         cv2.extractChannel(image, 1),
@@ -246,6 +257,9 @@ def window_sums(image: np.ndarray, window_px: int) -> np.ndarray:
     ``window_px**2`` pixels, wherever the dot lies (the unwarp would otherwise skip pixels near
     the robot, where the ground view is coarser than the mirror image).
     """
+    _check_image(image, "image", (np.uint8,))
+    if isinstance(window_px, bool) or not isinstance(window_px, int | np.integer) or window_px < 1:
+        raise BadInputError(f"window_px must be a positive integer, got {window_px!r}")
     return cv2.boxFilter(image, cv2.CV_16U, (window_px, window_px), normalize=False, borderType=cv2.BORDER_CONSTANT)
 
 
@@ -343,6 +357,7 @@ def estimate_background(image: np.ndarray, sample: np.ndarray | None = None) -> 
     From a histogram, each integer value spread uniformly over its bin (so sub-DN noise
     levels are not rounded away): the median, and sigma = interquartile range / 1.349.
     """
+    _check_image(image, "image", (np.uint8,))
     v = image.reshape(-1)[sample] if sample is not None else image.reshape(-1)[::7]
     hist = np.bincount(v, minlength=256).astype(np.float64)
     cdf = np.concatenate([[0.0], np.cumsum(hist)])
@@ -351,6 +366,12 @@ def estimate_background(image: np.ndarray, sample: np.ndarray | None = None) -> 
     keep = np.concatenate([[True], np.diff(cdf) > 0])  # strictly increasing for inversion
     q1, med, q3 = np.interp([0.25, 0.5, 0.75], cdf[keep], edges[keep])
     return float(med), float((q3 - q1) / 1.349)
+
+
+#: find_dots refuses a marks image with more candidates than this times ``max_dots``: a frame
+#: with a bright green area (found by fuzzing) had 43,512, and the N x N black-out asked for
+#: 14 GiB; rendered dark-room frames have about 100
+_MAX_CANDIDATES_PER_DOT = 10
 
 
 def find_dots(
@@ -375,8 +396,7 @@ def find_dots(
         ``marks`` (median, IQR).
     ground_to_robot : callable (N, 2) px -> (N, 2) m, optional (``Profile.ground_to_robot``).
     """
-    if marks.ndim != 2 or marks.dtype not in (np.uint8, np.uint16):
-        raise BadInputError(f"marks image must be (H, W) uint8 or uint16 window sums, got {marks.shape} {marks.dtype}")
+    _check_image(marks, "marks image (uint8, or uint16 window sums)", ndims=(2,))
     w = params.window_px
     area = w * w
     if background_dn is None or noise_dn is None:
@@ -411,6 +431,11 @@ def find_dots(
     cand[:e], cand[-e:], cand[:, :e], cand[:, -e:] = 0, 0, 0, 0
     pts = cv2.findNonZero(cand)
     pts = np.zeros((0, 2), np.int32) if pts is None else pts.reshape(-1, 2)
+    if len(pts) > _MAX_CANDIDATES_PER_DOT * params.max_dots:  # the black-out below is N x N in memory
+        raise BadInputError(
+            f"marks image has {len(pts):,} dot candidates (more than {_MAX_CANDIDATES_PER_DOT} x max_dots); "
+            "expected a dark-room frame of dots, not a lit or overexposed area"
+        )
     xs, ys = pts[:, 0], pts[:, 1]
     mean = sums[ys, xs].astype(np.float64) / area - background_dn
     if params.threshold_dn is not None:
@@ -847,8 +872,7 @@ class RedLights:
 def find_red(obstacle: np.ndarray, params: RedParams = RedParams(), *, window_area: int = 1) -> RedLights:
     """Blobs of the (already thresholded) obstacle image: outer contours and their moments.
     ``peak_dn`` is per pixel (window sums are divided by ``window_area``)."""
-    if obstacle.ndim != 2 or obstacle.dtype not in (np.uint8, np.uint16):
-        raise BadInputError(f"obstacle image must be (H, W) uint8 or uint16, got {obstacle.shape} {obstacle.dtype}")
+    _check_image(obstacle, "obstacle image", ndims=(2,))
     binary = cv2.compare(obstacle, 0, cv2.CMP_GT)
     contours, _ = cv2.findContours(binary, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
     xy, peak, area = [], [], []
