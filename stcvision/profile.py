@@ -253,7 +253,7 @@ class Profile:
         ratio = _num(d, "ellipse_ratio", positive=True, where=where) if "ellipse_ratio" in d else 1.0
         if not 0.8 <= ratio <= 1.25:
             raise ProfileError(f"{where} field 'ellipse_ratio' must be in 0.8..1.25, got {ratio}")
-        return cls(
+        prof = cls(
             image_size_px=(int(size[0]), int(size[1])),
             center_px=tuple(_vec(d, "center_px", 2, where=where)),
             rim_radius_px=_num(d, "rim_radius_px", positive=True, where=where),
@@ -270,6 +270,9 @@ class Profile:
             neighbour_corners_px=corners,
             provenance=prov,
         )
+        if corners is not None:
+            _check_corners(prof, where)
+        return prof
 
     @classmethod
     def load(cls, path: str | Path) -> Profile:
@@ -294,6 +297,21 @@ class Profile:
                 f"frame is {w}x{h} but the profile was calibrated for "
                 f"{self.image_size_px[0]}x{self.image_size_px[1]}; use a profile for this camera"
             )
+
+
+def _check_corners(prof: Profile, where: str) -> None:
+    """The 12 corners must outline the five cells: a plus shape of at least a tenth of its
+    nominal area (found by fuzzing: 12 coinciding or collinear corners gave no homography and a
+    numpy error in the pipeline)."""
+    p = np.asarray(prof.neighbour_corners_px, float)
+    area = 0.5 * abs(float(np.dot(p[:, 0], np.roll(p[:, 1], -1)) - np.dot(p[:, 1], np.roll(p[:, 0], -1))))
+    side_px = prof.subcell_m * prof.ground_px_per_m
+    nominal = 20.0 * side_px**2  # five cells of side 2 D
+    if not area >= 0.1 * nominal:
+        raise ProfileError(
+            f"{where} field 'neighbour_corners_px' outlines {area:.3g} px^2, under a tenth of the five cells' "
+            f"{nominal:.3g} px^2; expected the 12 corners in the order of CORNER_ORDER (recalibrate neighbours)"
+        )
 
 
 def _migrate(d: dict, where: str) -> dict:
