@@ -23,11 +23,14 @@ built (``rr.Image`` alone costs ~0.1 ms).
 from __future__ import annotations
 
 import os
+import shutil
 from pathlib import Path
 
 import numpy as np
 import rerun as rr
 import rerun.blueprint as rrb
+
+from stcvision.errors import BadInputError
 
 __all__ = ["ENTITY_PATHS", "PipelineLogger", "blueprint", "finish_recording", "open_recording"]
 
@@ -79,6 +82,11 @@ def open_recording(
 ):
     """A recording stream writing to ``path`` (.rrd, atomically on :meth:`PipelineLogger.close`)
     and/or a spawned viewer; ``default_blueprint`` defaults to the pipeline's :func:`blueprint`."""
+    if spawn and shutil.which("rerun") is None:  # found by fuzzing: a RuntimeError traceback
+        raise BadInputError(
+            "--spawn: no rerun viewer on PATH (the 'rerun' command of rerun-sdk); "
+            "put it on PATH or write a recording with --rrd"
+        )
     rec = rr.RecordingStream(app_id)
     bp = default_blueprint or blueprint()
     tmp = None
