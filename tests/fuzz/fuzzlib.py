@@ -22,9 +22,9 @@ from stcvision.errors import StcVisionError
 PROFILE = os.environ.get("HYPOTHESIS_PROFILE", "ci")
 
 
-def examples(weight: float = 1.0) -> settings:
-    """Settings of one test: ``weight`` times the loaded profile's example count."""
-    return settings(max_examples=max(1, int(weight * settings.get_profile(PROFILE).max_examples)))
+def examples(weight: float = 1.0, **kw) -> settings:
+    """Settings of one test: ``weight`` times the loaded profile's example count (and ``kw``)."""
+    return settings(max_examples=max(1, int(weight * settings.get_profile(PROFILE).max_examples)), **kw)
 
 
 def project_call(fn, *args, **kwargs):

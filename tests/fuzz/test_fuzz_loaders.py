@@ -242,12 +242,11 @@ def small_arrays(draw, max_side: int = 8):
     ndim = draw(st.integers(0, 4))
     shape = tuple(draw(st.integers(0, max_side)) for _ in range(ndim))
     dtype = draw(_ARRAY_DTYPES)
-    n = int(np.prod(shape)) if shape else 1
     if np.issubdtype(dtype, np.floating):
-        vals = draw(st.lists(st.floats(allow_nan=True, allow_infinity=True, width=32), min_size=n, max_size=n))
+        vals = draw(st.lists(st.floats(allow_nan=True, allow_infinity=True, width=32), min_size=1, max_size=64))
     else:
-        vals = draw(st.lists(st.integers(0, 255), min_size=n, max_size=n))
-    return np.asarray(vals).astype(dtype).reshape(shape)
+        vals = draw(st.lists(st.integers(0, 255), min_size=1, max_size=64))
+    return np.resize(np.asarray(vals).astype(dtype), shape)  # the drawn values repeated to fill the shape
 
 
 @examples(3)
