@@ -95,7 +95,10 @@ def temp_sibling(path: Path, *, directory: bool = False) -> Path:
         tmp = Path(tempfile.mkdtemp(prefix=prefix, suffix=_TEMP_SUFFIX, dir=path.parent))
     else:
         fd, name = tempfile.mkstemp(prefix=prefix, suffix=_TEMP_SUFFIX, dir=path.parent)
-        os.close(fd)
+        try:
+            os.fchmod(fd, _new_file_mode(path))  # mkstemp makes 0600; the file gets open()'s mode
+        finally:
+            os.close(fd)
         tmp = Path(name)
     _LIVE_TEMPS.add(tmp)
     return tmp
@@ -193,7 +196,6 @@ def write_bytes_atomic(path: str | os.PathLike, data: bytes, *, overwrite: bool 
         path.parent.mkdir(parents=True, exist_ok=True)
         tmp = temp_sibling(path)
         with open(tmp, "wb") as f:
-            os.fchmod(f.fileno(), _new_file_mode(path))
             f.write(data)
             f.flush()
             os.fsync(f.fileno())
