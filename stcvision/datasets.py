@@ -38,6 +38,7 @@ from typing import Any
 
 from stcvision.errors import BadInputError
 from stcvision.fileio import read_json
+from stcvision.limits import MAX_DARK_FRAMES, MAX_DATASET_FRAMES
 
 __all__ = [
     "DATASET_SCHEMA_VERSION",
@@ -81,10 +82,6 @@ _RECIPE_KEYS = {
     "scene",
     "groups",
 }
-#: scene parameters that are age ranges [a, b] in seconds (0 <= a <= b)
-_RANGES = ("age_range_s", "fresh_age_s")
-#: the largest board side (cells) a recipe's scenes may have (a frame sees the five cells around the robot)
-_MAX_CELLS_SIDE = 100
 _GROUP_KEYS = {"name", "n", "scene", "camera", "sensor", "pattern_seed", "description"}
 _CALIB_KEYS = {"lights_on_frames", "profiles"}
 
@@ -117,10 +114,21 @@ class Recipe:
         return sum(g.n for g in self.groups)
 
 
-def _int(v: Any, what: str, *, lo: int = 0) -> int:
-    if isinstance(v, bool) or not isinstance(v, int) or v < lo:
-        raise BadInputError(f"{what} must be an integer >= {lo}, got {v!r}")
+def _int(v: Any, what: str, *, lo: int = 0, hi: int | None = None) -> int:
+    if isinstance(v, bool) or not isinstance(v, int) or v < lo or (hi is not None and v > hi):
+        span = f">= {lo}" if hi is None else f"in {lo}..{hi}"
+        raise BadInputError(f"{what} must be an integer {span}, got {v!r}")
     return v
+
+
+def _plain_name(name: Any) -> bool:
+    """A non-empty name of letters, digits, '-' and '_' (safe as a file or folder name)."""
+    return (
+        isinstance(name, str)
+        and bool(name)
+        and name.replace("-", "").replace("_", "").isascii()
+        and (name.replace("-", "").replace("_", "").isalnum())
+    )
 
 
 def _obj(v: Any, what: str) -> dict:
@@ -135,32 +143,49 @@ def _scene(d: dict, where: str) -> dict:
         kind = SCENE_KEYS.get(k)
         if kind is None:
             raise BadInputError(f"{where}: unknown scene parameter {k!r}; expected some of {sorted(SCENE_KEYS)}")
-        num = _finite(v)
-        pair = isinstance(v, list) and len(v) == 2 and all(_finite(x) for x in v)
+        num = isinstance(v, int | float) and not isinstance(v, bool)
+        pair = isinstance(v, list) and len(v) == 2 and all(isinstance(x, int | float) for x in v)
         if kind == "number" and not num:
-            raise BadInputError(f"{where}: scene parameter {k} must be a finite number, got {v!r}")
+            raise BadInputError(f"{where}: scene parameter {k} must be a number, got {v!r}")
         if kind == "pair" and not pair:
-            raise BadInputError(f"{where}: scene parameter {k} must be a pair [a, b] of finite numbers, got {v!r}")
+            raise BadInputError(f"{where}: scene parameter {k} must be a pair [a, b] of numbers, got {v!r}")
         if kind == "number_or_pair" and not (num or pair):
-            raise BadInputError(f"{where}: scene parameter {k} must be a finite number or a pair [a, b], got {v!r}")
-        if k in _RANGES and not 0 <= v[0] <= v[1]:
-            raise BadInputError(f"{where}: scene parameter {k} must be a range [a, b] with 0 <= a <= b, got {v!r}")
+            raise BadInputError(f"{where}: scene parameter {k} must be a number or a pair [a, b], got {v!r}")
         out[k] = tuple(v) if isinstance(v, list) else v
+        _check_scene_value(k, out[k], where)
     if "cells" in out:
-        if not all(float(x).is_integer() and 1 <= x <= _MAX_CELLS_SIDE for x in out["cells"]):
-            raise BadInputError(
-                f"{where}: scene parameter cells must be 2 integers in 1..{_MAX_CELLS_SIDE}, got {d['cells']!r}"
-            )
         out["cells"] = tuple(int(x) for x in out["cells"])
     return out
 
 
-def _is_name(v: Any) -> bool:
-    return isinstance(v, str) and v.replace("-", "").replace("_", "").isalnum() and v.isascii()
+#: what each scene parameter's values must lie in (closed ranges; None = unbounded); pairs are
+#: [low, high] ranges drawn from (``heading_error_deg`` as a pair too), so low <= high
+_SCENE_RANGES = {
+    "cells": (1, 100),
+    "obstacle_fraction": (0.0, 0.9),
+    "heading_error_deg": (-180.0, 180.0),
+    "position_error_m": (0.0, 0.1),
+    "box_prob": (0.0, 1.0),
+    "neighbour_mark_prob": (0.0, 1.0),
+    "age_range_s": (0.0, None),  # seconds since the mark's charge ended: never negative
+    "fresh_age_s": (0.0, None),
+    "charge_s": (1e-3, None),
+    "subcell_m": (1e-3, None),
+}
 
 
-def _finite(v: Any) -> bool:
-    return isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v)
+def _check_scene_value(k: str, v, where: str) -> None:
+    """One line for a scene parameter that is not finite, out of its range, or a reversed pair."""
+    lo, hi = _SCENE_RANGES[k]
+    values = v if isinstance(v, tuple) else (v,)
+    span = f"[{lo:g}, {hi:g}]" if hi is not None else f">= {lo:g}"
+    for x in values:
+        if not math.isfinite(x) or x < lo or (hi is not None and x > hi):
+            raise BadInputError(f"{where}: scene parameter {k} = {x!r} is out of range; expected {span}")
+    if k == "cells" and not all(float(x).is_integer() for x in values):
+        raise BadInputError(f"{where}: scene parameter cells must be two whole numbers, got {list(values)}")
+    if isinstance(v, tuple) and k != "cells" and v[0] > v[1]:
+        raise BadInputError(f"{where}: scene parameter {k} = {list(v)} is reversed; expected [low, high]")
 
 
 def parse_recipe(d: Any, *, where: str = "recipe") -> Recipe:
@@ -173,8 +198,11 @@ def parse_recipe(d: Any, *, where: str = "recipe") -> Recipe:
     if unknown:
         raise BadInputError(f"{where}: unknown key(s) {sorted(unknown)}; expected some of {sorted(_RECIPE_KEYS)}")
     name = d.get("name")
-    if not _is_name(name):  # it names the output folder: no '/', '..' or hidden names
-        raise BadInputError(f"{where}: 'name' must be a non-empty string of letters, digits, '-' and '_'")
+    if not isinstance(name, str) or not _plain_name(name.replace(".", "")) or name.startswith("."):
+        raise BadInputError(
+            f"{where}: 'name' must be a non-empty string of letters, digits, '-', '_' and '.' (no '/', not "
+            f"starting with '.': it names the folder under datasets/generated/), got {name!r}"
+        )
     calib = _obj(d.get("calibration", {}), f"{where}: calibration")
     unknown = set(calib) - _CALIB_KEYS
     if unknown:
@@ -195,7 +223,7 @@ def parse_recipe(d: Any, *, where: str = "recipe") -> Recipe:
         if unknown:
             raise BadInputError(f"{gw}: unknown key(s) {sorted(unknown)}; expected some of {sorted(_GROUP_KEYS)}")
         gname = g.get("name")
-        if not _is_name(gname):
+        if not isinstance(gname, str) or not _plain_name(gname):
             raise BadInputError(f"{gw}: 'name' must be a non-empty string of letters, digits, '-' and '_'")
         if gname in names:
             raise BadInputError(f"{gw}: group name {gname!r} is used twice")
@@ -210,10 +238,16 @@ def parse_recipe(d: Any, *, where: str = "recipe") -> Recipe:
                 pattern_seed=_int(g.get("pattern_seed", d.get("pattern_seed", 0)), f"{gw}.pattern_seed"),
             )
         )
+    total = sum(g.n for g in groups)
+    if total > MAX_DATASET_FRAMES:
+        raise BadInputError(
+            f"{where}: {total:,} frames in all is over the cap of {MAX_DATASET_FRAMES:,} frames per dataset; "
+            "split it into several recipes"
+        )
     return Recipe(
         name=name,
         seed=_int(d.get("seed", 0), f"{where}: seed"),
-        dark_frames=_int(d.get("dark_frames", 16), f"{where}: dark_frames", lo=1),
+        dark_frames=_int(d.get("dark_frames", 16), f"{where}: dark_frames", lo=1, hi=MAX_DARK_FRAMES),
         lights_on_frames=_int(calib.get("lights_on_frames", 0), f"{where}: calibration.lights_on_frames"),
         profiles=bool(calib.get("profiles", False)),
         groups=tuple(groups),

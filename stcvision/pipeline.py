@@ -182,7 +182,7 @@ class Pipeline:
     def set_dark(self, dark: np.ndarray) -> None:
         """Use ``dark`` (H, W, 3) uint8 from now on: split it once, map its hot pixels once."""
         check_frame(dark, "dark frame")
-        self.profile.check_frame(dark.shape)
+        self.profile.check_frame(dark.shape, what="dark frame")
         self.dark = dark
         self._dark_g = cv2.extractChannel(dark, 1)
         self._dark_r = cv2.extractChannel(dark, 2)

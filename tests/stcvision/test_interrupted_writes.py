@@ -1,0 +1,175 @@
+"""Interrupted writes (issue 17): SIGKILL the process at random points while it writes a profile,
+a dataset, a sweep store and a rerun recording. Afterwards each file is the old complete version
+or the new complete one; a re-run completes the work and leaves no temporary file behind (a
+SIGKILL cannot be caught: the hidden ``.NAME.PID.*.tmp`` of a killed writer is removed by the
+next write of NAME, whose process sees that PID is gone).
+
+The kill points are drawn from a fixed seed: after the writer's first temporary file (or output)
+appears, a random extra delay. Nothing is timed: the waits only poll for events.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+ROOT = Path(__file__).resolve().parents[2]
+RNG = np.random.default_rng(17)
+
+
+def temps(folder: Path) -> list[Path]:
+    return list(folder.rglob(".*.tmp"))
+
+
+def start(argv: list, **kw) -> subprocess.Popen:
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    return subprocess.Popen(
+        [sys.executable, *map(str, argv)], env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, **kw
+    )
+
+
+def kill_while_writing(p: subprocess.Popen, started, extra_s: float, timeout_s: float = 300) -> bool:
+    """SIGKILL ``p`` ``extra_s`` after ``started()`` first holds; True if it was killed while
+    running (False: it had finished first)."""
+    t_end = time.monotonic() + timeout_s
+    while not started() and p.poll() is None:
+        if time.monotonic() > t_end:
+            p.kill()
+            pytest.fail("the writer never started writing")
+        time.sleep(0.01)
+    time.sleep(extra_s)
+    alive = p.poll() is None
+    p.kill()
+    p.wait()
+    return alive
+
+
+def stcvision(*argv) -> list:
+    return ["-m", "stcvision", *argv]
+
+
+# ---------------------------------------------------------------------------------- profile
+WRITE_PROFILES = """
+import sys
+from calibration.profiles import default_profile
+prof, path = default_profile(), sys.argv[1]
+for i in range(1, 100000):
+    prof.replace(provenance={"version": i, "pad": "x" * 400000}).save(path, overwrite=True)
+"""
+
+
+def test_profile_killed_while_written_is_old_or_new_complete(tmp_path):
+    from calibration.profiles import default_profile
+    from stcvision.profile import Profile
+
+    path = tmp_path / "p.json"
+    default_profile().replace(provenance={"version": 0, "pad": "x" * 400000}).save(path)
+    for extra in RNG.uniform(0.0, 0.3, 3):
+        p = start(["-c", WRITE_PROFILES, path])
+        assert kill_while_writing(p, lambda: bool(temps(tmp_path)), extra)
+        prof = Profile.load(path)  # complete: loads, every field
+        assert isinstance(prof.provenance["version"], int) and len(prof.provenance["pad"]) == 400000
+    # the re-run (the next write of p.json) completes and clears the killed writers' temporaries
+    default_profile().save(path, overwrite=True)
+    assert Profile.load(path).provenance == default_profile().provenance
+    assert temps(tmp_path) == []
+
+
+# ---------------------------------------------------------------------------------- dataset
+def test_dataset_killed_while_generated_resumes_to_a_complete_set(tmp_path):
+    from stcvision.datasets import open_dataset
+
+    out = tmp_path / "ds"
+    recipe = ROOT / "datasets" / "recipes" / "smoke.json"
+    argv = stcvision("dataset", "generate", recipe, "--out", out, "--workers", "1")
+    for extra in RNG.uniform(0.0, 1.0, 2):
+        p = start(argv)
+        kill_while_writing(p, lambda: bool(temps(tmp_path)) or (out / "frames").is_dir(), extra)
+        for f in out.rglob("*.json*"):  # what is there is complete
+            if not f.name.startswith("."):
+                text = f.read_text()
+                [json.loads(line) for line in text.splitlines()] if f.suffix == ".jsonl" else json.loads(text)
+    p = start(argv)
+    assert p.wait(timeout=600) == 0, p.stderr.read().decode()
+    ds = open_dataset(out)  # checks manifest, labels and that every file is there
+    assert len(ds.labels) == 6
+    assert temps(tmp_path) == []
+
+
+# ---------------------------------------------------------------------------------- sweep store
+def test_sweep_store_killed_mid_sweep_resumes_and_keeps_whole_records(tmp_path):
+    from stcvision.sweep import read_store
+
+    out = tmp_path / "sweep"
+    store = out / "sweep.jsonl"
+    argv = stcvision(
+        "cover", "sweep", "--sizes", "2,3", "--runs", "3", "--perceptions", "oracle", "--exposures", "webcam",
+        "--out", out, "--workers", "1",
+    )  # fmt: skip
+    for extra in RNG.uniform(0.0, 0.5, 2):
+        p = start(argv)
+        kill_while_writing(p, store.exists, extra)
+        records = read_store(store)  # every record whole (a torn last line is not a record)
+        assert all(r["status"] in ("ok", "failed") for r in records)
+    p = start(argv)
+    assert p.wait(timeout=600) == 0, p.stderr.read().decode()
+    records = read_store(store)
+    assert sorted({r["key"] for r in records if r["status"] == "ok"}) == sorted({r["key"] for r in records})
+    assert len({r["key"] for r in records}) == 6
+    assert (out / "summary.md").exists() and temps(tmp_path) == []
+
+
+# ---------------------------------------------------------------------------------- recording
+def test_recording_killed_while_written_keeps_the_old_one(tmp_path):
+    rrd = tmp_path / "run.rrd"
+    argv = stcvision("cover", "--board", "3x3", "--perception", "oracle", "--rrd", rrd, "--force")
+    p = start(argv)
+    assert p.wait(timeout=600) == 0, p.stderr.read().decode()
+    old = rrd.read_bytes()
+    assert old[:3] == b"RRF"
+    for extra in RNG.uniform(0.0, 0.5, 2):
+        p = start(argv)
+        if kill_while_writing(p, lambda: bool(temps(tmp_path)), extra):
+            assert rrd.read_bytes() == old or rrd.stat().st_mtime > 0 and rrd.read_bytes()[:3] == b"RRF"
+            old = rrd.read_bytes()
+    p = start(argv)
+    assert p.wait(timeout=600) == 0
+    assert rrd.read_bytes()[:3] == b"RRF" and rrd.read_bytes() != b""
+    assert temps(tmp_path) == []
+    assert os.stat(rrd).st_mode & 0o777 == 0o666 & ~_umask()
+
+
+def _umask() -> int:
+    m = os.umask(0)
+    os.umask(m)
+    return m
+
+
+def test_sigkill_temp_of_a_live_writer_is_never_taken(tmp_path):
+    """The clean-up only takes temporaries of dead processes: a second writer that is alive keeps
+    its temporary file while the first one writes the same target."""
+    from stcvision.fileio import discard_temp, temp_sibling, write_bytes_atomic
+
+    p = start(["-c", "import time; time.sleep(60)"])
+    try:
+        live = tmp_path / f".x.json.{p.pid}.abc.tmp"
+        live.write_text("busy")
+        write_bytes_atomic(tmp_path / "x.json", b"{}")
+        assert live.exists()
+        mine = temp_sibling(tmp_path / "x.json")
+        write_bytes_atomic(tmp_path / "x.json", b"[]", overwrite=True)
+        assert mine.exists()  # this process's own temporary is not stale either
+        discard_temp(mine)
+    finally:
+        p.send_signal(signal.SIGKILL)
+        p.wait()
+    write_bytes_atomic(tmp_path / "x.json", b"{}", overwrite=True)
+    assert not live.exists()
