@@ -122,10 +122,10 @@ class Board:
     def from_image(cls, image: np.ndarray, *, subcell_m: float = DEFAULT_SUBCELL_M, start_subcell=None) -> Board:
         """Board from a grey or BGR uint8 image: one pixel = one sub-cell, dark (< 128) = blocked."""
         img = np.asarray(image)
-        if img.ndim == 3:
+        if img.ndim == 3 and img.shape[2] in (1, 3, 4):
             img = img.mean(axis=2)
-        if img.ndim != 2:
-            raise MapError(f"map image must be 2-D (grey) or 3-D (colour), got shape {img.shape}")
+        if img.ndim != 2:  # a 3-D array of 0 or 5 channels too (fuzzing: a 0-channel image read as all free)
+            raise MapError(f"map image must be 2-D (grey) or 3-D with 1, 3 or 4 channels, got shape {img.shape}")
         blocked = img < 128
         if start_subcell is None:
             start_subcell = cls._default_start(blocked)

@@ -307,7 +307,7 @@ def _check_corners(prof: Profile, where: str) -> None:
     p = np.asarray(prof.neighbour_corners_px, float)
     area = 0.5 * abs(float(np.dot(p[:, 0], np.roll(p[:, 1], -1)) - np.dot(p[:, 1], np.roll(p[:, 0], -1))))
     side_px = prof.subcell_m * prof.ground_px_per_m
-    nominal = 20.0 * side_px**2  # five cells of side 2 D
+    nominal = 20.0 * side_px * side_px  # five cells of side 2 D (inf, not OverflowError, for absurd scales)
     if not area >= 0.1 * nominal:
         raise ProfileError(
             f"{where} field 'neighbour_corners_px' outlines {area:.3g} px^2, under a tenth of the five cells' "

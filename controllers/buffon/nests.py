@@ -52,6 +52,7 @@ STANDARD_DIAMETER_U = 100.0  # sec. 3.1: "Circular nest with diameter 100 units 
 STANDARD_AREA_U2 = math.pi * (STANDARD_DIAMETER_U / 2) ** 2
 START_CLEARANCE_BODY_LENGTHS = 1.0  # the start's centre is one body length above the bottom wall
 _MAX_EXTENT_U = 2000.0  # the batched path's near grid and trail raster must fit in memory
+_MAX_VERTICES = 1000  # a polygon nest's vertices: its self-intersection test is O(n^2)
 
 
 def eccentricity_to_ratio(e: float) -> float:
@@ -104,12 +105,16 @@ def _polygon_from_file(path: str, spec: str) -> np.ndarray:
         raise BadInputError(f"polygon file {path}: expected a JSON list of [x, y] numbers") from None
     if v.ndim != 2 or v.shape[1] != 2:
         raise BadInputError(f"polygon file {path}: expected a JSON list of [x, y] pairs; got shape {v.shape}")
+    if not (np.abs(v) <= _MAX_EXTENT_U).all():  # NaN fails too; bounded before any arithmetic (fuzzing: overflow)
+        raise BadInputError(
+            f"polygon file {path}: vertices must be finite numbers within {_MAX_EXTENT_U:g} body lengths"
+        )
+    if len(v) > _MAX_VERTICES:  # the self-intersection test is quadratic
+        raise BadInputError(f"polygon file {path}: {len(v):,} vertices; expected at most {_MAX_VERTICES:,}")
     if len(v) >= 2 and np.allclose(v[0], v[-1]):
         v = v[:-1]  # a closed ring: drop the repeated vertex
     if len(v) < 3:
         raise BadInputError(f"polygon file {path}: needs at least 3 vertices; got {len(v)}")
-    if not np.isfinite(v).all():
-        raise BadInputError(f"polygon file {path}: vertices must be finite numbers")
     if _self_intersects(v):
         raise BadInputError(f"polygon file {path}: the polygon intersects itself; expected a simple polygon")
     a = 0.5 * abs(np.dot(v[:, 0], np.roll(v[:, 1], -1)) - np.dot(v[:, 1], np.roll(v[:, 0], -1)))

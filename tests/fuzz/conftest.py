@@ -33,7 +33,7 @@ _COMMON = dict(
     suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large, HealthCheck.filter_too_much],
 )
 settings.register_profile("ci", max_examples=12, deadline=2000, **_COMMON)
-settings.register_profile("fuzz", max_examples=400, deadline=4000, **_COMMON)
+settings.register_profile("fuzz", max_examples=220, deadline=4000, **_COMMON)
 PROFILE = os.environ.get("HYPOTHESIS_PROFILE", "ci")
 settings.load_profile(PROFILE)
 
