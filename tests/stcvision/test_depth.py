@@ -47,7 +47,9 @@ def _frames(bits: int, seed: int = 5):
     dark = np.median(np.stack(darks), axis=0).round().astype(np.uint16)
     layer = PhosphorLayer()
     for k, (x, y) in enumerate([(0.2, 0.1), (0.25, -0.2), (-0.2, 0.2), (0.05, 0.35), (-0.3, -0.1)]):
-        layer.charge(mark_dots_m((x, y), (0.0, 1.0) if k % 2 else (1.0, 0.0), 0.16), t_start_s=-6.0 - 8 * k, duration_s=3.0)
+        layer.charge(
+            mark_dots_m((x, y), (0.0, 1.0) if k % 2 else (1.0, 0.0), 0.16), t_start_s=-6.0 - 8 * k, duration_s=3.0
+        )
     sig, _ = cam.signal(Pose(0, 0, 0), phosphor=layer)
     return dark, _digitise(cam, sig.copy(), bits, rng), layer
 
