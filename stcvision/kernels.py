@@ -196,3 +196,21 @@ def assign_boxes(ru, orient, sub_of_quadrant, box_of, neighbours):
             if abs(r - 2 * neighbours[k, 0]) < 1 and abs(u - 2 * neighbours[k, 1]) < 1:
                 nb[i] = k
     return sub, box, nb
+
+
+@numba.njit(cache=True)
+def crowded(xy, near):
+    """Per point: another point within ``near`` (all pairs: for the few hundred lit dots a frame
+    holds at most, ``DotParams.max_dots``; :func:`stcvision.stages._anchored_rows` uses a k-d
+    tree beyond that)."""
+    n = len(xy)
+    out = np.zeros(n, np.bool_)
+    lim = near * near
+    for i in range(n):
+        for j in range(i + 1, n):
+            dx = xy[i, 0] - xy[j, 0]
+            dy = xy[i, 1] - xy[j, 1]
+            if dx**2 + dy**2 <= lim:
+                out[i] = True
+                out[j] = True
+    return out

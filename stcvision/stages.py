@@ -834,10 +834,14 @@ def _anchored_rows(z, occ, dots: Dots, step: float, n: int, params: RowParams):
         return out_xy, out_s
     # lone dots only: no other lit dot within 1.5 spacings (else it is a dot of a row found
     # already, which reads as a mark with one lit neighbour)
-    pairs = cKDTree(xy_lit).query_pairs(near * (1 + 1e-9), output_type="ndarray")
-    d2 = ((xy_lit[pairs[:, 0]] - xy_lit[pairs[:, 1]]) ** 2).sum(axis=1)
-    crowded = np.zeros(len(xy_lit), bool)
-    crowded[pairs[d2 <= near * near].reshape(-1)] = True
+    xy_lit = np.ascontiguousarray(xy_lit, np.float64)
+    if len(xy_lit) <= 256:
+        crowded = kernels.crowded(xy_lit, near)
+    else:  # more dots than a frame is read for: neighbours by a k-d tree, not all pairs
+        pairs = cKDTree(xy_lit).query_pairs(near * (1 + 1e-9), output_type="ndarray")
+        d2 = ((xy_lit[pairs[:, 0]] - xy_lit[pairs[:, 1]]) ** 2).sum(axis=1)
+        crowded = np.zeros(len(xy_lit), bool)
+        crowded[pairs[d2 <= near * near].reshape(-1)] = True
     lone = (
         ~crowded
         & (snr <= params.anchor_max_snr)
