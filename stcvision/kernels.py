@@ -214,3 +214,41 @@ def crowded(xy, near):
                 out[i] = True
                 out[j] = True
     return out
+
+
+@numba.njit(cache=True)
+def histogram_quartiles(v, lo, quantum, nbins):
+    """Quartiles of integer values ``v`` (``lo`` + whole steps of ``quantum``), each value
+    spread uniformly over its step (:func:`stcvision.stages.estimate_background`): ``np.interp``
+    of (0.25, 0.5, 0.75) on the cumulative histogram, step by step as numpy computes it."""
+    hist = np.zeros(nbins, np.float64)
+    for x in v:
+        hist[(np.int64(x) - lo) // quantum] += 1.0
+    cdf = np.empty(nbins + 1)
+    cdf[0] = 0.0
+    acc = 0.0
+    for i in range(nbins):
+        acc += hist[i]
+        cdf[i + 1] = acc
+    total = cdf[nbins]
+    # the strictly increasing points (the first, then each bin that holds values)
+    xp = np.empty(nbins + 1)
+    fp = np.empty(nbins + 1)
+    m = 0
+    for i in range(nbins + 1):
+        c = cdf[i] / total
+        if i == 0 or c > cdf[i - 1] / total:
+            xp[m] = c
+            fp[m] = lo + (i - 0.5) * quantum
+            m += 1
+    out = np.empty(3)
+    for k, q in enumerate((0.25, 0.5, 0.75)):
+        j = 0
+        while j + 1 < m and xp[j + 1] <= q:
+            j += 1
+        if j == m - 1 or xp[j] == q:
+            out[k] = fp[j]
+        else:
+            slope = (fp[j + 1] - fp[j]) / (xp[j + 1] - xp[j])
+            out[k] = slope * (q - xp[j]) + fp[j]
+    return out
