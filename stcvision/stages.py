@@ -788,20 +788,26 @@ def _free_rows(z: np.ndarray, occ: np.ndarray, offs: np.ndarray, ends: np.ndarra
     thr = np.float32(params.k_sigma * math.sqrt(n))
     gate = max(params.min_dot_snr, params.k_sigma / math.sqrt(n) - params.spread_snr) - 1e-3
     ok_px = cv2.bitwise_and(cv2.compare(z, gate, cv2.CMP_GE), cv2.compare(occ, 0, cv2.CMP_EQ))
+    # per interior pixel: bit 1 where all dots of the row along x pass, bit 2 along y; one scan
+    # for the few pixels where either does
+    both = np.zeros((h - 2 * e, w - 2 * e), np.uint8)
+    for axis in (0, 1):
+        cand = None
+        for o in offs:
+            sl = ok_px[e + o : h - e + o, e : w - e] if axis else ok_px[e : h - e, e + o : w - e + o]
+            cand = sl.copy() if cand is None else cv2.bitwise_and(cand, sl, dst=cand)
+        cv2.bitwise_or(both, cv2.bitwise_and(cand, 1 << axis), dst=both)
+    pts = cv2.findNonZero(both)
+    if pts is None:
+        return (np.zeros(0, np.int64),) * 2 + (np.zeros(0, np.float32), np.zeros(0, np.int64))
+    pts = pts.reshape(-1, 2)
+    bits = both[pts[:, 1], pts[:, 0]]
     out = []
     for axis in (0, 1):  # 0: rows along x (top/bottom edges), 1: along y (left/right edges)
-
-        def shifted(img, o, axis=axis):
-            return img[e + o : h - e + o, e : w - e] if axis else img[e : h - e, e + o : w - e + o]
-
-        cand = shifted(ok_px, offs[0]).copy()
-        for o in offs[1:]:
-            cv2.bitwise_and(cand, shifted(ok_px, o), dst=cand)
-        pts = cv2.findNonZero(cand)
-        if pts is None:
+        sel = pts[(bits & (1 << axis)) > 0]  # row-major, as the scan found them
+        if not len(sel):
             continue
-        pts = pts.reshape(-1, 2)
-        xs, ys = pts[:, 0] + e, pts[:, 1] + e
+        xs, ys = sel[:, 0] + e, sel[:, 1] + e
         vals = np.stack([z[ys + o, xs] if axis else z[ys, xs + o] for o in offs])
         total = vals.sum(axis=0)  # float32, dot by dot: the order of the full-image filter
         low = vals.min(axis=0)
