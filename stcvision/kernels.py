@@ -252,3 +252,23 @@ def histogram_quartiles(v, lo, quantum, nbins):
             slope = (fp[j + 1] - fp[j]) / (xp[j + 1] - xp[j])
             out[k] = slope * (q - xp[j]) + fp[j]
     return out
+
+
+@numba.njit(cache=True)
+def group_stats(code, n, lit, value):
+    """Per code 0..n-1: lit dots with it, and the largest ``value`` of any dot with it (0.0
+    where none has it) (:func:`stcvision.observation._group_stats`)."""
+    counts = np.zeros(n, np.int64)
+    best = np.full(n, -np.inf)
+    seen = np.zeros(n, np.bool_)
+    for i in range(len(code)):
+        c = code[i]
+        seen[c] = True
+        if lit[i]:
+            counts[c] += 1
+        if value[i] > best[c]:
+            best[c] = value[i]
+    for c in range(n):
+        if not seen[c]:
+            best[c] = 0.0
+    return counts, best
