@@ -1,5 +1,6 @@
 """The synthetic catadioptric camera: renders the phosphor floor and red lights into noisy
-8-bit mirror images, with ground truth.
+mirror images at the sensor's ADC depth (uint8 for 8 bits, uint16 ADC counts for more:
+:mod:`sim_camera.sensor`), with ground truth.
 
 Build once, render many: :class:`SyntheticCamera` traces every pixel onto the floor once
 (:func:`sim_camera.optics.trace_pixels`) and draws its fixed-pattern noise once; per frame only
@@ -20,7 +21,8 @@ Rendering
   over a few pixels) and carry veiling glare (``glare_fraction`` of their light over tens of
   pixels); both are added around each such source only.
 * The sensor (:mod:`sim_camera.sensor`) adds dark current, fixed pattern, noise, colour
-  response and crosstalk, saturation, and quantises.
+  response and crosstalk, saturation, and quantises to its ADC's depth; every frame, dark
+  frame and lights-on frame of a camera has the sensor's dtype.
 """
 
 from __future__ import annotations
@@ -92,7 +94,9 @@ class LightsOnParams:
 
     ``room_floor_cd_m2``: a light floor (albedo ~0.3) under ~300 lx office light,
     ``L = E * albedo / pi ~ 30 cd/m^2``. Tape lines ``grid_line_m`` wide on every cell boundary
-    reflect ``line_contrast`` of the floor; the robot's body ``body_contrast``.
+    reflect ``line_contrast`` of the floor; the robot's body ``body_contrast``. ``target_dn``:
+    where auto-exposure puts the lit floor, on the 8-bit scale (140 of 255; a deeper ADC the
+    same fraction of its range).
     """
 
     room_floor_cd_m2: float = 30.0
@@ -104,7 +108,8 @@ class LightsOnParams:
 
 @dataclass(frozen=True, eq=False)
 class Frame:
-    """One rendered frame: ``image`` (H, W, 3) uint8 BGR and, if asked for, ``truth`` (a dict)."""
+    """One rendered frame: ``image`` (H, W, 3) BGR at the sensor's depth (uint8 for an 8-bit ADC,
+    uint16 ADC counts for more) and, if asked for, ``truth`` (a dict)."""
 
     image: np.ndarray
     truth: dict | None = None
@@ -298,7 +303,7 @@ class SyntheticCamera:
         """The median of ``n`` dark frames at the given settings: what a user captures once
         (lens capped) to subtract from every frame; the median keeps its own noise small."""
         frames = np.stack([self.dark_frame(rng=rng, sensor=sensor) for _ in range(n)])
-        return np.median(frames, axis=0).round().astype(np.uint8)
+        return np.median(frames, axis=0).round().astype(frames.dtype)
 
     def lights_on(
         self,
@@ -334,7 +339,7 @@ class SyntheticCamera:
         if s is None:
             base = self.sensor.replace(gain=1.0)
             e_per_s = room.room_floor_cd_m2 * base.e_per_cd_m2_s
-            exposure = room.target_dn / (base.dn_per_e * e_per_s)
+            exposure = room.target_dn / 255.0 * base.max_dn / (base.dn_per_e * e_per_s)
             s = base.replace(exposure_s=float(exposure))
         sig = (lum * np.float32(s.e_per_cd_m2_s * s.exposure_s))[..., None] * np.asarray(s.floor_bgr, np.float32)
         image = expose(np.ascontiguousarray(sig, np.float32), s, self.pattern, rng)

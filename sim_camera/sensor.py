@@ -1,4 +1,4 @@
-"""Image sensor model: photons -> electrons -> noisy 8-bit BGR.
+"""Image sensor model: photons -> electrons -> noisy BGR frames at the ADC's bit depth.
 
 What is modelled (per pixel, per colour channel; a full-resolution RGB sensor, i.e. no Bayer
 mosaic and no demosaicing):
@@ -13,7 +13,12 @@ mosaic and no demosaicing):
   the read noise of several electrons already hides the difference.)
 * full-well saturation (blooming and glare of saturating sources are added by the renderer
   around each such source, see :mod:`sim_camera.camera`);
-* conversion gain ``gain * 255 / full_well_e`` DN per electron, rounding and clipping to 8 bits.
+* the ADC: ``adc_bits`` b, conversion gain ``dn_per_e = gain * (2**b - 1) / full_well_e`` DN per
+  electron (at gain 1 the full well spans the ADC's range), a black-level pedestal, rounding and
+  clipping to ``0 .. 2**b - 1``. Frames are sensor-true: b = 8 gives (H, W, 3) uint8, b > 8
+  (H, W, 3) uint16 holding the ADC counts themselves (LSB-aligned: a 12-bit frame reads
+  0..4095, not scaled to 65535), the form a machine-vision or astronomy camera delivers its raw
+  frames in and the form a 16-bit PNG keeps.
 
 Defaults describe the seed's cheap wireless webcam in the dark (seed 003: "The camera we used,
 was not intended to work with low-light conditions"): a VGA CMOS sensor with 6 um pixels (the
@@ -33,7 +38,7 @@ from scipy.special import ndtri
 
 from stcvision.errors import BadInputError
 
-__all__ = ["FixedPattern", "SensorParams", "expose", "gaussian_noise"]
+__all__ = ["FixedPattern", "SensorParams", "digitise", "expose", "gaussian_noise"]
 
 #: photons per second in one lumen at 555 nm (1 lm = 1/683 W; E_photon = 3.58e-19 J)
 PHOTONS_PER_LUMEN_S = 4.09e15
@@ -64,8 +69,12 @@ class SensorParams:
     floor_bgr: tuple[float, float, float] = (0.85, 1.0, 0.95)
     bloom_fraction: float = 0.3
     glare_fraction: float = 2.0e-3
+    #: the ADC's depth (8..16 bits): a camera profile's ``adc_bits`` (sim_camera/hardware.py)
+    adc_bits: int = 8
 
     def __post_init__(self) -> None:
+        if isinstance(self.adc_bits, bool) or self.adc_bits not in range(8, 17):
+            raise BadInputError(f"sensor parameter adc_bits must be an integer from 8 to 16, got {self.adc_bits!r}")
         for name in ("exposure_s", "gain", "full_well_e", "pixel_pitch_m", "f_number", "quantum_efficiency"):
             if not getattr(self, name) > 0:
                 raise BadInputError(f"sensor parameter {name} must be > 0, got {getattr(self, name)}")
@@ -86,9 +95,29 @@ class SensorParams:
             raise BadInputError(f"exposure_s {self.exposure_s} is longer than a minute; expected <= 60 s")
 
     @property
+    def max_dn(self) -> int:
+        """The ADC's largest count, ``2**adc_bits - 1`` (255 for 8 bits)."""
+        return (1 << self.adc_bits) - 1
+
+    @property
+    def dtype(self) -> type:
+        """The frames' dtype: uint8 for an 8-bit ADC, uint16 (ADC counts) for 9-16 bits."""
+        return np.uint8 if self.adc_bits == 8 else np.uint16
+
+    @property
     def dn_per_e(self) -> float:
-        """Conversion gain: digital numbers per electron."""
-        return self.gain * 255.0 / self.full_well_e
+        """Conversion gain: digital numbers (ADC counts) per electron; at gain 1 the full well
+        spans the ADC's range."""
+        return self.gain * self.max_dn / self.full_well_e
+
+    @property
+    def black_dn(self) -> float:
+        """The black-level pedestal in ADC counts. ``black_level_dn`` is given on the 8-bit scale
+        (8 DN of 255: the webcam's); a deeper ADC keeps the same fraction of its range, so the
+        pedestal is the same in electrons at any depth (``black_level_dn * max_dn / 255``: 128.5
+        counts at 12 bits, 2056 at 16), many times the read and column noise it must keep off
+        zero."""
+        return self.black_level_dn * self.max_dn / 255.0
 
     @property
     def e_per_cd_m2_s(self) -> float:
@@ -110,6 +139,11 @@ class SensorParams:
         kw = {}
         for k, v in d.items():
             default = getattr(cls(), k)
+            if k == "adc_bits":
+                if isinstance(v, bool) or not isinstance(v, int | float) or not float(v).is_integer():
+                    raise BadInputError(f"sensor parameter adc_bits must be an integer from 8 to 16, got {v!r}")
+                kw[k] = int(v)
+                continue
             try:
                 kw[k] = tuple(float(x) for x in v) if isinstance(default, tuple) else float(v)
             except (TypeError, ValueError):
@@ -193,13 +227,13 @@ def expose(
     *,
     n_avg: int = 1,
 ) -> np.ndarray:
-    """Turn expected signal electrons into one noisy 8-bit BGR frame.
+    """Turn expected signal electrons into one noisy BGR frame at the ADC's depth.
 
     ``n_avg`` > 1: the average of that many frames of the same scene taken back to back (frame
     stacking, or a master dark frame): the fixed pattern is the same in each, the shot and read
     noise are independent, so the average is one frame whose temporal noise has ``1/n_avg`` of
-    the variance. It is quantised once (the average of ``n_avg`` 8-bit frames, rounded back to
-    8 bits, differs from it by a fraction of a DN of rounding noise).
+    the variance. It is quantised once (the average of ``n_avg`` digitised frames, rounded back
+    to the ADC's depth, differs from it by a fraction of a DN of rounding noise).
 
     Parameters
     ----------
@@ -210,7 +244,7 @@ def expose(
 
     Returns
     -------
-    (H, W, 3) uint8 BGR frame.
+    (H, W, 3) BGR frame: uint8 for an 8-bit ADC, else uint16 ADC counts (:func:`digitise`).
     """
     e = signal_e
     if e.dtype != np.float32 or not e.flags.c_contiguous:
@@ -234,6 +268,17 @@ def expose(
     e += tmp  # shot + read noise
     if float(e.max()) > fw:
         np.minimum(e, fw, out=e)  # the pixel's full well
-    # digitise: DN = black + e * gain, rounded and saturated to 8 bits
-    np.maximum(e, np.float32(-s.black_level_dn / s.dn_per_e), out=e)
-    return cv2.convertScaleAbs(e, alpha=s.dn_per_e, beta=s.black_level_dn)
+    return digitise(e, s)
+
+
+def digitise(e: np.ndarray, s: SensorParams) -> np.ndarray:
+    """The ADC: ``DN = black + e * dn_per_e``, rounded and clipped to ``0 .. max_dn``; (H, W, 3)
+    uint8 for 8 bits, uint16 ADC counts for more. ``e`` (float32 electrons) is scratch."""
+    if s.adc_bits == 8:
+        np.maximum(e, np.float32(-s.black_dn / s.dn_per_e), out=e)  # convertScaleAbs takes |x|
+        return cv2.convertScaleAbs(e, alpha=s.dn_per_e, beta=s.black_dn)
+    # one pass: scale, offset, round to nearest and saturate to 0..65535 (OpenCV's saturate_cast)
+    out = cv2.addWeighted(e, s.dn_per_e, e, 0.0, s.black_dn, dtype=cv2.CV_16U)
+    if s.adc_bits < 16:
+        np.minimum(out, np.uint16(s.max_dn), out=out)
+    return out

@@ -81,22 +81,32 @@ def _merge(a: StcObservation, b: StcObservation) -> StcObservation:
 ROW_EQUIVALENT_STACK = (5.0 / 3.0) ** 2
 
 
-def matched_gain(sensor, exposure_s: float, webcam_gain: float) -> float:
-    """The gain at which ``sensor``'s noise in a frame of ``exposure_s`` is as many DN as the
-    seed's webcam's at ``webcam_gain``: the ladder's gains and the pipeline's DN-level
-    thresholds were chosen for the webcam, so another sensor is set to show its noise alike (and
-    its signal at its own, higher SNR). A robot setting, not the world; the webcam's own gain
-    comes back unchanged."""
+#: the temporal noise a frame's digitised dark level must span (DN): EMVA 1288 (Release 3.1,
+#: 2016, and 4.0 Linear) holds the linear camera model's noise figures valid only where the
+#: temporal dark noise is at least ~0.5 DN, below which the quantisation noise (1/12 DN^2) takes
+#: over; the astronomer's rule of thumb for setting a camera's gain is to sample the read noise
+#: with ~1-2 ADU (S. B. Howell, Handbook of CCD Astronomy, 2nd ed. 2006, ch. 3; both recalled,
+#: not re-checked). At 1 DN the quantisation adds 1/12 of the noise variance (4 % of sigma).
+NOISE_DN = 1.0
+
+
+def sensor_gain(sensor, exposure_s: float, n_avg: int, webcam_gain: float) -> float:
+    """The gain of a frame of ``exposure_s`` (``n_avg`` frames averaged) on ``sensor``: the lowest
+    gain >= 1 at which the frame's temporal dark noise (read noise and the dark current's shot
+    noise, ``sqrt(read^2 + dark * t / n)`` electrons) spans :data:`NOISE_DN` DN, so that no faint
+    mark is quantised away, and no higher, so that the ADC clips as late as it can (at gain g it
+    saturates at ``full_well_e / g`` electrons). The seed's webcam (an 8-bit ADC, the default
+    sensor) keeps the ladder's own gains (``webcam_gain``: the seed's 16x and the issue-6 4x),
+    so its frames are exactly what they were. A robot setting from the sensor's figures, not
+    the world."""
     from sim_camera.sensor import SensorParams
 
     web = SensorParams()
-    if sensor == web:
+    if sensor.replace(exposure_s=web.exposure_s, gain=web.gain) == web:
         return webcam_gain
-
-    def noise_e(s):
-        return (s.read_noise_e**2 + s.dark_current_e_s * exposure_s) ** 0.5
-
-    return webcam_gain * (sensor.full_well_e / web.full_well_e) * (noise_e(web) / noise_e(sensor))
+    noise_e = (sensor.read_noise_e**2 + sensor.dark_current_e_s * exposure_s) ** 0.5 / n_avg**0.5
+    at_unity = sensor.replace(exposure_s=exposure_s, gain=1.0).dn_per_e * noise_e
+    return max(1.0, NOISE_DN / at_unity)
 
 
 class Exposures:
@@ -119,7 +129,7 @@ class Exposures:
         if cfg.gain is not None and cfg.exposure not in ("auto", "webcam"):
             ladder = ((ladder[0][0], cfg.gain, 1),)
         else:
-            ladder = tuple((e, matched_gain(self.cam.sensor, e, g), n) for e, g, n in ladder)
+            ladder = tuple((e, sensor_gain(self.cam.sensor, e, n * cfg.n_stack, g), n) for e, g, n in ladder)
         self.ladder = ladder
         self.frames = 0
         self.long_frames = 0
