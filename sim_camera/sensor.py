@@ -33,6 +33,7 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass, field, replace
 
 import cv2
+import numba
 import numpy as np
 from scipy.special import ndtri
 
@@ -171,14 +172,6 @@ class FixedPattern:
     hot: np.ndarray
     cache: dict = field(default_factory=dict, repr=False)
 
-    def buffer(self, name: str, shape: tuple) -> np.ndarray:
-        """A reusable float32 scratch array (no per-frame allocation)."""
-        key = ("buf", name, tuple(shape))
-        buf = self.cache.get(key)
-        if buf is None:
-            buf = self.cache[key] = np.empty(shape, np.float32)
-        return buf
-
     @classmethod
     def draw(cls, shape_hw: tuple[int, int], s: SensorParams, rng: np.random.Generator) -> FixedPattern:
         h, w = shape_hw
@@ -249,26 +242,40 @@ def expose(
     e = signal_e
     if e.dtype != np.float32 or not e.flags.c_contiguous:
         raise BadInputError("expose: signal_e must be a C-contiguous float32 array")
-    tmp = pattern.buffer("sigma", e.shape)
-    noise = pattern.buffer("noise", e.shape)
-    if s.prnu_sigma > 0:
-        e *= pattern.prnu
-    _, var0, mean0, dark_max = _dark_terms(s, pattern)
-    fw = np.float32(s.full_well_e)
-    np.add(e, var0, out=tmp)
-    if n_avg != 1:
-        if not (isinstance(n_avg, int | np.integer) and n_avg >= 1):
-            raise BadInputError(f"expose: n_avg must be a whole number of frames >= 1, got {n_avg!r}")
-        tmp *= np.float32(1.0 / n_avg)
-    np.sqrt(tmp, out=tmp)
-    idx = rng.integers(0, 65536, size=e.shape, dtype=np.uint16)
-    np.take(_LUT, idx, out=noise)
-    tmp *= noise
-    e += mean0  # dark current and column offsets
-    e += tmp  # shot + read noise
-    if float(e.max()) > fw:
-        np.minimum(e, fw, out=e)  # the pixel's full well
+    if n_avg != 1 and not (isinstance(n_avg, int | np.integer) and n_avg >= 1):
+        raise BadInputError(f"expose: n_avg must be a whole number of frames >= 1, got {n_avg!r}")
+    _, var0, mean0, _ = _dark_terms(s, pattern)
+    idx = rng.integers(0, 65536, size=e.shape, dtype=np.uint16)  # the noise: indices into _LUT
+    _expose_nb(
+        e.reshape(-1),
+        pattern.prnu.reshape(-1),
+        s.prnu_sigma > 0,
+        var0.reshape(-1),
+        mean0.reshape(-1),
+        idx.reshape(-1),
+        _LUT,
+        np.float32(1.0 / n_avg),
+        np.float32(s.full_well_e),
+        np.float32(-s.black_dn / s.dn_per_e),
+    )
     return digitise(e, s)
+
+
+@numba.njit(cache=True, nogil=True)
+def _expose_nb(e, prnu, use_prnu, var0, mean0, idx, lut, inv_n, full_well, floor):
+    """One pass over the frame (flat float32 arrays; ``e`` in place): PRNU, shot + read noise
+    ``sqrt((e + var0) * inv_n) * lut[idx]``, dark current and column offsets ``mean0``, the full
+    well, and the floor below which the black level cannot go. The same float32 operations in
+    the same order as the numpy passes it replaces, so the frames are bit for bit the same."""
+    for i in range(e.size):
+        x = e[i] * prnu[i] if use_prnu else e[i]
+        noise = np.sqrt((x + var0[i]) * inv_n) * lut[idx[i]]
+        x = (x + mean0[i]) + noise
+        if x > full_well:
+            x = full_well
+        if x < floor:
+            x = floor
+        e[i] = x
 
 
 def digitise(e: np.ndarray, s: SensorParams) -> np.ndarray:
