@@ -29,6 +29,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+import numba
 import numpy as np
 
 from sim_camera.optics import FloorProjector, MirrorCameraParams, RayTable, trace_pixels
@@ -64,6 +65,53 @@ def _gauss_kernel(sigma: float, half: int) -> np.ndarray:
 #: blooming spreads excess charge over a few pixels; veiling glare over tens (sigma 8 px)
 _BLOOM_KERNEL = _gauss_kernel(2.0, _GLARE_HALF)
 _GLARE_KERNEL = _gauss_kernel(8.0, _GLARE_HALF)
+
+
+@numba.njit(cache=True, nogil=True)
+def _splat_nb(out, iu, iv, uv, icov, total, bgr, core):
+    """Add Gaussian spots to ``out`` (H, W, 3) float32: spot k centred at ``uv[k]`` with inverse
+    covariance ``icov[k]``, evaluated on the (2P+1)^2 patch around pixel ``(iu[k], iv[k])``,
+    normalised to 1 over the patch, times ``total[k]`` electrons and each channel's ``bgr``
+    response; pixels outside the frame get none. ``core`` (n, 2P+1, 2P+1) receives each spot's
+    electrons per patch pixel (zero outside the frame)."""
+    h, w = out.shape[0], out.shape[1]
+    m = core.shape[1]
+    r = m // 2
+    for k in range(iu.shape[0]):
+        a, b, c = icov[k, 0, 0], icov[k, 0, 1], icov[k, 1, 1]
+        s = 0.0
+        for i in range(m):
+            dv = (iv[k] + i - r) - uv[k, 1]
+            for j in range(m):
+                du = (iu[k] + j - r) - uv[k, 0]
+                q = a * du * du + 2 * b * du * dv
+                q += c * dv * dv
+                g = np.exp(-0.5 * q)
+                core[k, i, j] = g
+                s += g
+        for i in range(m):
+            pv = iv[k] + i - r
+            for j in range(m):
+                pu = iu[k] + j - r
+                if pv < 0 or pv >= h or pu < 0 or pu >= w:
+                    core[k, i, j] = 0.0
+                    continue
+                e = core[k, i, j] / s * total[k]
+                core[k, i, j] = e
+                for ch in range(3):
+                    if bgr[ch] > 0:
+                        out[pv, pu, ch] += np.float32(e * bgr[ch])
+
+
+@numba.njit(cache=True, nogil=True)
+def _spill_nb(out, v_lo, v_hi, u_lo, u_hi, kv, ku, kb, kg, a, b):
+    """``out[v_lo:v_hi, u_lo:u_hi, ch] += kb * a[ch] + kg * b[ch]`` (the kernels' window starting
+    at row ``kv``, column ``ku``), in float32 as numpy's ``+= (...).astype(np.float32)``."""
+    for v in range(v_lo, v_hi):
+        for u in range(u_lo, u_hi):
+            x, y = kb[kv + v - v_lo, ku + u - u_lo], kg[kv + v - v_lo, ku + u - u_lo]
+            for ch in range(3):
+                out[v, u, ch] += np.float32(x * a[ch] + y * b[ch])
 
 
 @dataclass(frozen=True, slots=True)
@@ -148,19 +196,11 @@ class SyntheticCamera:
         return (self.optics.height_px, self.optics.width_px)
 
     # ------------------------------------------------------------------ sources -> electrons
-    def _splat(self, out, xy_robot, lum_cd_m2, diameter_m, bgr, s: SensorParams):
-        """Add the electrons of emitting discs to ``out`` (H, W, 3); return per-source info."""
-        n = len(xy_robot)
-        info = {
-            "uv": np.full((n, 2), np.nan),
-            "visible": np.zeros(n, bool),
-            "total_e": np.zeros(n),
-            "cov_px": np.zeros((n, 2, 2)),
-        }
-        if n == 0:
-            return info
-        uv, vis = self.projector.project(xy_robot)
-        info["uv"], info["visible"] = uv, vis
+    def _splat(self, out, uv, vis, lum_cd_m2, diameter_m, bgr, s: SensorParams):
+        """Add the electrons of emitting discs, projected to ``uv`` (visible where ``vis``), to
+        ``out`` (H, W, 3); return per-source info."""
+        n = len(uv)
+        info = {"uv": uv, "visible": vis, "total_e": np.zeros(n), "cov_px": np.zeros((n, 2, 2))}
         idx = np.flatnonzero(vis & (np.asarray(lum_cd_m2) > 0))
         if len(idx) == 0:
             return info
@@ -179,25 +219,10 @@ class SyntheticCamera:
         cov = (diameter_m / 2) ** 2 / 4.0 * jinv @ np.swapaxes(jinv, 1, 2)
         cov += PSF_SIGMA_PX**2 * np.eye(2)
         info["cov_px"][idx] = cov
-        # evaluate each Gaussian on a 9x9 patch around its nearest pixel, normalised to 1
-        off = np.arange(-_PATCH, _PATCH + 1)
-        pu = iu[:, None, None] + off[None, None, :]
-        pv = iv[:, None, None] + off[None, :, None]
-        du = pu - uv[idx, 0][:, None, None]
-        dv = pv - uv[idx, 1][:, None, None]
-        icov = np.linalg.inv(cov)
-        q = icov[:, 0, 0, None, None] * du * du + 2 * icov[:, 0, 1, None, None] * du * dv
-        q += icov[:, 1, 1, None, None] * dv * dv
-        wgt = np.exp(-0.5 * q)
-        inside = (pu >= 0) & (pu < w) & (pv >= 0) & (pv < h)
-        wgt /= wgt.sum(axis=(1, 2), keepdims=True)
-        wgt *= inside
-        flat = (np.clip(pv, 0, h - 1) * w + np.clip(pu, 0, w - 1)).ravel()
-        core = wgt * total[:, None, None]
-        view = out.reshape(-1, 3)
-        for ch in range(3):
-            if bgr[ch] > 0:
-                np.add.at(view[:, ch], flat, (core.ravel() * bgr[ch]).astype(np.float32))
+        # evaluate each Gaussian on a 9x9 patch around its nearest pixel, normalised to 1, and add
+        # it to the frame (one compiled pass: the patches are small and many)
+        core = np.empty((len(idx), 2 * _PATCH + 1, 2 * _PATCH + 1))
+        _splat_nb(out, iu, iv, uv[idx], np.linalg.inv(cov), total, np.asarray(bgr, float), core)
         # Very bright sources (a red LED in the dark) overflow the full well: a fraction of the
         # excess charge blooms into the neighbourhood, and the lens and mirror spread a faint
         # veiling glare around them. Only sources that saturate are worth the wider patches.
@@ -214,14 +239,11 @@ class SyntheticCamera:
         v_lo, v_hi, u_lo, u_hi = max(v0 - r, 0), min(v0 + r + 1, h), max(u0 - r, 0), min(u0 + r + 1, w)
         if v_lo >= v_hi or u_lo >= u_hi:
             return
-        ks = (slice(v_lo - (v0 - r), v_hi - (v0 - r)), slice(u_lo - (u0 - r), u_hi - (u0 - r)))
-        kb, kg = _BLOOM_KERNEL[ks], _GLARE_KERNEL[ks]
         c = np.asarray(bgr, float)
         excess = np.maximum(core[None] * c[:, None, None] - s.full_well_e, 0.0).sum(axis=(1, 2))
         a = np.where(c > 0, s.bloom_fraction * excess, 0.0)
         b = s.glare_fraction * total * c
-        add = kb[..., None] * a + kg[..., None] * b
-        out[v_lo:v_hi, u_lo:u_hi] += add.astype(np.float32)
+        _spill_nb(out, v_lo, v_hi, u_lo, u_hi, v_lo - (v0 - r), u_lo - (u0 - r), _BLOOM_KERNEL, _GLARE_KERNEL, a, b)
 
     # ------------------------------------------------------------------ public API
     def signal(
@@ -233,16 +255,25 @@ class SyntheticCamera:
         out = self._scratch
         out.fill(0)
         info = {}
+        sources = []  # (name, robot-frame positions, luminance, diameter, colour response)
         if phosphor is not None and len(phosphor):
-            lum = phosphor.luminance_at(t_s)
             xy_r = pose.world_to_robot(phosphor.xy_m)
-            info["dots"] = self._splat(out, xy_r, lum, phosphor.dot_diameter_m, s.phosphor_bgr, s)
-            info["dots"]["lum"] = lum
-            info["dots"]["xy_robot"] = xy_r
+            sources.append(("dots", xy_r, phosphor.luminance_at(t_s), phosphor.dot_diameter_m, s.phosphor_bgr))
         if red_lights_m is not None and len(red_lights_m):
             xy_r = pose.world_to_robot(red_lights_m)
-            info["lights"] = self._splat(out, xy_r, RED_LIGHT_CD_M2, RED_LIGHT_DIAMETER_M, s.red_led_bgr, s)
-            info["lights"]["xy_robot"] = xy_r
+            sources.append(("lights", xy_r, RED_LIGHT_CD_M2, RED_LIGHT_DIAMETER_M, s.red_led_bgr))
+        if not sources:
+            return out, info
+        # one projection for every source (the solver's cost is mostly per call, not per point)
+        uv, vis = self.projector.project(np.concatenate([src[1] for src in sources]))
+        start = 0
+        for name, xy_r, lum, diameter, bgr in sources:
+            part = slice(start, start + len(xy_r))
+            start = part.stop
+            info[name] = self._splat(out, uv[part], vis[part], lum, diameter, bgr, s)
+            info[name]["xy_robot"] = xy_r
+            if name == "dots":
+                info[name]["lum"] = lum
         return out, info
 
     def render(
