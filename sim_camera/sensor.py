@@ -196,20 +196,27 @@ def gaussian_noise(rng: np.random.Generator, shape) -> np.ndarray:
     return np.take(_LUT, idx)
 
 
-def _dark_terms(s: SensorParams, pattern: FixedPattern):
-    """Per-pixel dark mean (+ column offset) and base variance for these settings, cached on
-    the pattern (they depend only on exposure, dark current and read noise)."""
+def _dark_terms(s: SensorParams, pattern: FixedPattern, n_avg: int):
+    """Per-pixel dark mean (dark current + column offset, electrons), base variance (dark +
+    read noise squared) and the noise sigma of a pixel without signal, ``sqrt(var0 / n_avg)``,
+    for these settings; cached on the pattern (they depend only on exposure, dark current, read
+    noise and the stack)."""
     key = (s.exposure_s, s.dark_current_e_s, s.read_noise_e)
     hit = pattern.cache.get(key)
     if hit is None:
         dark = pattern.dark_gain * np.float32(s.dark_current_e_s * s.exposure_s)
         var0 = dark + np.float32(s.read_noise_e**2)
         mean0 = dark + pattern.column_offset_e[None, :, None]
-        hit = (dark, var0, mean0, float(dark.max()))
+        hit = (var0, mean0)
         if len(pattern.cache) > 32:
             pattern.cache.clear()
         pattern.cache[key] = hit
-    return hit
+    var0, mean0 = hit
+    skey = (*key, "sigma", n_avg)
+    sigma0 = pattern.cache.get(skey)
+    if sigma0 is None:
+        sigma0 = pattern.cache[skey] = np.sqrt(var0 * np.float32(1.0 / n_avg))
+    return var0, mean0, sigma0
 
 
 def expose(
@@ -244,7 +251,7 @@ def expose(
         raise BadInputError("expose: signal_e must be a C-contiguous float32 array")
     if n_avg != 1 and not (isinstance(n_avg, int | np.integer) and n_avg >= 1):
         raise BadInputError(f"expose: n_avg must be a whole number of frames >= 1, got {n_avg!r}")
-    _, var0, mean0, _ = _dark_terms(s, pattern)
+    var0, mean0, sigma0 = _dark_terms(s, pattern, int(n_avg))
     idx = rng.integers(0, 65536, size=e.shape, dtype=np.uint16)  # the noise: indices into _LUT
     _expose_nb(
         e.reshape(-1),
@@ -252,6 +259,7 @@ def expose(
         s.prnu_sigma > 0,
         var0.reshape(-1),
         mean0.reshape(-1),
+        sigma0.reshape(-1),
         idx.reshape(-1),
         _LUT,
         np.float32(1.0 / n_avg),
@@ -262,15 +270,23 @@ def expose(
 
 
 @numba.njit(cache=True, nogil=True)
-def _expose_nb(e, prnu, use_prnu, var0, mean0, idx, lut, inv_n, full_well, floor):
+def _expose_nb(e, prnu, use_prnu, var0, mean0, sigma0, idx, lut, inv_n, full_well, floor):
     """One pass over the frame (flat float32 arrays; ``e`` in place): PRNU, shot + read noise
     ``sqrt((e + var0) * inv_n) * lut[idx]``, dark current and column offsets ``mean0``, the full
-    well, and the floor below which the black level cannot go. The same float32 operations in
-    the same order as the numpy passes it replaces, so the frames are bit for bit the same."""
+    well, and the floor below which the black level cannot go. A pixel without signal (most of
+    a dark-room frame) takes its noise sigma from ``sigma0`` (``sqrt(var0 * inv_n)``, the same
+    value). The same float32 operations in the same order as the numpy passes it replaced, so
+    the frames are bit for bit the same. (The ADC stays OpenCV's: a rounding to uint8 in this
+    loop was measured slower than ``convertScaleAbs`` after it.)"""
     for i in range(e.size):
-        x = e[i] * prnu[i] if use_prnu else e[i]
-        noise = np.sqrt((x + var0[i]) * inv_n) * lut[idx[i]]
-        x = (x + mean0[i]) + noise
+        x = e[i]
+        if x == 0:
+            x = mean0[i] + sigma0[i] * lut[idx[i]]
+        else:
+            if use_prnu:
+                x *= prnu[i]
+            noise = np.sqrt((x + var0[i]) * inv_n) * lut[idx[i]]
+            x = (x + mean0[i]) + noise
         if x > full_well:
             x = full_well
         if x < floor:
@@ -280,9 +296,9 @@ def _expose_nb(e, prnu, use_prnu, var0, mean0, idx, lut, inv_n, full_well, floor
 
 def digitise(e: np.ndarray, s: SensorParams) -> np.ndarray:
     """The ADC: ``DN = black + e * dn_per_e``, rounded and clipped to ``0 .. max_dn``; (H, W, 3)
-    uint8 for 8 bits, uint16 ADC counts for more. ``e`` (float32 electrons) is scratch."""
-    if s.adc_bits == 8:
-        np.maximum(e, np.float32(-s.black_dn / s.dn_per_e), out=e)  # convertScaleAbs takes |x|
+    uint8 for 8 bits, uint16 ADC counts for more. ``e`` (float32 electrons, at or above
+    ``-black_dn / dn_per_e``: :func:`expose` floors it) is scratch."""
+    if s.adc_bits == 8:  # |x| (convertScaleAbs) is x there
         return cv2.convertScaleAbs(e, alpha=s.dn_per_e, beta=s.black_dn)
     # one pass: scale, offset, round to nearest and saturate to 0..65535 (OpenCV's saturate_cast)
     out = cv2.addWeighted(e, s.dn_per_e, e, 0.0, s.black_dn, dtype=cv2.CV_16U)
