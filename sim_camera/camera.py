@@ -190,39 +190,50 @@ class SyntheticCamera:
         shape = (self.optics.height_px, self.optics.width_px)
         self.pattern = FixedPattern.draw(shape, self.sensor, np.random.default_rng(pattern_seed))
         self._scratch = np.empty((*shape, 3), np.float32)
+        self._last_projection = None  # (positions, diameters, result) of the last signal()
 
     @property
     def shape(self) -> tuple[int, int]:
         return (self.optics.height_px, self.optics.width_px)
 
     # ------------------------------------------------------------------ sources -> electrons
-    def _splat(self, out, uv, vis, lum_cd_m2, diameter_m, bgr, s: SensorParams):
-        """Add the electrons of emitting discs, projected to ``uv`` (visible where ``vis``), to
-        ``out`` (H, W, 3); return per-source info."""
-        n = len(uv)
-        info = {"uv": uv, "visible": vis, "total_e": np.zeros(n), "cov_px": np.zeros((n, 2, 2))}
-        idx = np.flatnonzero(vis & (np.asarray(lum_cd_m2) > 0))
-        if len(idx) == 0:
-            return info
+    def _geometry(self, uv, vis, diameter_m) -> dict:
+        """What a set of sources' image positions fix, whatever their brightness: for each
+        visible source with a usable floor footprint (``cand``) its nearest pixel, footprint,
+        vignetting and the inverse covariance of its spot (PSF + disc mapped through the local
+        pixel->floor Jacobian: far dots are squashed radially, as a spherical mirror does)."""
         h, w = self.shape
-        iu = np.clip(np.rint(uv[idx, 0]).astype(int), 0, w - 1)
-        iv = np.clip(np.rint(uv[idx, 1]).astype(int), 0, h - 1)
+        cand = np.flatnonzero(vis)
+        iu = np.clip(np.rint(uv[cand, 0]).astype(int), 0, w - 1)
+        iv = np.clip(np.rint(uv[cand, 1]).astype(int), 0, h - 1)
         fp = self.table.footprint_m2[iv, iu]
         good = np.isfinite(fp) & (fp > 0)
-        idx, iu, iv, fp = idx[good], iu[good], iv[good], fp[good]
-        area = np.pi * (diameter_m / 2) ** 2
-        lum = np.broadcast_to(np.asarray(lum_cd_m2, float), (n,))[idx]
-        total = lum * s.e_per_cd_m2_s * s.exposure_s * self.table.vignetting[iv, iu] * (area / fp)
-        info["total_e"][idx] = total
+        cand, iu, iv, fp = cand[good], iu[good], iv[good], fp[good]
         # covariance: PSF + disc (variance r^2/4 per axis on the floor) mapped to pixels
         jinv = np.linalg.inv(self.table.jacobian[iv, iu])
         cov = (diameter_m / 2) ** 2 / 4.0 * jinv @ np.swapaxes(jinv, 1, 2)
         cov += PSF_SIGMA_PX**2 * np.eye(2)
-        info["cov_px"][idx] = cov
+        vign = self.table.vignetting[iv, iu]
+        return {"cand": cand, "iu": iu, "iv": iv, "fp": fp, "vign": vign, "cov": cov, "icov": np.linalg.inv(cov)}
+
+    def _splat(self, out, uv, vis, geo, lum_cd_m2, diameter_m, bgr, s: SensorParams):
+        """Add the electrons of emitting discs, projected to ``uv`` (visible where ``vis``; their
+        :meth:`_geometry` ``geo``), to ``out`` (H, W, 3); return per-source info."""
+        n = len(uv)
+        info = {"uv": uv, "visible": vis, "total_e": np.zeros(n), "cov_px": np.zeros((n, 2, 2))}
+        lum = np.broadcast_to(np.asarray(lum_cd_m2, float), (n,))
+        lit = lum[geo["cand"]] > 0
+        if not lit.any():
+            return info
+        idx, iu, iv = geo["cand"][lit], geo["iu"][lit], geo["iv"][lit]
+        area = np.pi * (diameter_m / 2) ** 2
+        total = lum[idx] * s.e_per_cd_m2_s * s.exposure_s * geo["vign"][lit] * (area / geo["fp"][lit])
+        info["total_e"][idx] = total
+        info["cov_px"][idx] = geo["cov"][lit]
         # evaluate each Gaussian on a 9x9 patch around its nearest pixel, normalised to 1, and add
         # it to the frame (one compiled pass: the patches are small and many)
         core = np.empty((len(idx), 2 * _PATCH + 1, 2 * _PATCH + 1))
-        _splat_nb(out, iu, iv, uv[idx], np.linalg.inv(cov), total, np.asarray(bgr, float), core)
+        _splat_nb(out, iu, iv, uv[idx], geo["icov"][lit], total, np.asarray(bgr, float), core)
         # Very bright sources (a red LED in the dark) overflow the full well: a fraction of the
         # excess charge blooms into the neighbourhood, and the lens and mirror spread a faint
         # veiling glare around them. Only sources that saturate are worth the wider patches.
@@ -230,6 +241,26 @@ class SyntheticCamera:
         for k in np.flatnonzero(peak > s.full_well_e):
             self._spill(out, iu[k], iv[k], core[k], total[k], bgr, s)
         return info
+
+    def _project(self, sources) -> tuple[np.ndarray, np.ndarray, list]:
+        """Image positions, visibility and :meth:`_geometry` of every source (``sources``: the
+        (name, robot-frame positions, luminance, diameter, colour) of each kind), in one solver
+        call (its cost is mostly per call, not per point). Rendering only what changes: the
+        robot takes several frames where it stands (the short and the long frame, the looks), so
+        the last positions' result is kept and reused when the same positions come again."""
+        xy = np.concatenate([src[1] for src in sources])
+        diameters = tuple(src[3] for src in sources)
+        last = self._last_projection
+        if last is not None and last[1] == diameters and np.array_equal(last[0], xy):
+            return last[2]
+        uv, vis = self.projector.project(xy)
+        geos, start = [], 0
+        for src in sources:
+            part = slice(start, start + len(src[1]))
+            start = part.stop
+            geos.append(self._geometry(uv[part], vis[part], src[3]))
+        self._last_projection = (xy, diameters, (uv, vis, geos))
+        return uv, vis, geos
 
     def _spill(self, out, u0, v0, core, total, bgr, s: SensorParams) -> None:
         """Bloom (the excess over the full well) and glare around one saturating source, added
@@ -264,13 +295,12 @@ class SyntheticCamera:
             sources.append(("lights", xy_r, RED_LIGHT_CD_M2, RED_LIGHT_DIAMETER_M, s.red_led_bgr))
         if not sources:
             return out, info
-        # one projection for every source (the solver's cost is mostly per call, not per point)
-        uv, vis = self.projector.project(np.concatenate([src[1] for src in sources]))
+        uv, vis, geos = self._project(sources)
         start = 0
-        for name, xy_r, lum, diameter, bgr in sources:
+        for (name, xy_r, lum, diameter, bgr), geo in zip(sources, geos, strict=True):
             part = slice(start, start + len(xy_r))
             start = part.stop
-            info[name] = self._splat(out, uv[part], vis[part], lum, diameter, bgr, s)
+            info[name] = self._splat(out, uv[part], vis[part], geo, lum, diameter, bgr, s)
             info[name]["xy_robot"] = xy_r
             if name == "dots":
                 info[name]["lum"] = lum
