@@ -254,6 +254,8 @@ class SyntheticCamera:
         if last is not None and last[1] == diameters and np.array_equal(last[0], xy):
             return last[2]
         uv, vis = self.projector.project(xy)
+        uv.setflags(write=False)  # handed out in every frame's info: nobody may change the kept copy
+        vis.setflags(write=False)
         geos, start = [], 0
         for src in sources:
             part = slice(start, start + len(src[1]))
