@@ -186,14 +186,38 @@ class FixedPattern:
 _LUT = ndtri((np.arange(65536) + 0.5) / 65536).astype(np.float32)
 
 
+def _raw_matches_integers() -> bool:
+    """Whether this numpy's ``integers(0, 65536, dtype=uint16)`` on PCG64 is the uint16 view of
+    its raw 64-bit outputs (it splits each 32-bit draw low half first, and PCG64 each 64-bit
+    output low word first), checked once on a scratch generator."""
+    a, b = np.random.Generator(np.random.PCG64(12345)), np.random.Generator(np.random.PCG64(12345))
+    same = np.array_equal(
+        a.integers(0, 65536, size=64, dtype=np.uint16), b.bit_generator.random_raw(16).view(np.uint16)
+    )
+    return same and a.bit_generator.state["state"] == b.bit_generator.state["state"]
+
+
+_RAW_U16 = _raw_matches_integers()
+
+
+def _noise_indices(rng: np.random.Generator, shape) -> np.ndarray:
+    """``rng.integers(0, 65536, size=shape, dtype=np.uint16)``, the same numbers and the same
+    generator state after; for numpy's default PCG64 (no 32-bit half pending) drawn as the
+    uint16 view of raw 64-bit outputs, at half the cost (issue 18)."""
+    n = int(np.prod(shape))
+    bg = rng.bit_generator
+    if _RAW_U16 and n % 4 == 0 and type(bg) is np.random.PCG64 and not bg.state["has_uint32"]:
+        return bg.random_raw(n // 4).view(np.uint16).reshape(shape)
+    return rng.integers(0, 65536, size=shape, dtype=np.uint16)
+
+
 def gaussian_noise(rng: np.random.Generator, shape) -> np.ndarray:
     """Standard normal float32 noise via a 16-bit inverse-CDF table (tails cut at 4.3 sigma).
 
     About 2.5x faster than ``rng.standard_normal`` for a 640x480x3 frame and exactly Gaussian
     to 1/65536 in probability; every sample is an independent draw from ``rng``.
     """
-    idx = rng.integers(0, 65536, size=shape, dtype=np.uint16)
-    return np.take(_LUT, idx)
+    return np.take(_LUT, _noise_indices(rng, shape))
 
 
 def _dark_terms(s: SensorParams, pattern: FixedPattern, n_avg: int):
@@ -252,7 +276,7 @@ def expose(
     if n_avg != 1 and not (isinstance(n_avg, int | np.integer) and n_avg >= 1):
         raise BadInputError(f"expose: n_avg must be a whole number of frames >= 1, got {n_avg!r}")
     var0, mean0, sigma0 = _dark_terms(s, pattern, int(n_avg))
-    idx = rng.integers(0, 65536, size=e.shape, dtype=np.uint16)  # the noise: indices into _LUT
+    idx = _noise_indices(rng, e.shape)  # the noise: indices into _LUT
     _expose_nb(
         e.reshape(-1),
         pattern.prnu.reshape(-1),

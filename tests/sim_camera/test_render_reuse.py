@@ -1,5 +1,6 @@
-"""Rendering only what changes (issue 18): a camera that reuses the last frame's projection gives
-exactly the frames and ground truth a fresh camera gives, and notices when the sources move."""
+"""Camera speed (issue 18) without changing a frame: a camera that reuses the last frame's
+projection gives exactly the frames and ground truth a fresh camera gives and notices when the
+sources move; the fast noise draw is numpy's own."""
 
 import json
 
@@ -59,3 +60,30 @@ def test_new_marks_where_the_robot_stands_are_rendered():
     after = _render(cam, scene, scene.pose, 1, 0.0)
     assert sum(d["visible"] for d in after.truth["dots"]) == n + 1
     assert after.image.tobytes() == _fresh(scene.camera(), scene, scene.pose, 1, 0.0).image.tobytes()
+
+
+def test_the_fast_noise_draw_is_numpys_integers_draw():
+    """The noise indices (sim_camera.sensor._noise_indices) are exactly
+    ``rng.integers(0, 65536, dtype=uint16)``, leaving the generator where it leaves it, with a
+    32-bit half pending, on another bit generator and for a size not a multiple of 4."""
+    from sim_camera.sensor import _noise_indices
+
+    def pair(make):
+        return make(), make()
+
+    cases = [
+        (lambda: np.random.default_rng(3), (480, 640, 3)),
+        (lambda: np.random.Generator(np.random.MT19937(3)), (40, 64, 3)),
+        (lambda: np.random.default_rng(4), (5, 7, 3)),
+    ]
+    for make, shape in cases:
+        for pending in (False, True):
+            a, b = pair(make)
+            if pending:  # one 32-bit half left in the buffer
+                a.integers(0, 2**32, dtype=np.uint32), b.integers(0, 2**32, dtype=np.uint32)
+            x, y = _noise_indices(a, shape), b.integers(0, 65536, size=shape, dtype=np.uint16)
+            assert x.shape == shape and np.array_equal(x, y)
+            assert (
+                a.integers(0, 2**32, size=9, dtype=np.uint32).tolist()
+                == b.integers(0, 2**32, size=9, dtype=np.uint32).tolist()
+            )
