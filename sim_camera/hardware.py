@@ -84,6 +84,7 @@ WEBCAM = CameraProfile(
         ("pixel_pitch_m", "6.0 um: OmniVision OV7725 datasheet (pixel size 6.0 um x 6.0 um)"),
         ("full_well_e", f"20,000 e-; {_WEBCAM_SRC}"),
         ("f_number", "f/2.0: a 4.7 mm webcam lens (assumed, sim_camera/sensor.py)"),
+        ("adc_bits", "8: what a consumer webcam delivers (8-bit YUV/JPEG; the OV7725's raw output is 10-bit)"),
     ),
 )
 LOWLIGHT = CameraProfile(
@@ -112,6 +113,7 @@ LOWLIGHT = CameraProfile(
         ("pixel_pitch_m", "2.9 um: Sony IMX462 product information (unit cell 2.9 um x 2.9 um)"),
         ("full_well_e", "11,200 e-: ZWO ASI462MC specifications, recalled"),
         ("f_number", "f/1.4: assumed, a fast M12 low-light board-camera lens"),
+        ("adc_bits", "12: ZWO ASI462MC specifications (12-bit ADC), recalled"),
     ),
 )
 COOLED = CameraProfile(
@@ -137,6 +139,7 @@ COOLED = CameraProfile(
         ("pixel_pitch_m", "3.76 um: Sony IMX571 (ZWO ASI2600MM Pro specifications)"),
         ("full_well_e", "50,000 e-: ZWO ASI2600MM Pro specifications (50 ke-), recalled"),
         ("f_number", "f/1.2: issue 16"),
+        ("adc_bits", "16: ZWO ASI2600MM Pro specifications (16-bit ADC), recalled"),
     ),
 )
 CAMERAS = {c.name: c for c in (WEBCAM, LOWLIGHT, COOLED)}

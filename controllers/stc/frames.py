@@ -3,13 +3,18 @@
 * **Exposure**: ``webcam`` (1/30 s, gain 16: the seed's camera), a fixed ``exposure_s``, or
   ``auto``: every observation takes a short webcam frame (red lights without bloom, fresh marks,
   the pose) and, where old marks may matter (returns to a parent, the looks), a long one whose
-  length follows the robot's clock (:data:`AUTO_LONG`: 2-30 s at gain 4, then 2 to 64 30 s
-  frames stacked: frame stacking), sized for what the frame must read
+  length follows the robot's clock (:data:`AUTO_LONG`: 2-30 s, then 2 to 64 30 s frames
+  stacked: frame stacking), sized for what the frame must read
   (``CoverConfig.decision_reach_m``, ``look_reach_m``, ``sizing_snr``); a mark counts if either
   frame sees it -- the seed's proposal, "a camera with a fully controlled integration time".
   Dark frames are taken once per setting, at the matching exposure (a master dark of 8n frames
   for a stack of n). Past the longest frame's horizon the robot stops ("out of sight",
   :meth:`Exposures.out_of_sight`).
+* **Gain**: the seed's webcam keeps the ladder's gains (16 for the short frame, 4 for the long
+  ones); any other sensor takes at each rung the lowest gain at which its frame's temporal dark
+  noise spans :data:`NOISE_DN` DN (:func:`sensor_gain`: from the sensor's read noise and dark
+  current, EMVA 1288 and the astronomer's rule of thumb), its frames digitised at its own ADC
+  depth (16-bit frames for a 12- or 16-bit camera: :mod:`sim_camera.sensor`).
 * :class:`RobotCamera`: render -> pipeline, one pipeline per exposure setting.
 * :class:`IdealCamera`: the physics-limited camera, the same frames and time, but it sees
   exactly the marks within the frames' visibility horizon.
@@ -35,8 +40,9 @@ WEBCAM = (1 / 30, 16.0, 1)
 #: used while the robot's clock (the oldest age any mark can have) is within its visibility
 #: horizon at the distance the frame must read (``CoverConfig.decision_reach_m``,
 #: ``look_reach_m``; ``sim_camera.camera.visibility_horizon_s``: the camera's calibration of the
-#: phosphor, measured once per robot); gain 4 keeps the 8-bit quantisation below the dark
-#: current's noise at every length. 60 s frames were tried and read fewer boxes than 30 s ones
+#: phosphor, measured once per robot). The gains are the webcam's (4 keeps its 8-bit
+#: quantisation below the dark current's noise at every length); another sensor's come from
+#: :func:`sensor_gain`. 60 s frames were tried and read fewer boxes than 30 s ones
 #: (the fresh mark's bloom), so beyond 30 s the ladder stacks 30 s frames (issue 6: "frame
 #: stacking"): averaging n frames divides the noise variance by n.
 AUTO_LONG = (
