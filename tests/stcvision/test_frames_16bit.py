@@ -140,3 +140,12 @@ def test_the_evaluations_loader_refuses_a_dark_of_another_depth(deep, tmp_path):
     ds = open_dataset(bad)
     with pytest.raises(BadInputError, match=f"dark frame {dark} is 8-bit but the frame .* is 16-bit"):
         evaluate_frames(ds, [2], default_profile=default_profile())
+
+
+def test_calibrate_dark_refuses_a_mix_of_depths(tmp_path, cli):
+    a, b = tmp_path / "a.png", tmp_path / "b.png"
+    write_image(a, np.full((48, 64, 3), 2056, np.uint16))
+    write_image(b, np.full((48, 64, 3), 8, np.uint8))
+    code, _, err = cli("calibrate", "dark", a, b, "--out", tmp_path / "d.png")
+    assert code == 2 and err.count("\n") == 1 and f"dark frame {b} is 8-bit" in err and "16-bit" in err
+    assert not (tmp_path / "d.png").exists()
