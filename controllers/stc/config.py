@@ -49,6 +49,8 @@ class CoverConfig:
     #: longest frame's horizon at ``decision_reach_m``: the robot knows its camera's limit
     stop_out_of_sight: bool = True
     trace: bool = False  # heading from the lean of all rows in view, not the newest only
+    #: hardware faults injected into the run: (name, level) pairs (:mod:`controllers.stc.faults`)
+    faults: tuple[tuple[str, float], ...] = ()
 
 
 #: the red lights' estimates are used as long as they are this sure (1 sigma): the offset within

@@ -122,14 +122,17 @@ class IdealPerception(_TakesFrames, OraclePerception):
 
     def observe(self, plant, floor, *, fresh):
         obs, dt = self.cam.observe(
-            (plant.x, plant.y), plant.t, floor.phosphor, floor.laid, plant.sub, plant.hc, fresh=fresh
-        )
+            (plant.x, plant.y), plant.t, floor.phosphor, floor.laid, plant.sub, plant.hc, fresh=fresh,
+            dot_mark=floor.dot_mark,
+        )  # fmt: skip
         plant.wait(self.cfg.robot.settle_s + dt)
         plant.offset_est = self._offset(plant)
         return obs
 
     def look(self, plant, floor):
-        marked, dt = self.cam.look((plant.x, plant.y), plant.t, floor.phosphor, floor.laid, plant.sub, plant.hc)
+        marked, dt = self.cam.look(
+            (plant.x, plant.y), plant.t, floor.phosphor, floor.laid, plant.sub, plant.hc, dot_mark=floor.dot_mark
+        )
         plant.wait(self.cfg.robot.settle_s + dt)
         plant.offset_est = self._offset(plant)
         return marked

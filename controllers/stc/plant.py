@@ -40,9 +40,13 @@ class Floor:
         self.record = MarkFloor(board.shape_subcells)
         self.laid: list[tuple[tuple[int, int], int]] = []  # (sub-cell, edge) of every four dots, in order
         self.laid_at: dict[tuple[tuple[int, int], int], float] = {}  # when each mark's LEDs went off
+        #: the mark (index into ``laid``) of every phosphor dot: a mark has four dots, or fewer
+        #: when an LED is dead (:mod:`controllers.stc.faults`)
+        self.dot_mark = np.zeros(0, int)
 
     def lay(self, xy_m, sub: tuple[int, int], edge: int, t_s: float, duration_s: float) -> None:
         self.phosphor.charge(xy_m, t_start_s=t_s, duration_s=duration_s)
+        self.dot_mark = np.concatenate([self.dot_mark, np.full(len(np.reshape(xy_m, (-1, 2))), len(self.laid))])
         self.record.mark(sub, edge)
         self.laid.append((sub, edge))
         self.laid_at[(sub, edge)] = t_s + duration_s
@@ -166,8 +170,13 @@ class Plant:
         self.sub = nxt
         self.visits[nxt] += 1
         self.moves += 1
+        return self.check_lost(D)
+
+    def check_lost(self, subcell_m: float) -> str | None:
+        """After a move: the true offset from the sub-cell centre; past 0.45 of a sub-cell the
+        robot stands in another one (the floor's verdict, not the robot's)."""
         off = math.hypot(*self.true_offset())
         self.max_pos_err = max(self.max_pos_err, off)
-        if off > 0.45 * D:
-            return f"lost: {100 * off:.1f} cm off sub-cell {nxt}"
+        if off > 0.45 * subcell_m:
+            return f"lost: {100 * off:.1f} cm off sub-cell {self.sub}"
         return None

@@ -55,6 +55,15 @@ def add_parser(p):
         help="webcam: 1/30 s (the seed's camera); auto: plus a long frame (default: auto)",
     )
     _add_hardware_arguments(p)
+    p.add_argument(
+        "--fault",
+        action="append",
+        default=[],
+        metavar="NAME[:LEVEL]",
+        help="inject a hardware fault (repeatable): rate, led, drop, stray, noise, bump, slip; --list-faults for "
+        "what each LEVEL means, its default and range",
+    )
+    p.add_argument("--list-faults", action="store_true", help="list the faults with their LEVEL meaning and range")
     p.add_argument("--list-cameras", action="store_true", help="list the camera presets with their sources")
     p.add_argument("--list-robots", action="store_true", help="list the robot presets with their sources")
     p.add_argument("--rrd", metavar="OUT.rrd", help="rerun recording of the world, the camera stages and each decision")
@@ -177,6 +186,10 @@ def run(args):
         return [hardware.camera_to_dict(c) for c in hardware.CAMERAS.values()]
     if getattr(args, "list_robots", False):
         return [hardware.robot_to_dict(r) for r in hardware.ROBOTS.values()]
+    if getattr(args, "list_faults", False):
+        from controllers.stc.faults import fault_table
+
+        return fault_table()
     camera, robot = hardware.load_camera(args.camera), hardware.load_robot(args.robot)
     board = load_board(args)
     if args.action == "plan":
@@ -190,7 +203,13 @@ def run(args):
         raise BadInputError(f"--exposure-s must be in (0, 60] seconds, got {args.exposure_s}")
     if args.rrd and Path(args.rrd).exists() and not args.force:
         raise FileExistsRefusedError(f"{args.rrd} exists; refusing to overwrite it (use --force)")
-    cfg = CoverConfig(perception=args.perception, exposure=exposure, seed=args.seed, camera=camera, robot=robot)
+    from controllers.stc.faults import Faults, parse_fault
+
+    faults = tuple(parse_fault(f) for f in args.fault)
+    Faults(faults, args.seed, args.perception)  # a fault twice or one the perception has no frames for: exit 2
+    cfg = CoverConfig(
+        perception=args.perception, exposure=exposure, seed=args.seed, camera=camera, robot=robot, faults=faults
+    )
     recorder = None
     if args.rrd:
         from controllers.stc.recorder import CoverRecorder
@@ -210,6 +229,12 @@ def format_text(r):
         from stcvision.cli.cover_sweep import format_text as sweep_text
 
         return sweep_text(r)
+    if isinstance(r, list) and r and r[0].get("kind") == "fault":  # --list-faults
+        return "\n".join(
+            f"{f['name']:6s} LEVEL {f['meaning']}: default {f['default']:g}, range {f['range']}"
+            + (" (--perception camera)" if f["camera_only"] else "")
+            for f in r
+        )
     if isinstance(r, list):  # --list-cameras / --list-robots
         out = []
         for p in r:
@@ -242,6 +267,8 @@ def format_text(r):
         ("complete (every sub-cell once, back, no error)", str(r["complete"])),
         ("finished / back in start cell", f"{r['finished']} / {r['returned_to_start']}"),
         ("abort reason", str(r["abort_reason"])),
+        *([("faults (events)", ", ".join(f"{f} ({n})" for f, n in zip(r["faults"], r["fault_events"].values())))]
+          if r.get("faults") else []),  # fmt: skip
         ("moves / turns / decisions", f"{r['moves']} / {r['turns']} / {r['decisions']}"),
         ("decision errors (vs oracle)", str(r["decision_errors"])),
         ("oldest mark read", f"{r['max_mark_age_read_s']:.0f} s"),
