@@ -7,8 +7,8 @@ leaves the maths alone.
 =======  =====================================================  =========  ===============
 name     what breaks                                            LEVEL      default (range)
 =======  =====================================================  =========  ===============
-rate     the turn rate is off nominal and drifts: a sine of      fraction   0.25 (0-0.5]
-         amplitude LEVEL, period 10-30 min, random phase
+rate     the turn rate drifts off nominal: a sine of amplitude   fraction   0.25 (0-0.5]
+         LEVEL and period 10-30 min, from 0 at the start
 led      one of the four rear UV LEDs is dead: its dot is never  LED number 2 (1-4)
          laid (1 the robot's rightmost, 4 its leftmost)
 drop     a fraction LEVEL of the camera's frames is lost: half   fraction   0.05 [0-0.5]
@@ -219,13 +219,14 @@ class Faults:
 
 
 def _drifting_rate(true_rate, amplitude: float, rng: np.random.Generator):
-    """The turn rate times ``1 + amplitude * sin(2 pi t / P + phi)``: off nominal by up to
-    ``amplitude`` and drifting through it over a period ``P`` of 10-30 minutes."""
+    """The turn rate times ``1 +- amplitude * sin(2 pi t / P)``: right at the start (the turn
+    time is set before the run to what the first rotation needs: seed 003), then drifting off
+    nominal by up to ``amplitude`` and back over a period ``P`` of 10-30 minutes."""
     period_s = rng.uniform(600.0, 1800.0)
-    phase = rng.uniform(0.0, 2 * math.pi)
+    sign = 1.0 if rng.random() < 0.5 else -1.0
 
     def rate(t_s: float) -> float:
-        return true_rate(t_s) * (1.0 + amplitude * math.sin(2 * math.pi * t_s / period_s + phase))
+        return true_rate(t_s) * (1.0 + sign * amplitude * math.sin(2 * math.pi * t_s / period_s))
 
     return rate
 

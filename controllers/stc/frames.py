@@ -47,6 +47,8 @@ AUTO_LONG = (
     (30.0, 4.0, 1),
     *((30.0, 4.0, n) for n in (2, 3, 4, 5, 6, 8, 10, 12, 16, 20, 24, 32, 40, 48, 64)),
 )
+#: the short frame's test of a red blob for white light (:attr:`stcvision.pipeline.PipelineParams.white_blue_ratio`)
+WHITE_BLUE_RATIO = 0.92
 #: the far side of the cell ahead (its near sub-cells' marks are 0.1-0.25 m away, its far
 #: ones' up to 0.45 m): the default distance for :meth:`Exposures.horizons`
 AUTO_REACH_M = 0.45
@@ -253,6 +255,9 @@ class RobotCamera(Exposures):
         self.darks: dict = {}
         self.pipe = None  # the pipeline that read the last frame (for the recording)
         self.bad_frames = 0  # frames lost or black, taken again
+        from controllers.stc.health import NoiseCheck
+
+        self.noise_check = NoiseCheck()
 
     def _pipeline(self, k: int):
         """The pipeline of rung ``k``'s exposure and gain (stacked rungs share it), holding the
@@ -271,7 +276,9 @@ class RobotCamera(Exposures):
             obs = ObservationParams(pose_estimates=True)
             if k > 0:
                 obs = dataclasses.replace(obs, landmark_range_m=0.0)
-            self.pipes[(e, g)] = Pipeline(default_profile(), PipelineParams(observation=obs))
+            # a short frame tells red lights from white ones (a stray lamp): PipelineParams
+            white = WHITE_BLUE_RATIO if e <= WEBCAM[0] else None
+            self.pipes[(e, g)] = Pipeline(default_profile(), PipelineParams(observation=obs, white_blue_ratio=white))
         if (e, g, n) not in self.darks:
             s = self._sensor(k)
             self.darks[(e, g, n)] = (
@@ -308,7 +315,17 @@ class RobotCamera(Exposures):
             self.bad_frames += 1
         else:
             raise RobotStop(f"camera: {FRAME_RETRIES + 1} frames in a row {why}")
-        return self.pipe.process(img, heading_error_rad=heading_error_rad), dt
+        res = self.pipe.process(img, heading_error_rad=heading_error_rad)
+        self.noise_check.check(res.dots.noise_dn, self._noise_floor(k))
+        return res, dt
+
+    def _noise_floor(self, k: int) -> float:
+        """Rung ``k``'s noise floor by the camera's figures (:func:`controllers.stc.health.noise_floor_dn`),
+        with its dark frame (a median of 8, or a mean of 8n frames for a stack of n)."""
+        from controllers.stc.health import noise_floor_dn
+
+        n = self.stack(k)
+        return noise_floor_dn(self._sensor(k), n_avg=n, n_dark=8 * n)
 
     def observe(self, pose, t_s, phosphor, *, fresh: bool = False):
         """One observation: (StcObservation, the short frame's result, the long frame's result

@@ -30,6 +30,10 @@ from controllers.stc.oracle import look_oracle, observe_oracle
 from controllers.stc.plant import Floor, Plant
 from stcvision.stcgrid import entry_axes
 
+#: the newest row's lean at a decision or a look beyond which the robot turned on its own since
+#: it laid the row (a turn's recalibration leaves ~0.25 degrees): it is turned back
+HEADING_CHECK_RAD = math.radians(2.0)
+
 __all__ = ["CameraPerception", "IdealPerception", "OraclePerception", "Perception", "make_perception"]
 
 
@@ -208,7 +212,10 @@ class CameraPerception(_TakesFrames):
             reading, short, long, dt = take(plant.pose, plant.t)
             plant.wait(self.cfg.robot.settle_s + dt)
             plant.offset_est = self._where(short.observation, plant)
-            if abs(self._correct_heading(short, plant)) < REOBSERVE_RAD:
+            turned = self._correct_heading(short, plant)
+            if turned == 0.0:
+                turned = self._check_heading(short, plant)
+            if abs(turned) < REOBSERVE_RAD:
                 break
             self.reobserved += attempt == 0  # (a second askew reading is kept)
         return reading, long or short
@@ -241,6 +248,16 @@ class CameraPerception(_TakesFrames):
             if rows is not None and rows.observation.pattern_rotation_rad is not None:
                 left = rows.observation.pattern_rotation_rad
         return res.heading.heading_error_rad - (left if left is not None else 0.0)
+
+    def _check_heading(self, res, plant) -> float:
+        """Without the red lights: the newest row (laid before the last move) leaning more than
+        :data:`HEADING_CHECK_RAD` means the robot turned during the move (a wheel slipped):
+        turn back by it. Returns the rotation made (rad)."""
+        h = res.heading
+        if h.ok and abs(h.heading_error_rad) > HEADING_CHECK_RAD:
+            plant.rotate_by(-h.heading_error_rad)
+            return -h.heading_error_rad
+        return 0.0
 
     def _correct_heading(self, res, plant) -> float:
         """Two or more red lights in view say how far the heading has drifted: take it out.

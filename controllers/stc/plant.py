@@ -87,6 +87,7 @@ class Plant:
         self.visits = np.zeros(board.shape_subcells, int)
         self.visits[self.sub] += 1
         self.moves = self.turns = 0
+        self.recentred = 0  # moves back to the sub-cell centre before a mark (:meth:`recentre`)
         self.last_move_error_m = 0.0  # the distance error of the last forward move (drawn)
         self.max_pos_err = 0.0
 
@@ -137,6 +138,16 @@ class Plant:
         if rec.accepted:
             self.turn_s = rec.turn_time_s
         self.rotate_by(-heading_err_rad)
+
+    def recentre(self) -> None:
+        """Drive back to the sub-cell centre as the robot believes it (by ``-offset_est``: a turn
+        towards it, the drive, a turn back), so that the next mark is laid where it belongs."""
+        d = float(np.hypot(*self.offset_est))
+        self.x -= float(self.offset_est[0])
+        self.y -= float(self.offset_est[1])
+        self.t += 2 * self.turn_s + d / self.robot.drive_speed_m_s
+        self.offset_est = np.zeros(2)
+        self.recentred += 1
 
     def lay_mark(self, floor: Floor) -> None:
         """Rear LEDs on for ``led_on_s``: a row of dots inside the sub-cell, on its rear edge."""
