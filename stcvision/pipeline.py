@@ -176,6 +176,9 @@ class Pipeline:
         inside = np.hypot(uu - profile.center_px[0], vv - profile.center_px[1]) < 0.95 * profile.rim_radius_px
         self._sample = (vv[inside] * w + uu[inside]).ravel()
         self.dark = None
+        #: the white lights (not red: :attr:`PipelineParams.white_blue_ratio`) of the last frame,
+        #: robot frame (m)
+        self.white_lights_m = np.zeros((0, 2))
         # the wide, coarse ground view for far red-light landmarks (pose estimates only)
         self.wide = None
         if self.params.observation.pose_estimates and self.params.observation.landmark_range_m > 0:
@@ -259,9 +262,11 @@ class Pipeline:
         )
         t.append(clock())
         red = find_red(obstacle, p.red, window_area=area)
-        if p.white_blue_ratio is not None and len(red):
-            keep = ~self._white(frame, self.profile.ground_to_robot(red.xy_px))
-            red = RedLights(red.xy_px[keep], red.peak_dn[keep], red.area_px[keep])
+        if p.white_blue_ratio is not None:
+            xy_m = self.profile.ground_to_robot(red.xy_px) if len(red) else np.zeros((0, 2))
+            white = self._white(frame, xy_m)
+            self.white_lights_m = xy_m[white]  # robot frame (m): for the caller's checks
+            red = RedLights(red.xy_px[~white], red.peak_dn[~white], red.area_px[~white])
         t.append(clock())
         heading = fit_heading(dots, p.heading)
         t.append(clock())

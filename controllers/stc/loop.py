@@ -25,7 +25,7 @@ import time
 
 import numpy as np
 
-from controllers.stc.config import CoverConfig
+from controllers.stc.config import RECENTRE_M, CoverConfig
 from controllers.stc.faults import Faults
 from controllers.stc.fsm import Action, LookObs, StcPhase, decide, initial_state, step
 from controllers.stc.health import RobotStop
@@ -38,10 +38,6 @@ from controllers.stc.referee import Referee
 __all__ = ["CoverConfig", "is_complete", "run_cover", "streams"]
 
 STREAMS = ("motion", "camera", "oracle", "board")
-#: before a mark, a robot that measures itself this far off its sub-cell centre drives back to
-#: it (:meth:`Plant.recentre`): healthy runs stay within 1.3 cm (6x6 board, seed 0); a mark 2.5
-#: cm off lies half-way to the next box
-RECENTRE_M = 0.025
 
 
 def streams(seed: int) -> dict[str, np.random.Generator]:

@@ -10,6 +10,8 @@ the dim old marks; or give --exposure-s X.
 
   stcvision cover plan --map M --camera C [--robot R]
   stcvision cover sweep --sizes 2,3,4 --runs 6 --out DIR [--workers N | --scheduler tcp://H:P]
+  stcvision cover faults --out DIR [--cells 6 --runs 3 --faults rate,led,...]
+  stcvision cover --fault NAME[:LEVEL] ...   (--list-faults)
 
 plan says what the tour needs of the camera, from the physics-limited camera (exposure auto):
 does it converge, how long, the oldest mark it reads, the frame lengths it uses. sweep
@@ -27,8 +29,11 @@ def add_parser(p):
 
     p.formatter_class = argparse.RawDescriptionHelpFormatter  # keep the usage lines of the docstring
     # 'stcvision cover --board 4x4' stays a flat command; a leading 'plan' or 'sweep' is a sub-action
-    sub = p.add_subparsers(dest="action", metavar="{plan,sweep}", parser_class=type(p))
+    sub = p.add_subparsers(dest="action", metavar="{plan,sweep,faults}", parser_class=type(p))
     _add_sweep_parser(sub)
+    from stcvision.cli.cover_faults import add_parser as add_faults_parser
+
+    add_faults_parser(sub)
     plan = sub.add_parser(
         "plan",
         help="what the tour needs of the camera, from the physics-limited camera",
@@ -177,6 +182,10 @@ def run(args):
         from stcvision.cli.cover_sweep import sweep_cover
 
         return sweep_cover(args)
+    if args.action == "faults":
+        from stcvision.cli.cover_faults import sweep_faults
+
+        return sweep_faults(args)
 
     from controllers.stc.loop import CoverConfig, run_cover
     from sim_camera import hardware
@@ -224,7 +233,15 @@ def run(args):
     return result
 
 
+def _fault_events(r: dict) -> str:
+    return ", ".join(f"{f} ({n})" for f, n in zip(r["faults"], r["fault_events"].values(), strict=True))
+
+
 def format_text(r):
+    if isinstance(r, dict) and r.get("action") == "faults":
+        from stcvision.cli.cover_faults import format_text as faults_text
+
+        return faults_text(r)
     if isinstance(r, dict) and r.get("action") == "sweep":
         from stcvision.cli.cover_sweep import format_text as sweep_text
 
@@ -267,8 +284,7 @@ def format_text(r):
         ("complete (every sub-cell once, back, no error)", str(r["complete"])),
         ("finished / back in start cell", f"{r['finished']} / {r['returned_to_start']}"),
         ("abort reason", str(r["abort_reason"])),
-        *([("faults (events)", ", ".join(f"{f} ({n})" for f, n in zip(r["faults"], r["fault_events"].values())))]
-          if r.get("faults") else []),  # fmt: skip
+        *([("faults (events)", _fault_events(r))] if r.get("faults") else []),
         ("moves / turns / decisions", f"{r['moves']} / {r['turns']} / {r['decisions']}"),
         ("decision errors (vs oracle)", str(r["decision_errors"])),
         ("oldest mark read", f"{r['max_mark_age_read_s']:.0f} s"),
