@@ -7,6 +7,10 @@ where it stands, rather than decide on garbage.
 * :class:`NoiseCheck`: every frame's noise floor against the camera's own figures; a camera
   much noisier than its calibration stops the robot (its frames no longer see as far as the
   exposure ladder assumes).
+* :func:`done_away_from_start`: the robot counts its forward moves on the grid (two integers:
+  the tour stays O(1) in memory) and refuses to report a finished tour anywhere but in its start
+  cell: a start mark misread elsewhere (a mark laid askew after a slip) ends the run aborted,
+  never as a success with the wrong coverage.
 * :class:`RobotStop`: raised by a part of the loop that finds the robot cannot go on; the loop
   ends the run with its message as the ``abort_reason``.
 """
@@ -15,7 +19,15 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["FRAME_RETRIES", "NOISE_CHECK", "NoiseCheck", "RobotStop", "frame_fault", "noise_floor_dn"]
+__all__ = [
+    "FRAME_RETRIES",
+    "NOISE_CHECK",
+    "NoiseCheck",
+    "RobotStop",
+    "done_away_from_start",
+    "frame_fault",
+    "noise_floor_dn",
+]
 
 #: a lost or black frame is taken again this many times before the robot stops: at 5 % lost
 #: frames, four in a row happen once in 160,000 frames; a dead camera stops it at once
@@ -76,3 +88,16 @@ class NoiseCheck:
                 f"camera: noise floor {ratio:.1f}x its calibration in {self.over} frames in a row "
                 f"(over {NOISE_CHECK}x): its frames no longer see the marks the exposure ladder counts on"
             )
+
+
+def done_away_from_start(start_sub: tuple[int, int], moved: tuple[int, int]) -> str | None:
+    """Why a tour the controller calls done is not, or None: ``moved`` is the robot's count of
+    sub-cells moved (rows, columns) since its start sub-cell ``start_sub``, from its own compass
+    heading at each forward move. A finished tour ends in the start cell."""
+    here = (start_sub[0] + moved[0], start_sub[1] + moved[1])
+    if (here[0] // 2, here[1] // 2) == (start_sub[0] // 2, start_sub[1] // 2):
+        return None
+    return (
+        f"done away from the start: the robot has moved {moved[0]:+d}, {moved[1]:+d} sub-cells from its start "
+        "sub-cell, so the start mark it read there was not its own"
+    )

@@ -28,7 +28,8 @@ import numpy as np
 from controllers.stc.config import RECENTRE_M, CoverConfig
 from controllers.stc.faults import Faults
 from controllers.stc.fsm import Action, LookObs, StcPhase, decide, initial_state, step
-from controllers.stc.health import RobotStop
+from controllers.stc.geometry import COMPASS_VEC
+from controllers.stc.health import RobotStop, done_away_from_start
 from controllers.stc.observers import Observers, Reading, Trace
 from controllers.stc.oracle import coverage
 from controllers.stc.perception import make_perception
@@ -97,6 +98,7 @@ class _Run:
     decisions = looks = 0
     finished = False
     abort: str | None = None
+    moved = (0, 0)  # sub-cells moved from the start, by the robot's own compass (rows, columns)
 
 
 def _loop(run: _Run, cfg, plant, floor, see, watch, referee) -> None:
@@ -124,8 +126,12 @@ def _loop(run: _Run, cfg, plant, floor, see, watch, referee) -> None:
         referee.step(prev, state, action, plant, run.decisions)
         watch.on_step(plant, state, action)
         if action is Action.DONE:
-            run.finished = True
+            run.abort = done_away_from_start(tuple(plant.board.start_subcell), run.moved)
+            run.finished = run.abort is None
             return
+        if action is Action.FORWARD:  # the robot's own count of its moves on the grid
+            di, dj = COMPASS_VEC[plant.hc]
+            run.moved = (run.moved[0] + di, run.moved[1] + dj)
         abort = _act(action, plant, floor, see, watch)
         if abort is not None:
             run.abort = f"{abort} (decision {run.decisions})" if abort.startswith("drove") else abort
