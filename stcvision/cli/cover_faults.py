@@ -164,8 +164,7 @@ def plot(rows: list[dict]) -> bytes:
 
 
 def write_outputs(out: Path, runs: list[dict], rows: list[dict], args, report_summary: str) -> list[str]:
-    from stcvision.cli.cover_sweep import _csv
-    from stcvision.fileio import write_bytes_atomic
+    from stcvision.cli.cover_sweep import _csv, write_files
 
     n = args.cells
     md = [
@@ -189,9 +188,7 @@ def write_outputs(out: Path, runs: list[dict], rows: list[dict], args, report_su
     ]
     fields = ("fault", "level", "seed", "cells", "outcome", "fault_events", "complete", *RUN_FIELDS)
     files = {"runs.csv": _csv(runs, fields), "summary.md": "\n".join(md).encode(), "faults.png": plot(rows)}
-    for name, data in files.items():
-        write_bytes_atomic(out / name, data, overwrite=True)
-    return [str(out / name) for name in files]
+    return write_files(out, files)
 
 
 def sweep_faults(args) -> dict:

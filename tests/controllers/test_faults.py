@@ -137,3 +137,30 @@ def test_each_fault_complete_or_a_specific_stop(fault, seed, expect):
     else:
         assert r["abort_reason"].startswith(expect), r
         assert r["abort_reason"].startswith(SPECIFIC)
+
+
+# ---------------------------------------------------------------------------------- bounded recording
+def test_recorder_compresses_and_subsamples(tmp_path):
+    """The camera's stages are logged JPEG-compressed (EncodedImage), for one reading in
+    ``every`` (plus what the referee flags); every reading's pose and text; the world at the end.
+    The budget keeps a 22x22 board's recording to ~300 full readings."""
+    import rerun as rr
+
+    from controllers.stc.recorder import READINGS_BUDGET, CoverRecorder, readings_every
+
+    assert readings_every(random_board(2, 2, 0.0, 0)) == 1
+    big = random_board(22, 22, 0.1, 0)
+    assert readings_every(big) > 1 and int(big.reachable_cells().sum()) * 4 / readings_every(big) <= READINGS_BUDGET
+    board = random_board(2, 2, 0.0, 4)
+    rec = CoverRecorder(tmp_path / "c.rrd", board, every=3)
+    logged: list[tuple[str, object]] = []
+    real = rec.rec.log
+    rec.rec.log = lambda path, entity, *a, **k: (logged.append((path, entity)), real(path, entity, *a, **k))[1]
+    r = run_cover(board, CoverConfig(exposure="auto", seed=4), observers=[rec])
+    rec.close()
+    raws = [e for p, e in logged if p == "raw"]
+    texts = [p for p, _ in logged if p == "decision"]
+    assert r["complete"] and rec.readings == len(texts) >= 6
+    assert len(raws) == rec.full == -(-rec.readings // 3)  # no referee finding on a complete run
+    assert all(isinstance(e, rr.EncodedImage) for e in raws)
+    assert (tmp_path / "c.rrd").stat().st_size > 10_000 and not list(tmp_path.glob(".*.tmp"))
