@@ -123,8 +123,11 @@ def summarise(runs: list[dict]) -> list[dict]:
 
 
 def _reason(text: str) -> str:
-    """An abort reason without its numbers' detail (the decision, the sub-cell)."""
-    return text.split(" (decision")[0].split(" at (")[0].split(": at ")[0]
+    """An abort reason's kind, without its figures (where, how far, which decision)."""
+    head, _, rest = text.partition(":")
+    if head == "camera":
+        return "camera: noise floor" if "noise floor" in rest else "camera: frames lost or black"
+    return text.split(" at (")[0].split(" (")[0].split(":")[0]
 
 
 def markdown_table(rows: list[dict]) -> str:
@@ -158,6 +161,9 @@ def plot(rows: list[dict]) -> bytes:
     ax.set_xticks(x, [r["fault"] if r["fault"] == "none" else f"{r['fault']}:{r['level']:g}" for r in rows],
                   rotation=60, ha="right")  # fmt: skip
     ax.set_ylabel("runs")
+    from matplotlib.ticker import MaxNLocator
+
+    ax.yaxis.set_major_locator(MaxNLocator(integer=True))
     ax.set_title("STC coverage under hardware faults: outcome per fault and level")
     ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.0, 1.0))
     return figure_png(fig)
