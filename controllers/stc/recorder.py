@@ -14,7 +14,7 @@ import rerun.blueprint as rrb
 from controllers.stc.observers import Observer, Reading
 from stcvision.rr import PipelineLogger, finish_recording, open_recording
 
-__all__ = ["READINGS_BUDGET", "CoverRecorder", "readings_every"]
+__all__ = ["READINGS_BUDGET", "WORLD_BUDGET", "CoverRecorder", "readings_every"]
 
 
 def _blueprint() -> rrb.Blueprint:
@@ -36,9 +36,12 @@ def _blueprint() -> rrb.Blueprint:
     )
 
 
-#: a recording keeps the camera's stages and the world's snapshot (every mark, the covered
-#: sub-cells) of about this many readings: one reading in ``every`` (:class:`CoverRecorder`)
+#: a recording keeps the camera's stages of about this many readings: one reading in ``every``
+#: (:class:`CoverRecorder`); a reading's five JPEG stages are ~90 kB (22x22 board, lowlight)
 READINGS_BUDGET = 300
+#: ... and the world's snapshot (every dot with its glow, the covered sub-cells) of about this
+#: many: a snapshot grows with the marks laid (a 22x22 tour: ~7,000 dots, ~100 kB at its end)
+WORLD_BUDGET = 50
 
 
 def readings_every(board, budget: int = READINGS_BUDGET) -> int:
@@ -55,15 +58,17 @@ class CoverRecorder(Observer):
     Bounded (rerun has no backpressure: what is logged stays in memory until written): every
     reading (decision, look) logs the robot's pose and the decision as text; one in ``every``
     (default :func:`readings_every`: ~:data:`READINGS_BUDGET` per run) also the camera's stages
-    (JPEG-compressed, :class:`stcvision.rr.PipelineLogger`) and the world's snapshot (every mark
-    with its glow, the covered sub-cells), whose size grows with the marks laid. A reading the
-    referee finds wrong is always logged in full, and the world as the run left it at the end."""
+    (JPEG-compressed, :class:`stcvision.rr.PipelineLogger`), and ~:data:`WORLD_BUDGET` per run
+    the world's snapshot (every mark with its glow, the covered sub-cells), whose size grows with
+    the marks laid. A reading the referee finds wrong is always logged in full, and the world as
+    the run left it at the end."""
 
     def __init__(self, path: str | Path, board, *, every: int | None = None) -> None:
         self.path = Path(path)
         self.rec, self.tmp = open_recording(self.path, app_id="stcvision-cover", default_blueprint=_blueprint())
         self.board = board
         self.every = readings_every(board) if every is None else max(1, int(every))
+        self.world_every = max(self.every, readings_every(board, WORLD_BUDGET))
         self.readings = self.full = 0  # readings seen, and logged in full
         self._last: Reading | None = None  # the last reading, when it was not logged in full
         self._pipe_logger = None
@@ -98,7 +103,7 @@ class CoverRecorder(Observer):
             return
         self.readings += 1
         full = (self.readings - 1) % self.every == 0
-        self._log_reading(ev, full=full)
+        self._log_reading(ev, full=full, world=(self.readings - 1) % self.world_every == 0)
         self._last = None if full else ev
 
     def on_referee(self, kind: str, text: str) -> None:
@@ -110,7 +115,7 @@ class CoverRecorder(Observer):
     def on_end(self, plant, floor) -> None:
         self._world(plant.t, floor.phosphor, plant.visits)
 
-    def _log_reading(self, ev: Reading, *, full: bool) -> None:
+    def _log_reading(self, ev: Reading, *, full: bool, world: bool | None = None) -> None:
         p = ev.plant
         if ev.kind == "look":
             text = f"**look** from sub-cell {p.sub}: the cell ahead is {'marked' if ev.marked else 'unmarked'}"
@@ -124,7 +129,8 @@ class CoverRecorder(Observer):
             )
         result, pipeline = ev.frame if (ev.frame is not None and full) else (None, None)
         self.full += full
-        self.decision(ev.k, p.t, p.pose, ev.floor.phosphor, p.visits, result, pipeline, text, world=full)
+        world = full if world is None else world
+        self.decision(ev.k, p.t, p.pose, ev.floor.phosphor, p.visits, result, pipeline, text, world=world)
 
     def decision(
         self, k: int, t_s: float, pose, phosphor, visits, result, pipeline, text: str, *, world: bool = True
