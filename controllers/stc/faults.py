@@ -4,24 +4,27 @@ sensor model and the board stay as they are; a fault wraps one of the loop's sea
 (its motors and wheels), the floor's marking (its UV LEDs) or the camera (its frames) -- and
 leaves the maths alone.
 
-=======  =====================================================  =========  ===============
-name     what breaks                                            LEVEL      default (range)
-=======  =====================================================  =========  ===============
-rate     the turn rate drifts off nominal: a sine of amplitude   fraction   0.25 (0-0.5]
-         LEVEL and period 10-30 min, from 0 at the start
-led      one of the four rear UV LEDs is dead: its dot is never  LED number 2 (1-4)
-         laid (1 the robot's rightmost, 4 its leftmost)
-drop     a fraction LEVEL of the camera's frames is lost: half   fraction   0.05 [0-0.5]
-         never arrive, half arrive black (all 0 DN)
-stray    a lamp (white: every channel) on the floor somewhere    x a red    1 (0-10]
-         on the board, LEVEL times a red light's luminance       light
-noise    the camera's temporal noise floor (read noise and dark  factor     3 [1-10]
-         shot noise of a dark pixel) is LEVEL times its own
-bump     1 forward move in 20 ends with the robot pushed LEVEL   cm         4 (0-7]
+=======  ==========================================================================
+name     what breaks (LEVEL: what :data:`FAULTS` says, with its default and range)
+=======  ==========================================================================
+rate     the turn rate drifts off nominal: a sine of amplitude LEVEL, period 10-30 min,
+         0 at the start (:func:`_drifting_rate`)
+led      one of the four rear UV LEDs is dead: its dot is never laid (LEVEL 1 is the
+         robot's rightmost LED, 4 its leftmost)
+drop     a fraction LEVEL of the camera's frames is lost: half never arrive, half
+         arrive black (all 0 DN)
+stray    a white lamp on the floor somewhere on the board, LEVEL times a red light's
+         luminance
+noise    the camera's temporal noise floor (read noise and dark shot noise of a dark
+         pixel) is LEVEL times its own (:meth:`FaultyCamera._noisy`)
+bump     on a share :data:`BUMP_PER_MOVE` of forward moves the robot ends pushed LEVEL
          cm in a random direction
-slip     1 forward move in 10 a wheel slips: the move is an arc  degrees    5 (0-30]
-         that leaves the robot turned by LEVEL degrees
-=======  =====================================================  =========  ===============
+slip     on a share :data:`SLIP_PER_MOVE` of forward moves a wheel slips: the move is an
+         arc that leaves the robot turned by LEVEL degrees
+=======  ==========================================================================
+
+``Faults.events`` counts what each fault did: marks laid with a dead LED, frames lost, frames
+with the lamp in view, bumps, slips (``rate`` and ``noise`` act all the time: 0).
 
 ``drop``, ``stray`` and ``noise`` are faults of the camera's frames and need
 ``--perception camera``; the others act on the plant or the floor and run with any perception.
