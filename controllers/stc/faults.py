@@ -81,14 +81,24 @@ FAULTS = {
     s.name: s
     for s in (
         FaultSpec(name="rate", meaning="turn-rate error amplitude, fraction", default=0.25, lo=0.0, hi=0.5),
-        FaultSpec(name="led", meaning="the dead LED, 1-4 from the right", default=2, lo=1, hi=4, lo_open=False,
-                  integer=True),  # fmt: skip
-        FaultSpec(name="drop", meaning="fraction of frames lost", default=0.05, lo=0.0, hi=0.5, lo_open=False,
-                  camera_only=True),  # fmt: skip
-        FaultSpec(name="stray", meaning="lamp luminance in red lights", default=1.0, lo=0.0, hi=10.0,
-                  camera_only=True),  # fmt: skip
-        FaultSpec(name="noise", meaning="noise floor factor", default=3.0, lo=1.0, hi=10.0, lo_open=False,
-                  camera_only=True),  # fmt: skip
+        FaultSpec(
+            name="led", meaning="the dead LED, 1-4 from the right", default=2, lo=1, hi=4, lo_open=False, integer=True
+        ),  # fmt: skip
+        FaultSpec(
+            name="drop",
+            meaning="fraction of frames lost",
+            default=0.05,
+            lo=0.0,
+            hi=0.5,
+            lo_open=False,
+            camera_only=True,
+        ),  # fmt: skip
+        FaultSpec(
+            name="stray", meaning="lamp luminance in red lights", default=1.0, lo=0.0, hi=10.0, camera_only=True
+        ),  # fmt: skip
+        FaultSpec(
+            name="noise", meaning="noise floor factor", default=3.0, lo=1.0, hi=10.0, lo_open=False, camera_only=True
+        ),  # fmt: skip
         FaultSpec(name="bump", meaning="push, cm", default=4.0, lo=0.0, hi=7.0),
         FaultSpec(name="slip", meaning="turn of one slip, degrees", default=5.0, lo=0.0, hi=30.0),
     )
