@@ -53,6 +53,8 @@ AUTO_LONG = (
     (30.0, 4.0, 1),
     *((30.0, 4.0, n) for n in (2, 3, 4, 5, 6, 8, 10, 12, 16, 20, 24, 32, 40, 48, 64)),
 )
+#: the short frame's test of a red blob for white light (:attr:`stcvision.pipeline.PipelineParams.white_blue_ratio`)
+WHITE_BLUE_RATIO = 0.92
 #: the far side of the cell ahead (its near sub-cells' marks are 0.1-0.25 m away, its far
 #: ones' up to 0.45 m): the default distance for :meth:`Exposures.horizons`
 AUTO_REACH_M = 0.45
@@ -222,16 +224,18 @@ class IdealCamera(Exposures):
             for c in self.curves:
                 c[c > 0] *= cfg.ideal_horizon_factor
 
-    def floor_seen(self, xy, t_s: float, phosphor, marks: list, rungs) -> MarkFloor:
-        """The marks (``marks``: the (sub-cell, edge) of every four dots laid, in order) that
-        frames at ``rungs`` taken from ``xy`` at ``t_s`` see."""
+    def floor_seen(self, xy, t_s: float, phosphor, marks: list, rungs, dot_mark=None) -> MarkFloor:
+        """The marks (``marks``: the (sub-cell, edge) of every four dots laid, in order; or of
+        the dots ``dot_mark`` gives the mark of) that frames at ``rungs`` taken from ``xy`` at
+        ``t_s`` see."""
         seen = MarkFloor(self.board.shape_subcells)
         if not marks:
             return seen
         d = np.hypot(*(phosphor.xy_m - np.asarray(xy)).T)
         h = np.max([np.interp(d, self.RHO, self.curves[k], left=0.0, right=0.0) for k in rungs], axis=0)
-        vis = (phosphor.ages_s(t_s) <= h).reshape(-1, 4).any(axis=1)
-        for i in np.flatnonzero(vis):
+        dot_vis = phosphor.ages_s(t_s) <= h
+        vis = np.unique(dot_mark[dot_vis]) if dot_mark is not None else dot_vis.reshape(-1, 4).any(axis=1)
+        for i in vis if dot_mark is not None else np.flatnonzero(vis):
             seen.mark(*marks[i])
         return seen
 
@@ -239,18 +243,18 @@ class IdealCamera(Exposures):
         k = self.long_rung(t_s, reach_m)
         return [0] if k is None or short_only else [0, k]
 
-    def observe(self, xy, t_s, phosphor, marks, sub, hc, *, fresh: bool = False):
+    def observe(self, xy, t_s, phosphor, marks, sub, hc, *, fresh: bool = False, dot_mark=None):
         """(StcObservation, seconds spent): the frames :meth:`RobotCamera.observe` takes."""
         rungs = self._rungs(t_s, self.cfg.decision_reach_m, fresh)
         dt = sum(self.frame_s(r) for r in rungs)
-        seen = self.floor_seen(xy, t_s, phosphor, marks, rungs)
+        seen = self.floor_seen(xy, t_s, phosphor, marks, rungs, dot_mark)
         return observe_oracle(seen, self.board, sub, hc, camera_view=True), dt
 
-    def look(self, xy, t_s, phosphor, marks, sub, hc):
+    def look(self, xy, t_s, phosphor, marks, sub, hc, *, dot_mark=None):
         """(marked, seconds spent): the frames :meth:`RobotCamera.look` takes."""
         rungs = self._rungs(t_s, self.cfg.look_reach_m)
         dt = sum(self.frame_s(r) for r in rungs)
-        return look_oracle(self.floor_seen(xy, t_s, phosphor, marks, rungs), sub, hc).marked, dt
+        return look_oracle(self.floor_seen(xy, t_s, phosphor, marks, rungs, dot_mark), sub, hc).marked, dt
 
 
 class RobotCamera(Exposures):
@@ -266,6 +270,10 @@ class RobotCamera(Exposures):
         self.pipes: dict = {}
         self.darks: dict = {}
         self.pipe = None  # the pipeline that read the last frame (for the recording)
+        self.bad_frames = 0  # frames lost or black, taken again
+        from controllers.stc.health import NoiseCheck
+
+        self.noise_check = NoiseCheck()
 
     def _pipeline(self, k: int):
         """The pipeline of rung ``k``'s exposure and gain (stacked rungs share it), holding the
@@ -284,7 +292,9 @@ class RobotCamera(Exposures):
             obs = ObservationParams(pose_estimates=True)
             if k > 0:
                 obs = dataclasses.replace(obs, landmark_range_m=0.0)
-            self.pipes[(e, g)] = Pipeline(default_profile(), PipelineParams(observation=obs))
+            # a short frame tells red lights from white ones (a stray lamp): PipelineParams
+            white = WHITE_BLUE_RATIO if e <= WEBCAM[0] else None
+            self.pipes[(e, g)] = Pipeline(default_profile(), PipelineParams(observation=obs, white_blue_ratio=white))
         if (e, g, n) not in self.darks:
             s = self._sensor(k)
             self.darks[(e, g, n)] = (
@@ -299,16 +309,39 @@ class RobotCamera(Exposures):
 
     def shoot(self, pose, t_s: float, phosphor, k: int = 0, *, heading_error_rad: float | None = None):
         """Returns (pipeline result, capture seconds). A stacked rung is the average of its
-        frames (:meth:`sim_camera.camera.SyntheticCamera.render`, ``n_avg``)."""
+        frames (:meth:`sim_camera.camera.SyntheticCamera.render`, ``n_avg``).
+        A frame lost or black (:func:`controllers.stc.health.frame_fault`) is taken again, up to
+        :data:`~controllers.stc.health.FRAME_RETRIES` times (their time counts), then the robot
+        stops (:class:`~controllers.stc.health.RobotStop`): it never reads a frame it cannot trust."""
+        from controllers.stc.health import FRAME_RETRIES, RobotStop, frame_fault
         from sim_camera.camera import Pose
 
-        img = self.cam.render(
-            Pose(*pose), rng=self.rng, t_s=t_s, phosphor=phosphor, red_lights_m=self.lights, sensor=self._sensor(k),
-            n_avg=self.stack(k),
-        ).image  # fmt: skip
-        self.pipe = self._pipeline(k)
+        dt = 0.0
+        for _ in range(FRAME_RETRIES + 1):
+            frame = self.cam.render(
+                Pose(*pose), rng=self.rng, t_s=t_s + dt, phosphor=phosphor, red_lights_m=self.lights,
+                sensor=self._sensor(k), n_avg=self.stack(k),
+            )  # fmt: skip
+            self.pipe = self._pipeline(k)  # (after the first frame: the camera stream's order)
+            dt += self.frame_s(k)
+            img = None if frame is None else frame.image
+            why = frame_fault(img, self.pipe.dark)
+            if why is None:
+                break
+            self.bad_frames += 1
+        else:
+            raise RobotStop(f"camera: {FRAME_RETRIES + 1} frames in a row {why}")
         res = self.pipe.process(img, heading_error_rad=heading_error_rad)
-        return res, self.frame_s(k)
+        self.noise_check.check(res.dots.noise_dn, self._noise_floor(k))
+        return res, dt
+
+    def _noise_floor(self, k: int) -> float:
+        """Rung ``k``'s noise floor by the camera's figures (:func:`controllers.stc.health.noise_floor_dn`),
+        with its dark frame (a median of 8, or a mean of 8n frames for a stack of n)."""
+        from controllers.stc.health import noise_floor_dn
+
+        n = self.stack(k)
+        return noise_floor_dn(self._sensor(k), n_avg=n, n_dark=8 * n)
 
     def observe(self, pose, t_s, phosphor, *, fresh: bool = False):
         """One observation: (StcObservation, the short frame's result, the long frame's result
