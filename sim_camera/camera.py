@@ -280,10 +280,19 @@ class SyntheticCamera:
 
     # ------------------------------------------------------------------ public API
     def signal(
-        self, pose: Pose, *, t_s: float = 0.0, phosphor=None, red_lights_m=None, sensor: SensorParams | None = None
+        self,
+        pose: Pose,
+        *,
+        t_s: float = 0.0,
+        phosphor=None,
+        red_lights_m=None,
+        sensor: SensorParams | None = None,
+        lamps=None,
     ):
         """Expected photo-electrons (H, W, 3) float32 of a dark-room frame, before noise, and
-        per-source info (projected positions, electrons)."""
+        per-source info (projected positions, electrons). ``lamps``: other emitting discs on the
+        floor, ``(xy_m (N, 2) world, luminance_cd_m2, diameter_m, bgr response)`` (a stray light
+        source: :mod:`controllers.stc.faults`)."""
         s = sensor or self.sensor
         out = self._scratch
         out.fill(0)
@@ -295,6 +304,9 @@ class SyntheticCamera:
         if red_lights_m is not None and len(red_lights_m):
             xy_r = pose.world_to_robot(red_lights_m)
             sources.append(("lights", xy_r, RED_LIGHT_CD_M2, RED_LIGHT_DIAMETER_M, s.red_led_bgr))
+        if lamps is not None and len(lamps[0]):
+            xy_m, lum, diameter, bgr = lamps
+            sources.append(("lamps", pose.world_to_robot(np.asarray(xy_m, float).reshape(-1, 2)), lum, diameter, bgr))
         if not sources:
             return out, info
         uv, vis, geos = self._project(sources)
@@ -320,6 +332,7 @@ class SyntheticCamera:
         board=None,
         truth: bool = False,
         n_avg: int = 1,
+        lamps=None,
     ) -> Frame:
         """Render one dark-room frame (phosphor dots + red lights) at sim time ``t_s``.
 
@@ -342,11 +355,12 @@ class SyntheticCamera:
             Needed for the cell/box/neighbour regions in the ground truth.
         truth : bool
             Attach ground truth (slower: a few ms).
+        lamps : other emitting discs, see :meth:`signal`.
         """
         s = sensor or self.sensor
         if n_avg > 1:
             t_s = t_s + 0.5 * (n_avg - 1) * s.exposure_s
-        sig, info = self.signal(pose, t_s=t_s, phosphor=phosphor, red_lights_m=red_lights_m, sensor=s)
+        sig, info = self.signal(pose, t_s=t_s, phosphor=phosphor, red_lights_m=red_lights_m, sensor=s, lamps=lamps)
         image = expose(sig, s, self.pattern, rng, n_avg=n_avg)
         gt = None
         if truth:

@@ -280,12 +280,12 @@ class FaultyCamera:
         from sim_camera.sensor import expose
 
         f, rngs = self._f.faults, self._f.rngs
+        s = self._noisy(sensor)
         if "drop" in f and rngs["drop"].random() < f["drop"]:
             self._f.events["drop"] += 1
             if rngs["drop"].random() < 0.5:
                 return None  # the frame never arrived
-            return Frame(np.zeros((*self._cam.shape, 3), np.uint8))
-        s = self._noisy(sensor)
+            return Frame(np.zeros((*self._cam.shape, 3), s.dtype))
         if self._lamp is None:
             return self._cam.render(pose, rng=rng, t_s=t_s, phosphor=phosphor, red_lights_m=red_lights_m, sensor=s,
                                     n_avg=n_avg, **kw)  # fmt: skip
@@ -293,8 +293,7 @@ class FaultyCamera:
         cam = self._cam
         if n_avg > 1:
             t_s = t_s + 0.5 * (n_avg - 1) * s.exposure_s
-        sig, _ = cam.signal(pose, t_s=t_s, phosphor=phosphor, red_lights_m=red_lights_m, sensor=s)
-        lum = f["stray"] * RED_LIGHT_CD_M2
-        info = cam._splat(sig, pose.world_to_robot(self._lamp), lum, LAMP_DIAMETER_M, LAMP_BGR, s)
-        self._f.events["stray"] += int(info["visible"].any())  # frames with the lamp in view
+        lamp = (np.reshape(self._lamp, (1, 2)), f["stray"] * RED_LIGHT_CD_M2, LAMP_DIAMETER_M, LAMP_BGR)
+        sig, info = cam.signal(pose, t_s=t_s, phosphor=phosphor, red_lights_m=red_lights_m, sensor=s, lamps=lamp)
+        self._f.events["stray"] += int(info["lamps"]["visible"].any())  # frames with the lamp in view
         return Frame(expose(sig, s, cam.pattern, rng, n_avg=n_avg))
