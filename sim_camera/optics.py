@@ -428,22 +428,23 @@ def _trace_uv_nb(u, v, k):
 
 
 @numba.njit(cache=True, nogil=True)
-def _project_nb(pts, guess_u, guess_v, origin, cell, jacobian, ground, k, iters, uv, ok):
+def _project_nb(pts, guess, origin, cell, pixels, k, iters, uv, ok):
     """Newton's method per floor point ``pts[m]`` from the lookup grid's pixel: ``iters`` steps
     with the pixel->floor Jacobian of the pixel nearest the current guess (the identity where it
     is not finite), each step clipped to +-20 px, then one more trace to accept the result
-    (on the ground, within 50 um of the point, a ground pixel, inside the image)."""
-    h, w = ground.shape
-    n = guess_u.shape[0]
+    (on the ground, within 50 um of the point, a ground pixel, inside the image). ``guess``:
+    the lookup grid (n, n, 2); ``pixels``: :attr:`FloorProjector.pixels`."""
+    h, w = pixels.shape[0], pixels.shape[1]
+    n = guess.shape[0]
     for m in range(pts.shape[0]):
         px, py = pts[m, 0], pts[m, 1]
         i = min(max(int(np.floor((px - origin) / cell)), 0), n - 1)
         j = min(max(int(np.floor((py - origin) / cell)), 0), n - 1)
-        u, v = guess_u[j, i], guess_v[j, i]
+        u, v = guess[j, i, 0], guess[j, i, 1]
         for _ in range(iters):
             iu = min(max(int(np.rint(u)), 0), w - 1)
             iv = min(max(int(np.rint(v)), 0), h - 1)
-            a, b, c, d = jacobian[iv, iu, 0, 0], jacobian[iv, iu, 0, 1], jacobian[iv, iu, 1, 0], jacobian[iv, iu, 1, 1]
+            a, b, c, d = pixels[iv, iu, 0], pixels[iv, iu, 1], pixels[iv, iu, 2], pixels[iv, iu, 3]
             if not (np.isfinite(a) and np.isfinite(b) and np.isfinite(c) and np.isfinite(d)):
                 a, b, c, d = 1.0, 0.0, 0.0, 1.0
             fx, fy, _ = _trace_uv_nb(u, v, k)
@@ -459,11 +460,19 @@ def _project_nb(pts, guess_u, guess_v, origin, cell, jacobian, ground, k, iters,
         fx, fy, on_ground = _trace_uv_nb(u, v, k)
         iu = min(max(int(np.rint(u)), 0), w - 1)
         iv = min(max(int(np.rint(v)), 0), h - 1)
-        good = on_ground and np.hypot(fx - px, fy - py) < 5e-5 and ground[iv, iu]
+        good = on_ground and np.hypot(fx - px, fy - py) < 5e-5 and pixels[iv, iu, 4] != 0.0
         good = good and -0.5 <= u <= w - 0.5 and -0.5 <= v <= h - 0.5
         ok[m] = good
         if good:
             uv[m, 0], uv[m, 1] = u, v
+
+
+def _aligned_empty(shape, align: int = 64) -> np.ndarray:
+    """An uninitialised float64 array whose data starts on an ``align``-byte boundary."""
+    n = int(np.prod(shape))
+    buf = np.empty(n + align // 8, np.float64)
+    skip = (-buf.ctypes.data % align) // 8
+    return buf[skip : skip + n].reshape(shape)
 
 
 class FloorProjector:
@@ -498,11 +507,19 @@ class FloorProjector:
         gu = np.where(filled, su / np.maximum(cnt, 1), 0).reshape(n, n)
         gv = np.where(filled, sv / np.maximum(cnt, 1), 0).reshape(n, n)
         _, (ii, jj) = ndimage.distance_transform_edt(~filled.reshape(n, n), return_indices=True)
-        self._guess_u = np.ascontiguousarray(gu[ii, jj])
-        self._guess_v = np.ascontiguousarray(gv[ii, jj])
+        self._guess = np.stack([gu[ii, jj], gv[ii, jj]], axis=-1)
         self._k = _trace_constants(table.params)
-        self._jacobian = np.ascontiguousarray(table.jacobian)
-        self._ground = np.ascontiguousarray(table.ground)
+        #: (H, W, 8) float64, one 64-byte record per pixel (a cache line: a projected point's
+        #: lookups cost one memory access, not one per table): the pixel->floor Jacobian
+        #: (fields 0-3, row-major), ground (4: 1.0 or 0.0), footprint (5, m^2), vignetting (6)
+        #: of the ray table, copied as they are.
+        self.pixels = _aligned_empty((*g.shape, 8))
+        self.pixels[..., :4] = table.jacobian.reshape(*g.shape, 4)
+        self.pixels[..., 4] = g
+        self.pixels[..., 5] = table.footprint_m2
+        self.pixels[..., 6] = table.vignetting
+        self.pixels[..., 7] = 0.0
+        self.pixels.setflags(write=False)
 
     def project(self, xy_m, *, iters: int = 2):
         """(N, 2) robot-frame floor points -> ((N, 2) sub-pixel (u, v), (N,) visible)."""
@@ -515,12 +532,10 @@ class FloorProjector:
         uv_near, ok = np.full((len(idx), 2), np.nan), np.zeros(len(idx), bool)
         _project_nb(
             np.ascontiguousarray(xy[idx]),
-            self._guess_u,
-            self._guess_v,
+            self._guess,
             float(self._origin),
             float(self._cell),
-            self._jacobian,
-            self._ground,
+            self.pixels,
             self._k,
             int(iters),
             uv_near,
