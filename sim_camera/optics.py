@@ -396,31 +396,33 @@ def _trace_uv_nb(u, v, k):
     if k1 != 0.0 or k2 != 0.0:  # the radial model inverted by fixed-point iteration
         for _ in range(50):
             r2 = xn * xn + yn * yn
-            s = 1.0 + k1 * r2 + k2 * r2 * r2
-            xn_new, yn_new = xd / s, yd / s
+            inv_s = 1.0 / (1.0 + k1 * r2 + k2 * r2 * r2)
+            xn_new, yn_new = xd * inv_s, yd * inv_s
             done = abs(xn_new - xn) + abs(yn_new - yn) < 1e-13
             xn, yn = xn_new, yn_new
             if done:
                 break
     x, y = -yn, xn  # camera frame -> robot frame, z = 1
-    norm = np.sqrt(x * x + y * y + 1.0)
-    dx, dy, dz = x / norm, y / norm, 1.0 / norm
+    dz = 1.0 / np.sqrt(x * x + y * y + 1.0)
+    dx, dy = x * dz, y * dz
     b = dx * (0.0 - c0) + dy * (0.0 - c1) + dz * (h - c2)
     disc = b * b - c
     t = -b - np.sqrt(max(disc, 0.0))
     hx, hy, hz = t * dx, t * dy, h + t * dz
-    nx, ny, nz = (hx - c0) / R, (hy - c1) / R, (hz - c2) / R
+    inv_r = 1.0 / R
+    nx, ny, nz = (hx - c0) * inv_r, (hy - c1) * inv_r, (hz - c2) * inv_r
     in_cap = disc > 0 and t > 0 and (nx * -a0 + ny * -a1 + nz * -a2) >= cos_cap
     dn = dx * nx + dy * ny + dz * nz
     rx, ry, rz = dx - 2.0 * dn * nx, dy - 2.0 * dn * ny, dz - 2.0 * dn * nz
     if not rz < -1e-9:
         return np.nan, np.nan, False
-    s = -hz / rz
+    inv_rz = 1.0 / rz
+    s = -hz * inv_rz
     fx, fy = hx + s * rx, hy + s * ry
     if not in_cap:
         return fx, fy, False
     for z_top, radius in ((h, k[15]), (k[16], k[17])):  # camera housing, robot body top
-        s = (z_top - hz) / rz
+        s = (z_top - hz) * inv_rz
         qx, qy = hx + s * rx, hy + s * ry
         if s > 0 and qx * qx + qy * qy <= radius * radius:
             return fx, fy, False
@@ -428,43 +430,79 @@ def _trace_uv_nb(u, v, k):
 
 
 @numba.njit(cache=True, nogil=True)
-def _project_nb(pts, guess, origin, cell, pixels, k, iters, uv, ok):
-    """Newton's method per floor point ``pts[m]`` from the lookup grid's pixel: ``iters`` steps
-    with the pixel->floor Jacobian of the pixel nearest the current guess (the identity where it
-    is not finite), each step clipped to +-20 px, then one more trace to accept the result
-    (on the ground, within 50 um of the point, a ground pixel, inside the image). ``guess``:
-    the lookup grid (n, n, 2); ``pixels``: :attr:`FloorProjector.pixels`."""
+def _nearest_pixel(u, v, h, w):
+    return min(max(int(np.rint(v)), 0), h - 1), min(max(int(np.rint(u)), 0), w - 1)
+
+
+@numba.njit(cache=True, nogil=True)
+def _newton_step_nb(u, v, px, py, a, b, c, d, k):
+    """(u, v) after one Newton step towards floor point (px, py) with the Jacobian
+    [[a, b], [c, d]] (the identity where it is not finite), the step clipped to +-20 px."""
+    if not (np.isfinite(a) and np.isfinite(b) and np.isfinite(c) and np.isfinite(d)):
+        a, b, c, d = 1.0, 0.0, 0.0, 1.0
+    fx, fy, _ = _trace_uv_nb(u, v, k)
+    ex, ey = px - fx, py - fy
+    # solve [[a, b], [c, d]] (du, dv) = (ex, ey): LU with partial pivoting
+    if abs(c) > abs(a):
+        a, b, c, d, ex, ey = c, d, a, b, ey, ex
+    low = c / a
+    dv = (ey - low * ex) / (d - low * b)
+    du = (ex - b * dv) / a
+    u += min(max(du, -20.0), 20.0) if np.isfinite(du) else 0.0
+    v += min(max(dv, -20.0), 20.0) if np.isfinite(dv) else 0.0
+    return u, v
+
+
+@numba.njit(cache=True, nogil=True)
+def _project_nb(pts, max_radius, guess, origin, cell, pixels, k, iters, uv, ok):
+    """Newton's method per floor point ``pts[m]`` not beyond ``max_radius`` (the others are not
+    visible: ``ok`` False, ``uv`` left as it is) from the lookup grid's pixel: ``iters`` steps
+    with the pixel->floor Jacobian of the pixel nearest the current guess, then one more trace
+    to accept the result (on the ground, within 50 um of the point, a ground pixel, inside the
+    image). ``guess``: the lookup grid (n, n, 2); ``pixels``: :attr:`FloorProjector.pixels`.
+    The points go in lockstep, table reads apart from the ray traces, so that the reads of
+    many points (cache misses: the tables are megabytes) overlap instead of waiting in turn."""
     h, w = pixels.shape[0], pixels.shape[1]
     n = guess.shape[0]
+    near = np.empty(pts.shape[0], np.int64)
+    cnt = 0
     for m in range(pts.shape[0]):
-        px, py = pts[m, 0], pts[m, 1]
-        i = min(max(int(np.floor((px - origin) / cell)), 0), n - 1)
-        j = min(max(int(np.floor((py - origin) / cell)), 0), n - 1)
-        u, v = guess[j, i, 0], guess[j, i, 1]
-        for _ in range(iters):
-            iu = min(max(int(np.rint(u)), 0), w - 1)
-            iv = min(max(int(np.rint(v)), 0), h - 1)
-            a, b, c, d = pixels[iv, iu, 0], pixels[iv, iu, 1], pixels[iv, iu, 2], pixels[iv, iu, 3]
-            if not (np.isfinite(a) and np.isfinite(b) and np.isfinite(c) and np.isfinite(d)):
-                a, b, c, d = 1.0, 0.0, 0.0, 1.0
-            fx, fy, _ = _trace_uv_nb(u, v, k)
-            ex, ey = px - fx, py - fy
-            # solve [[a, b], [c, d]] (du, dv) = (ex, ey): LU with partial pivoting
-            if abs(c) > abs(a):
-                a, b, c, d, ex, ey = c, d, a, b, ey, ex
-            l = c / a
-            dv = (ey - l * ex) / (d - l * b)
-            du = (ex - b * dv) / a
-            u += min(max(du, -20.0), 20.0) if np.isfinite(du) else 0.0
-            v += min(max(dv, -20.0), 20.0) if np.isfinite(dv) else 0.0
-        fx, fy, on_ground = _trace_uv_nb(u, v, k)
-        iu = min(max(int(np.rint(u)), 0), w - 1)
-        iv = min(max(int(np.rint(v)), 0), h - 1)
-        good = on_ground and np.hypot(fx - px, fy - py) < 5e-5 and pixels[iv, iu, 4] != 0.0
-        good = good and -0.5 <= u <= w - 0.5 and -0.5 <= v <= h - 0.5
+        ok[m] = False
+        if np.hypot(pts[m, 0], pts[m, 1]) <= max_radius:
+            near[cnt] = m
+            cnt += 1
+    u, v, rec = np.empty(cnt), np.empty(cnt), np.empty((cnt, 4))
+    for q in range(cnt):
+        m = near[q]
+        i = min(max(int(np.floor((pts[m, 0] - origin) / cell)), 0), n - 1)
+        j = min(max(int(np.floor((pts[m, 1] - origin) / cell)), 0), n - 1)
+        u[q], v[q] = guess[j, i, 0], guess[j, i, 1]
+    for _ in range(iters):
+        for q in range(cnt):
+            iv, iu = _nearest_pixel(u[q], v[q], h, w)
+            rec[q, 0], rec[q, 1], rec[q, 2], rec[q, 3] = (
+                pixels[iv, iu, 0],
+                pixels[iv, iu, 1],
+                pixels[iv, iu, 2],
+                pixels[iv, iu, 3],
+            )
+        for q in range(cnt):
+            m = near[q]
+            u[q], v[q] = _newton_step_nb(
+                u[q], v[q], pts[m, 0], pts[m, 1], rec[q, 0], rec[q, 1], rec[q, 2], rec[q, 3], k
+            )
+    for q in range(cnt):
+        m = near[q]
+        fx, fy, on_ground = _trace_uv_nb(u[q], v[q], k)
+        rec[q, 0] = np.hypot(fx - pts[m, 0], fy - pts[m, 1]) if on_ground else np.inf
+    for q in range(cnt):
+        m = near[q]
+        iv, iu = _nearest_pixel(u[q], v[q], h, w)
+        good = rec[q, 0] < 5e-5 and pixels[iv, iu, 4] != 0.0
+        good = good and -0.5 <= u[q] <= w - 0.5 and -0.5 <= v[q] <= h - 0.5
         ok[m] = good
         if good:
-            uv[m, 0], uv[m, 1] = u, v
+            uv[m, 0], uv[m, 1] = u[q], v[q]
 
 
 def _aligned_empty(shape, align: int = 64) -> np.ndarray:
@@ -523,23 +561,19 @@ class FloorProjector:
 
     def project(self, xy_m, *, iters: int = 2):
         """(N, 2) robot-frame floor points -> ((N, 2) sub-pixel (u, v), (N,) visible)."""
-        xy = np.asarray(xy_m, float).reshape(-1, 2)
+        xy = np.ascontiguousarray(np.asarray(xy_m, float).reshape(-1, 2))
         uv = np.full((len(xy), 2), np.nan)
-        vis = np.zeros(len(xy), bool)
-        idx = np.flatnonzero(np.hypot(xy[:, 0], xy[:, 1]) <= self.max_radius_m)
-        if len(idx) == 0:
-            return uv, vis
-        uv_near, ok = np.full((len(idx), 2), np.nan), np.zeros(len(idx), bool)
+        vis = np.empty(len(xy), bool)
         _project_nb(
-            np.ascontiguousarray(xy[idx]),
+            xy,
+            self.max_radius_m,
             self._guess,
             float(self._origin),
             float(self._cell),
             self.pixels,
             self._k,
             int(iters),
-            uv_near,
-            ok,
+            uv,
+            vis,
         )
-        uv[idx], vis[idx] = uv_near, ok
         return uv, vis
