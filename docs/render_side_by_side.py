@@ -21,7 +21,10 @@ from pathlib import Path
 
 
 def _load(name: str, path: Path, replace: tuple = ()) -> types.ModuleType:
-    src = path.read_text()
+    """``path`` run as module ``name``, with numba's on-disk cache off: a cached function of
+    the reference would be stored beside its file under this module name, and the reference
+    checkout's own runs would then fail to load it."""
+    src = path.read_text().replace("cache=True", "cache=False")
     for a, b in replace:
         src = src.replace(a, b)
     mod = types.ModuleType(name)

@@ -300,9 +300,10 @@ class SyntheticCamera:
 
     @staticmethod
     def _split_geometry(geo: dict, start: int, stop: int) -> dict:
-        """The part of :meth:`_geometry`'s result for sources ``start:stop`` (indices from 0)."""
-        sel = (geo["cand"] >= start) & (geo["cand"] < stop)
-        part = {k: v[sel] for k, v in geo.items()}
+        """The part of :meth:`_geometry`'s result for sources ``start:stop`` (indices from 0;
+        ``cand`` is ascending, so the part is one slice)."""
+        lo, hi = np.searchsorted(geo["cand"], (start, stop))
+        part = {k: v[lo:hi] for k, v in geo.items()}
         part["cand"] = part["cand"] - start
         return part
 
@@ -347,7 +348,7 @@ class SyntheticCamera:
         uv, vis = self.projector.project(xy)
         uv.setflags(write=False)  # handed out in every frame's info: nobody may change the kept copy
         vis.setflags(write=False)
-        geo = self._geometry(uv, vis, np.concatenate([np.full(len(src[1]), float(src[3])) for src in sources]))
+        geo = self._geometry(uv, vis, np.repeat(np.array(diameters, float), [len(src[1]) for src in sources]))
         geos, start = [], 0
         for src in sources:
             geos.append(self._split_geometry(geo, start, start + len(src[1])))
