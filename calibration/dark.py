@@ -65,5 +65,7 @@ def median_dark(frames: list[np.ndarray], names: list[str]) -> np.ndarray:
             )
         why = dark_frame_problem(img)
         if why:
-            raise BadInputError(f"{name} is not a dark frame: {why}; expected a frame with the lens capped or the room dark")
+            raise BadInputError(
+                f"{name} is not a dark frame: {why}; expected a frame with the lens capped or the room dark"
+            )
     return np.median(np.stack(frames), axis=0).round().astype(first.dtype)

@@ -330,7 +330,8 @@ def open_dataset(root: str | Path) -> Dataset:
     """
     root = Path(root)
     if not root.is_dir():
-        raise BadInputError(f"dataset folder {root} does not exist")
+        what = "is a file, not a folder" if root.exists() else "does not exist"
+        raise BadInputError(f"dataset folder {root} {what}; expected a folder made by 'dataset generate'")
     mpath, lpath = root / "manifest.json", root / "labels.jsonl"
     if not mpath.exists() and not lpath.exists():
         raise BadInputError(f"{root} is not a dataset (no manifest.json); expected a folder made by 'dataset generate'")

@@ -45,7 +45,9 @@ def add_parser(p):
     )
     t.add_argument("frame", metavar="FRAME")
     t.add_argument("--out", required=True, metavar="PROFILE.json")
-    t.add_argument("--center", type=pair(float, fmt="U,V", example="320,240"), metavar="U,V", help="mirror centre by hand (pixels)")
+    t.add_argument(
+        "--center", type=pair(float, fmt="U,V", example="320,240"), metavar="U,V", help="mirror centre by hand (pixels)"
+    )
     t.add_argument("--subcell-m", type=float, default=0.16, help="sub-cell side D of the board (default 0.16)")
     t.add_argument(
         "--viewpoint-m",

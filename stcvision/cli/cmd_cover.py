@@ -8,6 +8,10 @@ could show (the physics-limited camera, no pipeline). --exposure webcam is the s
 (1/30 s); auto adds long frames sized by the robot's clock (2-30 s, then stacked 30 s frames) for
 the dim old marks; or give --exposure-s X.
 
+Exit status: 0 when the robot completed the board (every reachable sub-cell exactly once, back
+in its start cell), 3 when it ran but did not (aborted, covered a sub-cell twice, not back: see
+abort_reason), 2 for bad input.
+
   stcvision cover plan --map M --camera C [--robot R]
   stcvision cover sweep --sizes 2,3,4 --runs 6 --out DIR [--workers N | --scheduler tcp://H:P]
 
@@ -68,11 +72,18 @@ def _add_board_arguments(p) -> None:
 
     src = p.add_mutually_exclusive_group()
     src.add_argument("--map", metavar="FILE", help="board map: .txt ('.', '#', 'S') or .png")
-    src.add_argument("--board", type=pair(int, fmt="WxH", example="4x4"), metavar="WxH", help="random board of W x H cells (default 4x4)")
+    src.add_argument(
+        "--board",
+        type=pair(int, fmt="WxH", example="4x4"),
+        metavar="WxH",
+        help="random board of W x H cells (default 4x4)",
+    )
     p.add_argument(
         "--obstacle-fraction", type=float, default=None, help=f"for --board only (default {OBSTACLE_FRACTION})"
     )
-    p.add_argument("--start", type=pair(int, fmt="I,J", example="1,2"), metavar="I,J", help="start sub-cell (row, column)")
+    p.add_argument(
+        "--start", type=pair(int, fmt="I,J", example="1,2"), metavar="I,J", help="start sub-cell (row, column)"
+    )
     p.add_argument("--seed", type=seed, default=0, help="seed of the board, the robot and the camera (default 0)")
 
 

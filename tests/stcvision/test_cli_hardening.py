@@ -89,6 +89,8 @@ def files(tmp_path_factory):
     return d
 
 
+NEIGHBORS = "calibrate neighbors {d}/r/lights_on.png --profile {d}/prof.json --out {d}/n.json --yes".split()
+
 # (argv with {d} for the files folder, words the one line must hold)
 BAD = [
     # outputs that cannot be made
@@ -129,36 +131,8 @@ BAD = [
     (["dataset", "generate", "{d}/recipe_reversed.json", "--out", "{d}/ds"], ["reversed"]),
     (["dataset", "generate", "{d}/recipe_escape.json"], ["'name'", "no '/'"]),
     (["pipeline", "{d}/r/frame.png", "--dark", "{d}/r/dark.png", "--profile", "{d}/coincident.json"], ["corners"]),
-    (
-        [
-            "calibrate",
-            "neighbors",
-            "{d}/r/lights_on.png",
-            "--profile",
-            "{d}/prof.json",
-            "--points",
-            "{d}/same_points.json",
-            "--out",
-            "{d}/n.json",
-            "--yes",
-        ],
-        ["coincident"],
-    ),
-    (
-        [
-            "calibrate",
-            "neighbors",
-            "{d}/r/lights_on.png",
-            "--profile",
-            "{d}/prof.json",
-            "--points",
-            "{d}/text_points.json",
-            "--out",
-            "{d}/n.json",
-            "--yes",
-        ],
-        ["12 [x, y]"],
-    ),
+    (NEIGHBORS + ["--points", "{d}/same_points.json"], ["coincident"]),
+    (NEIGHBORS + ["--points", "{d}/text_points.json"], ["12 [x, y]"]),
     (
         ["calibrate", "neighbors", "{d}/noise.png", "--profile", "{d}/prof.json", "--out", "{d}/n.json", "--yes"],
         ["no mirror rim"],
@@ -172,6 +146,8 @@ BAD = [
     (["pipeline", "{d}/r/lights_on.png", "--no-dark", "--profile", "{d}/other_camera.json"], ["another camera"]),
     (["pipeline", "{d}/r/frame.png", "--dark", "{d}/r/dark.png", "--no-dark"], ["not allowed with"]),
     (["cover", "--map", "{d}/map.txt", "--obstacle-fraction", "0.3"], ["--obstacle-fraction", "--map"]),
+    (["dataset", "check", "{d}/afile"], ["afile is a file"]),
+    (["bench", "--frames", "1000000000"], ["cap of 100,000"]),
 ]
 
 
