@@ -26,6 +26,7 @@ __all__ = [
     "read_image",
     "read_json",
     "remove_live_temps",
+    "new_run",
     "remove_stale_temps",
     "temp_sibling",
     "write_bytes_atomic",
@@ -87,9 +88,9 @@ def check_output_file(path: str | os.PathLike, *, overwrite: bool = False, what:
 
 
 def temp_sibling(path: Path, *, directory: bool = False) -> Path:
-    """A new hidden temporary sibling of ``path`` (file or folder), registered for removal on exit;
-    the stale ones of dead writers of the same target are removed first."""
-    remove_stale_temps(path)
+    """A new hidden temporary sibling ``.NAME.PID.RANDOM.tmp`` of ``path`` (file or folder),
+    registered for removal on exit; the first in a folder in this run removes the stale ones."""
+    _sweep_once(path.parent)
     prefix = f".{path.name}.{os.getpid()}."
     if directory:
         tmp = Path(tempfile.mkdtemp(prefix=prefix, suffix=_TEMP_SUFFIX, dir=path.parent))
@@ -104,6 +105,23 @@ def temp_sibling(path: Path, *, directory: bool = False) -> Path:
     return tmp
 
 
+#: folders already swept for stale temporaries in this run (one directory scan per folder, not
+#: per file: a dataset's frames/ may hold 100,000 files); :func:`new_run` forgets them
+_SWEPT: set[Path] = set()
+
+
+def _sweep_once(folder: Path) -> None:
+    key = folder.absolute()
+    if key not in _SWEPT:
+        _SWEPT.add(key)
+        remove_stale_temps(folder)
+
+
+def new_run() -> None:
+    """Start a new run (the CLI calls it first): folders are swept for stale temporaries again."""
+    _SWEPT.clear()
+
+
 def _alive(pid: int) -> bool:
     try:
         os.kill(pid, 0)
@@ -114,25 +132,31 @@ def _alive(pid: int) -> bool:
     return True
 
 
-def remove_stale_temps(path: str | os.PathLike) -> list[Path]:
-    """Remove the temporary siblings of ``path`` left by writers that were killed (SIGKILL, power
-    loss): ``.NAME.PID.*.tmp`` whose process is gone. Returns what was removed."""
-    import glob
+def _writer_pid(name: str) -> int | None:
+    """The PID in a temporary's name ``.NAME.PID.RANDOM.tmp`` (None if it is not one of ours)."""
+    if not (name.startswith(".") and name.endswith(_TEMP_SUFFIX)):
+        return None
+    parts = name[1 : -len(_TEMP_SUFFIX)].rsplit(".", 2)  # RANDOM has no dots; NAME may
+    return int(parts[1]) if len(parts) == 3 and parts[0] and parts[1].isdigit() else None
+
+
+def remove_stale_temps(folder: str | os.PathLike) -> list[Path]:
+    """Remove the temporaries in ``folder`` left by writers that were killed (SIGKILL, power
+    loss): ``.NAME.PID.RANDOM.tmp`` whose process is gone. Returns what was removed."""
     import shutil
 
-    path = Path(path)
     removed = []
     try:
-        siblings = list(path.parent.glob(f".{glob.escape(path.name)}.*{_TEMP_SUFFIX}"))
+        entries = [e for e in os.scandir(folder) if e.name.endswith(_TEMP_SUFFIX) and e.name.startswith(".")]
     except OSError:
         return removed
-    for tmp in siblings:
-        pid = tmp.name[len(path.name) + 2 :].split(".", 1)[0]
-        if not pid.isdigit() or int(pid) == os.getpid() or _alive(int(pid)):
+    for e in entries:
+        pid = _writer_pid(e.name)
+        if pid is None or pid == os.getpid() or _alive(pid):
             continue
         try:
-            shutil.rmtree(tmp) if tmp.is_dir() and not tmp.is_symlink() else tmp.unlink()
-            removed.append(tmp)
+            shutil.rmtree(e.path) if e.is_dir(follow_symlinks=False) else os.unlink(e.path)
+            removed.append(Path(e.path))
         except OSError:
             pass
     return removed

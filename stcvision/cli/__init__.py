@@ -155,8 +155,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     and SIGHUP end with 128 + the signal's number, leaving no temporary file behind. Any other
     exception is a bug and keeps its traceback.
     """
-    from stcvision.fileio import remove_live_temps
+    from stcvision.fileio import new_run, remove_live_temps
 
+    new_run()
     parser = build_parser()
     args = parser.parse_args(argv)
     if args.command is None:

@@ -260,8 +260,9 @@ def test_atomic_writer_honours_the_umask_and_keeps_a_replaced_files_mode(tmp_pat
 
 
 def test_stale_temporary_files_of_dead_writers_are_removed(tmp_path):
-    from stcvision.fileio import write_bytes_atomic
+    from stcvision.fileio import new_run, write_bytes_atomic
 
+    new_run()
     dead = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"], capture_output=True, text=True)
     pid = int(dead.stdout)  # a process that has exited
     stale = tmp_path / f".out.json.{pid}.abc123.tmp"

@@ -60,8 +60,8 @@ def stcvision(*argv) -> list:
 WRITE_PROFILES = """
 import sys
 from calibration.profiles import default_profile
-prof, path = default_profile(), sys.argv[1]
-for i in range(1, 100000):
+prof, path, n = default_profile(), sys.argv[1], int(sys.argv[2])
+for i in range(1, n + 1):
     prof.replace(provenance={"version": i, "pad": "x" * 400000}).save(path, overwrite=True)
 """
 
@@ -73,13 +73,13 @@ def test_profile_killed_while_written_is_old_or_new_complete(tmp_path):
     path = tmp_path / "p.json"
     default_profile().replace(provenance={"version": 0, "pad": "x" * 400000}).save(path)
     for extra in RNG.uniform(0.0, 0.3, 3):
-        p = start(["-c", WRITE_PROFILES, path])
+        p = start(["-c", WRITE_PROFILES, path, 100000])
         assert kill_while_writing(p, lambda: bool(temps(tmp_path)), extra)
         prof = Profile.load(path)  # complete: loads, every field
         assert isinstance(prof.provenance["version"], int) and len(prof.provenance["pad"]) == 400000
-    # the re-run (the next write of p.json) completes and clears the killed writers' temporaries
-    default_profile().save(path, overwrite=True)
-    assert Profile.load(path).provenance == default_profile().provenance
+    # the re-run (a new process writing p.json) completes and clears the killed writers' temporaries
+    assert start(["-c", WRITE_PROFILES, path, 1]).wait(timeout=300) == 0
+    assert Profile.load(path).provenance["version"] == 1
     assert temps(tmp_path) == []
 
 
@@ -161,20 +161,22 @@ def _umask() -> int:
 def test_sigkill_temp_of_a_live_writer_is_never_taken(tmp_path):
     """The clean-up only takes temporaries of dead processes: a second writer that is alive keeps
     its temporary file while the first one writes the same target."""
-    from stcvision.fileio import discard_temp, temp_sibling, write_bytes_atomic
+    from stcvision.fileio import discard_temp, new_run, remove_stale_temps, temp_sibling, write_bytes_atomic
 
     p = start(["-c", "import time; time.sleep(60)"])
     try:
         live = tmp_path / f".x.json.{p.pid}.abc.tmp"
         live.write_text("busy")
-        write_bytes_atomic(tmp_path / "x.json", b"{}")
-        assert live.exists()
         mine = temp_sibling(tmp_path / "x.json")
-        write_bytes_atomic(tmp_path / "x.json", b"[]", overwrite=True)
-        assert mine.exists()  # this process's own temporary is not stale either
+        assert remove_stale_temps(tmp_path) == []
+        assert live.exists() and mine.exists()  # a live writer's, and this process's own
         discard_temp(mine)
     finally:
         p.send_signal(signal.SIGKILL)
         p.wait()
-    write_bytes_atomic(tmp_path / "x.json", b"{}", overwrite=True)
-    assert not live.exists()
+    assert remove_stale_temps(tmp_path) == [live]
+    new_run()  # the next run's first write into the folder sweeps it
+    dead = tmp_path / f".x.json.{p.pid}.def.tmp"
+    dead.write_text("left by a SIGKILL")
+    write_bytes_atomic(tmp_path / "x.json", b"{}")
+    assert not dead.exists() and temps(tmp_path) == []
