@@ -216,15 +216,6 @@ def test_calibrate_transform_keeps_a_users_preview_and_writes_nothing_when_refus
     assert not preview.exists() and out.read_text() == "{}\n"
 
 
-def test_calibrate_transform_unconfirmed_says_what_was_written(capsys, files, tmp_path):
-    out = tmp_path / "p.json"
-    code, _, err = run_cli(capsys, "calibrate", "transform", files / "r" / "lights_on.png", "--out", out)
-    assert code == 2
-    assert_one_line(err, "the profile was not written", "p.preview.png")
-    assert "nothing was written" not in err
-    assert (tmp_path / "p.preview.png").exists() and not out.exists()
-
-
 def test_calibrate_neighbors_refuses_an_existing_out_and_preview(capsys, files, tmp_path):
     frame, prof = files / "r" / "lights_on.png", files / "prof.json"
     out = tmp_path / "n.json"
