@@ -180,3 +180,23 @@ def test_sigkill_temp_of_a_live_writer_is_never_taken(tmp_path):
     dead.write_text("left by a SIGKILL")
     write_bytes_atomic(tmp_path / "x.json", b"{}")
     assert not dead.exists() and temps(tmp_path) == []
+
+
+# ---------------------------------------------------------------------------------- render set
+def test_render_killed_leaves_no_partial_set(tmp_path):
+    """A killed render leaves its set whole or absent, so the same command run again (without
+    --force) completes it."""
+    from sim_camera.scene import EXAMPLE_SCENE
+
+    scene = tmp_path / "scene.json"
+    scene.write_text(json.dumps(EXAMPLE_SCENE))
+    out = tmp_path / "set"
+    argv = stcvision("render", "--scene", scene, "--out", out, "--dark-frames", "4")
+    p = start(argv)
+    kill_while_writing(p, lambda: True, float(RNG.uniform(0.5, 4.0)))
+    names = sorted(q.name for q in out.iterdir()) if out.exists() else []
+    assert names in ([], ["dark.png", "frame.png", "lights_on.png", "truth.json"])
+    if not names:
+        rerun_in_process(argv)
+    assert sorted(q.name for q in out.iterdir()) == ["dark.png", "frame.png", "lights_on.png", "truth.json"]
+    assert temps(tmp_path) == []
