@@ -163,6 +163,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     if args.command is None:
         parser.print_help()
         return EXIT_BAD_INPUT
+    empty = [k for k, v in vars(args).items() if v == "" or (isinstance(v, list) and "" in v)]
+    if empty:  # every string this CLI takes is a path or a name: '' is never meant
+        flag = (
+            empty[0].upper() if empty[0] in ("frames", "frame", "recipe", "dir") else "--" + empty[0].replace("_", "-")
+        )
+        parser.exit(EXIT_BAD_INPUT, f"stcvision {args.command}: error: {flag} is an empty string; expected a name\n")
     mod = args._module
     name = args.command
     previous = _install_signal_handlers()

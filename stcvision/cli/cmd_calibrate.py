@@ -191,8 +191,14 @@ def _own_preview(path) -> bool:
 def _check_outputs(args, out: str, preview: str, *, out_force: bool) -> None:
     """Refuse, before any work, outputs that exist (without --force) or cannot be made; a preview
     this command wrote before is replaced."""
+    from pathlib import Path
+
+    from stcvision.errors import OutputError
     from stcvision.fileio import check_output_file
 
+    for path, suffix, what in ((out, ".json", "profile"), (preview, ".png", "preview")):
+        if Path(path).suffix.lower() != suffix:
+            raise OutputError(f"{what} {path} does not end in {suffix}; expected a {suffix} file name")
     check_output_file(out, overwrite=out_force, what="profile")
     check_output_file(preview, overwrite=args.force or _own_preview(preview), what="preview")
 

@@ -147,6 +147,10 @@ BAD = [
     (["pipeline", "{d}/r/frame.png", "--dark", "{d}/r/dark.png", "--no-dark"], ["not allowed with"]),
     (["cover", "--map", "{d}/map.txt", "--obstacle-fraction", "0.3"], ["--obstacle-fraction", "--map"]),
     (["dataset", "check", "{d}/afile"], ["afile is a file"]),
+    (["world", "--out", "", "--steps", "5"], ["--out is an empty string"]),
+    (["cover", "--perception", "oracle", "--rrd", ""], ["--rrd is an empty string"]),
+    (["calibrate", "transform", "{d}/r/lights_on.png", "--out", "{d}/t.json", "--preview", "{d}/p.jpg"], [".png"]),
+    (["calibrate", "transform", "{d}/r/lights_on.png", "--out", "{d}/t.txt", "--yes"], ["does not end in .json"]),
     (["bench", "--frames", "1000000000"], ["cap of 100,000"]),
 ]
 
