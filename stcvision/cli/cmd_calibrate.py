@@ -131,7 +131,7 @@ def _dark(args):
             f"dark frames were taken at different exposures ({min(exposures):g}..{max(exposures):g} s); "
             "expected one exposure"
         )
-    dark = median_dark(frames, [str(f) for f in args.frames])
+    dark = median_dark(frames, [str(f) for f in args.frames])  # 8 or 16 bits, as taken
     write_image(out, dark, overwrite=args.force)
     hot = hot_pixels(dark)
     return {
