@@ -36,6 +36,11 @@ def start(argv: list, **kw) -> subprocess.Popen:
     )
 
 
+def writing(p: subprocess.Popen, folder: Path):
+    """A condition: ``p`` has a temporary file of its own in ``folder`` (not a killed one's)."""
+    return lambda: any(f".{p.pid}." in t.name for t in temps(folder))
+
+
 def kill_while_writing(p: subprocess.Popen, started, extra_s: float, timeout_s: float = 300) -> bool:
     """SIGKILL ``p`` ``extra_s`` after ``started()`` first holds; True if it was killed while
     running (False: it had finished first)."""
@@ -74,7 +79,7 @@ def test_profile_killed_while_written_is_old_or_new_complete(tmp_path):
     default_profile().replace(provenance={"version": 0, "pad": "x" * 400000}).save(path)
     for extra in RNG.uniform(0.0, 0.3, 3):
         p = start(["-c", WRITE_PROFILES, path, 100000])
-        assert kill_while_writing(p, lambda: bool(temps(tmp_path)), extra)
+        assert kill_while_writing(p, writing(p, tmp_path), extra)
         prof = Profile.load(path)  # complete: loads, every field
         assert isinstance(prof.provenance["version"], int) and len(prof.provenance["pad"]) == 400000
     # the re-run (a new process writing p.json) completes and clears the killed writers' temporaries
@@ -99,7 +104,7 @@ def test_dataset_killed_while_generated_resumes_to_a_complete_set(tmp_path):
     argv = stcvision("dataset", "generate", recipe, "--out", out, "--workers", "1")
     for extra in RNG.uniform(0.0, 1.0, 2):
         p = start(argv)
-        kill_while_writing(p, lambda: bool(temps(tmp_path)) or (out / "frames").is_dir(), extra)
+        kill_while_writing(p, writing(p, tmp_path), extra)
         for f in out.rglob("*.json*"):  # what is there is complete
             if not f.name.startswith("."):
                 text = f.read_text()
@@ -133,21 +138,26 @@ def test_sweep_store_killed_mid_sweep_resumes_and_keeps_whole_records(tmp_path):
 
 
 # ---------------------------------------------------------------------------------- recording
+def rrd_complete(data: bytes) -> bool:
+    """A whole rerun recording: its header, and the footer rerun writes when the stream is closed."""
+    return data[:4] == b"RRF2" and data[-12:-4] == b"RRF2FOOT"
+
+
 def test_recording_killed_while_written_keeps_the_old_one(tmp_path):
     rrd = tmp_path / "run.rrd"
-    argv = stcvision("cover", "--board", "2x2", "--perception", "oracle", "--rrd", rrd, "--force")
+    argv = stcvision("cover", "--board", "5x5", "--perception", "oracle", "--rrd", rrd, "--force")
     rerun_in_process(argv)
     old = rrd.read_bytes()
-    assert old[:4] == b"RRF2"
-    for extra in RNG.uniform(0.0, 0.5, 2):
+    assert rrd_complete(old)
+    for extra in RNG.uniform(0.0, 0.2, 3):
         p = start(argv)
-        killed_running = kill_while_writing(p, lambda: bool(temps(tmp_path)), extra)
+        kill_while_writing(p, writing(p, tmp_path), extra)
         now = rrd.read_bytes()
-        # the old recording, or (only if the run had ended before the kill) the new complete one
-        assert now == old or (not killed_running and now[:4] == b"RRF2"), "a half-written recording"
+        # the old recording, or the new one if the run had renamed it into place before the kill
+        assert now == old or rrd_complete(now), "a half-written recording"
         old = now
     rerun_in_process(argv)
-    assert rrd.read_bytes()[:4] == b"RRF2" and rrd.read_bytes() != old
+    assert rrd_complete(rrd.read_bytes()) and rrd.read_bytes() != old
     assert temps(tmp_path) == []
     assert os.stat(rrd).st_mode & 0o777 == 0o666 & ~_umask()
 
