@@ -15,7 +15,7 @@ $(STAMP): pyproject.toml
 	@touch $(STAMP)
 
 demo: $(STAMP)
-	$(BIN)/stcvision demo --out out
+	$(BIN)/stcvision demo --out out --force  # out/ is make demo's own folder: replace the last run
 
 test: $(STAMP)
 	$(BIN)/python -m pytest -q -n 2

@@ -19,7 +19,7 @@ from scipy.optimize import least_squares
 
 from stcvision.errors import BadInputError
 
-__all__ = ["RimFit", "detect_rim"]
+__all__ = ["RimFit", "check_rim_matches", "detect_rim"]
 
 
 @dataclass(frozen=True)
@@ -59,6 +59,42 @@ def _coverage(pts, c, r, shape, tol):
     if visible.sum() < 90:
         return 0.0, inl
     return float((hit & visible).sum() / visible.sum()), inl
+
+
+#: what makes a circle of edge points a rim, not texture (README 'Calibration'): it covers at least
+#: this share of its visible circumference...
+MIN_COVERAGE = 0.5
+#: ...its edge points lie within this share of the inlier band's half-width (points drawn at random
+#: in the band have an RMS distance of tol/sqrt(3) = 0.58 tol; a real rim's sit within ~0.2 tol)...
+MAX_RESIDUAL_FRAC = 0.45
+#: ...and edge points are this many times denser on the circle than in the quieter of the two bands
+#: beside it (in random noise or a busy texture, edges are as dense everywhere)
+MIN_EDGE_CONTRAST = 3.0
+
+
+def _check_real_rim(pts, c, r, coverage: float, residual_px: float, tol_px: float) -> None:
+    """Refuse, with the reason, a best circle that is not a real rim (noise, a checkerboard)."""
+    d = np.hypot(pts[:, 0] - c[0], pts[:, 1] - c[1]) - r
+    on = np.count_nonzero(np.abs(d) < tol_px) / (2 * tol_px)  # edge points per px of band width
+    inside = np.count_nonzero((d <= -3 * tol_px) & (d > -5 * tol_px)) / (2 * tol_px)
+    outside = np.count_nonzero((d >= 3 * tol_px) & (d < 5 * tol_px)) / (2 * tol_px)
+    contrast = on / max(min(inside, outside), 0.5 / tol_px)  # the rim has a quiet side (the floor image
+    # is busy just inside it, the housing quiet outside; a tilted mirror may swap them)
+    why = None
+    if coverage < MIN_COVERAGE:
+        why = (
+            f"the best circle has edges along only {100 * coverage:.0f} % of it "
+            f"(expected >= {100 * MIN_COVERAGE:.0f} %)"
+        )
+    elif residual_px > MAX_RESIDUAL_FRAC * tol_px:
+        why = f"its edge points scatter by {residual_px:.2f} px RMS (expected <= {MAX_RESIDUAL_FRAC * tol_px:.2f} px)"
+    elif contrast < MIN_EDGE_CONTRAST:
+        why = (
+            f"edges are only {contrast:.1f}x denser on the circle than beside it (expected >= {MIN_EDGE_CONTRAST:g}x: "
+            "this looks like texture or noise)"
+        )
+    if why:
+        raise BadInputError(f"no mirror rim found: {why}; expected a lights-on catadioptric frame showing the rim")
 
 
 def detect_rim(
@@ -121,6 +157,7 @@ def detect_rim(
     cov, inl = _coverage(pts, c, r, (h, w), tol_px)
     q = pts[inl]
     resid = float(np.sqrt(np.mean((np.hypot(q[:, 0] - c[0], q[:, 1] - c[1]) - r) ** 2)))
+    _check_real_rim(pts, c, r, cov, resid, tol_px)
     (ex, ey), (ea, eb), eang = (
         cv2.fitEllipse(q.astype(np.float32)) if len(q) >= 5 else ((c[0], c[1]), (2 * r, 2 * r), 0.0)
     )
@@ -134,3 +171,28 @@ def detect_rim(
         (float(ea), float(eb)),
         float(eang),
     )
+
+
+#: a frame's rim matches a profile's when its centre is within this share of the profile's rim
+#: radius and its radius within this share of it (the same camera refitted moves by < 1 %)
+RIM_MATCH_FRAC = 0.04
+
+
+def check_rim_matches(frame: np.ndarray, profile, *, frame_name: str, profile_name: str) -> RimFit | None:
+    """Refuse a frame whose mirror rim is clearly not where ``profile`` has it (a frame from another
+    camera, or a mirror that moved): one line naming both. A frame without a visible rim (a dark-room
+    frame) cannot be checked; returns the frame's rim, or None then."""
+    try:
+        rim = detect_rim(frame, iterations=1000)
+    except BadInputError:
+        return None
+    r0 = float(profile.rim_radius_px)
+    off = float(np.hypot(rim.center_px[0] - profile.center_px[0], rim.center_px[1] - profile.center_px[1]))
+    if off > RIM_MATCH_FRAC * r0 or abs(rim.radius_px - r0) > RIM_MATCH_FRAC * r0:
+        raise BadInputError(
+            f"{frame_name} shows the mirror's rim at ({rim.center_px[0]:.0f}, {rim.center_px[1]:.0f}) px, radius "
+            f"{rim.radius_px:.0f} px, but {profile_name} has it at ({profile.center_px[0]:.0f}, "
+            f"{profile.center_px[1]:.0f}) px, radius {r0:.0f} px: a frame from another camera? expected a profile "
+            "calibrated for this camera"
+        )
+    return rim

@@ -302,10 +302,53 @@ def calibrate_neighbors(frame: np.ndarray, profile: Profile) -> tuple[Profile, n
     return with_corners(profile, found, method="neighbours calibration: ground-view grid corners", frame=frame), found
 
 
+#: the 12 corners must be the nominal ones moved by a near-rigid map: scale within this factor of
+#: the ground view's (either way), not mirrored, and off that map by at most this share of a sub-cell
+CORNER_MAX_SCALE = 2.0
+CORNER_MAX_RESIDUAL_SUBCELLS = 0.25
+
+
+def corners_problem(profile: Profile, c: np.ndarray) -> str | None:
+    """Why the (12, 2) ground-view points ``c`` cannot be the neighbour corners (coincident,
+    collinear, mirrored, scaled, scrambled), or None: the affine map from the nominal corners
+    must be well-conditioned and fit them."""
+    from stcvision.profile import nominal_corners_px
+
+    nominal = nominal_corners_px(profile.subcell_m, profile.ground_px_per_m, profile.ground_size_px)
+    X = np.column_stack([nominal, np.ones(12)])
+    A, *_ = np.linalg.lstsq(X, c, rcond=None)
+    lin = A[:2].T
+    sv = np.linalg.svd(lin, compute_uv=False)
+    subcell_px = profile.subcell_m * profile.ground_px_per_m
+    resid = float(np.sqrt(np.mean(np.sum((X @ A - c) ** 2, axis=1))))
+    if sv[-1] < 1 / CORNER_MAX_SCALE or sv[0] > CORNER_MAX_SCALE:
+        return (
+            f"they span the grid at {sv[-1]:.2f}..{sv[0]:.2f} times its size "
+            f"(coincident or collinear points?); expected within {1 / CORNER_MAX_SCALE:g}..{CORNER_MAX_SCALE:g}"
+        )
+    if np.linalg.det(lin) < 0:
+        return "they are mirrored against the grid's corner order"
+    if resid > CORNER_MAX_RESIDUAL_SUBCELLS * subcell_px:
+        return (
+            f"they are {resid:.1f} px RMS off the grid's shape (expected <= "
+            f"{CORNER_MAX_RESIDUAL_SUBCELLS * subcell_px:.1f} px; order: {', '.join(map(str, CORNER_ORDER))})"
+        )
+    return None
+
+
 def with_corners(profile: Profile, corners, *, method: str, frame: np.ndarray | None = None) -> Profile:
-    c = np.asarray(corners, float)
+    try:
+        c = np.asarray(corners, float)
+    except (TypeError, ValueError):
+        c = np.empty((0,))
     if c.shape != (12, 2) or not np.isfinite(c).all():
-        raise BadInputError(f"neighbours calibration needs 12 [x, y] ground-view points, got shape {c.shape}")
+        raise BadInputError(
+            "neighbours calibration needs 12 [x, y] ground-view points (finite numbers), got "
+            + (f"shape {c.shape}" if c.size else "something else")
+        )
+    why = corners_problem(profile, c)
+    if why:
+        raise BadInputError(f"these 12 points are not the neighbour corners: {why}")
     prov = dict(profile.provenance)
     prov["neighbours"] = {"method": method, "corner_order": [list(p) for p in CORNER_ORDER]}
     if frame is not None:

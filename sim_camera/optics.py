@@ -33,6 +33,7 @@ import numba
 import numpy as np
 
 from stcvision.errors import BadInputError
+from stcvision.limits import MAX_CAMERA_SIDE_PX
 
 __all__ = [
     "FloorProjector",
@@ -85,6 +86,11 @@ class MirrorCameraParams:
         for name in positive:
             if not getattr(self, name) > 0:
                 raise BadInputError(f"camera parameter {name} must be > 0, got {getattr(self, name)}")
+        if self.width_px > MAX_CAMERA_SIDE_PX or self.height_px > MAX_CAMERA_SIDE_PX:
+            raise BadInputError(
+                f"camera image {self.width_px}x{self.height_px} px is over the cap of {MAX_CAMERA_SIDE_PX} px a side "
+                "(a frame's float buffers would not fit in memory); expected a webcam-sized sensor"
+            )
         if self.mirror_rim_radius_m >= self.mirror_radius_m:
             raise BadInputError(
                 f"mirror_rim_radius_m ({self.mirror_rim_radius_m}) must be < mirror_radius_m ({self.mirror_radius_m})"

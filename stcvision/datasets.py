@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import math
 import sys
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -37,6 +38,7 @@ from typing import Any
 
 from stcvision.errors import BadInputError
 from stcvision.fileio import read_json
+from stcvision.limits import MAX_DARK_FRAMES, MAX_DATASET_FRAMES
 
 __all__ = [
     "DATASET_SCHEMA_VERSION",
@@ -115,10 +117,21 @@ class Recipe:
         return sum(g.n for g in self.groups)
 
 
-def _int(v: Any, what: str, *, lo: int = 0) -> int:
-    if isinstance(v, bool) or not isinstance(v, int) or v < lo:
-        raise BadInputError(f"{what} must be an integer >= {lo}, got {v!r}")
+def _int(v: Any, what: str, *, lo: int = 0, hi: int | None = None) -> int:
+    if isinstance(v, bool) or not isinstance(v, int) or v < lo or (hi is not None and v > hi):
+        span = f">= {lo}" if hi is None else f"in {lo}..{hi}"
+        raise BadInputError(f"{what} must be an integer {span}, got {v!r}")
     return v
+
+
+def _plain_name(name: Any) -> bool:
+    """A non-empty name of letters, digits, '-' and '_' (safe as a file or folder name)."""
+    return (
+        isinstance(name, str)
+        and bool(name)
+        and name.replace("-", "").replace("_", "").isascii()
+        and (name.replace("-", "").replace("_", "").isalnum())
+    )
 
 
 def _obj(v: Any, what: str) -> dict:
@@ -148,9 +161,40 @@ def _scene(d: dict, where: str) -> dict:
         if kind == "number_or_pair" and not (num or pair):
             raise BadInputError(f"{where}: scene parameter {k} must be a number or a pair [a, b], got {v!r}")
         out[k] = tuple(v) if isinstance(v, list) else v
+        _check_scene_value(k, out[k], where)
     if "cells" in out:
         out["cells"] = tuple(int(x) for x in out["cells"])
     return out
+
+
+#: what each scene parameter's values must lie in (closed ranges; None = unbounded); pairs are
+#: [low, high] ranges drawn from (``heading_error_deg`` as a pair too), so low <= high
+_SCENE_RANGES = {
+    "cells": (1, 100),
+    "obstacle_fraction": (0.0, 0.9),
+    "heading_error_deg": (-180.0, 180.0),
+    "position_error_m": (0.0, 0.1),
+    "box_prob": (0.0, 1.0),
+    "neighbour_mark_prob": (0.0, 1.0),
+    "age_range_s": (0.0, None),  # seconds since the mark's charge ended: never negative
+    "fresh_age_s": (0.0, None),
+    "charge_s": (1e-3, None),
+    "subcell_m": (1e-3, None),
+}
+
+
+def _check_scene_value(k: str, v, where: str) -> None:
+    """One line for a scene parameter that is not finite, out of its range, or a reversed pair."""
+    lo, hi = _SCENE_RANGES[k]
+    values = v if isinstance(v, tuple) else (v,)
+    span = f"[{lo:g}, {hi:g}]" if hi is not None else f">= {lo:g}"
+    for x in values:
+        if not math.isfinite(x) or x < lo or (hi is not None and x > hi):
+            raise BadInputError(f"{where}: scene parameter {k} = {x!r} is out of range; expected {span}")
+    if k == "cells" and not all(float(x).is_integer() for x in values):
+        raise BadInputError(f"{where}: scene parameter cells must be two whole numbers, got {list(values)}")
+    if isinstance(v, tuple) and k != "cells" and v[0] > v[1]:
+        raise BadInputError(f"{where}: scene parameter {k} = {list(v)} is reversed; expected [low, high]")
 
 
 def parse_recipe(d: Any, *, where: str = "recipe") -> Recipe:
@@ -163,8 +207,11 @@ def parse_recipe(d: Any, *, where: str = "recipe") -> Recipe:
     if unknown:
         raise BadInputError(f"{where}: unknown key(s) {sorted(unknown)}; expected some of {sorted(_RECIPE_KEYS)}")
     name = d.get("name")
-    if not isinstance(name, str) or not name:
-        raise BadInputError(f"{where}: 'name' must be a non-empty string")
+    if not isinstance(name, str) or not _plain_name(name.replace(".", "")) or name.startswith("."):
+        raise BadInputError(
+            f"{where}: 'name' must be a non-empty string of letters, digits, '-', '_' and '.' (no '/', not "
+            f"starting with '.': it names the folder under datasets/generated/), got {name!r}"
+        )
     calib = _obj(d.get("calibration", {}), f"{where}: calibration")
     unknown = set(calib) - _CALIB_KEYS
     if unknown:
@@ -185,7 +232,7 @@ def parse_recipe(d: Any, *, where: str = "recipe") -> Recipe:
         if unknown:
             raise BadInputError(f"{gw}: unknown key(s) {sorted(unknown)}; expected some of {sorted(_GROUP_KEYS)}")
         gname = g.get("name")
-        if not isinstance(gname, str) or not gname or not gname.replace("-", "").replace("_", "").isalnum():
+        if not isinstance(gname, str) or not _plain_name(gname):
             raise BadInputError(f"{gw}: 'name' must be a non-empty string of letters, digits, '-' and '_'")
         if gname in names:
             raise BadInputError(f"{gw}: group name {gname!r} is used twice")
@@ -201,10 +248,16 @@ def parse_recipe(d: Any, *, where: str = "recipe") -> Recipe:
                 sensor_profile=_name(g.get("sensor_profile", d.get("sensor_profile")), f"{gw}.sensor_profile"),
             )
         )
+    total = sum(g.n for g in groups)
+    if total > MAX_DATASET_FRAMES:
+        raise BadInputError(
+            f"{where}: {total:,} frames in all is over the cap of {MAX_DATASET_FRAMES:,} frames per dataset; "
+            "split it into several recipes"
+        )
     return Recipe(
         name=name,
         seed=_int(d.get("seed", 0), f"{where}: seed"),
-        dark_frames=_int(d.get("dark_frames", 16), f"{where}: dark_frames", lo=1),
+        dark_frames=_int(d.get("dark_frames", 16), f"{where}: dark_frames", lo=1, hi=MAX_DARK_FRAMES),
         lights_on_frames=_int(calib.get("lights_on_frames", 0), f"{where}: calibration.lights_on_frames"),
         profiles=bool(calib.get("profiles", False)),
         groups=tuple(groups),
@@ -289,7 +342,8 @@ def open_dataset(root: str | Path) -> Dataset:
     """
     root = Path(root)
     if not root.is_dir():
-        raise BadInputError(f"dataset folder {root} does not exist")
+        what = "is a file, not a folder" if root.exists() else "does not exist"
+        raise BadInputError(f"dataset folder {root} {what}; expected a folder made by 'dataset generate'")
     mpath, lpath = root / "manifest.json", root / "labels.jsonl"
     if not mpath.exists() and not lpath.exists():
         raise BadInputError(f"{root} is not a dataset (no manifest.json); expected a folder made by 'dataset generate'")

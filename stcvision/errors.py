@@ -1,8 +1,9 @@
 """Project exceptions.
 
 Every error caused by bad input (wrong dtype or shape, unreadable file, malformed profile or map,
-impossible parameter) is a :class:`StcVisionError`. Its message names the offending thing and
-what was expected; the CLI prints it as one line and exits with code 2.
+impossible parameter, an output that cannot be made) is a :class:`StcVisionError`. Its message
+names the offending thing and what was expected; the CLI prints it as one line and exits with
+code 2.
 """
 
 
@@ -24,3 +25,8 @@ class ProfileError(BadInputError):
 
 class FileExistsRefusedError(StcVisionError):
     """Refused to overwrite a file the user made (pass ``--force`` to allow it)."""
+
+
+class OutputError(StcVisionError):
+    """An output file or folder cannot be made (a directory in the way, a parent that is a file,
+    no permission, a full disk...)."""

@@ -451,9 +451,12 @@ def log_worst(ev: Evaluation, ds, rrd_path, *, default_profile, profile=None, n:
             )
             logger.log(res, frame=j, text=text)
             logged.append(lab["frame"])
-    finally:
+    except BaseException:
         if logger is not None:
-            logger.close()
+            logger.abort()
+        raise
+    if logger is not None:
+        logger.close()
     return logged
 
 

@@ -8,6 +8,7 @@ replaced when the caller says so (``overwrite=True``): nothing a user made is lo
 from __future__ import annotations
 
 import json
+import math
 import os
 import tempfile
 from pathlib import Path
@@ -15,41 +16,220 @@ from typing import Any
 
 import numpy as np
 
-from stcvision.errors import BadInputError, FileExistsRefusedError
+from stcvision.errors import BadInputError, FileExistsRefusedError, OutputError
 
 __all__ = [
+    "check_output_file",
     "check_same_depth",
+    "commit_temp",
+    "discard_temp",
     "figure_png",
     "read_image",
     "read_json",
+    "remove_live_temps",
+    "new_run",
+    "remove_stale_temps",
+    "temp_sibling",
     "write_bytes_atomic",
     "write_figure",
     "write_image",
     "write_json",
+    "write_set",
 ]
 
 
+#: what a temporary sibling of TARGET is called: ``.TARGET.PID.RANDOM.tmp`` (hidden, and the
+#: writer's process id in it, so a later write can tell a dead writer's leftover from a live one)
+_TEMP_SUFFIX = ".tmp"
+
+#: temporary files and folders of this process that are not yet renamed into place; removed by
+#: :func:`remove_live_temps` (the CLI calls it on every exit, a signal included)
+_LIVE_TEMPS: set[Path] = set()
+
+
+def _umask() -> int:
+    """The process's umask, without changing it (Linux: /proc; elsewhere set-and-restore)."""
+    try:
+        for line in Path("/proc/self/status").read_text().splitlines():
+            if line.startswith("Umask:"):
+                return int(line.split()[1], 8)
+    except (OSError, ValueError):
+        pass
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
+
+
+def output_error(path: str | os.PathLike, exc: OSError) -> OutputError:
+    """A one-line :class:`OutputError` for an ``OSError`` met while making ``path``."""
+    where = (
+        exc.filename if exc.filename not in (None, str(path)) and not str(exc.filename).endswith(_TEMP_SUFFIX) else None
+    )
+    why = exc.strerror or str(exc)
+    return OutputError(f"cannot write {path}: {why}" + (f" ({where})" if where else ""))
+
+
+def check_output_file(path: str | os.PathLike, *, overwrite: bool = False, what: str = "") -> Path:
+    """Check, before any work, that ``path`` can be made as a file: not a directory, its parent a
+    folder (or creatable), and not an existing file unless ``overwrite``. Returns the path."""
+    path = Path(path)
+    label = f"{what} {path}".strip()
+    if path.is_dir():
+        raise OutputError(f"{label} is a directory; expected a file name")
+    if path.exists() and not overwrite:
+        raise FileExistsRefusedError(f"{label} exists; refusing to overwrite it (use --force)")
+    for parent in (path.parent, *path.parent.parents):
+        if parent.exists():
+            if not parent.is_dir():
+                raise OutputError(f"cannot write {path}: {parent} is not a folder")
+            if not os.access(parent, os.W_OK | os.X_OK) and parent == path.parent:
+                raise OutputError(f"cannot write {path}: no permission to write in {parent}")
+            break
+    return path
+
+
+def temp_sibling(path: Path, *, directory: bool = False) -> Path:
+    """A new hidden temporary sibling ``.NAME.PID.RANDOM.tmp`` of ``path`` (file or folder),
+    registered for removal on exit; the first in a folder in this run removes the stale ones."""
+    _sweep_once(path.parent)
+    prefix = f".{path.name}.{os.getpid()}."
+    if directory:
+        tmp = Path(tempfile.mkdtemp(prefix=prefix, suffix=_TEMP_SUFFIX, dir=path.parent))
+    else:
+        fd, name = tempfile.mkstemp(prefix=prefix, suffix=_TEMP_SUFFIX, dir=path.parent)
+        try:
+            os.fchmod(fd, _new_file_mode(path))  # mkstemp makes 0600; the file gets open()'s mode
+        finally:
+            os.close(fd)
+        tmp = Path(name)
+    _LIVE_TEMPS.add(tmp)
+    return tmp
+
+
+#: folders already swept for stale temporaries in this run (one directory scan per folder, not
+#: per file: a dataset's frames/ may hold 100,000 files); :func:`new_run` forgets them
+_SWEPT: set[Path] = set()
+
+
+def _sweep_once(folder: Path) -> None:
+    key = folder.absolute()
+    if key not in _SWEPT:
+        _SWEPT.add(key)
+        remove_stale_temps(folder)
+
+
+def new_run() -> None:
+    """Start a new run (the CLI calls it first): folders are swept for stale temporaries again."""
+    _SWEPT.clear()
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    return True
+
+
+def _writer_pid(name: str) -> int | None:
+    """The PID in a temporary's name ``.NAME.PID.RANDOM.tmp`` (None if it is not one of ours)."""
+    if not (name.startswith(".") and name.endswith(_TEMP_SUFFIX)):
+        return None
+    parts = name[1 : -len(_TEMP_SUFFIX)].rsplit(".", 2)  # RANDOM has no dots; NAME may
+    return int(parts[1]) if len(parts) == 3 and parts[0] and parts[1].isdigit() else None
+
+
+def remove_stale_temps(folder: str | os.PathLike) -> list[Path]:
+    """Remove the temporaries in ``folder`` left by writers that were killed (SIGKILL, power
+    loss): ``.NAME.PID.RANDOM.tmp`` whose process is gone. Returns what was removed."""
+    import shutil
+
+    removed = []
+    try:
+        entries = [e for e in os.scandir(folder) if e.name.endswith(_TEMP_SUFFIX) and e.name.startswith(".")]
+    except OSError:
+        return removed
+    for e in entries:
+        pid = _writer_pid(e.name)
+        if pid is None or pid == os.getpid() or _alive(pid):
+            continue
+        try:
+            shutil.rmtree(e.path) if e.is_dir(follow_symlinks=False) else os.unlink(e.path)
+            removed.append(Path(e.path))
+        except OSError:
+            pass
+    return removed
+
+
+def remove_live_temps() -> None:
+    """Remove this process's temporary files and folders not yet renamed into place (on exit, on
+    an error, on SIGTERM/SIGINT): a run that stops leaves no hidden leftovers."""
+    import shutil
+
+    for tmp in list(_LIVE_TEMPS):
+        try:
+            shutil.rmtree(tmp) if tmp.is_dir() and not tmp.is_symlink() else tmp.unlink(missing_ok=True)
+        except OSError:
+            pass
+        _LIVE_TEMPS.discard(tmp)
+
+
+def commit_temp(tmp: Path, path: Path) -> None:
+    """Rename the temporary ``tmp`` over ``path`` (atomic on one file system) and forget it."""
+    os.replace(tmp, path)
+    _LIVE_TEMPS.discard(tmp)
+
+
+def discard_temp(tmp: Path | None) -> None:
+    """Remove the temporary ``tmp`` (file or folder) instead of committing it."""
+    import shutil
+
+    if tmp is None:
+        return
+    try:
+        shutil.rmtree(tmp) if tmp.is_dir() and not tmp.is_symlink() else tmp.unlink(missing_ok=True)
+    except OSError:
+        pass
+    _LIVE_TEMPS.discard(tmp)
+
+
+def _new_file_mode(path: Path) -> int:
+    """The mode a new ``path`` gets: an existing file's own mode (replacing keeps it), else
+    0o666 less the umask, as ``open()`` would give (mkstemp alone makes 0600)."""
+    try:
+        return os.stat(path).st_mode & 0o7777
+    except OSError:
+        return 0o666 & ~_umask()
+
+
 def write_bytes_atomic(path: str | os.PathLike, data: bytes, *, overwrite: bool = False) -> Path:
-    """Write ``data`` to ``path`` atomically (temp file + fsync + rename).
+    """Write ``data`` to ``path`` atomically (temp file + fsync + rename), with the mode ``open()``
+    would give it (0o666 less the umask; a replaced file keeps its mode).
 
     Raises
     ------
     FileExistsRefusedError
         If ``path`` exists and ``overwrite`` is false.
+    OutputError
+        If ``path`` cannot be made (a directory, a parent that is a file, no permission, ...).
     """
-    path = Path(path)
-    if path.exists() and not overwrite:
-        raise FileExistsRefusedError(f"{path} exists; refusing to overwrite it (use --force)")
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    path = check_output_file(path, overwrite=overwrite)
+    tmp = None
     try:
-        with os.fdopen(fd, "wb") as f:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        tmp = temp_sibling(path)
+        with open(tmp, "wb") as f:
             f.write(data)
             f.flush()
             os.fsync(f.fileno())
-        os.replace(tmp, path)
+        commit_temp(tmp, path)
+    except OSError as exc:
+        discard_temp(tmp)
+        raise output_error(path, exc) from None
     except BaseException:
-        Path(tmp).unlink(missing_ok=True)
+        discard_temp(tmp)
         raise
     return path
 
@@ -84,13 +264,32 @@ def read_json(path: str | os.PathLike, *, what: str = "JSON file") -> Any:
     except (OSError, UnicodeDecodeError) as exc:
         raise BadInputError(f"cannot read {what} {path}: {exc}") from None
     try:
-        return json.loads(text)
+        return json.loads(text, parse_constant=_refuse_constant, parse_float=_finite_float)
     except json.JSONDecodeError as exc:
         raise BadInputError(
             f"{what} {path} is not valid JSON ({exc.msg} at line {exc.lineno}); expected a JSON object"
         ) from None
+    except _NotFinite as exc:
+        raise BadInputError(f"{what} {path} holds the number {exc}; expected finite numbers only") from None
 
 
+class _NotFinite(ValueError):
+    pass
+
+
+def _refuse_constant(name: str):
+    raise _NotFinite(name)  # NaN, Infinity, -Infinity: not JSON, and never a valid field value
+
+
+def _finite_float(text: str) -> float:
+    v = float(text)
+    if not math.isfinite(v):  # 1e999
+        raise _NotFinite(text)
+    return v
+
+
+#: the image files the toolkit writes (by suffix); PNG is lossless, JPEG lossy
+IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".tif", ".tiff")
 #: what 16-bit frames may be written as (OpenCV writes 16 bits per channel to these); JPEG holds 8
 _DEEP_SUFFIXES = (".png", ".tif", ".tiff")
 
@@ -102,9 +301,13 @@ def write_image(path: str | os.PathLike, image: np.ndarray, *, overwrite: bool =
     import cv2
 
     path = Path(path)
-    suffix = path.suffix.lower() or ".png"
+    suffix = path.suffix.lower()
+    if suffix not in IMAGE_SUFFIXES:
+        raise BadInputError(
+            f"cannot write an image as {path} (suffix {path.suffix or 'none'!r}); expected .png or .jpg"
+        )
     if image.dtype == np.uint16 and suffix not in _DEEP_SUFFIXES:
-        raise BadInputError(f"cannot write a 16-bit image as {path.suffix or 'no suffix'!r} ({path}); expected .png")
+        raise BadInputError(f"cannot write a 16-bit image as {path.suffix!r} ({path}); expected .png")
     if image.dtype not in (np.uint8, np.uint16):
         raise BadInputError(f"cannot write a {image.dtype} image to {path}; expected uint8 or uint16")
     ok, buf = cv2.imencode(suffix, image)
@@ -176,3 +379,62 @@ def check_same_depth(frame: np.ndarray, dark: np.ndarray, dark_path, *, frame_pa
 
 def _depth(img: np.ndarray) -> str:
     return f"{8 * img.dtype.itemsize}-bit"
+
+
+def check_output_folder(folder: str | os.PathLike, names, *, overwrite: bool = False) -> Path:
+    """Check, before any work, that ``folder`` can hold the files ``names``: a folder or creatable
+    (no file in the way), and none of ``names`` already there unless ``overwrite``."""
+    folder = Path(folder)
+    if folder.exists() and not folder.is_dir():
+        raise OutputError(f"{folder} is a file; expected a folder for the outputs")
+    for name in names:
+        check_output_file(folder / name, overwrite=overwrite)
+    if not folder.exists():
+        check_output_file(folder, overwrite=False)  # its parents: folders or creatable
+    return folder
+
+
+def write_set(folder: str | os.PathLike, files: dict[str, bytes], *, overwrite: bool = False) -> list[Path]:
+    """Write a set of files into ``folder`` as one unit; the last entry of ``files`` is the set's
+    marker (e.g. its ground truth).
+
+    A new or empty ``folder`` is made whole in a temporary sibling folder and renamed into place:
+    the set appears complete or not at all. Into a folder that holds other files, each file is
+    replaced atomically, the marker removed first and written last: the set is complete when its
+    marker is there, and re-running the same command completes it.
+    """
+    folder = check_output_folder(folder, files, overwrite=overwrite)
+    names = list(files)
+    try:
+        folder.parent.mkdir(parents=True, exist_ok=True)
+        if not folder.exists() or not any(folder.iterdir()):
+            tmp = temp_sibling(folder, directory=True)
+            try:
+                os.chmod(tmp, 0o777 & ~_umask())
+                for name, data in files.items():
+                    with open(tmp / name, "wb") as f:
+                        os.fchmod(f.fileno(), 0o666 & ~_umask())
+                        f.write(data)
+                        f.flush()
+                        os.fsync(f.fileno())
+                commit_temp(tmp, folder)  # rename(2) replaces an empty folder
+            except BaseException:
+                discard_temp(tmp)
+                raise
+        else:
+            (folder / names[-1]).unlink(missing_ok=True)
+            for name in names:
+                write_bytes_atomic(folder / name, files[name], overwrite=True)
+    except OSError as exc:
+        raise output_error(folder, exc) from None
+    return [folder / n for n in names]
+
+
+def image_bytes(image: np.ndarray, suffix: str = ".png") -> bytes:
+    """``image`` encoded as ``suffix`` (see :func:`write_image`), for :func:`write_set`."""
+    import cv2
+
+    ok, buf = cv2.imencode(suffix, image)
+    if not ok:
+        raise BadInputError(f"cannot encode an image as {suffix!r}")
+    return buf.tobytes()

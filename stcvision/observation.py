@@ -66,6 +66,13 @@ class CellGeometry:
         src = profile.corners_px().astype(np.float64)
         dst = np.array(CORNER_ORDER, np.float64)
         H, _ = cv2.findHomography(src, dst, 0)
+        if H is None or not np.isfinite(H).all() or np.linalg.cond(H) > 1e12:
+            from stcvision.errors import ProfileError
+
+            raise ProfileError(
+                "the profile's 12 neighbour corners do not span a grid (coincident or collinear points); "
+                "expected corners from 'stcvision calibrate neighbors'"
+            )
         return cls(H, np.linalg.inv(H))
 
     def to_cell(self, xy_px: np.ndarray) -> np.ndarray:

@@ -251,7 +251,7 @@ class Pipeline:
         """Use ``dark`` (H, W, 3) uint8 or uint16 from now on: split it once, map its hot pixels
         once, and take from it the quantisation step and the pedestal."""
         check_frame(dark, "dark frame")
-        self.profile.check_frame(dark.shape)
+        self.profile.check_frame(dark.shape, what="dark frame")
         p = self.params
         gr = np.concatenate([cv2.extractChannel(dark, c).reshape(-1)[self._sample] for c in (1, 2)])
         q = quantum_dn(gr)

@@ -286,12 +286,13 @@ class Profile:
     def replace(self, **kw) -> Profile:
         return replace(self, **kw)
 
-    def check_frame(self, shape) -> None:
-        """Raise if a frame's (H, W) does not match the profile's image size."""
+    def check_frame(self, shape, *, what: str = "frame") -> None:
+        """Raise if a frame's (H, W) does not match the profile's image size; ``what`` names the
+        image in the message (e.g. ``"dark frame d.png"``)."""
         h, w = shape[:2]
         if (w, h) != tuple(self.image_size_px):
             raise ProfileError(
-                f"frame is {w}x{h} but the profile was calibrated for "
+                f"{what} is {w}x{h} but the profile was calibrated for "
                 f"{self.image_size_px[0]}x{self.image_size_px[1]}; use a profile for this camera"
             )
 

@@ -22,14 +22,21 @@ built (``rr.Image`` alone costs ~0.1 ms).
 
 from __future__ import annotations
 
-import os
 from pathlib import Path
 
 import numpy as np
 import rerun as rr
 import rerun.blueprint as rrb
 
-__all__ = ["ENTITY_PATHS", "PipelineLogger", "blueprint", "finish_recording", "open_recording"]
+__all__ = [
+    "ENTITY_PATHS",
+    "PipelineLogger",
+    "abort_recording",
+    "blueprint",
+    "check_recording_path",
+    "finish_recording",
+    "open_recording",
+]
 
 ENTITY_PATHS = (
     "raw",
@@ -70,6 +77,20 @@ def blueprint() -> rrb.Blueprint:
     )
 
 
+def check_recording_path(path: str | Path, *, overwrite: bool = False) -> Path:
+    """Check, before any work, that ``path`` can be made as a rerun recording: a file name ending
+    in .rrd (not a directory), its parent a folder, not an existing file unless ``overwrite``."""
+    from stcvision.errors import OutputError
+    from stcvision.fileio import check_output_file
+
+    path = Path(path)
+    if path.is_dir():
+        raise OutputError(f"recording {path} is a directory; expected a file name ending in .rrd")
+    if path.suffix.lower() != ".rrd":
+        raise OutputError(f"recording {path} does not end in .rrd; expected OUT.rrd (rerun's file format)")
+    return check_output_file(path, overwrite=overwrite, what="recording")
+
+
 def open_recording(
     path: str | Path | None = None,
     *,
@@ -77,28 +98,58 @@ def open_recording(
     app_id: str = "stcvision",
     default_blueprint: rrb.Blueprint | None = None,
 ):
-    """A recording stream writing to ``path`` (.rrd, atomically on :meth:`PipelineLogger.close`)
-    and/or a spawned viewer; ``default_blueprint`` defaults to the pipeline's :func:`blueprint`."""
+    """A recording stream writing to ``path`` (.rrd, atomically: into a hidden temporary sibling
+    until :func:`finish_recording` renames it into place; :func:`abort_recording` removes it)
+    and/or a spawned viewer; ``default_blueprint`` defaults to the pipeline's :func:`blueprint`.
+    Returns ``(stream, temporary path or None)``."""
+    from stcvision.errors import StcVisionError
+    from stcvision.fileio import discard_temp, output_error, temp_sibling
+
     rec = rr.RecordingStream(app_id)
     bp = default_blueprint or blueprint()
     tmp = None
     if path is not None:
-        path = Path(path)
-        path.parent.mkdir(parents=True, exist_ok=True)
-        tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+        path = check_recording_path(path, overwrite=True)
+        try:
+            path.parent.mkdir(parents=True, exist_ok=True)
+            tmp = temp_sibling(path)
+        except OSError as exc:
+            raise output_error(path, exc) from None
         rec.save(tmp, default_blueprint=bp)
     if spawn:
-        rec.spawn(default_blueprint=bp)
+        try:
+            rec.spawn(default_blueprint=bp)
+        except (RuntimeError, OSError) as exc:
+            abort_recording(rec, tmp)
+            discard_temp(tmp)
+            why = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+            raise StcVisionError(
+                f"cannot start the rerun viewer ({why}); install it (pip install rerun-sdk puts 'rerun' on "
+                "PATH) or write a file with --rrd OUT.rrd instead of --spawn"
+            ) from None
     return rec, tmp
 
 
 def finish_recording(rec: rr.RecordingStream, tmp: Path | None, final: str | Path | None) -> None:
     """Flush ``rec`` and, if it writes to the temporary file ``tmp``, move it to ``final``
     atomically (the other half of :func:`open_recording`)."""
+    from stcvision.fileio import commit_temp
+
     rec.flush()
     if tmp is not None:
         rec.disconnect()
-        os.replace(tmp, final)
+        commit_temp(tmp, Path(final))
+
+
+def abort_recording(rec: rr.RecordingStream, tmp: Path | None) -> None:
+    """Stop ``rec`` and remove its temporary file: a run that failed or was interrupted leaves
+    the old recording (or none) in place, never a partial one."""
+    from stcvision.fileio import discard_temp
+
+    try:
+        rec.disconnect()
+    finally:
+        discard_temp(tmp)
 
 
 class PipelineLogger:
@@ -196,6 +247,11 @@ class PipelineLogger:
     def close(self) -> None:
         """Flush, and move the recording into place atomically."""
         finish_recording(self.rec, self._tmp, self._final)
+        self._tmp = None
+
+    def abort(self) -> None:
+        """Stop without keeping the recording (after an error or an interruption)."""
+        abort_recording(self.rec, self._tmp)
         self._tmp = None
 
 

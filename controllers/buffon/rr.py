@@ -48,7 +48,7 @@ def _xy(p) -> np.ndarray:
 def record_trial(path: str | Path, nest, visit1: np.ndarray, visit2: np.ndarray, *, frames: int = 250) -> Path:
     """Write ``path`` (.rrd, atomically): the trial whose paths are ``visit1``, ``visit2``
     ((S, 3) arrays x m, y m, crossed), as recorded by :func:`controllers.buffon.batched.run_trials`."""
-    from stcvision.rr import finish_recording, open_recording
+    from stcvision.rr import abort_recording, finish_recording, open_recording
 
     path = Path(path)
     rec, tmp = open_recording(path, app_id="stcvision-buffon", default_blueprint=_blueprint())
@@ -56,7 +56,7 @@ def record_trial(path: str | Path, nest, visit1: np.ndarray, visit2: np.ndarray,
         _log(rec, nest, visit1, visit2, frames)
         finish_recording(rec, tmp, path)
     except BaseException:
-        Path(tmp).unlink(missing_ok=True)
+        abort_recording(rec, tmp)
         raise
     return path
 

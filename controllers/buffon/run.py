@@ -22,7 +22,7 @@ from controllers.buffon.estimate import (
 )
 from controllers.buffon.experiments import experiment_cases, refresh
 from controllers.buffon.nests import BODY_LENGTH_M, parse_nest
-from stcvision.errors import BadInputError, FileExistsRefusedError
+from stcvision.errors import BadInputError
 from stcvision.fileio import write_bytes_atomic, write_figure
 from stcvision.sweep import machine_workers
 
@@ -54,8 +54,10 @@ def measure(
     config = VisitConfig(visit_steps=visit_steps, trail_width_u=trail_width_u)
     if seed < 0:
         raise BadInputError(f"--seed must be >= 0; got {seed}")
-    if rrd is not None and Path(rrd).exists() and not force:
-        raise FileExistsRefusedError(f"{rrd} exists; refusing to overwrite it (use --force)")
+    if rrd is not None:
+        from stcvision.rr import check_recording_path
+
+        check_recording_path(rrd, overwrite=force)
     with _bar(2 * trials * visit_steps, f"buffon {nest.label}") as bar:
         threads = threads or machine_workers()
         ts = run_trials(

@@ -103,3 +103,9 @@ class SearchRecorder:
         from stcvision.rr import finish_recording
 
         finish_recording(self.rec, self.tmp, self.path)
+
+    def abort(self) -> None:
+        """Stop without keeping the recording (the run failed or was interrupted)."""
+        from stcvision.rr import abort_recording
+
+        abort_recording(self.rec, self.tmp)

@@ -12,7 +12,7 @@ import rerun as rr
 import rerun.blueprint as rrb
 
 from controllers.stc.observers import Observer, Reading
-from stcvision.rr import PipelineLogger, finish_recording, open_recording
+from stcvision.rr import PipelineLogger, abort_recording, finish_recording, open_recording
 
 __all__ = ["READINGS_BUDGET", "WORLD_BUDGET", "CoverRecorder", "readings_every"]
 
@@ -171,3 +171,7 @@ class CoverRecorder(Observer):
 
     def close(self) -> None:
         finish_recording(self.rec, self.tmp, self.path)
+
+    def abort(self) -> None:
+        """Stop without keeping the recording (the run failed or was interrupted)."""
+        abort_recording(self.rec, self.tmp)

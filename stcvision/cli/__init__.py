@@ -5,13 +5,15 @@ Each subcommand lives in its own module under ``stcvision.cli`` and exposes ``ad
 and returns a JSON-serialisable dict; with ``--json`` that dict is printed as one JSON object,
 otherwise the command's ``format_text`` renders it for people.
 
-Bad input never produces a traceback: a :class:`~stcvision.errors.StcVisionError` (or an argparse
-usage error) becomes one line on stderr and exit code 2.
+Bad input never produces a traceback: a :class:`~stcvision.errors.StcVisionError`, an argparse
+usage error or an ``OSError`` about a path becomes one line on stderr and exit code 2 (see
+:func:`main` for every exit status).
 """
 
 from __future__ import annotations
 
 import argparse
+import errno
 import importlib
 import sys
 from collections.abc import Sequence
@@ -45,6 +47,8 @@ class _Parser(argparse.ArgumentParser):
 def build_parser() -> argparse.ArgumentParser:
     parser = _Parser(
         prog="stcvision",
+        epilog=EXIT_STATUSES,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
         description=(
             "Toolkit for robots that mark a phosphorescent floor with UV LEDs and read the marks "
             "back through a catadioptric camera: vision pipeline, simulator, controllers, "
@@ -63,26 +67,64 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def main(argv: Sequence[str] | None = None) -> int:
-    """Entry point of the ``stcvision`` console script; returns the exit code."""
-    parser = build_parser()
-    args = parser.parse_args(argv)
-    if args.command is None:
-        parser.print_help()
-        return 2
-    mod = args._module
-    try:
-        result = mod.run(args)
-    except StcVisionError as exc:
-        print(f"stcvision {args.command}: error: {exc}", file=sys.stderr)
-        return 2
-    except KeyboardInterrupt:
-        print(f"stcvision {args.command}: interrupted", file=sys.stderr)
-        return 130
-    if isinstance(result, int):
-        return result
-    if result is None:
-        return 0
+#: exit statuses (README 'Command line'): 0 done; 2 bad input or an output that cannot be made;
+#: 3 the command ran but the robot did not complete (cover, demo); 128+N killed by signal N
+EXIT_OK, EXIT_BAD_INPUT, EXIT_INCOMPLETE = 0, 2, 3
+EXIT_STATUSES = """exit status:
+  0    done
+  2    bad input, or an output that cannot be made or exists without --force (one line on stderr)
+  3    ran, but the robot did not complete (cover, demo: aborted, covered a sub-cell twice, not back)
+  130  interrupted (Ctrl-C); 143 SIGTERM; 129 SIGHUP: no partial output, no temporary file left
+  141  stdout closed early (| head)"""
+
+#: errno values of an OSError that is about a path the user named (one line, exit 2), not a bug
+_PATH_ERRNOS = frozenset(
+    getattr(errno, n)
+    for n in "ENOENT ENOTDIR EISDIR EACCES EPERM EEXIST EROFS ENOSPC EDQUOT ENAMETOOLONG ELOOP EXDEV EFBIG".split()
+    if hasattr(errno, n)
+)
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM (or SIGHUP) turned into an exception, so that ``finally`` blocks run and no
+    temporary file is left behind."""
+
+    def __init__(self, signum: int) -> None:
+        super().__init__(signum)
+        self.signum = signum
+
+
+def _install_signal_handlers() -> dict:
+    """Turn SIGTERM and SIGHUP into :class:`Terminated`; returns the handlers they had."""
+    import os
+    import signal
+
+    main_pid = os.getpid()
+    previous = {}
+
+    def handler(signum, frame):
+        if os.getpid() != main_pid:  # a forked worker: die as the signal says
+            signal.signal(signum, signal.SIG_DFL)
+            os.kill(os.getpid(), signum)
+            return
+        raise Terminated(signum)
+
+    for sig in (signal.SIGTERM, signal.SIGHUP):
+        try:
+            previous[sig] = signal.signal(sig, handler)
+        except (ValueError, OSError):  # not the main thread (main() called from a thread)
+            break
+    return previous
+
+
+def _restore_signal_handlers(previous: dict) -> None:
+    import signal
+
+    for sig, h in previous.items():
+        signal.signal(sig, h)
+
+
+def _print_result(args, mod, result) -> None:
     from stcvision.fileio import dumps
 
     if getattr(args, "json", False):
@@ -90,4 +132,69 @@ def main(argv: Sequence[str] | None = None) -> int:
     else:
         fmt = getattr(mod, "format_text", None)
         print(fmt(result) if fmt else dumps(result))
-    return int(result.get("exit_code", 0)) if isinstance(result, dict) else 0
+    sys.stdout.flush()
+
+
+def _quiet_stdout() -> None:
+    """After a broken pipe (``... | head``): point stdout at /dev/null so that the interpreter's
+    final flush does not complain (the Python docs' recipe for SIGPIPE)."""
+    import os
+
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+    except (OSError, ValueError):
+        pass
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point of the ``stcvision`` console script; returns the exit code.
+
+    A project error (:class:`~stcvision.errors.StcVisionError`) or an ``OSError`` about a path is
+    one line on stderr and exit code 2; a closed stdout (``| head``) ends quietly; SIGINT, SIGTERM
+    and SIGHUP end with 128 + the signal's number, leaving no temporary file behind. Any other
+    exception is a bug and keeps its traceback.
+    """
+    from stcvision.fileio import new_run, remove_live_temps
+
+    new_run()
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if args.command is None:
+        parser.print_help()
+        return EXIT_BAD_INPUT
+    empty = [k for k, v in vars(args).items() if v == "" or (isinstance(v, list) and "" in v)]
+    if empty:  # every string this CLI takes is a path or a name: '' is never meant
+        flag = (
+            empty[0].upper() if empty[0] in ("frames", "frame", "recipe", "dir") else "--" + empty[0].replace("_", "-")
+        )
+        parser.exit(EXIT_BAD_INPUT, f"stcvision {args.command}: error: {flag} is an empty string; expected a name\n")
+    mod = args._module
+    name = args.command
+    previous = _install_signal_handlers()
+    try:
+        result = mod.run(args)
+        if isinstance(result, int):
+            return result
+        if result is None:
+            return EXIT_OK
+        _print_result(args, mod, result)
+    except StcVisionError as exc:
+        print(f"stcvision {name}: error: {exc}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    except BrokenPipeError:
+        _quiet_stdout()
+        return 128 + 13  # as a Unix tool killed by SIGPIPE
+    except OSError as exc:
+        if exc.errno not in _PATH_ERRNOS or exc.filename is None:
+            raise
+        print(f"stcvision {name}: error: {exc.filename}: {exc.strerror}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    except KeyboardInterrupt as exc:
+        signum = exc.signum if isinstance(exc, Terminated) else 2
+        print(f"stcvision {name}: interrupted", file=sys.stderr)
+        return 128 + signum
+    finally:
+        remove_live_temps()
+        _restore_signal_handlers(previous)
+    return int(result.get("exit_code", EXIT_OK)) if isinstance(result, dict) else EXIT_OK

@@ -11,10 +11,19 @@ anything.
 
 from __future__ import annotations
 
+from stcvision.cli._args import positive, seed
+from stcvision.limits import MAX_BENCH_FRAMES
+
 
 def add_parser(p):
-    p.add_argument("--frames", type=int, default=200, metavar="N", help="frames to time (default 200)")
-    p.add_argument("--seed", type=int, default=0, help="seed of the benchmark scene (default 0)")
+    p.add_argument(
+        "--frames",
+        type=positive(int, maximum=MAX_BENCH_FRAMES),
+        default=200,
+        metavar="N",
+        help=f"frames to time (default 200, at most {MAX_BENCH_FRAMES:,})",
+    )
+    p.add_argument("--seed", type=seed, default=0, help="seed of the benchmark scene (default 0)")
     p.add_argument("--sweep", action="store_true", help="measure the sweep runner's cost per task instead")
     p.add_argument("--tasks", type=int, default=1000, metavar="N", help="--sweep: no-op tasks per backend (1000)")
     p.add_argument("--scheduler", metavar="tcp://HOST:PORT", help="--sweep: a Dask cluster (default: a LocalCluster)")

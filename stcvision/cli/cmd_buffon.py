@@ -15,6 +15,8 @@ in body lengths). Barriers: bar:FRACTION (|) or plus:FRACTION (+) of the nest's 
 
 from __future__ import annotations
 
+from stcvision.cli._args import seed
+
 NESTED = True  # --json belongs to each action
 
 
@@ -36,7 +38,7 @@ def add_parser(p):
         "standard nest; the paper's 50,000 leave a single trial ~15 %% off)",
     )
     p.add_argument("--trials", type=positive(int), default=100, help="independent trials (default 100)")
-    p.add_argument("--seed", type=int, default=0, help="seed of every trial's streams (default 0)")
+    p.add_argument("--seed", type=seed, default=0, help="seed of every trial's streams (default 0)")
     p.add_argument("--threads", type=positive(int), metavar="N", help="threads for the trials (default: one per core)")
     p.add_argument("--rrd", metavar="OUT.rrd", help="record trial 0 in rerun (nest, trail, path, crossings, nBC)")
     p.add_argument("--force", action="store_true", help="overwrite --rrd")
@@ -84,7 +86,7 @@ def _folder_run_arguments(s) -> None:
     from stcvision.sweep import add_sweep_arguments
 
     s.add_argument("--out", required=True, metavar="DIR", help="output folder (its sweep.jsonl makes a re-run resume)")
-    s.add_argument("--seed", type=int, default=0, help="seed of the run (default 0)")
+    s.add_argument("--seed", type=seed, default=0, help="seed of the run (default 0)")
     s.add_argument("--force", action="store_true", help="write into a folder that holds other files")
     s.add_argument("--json", action="store_true", help="print the result as one JSON object")
     add_sweep_arguments(s)
@@ -123,7 +125,7 @@ def _add_calibrate(sub):
         "length; the shipped factor is held fixed, this shows where it comes from.",
     )
     s.add_argument("--trials", type=positive(int), default=100, help="trials (default 100)")
-    s.add_argument("--seed", type=int, default=0)
+    s.add_argument("--seed", type=seed, default=0)
     s.add_argument("--json", action="store_true", help="print the result as one JSON object")
 
 

@@ -45,7 +45,9 @@ def add_parser(p):
     )
     t.add_argument("frame", metavar="FRAME")
     t.add_argument("--out", required=True, metavar="PROFILE.json")
-    t.add_argument("--center", type=pair(float), metavar="U,V", help="mirror centre by hand (pixels)")
+    t.add_argument(
+        "--center", type=pair(float, fmt="U,V", example="320,240"), metavar="U,V", help="mirror centre by hand (pixels)"
+    )
     t.add_argument("--subcell-m", type=float, default=0.16, help="sub-cell side D of the board (default 0.16)")
     t.add_argument(
         "--viewpoint-m",
@@ -55,7 +57,7 @@ def add_parser(p):
     )
     t.add_argument("--preview", metavar="PNG", help="preview image (default: PROFILE.preview.png)")
     t.add_argument("--yes", action="store_true", help="accept without asking")
-    t.add_argument("--force", action="store_true", help="overwrite an existing profile")
+    t.add_argument("--force", action="store_true", help="overwrite an existing profile and preview")
     n = sub.add_parser(
         "neighbors",
         help="find the 12 corners of the five cells and store them",
@@ -68,6 +70,7 @@ def add_parser(p):
     n.add_argument("--out", metavar="PROFILE.json", help="write here instead of updating --profile")
     n.add_argument("--preview", metavar="PNG", help="preview image (default: PROFILE.neighbors.png)")
     n.add_argument("--yes", action="store_true", help="accept without asking")
+    n.add_argument("--force", action="store_true", help="overwrite an existing --out or preview")
     for q in (d, r, t, n):
         q.add_argument("--json", action="store_true", help="print the result as one JSON object")
 
@@ -78,10 +81,16 @@ def _confirm(preview: str, yes: bool) -> None:
     if yes:
         return
     if not sys.stdin.isatty():
-        raise BadInputError(f"no terminal to confirm on: look at {preview} and re-run with --yes to accept")
+        raise BadInputError(
+            f"no terminal to confirm on: the profile was not written; look at the preview {preview} and re-run "
+            "with --yes to accept"
+        )
     answer = input(f"Preview written to {preview}. Does this look right? [y/N] ").strip().lower()
     if answer not in ("y", "yes"):
-        raise BadInputError("not accepted; nothing was written (try --center U,V, or --points for the corners)")
+        raise BadInputError(
+            f"not accepted; the profile was not written, only the preview {preview} "
+            "(try --center U,V, or --points for the corners)"
+        )
 
 
 def run(args):
@@ -92,45 +101,56 @@ def run(args):
     return {"dark": _dark, "rim": _rim, "transform": _transform, "neighbors": _neighbors}[args.step](args)
 
 
+#: what a dark frame may be written as: lossless only (JPEG would blur the hot pixels away)
+DARK_SUFFIXES = (".png", ".tif", ".tiff")
+
+
 def _dark(args):
     from pathlib import Path
 
     import numpy as np
 
-    from stcvision.errors import BadInputError, FileExistsRefusedError
-    from stcvision.fileio import check_same_depth, read_image, read_json, write_image
+    from calibration.dark import median_dark
+    from stcvision.errors import BadInputError
+    from stcvision.fileio import check_output_file, read_image, read_json, write_image
     from stcvision.stages import hot_pixels
 
-    if Path(args.out).exists() and not args.force:
-        raise FileExistsRefusedError(f"{args.out} exists; refusing to overwrite it (use --force)")
+    out = check_output_file(args.out, overwrite=args.force, what="dark frame")
+    if out.suffix.lower() not in DARK_SUFFIXES:
+        raise BadInputError(
+            f"--out {out}: a dark frame must be stored losslessly; expected .png (JPEG loses the hot pixels)"
+        )
     frames, exposures = [], []
     for f in args.frames:
-        img = read_image(f, what="dark frame")
-        if frames and img.shape != frames[0].shape:
-            raise BadInputError(
-                f"dark frame {f} is {img.shape[1]}x{img.shape[0]}, the first is "
-                f"{frames[0].shape[1]}x{frames[0].shape[0]}; expected one size"
-            )
-        if frames:
-            check_same_depth(frames[0], img, f, frame_path=args.frames[0])
+        frames.append(read_image(f, what="dark frame"))
         side = Path(f).with_suffix(".json")  # optional sidecar: {"exposure_s": ...}
         if side.exists():
-            exposures.append(float(read_json(side, what="frame sidecar").get("exposure_s", "nan")))
-        frames.append(img)
+            exposures.append(_sidecar_exposure(read_json(side, what="frame sidecar"), side))
     if exposures and (max(exposures) - min(exposures) > 0.01 * max(exposures)):
         raise BadInputError(
             f"dark frames were taken at different exposures ({min(exposures):g}..{max(exposures):g} s); "
             "expected one exposure"
         )
-    dark = np.median(np.stack(frames), axis=0).round().astype(frames[0].dtype)  # 8 or 16 bits, as taken
-    write_image(args.out, dark, overwrite=True)
+    dark = median_dark(frames, [str(f) for f in args.frames])  # 8 or 16 bits, as taken
+    write_image(out, dark, overwrite=args.force)
     hot = hot_pixels(dark)
     return {
-        "out": args.out,
+        "out": str(out),
         "frames": len(frames),
         "hot_pixels": int(len(np.unique(hot // 3))),
         "mean_dn": float(dark.mean()),
     }
+
+
+def _sidecar_exposure(d, path) -> float:
+    import math
+
+    from stcvision.errors import BadInputError
+
+    v = d.get("exposure_s") if isinstance(d, dict) else None
+    if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v) or v <= 0:
+        raise BadInputError(f"frame sidecar {path}: expected an object with exposure_s, a number > 0 (seconds)")
+    return float(v)
 
 
 def _rim(args):
@@ -140,15 +160,64 @@ def _rim(args):
     return detect_rim(read_image(args.frame, what="frame")).to_dict()
 
 
+#: the PNG text chunk that marks a preview this command wrote: a re-run (e.g. with --yes after
+#: looking at it) replaces its own preview, never a user's file of the same name without --force
+PREVIEW_TAG = b"Software\x00stcvision calibrate preview"
+
+
+def _preview_png(image) -> bytes:
+    """``image`` as PNG bytes with :data:`PREVIEW_TAG` as a tEXt chunk before IEND."""
+    import struct
+    import zlib
+
+    from stcvision.fileio import image_bytes
+
+    png = image_bytes(image, ".png")
+    chunk = b"tEXt" + PREVIEW_TAG
+    text = struct.pack(">I", len(PREVIEW_TAG)) + chunk + struct.pack(">I", zlib.crc32(chunk))
+    return png[:-12] + text + png[-12:]  # IEND is the last 12 bytes
+
+
+def _own_preview(path) -> bool:
+    from pathlib import Path
+
+    try:
+        with open(Path(path), "rb") as f:
+            return f.read(8) == b"\x89PNG\r\n\x1a\n" and PREVIEW_TAG in f.read()
+    except OSError:
+        return False
+
+
+def _check_outputs(args, out: str, preview: str, *, out_force: bool) -> None:
+    """Refuse, before any work, outputs that exist (without --force) or cannot be made; a preview
+    this command wrote before is replaced."""
+    from pathlib import Path
+
+    from stcvision.errors import OutputError
+    from stcvision.fileio import check_output_file
+
+    for path, suffix, what in ((out, ".json", "profile"), (preview, ".png", "preview")):
+        if Path(path).suffix.lower() != suffix:
+            raise OutputError(f"{what} {path} does not end in {suffix}; expected a {suffix} file name")
+    check_output_file(out, overwrite=out_force, what="profile")
+    check_output_file(preview, overwrite=args.force or _own_preview(preview), what="preview")
+
+
+def _write_preview(preview: str, image) -> None:
+    from stcvision.fileio import write_bytes_atomic
+
+    write_bytes_atomic(preview, _preview_png(image), overwrite=True)  # checked by _check_outputs
+
+
 def _transform(args):
     from pathlib import Path
 
     from calibration.transform import calibrate_neighbors, calibrate_transform, draw_preview
-    from stcvision.errors import BadInputError, FileExistsRefusedError
-    from stcvision.fileio import read_image, write_image
+    from stcvision.errors import BadInputError
+    from stcvision.fileio import read_image
 
-    if Path(args.out).exists() and not args.force:
-        raise FileExistsRefusedError(f"profile {args.out} exists; refusing to overwrite it (use --force)")
+    preview = args.preview or str(Path(args.out).with_suffix(".preview.png"))
+    _check_outputs(args, args.out, preview, out_force=args.force)
     if not args.subcell_m > 0:
         raise BadInputError(f"--subcell-m must be > 0, got {args.subcell_m}")
     frame = read_image(args.frame, what="lights-on frame")
@@ -160,8 +229,7 @@ def _transform(args):
         prof, _ = calibrate_neighbors(frame, prof)
     except BadInputError:
         pass
-    preview = args.preview or str(Path(args.out).with_suffix(".preview.png"))
-    write_image(preview, draw_preview(frame, prof), overwrite=True)
+    _write_preview(preview, draw_preview(frame, prof))
     _confirm(preview, args.yes)
     prof.save(args.out, overwrite=args.force)
     return {"out": args.out, "preview": preview, **rep.to_dict()}
@@ -170,20 +238,30 @@ def _transform(args):
 def _neighbors(args):
     from pathlib import Path
 
+    from calibration.rim import check_rim_matches
     from calibration.transform import calibrate_neighbors, draw_preview, with_corners
-    from stcvision.fileio import read_image, read_json, write_image
+    from stcvision.errors import BadInputError
+    from stcvision.fileio import read_image, read_json
     from stcvision.profile import Profile
 
+    out = args.out or args.profile
+    preview = args.preview or str(Path(out).with_suffix(".neighbors.png"))
+    # updating --profile in place is what the command is for; another existing --out needs --force
+    _check_outputs(args, out, preview, out_force=args.force or args.out is None)
     prof = Profile.load(args.profile)
     frame = read_image(args.frame, what="lights-on frame")
-    prof.check_frame(frame.shape)
+    prof.check_frame(frame.shape, what=f"lights-on frame {args.frame}")
+    rim = check_rim_matches(frame, prof, frame_name=str(args.frame), profile_name=f"profile {args.profile}")
+    if rim is None and not args.points:
+        raise BadInputError(
+            f"lights-on frame {args.frame} shows no mirror rim, so no grid to find corners on; expected a lights-on "
+            "frame of the board (or give the corners with --points)"
+        )
     if args.points:
         prof = with_corners(prof, read_json(args.points, what="points file"), method=f"by hand: {args.points}")
     else:
         prof, _ = calibrate_neighbors(frame, prof)
-    out = args.out or args.profile
-    preview = args.preview or str(Path(out).with_suffix(".neighbors.png"))
-    write_image(preview, draw_preview(frame, prof), overwrite=True)
+    _write_preview(preview, draw_preview(frame, prof))
     _confirm(preview, args.yes)
     prof.save(out, overwrite=True)
     return {"out": out, "preview": preview, "corners_px": [list(p) for p in prof.neighbour_corners_px]}

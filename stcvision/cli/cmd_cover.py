@@ -8,6 +8,10 @@ could show (the physics-limited camera, no pipeline). --exposure webcam is the s
 (1/30 s); auto adds long frames sized by the robot's clock (2-30 s, then stacked 30 s frames) for
 the dim old marks; or give --exposure-s X.
 
+Exit status: 0 when the robot completed the board (every reachable sub-cell exactly once, back
+in its start cell), 3 when it ran but did not (aborted, covered a sub-cell twice, not back: see
+abort_reason), 2 for bad input.
+
   stcvision cover plan --map M --camera C [--robot R]
   stcvision cover sweep --sizes 2,3,4 --runs 6 --out DIR [--workers N | --scheduler tcp://H:P]
   stcvision cover faults --out DIR [--cells 6 --runs 3 --faults rate,led,...]
@@ -22,6 +26,8 @@ plot (coverage.png) of complete runs and sub-cells covered vs board size.
 """
 
 from __future__ import annotations
+
+from stcvision.cli._args import seed
 
 
 def add_parser(p):
@@ -80,10 +86,19 @@ def _add_board_arguments(p) -> None:
 
     src = p.add_mutually_exclusive_group()
     src.add_argument("--map", metavar="FILE", help="board map: .txt ('.', '#', 'S') or .png")
-    src.add_argument("--board", type=pair(int), metavar="WxH", help="random board of W x H cells (default 4x4)")
-    p.add_argument("--obstacle-fraction", type=float, default=0.15, help="for --board (default 0.15)")
-    p.add_argument("--start", type=pair(int), metavar="I,J", help="start sub-cell (row, column)")
-    p.add_argument("--seed", type=int, default=0, help="seed of the board, the robot and the camera (default 0)")
+    src.add_argument(
+        "--board",
+        type=pair(int, fmt="WxH", example="4x4"),
+        metavar="WxH",
+        help="random board of W x H cells (default 4x4)",
+    )
+    p.add_argument(
+        "--obstacle-fraction", type=float, default=None, help=f"for --board only (default {OBSTACLE_FRACTION})"
+    )
+    p.add_argument(
+        "--start", type=pair(int, fmt="I,J", example="1,2"), metavar="I,J", help="start sub-cell (row, column)"
+    )
+    p.add_argument("--seed", type=seed, default=0, help="seed of the board, the robot and the camera (default 0)")
 
 
 def _add_hardware_arguments(p) -> None:
@@ -136,7 +151,12 @@ def _add_sweep_parser(sub):
         ("--cameras", ["webcam"], "camera presets or JSON files (webcam, lowlight, cooled; default webcam)"),
     ):
         s.add_argument(flag, type=words, default=default, metavar=f"{flag[2].upper()},...", help=help_)
-    s.add_argument("--obstacle-fraction", type=float, default=0.15, help="obstacle cells of the boards (default 0.15)")
+    s.add_argument(
+        "--obstacle-fraction",
+        type=float,
+        default=OBSTACLE_FRACTION,
+        help=f"obstacle cells of the boards (default {OBSTACLE_FRACTION})",
+    )
     s.add_argument(
         "--decisions-per-subcell",
         type=positive(int),
@@ -149,15 +169,19 @@ def _add_sweep_parser(sub):
     add_sweep_arguments(s)
 
 
+#: obstacle cells of a random board (--board, and the sweep's boards)
+OBSTACLE_FRACTION = 0.15
+
+
 def random_board(w: int, h: int, obstacle_fraction: float, seed: int):
     """The random board of ``--board WxH --obstacle-fraction F --seed S`` (also the sweep's): drawn
     from the board's own stream of the run's seed (:func:`controllers.stc.loop.streams`)."""
     from controllers.stc.loop import streams
     from sim_camera.board import Board
     from stcvision.errors import BadInputError
+    from stcvision.limits import check_board_cells
 
-    if w < 1 or h < 1:
-        raise BadInputError(f"--board must be at least 1x1 cells, got {w}x{h}")
+    check_board_cells(w, h)
     if not 0 <= obstacle_fraction < 1:
         raise BadInputError(f"--obstacle-fraction must be in [0, 1), got {obstacle_fraction}")
     return Board.random((h, w), obstacle_fraction=obstacle_fraction, rng=streams(seed)["board"])
@@ -167,16 +191,20 @@ def load_board(args):
     from sim_camera.board import Board
 
     if args.map:
+        if args.obstacle_fraction is not None:
+            from stcvision.errors import BadInputError
+
+            raise BadInputError("--obstacle-fraction is for a random --board; a --map has its obstacles drawn in it")
         return Board.from_file(args.map, start_subcell=args.start)
     w, h = args.board if args.board else (4, 4)
-    board = random_board(w, h, args.obstacle_fraction, args.seed)
+    fraction = OBSTACLE_FRACTION if args.obstacle_fraction is None else args.obstacle_fraction
+    board = random_board(w, h, fraction, args.seed)
     if args.start:
         board = Board(board.blocked, args.start, board.subcell_m)
     return board
 
 
 def run(args):
-    from pathlib import Path
 
     if args.action == "sweep":
         from stcvision.cli.cover_sweep import sweep_cover
@@ -187,9 +215,8 @@ def run(args):
 
         return sweep_faults(args)
 
-    from controllers.stc.loop import CoverConfig, run_cover
+    from controllers.stc.loop import CoverConfig
     from sim_camera import hardware
-    from stcvision.errors import FileExistsRefusedError
 
     if getattr(args, "list_cameras", False):
         return [hardware.camera_to_dict(c) for c in hardware.CAMERAS.values()]
@@ -210,8 +237,10 @@ def run(args):
         from stcvision.errors import BadInputError
 
         raise BadInputError(f"--exposure-s must be in (0, 60] seconds, got {args.exposure_s}")
-    if args.rrd and Path(args.rrd).exists() and not args.force:
-        raise FileExistsRefusedError(f"{args.rrd} exists; refusing to overwrite it (use --force)")
+    if args.rrd:
+        from stcvision.rr import check_recording_path
+
+        check_recording_path(args.rrd, overwrite=args.force)
     from controllers.stc.faults import Faults, parse_fault
 
     faults = tuple(parse_fault(f) for f in args.fault)
@@ -219,17 +248,33 @@ def run(args):
     cfg = CoverConfig(
         perception=args.perception, exposure=exposure, seed=args.seed, camera=camera, robot=robot, faults=faults
     )
+    result = run_recorded(board, cfg, args.rrd)
+    result["rrd"] = args.rrd
+    return result
+
+
+def run_recorded(board, cfg, rrd, observers=()) -> dict:
+    """``run_cover`` with a rerun recording to ``rrd`` (when given) that is renamed into place only
+    when the run ends (an error or a signal removes it), and the exit status: 0 when the robot
+    completed the board (every reachable sub-cell once, back at the start), else
+    :data:`~stcvision.cli.EXIT_INCOMPLETE` (3)."""
+    from controllers.stc.loop import run_cover
+    from stcvision.cli import EXIT_INCOMPLETE, EXIT_OK
+
     recorder = None
-    if args.rrd:
+    if rrd:
         from controllers.stc.recorder import CoverRecorder
 
-        recorder = CoverRecorder(args.rrd, board)
+        recorder = CoverRecorder(rrd, board)
     try:
-        result = run_cover(board, cfg, observers=[recorder])
-    finally:
+        result = run_cover(board, cfg, observers=[recorder, *observers])
+    except BaseException:
         if recorder is not None:
-            recorder.close()
-    result["rrd"] = args.rrd
+            recorder.abort()
+        raise
+    if recorder is not None:
+        recorder.close()
+    result["exit_code"] = EXIT_OK if result["complete"] else EXIT_INCOMPLETE
     return result
 
 

@@ -14,6 +14,8 @@ the git-ignored datasets/generated/.
 
 from __future__ import annotations
 
+from stcvision.cli._args import seed
+
 NESTED = True  # --json belongs to each step
 
 
@@ -33,7 +35,7 @@ def add_parser(p):
         metavar="DIR",
         help="dataset folder (default: datasets/generated/NAME-seedS under the current folder)",
     )
-    g.add_argument("--seed", type=int, help="seed (default: the recipe's seed)")
+    g.add_argument("--seed", type=seed, help="seed (default: the recipe's seed)")
     g.add_argument("--json", action="store_true", help="print the result as one JSON object")
     from stcvision.sweep import add_sweep_arguments
 

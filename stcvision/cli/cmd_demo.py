@@ -5,42 +5,45 @@ camera takes a webcam frame plus a 2 s frame for the dim old marks).
 
 Writes OUT/demo.rrd (rerun: the world, the camera stages and every decision on the sim_time and
 decision timelines), OUT/coverage.png (the floor as the run left it) and prints a summary.
+Existing files are kept unless --force; the exit status is 3 if the robot did not complete.
 """
 
 from __future__ import annotations
+
+from stcvision.cli._args import seed
 
 #: the default board: 4x4 cells, 15 % obstacle cells (Board.random, seed 0)
 DEFAULT_CELLS = (4, 4)
 
 
+#: what the demo writes into --out
+OUTPUTS = ("demo.rrd", "coverage.png")
+
+
 def add_parser(p) -> None:
     p.add_argument("--out", default="out", metavar="DIR", help="output folder (default: out)")
-    p.add_argument("--seed", type=int, default=0, help="seed of the robot and the camera (default 0)")
+    p.add_argument("--seed", type=seed, default=0, help="seed of the robot and the camera (default 0)")
+    p.add_argument("--force", action="store_true", help="overwrite demo.rrd and coverage.png in --out")
 
 
 def run(args) -> dict:
-    from pathlib import Path
-
     import numpy as np
 
-    from controllers.stc.loop import CoverConfig, run_cover
+    from controllers.stc.loop import CoverConfig
     from controllers.stc.observers import FloorPicture
-    from controllers.stc.recorder import CoverRecorder
     from sim_camera.board import Board
-    from stcvision.fileio import write_image
+    from stcvision.cli.cmd_cover import run_recorded
+    from stcvision.fileio import check_output_folder, write_image
+    from stcvision.rr import check_recording_path
 
-    out = Path(args.out)
+    out = check_output_folder(args.out, OUTPUTS, overwrite=args.force)
+    check_recording_path(out / OUTPUTS[0], overwrite=args.force)
     board = Board.random(DEFAULT_CELLS, obstacle_fraction=0.15, rng=np.random.default_rng(0))
-    recorder = CoverRecorder(out / "demo.rrd", board)
     picture = FloorPicture(board)
-    try:
-        result = run_cover(
-            board, CoverConfig(perception="camera", exposure="auto", seed=args.seed), observers=[recorder, picture]
-        )
-    finally:
-        recorder.close()
-    write_image(out / "coverage.png", picture.image, overwrite=True)
-    result["files"] = [str(out / "demo.rrd"), str(out / "coverage.png")]
+    cfg = CoverConfig(perception="camera", exposure="auto", seed=args.seed)
+    result = run_recorded(board, cfg, out / OUTPUTS[0], observers=[picture])
+    write_image(out / OUTPUTS[1], picture.image, overwrite=args.force)
+    result["files"] = [str(out / name) for name in OUTPUTS]
     return result
 
 

@@ -134,7 +134,7 @@ def _default_profile():
 def run(args):
     from pathlib import Path
 
-    from stcvision.errors import BadInputError, FileExistsRefusedError
+    from stcvision.errors import BadInputError
 
     if args.compare:
         if args.dir:
@@ -153,8 +153,10 @@ def run(args):
     root = Path(args.dir)
     if not root.is_dir():
         raise BadInputError(f"{root} is not a folder; expected a dataset or a folder of frames")
-    if args.rrd and Path(args.rrd).exists() and not args.force:
-        raise FileExistsRefusedError(f"{args.rrd} exists; refusing to overwrite it (use --force)")
+    if args.rrd:
+        from stcvision.rr import check_recording_path
+
+        check_recording_path(args.rrd, overwrite=args.force)
     if (root / "manifest.json").exists() or (root / "labels.jsonl").exists():
         return _run_dataset(args, root)
     return _run_images(args, root)
@@ -205,7 +207,7 @@ def _run_images(args, root):
     dark = None
     if args.dark:
         dark = read_image(args.dark, what="dark frame")
-        profile.check_frame(dark.shape)
+        profile.check_frame(dark.shape, what=f"dark frame {args.dark}")
     out = Path(args.out) if args.out else root.resolve().parent / f"{root.resolve().name}-results.jsonl"
     if out.exists() and not args.force:
         raise FileExistsRefusedError(f"{out} exists; refusing to overwrite it (use --out or --force)")
@@ -230,9 +232,12 @@ def _run_images(args, root):
             ms.append(res.total_ms)
             fits += bool(res.heading.ok)
             ndots.append(len(d["dots"]))
-    finally:
+    except BaseException:
         if logger is not None:
-            logger.close()
+            logger.abort()
+        raise
+    if logger is not None:
+        logger.close()
     write_bytes_atomic(out, "".join(s + "\n" for s in lines).encode(), overwrite=True)
     return {
         "mode": "frames",

@@ -13,20 +13,20 @@ def add_parser(p):
         metavar="PROFILE.json",
         help="calibration profile (default: the shipped profile of the default simulated camera)",
     )
-    p.add_argument("--dark", metavar="DARK.png", help="dark frame at the frames' exposure (and depth)")
-    p.add_argument("--no-dark", action="store_true", help="run without a dark frame (not recommended)")
+    dark = p.add_mutually_exclusive_group()
+    dark.add_argument("--dark", metavar="DARK.png", help="dark frame at the frames' exposure (and depth)")
+    dark.add_argument("--no-dark", action="store_true", help="run without a dark frame (not recommended)")
     p.add_argument("--rrd", metavar="OUT.rrd", help="write a rerun recording of every stage")
     p.add_argument("--spawn", action="store_true", help="stream to a spawned rerun viewer")
     p.add_argument("--force", action="store_true", help="overwrite an existing --rrd file")
 
 
 def run(args):
-    from pathlib import Path
-
-    from stcvision.errors import BadInputError, FileExistsRefusedError
+    from stcvision.errors import BadInputError
     from stcvision.fileio import check_same_depth, read_image
     from stcvision.pipeline import Pipeline
     from stcvision.profile import Profile
+    from stcvision.rr import check_recording_path
 
     if args.dark is None and not args.no_dark:
         raise BadInputError("no dark frame: pass --dark DARK.png (captured at the frames' exposure) or --no-dark")
@@ -36,12 +36,13 @@ def run(args):
         from calibration.profiles import default_profile
 
         profile = default_profile()
+    profile_name = f"profile {args.profile}" if args.profile else "the default profile"
     dark = None
     if args.dark:
         dark = read_image(args.dark, what="dark frame")
-        profile.check_frame(dark.shape)
-    if args.rrd and Path(args.rrd).exists() and not args.force:
-        raise FileExistsRefusedError(f"{args.rrd} exists; refusing to overwrite it (use --force)")
+        profile.check_frame(dark.shape, what=f"dark frame {args.dark}")
+    if args.rrd:
+        check_recording_path(args.rrd, overwrite=args.force)
     pipe = Pipeline(profile, dark=dark)
     logger = None
     if args.rrd or args.spawn:
@@ -56,18 +57,25 @@ def run(args):
     try:
         for i, path in enumerate(args.frames):
             frame = read_image(path, what="frame")
-            profile.check_frame(frame.shape)
+            profile.check_frame(frame.shape, what=f"frame {path}")
             if dark is not None:
                 check_same_depth(frame, dark, args.dark, frame_path=path)
+            if i == 0:  # where its mirror rim shows (lights on), it must be where the profile has it
+                from calibration.rim import check_rim_matches
+
+                check_rim_matches(frame, profile, frame_name=f"frame {path}", profile_name=profile_name)
             res = pipe.process(frame)
             if logger is not None:
                 logger.log(res, frame=i)
             d = res.to_dict()
             d["frame"] = str(path)
             results.append(d)
-    finally:
+    except BaseException:
         if logger is not None:
-            logger.close()
+            logger.abort()
+        raise
+    if logger is not None:
+        logger.close()
     return {"frames": results, "rrd": args.rrd, "profile": args.profile or "default"}
 
 

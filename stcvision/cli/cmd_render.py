@@ -9,15 +9,23 @@ Print a documented example scene with --example-scene.
 
 from __future__ import annotations
 
+from stcvision.cli._args import positive, seed
+from stcvision.limits import MAX_DARK_FRAMES
+
+#: the set, written as one unit (truth.json, its marker, last: see stcvision.fileio.write_set)
 OUTPUTS = ("frame.png", "dark.png", "lights_on.png", "truth.json")
 
 
 def add_parser(p):
     p.add_argument("--scene", metavar="SCENE.json", help="scene description (see --example-scene)")
     p.add_argument("--out", metavar="DIR", help="output folder")
-    p.add_argument("--seed", type=int, default=0, help="seed of the temporal noise (default 0)")
+    p.add_argument("--seed", type=seed, default=0, help="seed of the temporal noise (default 0)")
     p.add_argument(
-        "--dark-frames", type=int, default=16, metavar="N", help="dark frames median-stacked into dark.png (default 16)"
+        "--dark-frames",
+        type=positive(int, maximum=MAX_DARK_FRAMES, why="they are held in memory for the median"),
+        default=16,
+        metavar="N",
+        help=f"dark frames median-stacked into dark.png (default 16, at most {MAX_DARK_FRAMES})",
     )
     p.add_argument(
         "--camera",
@@ -26,12 +34,15 @@ def add_parser(p):
         "see stcvision cover --list-cameras)",
     )
     p.add_argument("--force", action="store_true", help="overwrite existing outputs in --out")
+    p.epilog = (
+        "The four files appear together: a new (or empty) --out is made whole and renamed into place; into a "
+        "folder holding other files, truth.json is written last (a set without it is incomplete: run again)."
+    )
     p.add_argument("--example-scene", action="store_true", help="print an example scene and exit")
 
 
 def run(args):
     import json
-    from pathlib import Path
 
     from stcvision.errors import BadInputError
 
@@ -42,27 +53,18 @@ def run(args):
         return 0
     if not args.scene or not args.out:
         raise BadInputError("render needs --scene SCENE.json and --out DIR (or --example-scene)")
-    if args.dark_frames < 1:
-        raise BadInputError(f"--dark-frames must be >= 1, got {args.dark_frames}")
-    if args.seed < 0:
-        raise BadInputError(f"--seed must be >= 0, got {args.seed}")
     import numpy as np
 
     from sim_camera.scene import Scene
-    from stcvision.errors import FileExistsRefusedError
-    from stcvision.fileio import write_image, write_json
+    from stcvision.fileio import check_output_folder, dumps, image_bytes, write_set
 
+    out = check_output_folder(args.out, OUTPUTS, overwrite=args.force)
     base = None
     if args.camera:
         from sim_camera.hardware import load_camera
 
         base = load_camera(args.camera).sensor
     scene = Scene.from_file(args.scene, sensor_base=base)
-    out = Path(args.out)
-    if not args.force:
-        taken = [n for n in OUTPUTS if (out / n).exists()]
-        if taken:
-            raise FileExistsRefusedError(f"{out} already holds {', '.join(taken)}; use --force to overwrite")
     cam = scene.camera()
     rngs = [np.random.default_rng(s) for s in np.random.SeedSequence(args.seed).spawn(3)]
     frame = cam.render(
@@ -80,10 +82,10 @@ def run(args):
     truth["scene"] = str(args.scene)
     truth["seed"] = args.seed
     truth["dark_frames"] = args.dark_frames
-    write_image(out / "frame.png", frame.image, overwrite=True)
-    write_image(out / "dark.png", dark, overwrite=True)
-    write_image(out / "lights_on.png", lit.image, overwrite=True)
-    write_json(out / "truth.json", truth, overwrite=True)
+    images = (frame.image, dark, lit.image)
+    files = {name: image_bytes(img) for name, img in zip(OUTPUTS, images, strict=False)}
+    files[OUTPUTS[-1]] = (dumps(truth) + "\n").encode()
+    write_set(out, files, overwrite=args.force)
     dots = truth["dots"]
     return {
         "out": str(out),

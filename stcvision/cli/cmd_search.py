@@ -11,6 +11,8 @@ error over many seeds per policy, with and without the beacon.
 
 from __future__ import annotations
 
+from stcvision.cli._args import seed
+
 NESTED = False
 
 
@@ -64,7 +66,7 @@ def add_parser(p):
     p.add_argument(
         "--beacon", action="store_true", help="drop a red two-light beacon at the start and take camera fixes"
     )
-    p.add_argument("--seed", type=int, default=0, help="seed of the robot, sensors and camera (default 0)")
+    p.add_argument("--seed", type=seed, default=0, help="seed of the robot, sensors and camera (default 0)")
     p.add_argument("--rrd", metavar="OUT.rrd", help="rerun recording of the run")
     p.add_argument("--plot", metavar="OUT.png", help="plot of the paths, sampling points and shadow")
     p.add_argument("--out", metavar="DIR", help="reproduce: output folder")
@@ -86,13 +88,18 @@ def _pattern(args):
     return SpiralPattern(step_m=args.step_m, spacing_m=args.spacing_m, **kw)
 
 
-def _refuse_existing(path, force):
+def _check_plot(path, force):
+    """Refuse, before the run, a --plot that is not a new .png file (or an existing one without --force)."""
     from pathlib import Path
 
-    from stcvision.errors import FileExistsRefusedError
+    from stcvision.errors import OutputError
+    from stcvision.fileio import check_output_file
 
-    if path and Path(path).exists() and not force:
-        raise FileExistsRefusedError(f"{path} exists; refusing to overwrite it (use --force)")
+    if path is None:
+        return
+    check_output_file(path, overwrite=force, what="plot")
+    if Path(path).suffix.lower() != ".png":
+        raise OutputError(f"plot {path} does not end in .png; expected OUT.png")
 
 
 def run(args):
@@ -108,8 +115,11 @@ def run(args):
     pattern = _pattern(args)
     scene = SearchScene(obstacles=tuple(args.obstacle), patch=args.patch)
     cfg = SearchConfig(pattern=pattern, policy=Policy(args.policy), threshold=args.threshold)
-    for path in (args.rrd, args.plot):
-        _refuse_existing(path, args.force)
+    _check_plot(args.plot, args.force)
+    if args.rrd:
+        from stcvision.rr import check_recording_path
+
+        check_recording_path(args.rrd, overwrite=args.force)
     beacon = None
     if args.beacon:
         from controllers.search.beacon import Beacon
@@ -135,10 +145,14 @@ def run(args):
             observer=recorder,
             progress=progress,
         )
+    except BaseException:
+        if recorder is not None:
+            recorder.abort()
+        raise
     finally:
         bar.close()
-        if recorder is not None:
-            recorder.close()
+    if recorder is not None:
+        recorder.close()
     out = {
         "pattern": pattern.describe(),
         "policy": args.policy,

@@ -11,23 +11,33 @@ the arena; always 0 unless something is broken) and the dead-reckoning error.
 
 from __future__ import annotations
 
-from stcvision.cli._args import pair, positive
+from stcvision.cli._args import pair, positive, seed
+from stcvision.limits import MAX_PICTURE_PX, check_board_cells
+from stcvision.limits import MAX_WORLD_STEPS as MAX_STEPS
 
 
 def add_parser(p) -> None:
     src = p.add_mutually_exclusive_group()
     src.add_argument("--arena", metavar="ARENA.json", help="arena description (JSON)")
     src.add_argument("--map", metavar="MAP", help="STC board map: .txt ('.', '#', 'S') or .png")
-    src.add_argument("--board", metavar="WxH", type=pair(int), help="random board of W x H cells")
-    p.add_argument("--steps", type=positive(int), default=4000, help="world steps of 0.05 s (default 4000)")
-    p.add_argument("--seed", type=int, default=0, help="seed of everything random (default 0)")
+    src.add_argument(
+        "--board", metavar="WxH", type=pair(int, fmt="WxH", example="4x4"), help="random board of W x H cells"
+    )
+    p.add_argument(
+        "--steps",
+        type=positive(int, maximum=MAX_STEPS, why="about 10 minutes of wall time at ~2,000 steps/s"),
+        default=4000,
+        help=f"world steps of 0.05 s (default 4000, at most {MAX_STEPS:,}; a progress bar on a terminal)",
+    )
+    p.add_argument("--seed", type=seed, default=0, help="seed of everything random (default 0)")
     p.add_argument(
         "--px-per-m",
         type=positive(float),
         default=None,
-        help="drawing scale (default: fit about 1000 px)",
+        help=f"drawing scale (default: fit about 1000 px; the picture at most {MAX_PICTURE_PX:,} px a side)",
     )
     p.add_argument("--out", required=True, metavar="DIR", help="output folder (world.png)")
+    p.add_argument("--force", action="store_true", help="overwrite DIR/world.png")
 
 
 def build_world(args):
@@ -38,7 +48,6 @@ def build_world(args):
     from sim_camera.layers import PheromoneLayer
     from sim_camera.robot import KHEPERA
     from sim_camera.world import World
-    from stcvision.errors import BadInputError
 
     if args.arena:
         arena = Arena.from_file(args.arena)
@@ -52,8 +61,7 @@ def build_world(args):
         from sim_camera.board import Board
 
         w, h = args.board
-        if w < 1 or h < 1 or w * h > 10_000:
-            raise BadInputError(f"--board {w}x{h}: expected 1..10000 cells in all")
+        check_board_cells(w, h)
         rng = np.random.default_rng(np.random.SeedSequence(args.seed).spawn(1)[0])
         arena = arena_from_board(Board.random((h, w), obstacle_fraction=0.1, rng=rng))
         what = f"random board {w}x{h} cells"
@@ -69,22 +77,29 @@ def build_world(args):
 
 def run(args) -> dict:
     import math
-    from pathlib import Path
 
     from controllers.buffon import Explorer
     from sim_camera.draw import draw_world
     from sim_camera.robot import KHEPERA
-    from stcvision.fileio import write_image
+    from stcvision.errors import BadInputError
+    from stcvision.fileio import check_output_folder, write_image
 
+    out = check_output_folder(args.out, ["world.png"], overwrite=args.force)
     world, what = build_world(args)
+    xmin, ymin, xmax, ymax = world.arena.bounds_m
+    px = args.px_per_m or min(600.0, 1000.0 / max(xmax - xmin, ymax - ymin))
+    side_px = px * max(xmax - xmin, ymax - ymin)
+    if side_px > MAX_PICTURE_PX:
+        raise BadInputError(
+            f"--px-per-m {px:g} draws the {xmax - xmin:g} x {ymax - ymin:g} m world {side_px:,.0f} px wide; "
+            f"expected at most {MAX_PICTURE_PX:,} px a side"
+        )
     robot = world.add_robot(KHEPERA)
     robot.nozzle_on()
     explorer = Explorer(robot, world.rng())
-    world.run(args.steps, explorer)
-    xmin, ymin, xmax, ymax = world.arena.bounds_m
-    px = args.px_per_m or min(600.0, 1000.0 / max(xmax - xmin, ymax - ymin))
+    _run_with_progress(world, args.steps, explorer)
     img = draw_world(world, px_per_m=px)
-    path = write_image(Path(args.out) / "world.png", img, overwrite=True)
+    path = write_image(out / "world.png", img, overwrite=args.force)
     pos_err, head_err = robot.odometry.error_to(robot.pose)
     return {
         "path": str(path),
@@ -99,6 +114,19 @@ def run(args) -> dict:
         "odometry_heading_error_deg": math.degrees(head_err),
         "pheromone_area_m2": world.pheromone.marked_area_m2,
     }
+
+
+def _run_with_progress(world, steps: int, controller, chunk: int = 1000) -> None:
+    """``world.run(steps, controller)`` in chunks, with a tqdm bar on a terminal (off otherwise)."""
+    from tqdm import tqdm
+
+    with tqdm(total=steps, desc="world", unit="step", unit_scale=True, disable=None, leave=False) as bar:
+        done = 0
+        while done < steps:
+            n = min(chunk, steps - done)
+            world.run(n, controller)
+            done += n
+            bar.update(n)
 
 
 def format_text(r: dict) -> str:
