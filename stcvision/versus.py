@@ -107,8 +107,12 @@ def _summary(t: _Tally, common: set, labels) -> dict:
         "faint_found": int(sum(faint)),
         "faint_recall": sum(faint) / len(faint) if faint else None,
         "missed": [
-            {"frame": labels[i]["frame"], "truth_id": j, "snr": round(t.dots[(i, j)][0], 2),
-             "age_s": round(t.dots[(i, j)][1], 1)}
+            {
+                "frame": labels[i]["frame"],
+                "truth_id": j,
+                "snr": round(t.dots[(i, j)][0], 2),
+                "age_s": round(t.dots[(i, j)][1], 1),
+            }
             for i, j in missed[:20]
         ],
     }
@@ -181,8 +185,10 @@ def format_comparison(c: dict) -> str:
     lo, hi = c["faint_age_s"]
     rows = [
         ("ms per frame", [f"{ds[n]['ms_per_frame']:.2f}" if ds[n]["ms_per_frame"] else "-" for n in names]),
-        ("recall, SNR >= 8", [f"{_pct(ds[n]['recall'])} ({ds[n]['dots_found']}/{ds[n]['dots_expected']})"
-                              for n in names]),
+        (
+            "recall, SNR >= 8",
+            [f"{_pct(ds[n]['recall'])} ({ds[n]['dots_found']}/{ds[n]['dots_expected']})" for n in names],
+        ),
     ]
     for j, b in enumerate(ds[names[0]]["recall_by_snr"]):
         label = f"  SNR {b['range'][0]:g}-{b['range'][1]:g}" if b["range"][1] else f"  SNR >= {b['range'][0]:g}"
@@ -191,8 +197,10 @@ def format_comparison(c: dict) -> str:
         ("precision", [f"{_pct(ds[n]['precision'])} ({ds[n]['false_detections']} false)" for n in names]),
         ("loc. error, px median", [f"{ds[n]['loc_err_px_median']:.3f}" for n in names]),
         (f"  on the {c['common_dots']} common dots", [f"{ds[n]['loc_err_px_median_common']:.3f}" for n in names]),
-        (f"visible {lo:g}-{hi:g} s dots found", [f"{_pct(ds[n]['faint_recall'])} of {ds[n]['faint_visible']}"
-                                                 for n in names]),
+        (
+            f"visible {lo:g}-{hi:g} s dots found",
+            [f"{_pct(ds[n]['faint_recall'])} of {ds[n]['faint_visible']}" for n in names],
+        ),
     ]
     w0 = max(len(r[0]) for r in rows)
     w = [max(len(n), *(len(r[1][k]) for r in rows)) for k, n in enumerate(names)]
