@@ -6,7 +6,7 @@ Stages (``stcvision.stages``), in the order they run::
     window    sums over the dot-sized square, in the mirror image (filter once)
     unwarp    phi/theta remap of the window sums to the ground view (one cv2.remap)
     channels  red-light mask: obstacle and marks images
-    dots      window-mean dot search with black-out
+    dots      window-mean dot search with black-out; centroids on the mirror image
     red       red-light blobs
     heading   line fit through the newest mark row
     observe   five boxes, visited sub-cells, four neighbours
@@ -42,6 +42,7 @@ from stcvision.stages import (
     find_rows,
     fit_heading,
     hot_pixels,
+    mirror_centroids,
     noise_gain,
     separate_channels,
     subtract_dark,
@@ -236,6 +237,9 @@ class Pipeline:
             background_dn=bg,
             noise_dn=noise,
             ground_to_robot=self.profile.ground_to_robot,
+        )
+        dots = mirror_centroids(
+            dots, g, background_dn=bg, umap=self.umap, ground_to_robot=self.profile.ground_to_robot, params=p.dots
         )
         t.append(clock())
         all_dots = find_rows(
