@@ -329,6 +329,9 @@ class CellObservation:
     #: units), from the lights' centroid-error model and their spread
     landmark_rotation_sigma_rad: float | None = None
     landmark_offset_sigma: float | None = None
+    #: why this reading cannot be trusted ("" when it can): the dot search hit a cap
+    #: (:attr:`stcvision.stages.Dots.untrusted`); a controller must not decide on it
+    untrusted: str = ""
 
     def lit(self, box: int) -> bool:
         return self.boxes[box - 1].lit
@@ -352,6 +355,7 @@ class CellObservation:
             "start_mark": self.start_mark,
             "landing_marked": list(self.landing_marked),
             "stray_dots": self.stray_dots,
+            "untrusted": self.untrusted,
         }
 
 
@@ -497,6 +501,7 @@ def observe_cell(
         landmark_rot,
         landmark_sig if landmark_rot is not None else None,
         landmark_off_sig,
+        getattr(dots, "untrusted", ""),
     )
 
 
