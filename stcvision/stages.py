@@ -15,6 +15,7 @@ import cv2
 import numpy as np
 from scipy.spatial import cKDTree
 
+from stcvision import kernels
 from stcvision.errors import BadInputError
 
 __all__ = [
@@ -602,18 +603,8 @@ def _black_out(xs: np.ndarray, ys: np.ndarray, vals: np.ndarray, b: int, tail_si
     shadow = ((dy <= b) & (dx <= b)) | (tail >= 0.5 * vals[k])
     k, j = k[shadow], j[shadow]
     by_k = np.argsort(k, kind="stable")
-    k, j = k[by_k], j[by_k]
-    starts = np.searchsorted(k, np.arange(n + 1))
-    keep = np.zeros(n, bool)
-    kept: list[int] = []
-    for i in range(n):
-        if keep[j[starts[i] : starts[i + 1]]].any():
-            continue
-        keep[i] = True
-        kept.append(i)
-        if len(kept) >= max_dots:
-            break
-    return np.asarray(kept, int)
+    starts = np.searchsorted(k[by_k], np.arange(n + 1))
+    return kernels.black_out(starts, j[by_k].astype(np.int64), max_dots)
 
 
 def _centroids(marks: np.ndarray, xs: np.ndarray, ys: np.ndarray, r: int, per_px: float) -> np.ndarray:
@@ -791,13 +782,8 @@ def find_rows(
     # row through it (-1e3), nor ending next to it (occ)
     reach = np.ceil(dot_params.tail_sigma_px * np.sqrt(2 * np.log(np.maximum(dots.snr[dots.lit], 1.0)))) + 1
     occ = np.zeros(z.shape, np.uint8)
-    lit_xy = np.clip(np.round(dots.xy_px[dots.lit]).astype(int), 0, [z.shape[1] - 1, z.shape[0] - 1])
-    reach = np.maximum(reach, b).astype(int)
-    for r in np.unique(reach):  # one dilation per blur reach (a handful), not one slice per dot
-        seeds = np.zeros(z.shape, np.uint8)
-        sel = lit_xy[reach == r]
-        seeds[sel[:, 1], sel[:, 0]] = 1
-        cv2.bitwise_or(occ, cv2.dilate(seeds, np.ones((2 * r + 1, 2 * r + 1), np.uint8)), dst=occ)
+    lit_xy = np.clip(np.round(dots.xy_px[dots.lit]).astype(np.int64), 0, [z.shape[1] - 1, z.shape[0] - 1])
+    kernels.fill_squares(occ, lit_xy[:, 0], lit_xy[:, 1], np.maximum(reach, b).astype(np.int64))
     # nor next to a red light blacked out of the marks image (zero there): the edge of its glare,
     # just below the black-out level, runs along the light as a column of faint "dots"
     dark = cv2.compare(marks, 0, cv2.CMP_EQ)
@@ -841,23 +827,26 @@ def find_rows(
         ax_l.append(np.full(int(ok.sum()), axis))
     if not xs_l and not new_xy:
         return dots
-    xs, ys, st, ax = (np.concatenate(v) if v else np.zeros(0) for v in (xs_l, ys_l, st_l, ax_l))
+    xs, ys, st, ax = (np.concatenate(v) if v else np.zeros(0, int) for v in (xs_l, ys_l, st_l, ax_l))
     order = np.argsort(-st, kind="stable")
     # a row may not share a dot with one already accepted (within b along both axes): the
     # accepted rows' dots, each grown to its (2b+1)^2 square, as an image looked up per row
     taken = np.zeros(z.shape, np.uint8)
-    for pts in new_xy:
-        _mark_squares(taken, pts, b)
-    for i in order:  # strongest first
-        if len(new_xy) >= params.max_rows:
-            break
-        x0, y0, a = int(xs[i]), int(ys[i]), int(ax[i])
-        pts = np.array([(x0, y0 + o) if a else (x0 + o, y0) for o in offs], float)
-        ix = pts.astype(int)
-        if taken[ix[:, 1], ix[:, 0]].any():
-            continue
-        _mark_squares(taken, pts, b)
-        new_xy.append(pts)
+    if len(new_xy):
+        ix = np.concatenate(new_xy).astype(np.int64)
+        kernels.fill_squares(taken, ix[:, 0], ix[:, 1], np.full(len(ix), b, np.int64))
+    acc = kernels.accept_rows(
+        taken,
+        xs.astype(np.int64),
+        ys.astype(np.int64),
+        ax.astype(np.int64),
+        order,
+        offs.astype(np.int64),
+        b,
+        params.max_rows - len(new_xy),
+    )
+    for i in acc:
+        new_xy.append(np.array([(xs[i], ys[i] + o) if ax[i] else (xs[i] + o, ys[i]) for o in offs], float))
         new_s.append(np.full(n, st[i]))
     if not new_xy:
         return dots
@@ -883,12 +872,6 @@ def find_rows(
     )
 
 
-def _mark_squares(img: np.ndarray, pts: np.ndarray, half: int) -> None:
-    """Set the (2 half + 1)^2 squares around integer points ``pts`` (N, 2: x, y) in ``img``."""
-    for x, y in pts.astype(int):
-        img[max(y - half, 0) : y + half + 1, max(x - half, 0) : x + half + 1] = 1
-
-
 def _anchored_rows(z, occ, dots: Dots, step: float, n: int, params: RowParams):
     """Rows through one found dot (:func:`find_rows`): lists of the added points ((n - 1, 2)
     float ground px) and their SNRs. ``z``: per-pixel SNR clipped at the dot threshold, before
@@ -902,7 +885,6 @@ def _anchored_rows(z, occ, dots: Dots, step: float, n: int, params: RowParams):
     reach = int(np.ceil((n + 1) * step)) + 2
     if not len(xy_lit):
         return out_xy, out_s
-    taken = np.zeros(z.shape, np.uint8)  # the added rows' points, grown by 2 px
     # lone dots only: no other lit dot within 1.5 spacings (else it is a dot of a row found
     # already, which reads as a mark with one lit neighbour)
     pairs = cKDTree(xy_lit).query_pairs(near * (1 + 1e-9), output_type="ndarray")
@@ -917,39 +899,24 @@ def _anchored_rows(z, occ, dots: Dots, step: float, n: int, params: RowParams):
         & (xy_lit[:, 1] >= reach)
         & (xy_lit[:, 1] < h - reach)
     )
-    for i in np.flatnonzero(lone):
-        xf, yf = xy_lit[i]
-        s0 = snr[i]
-        best = None
-        for axis in (0, 1):
-            u = np.array([0.0, 1.0]) if axis else np.array([1.0, 0.0])
-            for k in range(n):
-                # the other dots and one spacing beyond either end, from the anchor's centroid
-                places = [j - k for j in range(n) if j != k] + [-1 - k, n - k]
-                pts = np.round(np.array([xf, yf]) + np.outer(places, u) * step).astype(int)
-                if occ[pts[:, 1], pts[:, 0]].any():
-                    continue  # another lit dot on the row or next to it: not a lone dot
-                # each place: the best of the three pixels across the row (a lean of a degree or two)
-                vals = [float((z[py, px - 1 : px + 2] if axis else z[py - 1 : py + 2, px]).max()) for px, py in pts]
-                dots_v, ends_v = vals[: n - 1], vals[n - 1 :]
-                total = sum(dots_v)
-                if (
-                    min(dots_v) >= params.anchor_min_snr
-                    and total >= (n - 1) * params.anchor_mean_snr
-                    and max(ends_v) < params.end_max_snr
-                    and (best is None or total > best[0])
-                ):
-                    best = (total, pts[: n - 1].astype(float))
-        if best is None:
-            continue
-        pts = best[1]
-        ix = pts.astype(int)
-        if taken[ix[:, 1], ix[:, 0]].any():
-            continue
-        _mark_squares(taken, pts, 2)
-        out_xy.append(pts)
-        out_s.append(np.full(len(pts), (best[0] + min(float(s0), float(params.k_sigma))) / (len(pts) + 1)))
-    return out_xy, out_s
+    # each lone dot: 4 places x 2 axes; at each of the row's other places and one spacing beyond
+    # either end the best of the three pixels across the row (a lean of a degree or two); a row
+    # with another lit dot on it or next to it (occ) is not tried, and the best passing one is
+    # kept unless it comes within 2 px of a row kept already (kernels.anchored_rows)
+    pts, s_row = kernels.anchored_rows(
+        z,
+        occ,
+        np.ascontiguousarray(xy_lit, np.float64),
+        snr.astype(np.float64),
+        lone,
+        float(step),
+        n,
+        float(params.anchor_min_snr),
+        float(params.anchor_mean_snr),
+        float(params.end_max_snr),
+        float(params.k_sigma),
+    )
+    return list(pts), [np.full(n - 1, v) for v in s_row]
 
 
 # --------------------------------------------------------------------------- heading
@@ -1004,18 +971,16 @@ def fit_heading(dots: Dots, params: HeadingParams = HeadingParams()) -> HeadingF
         )
     # the row through the brightest dot: of the lines from it to each neighbour, the one most
     # other neighbours lie on (another mark can sit within the row radius, across the row)
-    best = None
-    for j in near:
-        if j == first:
-            continue
-        d = xy[j] - xy[first]
-        d /= np.hypot(*d)
-        off = np.abs((xy[near] - xy[first]) @ np.array([-d[1], d[0]]))
-        on = near[off <= params.max_residual_m]
-        score = (len(on), s[on].sum())
-        if best is None or score > best[0]:
-            best = (score, on)
-    row = best[1]
+    rel = xy[near] - xy[first]
+    cand = near != first
+    d = rel[cand] / np.hypot(rel[cand, 0], rel[cand, 1])[:, None]  # unit directions to each neighbour
+    on = np.abs(rel @ np.array([-d[:, 1], d[:, 0]])) <= params.max_residual_m  # (near, candidates)
+    count = on.sum(axis=0)
+    total = np.where(on, s[near][:, None], 0.0).sum(axis=0)
+    # the most dots on the line, then the brightest; the first such candidate
+    top = np.flatnonzero(count == count.max())
+    pick_c = top[np.flatnonzero(total[top] == total[top].max())[0]]
+    row = near[on[:, pick_c]]
     if len(row) < params.n_dots:
         return HeadingFit(False, reason=f"no row of {params.n_dots} collinear dots at the brightest dot")
     pick = row[np.argsort(-s[row], kind="stable")[: params.n_dots]]
