@@ -668,32 +668,18 @@ def mirror_centroids(
     n = len(dots)
     if not n or params.mirror_sigma_px <= 0:
         return dots
-    h, w = image.shape[:2]
-    r = params.mirror_half_px
     g0 = dots.xy_px.astype(np.float64)
     # the dots' mirror positions, and the map's Jacobian there (central differences, +-0.5 px)
     m = _map_at(umap, (g0[:, None, :] + _JAC_STEPS[None]).reshape(-1, 2)).reshape(n, 5, 2)
     uv0 = m[:, 0]
     jx, jy = m[:, 1] - m[:, 2], m[:, 3] - m[:, 4]  # d(u, v) / d(ground x), d(u, v) / d(ground y)
     det = jx[:, 0] * jy[:, 1] - jy[:, 0] * jx[:, 1]
-    p0 = np.rint(uv0).astype(int)
-    ok = (p0.min(axis=1) > r) & (p0[:, 0] < w - 1 - r) & (p0[:, 1] < h - 1 - r) & (np.abs(det) > 1e-6)
-    p0[~ok] = r + 1
-    off = np.arange(-r - 1, r + 2)  # the square, and a pixel of room for the estimate to move
-    flat = (p0[:, 1] * w + p0[:, 0])[:, None, None] + (off[:, None] * w + off[None, :])[None]
-    patch = np.maximum(image.reshape(-1)[flat].astype(np.float32) - np.float32(background_dn), 0.0)
-    xs = off.astype(np.float32)
-    c = (uv0 - p0).astype(np.float32)  # the estimate, from the patch's centre pixel
-    k = np.float32(-0.5 / params.mirror_sigma_px**2)
-    for _ in range(params.mirror_iters):  # separable Gaussian weight, centred on the estimate
-        d = xs[None, None, :] - c[:, :, None]
-        wgt = np.exp(d * d * k)  # (n, 2, k): the weights along u and along v
-        col = (wgt[:, 1:2, :] @ patch)[:, 0, :] * wgt[:, 0]  # weighted mass per column
-        row = (patch @ wgt[:, 0, :, None])[:, :, 0] * wgt[:, 1]  # per row
-        tot = col.sum(axis=1)
-        ok &= tot > 0
-        c = np.column_stack([col @ xs, row @ xs]) / np.where(tot > 0, tot, 1.0)[:, None]
-    du, dv = (c + p0 - uv0).T
+    # the centroids (kernels.gauss_centroids: a loop per dot over its square, compiled)
+    c, ok = kernels.gauss_centroids(
+        image, uv0, float(background_dn), params.mirror_half_px, float(params.mirror_sigma_px), params.mirror_iters
+    )
+    ok &= np.abs(det) > 1e-6
+    du, dv = (c - uv0).T
     # back to the ground view: the inverse Jacobian times the shift
     det = np.where(ok, det, 1.0)
     dg = np.column_stack([jy[:, 1] * du - jy[:, 0] * dv, jx[:, 0] * dv - jx[:, 1] * du]) / det[:, None]
