@@ -14,6 +14,7 @@ back into the entry frame about the robot before they are assigned.
 from __future__ import annotations
 
 import math
+import statistics
 from dataclasses import dataclass
 
 import cv2
@@ -204,7 +205,7 @@ def mark_offset(ru: np.ndarray, orient: np.ndarray, *, inset: float = 0.125, min
             continue
         k = np.round(p)
         nom = k + np.where(p >= k, inset, -inset)
-        out.append(-float(np.median(p - nom)))
+        out.append(-statistics.median((p - nom).tolist()))  # a few dozen values: no numpy call
     if out[0] is None and out[1] is None:
         return None
     return (out[0] or 0.0, out[1] or 0.0)

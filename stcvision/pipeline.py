@@ -96,7 +96,8 @@ def display_scale(frame: np.ndarray) -> float:
 class PipelineResult:
     """Everything one frame gave, plus the intermediate images (references, not copies).
 
-    ``green`` and ``red_raw`` are the dark-subtracted mirror-image channels; ``obstacle`` and
+    ``green`` and ``red_raw`` are the dark-subtracted mirror-image channels (of the part of the
+    frame the ground view reads, ``Pipeline.crop``: about half the frame); ``obstacle`` and
     ``marks`` the ground-view images of window sums (``window_area`` pixels each: uint16 from an
     8-bit frame, float32 from a 16-bit one). Display images (8-bit window means, the colour
     dark-subtracted frame) are made on demand. ``untrusted``: why this frame's reading cannot
@@ -198,6 +199,7 @@ class Pipeline:
         vv, uu = np.mgrid[0:h:5, 0:w:5]
         inside = np.hypot(uu - profile.center_px[0], vv - profile.center_px[1]) < 0.95 * profile.rim_radius_px
         self._sample = (vv[inside] * w + uu[inside]).ravel()
+        self._sample3 = {ch: self._sample * 3 + ch for ch in (1, 2)}  # into a flat BGR frame
         self.dark = None
         self.pedestal = 0
         self.quantum = 1
@@ -209,8 +211,32 @@ class Pipeline:
             n = 160
             self._wide_profile = profile.replace(ground_size_px=n, ground_px_per_m=(n - 1) / (2 * reach))
             self.wide = UnwarpMap.from_profile(self._wide_profile)
+        # the part of the mirror image the main view reads: the mirror-image stages run on that
+        # crop only (about half the frame); the wide view reads nearly the whole mirror
+        self._crop = (0, 0, w, h) if self.wide is not None else self.umap.reach_px()
+        x0, y0, x1, y1 = self._crop
+        self._umap_crop = self.umap.cropped(x0, y0, x1, y1)
         if dark is not None:
             self.set_dark(dark)
+
+    @property
+    def crop(self) -> tuple[int, int, int, int]:
+        """(x0, y0, x1, y1): the part of the mirror image the stages read."""
+        return self._crop
+
+    def _crop_view(self, image: np.ndarray) -> np.ndarray:
+        x0, y0, x1, y1 = self._crop
+        return image[y0:y1, x0:x1]
+
+    def _sample_values(self, frame: np.ndarray, ch: int) -> np.ndarray:
+        """Channel ``ch`` of ``frame`` at the background sample, dark-subtracted as
+        :meth:`_channel` does it (saturating, pedestal, hot pixels at the pedestal)."""
+        v = frame.reshape(-1)[self._sample3[ch]]
+        if self.dark is None:
+            return v
+        out = cv2.subtract(cv2.add(v, self.pedestal), self._dark_sample[ch - 1]).reshape(-1)
+        out[self._hot_sample[ch - 1]] = self.pedestal
+        return out
 
     def set_dark(self, dark: np.ndarray) -> None:
         """Use ``dark`` (H, W, 3) uint8 or uint16 from now on: split it once, map its hot pixels
@@ -225,14 +251,26 @@ class Pipeline:
         self.dark_sigma = spread
         self.pedestal = int(max(p.pedestal_steps, math.ceil(p.pedestal_k_sigma * spread / q - 1e-9)) * q)
         self.dark = dark
-        self._dark_g = cv2.extractChannel(dark, 1)
-        self._dark_r = cv2.extractChannel(dark, 2)
+        crop = self._crop_view(dark)
+        self._dark_g = cv2.extractChannel(crop, 1)
+        self._dark_r = cv2.extractChannel(crop, 2)
         hot = hot_pixels(dark, quantum=q)
-        self._hot_g = hot[hot % 3 == 1] // 3  # flat indices into one channel
-        self._hot_r = hot[hot % 3 == 2] // 3
+        x0, y0, x1, y1 = self._crop
+        w = dark.shape[1]
+        hot_in = []
+        for ch in (1, 2):
+            px = hot[hot % 3 == ch] // 3  # flat indices into one full channel
+            yy, xx = px // w, px % w
+            keep = (xx >= x0) & (xx < x1) & (yy >= y0) & (yy < y1)
+            hot_in.append((yy[keep] - y0) * (x1 - x0) + (xx[keep] - x0))  # into the crop
+        self._hot_g, self._hot_r = hot_in
+        self._dark_sample = [dark.reshape(-1)[self._sample3[ch]] for ch in (1, 2)]
+        hot_set = set(hot.tolist())
+        self._hot_sample = [np.array([(i * 3 + ch) in hot_set for i in self._sample.tolist()], bool) for ch in (1, 2)]
 
     def _channel(self, frame: np.ndarray, ch: int) -> np.ndarray:
-        c = cv2.extractChannel(frame, ch)
+        """Channel ``ch`` of the crop of ``frame`` the view reads, dark-subtracted."""
+        c = cv2.extractChannel(self._crop_view(frame), ch)
         if self.dark is None:
             return c
         ped = self.pedestal
@@ -265,14 +303,15 @@ class Pipeline:
         t.append(clock())
         gs, rs = window_sums(g, w), window_sums(r, w)
         t.append(clock())
-        G, R = unwarp(gs, self.umap), unwarp(rs, self.umap)
+        G, R = unwarp(gs, self._umap_crop), unwarp(rs, self._umap_crop)
         t.append(clock())
         # background and noise, measured on raw pixels inside the rim, never below the
         # rounding noise of one quantisation step
-        q = self.quantum if self.dark is not None else quantum_dn(g.reshape(-1)[self._sample])
+        sg, sr = self._sample_values(frame, 1), self._sample_values(frame, 2)
+        q = self.quantum if self.dark is not None else quantum_dn(sg)
         floor = noise_floor(q)
-        bg, noise = estimate_background(g, self._sample, q)
-        bg_r, noise_r = estimate_background(r, self._sample, q)
+        bg, noise = estimate_background(sg, slice(None), q)
+        bg_r, noise_r = estimate_background(sr, slice(None), q)
         noise, noise_r = max(noise, floor), max(noise_r, floor)
         # a red light's level: above the pedestal by the dark frame's spread (a fixed rule per
         # dark frame), or without one above the frame's own red background by its noise

@@ -195,6 +195,24 @@ class UnwarpMap:
         f1, f2 = cv2.convertMaps(mx, my, cv2.CV_16SC2)
         return cls(mx, my, ok.reshape(n, n), tuple(profile.image_size_px), f1, f2)
 
+    def reach_px(self, margin: int = 2) -> tuple[int, int, int, int]:
+        """(x0, y0, x1, y1): the part of the mirror image the map reads, with ``margin`` pixels
+        more on every side (a window sum there sees only pixels inside), clipped to the image."""
+        w, h = self.image_size_px
+        mx, my = self.map_x[self.valid], self.map_y[self.valid]
+        if not len(mx):
+            return 0, 0, w, h
+        x0, y0 = max(int(np.floor(mx.min())) - margin, 0), max(int(np.floor(my.min())) - margin, 0)
+        x1, y1 = min(int(np.floor(mx.max())) + 2 + margin, w), min(int(np.floor(my.max())) + 2 + margin, h)
+        return x0, y0, x1, y1
+
+    def cropped(self, x0: int, y0: int, x1: int, y1: int) -> UnwarpMap:
+        """The same map reading the crop ``image[y0:y1, x0:x1]`` (shifting a map by whole pixels
+        is exact in float32)."""
+        mx, my = self.map_x - np.float32(x0), self.map_y - np.float32(y0)
+        f1, f2 = cv2.convertMaps(mx, my, cv2.CV_16SC2)
+        return UnwarpMap(mx, my, self.valid, (x1 - x0, y1 - y0), f1, f2)
+
 
 def unwarp(image: np.ndarray, umap: UnwarpMap) -> np.ndarray:
     """Ground view (top-down, robot-centred, forward up) of a mirror image: one ``cv2.remap``.
@@ -315,7 +333,11 @@ def separate_channels(
     red = cv2.bitwise_and(cv2.compare(r, float(thr * window_area), cv2.CMP_GT), dominated)
     obstacle = cv2.bitwise_and(r, r, mask=red)
     if leak_threshold is not None:
-        red = cv2.bitwise_or(red, cv2.bitwise_and(cv2.compare(r, float(leak_threshold), cv2.CMP_GT), dominated))
+        leak = cv2.bitwise_and(cv2.compare(r, float(leak_threshold), cv2.CMP_GT), dominated)
+        # a leak level at or below the light's own holds every light pixel already
+        red = leak if leak_threshold <= thr * window_area else cv2.bitwise_or(red, leak)
+    if not cv2.countNonZero(red):
+        return obstacle, g  # nothing to black out (the marks image is the green one)
     if params.red_margin_px > 0:
         k = 2 * params.red_margin_px + 1
         red = cv2.dilate(red, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (k, k)))
@@ -774,7 +796,7 @@ def find_rows(
     # just below the black-out level, runs along the light as a column of faint "dots"
     dark = cv2.compare(marks, 0, cv2.CMP_EQ)
     ring = 2 * b + 1
-    cv2.bitwise_or(occ, cv2.dilate(dark, np.ones((ring, ring), np.uint8)) // 255, dst=occ)
+    cv2.max(occ, cv2.dilate(dark, np.ones((ring, ring), np.uint8)), dst=occ)  # occ: 0 free, else taken
     h, w = z.shape
     n = params.n_dots
     step = params.spacing_m * px_per_m
@@ -786,34 +808,9 @@ def find_rows(
     if 2 * e >= min(h, w):
         return dots
     new_xy, new_s = _anchored_rows(z, occ, dots, step, n, params) if params.anchored else ([], [])
-    np.copyto(z, np.float32(-1e3), where=occ.view(bool))
-    thr = np.float32(params.k_sigma * math.sqrt(n))
-    xs_l, ys_l, st_l, ax_l = [], [], [], []
-    for axis in (0, 1):  # 0: rows along x (top/bottom edges), 1: along y (left/right edges)
-        # the row sum: one small correlation (OpenCV), then every other test only where it passes
-        k = np.zeros((1, 2 * m + 1), np.float32)
-        k[0, offs + m] = 1.0
-        total = cv2.filter2D(z, -1, k.T if axis else k, borderType=cv2.BORDER_CONSTANT)
-        total[:e], total[-e:], total[:, :e], total[:, -e:] = 0, 0, 0, 0
-        hits = cv2.findNonZero(cv2.compare(total, float(thr), cv2.CMP_GE))
-        if hits is None:
-            continue
-        hits = hits.reshape(-1, 2)
-        xs, ys = hits[:, 0], hits[:, 1]
-        pos = [(ys + o, xs) if axis else (ys, xs + o) for o in offs]
-        vals = np.stack([z[p] for p in pos])
-        low = vals.min(axis=0)
-        ok = (low >= params.min_dot_snr) & (low >= vals.mean(axis=0) - params.spread_snr)
-        for o in ends:
-            p = (ys + o, xs) if axis else (ys, xs + o)
-            ok &= (z[p] < params.end_max_snr) & (occ[p] == 0)
-        xs_l.append(xs[ok])
-        ys_l.append(ys[ok])
-        st_l.append(total[ys[ok], xs[ok]] / np.float32(math.sqrt(n)))
-        ax_l.append(np.full(int(ok.sum()), axis))
-    if not xs_l and not new_xy:
+    xs, ys, st, ax = _free_rows(z, occ, offs, ends, e, params)
+    if not len(xs) and not new_xy:
         return dots
-    xs, ys, st, ax = (np.concatenate(v) if v else np.zeros(0, int) for v in (xs_l, ys_l, st_l, ax_l))
     order = np.argsort(-st, kind="stable")
     # a row may not share a dot with one already accepted (within b along both axes): the
     # accepted rows' dots, each grown to its (2b+1)^2 square, as an image looked up per row
@@ -856,6 +853,49 @@ def find_rows(
         np.concatenate([from_row, np.ones(len(xy), bool)]),
         untrusted=dots.untrusted,
     )
+
+
+def _free_rows(z: np.ndarray, occ: np.ndarray, offs: np.ndarray, ends: np.ndarray, e: int, params: RowParams):
+    """Free-row candidates of :func:`find_rows`: (x, y, row SNR, axis) where the row sum of the
+    SNRs ``z`` at ``offs`` along either axis reaches ``k_sigma * sqrt(n)``, every dot is at least
+    ``min_dot_snr`` and within ``spread_snr`` of the row's mean, and the floor at ``ends`` is
+    free (``occ`` 0) and below ``end_max_snr``; no dot on a taken pixel. Axis 0 (rows along x)
+    first, each in row-major order.
+
+    Those tests together need every dot of the row at or above ``max(min_dot_snr, mean -
+    spread_snr)`` with the mean at least ``k_sigma / sqrt(n)``: one comparison and three ANDs
+    of shifted masks find the few pixels (~1 % in noise) where that holds, and only there are
+    the row sums and the rest computed."""
+    n = len(offs)
+    h, w = z.shape
+    thr = np.float32(params.k_sigma * math.sqrt(n))
+    gate = max(params.min_dot_snr, params.k_sigma / math.sqrt(n) - params.spread_snr) - 1e-3
+    ok_px = cv2.bitwise_and(cv2.compare(z, gate, cv2.CMP_GE), cv2.compare(occ, 0, cv2.CMP_EQ))
+    out = []
+    for axis in (0, 1):  # 0: rows along x (top/bottom edges), 1: along y (left/right edges)
+
+        def shifted(img, o, axis=axis):
+            return img[e + o : h - e + o, e : w - e] if axis else img[e : h - e, e + o : w - e + o]
+
+        cand = shifted(ok_px, offs[0]).copy()
+        for o in offs[1:]:
+            cv2.bitwise_and(cand, shifted(ok_px, o), dst=cand)
+        pts = cv2.findNonZero(cand)
+        if pts is None:
+            continue
+        pts = pts.reshape(-1, 2)
+        xs, ys = pts[:, 0] + e, pts[:, 1] + e
+        vals = np.stack([z[ys + o, xs] if axis else z[ys, xs + o] for o in offs])
+        total = vals.sum(axis=0)  # float32, dot by dot: the order of the full-image filter
+        low = vals.min(axis=0)
+        ok = (total >= thr) & (low >= params.min_dot_snr) & (low >= vals.mean(axis=0) - params.spread_snr)
+        for o in ends:
+            p = (ys + o, xs) if axis else (ys, xs + o)
+            ok &= (z[p] < params.end_max_snr) & (occ[p] == 0)
+        out.append((xs[ok], ys[ok], total[ok] / np.float32(math.sqrt(n)), np.full(int(ok.sum()), axis)))
+    if not out:
+        return (np.zeros(0, np.int64),) * 2 + (np.zeros(0, np.float32), np.zeros(0, np.int64))
+    return tuple(np.concatenate(v) for v in zip(*out, strict=True))
 
 
 def _anchored_rows(z, occ, dots: Dots, step: float, n: int, params: RowParams):
