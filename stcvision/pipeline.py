@@ -330,8 +330,8 @@ class Pipeline:
             ground_to_robot=self.profile.ground_to_robot,
             quantum=q,
         )
-        dots = mirror_centroids(
-            dots, g, background_dn=bg, umap=self.umap, ground_to_robot=self.profile.ground_to_robot, params=p.dots
+        dots = mirror_centroids(  # g is the crop the view reads: its own map
+            dots, g, background_dn=bg, umap=self._umap_crop, ground_to_robot=self.profile.ground_to_robot, params=p.dots
         )
         t.append(clock())
         all_dots = find_rows(
