@@ -102,16 +102,17 @@ def _ages_recipe(n_frames: int):
     return parse_recipe(raw, where=str(path))
 
 
-def _labelled(args) -> dict:
-    """Pipeline and baseline on the labelled set (:func:`stcvision.versus.compare_detectors`)."""
+def _labelled(args, ds=None) -> dict:
+    """Pipeline and baseline on the labelled set (:func:`stcvision.versus.compare_detectors`):
+    the dataset ``ds`` if given, else frames rendered from the ages recipe."""
     import tempfile
 
     from calibration.profiles import default_profile
     from stcvision.datasets import open_dataset
     from stcvision.versus import compare_detectors
 
-    if args.labelled:
-        out = compare_detectors(open_dataset(args.labelled), default_profile=default_profile())
+    if ds is not None:
+        out = compare_detectors(ds, default_profile=default_profile())
         out["source"] = args.labelled
         return out
     from stcvision.cli.dataset_generate import generate
@@ -205,6 +206,11 @@ def run(args):
         raise BadInputError(f"--labelled-frames must be >= 0, got {args.labelled_frames}")
     if args.labelled_seed < 0:
         raise BadInputError(f"--labelled-seed must be >= 0, got {args.labelled_seed}")
+    labelled = None
+    if args.labelled:  # a bad folder is refused before the minutes of timing, not after
+        from stcvision.datasets import open_dataset
+
+        labelled = open_dataset(args.labelled)
     cv2.setNumThreads(1)
     board, layer, pose = benchmark_scene(args.seed)
     cam = SyntheticCamera()
@@ -231,7 +237,7 @@ def run(args):
     result.update(bench_pipeline(cam, board, layer, pose, frames=args.frames, rng=rng, profile=profile))
     result.update(_bench_baseline(cam, board, layer, pose, frames=args.frames, seed=args.seed, profile=profile))
     if args.labelled or args.labelled_frames:
-        result["labelled"] = _labelled(args)
+        result["labelled"] = _labelled(args, labelled)
     return result
 
 
