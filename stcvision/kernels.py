@@ -201,6 +201,82 @@ def assign_boxes(ru, orient, sub_of_quadrant, box_of, neighbours):
 
 
 @numba.njit(cache=True)
+def crowded(xy, near):
+    """Per point: another point within ``near`` (all pairs: for the few hundred lit dots a frame
+    holds at most, ``DotParams.max_dots``; :func:`stcvision.stages._anchored_rows` uses a k-d
+    tree beyond that)."""
+    n = len(xy)
+    out = np.zeros(n, np.bool_)
+    lim = near * near
+    for i in range(n):
+        for j in range(i + 1, n):
+            dx = xy[i, 0] - xy[j, 0]
+            dy = xy[i, 1] - xy[j, 1]
+            if dx**2 + dy**2 <= lim:
+                out[i] = True
+                out[j] = True
+    return out
+
+
+@numba.njit(cache=True)
+def histogram_quartiles(v, lo, quantum, nbins):
+    """Quartiles of integer values ``v`` (``lo`` + whole steps of ``quantum``), each value
+    spread uniformly over its step (:func:`stcvision.stages.estimate_background`): ``np.interp``
+    of (0.25, 0.5, 0.75) on the cumulative histogram, step by step as numpy computes it."""
+    hist = np.zeros(nbins, np.float64)
+    for x in v:
+        hist[(np.int64(x) - lo) // quantum] += 1.0
+    cdf = np.empty(nbins + 1)
+    cdf[0] = 0.0
+    acc = 0.0
+    for i in range(nbins):
+        acc += hist[i]
+        cdf[i + 1] = acc
+    total = cdf[nbins]
+    # the strictly increasing points (the first, then each bin that holds values)
+    xp = np.empty(nbins + 1)
+    fp = np.empty(nbins + 1)
+    m = 0
+    for i in range(nbins + 1):
+        c = cdf[i] / total
+        if i == 0 or c > cdf[i - 1] / total:
+            xp[m] = c
+            fp[m] = lo + (i - 0.5) * quantum
+            m += 1
+    out = np.empty(3)
+    for k, q in enumerate((0.25, 0.5, 0.75)):
+        j = 0
+        while j + 1 < m and xp[j + 1] <= q:
+            j += 1
+        if j == m - 1 or xp[j] == q:
+            out[k] = fp[j]
+        else:
+            slope = (fp[j + 1] - fp[j]) / (xp[j + 1] - xp[j])
+            out[k] = slope * (q - xp[j]) + fp[j]
+    return out
+
+
+@numba.njit(cache=True)
+def group_stats(code, n, lit, value):
+    """Per code 0..n-1: lit dots with it, and the largest ``value`` of any dot with it (0.0
+    where none has it) (:func:`stcvision.observation._group_stats`)."""
+    counts = np.zeros(n, np.int64)
+    best = np.full(n, -np.inf)
+    seen = np.zeros(n, np.bool_)
+    for i in range(len(code)):
+        c = code[i]
+        seen[c] = True
+        if lit[i]:
+            counts[c] += 1
+        if value[i] > best[c]:
+            best[c] = value[i]
+    for c in range(n):
+        if not seen[c]:
+            best[c] = 0.0
+    return counts, best
+
+
+@numba.njit(cache=True)
 def gauss_centroids(image, uv, background, half, sigma, iters):
     """Iterated Gaussian-weighted centroids (:func:`stcvision.stages.mirror_centroids`): around
     each (u, v) of ``uv`` ((n, 2) float), over the square of half-side ``half + 1`` about its

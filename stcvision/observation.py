@@ -266,13 +266,7 @@ def _row_angles(band: list[tuple[float, float]], along: int) -> list[float]:
 def _group_stats(code: np.ndarray, n: int, lit: np.ndarray, value: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """For codes 0..n-1 (one per dot): how many of the lit dots have each code, and the largest
     ``value`` among all dots of each code (0.0 where none has it)."""
-    if not len(code):
-        return np.zeros(n, int), np.zeros(n)
-    counts = np.bincount(code[lit], minlength=n)
-    best = np.full(n, -np.inf)
-    np.maximum.at(best, code, value)
-    best[np.bincount(code, minlength=n) == 0] = 0.0
-    return counts, best
+    return kernels.group_stats(np.asarray(code, np.int64), n, np.asarray(lit, np.bool_), np.asarray(value, float))
 
 
 def _confidence(value: float, threshold: float, noise: float) -> float:

@@ -479,16 +479,12 @@ def estimate_background(image: np.ndarray, sample: np.ndarray | None = None, qua
     """
     v = image.reshape(-1)[sample] if sample is not None else image.reshape(-1)[::7]
     if image.dtype == np.uint8 and quantum == 1:
-        lo, hist = 0, np.bincount(v, minlength=256)
+        lo, nbins = 0, 256
     else:  # a histogram of the occupied range only (16-bit data spans few of its 65,536 values)
         lo = int(v.min())
-        hist = np.bincount((v.astype(np.int64) - lo) // quantum)
-    hist = hist.astype(np.float64)
-    cdf = np.concatenate([[0.0], np.cumsum(hist)])
-    cdf /= cdf[-1]
-    edges = lo + (np.arange(len(hist) + 1) - 0.5) * quantum
-    keep = np.concatenate([[True], np.diff(cdf) > 0])  # strictly increasing for inversion
-    q1, med, q3 = np.interp([0.25, 0.5, 0.75], cdf[keep], edges[keep])
+        nbins = (int(v.max()) - lo) // quantum + 1
+    # cumulative histogram, its strictly increasing points inverted at the quartiles (compiled)
+    q1, med, q3 = kernels.histogram_quartiles(np.ascontiguousarray(v), lo, int(quantum), nbins)
     return float(med), float((q3 - q1) / 1.349)
 
 
@@ -871,20 +867,26 @@ def _free_rows(z: np.ndarray, occ: np.ndarray, offs: np.ndarray, ends: np.ndarra
     thr = np.float32(params.k_sigma * math.sqrt(n))
     gate = max(params.min_dot_snr, params.k_sigma / math.sqrt(n) - params.spread_snr) - 1e-3
     ok_px = cv2.bitwise_and(cv2.compare(z, gate, cv2.CMP_GE), cv2.compare(occ, 0, cv2.CMP_EQ))
+    # per interior pixel: bit 1 where all dots of the row along x pass, bit 2 along y; one scan
+    # for the few pixels where either does
+    both = np.zeros((h - 2 * e, w - 2 * e), np.uint8)
+    for axis in (0, 1):
+        cand = None
+        for o in offs:
+            sl = ok_px[e + o : h - e + o, e : w - e] if axis else ok_px[e : h - e, e + o : w - e + o]
+            cand = sl.copy() if cand is None else cv2.bitwise_and(cand, sl, dst=cand)
+        cv2.bitwise_or(both, cv2.bitwise_and(cand, 1 << axis), dst=both)
+    pts = cv2.findNonZero(both)
+    if pts is None:
+        return (np.zeros(0, np.int64),) * 2 + (np.zeros(0, np.float32), np.zeros(0, np.int64))
+    pts = pts.reshape(-1, 2)
+    bits = both[pts[:, 1], pts[:, 0]]
     out = []
     for axis in (0, 1):  # 0: rows along x (top/bottom edges), 1: along y (left/right edges)
-
-        def shifted(img, o, axis=axis):
-            return img[e + o : h - e + o, e : w - e] if axis else img[e : h - e, e + o : w - e + o]
-
-        cand = shifted(ok_px, offs[0]).copy()
-        for o in offs[1:]:
-            cv2.bitwise_and(cand, shifted(ok_px, o), dst=cand)
-        pts = cv2.findNonZero(cand)
-        if pts is None:
+        sel = pts[(bits & (1 << axis)) > 0]  # row-major, as the scan found them
+        if not len(sel):
             continue
-        pts = pts.reshape(-1, 2)
-        xs, ys = pts[:, 0] + e, pts[:, 1] + e
+        xs, ys = sel[:, 0] + e, sel[:, 1] + e
         vals = np.stack([z[ys + o, xs] if axis else z[ys, xs + o] for o in offs])
         total = vals.sum(axis=0)  # float32, dot by dot: the order of the full-image filter
         low = vals.min(axis=0)
@@ -913,10 +915,14 @@ def _anchored_rows(z, occ, dots: Dots, step: float, n: int, params: RowParams):
         return out_xy, out_s
     # lone dots only: no other lit dot within 1.5 spacings (else it is a dot of a row found
     # already, which reads as a mark with one lit neighbour)
-    pairs = cKDTree(xy_lit).query_pairs(near * (1 + 1e-9), output_type="ndarray")
-    d2 = ((xy_lit[pairs[:, 0]] - xy_lit[pairs[:, 1]]) ** 2).sum(axis=1)
-    crowded = np.zeros(len(xy_lit), bool)
-    crowded[pairs[d2 <= near * near].reshape(-1)] = True
+    xy_lit = np.ascontiguousarray(xy_lit, np.float64)
+    if len(xy_lit) <= 256:
+        crowded = kernels.crowded(xy_lit, near)
+    else:  # more dots than a frame is read for: neighbours by a k-d tree, not all pairs
+        pairs = cKDTree(xy_lit).query_pairs(near * (1 + 1e-9), output_type="ndarray")
+        d2 = ((xy_lit[pairs[:, 0]] - xy_lit[pairs[:, 1]]) ** 2).sum(axis=1)
+        crowded = np.zeros(len(xy_lit), bool)
+        crowded[pairs[d2 <= near * near].reshape(-1)] = True
     lone = (
         ~crowded
         & (snr <= params.anchor_max_snr)
