@@ -289,8 +289,9 @@ class LabelledFrames:
     def read(self, indices, skipped: list, on_frame=None):
         """Yield ``(index, label, image)`` of the frames ``indices`` (label order); a frame that
         cannot be decoded is appended to ``skipped`` as ``{"frame", "reason"}``; a frame of the
-        wrong size is an error. ``on_frame(1)`` is called after each frame (progress)."""
-        from stcvision.fileio import read_image
+        wrong size, or of another depth than its dark frame, is an error. ``on_frame(1)`` is called
+        after each frame (progress)."""
+        from stcvision.fileio import check_same_depth, read_image
 
         w, h = self.ds.image_size_px
         bar = on_frame or (lambda n=1: None)
@@ -307,6 +308,8 @@ class LabelledFrames:
                 raise BadInputError(
                     f"frame {path} is {img.shape[1]}x{img.shape[0]}; expected {w}x{h} (the dataset's camera)"
                 )
+            if lab.get("dark") is not None:
+                check_same_depth(img, self.dark_for(lab["dark"]), self.ds.root / lab["dark"], frame_path=path)
             yield i, lab, img
             bar(1)
 
@@ -478,9 +481,10 @@ def log_worst(ev: Evaluation, ds, rrd_path, *, default_profile, profile=None, n:
     return logged
 
 
-def evaluate_images(paths: list[Path], *, profile, dark, progress=None):
-    """Run the pipeline on the user's own frames; yields (path, result or None, skip reason)."""
-    from stcvision.fileio import read_image
+def evaluate_images(paths: list[Path], *, profile, dark, dark_path=None, progress=None):
+    """Run the pipeline on the user's own frames; yields (path, result or None, skip reason).
+    A frame of another depth than ``dark`` (read from ``dark_path``) is refused."""
+    from stcvision.fileio import check_same_depth, read_image
     from stcvision.pipeline import Pipeline
 
     pipe = Pipeline(profile, dark=dark)
@@ -495,6 +499,8 @@ def evaluate_images(paths: list[Path], *, profile, dark, progress=None):
                 yield p, None, str(exc), pipe
                 continue
             profile.check_frame(img.shape)
+            if dark is not None:
+                check_same_depth(img, dark, dark_path, frame_path=p)
             res = pipe.process(img)
             bar(1)
             yield p, res, None, pipe

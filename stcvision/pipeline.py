@@ -81,6 +81,13 @@ class PipelineParams:
     observation: ObservationParams = field(default_factory=ObservationParams)
     #: rotate the cell regions by the measured heading error before reading the boxes
     use_heading: bool = True
+    #: a "red" blob whose blue is at least this fraction of its red (dark-subtracted, 9x9 px
+    #: around it in the camera frame) is white light, not a red LED: not an obstacle light nor a
+    #: landmark. None: off. Measured on the webcam's short frame (1/30 s, gain 16): a red light
+    #: 0.12-1.0 m away reads 0.84-0.13 (its blue is 2 % of its red, but it saturates), a white
+    #: lamp 0.99-1.0 at every distance. In long frames every red light saturates white: use it
+    #: on short frames only.
+    white_blue_ratio: float | None = None
 
 
 def display_scale(frame: np.ndarray) -> float:
@@ -204,6 +211,9 @@ class Pipeline:
         self.pedestal = 0
         self.quantum = 1
         self.dark_sigma = 0.0
+        #: the white lights (not red: :attr:`PipelineParams.white_blue_ratio`) of the last frame,
+        #: robot frame (m)
+        self.white_lights_m = np.zeros((0, 2))
         # the wide, coarse ground view for far red-light landmarks (pose estimates only)
         self.wide = None
         if self.params.observation.pose_estimates and self.params.observation.landmark_range_m > 0:
@@ -349,10 +359,15 @@ class Pipeline:
         )
         t.append(clock())
         red = find_red(obstacle, p.red, window_area=area)
+        if p.white_blue_ratio is not None:
+            xy_m = self.profile.ground_to_robot(red.xy_px) if len(red) else np.zeros((0, 2))
+            white = self._white(frame, xy_m)
+            self.white_lights_m = xy_m[white]  # robot frame (m): for the caller's checks
+            red = RedLights(red.xy_px[~white], red.peak_dn[~white], red.area_px[~white])
         t.append(clock())
         heading = fit_heading(dots, p.heading)
         t.append(clock())
-        landmark_px = self._far_lights(gs, rs, r, leak, red_levels) if self.wide is not None else None
+        landmark_px = self._far_lights(gs, rs, r, leak, red_levels, frame) if self.wide is not None else None
         herr = heading.heading_error_rad if (heading.ok and p.use_heading) else 0.0
         if heading_error_rad is not None:
             herr = float(heading_error_rad)
@@ -373,8 +388,31 @@ class Pipeline:
             frame, self.dark, self.pedestal, g, r, obstacle, marks, all_dots, red, heading, obs, stage_ms, area
         )
 
+    def _white(self, frame: np.ndarray, xy_m: np.ndarray, *, half: int = 4) -> np.ndarray:
+        """Per light at robot-frame ``xy_m``: white (:attr:`PipelineParams.white_blue_ratio`)."""
+        uv = self.profile.robot_to_image(xy_m)
+        h, w = frame.shape[:2]
+        out = np.zeros(len(uv), bool)
+        for i, (u, v) in enumerate(uv):
+            if not (np.isfinite(u) and np.isfinite(v)):
+                continue
+            u0, v0 = int(round(u)), int(round(v))
+            sl = (slice(max(v0 - half, 0), min(v0 + half + 1, h)), slice(max(u0 - half, 0), min(u0 + half + 1, w)))
+            patch = frame[sl].astype(np.float32)
+            if self.dark is not None:
+                patch -= self.dark[sl]
+            b, r = float(patch[..., 0].sum()), float(patch[..., 2].sum())
+            out[i] = r > 0 and b >= self.params.white_blue_ratio * r
+        return out
+
     def _far_lights(
-        self, gs: np.ndarray, rs: np.ndarray, red: np.ndarray, leak: float, red_levels: tuple[float, float]
+        self,
+        gs: np.ndarray,
+        rs: np.ndarray,
+        red: np.ndarray,
+        leak: float,
+        red_levels: tuple[float, float],
+        frame: np.ndarray,
     ) -> np.ndarray:
         """Red lights out to ``landmark_range_m`` for the landmark fit, as ground-view pixels of
         the main view (beyond its edges too): found in the wide, coarse view of the window sums
@@ -394,6 +432,8 @@ class Pipeline:
         )
         far = find_red(obst, p.red, window_area=area)
         xy_m = self._refine_lights(red, self._wide_profile.ground_to_robot(far.xy_px)) if len(far) else np.zeros((0, 2))
+        if p.white_blue_ratio is not None and len(xy_m):
+            xy_m = xy_m[~self._white(frame, xy_m)]
         return self.profile.robot_to_ground(xy_m)
 
     def _refine_lights(self, red: np.ndarray, xy_m: np.ndarray, *, half: int = 6) -> np.ndarray:
