@@ -9,10 +9,12 @@ compared). The stages document what the loops mean; here is only how.
 
 from __future__ import annotations
 
+import math
+
 import numba
 import numpy as np
 
-__all__ = ["anchored_rows", "accept_rows", "black_out", "fill_squares"]
+__all__ = ["anchored_rows", "accept_rows", "black_out", "fill_squares", "gauss_centroids"]
 
 
 @numba.njit(cache=True)
@@ -272,3 +274,49 @@ def group_stats(code, n, lit, value):
         if not seen[c]:
             best[c] = 0.0
     return counts, best
+
+
+@numba.njit(cache=True)
+def gauss_centroids(image, uv, background, half, sigma, iters):
+    """Iterated Gaussian-weighted centroids (:func:`stcvision.stages.mirror_centroids`): around
+    each (u, v) of ``uv`` ((n, 2) float), over the square of half-side ``half + 1`` about its
+    nearest pixel, the centroid of ``max(image - background, 0)`` weighted by a Gaussian of
+    ``sigma`` centred on the current estimate, ``iters`` times. Returns the centroids ((n, 2))
+    and whether each could be measured (square inside the image, some signal)."""
+    h, w = image.shape
+    n = len(uv)
+    out = uv.copy()
+    ok = np.zeros(n, np.bool_)
+    r = half + 1
+    k = -0.5 / (sigma * sigma)
+    wx = np.empty(2 * r + 1)
+    for i in range(n):
+        u0, v0 = int(np.rint(uv[i, 0])), int(np.rint(uv[i, 1]))
+        if u0 < r or v0 < r or u0 >= w - r or v0 >= h - r:
+            continue
+        cu, cv = uv[i, 0], uv[i, 1]
+        good = True
+        for _ in range(iters):
+            for a in range(2 * r + 1):
+                wx[a] = math.exp(k * (u0 - r + a - cu) ** 2)
+            s = 0.0
+            su = 0.0
+            sv = 0.0
+            for y in range(v0 - r, v0 + r + 1):
+                wy = math.exp(k * (y - cv) ** 2)
+                for a in range(2 * r + 1):
+                    val = image[y, u0 - r + a] - background
+                    if val > 0:
+                        wgt = val * wy * wx[a]
+                        s += wgt
+                        su += wgt * (u0 - r + a)
+                        sv += wgt * y
+            if s <= 0:
+                good = False
+                break
+            cu, cv = su / s, sv / s
+        if good:
+            out[i, 0] = cu
+            out[i, 1] = cv
+            ok[i] = True
+    return out, ok

@@ -6,7 +6,7 @@ Stages (``stcvision.stages``), in the order they run::
     window    sums over the dot-sized square, in the mirror image (filter once)
     unwarp    phi/theta remap of the window sums to the ground view (one cv2.remap)
     channels  red-light mask: obstacle and marks images
-    dots      window-mean dot search with black-out
+    dots      window-mean dot search with black-out; centroids on the mirror image
     red       red-light blobs
     heading   line fit through the newest mark row
     observe   five boxes, visited sub-cells, four neighbours
@@ -44,6 +44,7 @@ from stcvision.stages import (
     find_rows,
     fit_heading,
     hot_pixels,
+    mirror_centroids,
     noise_floor,
     noise_gain,
     quantum_dn,
@@ -338,6 +339,9 @@ class Pipeline:
             noise_dn=noise,
             ground_to_robot=self.profile.ground_to_robot,
             quantum=q,
+        )
+        dots = mirror_centroids(  # g is the crop the view reads: its own map
+            dots, g, background_dn=bg, umap=self._umap_crop, ground_to_robot=self.profile.ground_to_robot, params=p.dots
         )
         t.append(clock())
         all_dots = find_rows(
