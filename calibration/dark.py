@@ -56,14 +56,19 @@ def dark_frame_problem(img: np.ndarray) -> str | None:
 def median_dark(frames: list[np.ndarray], names: list[str]) -> np.ndarray:
     """The per-pixel median of dark ``frames`` (one size and depth; ``names`` for the messages),
     each checked with :func:`dark_frame_problem`; the result keeps the frames' depth."""
+    from stcvision.fileio import check_same_depth
+
     first = frames[0]
     for img, name in zip(frames, names, strict=True):
-        if img.shape != first.shape or img.dtype != first.dtype:
+        if img.shape != first.shape:
             raise BadInputError(
-                f"dark frame {name} is {img.shape[1]}x{img.shape[0]} {8 * img.itemsize}-bit, the first is "
-                f"{first.shape[1]}x{first.shape[0]} {8 * first.itemsize}-bit; expected one size and depth"
+                f"dark frame {name} is {img.shape[1]}x{img.shape[0]}, the first is "
+                f"{first.shape[1]}x{first.shape[0]}; expected one size"
             )
+        check_same_depth(first, img, name, frame_path=names[0])
         why = dark_frame_problem(img)
         if why:
-            raise BadInputError(f"{name} is not a dark frame: {why}; expected a frame with the lens capped or the room dark")
+            raise BadInputError(
+                f"{name} is not a dark frame: {why}; expected a frame with the lens capped or the room dark"
+            )
     return np.median(np.stack(frames), axis=0).round().astype(first.dtype)

@@ -82,7 +82,10 @@ def _check_real_rim(pts, c, r, coverage: float, residual_px: float, tol_px: floa
     # is busy just inside it, the housing quiet outside; a tilted mirror may swap them)
     why = None
     if coverage < MIN_COVERAGE:
-        why = f"the best circle has edges along only {100 * coverage:.0f} % of it (expected >= {100 * MIN_COVERAGE:.0f} %)"
+        why = (
+            f"the best circle has edges along only {100 * coverage:.0f} % of it "
+            f"(expected >= {100 * MIN_COVERAGE:.0f} %)"
+        )
     elif residual_px > MAX_RESIDUAL_FRAC * tol_px:
         why = f"its edge points scatter by {residual_px:.2f} px RMS (expected <= {MAX_RESIDUAL_FRAC * tol_px:.2f} px)"
     elif contrast < MIN_EDGE_CONTRAST:

@@ -29,6 +29,7 @@ from __future__ import annotations
 
 from dataclasses import asdict, dataclass, replace
 
+import numba
 import numpy as np
 
 from stcvision.errors import BadInputError
@@ -364,24 +365,170 @@ def rim_points_px(p: MirrorCameraParams, n: int = 360) -> np.ndarray:
     return np.column_stack([p.focal_px * xd + cx, p.focal_px * yd + cy])
 
 
-def _trace_uv(p: MirrorCameraParams, u, v):
-    """Floor point (robot frame) and ground flag of continuous pixel positions ``(u, v)``."""
-    cx, cy = p.principal_px
-    xn, yn = _undistort((np.asarray(u, float) - cx) / p.focal_px, (np.asarray(v, float) - cy) / p.focal_px, p)
-    x, y, z = _cam_to_robot(xn, yn, np.ones_like(xn))
-    d = np.stack([x, y, z], -1)
-    d /= np.linalg.norm(d, axis=-1, keepdims=True)
-    floor, ground, _, _ = _trace_dirs(d, p, mask=False)
-    return floor, ground
+def _trace_constants(p: MirrorCameraParams) -> np.ndarray:
+    """The scalars :func:`_trace_uv_nb` needs, in its order (see there)."""
+    centre, axis, cos_cap = mirror_geometry(p)
+    oc = np.array([0.0, 0.0, p.camera_height_m]) - centre
+    c = oc @ oc - p.mirror_radius_m**2
+    return np.array(
+        [
+            *p.principal_px,
+            p.focal_px,
+            p.k1,
+            p.k2,
+            p.camera_height_m,
+            *centre,
+            *axis,
+            cos_cap,
+            p.mirror_radius_m,
+            c,
+            p.housing_radius_m,
+            p.body_height_m,
+            p.body_radius_m,
+        ]
+    )
+
+
+@numba.njit(cache=True, nogil=True)
+def _trace_uv_nb(u, v, k):
+    """Floor point (robot frame; NaN if the ray does not go down) and ground flag of one
+    continuous pixel position: the pixel trace of :func:`trace_pixels` (undistort, pinhole ray,
+    sphere, reflection, floor, robot body) for a single ray. ``k``: :func:`_trace_constants`."""
+    cx, cy, f, k1, k2, h = k[0], k[1], k[2], k[3], k[4], k[5]
+    c0, c1, c2, a0, a1, a2 = k[6], k[7], k[8], k[9], k[10], k[11]
+    cos_cap, R, c = k[12], k[13], k[14]
+    xd, yd = (u - cx) / f, (v - cy) / f
+    xn, yn = xd, yd
+    if k1 != 0.0 or k2 != 0.0:  # the radial model inverted by fixed-point iteration
+        for _ in range(50):
+            r2 = xn * xn + yn * yn
+            inv_s = 1.0 / (1.0 + k1 * r2 + k2 * r2 * r2)
+            xn_new, yn_new = xd * inv_s, yd * inv_s
+            done = abs(xn_new - xn) + abs(yn_new - yn) < 1e-13
+            xn, yn = xn_new, yn_new
+            if done:
+                break
+    x, y = -yn, xn  # camera frame -> robot frame, z = 1
+    dz = 1.0 / np.sqrt(x * x + y * y + 1.0)
+    dx, dy = x * dz, y * dz
+    b = dx * (0.0 - c0) + dy * (0.0 - c1) + dz * (h - c2)
+    disc = b * b - c
+    t = -b - np.sqrt(max(disc, 0.0))
+    hx, hy, hz = t * dx, t * dy, h + t * dz
+    inv_r = 1.0 / R
+    nx, ny, nz = (hx - c0) * inv_r, (hy - c1) * inv_r, (hz - c2) * inv_r
+    in_cap = disc > 0 and t > 0 and (nx * -a0 + ny * -a1 + nz * -a2) >= cos_cap
+    dn = dx * nx + dy * ny + dz * nz
+    rx, ry, rz = dx - 2.0 * dn * nx, dy - 2.0 * dn * ny, dz - 2.0 * dn * nz
+    if not rz < -1e-9:
+        return np.nan, np.nan, False
+    inv_rz = 1.0 / rz
+    s = -hz * inv_rz
+    fx, fy = hx + s * rx, hy + s * ry
+    if not in_cap:
+        return fx, fy, False
+    for z_top, radius in ((h, k[15]), (k[16], k[17])):  # camera housing, robot body top
+        s = (z_top - hz) * inv_rz
+        qx, qy = hx + s * rx, hy + s * ry
+        if s > 0 and qx * qx + qy * qy <= radius * radius:
+            return fx, fy, False
+    return fx, fy, True
+
+
+@numba.njit(cache=True, nogil=True)
+def _nearest_pixel(u, v, h, w):
+    return min(max(int(np.rint(v)), 0), h - 1), min(max(int(np.rint(u)), 0), w - 1)
+
+
+@numba.njit(cache=True, nogil=True)
+def _newton_step_nb(u, v, px, py, a, b, c, d, k):
+    """(u, v) after one Newton step towards floor point (px, py) with the Jacobian
+    [[a, b], [c, d]] (the identity where it is not finite), the step clipped to +-20 px."""
+    if not (np.isfinite(a) and np.isfinite(b) and np.isfinite(c) and np.isfinite(d)):
+        a, b, c, d = 1.0, 0.0, 0.0, 1.0
+    fx, fy, _ = _trace_uv_nb(u, v, k)
+    ex, ey = px - fx, py - fy
+    # solve [[a, b], [c, d]] (du, dv) = (ex, ey): LU with partial pivoting
+    if abs(c) > abs(a):
+        a, b, c, d, ex, ey = c, d, a, b, ey, ex
+    low = c / a
+    dv = (ey - low * ex) / (d - low * b)
+    du = (ex - b * dv) / a
+    u += min(max(du, -20.0), 20.0) if np.isfinite(du) else 0.0
+    v += min(max(dv, -20.0), 20.0) if np.isfinite(dv) else 0.0
+    return u, v
+
+
+@numba.njit(cache=True, nogil=True)
+def _project_nb(pts, max_radius, guess, origin, cell, pixels, k, iters, uv, ok):
+    """Newton's method per floor point ``pts[m]`` not beyond ``max_radius`` (the others are not
+    visible: ``ok`` False, ``uv`` left as it is) from the lookup grid's pixel: ``iters`` steps
+    with the pixel->floor Jacobian of the pixel nearest the current guess, then one more trace
+    to accept the result (on the ground, within 50 um of the point, a ground pixel, inside the
+    image). ``guess``: the lookup grid (n, n, 2); ``pixels``: :attr:`FloorProjector.pixels`.
+    The points go in lockstep, table reads apart from the ray traces, so that the reads of
+    many points (cache misses: the tables are megabytes) overlap instead of waiting in turn."""
+    h, w = pixels.shape[0], pixels.shape[1]
+    n = guess.shape[0]
+    near = np.empty(pts.shape[0], np.int64)
+    cnt = 0
+    for m in range(pts.shape[0]):
+        ok[m] = False
+        if np.hypot(pts[m, 0], pts[m, 1]) <= max_radius:
+            near[cnt] = m
+            cnt += 1
+    u, v, rec = np.empty(cnt), np.empty(cnt), np.empty((cnt, 4))
+    for q in range(cnt):
+        m = near[q]
+        i = min(max(int(np.floor((pts[m, 0] - origin) / cell)), 0), n - 1)
+        j = min(max(int(np.floor((pts[m, 1] - origin) / cell)), 0), n - 1)
+        u[q], v[q] = guess[j, i, 0], guess[j, i, 1]
+    for _ in range(iters):
+        for q in range(cnt):
+            iv, iu = _nearest_pixel(u[q], v[q], h, w)
+            rec[q, 0], rec[q, 1], rec[q, 2], rec[q, 3] = (
+                pixels[iv, iu, 0],
+                pixels[iv, iu, 1],
+                pixels[iv, iu, 2],
+                pixels[iv, iu, 3],
+            )
+        for q in range(cnt):
+            m = near[q]
+            u[q], v[q] = _newton_step_nb(
+                u[q], v[q], pts[m, 0], pts[m, 1], rec[q, 0], rec[q, 1], rec[q, 2], rec[q, 3], k
+            )
+    for q in range(cnt):
+        m = near[q]
+        fx, fy, on_ground = _trace_uv_nb(u[q], v[q], k)
+        rec[q, 0] = np.hypot(fx - pts[m, 0], fy - pts[m, 1]) if on_ground else np.inf
+    for q in range(cnt):
+        m = near[q]
+        iv, iu = _nearest_pixel(u[q], v[q], h, w)
+        good = rec[q, 0] < 5e-5 and pixels[iv, iu, 4] != 0.0
+        good = good and -0.5 <= u[q] <= w - 0.5 and -0.5 <= v[q] <= h - 0.5
+        ok[m] = good
+        if good:
+            uv[m, 0], uv[m, 1] = u[q], v[q]
+
+
+def _aligned_empty(shape, align: int = 64) -> np.ndarray:
+    """An uninitialised float64 array whose data starts on an ``align``-byte boundary."""
+    n = int(np.prod(shape))
+    buf = np.empty(n + align // 8, np.float64)
+    skip = (-buf.ctypes.data % align) // 8
+    return buf[skip : skip + n].reshape(shape)
 
 
 class FloorProjector:
     """Fast floor -> pixel projection for rendering, built once from a :class:`RayTable`.
 
     An inverse lookup grid (floor cell -> mean pixel of the rays landing there, holes filled
-    from the nearest filled cell) gives a first guess; three Newton steps on the exact pixel ray
+    from the nearest filled cell) gives a first guess; two Newton steps on the exact pixel ray
     trace, with the table's Jacobian, refine it to far below 0.01 px. Agrees with the
-    independent :func:`project_floor_points` (checked in the tests).
+    independent :func:`project_floor_points` (checked in the tests). Points beyond the farthest
+    floor point any pixel sees are not visible and are not solved; the rest are solved one by
+    one in a compiled loop (:func:`_project_nb`), so a point's position does not depend on which
+    other points share the call.
     """
 
     def __init__(self, table: RayTable, *, cell_m: float = 0.01) -> None:
@@ -404,39 +551,35 @@ class FloorProjector:
         gu = np.where(filled, su / np.maximum(cnt, 1), 0).reshape(n, n)
         gv = np.where(filled, sv / np.maximum(cnt, 1), 0).reshape(n, n)
         _, (ii, jj) = ndimage.distance_transform_edt(~filled.reshape(n, n), return_indices=True)
-        self._guess_u = gu[ii, jj]
-        self._guess_v = gv[ii, jj]
+        self._guess = np.stack([gu[ii, jj], gv[ii, jj]], axis=-1)
+        self._k = _trace_constants(table.params)
+        #: (H, W, 8) float64, one 64-byte record per pixel (a cache line: a projected point's
+        #: lookups cost one memory access, not one per table): the pixel->floor Jacobian
+        #: (fields 0-3, row-major), ground (4: 1.0 or 0.0), footprint (5, m^2), vignetting (6)
+        #: of the ray table, copied as they are.
+        self.pixels = _aligned_empty((*g.shape, 8))
+        self.pixels[..., :4] = table.jacobian.reshape(*g.shape, 4)
+        self.pixels[..., 4] = g
+        self.pixels[..., 5] = table.footprint_m2
+        self.pixels[..., 6] = table.vignetting
+        self.pixels[..., 7] = 0.0
+        self.pixels.setflags(write=False)
 
     def project(self, xy_m, *, iters: int = 2):
         """(N, 2) robot-frame floor points -> ((N, 2) sub-pixel (u, v), (N,) visible)."""
-        p = self.table.params
-        xy = np.asarray(xy_m, float).reshape(-1, 2)
+        xy = np.ascontiguousarray(np.asarray(xy_m, float).reshape(-1, 2))
         uv = np.full((len(xy), 2), np.nan)
-        near = np.hypot(xy[:, 0], xy[:, 1]) <= self.max_radius_m
-        idx = np.flatnonzero(near)
-        if len(idx) == 0:
-            return uv, np.zeros(len(xy), bool)
-        pts = xy[idx]
-        ij = np.clip(np.floor((pts - self._origin) / self._cell).astype(int), 0, self._n - 1)
-        u = self._guess_u[ij[:, 1], ij[:, 0]]
-        v = self._guess_v[ij[:, 1], ij[:, 0]]
-        h, w = self.table.ground.shape
-        for _ in range(iters):
-            iu = np.clip(np.rint(u).astype(int), 0, w - 1)
-            iv = np.clip(np.rint(v).astype(int), 0, h - 1)
-            J = self.table.jacobian[iu * 0 + iv, iu]
-            ok = np.isfinite(J).all(axis=(1, 2))
-            J[~ok] = np.eye(2)
-            f, _ = _trace_uv(p, u, v)
-            step = np.linalg.solve(J, (pts - f)[..., None])[..., 0]
-            step = np.where(np.isfinite(step), step, 0.0)
-            u, v = u + np.clip(step[:, 0], -20, 20), v + np.clip(step[:, 1], -20, 20)
-        f, ground = _trace_uv(p, u, v)
-        iu = np.clip(np.rint(u).astype(int), 0, w - 1)
-        iv = np.clip(np.rint(v).astype(int), 0, h - 1)
-        ok = ground & (np.hypot(*(f - pts).T) < 5e-5) & self.table.ground[iv, iu]
-        ok &= (u >= -0.5) & (u <= w - 0.5) & (v >= -0.5) & (v <= h - 0.5)
-        vis = np.zeros(len(xy), bool)
-        vis[idx] = ok
-        uv[idx[ok]] = np.column_stack([u, v])[ok]
+        vis = np.empty(len(xy), bool)
+        _project_nb(
+            xy,
+            self.max_radius_m,
+            self._guess,
+            float(self._origin),
+            float(self._cell),
+            self.pixels,
+            self._k,
+            int(iters),
+            uv,
+            vis,
+        )
         return uv, vis

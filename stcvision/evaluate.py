@@ -28,6 +28,7 @@ __all__ = [
     "AGE_BINS_S",
     "METRICS",
     "Evaluation",
+    "LabelledFrames",
     "compare",
     "evaluate_dataset",
     "evaluate_frames",
@@ -93,20 +94,14 @@ def recall_by_age(found: list, missed: list) -> list[dict]:
 
 
 def visible_detection(result, truth: dict, *, match_m: float = 0.01) -> list[tuple[float, bool]]:
-    """(age, found) of every visible truth dot, whatever its SNR: the same greedy matching as
-    :func:`stcvision.scoring.score_frame`, to show where the visibility horizon cuts detection."""
-    tdots = [d for d in truth["dots"] if d["visible"] and d["age_s"] >= 0]
-    if not tdots:
-        return []
-    txy = np.array([d["xy_robot_m"] for d in tdots]).reshape(-1, 2)
-    matched = np.zeros(len(tdots), bool)
+    """(age, found) of every visible truth dot, whatever its SNR: the matching of
+    :func:`stcvision.scoring.score_frame`, to show where the visibility horizon cuts detection.
+    ``result``: anything with ``dots.xy_m`` and ``dots.lit`` (the pipeline's or the baseline's)."""
+    from stcvision.scoring import match_dots
+
     d = result.dots
-    for k in np.flatnonzero(d.lit):
-        dist = np.hypot(*(txy - d.xy_m[k]).T)
-        j = int(np.argmin(dist))
-        if dist[j] <= match_m and not matched[j]:
-            matched[j] = True
-    return [(float(t["age_s"]), bool(m)) for t, m in zip(tdots, matched, strict=True)]
+    m = match_dots(d.xy_m[np.flatnonzero(d.lit)], truth, None, match_m=match_m)
+    return [(float(t["age_s"]), bool(f)) for t, f in zip(m.truth, m.matched, strict=True)]
 
 
 def detection_by_age(pairs) -> list[dict]:
@@ -237,66 +232,103 @@ def evaluate_dataset(ds, *, default_profile, profile=None, progress=None) -> Eva
     return summarize_evaluation(ds, records, skipped, profile=profile)
 
 
+class LabelledFrames:
+    """The frames of a dataset with what a detector needs for each: its image, its label, its
+    camera's profile and its dark frame, read once and cached (a dataset has a few cameras and
+    dark frames and many frames).
+
+    ``profile`` (a Profile) is used for every frame if given; otherwise each camera's own profile
+    from the dataset (``profiles/CAM.json``) if it has one, else ``default_profile``.
+    :meth:`built` keeps one object per (camera, dark frame) built by a factory (a
+    :class:`~stcvision.pipeline.Pipeline`, a :class:`~stcvision.baseline.Baseline`).
+    """
+
+    def __init__(self, ds, *, default_profile, profile=None) -> None:
+        self.ds = ds
+        self.default_profile = default_profile
+        self.profile = profile
+        self._profiles: dict[str, Any] = {}
+        self._darks: dict[str, np.ndarray] = {}
+        self._built: dict[tuple, Any] = {}
+
+    def profile_for(self, cam: str):
+        if self.profile is not None:
+            return self.profile
+        if cam not in self._profiles:
+            from stcvision.profile import Profile
+
+            p = self.ds.profile_path(cam)
+            self._profiles[cam] = Profile.load(p) if p else self.default_profile
+        return self._profiles[cam]
+
+    def dark_for(self, dark_name: str | None) -> np.ndarray | None:
+        if dark_name is None:
+            return None
+        if dark_name not in self._darks:
+            from stcvision.fileio import read_image
+
+            w, h = self.ds.image_size_px
+            d = read_image(self.ds.root / dark_name, what="dark frame")
+            if d.shape[:2] != (h, w):
+                raise BadInputError(
+                    f"dark frame {self.ds.root / dark_name} is {d.shape[1]}x{d.shape[0]}; expected {w}x{h}"
+                )
+            self._darks[dark_name] = d
+        return self._darks[dark_name]
+
+    def built(self, what: str, lab: dict, factory):
+        """``factory(profile, dark)`` for this label's camera and dark frame, built once."""
+        cam, dark_name = lab.get("camera", "cam0"), lab.get("dark")
+        key = (what, cam if self.profile is None else "", dark_name)
+        if key not in self._built:
+            prof = self.profile_for(cam)
+            prof.check_frame(tuple(reversed(self.ds.image_size_px)))
+            self._built[key] = factory(prof, self.dark_for(dark_name))
+        return self._built[key]
+
+    def read(self, indices, skipped: list, on_frame=None):
+        """Yield ``(index, label, image)`` of the frames ``indices`` (label order); a frame that
+        cannot be decoded is appended to ``skipped`` as ``{"frame", "reason"}``; a frame of the
+        wrong size, or of another depth than its dark frame, is an error. ``on_frame(1)`` is called
+        after each frame (progress)."""
+        from stcvision.fileio import check_same_depth, read_image
+
+        w, h = self.ds.image_size_px
+        bar = on_frame or (lambda n=1: None)
+        for i in indices:
+            lab = self.ds.labels[i]
+            path = self.ds.root / lab["frame"]
+            try:
+                img = read_image(path, what="frame")
+            except BadInputError as exc:
+                skipped.append({"frame": lab["frame"], "reason": str(exc)})
+                bar(1)
+                continue
+            if img.shape[:2] != (h, w):
+                raise BadInputError(
+                    f"frame {path} is {img.shape[1]}x{img.shape[0]}; expected {w}x{h} (the dataset's camera)"
+                )
+            if lab.get("dark") is not None:
+                check_same_depth(img, self.dark_for(lab["dark"]), self.ds.root / lab["dark"], frame_path=path)
+            yield i, lab, img
+            bar(1)
+
+
 def evaluate_frames(
     ds, indices, *, default_profile, profile=None, on_frame=None
 ) -> tuple[list[FrameRecord], list[dict]]:
     """Run and score the pipeline on the frames ``indices`` of ``ds`` (label order): one
     :class:`FrameRecord` per readable frame, and ``{"frame", "reason"}`` per frame that could not
     be decoded (skipped). ``on_frame(1)`` is called after each frame (progress)."""
-    from stcvision.fileio import read_image
     from stcvision.pipeline import Pipeline
-    from stcvision.profile import Profile
     from stcvision.scoring import score_frame
 
-    w, h = ds.image_size_px
-    profiles: dict[str, Any] = {}
-    pipes: dict[tuple, Pipeline] = {}
-    darks: dict[str, np.ndarray] = {}
-
-    def profile_for(cam: str):
-        if profile is not None:
-            return profile
-        if cam not in profiles:
-            p = ds.profile_path(cam)
-            profiles[cam] = Profile.load(p) if p else default_profile
-        return profiles[cam]
-
-    def pipeline_for(cam: str, dark_name: str | None) -> Pipeline:
-        key = (cam if profile is None else "", dark_name)
-        if key not in pipes:
-            dark = None
-            if dark_name is not None:
-                if dark_name not in darks:
-                    d = read_image(ds.root / dark_name, what="dark frame")
-                    if d.shape[:2] != (h, w):
-                        raise BadInputError(
-                            f"dark frame {ds.root / dark_name} is {d.shape[1]}x{d.shape[0]}; expected {w}x{h}"
-                        )
-                    darks[dark_name] = d
-                dark = darks[dark_name]
-            prof = profile_for(cam)
-            prof.check_frame((h, w))
-            pipes[key] = Pipeline(prof, dark=dark)
-        return pipes[key]
-
+    frames = LabelledFrames(ds, default_profile=default_profile, profile=profile)
     records: list[FrameRecord] = []
     skipped: list[dict] = []
-    bar = on_frame or (lambda n=1: None)
-    for i in indices:
-        lab = ds.labels[i]
-        path = ds.root / lab["frame"]
-        try:
-            img = read_image(path, what="frame")
-        except BadInputError as exc:
-            skipped.append({"frame": lab["frame"], "reason": str(exc)})
-            bar(1)
-            continue
-        if img.shape[:2] != (h, w):
-            raise BadInputError(
-                f"frame {path} is {img.shape[1]}x{img.shape[0]}; expected {w}x{h} (the dataset's camera)"
-            )
+    for i, lab, img in frames.read(indices, skipped, on_frame):
         cam = lab.get("camera", "cam0")
-        pipe = pipeline_for(cam, lab.get("dark"))
+        pipe = frames.built("pipeline", lab, lambda prof, dark: Pipeline(prof, dark=dark))
         res = pipe.process(img)
         sc = score_frame(res, lab, pipe.profile)
         rec = FrameRecord(
@@ -328,7 +360,6 @@ def evaluate_frames(
         rec.floor_err_mm = profile_floor_error_mm(pipe.profile, lab)
         rec.badness = _badness(sc, cell is not None)
         records.append(rec)
-        bar(1)
     return records, skipped
 
 
@@ -418,23 +449,18 @@ def log_worst(ev: Evaluation, ds, rrd_path, *, default_profile, profile=None, n:
     """Re-run the pipeline on the ``n`` worst frames and log every stage to a rerun file."""
     from stcvision.fileio import read_image
     from stcvision.pipeline import Pipeline
-    from stcvision.profile import Profile
     from stcvision.rr import PipelineLogger, observation_markdown
 
     worst = [r for r in sorted(ev.records, key=lambda r: (-r.badness, r.index)) if r.badness > 0][:n]
     if not worst:
         worst = ev.records[:1]
+    frames = LabelledFrames(ds, default_profile=default_profile, profile=profile)
     logger = None
     logged = []
     try:
         for j, r in enumerate(worst):
             lab = ds.labels[r.index]
-            prof = profile
-            if prof is None:
-                p = ds.profile_path(lab.get("camera", "cam0"))
-                prof = Profile.load(p) if p else default_profile
-            dark = read_image(ds.root / lab["dark"], what="dark frame") if lab.get("dark") else None
-            pipe = Pipeline(prof, dark=dark)
+            pipe = frames.built("pipeline", lab, lambda prof, dark: Pipeline(prof, dark=dark))
             res = pipe.process(read_image(ds.root / lab["frame"], what="frame"))
             if logger is None:
                 logger = PipelineLogger.to_file(rrd_path, pipe)
@@ -458,9 +484,10 @@ def log_worst(ev: Evaluation, ds, rrd_path, *, default_profile, profile=None, n:
     return logged
 
 
-def evaluate_images(paths: list[Path], *, profile, dark, progress=None):
-    """Run the pipeline on the user's own frames; yields (path, result or None, skip reason)."""
-    from stcvision.fileio import read_image
+def evaluate_images(paths: list[Path], *, profile, dark, dark_path=None, progress=None):
+    """Run the pipeline on the user's own frames; yields (path, result or None, skip reason).
+    A frame of another depth than ``dark`` (read from ``dark_path``) is refused."""
+    from stcvision.fileio import check_same_depth, read_image
     from stcvision.pipeline import Pipeline
 
     pipe = Pipeline(profile, dark=dark)
@@ -475,6 +502,8 @@ def evaluate_images(paths: list[Path], *, profile, dark, progress=None):
                 yield p, None, str(exc), pipe
                 continue
             profile.check_frame(img.shape)
+            if dark is not None:
+                check_same_depth(img, dark, dark_path, frame_path=p)
             res = pipe.process(img)
             bar(1)
             yield p, res, None, pipe

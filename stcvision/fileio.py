@@ -20,12 +20,14 @@ from stcvision.errors import BadInputError, FileExistsRefusedError, OutputError
 
 __all__ = [
     "check_output_file",
+    "check_same_depth",
     "commit_temp",
     "discard_temp",
     "figure_png",
     "read_image",
     "read_json",
     "remove_live_temps",
+    "new_run",
     "remove_stale_temps",
     "temp_sibling",
     "write_bytes_atomic",
@@ -87,9 +89,9 @@ def check_output_file(path: str | os.PathLike, *, overwrite: bool = False, what:
 
 
 def temp_sibling(path: Path, *, directory: bool = False) -> Path:
-    """A new hidden temporary sibling of ``path`` (file or folder), registered for removal on exit;
-    the stale ones of dead writers of the same target are removed first."""
-    remove_stale_temps(path)
+    """A new hidden temporary sibling ``.NAME.PID.RANDOM.tmp`` of ``path`` (file or folder),
+    registered for removal on exit; the first in a folder in this run removes the stale ones."""
+    _sweep_once(path.parent)
     prefix = f".{path.name}.{os.getpid()}."
     if directory:
         tmp = Path(tempfile.mkdtemp(prefix=prefix, suffix=_TEMP_SUFFIX, dir=path.parent))
@@ -104,6 +106,23 @@ def temp_sibling(path: Path, *, directory: bool = False) -> Path:
     return tmp
 
 
+#: folders already swept for stale temporaries in this run (one directory scan per folder, not
+#: per file: a dataset's frames/ may hold 100,000 files); :func:`new_run` forgets them
+_SWEPT: set[Path] = set()
+
+
+def _sweep_once(folder: Path) -> None:
+    key = folder.absolute()
+    if key not in _SWEPT:
+        _SWEPT.add(key)
+        remove_stale_temps(folder)
+
+
+def new_run() -> None:
+    """Start a new run (the CLI calls it first): folders are swept for stale temporaries again."""
+    _SWEPT.clear()
+
+
 def _alive(pid: int) -> bool:
     try:
         os.kill(pid, 0)
@@ -114,25 +133,31 @@ def _alive(pid: int) -> bool:
     return True
 
 
-def remove_stale_temps(path: str | os.PathLike) -> list[Path]:
-    """Remove the temporary siblings of ``path`` left by writers that were killed (SIGKILL, power
-    loss): ``.NAME.PID.*.tmp`` whose process is gone. Returns what was removed."""
-    import glob
+def _writer_pid(name: str) -> int | None:
+    """The PID in a temporary's name ``.NAME.PID.RANDOM.tmp`` (None if it is not one of ours)."""
+    if not (name.startswith(".") and name.endswith(_TEMP_SUFFIX)):
+        return None
+    parts = name[1 : -len(_TEMP_SUFFIX)].rsplit(".", 2)  # RANDOM has no dots; NAME may
+    return int(parts[1]) if len(parts) == 3 and parts[0] and parts[1].isdigit() else None
+
+
+def remove_stale_temps(folder: str | os.PathLike) -> list[Path]:
+    """Remove the temporaries in ``folder`` left by writers that were killed (SIGKILL, power
+    loss): ``.NAME.PID.RANDOM.tmp`` whose process is gone. Returns what was removed."""
     import shutil
 
-    path = Path(path)
     removed = []
     try:
-        siblings = list(path.parent.glob(f".{glob.escape(path.name)}.*{_TEMP_SUFFIX}"))
+        entries = [e for e in os.scandir(folder) if e.name.endswith(_TEMP_SUFFIX) and e.name.startswith(".")]
     except OSError:
         return removed
-    for tmp in siblings:
-        pid = tmp.name[len(path.name) + 2 :].split(".", 1)[0]
-        if not pid.isdigit() or int(pid) == os.getpid() or _alive(int(pid)):
+    for e in entries:
+        pid = _writer_pid(e.name)
+        if pid is None or pid == os.getpid() or _alive(pid):
             continue
         try:
-            shutil.rmtree(tmp) if tmp.is_dir() and not tmp.is_symlink() else tmp.unlink()
-            removed.append(tmp)
+            shutil.rmtree(e.path) if e.is_dir(follow_symlinks=False) else os.unlink(e.path)
+            removed.append(Path(e.path))
         except OSError:
             pass
     return removed
@@ -269,18 +294,27 @@ def _finite_float(text: str) -> float:
 
 #: the image files the toolkit writes (by suffix); PNG is lossless, JPEG lossy
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".tif", ".tiff")
+#: what 16-bit frames may be written as (OpenCV writes 16 bits per channel to these); JPEG holds 8
+_DEEP_SUFFIXES = (".png", ".tif", ".tiff")
 
 
 def write_image(path: str | os.PathLike, image: np.ndarray, *, overwrite: bool = False) -> Path:
-    """Encode ``image`` (uint8, grey or BGR) by the file's extension and write it atomically."""
+    """Encode ``image`` (grey or BGR; uint8, or uint16 as 16-bit PNG/TIFF, the ADC counts kept
+    as they are) by the file's extension and write it atomically. A uint16 image is refused for
+    JPEG (8 bits only): it is never scaled down silently."""
     import cv2
 
     path = Path(path)
-    if path.suffix.lower() not in IMAGE_SUFFIXES:
+    suffix = path.suffix.lower()
+    if suffix not in IMAGE_SUFFIXES:
         raise BadInputError(
             f"cannot write an image as {path} (suffix {path.suffix or 'none'!r}); expected .png or .jpg"
         )
-    ok, buf = cv2.imencode(path.suffix.lower(), image)
+    if image.dtype == np.uint16 and suffix not in _DEEP_SUFFIXES:
+        raise BadInputError(f"cannot write a 16-bit image as {path.suffix!r} ({path}); expected .png")
+    if image.dtype not in (np.uint8, np.uint16):
+        raise BadInputError(f"cannot write a {image.dtype} image to {path}; expected uint8 or uint16")
+    ok, buf = cv2.imencode(suffix, image)
     if not ok:
         raise BadInputError(f"cannot encode an image as {path.suffix!r}; expected .png or .jpg")
     return write_bytes_atomic(path, buf.tobytes(), overwrite=overwrite)
@@ -304,9 +338,12 @@ def write_figure(path: str | os.PathLike, fig, *, overwrite: bool = False, dpi: 
 
 
 def read_image(path: str | os.PathLike, *, color: bool = True, what: str = "image") -> np.ndarray:
-    """Read an image file into a uint8 array ((H, W, 3) BGR if ``color`` else (H, W)).
+    """Read an image file: with ``color`` a frame, (H, W, 3) BGR as stored -- uint8, or uint16
+    for a 16-bit PNG (the sensor's ADC counts, never divided by 256); else (H, W) uint8 grey
+    (a map).
 
-    Raises :class:`BadInputError` for a missing, empty or undecodable file.
+    Raises :class:`BadInputError` for a missing, empty or undecodable file, and with ``color``
+    for an image that is not 3-channel BGR (greyscale, alpha) or not 8/16-bit.
     """
     import cv2
 
@@ -319,11 +356,33 @@ def read_image(path: str | os.PathLike, *, color: bool = True, what: str = "imag
         raise BadInputError(f"cannot read {what} {path}: {exc.strerror}") from None
     if not data:
         raise BadInputError(f"{what} {path} is empty; expected a PNG or JPEG image")
-    flag = cv2.IMREAD_COLOR if color else cv2.IMREAD_GRAYSCALE
+    flag = cv2.IMREAD_UNCHANGED if color else cv2.IMREAD_GRAYSCALE
     img = cv2.imdecode(np.frombuffer(data, np.uint8), flag)
     if img is None:
         raise BadInputError(f"{what} {path} is not a readable image; expected a PNG or JPEG file")
+    if color:
+        channels = 1 if img.ndim == 2 else img.shape[2]
+        if channels != 3:
+            kind = "greyscale" if channels == 1 else f"{channels}-channel"
+            raise BadInputError(f"{what} {path} is {kind}; expected a 3-channel BGR frame")
+        if img.dtype not in (np.uint8, np.uint16):
+            raise BadInputError(f"{what} {path} holds {img.dtype} pixels; expected an 8- or 16-bit frame")
     return img
+
+
+def check_same_depth(frame: np.ndarray, dark: np.ndarray, dark_path, *, frame_path=None) -> None:
+    """A dark frame must have the frames' depth (uint8 with uint8, uint16 ADC counts with
+    uint16): a one-line :class:`BadInputError` naming the dark frame otherwise."""
+    if frame.dtype != dark.dtype:
+        of = f" ({frame_path})" if frame_path is not None else ""
+        raise BadInputError(
+            f"dark frame {dark_path} is {_depth(dark)} but the frame{of} is {_depth(frame)}; "
+            "expected a dark frame of the frames' depth, taken with the same camera"
+        )
+
+
+def _depth(img: np.ndarray) -> str:
+    return f"{8 * img.dtype.itemsize}-bit"
 
 
 def check_output_folder(folder: str | os.PathLike, names, *, overwrite: bool = False) -> Path:

@@ -14,6 +14,8 @@ MAX_DARK_FRAMES = 256
 MAX_DATASET_FRAMES = 100_000
 #: world steps of one ``stcvision world`` run (~8 minutes at ~2,000 steps/s)
 MAX_WORLD_STEPS = 1_000_000
+#: frames one ``stcvision bench`` times (each time is kept for the median; ~1 minute at 100,000)
+MAX_BENCH_FRAMES = 100_000
 #: a drawn picture's side (pixels): 10,000 x 10,000 x 3 bytes is 300 MB
 MAX_PICTURE_PX = 10_000
 #: a simulated camera image's side (pixels): 4096 x 4096 is ~400 MB per float64 RGB buffer, and
@@ -26,4 +28,6 @@ def check_board_cells(w: int, h: int) -> None:
     from stcvision.errors import BadInputError
 
     if w < 1 or h < 1 or w * h > MAX_BOARD_CELLS:
-        raise BadInputError(f"--board {w}x{h}: expected 1x1 to {MAX_BOARD_CELLS:,} cells in all (W x H)")
+        raise BadInputError(
+            f"--board {w}x{h}: expected at least 1x1 and at most {MAX_BOARD_CELLS:,} cells in all (W x H)"
+        )

@@ -19,7 +19,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-__all__ = ["FrameScore", "score_frame", "summarize"]
+__all__ = ["DotMatch", "FrameScore", "match_dots", "score_frame", "summarize"]
 
 
 @dataclass
@@ -41,6 +41,55 @@ class FrameScore:
     errors: list = field(default_factory=list)
 
 
+@dataclass(frozen=True, eq=False)
+class DotMatch:
+    """Found dots matched to a frame's visible truth dots (:func:`match_dots`).
+
+    ``truth``: the visible truth dots (age >= 0), in label order; ``found``: (M,) index of the
+    found dot matched to each (-1: none); ``err_mm``, ``err_px``: (M,) its floor and image
+    error (NaN where unmatched, or the dot has no image position); ``n_found``: detections
+    scored; ``n_true_positive``: of those, matched.
+    """
+
+    truth: list
+    found: np.ndarray
+    err_mm: np.ndarray
+    err_px: np.ndarray
+    n_found: int
+
+    @property
+    def matched(self) -> np.ndarray:
+        return self.found >= 0
+
+    @property
+    def n_true_positive(self) -> int:
+        return int(self.matched.sum())
+
+
+def match_dots(xy_m, truth: dict, profile, *, match_m: float = 0.01) -> DotMatch:
+    """Match detections ``xy_m`` ((N, 2) robot frame, strongest first) to the visible truth
+    dots: greedily, each detection to its nearest truth dot if within ``match_m`` and not taken
+    already (else it is a false detection). The image error is that of the detection mapped
+    through ``profile.robot_to_image`` (none without a profile). Any detector's dots can be scored this way (the
+    pipeline's, the plain-OpenCV baseline's)."""
+    tdots = [d for d in truth["dots"] if d["visible"] and d["age_s"] >= 0]
+    txy = np.array([d["xy_robot_m"] for d in tdots]).reshape(-1, 2)
+    xy = np.asarray(xy_m, float).reshape(-1, 2)
+    found = np.full(len(tdots), -1)
+    err_mm = np.full(len(tdots), np.nan)
+    err_px = np.full(len(tdots), np.nan)
+    for k in range(len(xy) if len(txy) else 0):
+        dist = np.hypot(*(txy - xy[k]).T)
+        j = int(np.argmin(dist))
+        if dist[j] <= match_m and found[j] < 0:
+            found[j] = k
+            err_mm[j] = 1000 * float(dist[j])
+            if profile is not None and tdots[j]["uv_px"] is not None:
+                uv = profile.robot_to_image(xy[k][None])[0]
+                err_px[j] = float(np.hypot(*(uv - tdots[j]["uv_px"])))
+    return DotMatch(tdots, found, err_mm, err_px, len(xy))
+
+
 def score_frame(
     result,
     truth: dict,
@@ -52,30 +101,21 @@ def score_frame(
     min_dots: int = 2,
 ) -> FrameScore:
     sc = FrameScore()
-    tdots = [d for d in truth["dots"] if d["visible"] and d["age_s"] >= 0]
-    txy = np.array([d["xy_robot_m"] for d in tdots]).reshape(-1, 2)
-    tsnr = np.array([d["snr"] for d in tdots])
-    should = tsnr >= snr_visible
-    sc.dots_expected = int(should.sum())
     d = result.dots
-    found = np.flatnonzero(d.lit)
-    sc.dots_found = len(found)
-    matched_truth = np.zeros(len(tdots), bool)
-    for k in found:
-        if len(txy) == 0:
-            break
-        dist = np.hypot(*(txy - d.xy_m[k]).T)
-        j = int(np.argmin(dist))
-        if dist[j] <= match_m and not matched_truth[j]:
-            matched_truth[j] = True
-            sc.dots_true_positive += 1
-            sc.dot_err_mm.append(1000 * float(dist[j]))
-            if tdots[j]["uv_px"] is not None:
-                uv = profile.robot_to_image(d.xy_m[k][None])[0]
-                sc.dot_err_px.append(float(np.hypot(*(uv - tdots[j]["uv_px"]))))
+    m = match_dots(d.xy_m[np.flatnonzero(d.lit)], truth, profile, match_m=match_m)
+    tdots = m.truth
+    should = np.array([t["snr"] >= snr_visible for t in tdots], bool)
+    sc.dots_expected = int(should.sum())
+    sc.dots_found = m.n_found
+    sc.dots_true_positive = m.n_true_positive
+    order = np.argsort(m.found, kind="stable")  # in the order the detections were matched
+    for j in order[m.found[order] >= 0]:
+        sc.dot_err_mm.append(float(m.err_mm[j]))
+        if not np.isnan(m.err_px[j]):
+            sc.dot_err_px.append(float(m.err_px[j]))
     for j, t in enumerate(tdots):
         if should[j]:
-            (sc.dot_ages_found if matched_truth[j] else sc.dot_ages_missed).append(t["age_s"])
+            (sc.dot_ages_found if m.found[j] >= 0 else sc.dot_ages_missed).append(t["age_s"])
     cell = truth.get("cell")
     if cell is not None:
         true_err = truth["pose"]["heading_rad"] - cell["entry_heading_rad"]

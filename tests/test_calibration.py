@@ -94,6 +94,9 @@ def test_calibrate_cli_end_to_end(tmp_path, cli):
     # without a terminal and without --yes: refuse, write nothing
     code, _, err = cli("calibrate", "transform", lights, "--out", out)
     assert code == 2 and "--yes" in err and not out.exists()
+    # ... and says what it did write: the preview to look at, not "nothing"
+    assert "the profile was not written" in err and "nothing was written" not in err
+    assert (tmp_path / "p.preview.png").exists()
     code, stdout, _ = cli("calibrate", "transform", lights, "--out", out, "--yes", "--json")
     assert code == 0
     r = json.loads(stdout)

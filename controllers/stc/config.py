@@ -8,7 +8,7 @@ from dataclasses import dataclass
 from sim_camera.hardware import WEBCAM, CameraProfile
 from sim_camera.robot import LEGO_STC_ROBOT, MarkingRobot
 
-__all__ = ["LANDMARK_OFFSET_SIGMA", "LANDMARK_TURN_SIGMA_RAD", "REOBSERVE_RAD", "CoverConfig"]
+__all__ = ["LANDMARK_OFFSET_SIGMA", "LANDMARK_TURN_SIGMA_RAD", "RECENTRE_M", "REOBSERVE_RAD", "CoverConfig"]
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -49,6 +49,8 @@ class CoverConfig:
     #: longest frame's horizon at ``decision_reach_m``: the robot knows its camera's limit
     stop_out_of_sight: bool = True
     trace: bool = False  # heading from the lean of all rows in view, not the newest only
+    #: hardware faults injected into the run: (name, level) pairs (:mod:`controllers.stc.faults`)
+    faults: tuple[tuple[str, float], ...] = ()
 
 
 #: the red lights' estimates are used as long as they are this sure (1 sigma): the offset within
@@ -59,3 +61,8 @@ LANDMARK_TURN_SIGMA_RAD = math.radians(0.3)
 #: a heading correction this large at a decision or a look means its frames were read askew (box
 #: 2, 0.27 m away, moves 0.5 cm per degree): they are taken again
 REOBSERVE_RAD = math.radians(1.0)
+#: a robot that measures itself this far off its sub-cell centre (pushed, slipped) drives back
+#: to it (:meth:`controllers.stc.plant.Plant.recentre`) before it marks, and before it decides
+#: (the boxes are read from where it should stand): healthy runs stay within 1.3 cm (6x6 board,
+#: seed 0); a mark 2.5 cm off lies half-way to the next box
+RECENTRE_M = 0.025

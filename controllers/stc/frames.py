@@ -3,13 +3,18 @@
 * **Exposure**: ``webcam`` (1/30 s, gain 16: the seed's camera), a fixed ``exposure_s``, or
   ``auto``: every observation takes a short webcam frame (red lights without bloom, fresh marks,
   the pose) and, where old marks may matter (returns to a parent, the looks), a long one whose
-  length follows the robot's clock (:data:`AUTO_LONG`: 2-30 s at gain 4, then 2 to 64 30 s
-  frames stacked: frame stacking), sized for what the frame must read
+  length follows the robot's clock (:data:`AUTO_LONG`: 2-30 s, then 2 to 64 30 s frames
+  stacked: frame stacking), sized for what the frame must read
   (``CoverConfig.decision_reach_m``, ``look_reach_m``, ``sizing_snr``); a mark counts if either
   frame sees it -- the seed's proposal, "a camera with a fully controlled integration time".
   Dark frames are taken once per setting, at the matching exposure (a master dark of 8n frames
   for a stack of n). Past the longest frame's horizon the robot stops ("out of sight",
   :meth:`Exposures.out_of_sight`).
+* **Gain**: the seed's webcam keeps the ladder's gains (16 for the short frame, 4 for the long
+  ones); any other sensor takes at each rung the lowest gain at which its frame's temporal dark
+  noise spans :data:`NOISE_DN` DN (:func:`sensor_gain`: from the sensor's read noise and dark
+  current, EMVA 1288 and the astronomer's rule of thumb), its frames digitised at its own ADC
+  depth (16-bit frames for a 12- or 16-bit camera: :mod:`sim_camera.sensor`).
 * :class:`RobotCamera`: render -> pipeline, one pipeline per exposure setting.
 * :class:`IdealCamera`: the physics-limited camera, the same frames and time, but it sees
   exactly the marks within the frames' visibility horizon.
@@ -35,8 +40,9 @@ WEBCAM = (1 / 30, 16.0, 1)
 #: used while the robot's clock (the oldest age any mark can have) is within its visibility
 #: horizon at the distance the frame must read (``CoverConfig.decision_reach_m``,
 #: ``look_reach_m``; ``sim_camera.camera.visibility_horizon_s``: the camera's calibration of the
-#: phosphor, measured once per robot); gain 4 keeps the 8-bit quantisation below the dark
-#: current's noise at every length. 60 s frames were tried and read fewer boxes than 30 s ones
+#: phosphor, measured once per robot). The gains are the webcam's (4 keeps its 8-bit
+#: quantisation below the dark current's noise at every length); another sensor's come from
+#: :func:`sensor_gain`. 60 s frames were tried and read fewer boxes than 30 s ones
 #: (the fresh mark's bloom), so beyond 30 s the ladder stacks 30 s frames (issue 6: "frame
 #: stacking"): averaging n frames divides the noise variance by n.
 AUTO_LONG = (
@@ -47,6 +53,8 @@ AUTO_LONG = (
     (30.0, 4.0, 1),
     *((30.0, 4.0, n) for n in (2, 3, 4, 5, 6, 8, 10, 12, 16, 20, 24, 32, 40, 48, 64)),
 )
+#: the short frame's test of a red blob for white light (:attr:`stcvision.pipeline.PipelineParams.white_blue_ratio`)
+WHITE_BLUE_RATIO = 0.92
 #: the far side of the cell ahead (its near sub-cells' marks are 0.1-0.25 m away, its far
 #: ones' up to 0.45 m): the default distance for :meth:`Exposures.horizons`
 AUTO_REACH_M = 0.45
@@ -81,22 +89,32 @@ def _merge(a: StcObservation, b: StcObservation) -> StcObservation:
 ROW_EQUIVALENT_STACK = (5.0 / 3.0) ** 2
 
 
-def matched_gain(sensor, exposure_s: float, webcam_gain: float) -> float:
-    """The gain at which ``sensor``'s noise in a frame of ``exposure_s`` is as many DN as the
-    seed's webcam's at ``webcam_gain``: the ladder's gains and the pipeline's DN-level
-    thresholds were chosen for the webcam, so another sensor is set to show its noise alike (and
-    its signal at its own, higher SNR). A robot setting, not the world; the webcam's own gain
-    comes back unchanged."""
+#: the temporal noise a frame's digitised dark level must span (DN): EMVA 1288 (Release 3.1,
+#: 2016, and 4.0 Linear) holds the linear camera model's noise figures valid only where the
+#: temporal dark noise is at least ~0.5 DN, below which the quantisation noise (1/12 DN^2) takes
+#: over; the astronomer's rule of thumb for setting a camera's gain is to sample the read noise
+#: with ~1-2 ADU (S. B. Howell, Handbook of CCD Astronomy, 2nd ed. 2006, ch. 3; both recalled,
+#: not re-checked). At 1 DN the quantisation adds 1/12 of the noise variance (4 % of sigma).
+NOISE_DN = 1.0
+
+
+def sensor_gain(sensor, exposure_s: float, n_avg: int, webcam_gain: float) -> float:
+    """The gain of a frame of ``exposure_s`` (``n_avg`` frames averaged) on ``sensor``: the lowest
+    gain >= 1 at which the frame's temporal dark noise (read noise and the dark current's shot
+    noise, ``sqrt(read^2 + dark * t / n)`` electrons) spans :data:`NOISE_DN` DN, so that no faint
+    mark is quantised away, and no higher, so that the ADC clips as late as it can (at gain g it
+    saturates at ``full_well_e / g`` electrons). The seed's webcam (an 8-bit ADC, the default
+    sensor) keeps the ladder's own gains (``webcam_gain``: the seed's 16x and the issue-6 4x),
+    so its frames are exactly what they were. A robot setting from the sensor's figures, not
+    the world."""
     from sim_camera.sensor import SensorParams
 
     web = SensorParams()
-    if sensor == web:
+    if sensor.replace(exposure_s=web.exposure_s, gain=web.gain) == web:
         return webcam_gain
-
-    def noise_e(s):
-        return (s.read_noise_e**2 + s.dark_current_e_s * exposure_s) ** 0.5
-
-    return webcam_gain * (sensor.full_well_e / web.full_well_e) * (noise_e(web) / noise_e(sensor))
+    noise_e = (sensor.read_noise_e**2 + sensor.dark_current_e_s * exposure_s) ** 0.5 / n_avg**0.5
+    at_unity = sensor.replace(exposure_s=exposure_s, gain=1.0).dn_per_e * noise_e
+    return max(1.0, NOISE_DN / at_unity)
 
 
 class Exposures:
@@ -119,7 +137,7 @@ class Exposures:
         if cfg.gain is not None and cfg.exposure not in ("auto", "webcam"):
             ladder = ((ladder[0][0], cfg.gain, 1),)
         else:
-            ladder = tuple((e, matched_gain(self.cam.sensor, e, g), n) for e, g, n in ladder)
+            ladder = tuple((e, sensor_gain(self.cam.sensor, e, n * cfg.n_stack, g), n) for e, g, n in ladder)
         self.ladder = ladder
         self.frames = 0
         self.long_frames = 0
@@ -206,16 +224,18 @@ class IdealCamera(Exposures):
             for c in self.curves:
                 c[c > 0] *= cfg.ideal_horizon_factor
 
-    def floor_seen(self, xy, t_s: float, phosphor, marks: list, rungs) -> MarkFloor:
-        """The marks (``marks``: the (sub-cell, edge) of every four dots laid, in order) that
-        frames at ``rungs`` taken from ``xy`` at ``t_s`` see."""
+    def floor_seen(self, xy, t_s: float, phosphor, marks: list, rungs, dot_mark=None) -> MarkFloor:
+        """The marks (``marks``: the (sub-cell, edge) of every four dots laid, in order; or of
+        the dots ``dot_mark`` gives the mark of) that frames at ``rungs`` taken from ``xy`` at
+        ``t_s`` see."""
         seen = MarkFloor(self.board.shape_subcells)
         if not marks:
             return seen
         d = np.hypot(*(phosphor.xy_m - np.asarray(xy)).T)
         h = np.max([np.interp(d, self.RHO, self.curves[k], left=0.0, right=0.0) for k in rungs], axis=0)
-        vis = (phosphor.ages_s(t_s) <= h).reshape(-1, 4).any(axis=1)
-        for i in np.flatnonzero(vis):
+        dot_vis = phosphor.ages_s(t_s) <= h
+        vis = np.unique(dot_mark[dot_vis]) if dot_mark is not None else dot_vis.reshape(-1, 4).any(axis=1)
+        for i in vis if dot_mark is not None else np.flatnonzero(vis):
             seen.mark(*marks[i])
         return seen
 
@@ -223,18 +243,18 @@ class IdealCamera(Exposures):
         k = self.long_rung(t_s, reach_m)
         return [0] if k is None or short_only else [0, k]
 
-    def observe(self, xy, t_s, phosphor, marks, sub, hc, *, fresh: bool = False):
+    def observe(self, xy, t_s, phosphor, marks, sub, hc, *, fresh: bool = False, dot_mark=None):
         """(StcObservation, seconds spent): the frames :meth:`RobotCamera.observe` takes."""
         rungs = self._rungs(t_s, self.cfg.decision_reach_m, fresh)
         dt = sum(self.frame_s(r) for r in rungs)
-        seen = self.floor_seen(xy, t_s, phosphor, marks, rungs)
+        seen = self.floor_seen(xy, t_s, phosphor, marks, rungs, dot_mark)
         return observe_oracle(seen, self.board, sub, hc, camera_view=True), dt
 
-    def look(self, xy, t_s, phosphor, marks, sub, hc):
+    def look(self, xy, t_s, phosphor, marks, sub, hc, *, dot_mark=None):
         """(marked, seconds spent): the frames :meth:`RobotCamera.look` takes."""
         rungs = self._rungs(t_s, self.cfg.look_reach_m)
         dt = sum(self.frame_s(r) for r in rungs)
-        return look_oracle(self.floor_seen(xy, t_s, phosphor, marks, rungs), sub, hc).marked, dt
+        return look_oracle(self.floor_seen(xy, t_s, phosphor, marks, rungs, dot_mark), sub, hc).marked, dt
 
 
 class RobotCamera(Exposures):
@@ -250,6 +270,10 @@ class RobotCamera(Exposures):
         self.pipes: dict = {}
         self.darks: dict = {}
         self.pipe = None  # the pipeline that read the last frame (for the recording)
+        self.bad_frames = 0  # frames lost or black, taken again
+        from controllers.stc.health import NoiseCheck
+
+        self.noise_check = NoiseCheck()
 
     def _pipeline(self, k: int):
         """The pipeline of rung ``k``'s exposure and gain (stacked rungs share it), holding the
@@ -268,7 +292,9 @@ class RobotCamera(Exposures):
             obs = ObservationParams(pose_estimates=True)
             if k > 0:
                 obs = dataclasses.replace(obs, landmark_range_m=0.0)
-            self.pipes[(e, g)] = Pipeline(default_profile(), PipelineParams(observation=obs))
+            # a short frame tells red lights from white ones (a stray lamp): PipelineParams
+            white = WHITE_BLUE_RATIO if e <= WEBCAM[0] else None
+            self.pipes[(e, g)] = Pipeline(default_profile(), PipelineParams(observation=obs, white_blue_ratio=white))
         if (e, g, n) not in self.darks:
             s = self._sensor(k)
             self.darks[(e, g, n)] = (
@@ -283,16 +309,39 @@ class RobotCamera(Exposures):
 
     def shoot(self, pose, t_s: float, phosphor, k: int = 0, *, heading_error_rad: float | None = None):
         """Returns (pipeline result, capture seconds). A stacked rung is the average of its
-        frames (:meth:`sim_camera.camera.SyntheticCamera.render`, ``n_avg``)."""
+        frames (:meth:`sim_camera.camera.SyntheticCamera.render`, ``n_avg``).
+        A frame lost or black (:func:`controllers.stc.health.frame_fault`) is taken again, up to
+        :data:`~controllers.stc.health.FRAME_RETRIES` times (their time counts), then the robot
+        stops (:class:`~controllers.stc.health.RobotStop`): it never reads a frame it cannot trust."""
+        from controllers.stc.health import FRAME_RETRIES, RobotStop, frame_fault
         from sim_camera.camera import Pose
 
-        img = self.cam.render(
-            Pose(*pose), rng=self.rng, t_s=t_s, phosphor=phosphor, red_lights_m=self.lights, sensor=self._sensor(k),
-            n_avg=self.stack(k),
-        ).image  # fmt: skip
-        self.pipe = self._pipeline(k)
+        dt = 0.0
+        for _ in range(FRAME_RETRIES + 1):
+            frame = self.cam.render(
+                Pose(*pose), rng=self.rng, t_s=t_s + dt, phosphor=phosphor, red_lights_m=self.lights,
+                sensor=self._sensor(k), n_avg=self.stack(k),
+            )  # fmt: skip
+            self.pipe = self._pipeline(k)  # (after the first frame: the camera stream's order)
+            dt += self.frame_s(k)
+            img = None if frame is None else frame.image
+            why = frame_fault(img, self.pipe.dark)
+            if why is None:
+                break
+            self.bad_frames += 1
+        else:
+            raise RobotStop(f"camera: {FRAME_RETRIES + 1} frames in a row {why}")
         res = self.pipe.process(img, heading_error_rad=heading_error_rad)
-        return res, self.frame_s(k)
+        self.noise_check.check(res.dots.noise_dn, self._noise_floor(k))
+        return res, dt
+
+    def _noise_floor(self, k: int) -> float:
+        """Rung ``k``'s noise floor by the camera's figures (:func:`controllers.stc.health.noise_floor_dn`),
+        with its dark frame (a median of 8, or a mean of 8n frames for a stack of n)."""
+        from controllers.stc.health import noise_floor_dn
+
+        n = self.stack(k)
+        return noise_floor_dn(self._sensor(k), n_avg=n, n_dark=8 * n)
 
     def observe(self, pose, t_s, phosphor, *, fresh: bool = False):
         """One observation: (StcObservation, the short frame's result, the long frame's result

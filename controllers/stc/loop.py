@@ -25,8 +25,11 @@ import time
 
 import numpy as np
 
-from controllers.stc.config import CoverConfig
+from controllers.stc.config import RECENTRE_M, CoverConfig
+from controllers.stc.faults import Faults
 from controllers.stc.fsm import Action, LookObs, StcPhase, decide, initial_state, step
+from controllers.stc.geometry import COMPASS_VEC
+from controllers.stc.health import RobotStop, done_away_from_start
 from controllers.stc.observers import Observers, Reading, Trace
 from controllers.stc.oracle import coverage
 from controllers.stc.perception import make_perception
@@ -61,50 +64,79 @@ def is_complete(summary: dict) -> bool:
 def run_cover(board, cfg: CoverConfig | None = None, *, observers=(), perception_hook=None) -> dict:
     """Cover ``board`` from its start sub-cell; returns the summary the CLI prints.
     ``observers``: :class:`controllers.stc.observers.Observer` s (None entries are skipped);
-    ``perception_hook(perception)`` is handed the run's perception (e.g. to read its frames)."""
+    ``perception_hook(perception)`` is handed the run's perception (e.g. to read its frames).
+    ``cfg.faults``: hardware faults wrapped around the parts (:mod:`controllers.stc.faults`)."""
     wall0 = time.perf_counter()
     cfg = cfg if cfg is not None else CoverConfig()
     rngs = streams(cfg.seed)
     plant = Plant(board, cfg.robot, rngs["motion"])
     floor = Floor(board)
     see = make_perception(cfg, board, camera_rng=rngs["camera"], oracle_rng=rngs["oracle"])
+    faults = Faults(cfg.faults, cfg.seed, cfg.perception)  # each fault draws from its own stream
+    faults.install(plant, floor, see)
     if perception_hook is not None:
         perception_hook(see)
     watch = Observers([*observers, *([Trace()] if cfg.trace else [])])
     referee = Referee(board, active=see.refereed, report=watch.on_referee)
-    state, decisions, looks, finished, abort = initial_state(), 0, 0, False, None
-    while decisions < cfg.max_decisions:
+    run = _Run()
+    try:
+        _loop(run, cfg, plant, floor, see, watch, referee)
+    except RobotStop as stop:  # a part found that the robot cannot go on (controllers.stc.health)
+        run.abort = f"{stop} (decision {run.decisions})"
+    watch.on_end(plant, floor)
+    out = _summary(board, cfg, plant, see, referee, decisions=run.decisions, looks=run.looks, finished=run.finished,
+                   abort=run.abort, wall_s=time.perf_counter() - wall0)  # fmt: skip
+    if faults:
+        out["faults"] = faults.labels()
+        out["fault_events"] = dict(faults.events)
+    return out
+
+
+class _Run:
+    """The loop's counters and its outcome."""
+
+    decisions = looks = 0
+    finished = False
+    abort: str | None = None
+    moved = (0, 0)  # sub-cells moved from the start, by the robot's own compass (rows, columns)
+
+
+def _loop(run: _Run, cfg, plant, floor, see, watch, referee) -> None:
+    """Perception -> controller -> plant until the controller is done, the robot stops or
+    ``cfg.max_decisions`` is reached; the outcome goes into ``run``."""
+    state = initial_state()
+    while run.decisions < cfg.max_decisions:
         obs = None
         if state.phase is StcPhase.DECIDE and not state.closing:
-            abort = see.out_of_sight(plant.t)
-            if abort is not None:
-                break
-            decisions += 1
+            run.abort = see.out_of_sight(plant.t)
+            if run.abort is not None:
+                return
+            run.decisions += 1
             obs = see.observe(plant, floor, fresh=state.fresh)
-            watch.on_reading(Reading("decision", decisions, plant, floor, obs=obs,
+            watch.on_reading(Reading("decision", run.decisions, plant, floor, obs=obs,
                                      decision=decide(obs, at_start=state.at_start), frame=see.last_frame))  # fmt: skip
-            referee.decision(plant, floor, obs, state, decisions)
+            referee.decision(plant, floor, obs, state, run.decisions)
         elif state.phase is StcPhase.LOOK:
-            looks += 1
+            run.looks += 1
             obs = LookObs(see.look(plant, floor))
             referee.look(plant, floor, obs.marked)
-            watch.on_reading(Reading("look", decisions, plant, floor, marked=obs.marked, frame=see.last_frame))
+            watch.on_reading(Reading("look", run.decisions, plant, floor, marked=obs.marked, frame=see.last_frame))
         prev = state
         state, action = step(state, obs)
-        referee.step(prev, state, action, plant, decisions)
+        referee.step(prev, state, action, plant, run.decisions)
         watch.on_step(plant, state, action)
         if action is Action.DONE:
-            finished = True
-            break
+            run.abort = done_away_from_start(tuple(plant.board.start_subcell), run.moved)
+            run.finished = run.abort is None
+            return
+        if action is Action.FORWARD:  # the robot's own count of its moves on the grid
+            di, dj = COMPASS_VEC[plant.hc]
+            run.moved = (run.moved[0] + di, run.moved[1] + dj)
         abort = _act(action, plant, floor, see, watch)
         if abort is not None:
-            abort = f"{abort} (decision {decisions})" if abort.startswith("drove") else abort
-            break
-    else:
-        abort = f"gave up after {cfg.max_decisions} decisions"
-    watch.on_end(plant, floor)
-    return _summary(board, cfg, plant, see, referee, decisions=decisions, looks=looks, finished=finished,
-                    abort=abort, wall_s=time.perf_counter() - wall0)  # fmt: skip
+            run.abort = f"{abort} (decision {run.decisions})" if abort.startswith("drove") else abort
+            return
+    run.abort = f"gave up after {cfg.max_decisions} decisions"
 
 
 def _act(action: Action, plant: Plant, floor: Floor, see, watch) -> str | None:
@@ -113,6 +145,10 @@ def _act(action: Action, plant: Plant, floor: Floor, see, watch) -> str | None:
     if action is Action.MARK:
         plant.lay_mark(floor)
     elif action is Action.FORWARD:
+        # a robot this far off its sub-cell centre (pushed, slipped) would lay its mark in the
+        # wrong place, where the boxes read it wrongly: back to the centre first
+        if np.hypot(*plant.offset_est) > RECENTRE_M:
+            plant.recentre()
         plant.lay_mark(floor)
         return plant.forward()
     elif action in (Action.TURN_LEFT, Action.TURN_RIGHT):
@@ -147,6 +183,7 @@ def _summary(board, cfg, plant, see, referee, *, decisions, looks, finished, abo
         "decision_errors": referee.decision_errors,
         "max_mark_age_read_s": referee.max_age_read,
         "max_position_error_m": plant.max_pos_err,
+        "recentred": plant.recentred,
         "turn_time_s_final": plant.turn_s,
         "turn_rate_error_pct": 100 * (plant.rate_gain - 1),
         "frames": see.frames,

@@ -23,12 +23,26 @@ from typing import Protocol
 
 import numpy as np
 
-from controllers.stc.config import LANDMARK_OFFSET_SIGMA, LANDMARK_TURN_SIGMA_RAD, REOBSERVE_RAD, CoverConfig
+from controllers.stc.config import (
+    LANDMARK_OFFSET_SIGMA,
+    LANDMARK_TURN_SIGMA_RAD,
+    RECENTRE_M,
+    REOBSERVE_RAD,
+    CoverConfig,
+)
 from controllers.stc.frames import IdealCamera, RobotCamera
 from controllers.stc.fsm import StcObservation
+from controllers.stc.health import RobotStop
 from controllers.stc.oracle import look_oracle, observe_oracle
 from controllers.stc.plant import Floor, Plant
 from stcvision.stcgrid import entry_axes
+
+#: the newest row's lean at a decision or a look beyond which the robot turned on its own since
+#: it laid the row (a turn's recalibration leaves ~0.25 degrees): it is turned back
+HEADING_CHECK_RAD = math.radians(2.0)
+#: a white light this close (m) blinds the decision's reading: the cell and its neighbours'
+#: near halves lie within 0.45 m (frames.AUTO_REACH_M)
+WHITE_BLIND_M = 0.45
 
 __all__ = ["CameraPerception", "IdealPerception", "OraclePerception", "Perception", "make_perception"]
 
@@ -122,14 +136,17 @@ class IdealPerception(_TakesFrames, OraclePerception):
 
     def observe(self, plant, floor, *, fresh):
         obs, dt = self.cam.observe(
-            (plant.x, plant.y), plant.t, floor.phosphor, floor.laid, plant.sub, plant.hc, fresh=fresh
-        )
+            (plant.x, plant.y), plant.t, floor.phosphor, floor.laid, plant.sub, plant.hc, fresh=fresh,
+            dot_mark=floor.dot_mark,
+        )  # fmt: skip
         plant.wait(self.cfg.robot.settle_s + dt)
         plant.offset_est = self._offset(plant)
         return obs
 
     def look(self, plant, floor):
-        marked, dt = self.cam.look((plant.x, plant.y), plant.t, floor.phosphor, floor.laid, plant.sub, plant.hc)
+        marked, dt = self.cam.look(
+            (plant.x, plant.y), plant.t, floor.phosphor, floor.laid, plant.sub, plant.hc, dot_mark=floor.dot_mark
+        )
         plant.wait(self.cfg.robot.settle_s + dt)
         plant.offset_est = self._offset(plant)
         return marked
@@ -199,13 +216,22 @@ class CameraPerception(_TakesFrames):
         """A decision's or a look's frames: ``take(pose, t) -> (reading, short frame's result,
         long frame's result or None, seconds)``. The short frame says where the robot stands
         and, with the red lights, how far its heading has drifted; a drift over
-        :data:`REOBSERVE_RAD` means the frames were read askew, so they are taken once more.
+        :data:`REOBSERVE_RAD` means the frames were read askew, so they are taken once more; so
+        are they when the robot finds itself over :data:`RECENTRE_M` off its sub-cell centre
+        (it drives back first) or its newest row leaning (:meth:`_check_heading`).
         Returns (reading, the frame that read the old marks)."""
         for attempt in range(2):
             reading, short, long, dt = take(plant.pose, plant.t)
             plant.wait(self.cfg.robot.settle_s + dt)
+            self._check_lights(plant)
             plant.offset_est = self._where(short.observation, plant)
-            if abs(self._correct_heading(short, plant)) < REOBSERVE_RAD:
+            turned = self._correct_heading(short, plant)
+            if turned == 0.0:
+                turned = self._check_heading(short, plant)
+            moved = np.hypot(*plant.offset_est) > RECENTRE_M
+            if moved:  # read the cell from where the robot should stand
+                plant.recentre()
+            if abs(turned) < REOBSERVE_RAD and not moved:
                 break
             self.reobserved += attempt == 0  # (a second askew reading is kept)
         return reading, long or short
@@ -238,6 +264,30 @@ class CameraPerception(_TakesFrames):
             if rows is not None and rows.observation.pattern_rotation_rad is not None:
                 left = rows.observation.pattern_rotation_rad
         return res.heading.heading_error_rad - (left if left is not None else 0.0)
+
+    def _check_heading(self, res, plant) -> float:
+        """Without the red lights: a heading error over :data:`HEADING_CHECK_RAD` (the newest
+        row's lean less the lean of all rows in view, :meth:`_heading`) means the robot turned
+        during a move (a wheel slipped): turn back by it. Returns the rotation made (rad)."""
+        e = self._heading(res)
+        if e is not None and abs(e) > HEADING_CHECK_RAD:
+            plant.rotate_by(-e)
+            return -e
+        return 0.0
+
+    def _check_lights(self, plant) -> None:
+        """A white light (a lamp, not a red obstacle light) within :data:`WHITE_BLIND_M` of the
+        robot: its glare hides the marks around it from the short frame, so the cell cannot be
+        read: stop rather than decide on it."""
+        pipe = self.cam.pipes.get(self.cam.ladder[0][:2])  # the short frame's
+        xy = getattr(pipe, "white_lights_m", np.zeros((0, 2)))
+        if len(xy):
+            d = float(np.hypot(*xy.T).min())
+            if d < WHITE_BLIND_M:
+                raise RobotStop(
+                    f"a white light (not a red obstacle light) {d:.2f} m from the robot at sub-cell "
+                    f"{tuple(int(v) for v in plant.sub)}: its glare hides the marks there"
+                )
 
     def _correct_heading(self, res, plant) -> float:
         """Two or more red lights in view say how far the heading has drifted: take it out.

@@ -40,9 +40,13 @@ class Floor:
         self.record = MarkFloor(board.shape_subcells)
         self.laid: list[tuple[tuple[int, int], int]] = []  # (sub-cell, edge) of every four dots, in order
         self.laid_at: dict[tuple[tuple[int, int], int], float] = {}  # when each mark's LEDs went off
+        #: the mark (index into ``laid``) of every phosphor dot: a mark has four dots, or fewer
+        #: when an LED is dead (:mod:`controllers.stc.faults`)
+        self.dot_mark = np.zeros(0, int)
 
     def lay(self, xy_m, sub: tuple[int, int], edge: int, t_s: float, duration_s: float) -> None:
         self.phosphor.charge(xy_m, t_start_s=t_s, duration_s=duration_s)
+        self.dot_mark = np.concatenate([self.dot_mark, np.full(len(np.reshape(xy_m, (-1, 2))), len(self.laid))])
         self.record.mark(sub, edge)
         self.laid.append((sub, edge))
         self.laid_at[(sub, edge)] = t_s + duration_s
@@ -83,6 +87,7 @@ class Plant:
         self.visits = np.zeros(board.shape_subcells, int)
         self.visits[self.sub] += 1
         self.moves = self.turns = 0
+        self.recentred = 0  # moves back to the sub-cell centre before a mark (:meth:`recentre`)
         self.last_move_error_m = 0.0  # the distance error of the last forward move (drawn)
         self.max_pos_err = 0.0
 
@@ -134,6 +139,16 @@ class Plant:
             self.turn_s = rec.turn_time_s
         self.rotate_by(-heading_err_rad)
 
+    def recentre(self) -> None:
+        """Drive back to the sub-cell centre as the robot believes it (by ``-offset_est``: a turn
+        towards it, the drive, a turn back), so that the next mark is laid where it belongs."""
+        d = float(np.hypot(*self.offset_est))
+        self.x -= float(self.offset_est[0])
+        self.y -= float(self.offset_est[1])
+        self.t += 2 * self.turn_s + d / self.robot.drive_speed_m_s
+        self.offset_est = np.zeros(2)
+        self.recentred += 1
+
     def lay_mark(self, floor: Floor) -> None:
         """Rear LEDs on for ``led_on_s``: a row of dots inside the sub-cell, on its rear edge."""
         xy = floor.phosphor.led_positions_m(self.pose)
@@ -166,8 +181,13 @@ class Plant:
         self.sub = nxt
         self.visits[nxt] += 1
         self.moves += 1
+        return self.check_lost(D)
+
+    def check_lost(self, subcell_m: float) -> str | None:
+        """After a move: the true offset from the sub-cell centre; past 0.45 of a sub-cell the
+        robot stands in another one (the floor's verdict, not the robot's)."""
         off = math.hypot(*self.true_offset())
         self.max_pos_err = max(self.max_pos_err, off)
-        if off > 0.45 * D:
-            return f"lost: {100 * off:.1f} cm off sub-cell {nxt}"
+        if off > 0.45 * subcell_m:
+            return f"lost: {100 * off:.1f} cm off sub-cell {self.sub}"
         return None

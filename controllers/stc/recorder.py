@@ -14,7 +14,7 @@ import rerun.blueprint as rrb
 from controllers.stc.observers import Observer, Reading
 from stcvision.rr import PipelineLogger, abort_recording, finish_recording, open_recording
 
-__all__ = ["CoverRecorder"]
+__all__ = ["READINGS_BUDGET", "WORLD_BUDGET", "CoverRecorder", "readings_every"]
 
 
 def _blueprint() -> rrb.Blueprint:
@@ -36,15 +36,41 @@ def _blueprint() -> rrb.Blueprint:
     )
 
 
-class CoverRecorder(Observer):
-    """An observer of a coverage run (:func:`controllers.stc.loop.run_cover`, ``observers=``):
-    every decision, and every look read from a rendered frame. Writes ``path`` (.rrd) atomically
-    on :meth:`close`."""
+#: a recording keeps the camera's stages of about this many readings: one reading in ``every``
+#: (:class:`CoverRecorder`); a reading's five JPEG stages are ~90 kB (22x22 board, lowlight)
+READINGS_BUDGET = 300
+#: ... and the world's snapshot (every dot with its glow, the covered sub-cells) of about this
+#: many: a snapshot grows with the marks laid (a 22x22 tour: ~7,000 dots, ~100 kB at its end)
+WORLD_BUDGET = 50
 
-    def __init__(self, path: str | Path, board) -> None:
+
+def readings_every(board, budget: int = READINGS_BUDGET) -> int:
+    """One reading in how many a recording of ``board`` keeps in full: a tour reads about once
+    per reachable sub-cell, so 1 up to ``budget`` sub-cells, then proportionally more."""
+    n = int(board.reachable_cells().sum()) * 4
+    return max(1, -(-n // budget))
+
+
+class CoverRecorder(Observer):
+    """An observer of a coverage run (:func:`controllers.stc.loop.run_cover`, ``observers=``).
+    Writes ``path`` (.rrd) atomically on :meth:`close`.
+
+    Bounded (rerun has no backpressure: what is logged stays in memory until written): every
+    reading (decision, look) logs the robot's pose and the decision as text; one in ``every``
+    (default :func:`readings_every`: ~:data:`READINGS_BUDGET` per run) also the camera's stages
+    (JPEG-compressed, :class:`stcvision.rr.PipelineLogger`), and ~:data:`WORLD_BUDGET` per run
+    the world's snapshot (every mark with its glow, the covered sub-cells), whose size grows with
+    the marks laid. A reading the referee finds wrong is always logged in full, and the world as
+    the run left it at the end."""
+
+    def __init__(self, path: str | Path, board, *, every: int | None = None) -> None:
         self.path = Path(path)
         self.rec, self.tmp = open_recording(self.path, app_id="stcvision-cover", default_blueprint=_blueprint())
         self.board = board
+        self.every = readings_every(board) if every is None else max(1, int(every))
+        self.world_every = max(self.every, readings_every(board, WORLD_BUDGET))
+        self.readings = self.full = 0  # readings seen, and logged in full
+        self._last: Reading | None = None  # the last reading, when it was not logged in full
         self._pipe_logger = None
         self._static()
 
@@ -73,10 +99,25 @@ class CoverRecorder(Observer):
         )
 
     def on_reading(self, ev: Reading) -> None:
+        if ev.kind == "look" and ev.frame is None:
+            return
+        self.readings += 1
+        full = (self.readings - 1) % self.every == 0
+        self._log_reading(ev, full=full, world=(self.readings - 1) % self.world_every == 0)
+        self._last = None if full else ev
+
+    def on_referee(self, kind: str, text: str) -> None:
+        """A reading the referee finds wrong: its frames and the world, in full (once)."""
+        if self._last is not None:
+            self._log_reading(self._last, full=True)
+            self._last = None
+
+    def on_end(self, plant, floor) -> None:
+        self._world(plant.t, floor.phosphor, plant.visits)
+
+    def _log_reading(self, ev: Reading, *, full: bool, world: bool | None = None) -> None:
         p = ev.plant
         if ev.kind == "look":
-            if ev.frame is None:
-                return
             text = f"**look** from sub-cell {p.sub}: the cell ahead is {'marked' if ev.marked else 'unmarked'}"
         else:
             d, o = ev.decision, ev.obs
@@ -86,10 +127,16 @@ class CoverRecorder(Observer):
                 f"target {d.target}{' (stop there)' if d.final else ''}\n\n"
                 f"boxes {o.boxes}, start mark {o.start_mark}"
             )
-        result, pipeline = ev.frame if ev.frame is not None else (None, None)
-        self.decision(ev.k, p.t, p.pose, ev.floor.phosphor, p.visits, result, pipeline, text)
+        result, pipeline = ev.frame if (ev.frame is not None and full) else (None, None)
+        self.full += full
+        world = full if world is None else world
+        self.decision(ev.k, p.t, p.pose, ev.floor.phosphor, p.visits, result, pipeline, text, world=world)
 
-    def decision(self, k: int, t_s: float, pose, phosphor, visits, result, pipeline, text: str) -> None:
+    def decision(
+        self, k: int, t_s: float, pose, phosphor, visits, result, pipeline, text: str, *, world: bool = True
+    ) -> None:
+        """One reading: the robot, the text, with ``world`` the world's snapshot, with a
+        ``result`` the camera's stages."""
         rec = self.rec
         rec.set_time("decision", sequence=k)
         rec.set_time("sim_time", duration=float(t_s))
@@ -97,6 +144,17 @@ class CoverRecorder(Observer):
         rec.log("world/robot", rr.Points2D(self._xy([(x, y)]), radii=0.07, colors=[60, 120, 255]))
         tip = (x + 0.1 * np.cos(h), y + 0.1 * np.sin(h))
         rec.log("world/robot_heading", rr.LineStrips2D([self._xy([(x, y), tip])], colors=[60, 120, 255], radii=0.006))
+        if world:
+            self._world(t_s, phosphor, visits)
+        rec.log("decision", rr.TextDocument(text, media_type="text/markdown"))
+        if result is not None and pipeline is not None:
+            if self._pipe_logger is None or self._pipe_logger.pipeline is not pipeline:
+                self._pipe_logger = PipelineLogger(rec, pipeline, jpeg_quality=70)
+            self._pipe_logger.log(result, frame=k, sim_time_s=t_s)
+
+    def _world(self, t_s: float, phosphor, visits) -> None:
+        """Every mark with its glow at ``t_s``, and the covered sub-cells."""
+        rec = self.rec
         if len(phosphor):
             lum = phosphor.luminance_at(t_s)
             g = np.clip(255 * np.sqrt(lum / max(phosphor.law.l_sat_cd_m2, 1e-9)), 30, 255).astype(np.uint8)
@@ -110,11 +168,6 @@ class CoverRecorder(Observer):
                 "world/covered",
                 rr.Boxes2D(centers=centres, sizes=[[0.9 * D, 0.9 * D]] * len(cov), colors=[80, 200, 80, 60]),
             )
-        rec.log("decision", rr.TextDocument(text, media_type="text/markdown"))
-        if result is not None and pipeline is not None:
-            if self._pipe_logger is None or self._pipe_logger.pipeline is not pipeline:
-                self._pipe_logger = PipelineLogger(rec, pipeline, jpeg_quality=70)
-            self._pipe_logger.log(result, frame=k, sim_time_s=t_s)
 
     def close(self) -> None:
         finish_recording(self.rec, self.tmp, self.path)

@@ -47,6 +47,8 @@ class _Parser(argparse.ArgumentParser):
 def build_parser() -> argparse.ArgumentParser:
     parser = _Parser(
         prog="stcvision",
+        epilog=EXIT_STATUSES,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
         description=(
             "Toolkit for robots that mark a phosphorescent floor with UV LEDs and read the marks "
             "back through a catadioptric camera: vision pipeline, simulator, controllers, "
@@ -68,6 +70,12 @@ def build_parser() -> argparse.ArgumentParser:
 #: exit statuses (README 'Command line'): 0 done; 2 bad input or an output that cannot be made;
 #: 3 the command ran but the robot did not complete (cover, demo); 128+N killed by signal N
 EXIT_OK, EXIT_BAD_INPUT, EXIT_INCOMPLETE = 0, 2, 3
+EXIT_STATUSES = """exit status:
+  0    done
+  2    bad input, or an output that cannot be made or exists without --force (one line on stderr)
+  3    ran, but the robot did not complete (cover, demo: aborted, covered a sub-cell twice, not back)
+  130  interrupted (Ctrl-C); 143 SIGTERM; 129 SIGHUP: no partial output, no temporary file left
+  141  stdout closed early (| head)"""
 
 #: errno values of an OSError that is about a path the user named (one line, exit 2), not a bug
 _PATH_ERRNOS = frozenset(
@@ -86,11 +94,13 @@ class Terminated(KeyboardInterrupt):
         self.signum = signum
 
 
-def _install_signal_handlers() -> None:
+def _install_signal_handlers() -> dict:
+    """Turn SIGTERM and SIGHUP into :class:`Terminated`; returns the handlers they had."""
     import os
     import signal
 
     main_pid = os.getpid()
+    previous = {}
 
     def handler(signum, frame):
         if os.getpid() != main_pid:  # a forked worker: die as the signal says
@@ -101,9 +111,17 @@ def _install_signal_handlers() -> None:
 
     for sig in (signal.SIGTERM, signal.SIGHUP):
         try:
-            signal.signal(sig, handler)
+            previous[sig] = signal.signal(sig, handler)
         except (ValueError, OSError):  # not the main thread (main() called from a thread)
-            return
+            break
+    return previous
+
+
+def _restore_signal_handlers(previous: dict) -> None:
+    import signal
+
+    for sig, h in previous.items():
+        signal.signal(sig, h)
 
 
 def _print_result(args, mod, result) -> None:
@@ -137,16 +155,23 @@ def main(argv: Sequence[str] | None = None) -> int:
     and SIGHUP end with 128 + the signal's number, leaving no temporary file behind. Any other
     exception is a bug and keeps its traceback.
     """
-    from stcvision.fileio import remove_live_temps
+    from stcvision.fileio import new_run, remove_live_temps
 
+    new_run()
     parser = build_parser()
     args = parser.parse_args(argv)
     if args.command is None:
         parser.print_help()
         return EXIT_BAD_INPUT
+    empty = [k for k, v in vars(args).items() if v == "" or (isinstance(v, list) and "" in v)]
+    if empty:  # every string this CLI takes is a path or a name: '' is never meant
+        flag = (
+            empty[0].upper() if empty[0] in ("frames", "frame", "recipe", "dir") else "--" + empty[0].replace("_", "-")
+        )
+        parser.exit(EXIT_BAD_INPUT, f"stcvision {args.command}: error: {flag} is an empty string; expected a name\n")
     mod = args._module
     name = args.command
-    _install_signal_handlers()
+    previous = _install_signal_handlers()
     try:
         result = mod.run(args)
         if isinstance(result, int):
@@ -171,4 +196,5 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 128 + signum
     finally:
         remove_live_temps()
+        _restore_signal_handlers(previous)
     return int(result.get("exit_code", EXIT_OK)) if isinstance(result, dict) else EXIT_OK

@@ -17,7 +17,7 @@ def _number(kind: type, text: str):
 def pair(kind: type = float, n: int = 2, *, fmt: str | None = None, example: str | None = None):
     """argparse type for ``A,B`` (or ``AxB``) tuples of ``n`` finite numbers; ``fmt`` names the
     form in the message (e.g. ``WxH``) and ``example`` shows one."""
-    names = {int: "integers", float: "numbers"}[kind]
+    names = {int: "integers", float: "finite numbers"}[kind]
     example = example or ",".join(["1"] * n)
     form = f"{fmt} ({n} {names}, e.g. {example})" if fmt else f"{n} comma-separated {names} (e.g. {example})"
 

@@ -1,6 +1,13 @@
 """Measure speed on one core: the synthetic camera's render time (640x480 with noise) and the
 vision pipeline's per-frame time (all stages, and each stage). Reports medians over repeats.
 
+Beside the pipeline, the plain-OpenCV baseline a user would build instead (stcvision.baseline:
+blur, mean + 4 sigma threshold and connected components; and cv2.SimpleBlobDetector), on the same
+frames in the same process, taking turns frame by frame: its ms per frame, and the recall,
+precision and localisation error of pipeline and baseline on a labelled set (stcvision.versus):
+by default frames rendered here from the ages recipe at a seed its tuning did not use
+(--labelled-frames, --labelled-seed), or a generated dataset (--labelled DIR).
+
 --sweep measures instead the sweep runner's own cost per task (stcvision.sweep): no-op tasks
 in this process, on the local pool and on a Dask cluster (--scheduler, or a LocalCluster of two
 single-threaded worker processes started for the purpose).
@@ -11,15 +18,45 @@ anything.
 
 from __future__ import annotations
 
-from stcvision.cli._args import seed
+from stcvision.cli._args import positive, seed
+from stcvision.limits import MAX_BENCH_FRAMES
 
 
 def add_parser(p):
-    p.add_argument("--frames", type=int, default=200, metavar="N", help="frames to time (default 200)")
+    p.add_argument(
+        "--frames",
+        type=positive(int, maximum=MAX_BENCH_FRAMES),
+        default=200,
+        metavar="N",
+        help=f"frames to time (default 200, at most {MAX_BENCH_FRAMES:,})",
+    )
     p.add_argument("--seed", type=seed, default=0, help="seed of the benchmark scene (default 0)")
     p.add_argument("--sweep", action="store_true", help="measure the sweep runner's cost per task instead")
     p.add_argument("--tasks", type=int, default=1000, metavar="N", help="--sweep: no-op tasks per backend (1000)")
     p.add_argument("--scheduler", metavar="tcp://HOST:PORT", help="--sweep: a Dask cluster (default: a LocalCluster)")
+    g = p.add_argument_group("the labelled set of the pipeline/baseline comparison")
+    g.add_argument(
+        "--labelled", metavar="DIR", help="a generated dataset (default: frames rendered from the ages recipe)"
+    )
+    g.add_argument(
+        "--labelled-frames",
+        type=int,
+        default=60,
+        metavar="N",
+        help="frames rendered from the ages recipe, spread over its groups (default 60; 0: no comparison)",
+    )
+    g.add_argument(
+        "--labelled-seed",
+        type=int,
+        default=LABELLED_SEED,
+        metavar="S",
+        help=f"their seed (default {LABELLED_SEED}; the baseline was tuned at the recipe's own seed, 1)",
+    )
+
+
+#: the ages recipe the labelled set is rendered from, and its held-out seed
+AGES_RECIPE = "datasets/recipes/ages.json"
+LABELLED_SEED = 2
 
 
 def _bench_sweep(args) -> dict:
@@ -50,6 +87,73 @@ def _bench_sweep(args) -> dict:
                 rows.append(measure_overhead(SweepOptions(scheduler=c.scheduler_address), store, args.tasks))
                 rows[-1]["backend"] = "dask LocalCluster (2 worker processes, 1 thread each)"
     return {"sweep_overhead": rows}
+
+
+def _ages_recipe(n_frames: int):
+    """The repository's ages recipe with its groups scaled to ``n_frames`` frames in all."""
+    from pathlib import Path
+
+    from stcvision.datasets import parse_recipe
+    from stcvision.errors import BadInputError
+    from stcvision.fileio import read_json
+
+    path = Path(__file__).resolve().parents[2] / AGES_RECIPE
+    if not path.exists():
+        raise BadInputError(f"{path} not found (an installed package has no recipes); give --labelled DIR")
+    raw = read_json(path, what="recipe")
+    total = sum(g["n"] for g in raw["groups"])
+    left = n_frames
+    for i, g in enumerate(raw["groups"]):
+        share = left if i == len(raw["groups"]) - 1 else round(n_frames * g["n"] / total)
+        g["n"] = max(0, min(share, left))
+        left -= g["n"]
+    raw["groups"] = [g for g in raw["groups"] if g["n"] > 0]
+    return parse_recipe(raw, where=str(path))
+
+
+def _labelled(args, ds=None) -> dict:
+    """Pipeline and baseline on the labelled set (:func:`stcvision.versus.compare_detectors`):
+    the dataset ``ds`` if given, else frames rendered from the ages recipe."""
+    import tempfile
+
+    from calibration.profiles import default_profile
+    from stcvision.datasets import open_dataset
+    from stcvision.versus import compare_detectors
+
+    if ds is not None:
+        out = compare_detectors(ds, default_profile=default_profile())
+        out["source"] = args.labelled
+        return out
+    from stcvision.cli.dataset_generate import generate
+    from stcvision.sweep import SweepOptions
+
+    recipe = _ages_recipe(args.labelled_frames)
+    with tempfile.TemporaryDirectory(prefix="stcvision-bench-") as tmp:
+        generate(recipe, f"{tmp}/set", seed=args.labelled_seed, options=SweepOptions(workers=1))
+        out = compare_detectors(open_dataset(f"{tmp}/set"), default_profile=default_profile())
+    out["source"] = f"{AGES_RECIPE}, {recipe.n_frames} frames, seed {args.labelled_seed}"
+    return out
+
+
+def _bench_baseline(camera, board, layer, pose, *, frames: int, seed: int, profile) -> dict:
+    """ms per frame of the baseline and of the pipeline on the same rendered frames, taking turns
+    (:func:`stcvision.versus.time_detectors`): a busy machine slows them alike, so the ratio holds."""
+    import numpy as np
+
+    from stcvision.versus import default_detectors, time_detectors
+
+    rng = np.random.default_rng(np.random.SeedSequence(seed).spawn(1)[0])  # not the pipeline bench's stream
+    dark = camera.median_dark(8, rng=rng)
+    lights = board.red_lights_m()
+    imgs = [camera.render(pose, rng=rng, phosphor=layer, red_lights_m=lights).image for _ in range(8)]
+    dets = {name: make(profile, dark) for name, make in default_detectors().items()}
+    ms = time_detectors(dets, imgs, frames)
+    return {
+        "baseline_ms_per_frame": ms["baseline"],
+        "baseline_blob_ms_per_frame": ms["blob"],
+        "baseline_pipeline_ms_per_frame": ms["pipeline"],
+        "baseline_time_ratio": ms["baseline"] / ms["pipeline"],
+    }
 
 
 def _median_ms(fn, n: int) -> float:
@@ -102,21 +206,34 @@ def run(args):
     import cv2
     import numpy as np
 
-    from sim_camera.camera import SyntheticCamera
+    from sim_camera.camera import Pose, SyntheticCamera
     from stcvision.errors import BadInputError
 
     if args.frames < 1:
         raise BadInputError(f"--frames must be >= 1, got {args.frames}")
+    if args.labelled_frames < 0:
+        raise BadInputError(f"--labelled-frames must be >= 0, got {args.labelled_frames}")
+    if args.labelled_seed < 0:
+        raise BadInputError(f"--labelled-seed must be >= 0, got {args.labelled_seed}")
+    labelled = None
+    if args.labelled:  # a bad folder is refused before the minutes of timing, not after
+        from stcvision.datasets import open_dataset
+
+        labelled = open_dataset(args.labelled)
     cv2.setNumThreads(1)
     board, layer, pose = benchmark_scene(args.seed)
     cam = SyntheticCamera()
     rng = np.random.default_rng(args.seed)
     lights = board.red_lights_m()
     render_ms = _median_ms(lambda: cam.render(pose, rng=rng, phosphor=layer, red_lights_m=lights), args.frames)
+    # the same scene from a new pose every frame (a dataset; a robot on the move): no projection reused
+    moving = iter([Pose(pose.x_m + 1e-3 * k, pose.y_m, pose.heading_rad) for k in range(args.frames + 1)])
+    moving_ms = _median_ms(lambda: cam.render(next(moving), rng=rng, phosphor=layer, red_lights_m=lights), args.frames)
     result = {
         "frame_size_px": [cam.optics.width_px, cam.optics.height_px],
         "dots_on_floor": len(layer),
         "render_ms_per_frame": render_ms,
+        "render_moving_ms_per_frame": moving_ms,
         "render_frames_per_s": 1000.0 / render_ms,
         "threads": 1,
     }
@@ -129,7 +246,11 @@ def run(args):
         return result
     from calibration.profiles import default_profile
 
-    result.update(bench_pipeline(cam, board, layer, pose, frames=args.frames, rng=rng, profile=default_profile()))
+    profile = default_profile()
+    result.update(bench_pipeline(cam, board, layer, pose, frames=args.frames, rng=rng, profile=profile))
+    result.update(_bench_baseline(cam, board, layer, pose, frames=args.frames, seed=args.seed, profile=profile))
+    if args.labelled or args.labelled_frames:
+        result["labelled"] = _labelled(args, labelled)
     return result
 
 
@@ -144,6 +265,8 @@ def format_text(r):
         f"render: {r['render_ms_per_frame']:.2f} ms/frame ({r['render_frames_per_s']:.0f} frames/s), "
         f"{r['frame_size_px'][0]}x{r['frame_size_px'][1]} with noise, {r['dots_on_floor']} dots on the floor, 1 thread"
     ]
+    if "render_moving_ms_per_frame" in r:
+        lines.append(f"render from a new pose every frame: {r['render_moving_ms_per_frame']:.2f} ms/frame")
     if "buffon_robot_steps_per_s" in r:
         lines.append(
             f"buffon ({r['buffon_nest']}): batched {r['buffon_robot_steps_per_s']:,.0f} robot-steps/s, pymunk "
@@ -153,4 +276,16 @@ def format_text(r):
         lines.append(f"pipeline: {r['pipeline_ms_per_frame']:.3f} ms/frame (median, all stages, 1 thread)")
         for k, v in r["stage_ms"].items():
             lines.append(f"  {k:<16s} {v:.3f} ms")
+    if "baseline_ms_per_frame" in r:
+        lines.append(
+            f"baseline (plain OpenCV): {r['baseline_ms_per_frame']:.3f} ms/frame, SimpleBlobDetector "
+            f"{r['baseline_blob_ms_per_frame']:.3f} ms/frame, against the pipeline's "
+            f"{r['baseline_pipeline_ms_per_frame']:.3f} on the same frames, taking turns "
+            f"({r['baseline_time_ratio']:.2f}x the pipeline's time)"
+        )
+    if "labelled" in r:
+        from stcvision.versus import format_comparison
+
+        lines.append(f"pipeline and baseline on {r['labelled']['source']}:")
+        lines.append(format_comparison(r["labelled"]))
     return "\n".join(lines)

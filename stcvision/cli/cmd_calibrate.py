@@ -45,7 +45,9 @@ def add_parser(p):
     )
     t.add_argument("frame", metavar="FRAME")
     t.add_argument("--out", required=True, metavar="PROFILE.json")
-    t.add_argument("--center", type=pair(float, fmt="U,V", example="320,240"), metavar="U,V", help="mirror centre by hand (pixels)")
+    t.add_argument(
+        "--center", type=pair(float, fmt="U,V", example="320,240"), metavar="U,V", help="mirror centre by hand (pixels)"
+    )
     t.add_argument("--subcell-m", type=float, default=0.16, help="sub-cell side D of the board (default 0.16)")
     t.add_argument(
         "--viewpoint-m",
@@ -129,7 +131,7 @@ def _dark(args):
             f"dark frames were taken at different exposures ({min(exposures):g}..{max(exposures):g} s); "
             "expected one exposure"
         )
-    dark = median_dark(frames, [str(f) for f in args.frames])
+    dark = median_dark(frames, [str(f) for f in args.frames])  # 8 or 16 bits, as taken
     write_image(out, dark, overwrite=args.force)
     hot = hot_pixels(dark)
     return {
@@ -189,8 +191,14 @@ def _own_preview(path) -> bool:
 def _check_outputs(args, out: str, preview: str, *, out_force: bool) -> None:
     """Refuse, before any work, outputs that exist (without --force) or cannot be made; a preview
     this command wrote before is replaced."""
+    from pathlib import Path
+
+    from stcvision.errors import OutputError
     from stcvision.fileio import check_output_file
 
+    for path, suffix, what in ((out, ".json", "profile"), (preview, ".png", "preview")):
+        if Path(path).suffix.lower() != suffix:
+            raise OutputError(f"{what} {path} does not end in {suffix}; expected a {suffix} file name")
     check_output_file(out, overwrite=out_force, what="profile")
     check_output_file(preview, overwrite=args.force or _own_preview(preview), what="preview")
 

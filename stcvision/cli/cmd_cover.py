@@ -8,8 +8,14 @@ could show (the physics-limited camera, no pipeline). --exposure webcam is the s
 (1/30 s); auto adds long frames sized by the robot's clock (2-30 s, then stacked 30 s frames) for
 the dim old marks; or give --exposure-s X.
 
+Exit status: 0 when the robot completed the board (every reachable sub-cell exactly once, back
+in its start cell), 3 when it ran but did not (aborted, covered a sub-cell twice, not back: see
+abort_reason), 2 for bad input.
+
   stcvision cover plan --map M --camera C [--robot R]
   stcvision cover sweep --sizes 2,3,4 --runs 6 --out DIR [--workers N | --scheduler tcp://H:P]
+  stcvision cover faults --out DIR [--cells 6 --runs 3 --faults rate,led,...]
+  stcvision cover --fault NAME[:LEVEL] ...   (--list-faults)
 
 plan says what the tour needs of the camera, from the physics-limited camera (exposure auto):
 does it converge, how long, the oldest mark it reads, the frame lengths it uses. sweep
@@ -29,8 +35,11 @@ def add_parser(p):
 
     p.formatter_class = argparse.RawDescriptionHelpFormatter  # keep the usage lines of the docstring
     # 'stcvision cover --board 4x4' stays a flat command; a leading 'plan' or 'sweep' is a sub-action
-    sub = p.add_subparsers(dest="action", metavar="{plan,sweep}", parser_class=type(p))
+    sub = p.add_subparsers(dest="action", metavar="{plan,sweep,faults}", parser_class=type(p))
     _add_sweep_parser(sub)
+    from stcvision.cli.cover_faults import add_parser as add_faults_parser
+
+    add_faults_parser(sub)
     plan = sub.add_parser(
         "plan",
         help="what the tour needs of the camera, from the physics-limited camera",
@@ -57,6 +66,15 @@ def add_parser(p):
         help="webcam: 1/30 s (the seed's camera); auto: plus a long frame (default: auto)",
     )
     _add_hardware_arguments(p)
+    p.add_argument(
+        "--fault",
+        action="append",
+        default=[],
+        metavar="NAME[:LEVEL]",
+        help="inject a hardware fault (repeatable): rate, led, drop, stray, noise, bump, slip; --list-faults for "
+        "what each LEVEL means, its default and range",
+    )
+    p.add_argument("--list-faults", action="store_true", help="list the faults with their LEVEL meaning and range")
     p.add_argument("--list-cameras", action="store_true", help="list the camera presets with their sources")
     p.add_argument("--list-robots", action="store_true", help="list the robot presets with their sources")
     p.add_argument("--rrd", metavar="OUT.rrd", help="rerun recording of the world, the camera stages and each decision")
@@ -68,11 +86,18 @@ def _add_board_arguments(p) -> None:
 
     src = p.add_mutually_exclusive_group()
     src.add_argument("--map", metavar="FILE", help="board map: .txt ('.', '#', 'S') or .png")
-    src.add_argument("--board", type=pair(int, fmt="WxH", example="4x4"), metavar="WxH", help="random board of W x H cells (default 4x4)")
+    src.add_argument(
+        "--board",
+        type=pair(int, fmt="WxH", example="4x4"),
+        metavar="WxH",
+        help="random board of W x H cells (default 4x4)",
+    )
     p.add_argument(
         "--obstacle-fraction", type=float, default=None, help=f"for --board only (default {OBSTACLE_FRACTION})"
     )
-    p.add_argument("--start", type=pair(int, fmt="I,J", example="1,2"), metavar="I,J", help="start sub-cell (row, column)")
+    p.add_argument(
+        "--start", type=pair(int, fmt="I,J", example="1,2"), metavar="I,J", help="start sub-cell (row, column)"
+    )
     p.add_argument("--seed", type=seed, default=0, help="seed of the board, the robot and the camera (default 0)")
 
 
@@ -185,6 +210,10 @@ def run(args):
         from stcvision.cli.cover_sweep import sweep_cover
 
         return sweep_cover(args)
+    if args.action == "faults":
+        from stcvision.cli.cover_faults import sweep_faults
+
+        return sweep_faults(args)
 
     from controllers.stc.loop import CoverConfig
     from sim_camera import hardware
@@ -193,6 +222,10 @@ def run(args):
         return [hardware.camera_to_dict(c) for c in hardware.CAMERAS.values()]
     if getattr(args, "list_robots", False):
         return [hardware.robot_to_dict(r) for r in hardware.ROBOTS.values()]
+    if getattr(args, "list_faults", False):
+        from controllers.stc.faults import fault_table
+
+        return fault_table()
     camera, robot = hardware.load_camera(args.camera), hardware.load_robot(args.robot)
     board = load_board(args)
     if args.action == "plan":
@@ -208,7 +241,13 @@ def run(args):
         from stcvision.rr import check_recording_path
 
         check_recording_path(args.rrd, overwrite=args.force)
-    cfg = CoverConfig(perception=args.perception, exposure=exposure, seed=args.seed, camera=camera, robot=robot)
+    from controllers.stc.faults import Faults, parse_fault
+
+    faults = tuple(parse_fault(f) for f in args.fault)
+    Faults(faults, args.seed, args.perception)  # a fault twice or one the perception has no frames for: exit 2
+    cfg = CoverConfig(
+        perception=args.perception, exposure=exposure, seed=args.seed, camera=camera, robot=robot, faults=faults
+    )
     result = run_recorded(board, cfg, args.rrd)
     result["rrd"] = args.rrd
     return result
@@ -239,11 +278,25 @@ def run_recorded(board, cfg, rrd, observers=()) -> dict:
     return result
 
 
+def _fault_events(r: dict) -> str:
+    return ", ".join(f"{f} ({n})" for f, n in zip(r["faults"], r["fault_events"].values(), strict=True))
+
+
 def format_text(r):
+    if isinstance(r, dict) and r.get("action") == "faults":
+        from stcvision.cli.cover_faults import format_text as faults_text
+
+        return faults_text(r)
     if isinstance(r, dict) and r.get("action") == "sweep":
         from stcvision.cli.cover_sweep import format_text as sweep_text
 
         return sweep_text(r)
+    if isinstance(r, list) and r and r[0].get("kind") == "fault":  # --list-faults
+        return "\n".join(
+            f"{f['name']:6s} LEVEL {f['meaning']}: default {f['default']:g}, range {f['range']}"
+            + (" (--perception camera)" if f["camera_only"] else "")
+            for f in r
+        )
     if isinstance(r, list):  # --list-cameras / --list-robots
         out = []
         for p in r:
@@ -276,6 +329,7 @@ def format_text(r):
         ("complete (every sub-cell once, back, no error)", str(r["complete"])),
         ("finished / back in start cell", f"{r['finished']} / {r['returned_to_start']}"),
         ("abort reason", str(r["abort_reason"])),
+        *([("faults (events)", _fault_events(r))] if r.get("faults") else []),
         ("moves / turns / decisions", f"{r['moves']} / {r['turns']} / {r['decisions']}"),
         ("decision errors (vs oracle)", str(r["decision_errors"])),
         ("oldest mark read", f"{r['max_mark_age_read_s']:.0f} s"),

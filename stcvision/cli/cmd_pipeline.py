@@ -7,14 +7,14 @@ from __future__ import annotations
 
 
 def add_parser(p):
-    p.add_argument("frames", nargs="+", metavar="FRAME", help="frame images (PNG/JPEG, BGR)")
+    p.add_argument("frames", nargs="+", metavar="FRAME", help="frame images (BGR: 8-bit PNG/JPEG or 16-bit PNG)")
     p.add_argument(
         "--profile",
         metavar="PROFILE.json",
         help="calibration profile (default: the shipped profile of the default simulated camera)",
     )
     dark = p.add_mutually_exclusive_group()
-    dark.add_argument("--dark", metavar="DARK.png", help="dark frame at the frames' exposure")
+    dark.add_argument("--dark", metavar="DARK.png", help="dark frame at the frames' exposure (and depth)")
     dark.add_argument("--no-dark", action="store_true", help="run without a dark frame (not recommended)")
     p.add_argument("--rrd", metavar="OUT.rrd", help="write a rerun recording of every stage")
     p.add_argument("--spawn", action="store_true", help="stream to a spawned rerun viewer")
@@ -23,7 +23,7 @@ def add_parser(p):
 
 def run(args):
     from stcvision.errors import BadInputError
-    from stcvision.fileio import read_image
+    from stcvision.fileio import check_same_depth, read_image
     from stcvision.pipeline import Pipeline
     from stcvision.profile import Profile
     from stcvision.rr import check_recording_path
@@ -58,6 +58,8 @@ def run(args):
         for i, path in enumerate(args.frames):
             frame = read_image(path, what="frame")
             profile.check_frame(frame.shape, what=f"frame {path}")
+            if dark is not None:
+                check_same_depth(frame, dark, args.dark, frame_path=path)
             if i == 0:  # where its mirror rim shows (lights on), it must be where the profile has it
                 from calibration.rim import check_rim_matches
 

@@ -1,6 +1,8 @@
 """Render a synthetic catadioptric frame of a scene: writes frame.png (the dark-room frame),
 dark.png (a median of dark frames at the same settings), lights_on.png (the lit calibration
-frame at the same pose) and truth.json (ground truth) into --out.
+frame at the same pose) and truth.json (ground truth) into --out. Frames have the camera's
+ADC depth: 8-bit PNGs for the webcam, 16-bit PNGs holding the ADC counts for a 12- or 16-bit
+sensor (``--camera lowlight|cooled|FILE.json``, or ``"sensor": {"adc_bits": 16}`` in the scene).
 
 Print a documented example scene with --example-scene.
 """
@@ -24,6 +26,12 @@ def add_parser(p):
         default=16,
         metavar="N",
         help=f"dark frames median-stacked into dark.png (default 16, at most {MAX_DARK_FRAMES})",
+    )
+    p.add_argument(
+        "--camera",
+        metavar="NAME|FILE.json",
+        help="camera profile whose sensor the scene's sensor overrides apply to (default webcam; "
+        "see stcvision cover --list-cameras)",
     )
     p.add_argument("--force", action="store_true", help="overwrite existing outputs in --out")
     p.epilog = (
@@ -51,7 +59,12 @@ def run(args):
     from stcvision.fileio import check_output_folder, dumps, image_bytes, write_set
 
     out = check_output_folder(args.out, OUTPUTS, overwrite=args.force)
-    scene = Scene.from_file(args.scene)
+    base = None
+    if args.camera:
+        from sim_camera.hardware import load_camera
+
+        base = load_camera(args.camera).sensor
+    scene = Scene.from_file(args.scene, sensor_base=base)
     cam = scene.camera()
     rngs = [np.random.default_rng(s) for s in np.random.SeedSequence(args.seed).spawn(3)]
     frame = cam.render(
@@ -82,12 +95,14 @@ def run(args):
         "dots_detectable": sum(d["detectable"] for d in dots),
         "red_lights_visible": sum(r["visible"] for r in truth["red_lights"]),
         "pose": truth["pose"],
+        "adc_bits": scene.sensor.adc_bits,
+        "dtype": str(frame.image.dtype),
     }
 
 
 def format_text(r):
     return (
-        f"wrote {', '.join(r['files'])}\n"
+        f"wrote {', '.join(r['files'])} ({r['adc_bits']}-bit ADC, {r['dtype']} PNGs)\n"
         f"dots: {r['dots']} ({r['dots_visible']} visible, {r['dots_detectable']} detectable at SNR>=5); "
         f"red lights visible: {r['red_lights_visible']}"
     )

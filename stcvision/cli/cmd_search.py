@@ -88,13 +88,18 @@ def _pattern(args):
     return SpiralPattern(step_m=args.step_m, spacing_m=args.spacing_m, **kw)
 
 
-def _refuse_existing(path, force):
+def _check_plot(path, force):
+    """Refuse, before the run, a --plot that is not a new .png file (or an existing one without --force)."""
     from pathlib import Path
 
-    from stcvision.errors import FileExistsRefusedError
+    from stcvision.errors import OutputError
+    from stcvision.fileio import check_output_file
 
-    if path and Path(path).exists() and not force:
-        raise FileExistsRefusedError(f"{path} exists; refusing to overwrite it (use --force)")
+    if path is None:
+        return
+    check_output_file(path, overwrite=force, what="plot")
+    if Path(path).suffix.lower() != ".png":
+        raise OutputError(f"plot {path} does not end in .png; expected OUT.png")
 
 
 def run(args):
@@ -110,7 +115,7 @@ def run(args):
     pattern = _pattern(args)
     scene = SearchScene(obstacles=tuple(args.obstacle), patch=args.patch)
     cfg = SearchConfig(pattern=pattern, policy=Policy(args.policy), threshold=args.threshold)
-    _refuse_existing(args.plot, args.force)
+    _check_plot(args.plot, args.force)
     if args.rrd:
         from stcvision.rr import check_recording_path
 

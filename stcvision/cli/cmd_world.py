@@ -20,7 +20,9 @@ def add_parser(p) -> None:
     src = p.add_mutually_exclusive_group()
     src.add_argument("--arena", metavar="ARENA.json", help="arena description (JSON)")
     src.add_argument("--map", metavar="MAP", help="STC board map: .txt ('.', '#', 'S') or .png")
-    src.add_argument("--board", metavar="WxH", type=pair(int, fmt="WxH", example="4x4"), help="random board of W x H cells")
+    src.add_argument(
+        "--board", metavar="WxH", type=pair(int, fmt="WxH", example="4x4"), help="random board of W x H cells"
+    )
     p.add_argument(
         "--steps",
         type=positive(int, maximum=MAX_STEPS, why="about 10 minutes of wall time at ~2,000 steps/s"),

@@ -231,8 +231,6 @@ def plot(rows: list[dict]) -> bytes:
 
 def write_outputs(out: Path, runs: list[dict], rows: list[dict], report_summary: str) -> list[str]:
     """runs.csv, table.csv (``rows``: :func:`summarise` of ``runs``), summary.md, coverage.png."""
-    from stcvision.fileio import write_bytes_atomic
-
     failed = [r for r in runs if not r["complete"]]
     md = [
         "# STC coverage sweep",
@@ -264,6 +262,13 @@ def write_outputs(out: Path, runs: list[dict], rows: list[dict], report_summary:
         "summary.md": "\n".join(md).encode(),
         "coverage.png": plot(rows),
     }
+    return write_files(out, files)
+
+
+def write_files(out: Path, files: dict[str, bytes]) -> list[str]:
+    """Each of ``files`` (name -> bytes) into ``out``, atomically; returns their paths."""
+    from stcvision.fileio import write_bytes_atomic
+
     for name, data in files.items():
         write_bytes_atomic(out / name, data, overwrite=True)
     return [str(out / name) for name in files]

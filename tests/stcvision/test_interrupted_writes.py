@@ -36,6 +36,11 @@ def start(argv: list, **kw) -> subprocess.Popen:
     )
 
 
+def writing(p: subprocess.Popen, folder: Path):
+    """A condition: ``p`` has a temporary file of its own in ``folder`` (not a killed one's)."""
+    return lambda: any(f".{p.pid}." in t.name for t in temps(folder))
+
+
 def kill_while_writing(p: subprocess.Popen, started, extra_s: float, timeout_s: float = 300) -> bool:
     """SIGKILL ``p`` ``extra_s`` after ``started()`` first holds; True if it was killed while
     running (False: it had finished first)."""
@@ -60,8 +65,8 @@ def stcvision(*argv) -> list:
 WRITE_PROFILES = """
 import sys
 from calibration.profiles import default_profile
-prof, path = default_profile(), sys.argv[1]
-for i in range(1, 100000):
+prof, path, n = default_profile(), sys.argv[1], int(sys.argv[2])
+for i in range(1, n + 1):
     prof.replace(provenance={"version": i, "pad": "x" * 400000}).save(path, overwrite=True)
 """
 
@@ -73,17 +78,24 @@ def test_profile_killed_while_written_is_old_or_new_complete(tmp_path):
     path = tmp_path / "p.json"
     default_profile().replace(provenance={"version": 0, "pad": "x" * 400000}).save(path)
     for extra in RNG.uniform(0.0, 0.3, 3):
-        p = start(["-c", WRITE_PROFILES, path])
-        assert kill_while_writing(p, lambda: bool(temps(tmp_path)), extra)
+        p = start(["-c", WRITE_PROFILES, path, 100000])
+        assert kill_while_writing(p, writing(p, tmp_path), extra)
         prof = Profile.load(path)  # complete: loads, every field
         assert isinstance(prof.provenance["version"], int) and len(prof.provenance["pad"]) == 400000
-    # the re-run (the next write of p.json) completes and clears the killed writers' temporaries
-    default_profile().save(path, overwrite=True)
-    assert Profile.load(path).provenance == default_profile().provenance
+    # the re-run (a new process writing p.json) completes and clears the killed writers' temporaries
+    assert start(["-c", WRITE_PROFILES, path, 1]).wait(timeout=300) == 0
+    assert Profile.load(path).provenance["version"] == 1
     assert temps(tmp_path) == []
 
 
 # ---------------------------------------------------------------------------------- dataset
+def rerun_in_process(argv: list) -> None:
+    """The re-run, in this process (``argv`` as given to :func:`start`)."""
+    from stcvision.cli import main
+
+    assert main([str(a) for a in argv[2:]]) == 0
+
+
 def test_dataset_killed_while_generated_resumes_to_a_complete_set(tmp_path):
     from stcvision.datasets import open_dataset
 
@@ -92,13 +104,12 @@ def test_dataset_killed_while_generated_resumes_to_a_complete_set(tmp_path):
     argv = stcvision("dataset", "generate", recipe, "--out", out, "--workers", "1")
     for extra in RNG.uniform(0.0, 1.0, 2):
         p = start(argv)
-        kill_while_writing(p, lambda: bool(temps(tmp_path)) or (out / "frames").is_dir(), extra)
+        kill_while_writing(p, writing(p, tmp_path), extra)
         for f in out.rglob("*.json*"):  # what is there is complete
             if not f.name.startswith("."):
                 text = f.read_text()
                 [json.loads(line) for line in text.splitlines()] if f.suffix == ".jsonl" else json.loads(text)
-    p = start(argv)
-    assert p.wait(timeout=600) == 0, p.stderr.read().decode()
+    rerun_in_process(argv)
     ds = open_dataset(out)  # checks manifest, labels and that every file is there
     assert len(ds.labels) == 6
     assert temps(tmp_path) == []
@@ -119,30 +130,34 @@ def test_sweep_store_killed_mid_sweep_resumes_and_keeps_whole_records(tmp_path):
         kill_while_writing(p, store.exists, extra)
         records = read_store(store)  # every record whole (a torn last line is not a record)
         assert all(r["status"] in ("ok", "failed") for r in records)
-    p = start(argv)
-    assert p.wait(timeout=600) == 0, p.stderr.read().decode()
+    rerun_in_process(argv)
     records = read_store(store)
-    assert sorted({r["key"] for r in records if r["status"] == "ok"}) == sorted({r["key"] for r in records})
+    assert {r["status"] for r in records} == {"ok"}
     assert len({r["key"] for r in records}) == 6
     assert (out / "summary.md").exists() and temps(tmp_path) == []
 
 
 # ---------------------------------------------------------------------------------- recording
+def rrd_complete(data: bytes) -> bool:
+    """A whole rerun recording: its header, and the footer rerun writes when the stream is closed."""
+    return data[:4] == b"RRF2" and data[-12:-4] == b"RRF2FOOT"
+
+
 def test_recording_killed_while_written_keeps_the_old_one(tmp_path):
     rrd = tmp_path / "run.rrd"
-    argv = stcvision("cover", "--board", "3x3", "--perception", "oracle", "--rrd", rrd, "--force")
-    p = start(argv)
-    assert p.wait(timeout=600) == 0, p.stderr.read().decode()
+    argv = stcvision("cover", "--board", "5x5", "--perception", "oracle", "--rrd", rrd, "--force")
+    rerun_in_process(argv)
     old = rrd.read_bytes()
-    assert old[:3] == b"RRF"
-    for extra in RNG.uniform(0.0, 0.5, 2):
+    assert rrd_complete(old)
+    for extra in RNG.uniform(0.0, 0.2, 3):
         p = start(argv)
-        if kill_while_writing(p, lambda: bool(temps(tmp_path)), extra):
-            assert rrd.read_bytes() == old or rrd.stat().st_mtime > 0 and rrd.read_bytes()[:3] == b"RRF"
-            old = rrd.read_bytes()
-    p = start(argv)
-    assert p.wait(timeout=600) == 0
-    assert rrd.read_bytes()[:3] == b"RRF" and rrd.read_bytes() != b""
+        kill_while_writing(p, writing(p, tmp_path), extra)
+        now = rrd.read_bytes()
+        # the old recording, or the new one if the run had renamed it into place before the kill
+        assert now == old or rrd_complete(now), "a half-written recording"
+        old = now
+    rerun_in_process(argv)
+    assert rrd_complete(rrd.read_bytes()) and rrd.read_bytes() != old
     assert temps(tmp_path) == []
     assert os.stat(rrd).st_mode & 0o777 == 0o666 & ~_umask()
 
@@ -156,20 +171,42 @@ def _umask() -> int:
 def test_sigkill_temp_of_a_live_writer_is_never_taken(tmp_path):
     """The clean-up only takes temporaries of dead processes: a second writer that is alive keeps
     its temporary file while the first one writes the same target."""
-    from stcvision.fileio import discard_temp, temp_sibling, write_bytes_atomic
+    from stcvision.fileio import discard_temp, new_run, remove_stale_temps, temp_sibling, write_bytes_atomic
 
     p = start(["-c", "import time; time.sleep(60)"])
     try:
         live = tmp_path / f".x.json.{p.pid}.abc.tmp"
         live.write_text("busy")
-        write_bytes_atomic(tmp_path / "x.json", b"{}")
-        assert live.exists()
         mine = temp_sibling(tmp_path / "x.json")
-        write_bytes_atomic(tmp_path / "x.json", b"[]", overwrite=True)
-        assert mine.exists()  # this process's own temporary is not stale either
+        assert remove_stale_temps(tmp_path) == []
+        assert live.exists() and mine.exists()  # a live writer's, and this process's own
         discard_temp(mine)
     finally:
         p.send_signal(signal.SIGKILL)
         p.wait()
-    write_bytes_atomic(tmp_path / "x.json", b"{}", overwrite=True)
-    assert not live.exists()
+    assert remove_stale_temps(tmp_path) == [live]
+    new_run()  # the next run's first write into the folder sweeps it
+    dead = tmp_path / f".x.json.{p.pid}.def.tmp"
+    dead.write_text("left by a SIGKILL")
+    write_bytes_atomic(tmp_path / "x.json", b"{}")
+    assert not dead.exists() and temps(tmp_path) == []
+
+
+# ---------------------------------------------------------------------------------- render set
+def test_render_killed_leaves_no_partial_set(tmp_path):
+    """A killed render leaves its set whole or absent, so the same command run again (without
+    --force) completes it."""
+    from sim_camera.scene import EXAMPLE_SCENE
+
+    scene = tmp_path / "scene.json"
+    scene.write_text(json.dumps(EXAMPLE_SCENE))
+    out = tmp_path / "set"
+    argv = stcvision("render", "--scene", scene, "--out", out, "--dark-frames", "4")
+    p = start(argv)
+    kill_while_writing(p, lambda: True, float(RNG.uniform(0.5, 4.0)))
+    names = sorted(q.name for q in out.iterdir()) if out.exists() else []
+    assert names in ([], ["dark.png", "frame.png", "lights_on.png", "truth.json"])
+    if not names:
+        rerun_in_process(argv)
+    assert sorted(q.name for q in out.iterdir()) == ["dark.png", "frame.png", "lights_on.png", "truth.json"]
+    assert temps(tmp_path) == []

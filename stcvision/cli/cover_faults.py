@@ -1,0 +1,254 @@
+"""``stcvision cover faults``: the outcome of the STC robot per hardware fault and level (the
+README's fault table), through the sweep runner.
+
+One task is one run of :func:`controllers.stc.loop.run_cover` on the board of ``stcvision cover
+--board NxN --seed S`` with one fault (:mod:`controllers.stc.faults`), so any run of the table is
+replayed alone with ``stcvision cover --board NxN --seed S --fault NAME:LEVEL``. Outcomes
+(:func:`outcome`): complete; aborted with a reason, none covered twice; aborted with sub-cells
+covered twice; finished with the right coverage but decision errors the referee saw; and the
+one the robot must never show, finished with the wrong coverage ("wrong success").
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from stcvision.errors import BadInputError
+
+__all__ = ["LEVELS", "OUTCOMES", "fault_run", "outcome", "plan", "sweep_faults"]
+
+EXPERIMENT = "stcvision.cli.cover_faults:fault_run"
+STORE = "sweep.jsonl"
+OUTPUTS = ("runs.csv", "summary.md", "faults.png")
+#: the levels the table tries per fault: the default and a milder and/or a harsher one
+LEVELS = {
+    "none": (0,),
+    "rate": (0.1, 0.25, 0.5),
+    "led": (1, 2),
+    "drop": (0.05, 0.2),
+    "stray": (1.0, 5.0),
+    "noise": (1.5, 3.0),
+    "bump": (2.0, 4.0, 6.0),
+    "slip": (2.0, 5.0, 10.0),
+}
+OUTCOMES = ("complete", "aborted, none twice", "aborted, some twice", "finished, decision errors", "wrong success")
+RUN_FIELDS = (
+    "subcells_reachable",
+    "subcells_covered",
+    "subcells_covered_more_than_once",
+    "finished",
+    "abort_reason",
+    "decision_errors",
+    "sim_time_s",
+    "wall_s",
+    "frames",
+)
+
+
+def outcome(r: dict) -> str:
+    """Which of :data:`OUTCOMES` a :func:`run_cover` summary is."""
+    if r["complete"]:
+        return "complete"
+    if r["abort_reason"] is not None or not r["finished"]:
+        return "aborted, some twice" if r["subcells_covered_more_than_once"] else "aborted, none twice"
+    right = r["subcells_covered"] == r["subcells_reachable"] and r["subcells_covered_more_than_once"] == 0
+    return "finished, decision errors" if right else "wrong success"
+
+
+def fault_run(params: dict, seed) -> dict:
+    """One run (the sweep's task); ``seed`` (the sweep's stream) is not used: the run's own
+    ``params["seed"]`` makes it the same run as ``stcvision cover --seed S --fault F:L``."""
+    from controllers.stc.loop import CoverConfig, is_complete, run_cover
+    from sim_camera import hardware
+    from stcvision.cli.cmd_cover import random_board
+
+    n = params["cells"]
+    board = random_board(n, n, params["obstacle_fraction"], params["seed"])
+    faults = () if params["fault"] == "none" else ((params["fault"], float(params["level"])),)
+    cfg = CoverConfig(
+        exposure=params["exposure"],
+        seed=params["seed"],
+        camera=hardware.load_camera(params["camera"]),
+        faults=faults,
+        max_decisions=10 * int(board.reachable_cells().sum()) * 4,
+    )
+    r = run_cover(board, cfg)
+    out = {**params, "complete": is_complete(r), **{k: r[k] for k in RUN_FIELDS}}
+    out["outcome"] = outcome(out)
+    out["fault_events"] = sum(r.get("fault_events", {}).values())
+    return out
+
+
+def plan(faults, runs: int, *, cells: int, obstacle_fraction: float, exposure: str, camera: str):
+    from controllers.stc.faults import FAULTS
+    from stcvision.sweep import Task
+
+    if runs < 1 or cells < 1:
+        raise BadInputError(f"--runs and --cells must be >= 1, got {runs} and {cells}")
+    for f in faults:
+        if f not in LEVELS:
+            raise BadInputError(f"fault {f!r} is not one of {', '.join(LEVELS)}")
+    return [
+        Task(
+            experiment=EXPERIMENT,
+            params={
+                "fault": f,
+                "level": lv if f == "none" else FAULTS[f].check(float(lv)),
+                "cells": cells,
+                "seed": s,
+                "obstacle_fraction": obstacle_fraction,
+                "exposure": exposure,
+                "camera": camera,
+            },
+            seed=s,
+        )
+        for f in faults
+        for lv in LEVELS[f]
+        for s in range(runs)
+    ]
+
+
+def summarise(runs: list[dict]) -> list[dict]:
+    """One row per (fault, level): how many runs ended in each outcome, and the abort reasons."""
+    groups: dict[tuple, list[dict]] = {}
+    order = list(LEVELS)
+    for r in sorted(runs, key=lambda r: (order.index(r["fault"]), r["level"], r["seed"])):
+        groups.setdefault((r["fault"], r["level"]), []).append(r)
+    rows = []
+    for (f, lv), rs in groups.items():
+        reasons = sorted({_reason(r["abort_reason"]) for r in rs if r["abort_reason"]})
+        counts = {o: sum(r["outcome"] == o for r in rs) for o in OUTCOMES}
+        rows.append({"fault": f, "level": lv, "runs": len(rs), **counts, "abort_reasons": "; ".join(reasons)})
+    return rows
+
+
+def _reason(text: str) -> str:
+    """An abort reason's kind, without its figures (where, how far, which decision)."""
+    head, _, rest = text.partition(":")
+    if head == "camera":
+        return "camera: noise floor" if "noise floor" in rest else "camera: frames lost or black"
+    return text.split(" at (")[0].split(" (")[0].split(":")[0]
+
+
+def markdown_table(rows: list[dict]) -> str:
+    out = ["| fault | level | runs | " + " | ".join(OUTCOMES) + " | abort reasons |"]
+    out.append("|---" * (len(OUTCOMES) + 4) + "|")
+    for r in rows:
+        lv = "—" if r["fault"] == "none" else f"{r['level']:g}"
+        out.append(f"| {r['fault']} | {lv} | {r['runs']} | " + " | ".join(str(r[o]) for o in OUTCOMES)
+                   + f" | {r['abort_reasons'] or '—'} |")  # fmt: skip
+    return "\n".join(out)
+
+
+def plot(rows: list[dict]) -> bytes:
+    """PNG: per fault and level, the runs in each outcome (stacked bars)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    import numpy as np
+
+    from stcvision.fileio import figure_png
+
+    fig, ax = plt.subplots(figsize=(max(6.0, 0.55 * len(rows) + 2), 4.2), constrained_layout=True)
+    x = np.arange(len(rows))
+    base = np.zeros(len(rows))
+    colours = ("#3a9a4a", "#8fb3d9", "#e0a040", "#b0b0b0", "#d03030")
+    for o, c in zip(OUTCOMES, colours, strict=True):
+        v = np.array([r[o] for r in rows], float)
+        ax.bar(x, v, bottom=base, color=c, label=o)
+        base += v
+    ax.set_xticks(x, [r["fault"] if r["fault"] == "none" else f"{r['fault']}:{r['level']:g}" for r in rows],
+                  rotation=60, ha="right")  # fmt: skip
+    ax.set_ylabel("runs")
+    from matplotlib.ticker import MaxNLocator
+
+    ax.yaxis.set_major_locator(MaxNLocator(integer=True))
+    ax.set_title("STC coverage under hardware faults: outcome per fault and level")
+    ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.0, 1.0))
+    return figure_png(fig)
+
+
+def write_outputs(out: Path, runs: list[dict], rows: list[dict], args, report_summary: str) -> list[str]:
+    from stcvision.cli.cover_sweep import _csv, write_files
+
+    n = args.cells
+    md = [
+        "# STC coverage under hardware faults",
+        "",
+        f"Board {n}x{n} cells (`Board.random`, obstacle fraction {args.obstacle_fraction}, seed = run seed), "
+        f"camera {args.camera}, exposure {args.exposure}, perception camera; one fault per run "
+        "(`controllers.stc.faults`). Outcomes: complete (every reachable sub-cell once, back at the start, no "
+        "decision error); aborted with a specific reason; finished with the right coverage but decision errors; "
+        "wrong success (finished with the wrong coverage: never allowed).",
+        "",
+        markdown_table(rows),
+        "",
+        "![outcome per fault and level](faults.png)",
+        "",
+        f"Sweep: {report_summary.splitlines()[0]}",
+        "",
+        f"Replay a run: `stcvision cover --board {n}x{n} --seed S --exposure {args.exposure} "
+        f"--camera {args.camera} --fault NAME:LEVEL`",
+        "",
+    ]
+    fields = ("fault", "level", "seed", "cells", "outcome", "fault_events", "complete", *RUN_FIELDS)
+    files = {"runs.csv": _csv(runs, fields), "summary.md": "\n".join(md).encode(), "faults.png": plot(rows)}
+    return write_files(out, files)
+
+
+def sweep_faults(args) -> dict:
+    """The ``cover faults`` action: plan, run through the sweep, write the table and the plot."""
+    from stcvision.sweep import output_folder, run_sweep, sweep_options_from_args
+
+    out = Path(args.out)
+    output_folder(out, OUTPUTS, store=STORE, force=args.force, what="cover faults sweep")
+    tasks = plan(args.faults, args.runs, cells=args.cells, obstacle_fraction=args.obstacle_fraction,
+                 exposure=args.exposure, camera=args.camera)  # fmt: skip
+    report = run_sweep(tasks, out / STORE, sweep_options_from_args(args), desc="cover faults")
+    runs = list(report.results.values())
+    rows = summarise(runs)
+    files = write_outputs(out, runs, rows, args, report.summary()) if runs else []
+    wrong = sum(r["wrong success"] for r in rows)
+    return {
+        "action": "faults",
+        "out": str(out),
+        "files": files,
+        "table": rows,
+        "tasks": report.total,
+        "failed": dict(report.failed),
+        "wrong_success": wrong,
+        "summary": report.summary(),
+        "exit_code": 1 if (report.failed or wrong) else 0,
+    }
+
+
+def add_parser(sub) -> None:
+    from stcvision.cli._args import positive
+    from stcvision.sweep import add_sweep_arguments
+
+    s = sub.add_parser(
+        "faults",
+        help="outcome per hardware fault and level: a table and a plot (the README's fault table)",
+        description="Run the STC robot (camera perception) with each fault of controllers.stc.faults at the "
+        "levels of LEVELS, over seeds, through the sweep runner (resumable: OUT/sweep.jsonl); write summary.md, "
+        "runs.csv and faults.png. Exit 1 if any run reported success with the wrong coverage.",
+    )
+    s.add_argument("--faults", type=lambda t: [w for w in t.split(",") if w], default=list(LEVELS),
+                   metavar="F,...", help=f"faults to run (default all: {','.join(LEVELS)})")  # fmt: skip
+    s.add_argument("--cells", type=positive(int), default=6, help="board size in cells per side (default 6)")
+    s.add_argument("--runs", type=positive(int), default=3, help="boards (seeds 0..runs-1) per level (default 3)")
+    s.add_argument("--obstacle-fraction", type=float, default=0.15, help="obstacle cells (default 0.15)")
+    s.add_argument("--exposure", choices=("webcam", "auto"), default="auto", help="default auto")
+    s.add_argument("--camera", default="webcam", help="camera preset or JSON file (default webcam)")
+    s.add_argument("--out", required=True, metavar="DIR", help="folder for the store, the table and the plot")
+    s.add_argument("--force", action="store_true", help="write into a folder that holds no fault sweep")
+    s.add_argument("--json", action="store_true", help="print the result as one JSON object")
+    add_sweep_arguments(s)
+
+
+def format_text(r: dict) -> str:
+    lines = [markdown_table(r["table"]), "", r["summary"]]
+    if r["files"]:
+        lines.append(f"wrote {', '.join(Path(f).name for f in r['files'])} in {r['out']}")
+    return "\n".join(lines)
