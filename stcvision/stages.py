@@ -1131,6 +1131,8 @@ def find_red(obstacle: np.ndarray, params: RedParams = RedParams(), *, window_ar
     """Blobs of the (already thresholded) obstacle image: outer contours and their moments.
     ``peak_dn`` is per pixel (window sums are divided by ``window_area``)."""
     _check_image(obstacle, "obstacle image (uint8, or window sums)", (np.uint8, *SUM_DTYPES), ndims=(2,))
+    if min(obstacle.shape) < 2:  # OpenCV takes a 1 x 1 array for a scalar and fails (fuzzing)
+        raise BadInputError(f"obstacle image must be at least 2x2 pixels, got {obstacle.shape}")
     binary = cv2.compare(obstacle, 0, cv2.CMP_GT)
     contours, _ = cv2.findContours(binary, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
     xy, peak, area = [], [], []
