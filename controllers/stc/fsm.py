@@ -53,7 +53,11 @@ reached through unvisited sub-cells (the exit towards ``d`` is from sub-cell ``d
 camera, a neighbour that looks new beyond a visited sub-cell has marks it missed, and walking
 there would cover sub-cells twice. Before entering a child the robot looks at it once more
 from the sub-cell next to it (:data:`Action.LOOK`); if it is marked after all the exit moves on
-to the next candidate, or back to the parent.
+to the next candidate, or back to the parent. Before a return to the parent it looks too, at
+the sub-cell it will land on, now just ahead: a mark there (the start mark, laid at the very
+beginning) is the tour closing. The decision sees that sub-cell too, 0.2-0.4 m away, and a mark
+it finds there is taken at once; but only from next to it can the robot rule out, with the
+frames it has, a mark as old as the tour (:mod:`controllers.stc.claims`).
 
 Controller
 ----------
@@ -90,7 +94,7 @@ class Action(enum.Enum):
     TURN_LEFT = "turn_left"  # 90 deg counter-clockwise in place
     TURN_RIGHT = "turn_right"  # 90 deg clockwise in place
     MARK = "mark"  # rear LEDs on without moving (only to lay the start mark)
-    LOOK = "look"  # before leaving into a child: look at the cell ahead (the next tick gets a LookObs)
+    LOOK = "look"  # before leaving a cell: look ahead (the next tick gets a LookObs)
     DONE = "done"
 
 
@@ -101,7 +105,7 @@ class StcPhase(enum.Enum):
     DECIDE = 3  # just entered a cell (sub-cell 0, heading up): read the floor and decide
     MOVE = 4  # walking the cell's sub-cells counter-clockwise towards the exit
     DONE = 5
-    LOOK = 6  # at the exit into a child, facing it: is the cell ahead really unmarked?
+    LOOK = 6  # at the exit, facing it: is the child really unmarked / does the tour close here?
 
 
 @dataclass(frozen=True, slots=True)
@@ -152,7 +156,8 @@ class StcObservation:
 
 @dataclass(frozen=True, slots=True)
 class LookObs:
-    """What the look before leaving into a child reports: any mark in the cell ahead."""
+    """What the look before leaving a cell reports: into a child, any mark in the cell ahead;
+    back to the parent, any mark in the sub-cell just ahead (where the robot lands)."""
 
     marked: bool
 
@@ -254,6 +259,8 @@ def step(state: StcState, obs: StcObservation | LookObs | None) -> tuple[StcStat
     if ph is StcPhase.LOOK:
         if not isinstance(obs, LookObs):
             raise ValueError("the LOOK phase needs a LookObs")
+        if not state.child:  # the look at the parent's sub-cell ahead: marked, the tour closes there
+            return StcState(phase=StcPhase.DECIDE, closing=obs.marked), Action.FORWARD
         if not obs.marked:  # a new cell indeed: enter it
             return StcState(phase=StcPhase.DECIDE, fresh=True), Action.FORWARD
         free = [bool(state.free >> d & 1) and d != state.target for d in range(4)]
@@ -264,7 +271,9 @@ def step(state: StcState, obs: StcObservation | LookObs | None) -> tuple[StcStat
         return StcState(phase=StcPhase.DONE, sub=m, heading=r, target=j, final=True), Action.DONE
     want = j if m == j else (m + 1) % 4
     if r == want:
-        if m == j and state.child:  # look at the child before entering it
+        if m == j and (state.child or not state.closing):
+            # look at the child before entering it; before a return to the parent, at the
+            # sub-cell it lands on, now just ahead (the decision saw it 0.2-0.4 m away)
             return dataclasses.replace(state, phase=StcPhase.LOOK), Action.LOOK
         if m == j:  # leave the cell: new entry frame in the next cell
             return StcState(phase=StcPhase.DECIDE, closing=state.closing), Action.FORWARD

@@ -25,8 +25,9 @@ import time
 
 import numpy as np
 
+from controllers.stc.claims import OutOfSight
 from controllers.stc.config import CoverConfig
-from controllers.stc.fsm import Action, LookObs, StcPhase, decide, initial_state, step
+from controllers.stc.fsm import Action, LookObs, StcObservation, StcPhase, decide, initial_state, step
 from controllers.stc.observers import Observers, Reading, Trace
 from controllers.stc.oracle import coverage
 from controllers.stc.perception import make_perception
@@ -74,20 +75,19 @@ def run_cover(board, cfg: CoverConfig | None = None, *, observers=(), perception
     referee = Referee(board, active=see.refereed, report=watch.on_referee)
     state, decisions, looks, finished, abort = initial_state(), 0, 0, False, None
     while decisions < cfg.max_decisions:
-        obs = None
-        if state.phase is StcPhase.DECIDE and not state.closing:
-            abort = see.out_of_sight(plant.t)
-            if abort is not None:
-                break
+        try:
+            obs = _read(state, plant, floor, see)
+        except OutOfSight as e:  # what the reading must rule out, no frame of its camera can
+            abort = f"{e} (at sub-cell {plant.sub}, decision {decisions + (state.phase is StcPhase.DECIDE)})"
+            break
+        if isinstance(obs, StcObservation):
             decisions += 1
-            obs = see.observe(plant, floor, fresh=state.fresh)
             watch.on_reading(Reading("decision", decisions, plant, floor, obs=obs,
                                      decision=decide(obs, at_start=state.at_start), frame=see.last_frame))  # fmt: skip
             referee.decision(plant, floor, obs, state, decisions)
-        elif state.phase is StcPhase.LOOK:
+        elif obs is not None:
             looks += 1
-            obs = LookObs(see.look(plant, floor))
-            referee.look(plant, floor, obs.marked)
+            referee.look(plant, floor, obs.marked, landing=not state.child)
             watch.on_reading(Reading("look", decisions, plant, floor, marked=obs.marked, frame=see.last_frame))
         prev = state
         state, action = step(state, obs)
@@ -105,6 +105,15 @@ def run_cover(board, cfg: CoverConfig | None = None, *, observers=(), perception
     watch.on_end(plant, floor)
     return _summary(board, cfg, plant, see, referee, decisions=decisions, looks=looks, finished=finished,
                     abort=abort, wall_s=time.perf_counter() - wall0)  # fmt: skip
+
+
+def _read(state, plant: Plant, floor: Floor, see) -> StcObservation | LookObs | None:
+    """What the controller reads in ``state``: a decision's observation, a look's, or nothing."""
+    if state.phase is StcPhase.DECIDE and not state.closing:
+        return see.observe(plant, floor, fresh=state.fresh, at_start=state.at_start)
+    if state.phase is StcPhase.LOOK:
+        return LookObs(see.look(plant, floor, landing=not state.child))
+    return None
 
 
 def _act(action: Action, plant: Plant, floor: Floor, see, watch) -> str | None:

@@ -26,7 +26,7 @@ import numpy as np
 from controllers.stc.config import LANDMARK_OFFSET_SIGMA, LANDMARK_TURN_SIGMA_RAD, REOBSERVE_RAD, CoverConfig
 from controllers.stc.frames import IdealCamera, RobotCamera
 from controllers.stc.fsm import StcObservation
-from controllers.stc.oracle import look_oracle, observe_oracle
+from controllers.stc.oracle import landing_oracle, look_oracle, observe_oracle
 from controllers.stc.plant import Floor, Plant
 from stcvision.stcgrid import entry_axes
 
@@ -46,11 +46,12 @@ class Perception(Protocol):
     #: decisions and looks observed again because their frames were read askew (camera only)
     reobserved: int
 
-    def out_of_sight(self, t_s: float) -> str | None: ...
+    def observe(self, plant: Plant, floor: Floor, *, fresh: bool, at_start: bool) -> StcObservation:
+        """The decision's reading; may raise :class:`controllers.stc.claims.OutOfSight`."""
 
-    def observe(self, plant: Plant, floor: Floor, *, fresh: bool) -> StcObservation: ...
-
-    def look(self, plant: Plant, floor: Floor) -> bool: ...
+    def look(self, plant: Plant, floor: Floor, *, landing: bool) -> bool:
+        """The look ahead (``landing``: at the sub-cell ahead, before a return to the parent);
+        may raise :class:`controllers.stc.claims.OutOfSight`."""
 
     def heading_after_turn(self, plant: Plant, floor: Floor) -> float | None: ...
 
@@ -67,9 +68,6 @@ class OraclePerception:
         self.board = board
         self.rng = rng  # the read-out noise of the pose
 
-    def out_of_sight(self, t_s: float) -> str | None:
-        return None
-
     def _offset(self, plant: Plant) -> np.ndarray:
         """The truth with the marks' read-out noise."""
         return plant.true_offset() + self.rng.normal(0, self.cfg.position_sigma_oracle_m, 2)
@@ -78,15 +76,15 @@ class OraclePerception:
         """The truth with the pipeline's measured heading noise."""
         return plant.heading_error() + self.rng.normal(0, self.cfg.heading_sigma_oracle_rad)
 
-    def observe(self, plant, floor, *, fresh):
+    def observe(self, plant, floor, *, fresh, at_start=False):
         plant.wait(self.cfg.robot.settle_s)
         obs = observe_oracle(floor.record, self.board, plant.sub, plant.hc, camera_view=True)
         plant.offset_est = self._offset(plant)
         return obs
 
-    def look(self, plant, floor):
+    def look(self, plant, floor, *, landing=False):
         plant.wait(self.cfg.robot.settle_s)
-        return look_oracle(floor.record, plant.sub, plant.hc).marked
+        return (landing_oracle if landing else look_oracle)(floor.record, plant.sub, plant.hc).marked
 
     def heading_after_turn(self, plant, floor):
         plant.wait(self.cfg.robot.settle_s)
@@ -96,7 +94,7 @@ class OraclePerception:
 
 class _TakesFrames:
     """What a perception with a camera (``self.cam``: :class:`controllers.stc.frames.Exposures`)
-    reports of its frames, and its camera's limit."""
+    reports of its frames."""
 
     @property
     def frames(self) -> int:
@@ -105,9 +103,6 @@ class _TakesFrames:
     @property
     def long_frames(self) -> int:
         return self.cam.long_frames
-
-    def out_of_sight(self, t_s):
-        return self.cam.out_of_sight(t_s) if self.cfg.stop_out_of_sight else None
 
 
 class IdealPerception(_TakesFrames, OraclePerception):
@@ -120,16 +115,17 @@ class IdealPerception(_TakesFrames, OraclePerception):
         super().__init__(cfg, board, rng)
         self.cam = IdealCamera(cfg, board)
 
-    def observe(self, plant, floor, *, fresh):
+    def observe(self, plant, floor, *, fresh, at_start=False):
         obs, dt = self.cam.observe(
-            (plant.x, plant.y), plant.t, floor.phosphor, floor.laid, plant.sub, plant.hc, fresh=fresh
+            (plant.x, plant.y), plant.t, floor.phosphor, floor.laid, plant.sub, plant.hc, fresh=fresh, at_start=at_start
         )
         plant.wait(self.cfg.robot.settle_s + dt)
         plant.offset_est = self._offset(plant)
         return obs
 
-    def look(self, plant, floor):
-        marked, dt = self.cam.look((plant.x, plant.y), plant.t, floor.phosphor, floor.laid, plant.sub, plant.hc)
+    def look(self, plant, floor, *, landing=False):
+        xy = (plant.x, plant.y)
+        marked, dt = self.cam.look(xy, plant.t, floor.phosphor, floor.laid, plant.sub, plant.hc, landing=landing)
         plant.wait(self.cfg.robot.settle_s + dt)
         plant.offset_est = self._offset(plant)
         return marked
@@ -156,13 +152,14 @@ class CameraPerception(_TakesFrames):
         self.reobserved = 0
 
     # ------------------------------------------------------------------ the loop's three readings
-    def observe(self, plant, floor, *, fresh):
-        obs, res = self._read(plant, partial(self.cam.observe, phosphor=floor.phosphor, fresh=fresh))
+    def observe(self, plant, floor, *, fresh, at_start=False):
+        take = partial(self.cam.observe, phosphor=floor.phosphor, fresh=fresh, at_start=at_start)
+        obs, res = self._read(plant, take)
         self.last_frame = (res, self.cam.pipe)
         return obs
 
-    def look(self, plant, floor):
-        marked, res = self._read(plant, partial(self.cam.look, phosphor=floor.phosphor))
+    def look(self, plant, floor, *, landing=False):
+        marked, res = self._read(plant, partial(self.cam.look, phosphor=floor.phosphor, landing=landing))
         self.last_frame = (res, self.cam.pipe)
         return marked
 
@@ -175,17 +172,17 @@ class CameraPerception(_TakesFrames):
         if not res.heading.ok:
             # no newest row to fit: the red lights, when they are sure enough, else the newest
             # row of a 2 s frame (a turn left uncorrected leaves the next cell read askew)
-            o = res.observation
-            if cfg.use_landmarks and o.landmark_rotation_rad is not None:
-                if o.landmark_rotation_sigma_rad <= LANDMARK_TURN_SIGMA_RAD:
-                    return -o.landmark_rotation_rad
+            lights = self._lights_rotation(res.observation)
+            if lights is not None:
+                return -lights
             if not cam.controlled:
                 return None
             res, dt = cam.shoot(plant.pose, plant.t, floor.phosphor, 1)
             plant.wait(dt)
             return res.heading.heading_error_rad if res.heading.ok else None
         rows = None
-        if cfg.consensus_frame and cam.controlled:
+        # the lean of all rows is wanted only where the red lights do not say it (_heading)
+        if cfg.consensus_frame and cam.controlled and self._lights_rotation(res.observation) is None:
             rows, dt = cam.shoot(
                 plant.pose, plant.t, floor.phosphor, 1, heading_error_rad=res.heading.heading_error_rad
             )
@@ -230,14 +227,20 @@ class CameraPerception(_TakesFrames):
         if not res.heading.ok:
             return None
         cfg, o = self.cfg, res.observation
-        left = o.landmark_rotation_rad if cfg.use_landmarks else None
-        if left is not None and o.landmark_rotation_sigma_rad > LANDMARK_TURN_SIGMA_RAD:
-            left = None  # too unsure to take over from the consensus of the marks
+        left = self._lights_rotation(o)
         if left is None and cfg.use_mark_consensus:
             left = o.pattern_rotation_rad
             if rows is not None and rows.observation.pattern_rotation_rad is not None:
                 left = rows.observation.pattern_rotation_rad
         return res.heading.heading_error_rad - (left if left is not None else 0.0)
+
+    def _lights_rotation(self, o) -> float | None:
+        """How far the red lights in view are still turned (rad), when they are sure enough to
+        be the heading's reference (:data:`LANDMARK_TURN_SIGMA_RAD`); None otherwise (then the
+        consensus of the marks is)."""
+        if not self.cfg.use_landmarks or o.landmark_rotation_rad is None:
+            return None
+        return o.landmark_rotation_rad if o.landmark_rotation_sigma_rad <= LANDMARK_TURN_SIGMA_RAD else None
 
     def _correct_heading(self, res, plant) -> float:
         """Two or more red lights in view say how far the heading has drifted: take it out.

@@ -14,6 +14,7 @@ from __future__ import annotations
 import dataclasses
 import math
 
+from controllers.stc.claims import distance_m
 from controllers.stc.config import CoverConfig
 from controllers.stc.loop import is_complete, run_cover
 from controllers.stc.perception import IdealPerception
@@ -27,7 +28,8 @@ def plan(board, cfg: CoverConfig | None = None) -> dict:
     seen: list[IdealPerception] = []
     r = run_cover(board, cfg, perception_hook=seen.append)
     cam = seen[0].cam
-    limit = cam.horizons(cfg.decision_reach_m)[-1]
+    # the farthest claim of a decision (box 2, the start mark in sub-cell 2)
+    limit = cam.horizon(len(cam.ladder) - 1, distance_m("box 2", board.subcell_m, cfg.position_margin_m))
     frames = [
         {"exposure_s": e, "gain": g, "stack": cam.stack(k), "frame_s": e * cam.stack(k), "count": n}
         for k, ((e, g, _), n) in enumerate(zip(cam.ladder, cam.per_rung, strict=True))

@@ -172,22 +172,24 @@ def test_the_look_reads_the_cell_ahead_and_only_it():
 
 
 def test_exposure_rungs_follow_the_clock():
-    """Auto exposure: the long frame is the shortest whose horizon at the look's reach covers
-    the oldest mark there can be (the clock); the horizons grow with the rung."""
+    """Auto exposure: the frame taken for a claim is the shortest whose horizon at the claim's
+    distance covers the oldest mark there can be (the clock); the horizons grow with the rung
+    and shrink with the distance."""
     from controllers.stc.frames import RobotCamera as _Camera
 
     board = Board.random((3, 3), obstacle_fraction=0.0, rng=np.random.default_rng(0))
     cam = _Camera(board, CoverConfig(exposure="auto"), np.random.default_rng(0))
     assert len(cam.horizons()) == len(AUTO_LONG) and all(np.diff(cam.horizons()) > 0)
     assert all(np.array(cam.horizons(0.25)) > cam.horizons())  # nearer marks stay visible longer
-    assert cam.long_rung(0.0) == 1
-    assert cam.long_rung(cam.horizons()[0] + 1) == 2
-    assert cam.long_rung(1e9) == len(AUTO_LONG)
+    assert cam.rung_for(0.0, 0.45) == 0  # a fresh mark: the short frame sees it
+    assert cam.rung_for(cam.horizon(0, 0.45) + 1, 0.45) == 1
+    assert cam.rung_for(cam.horizons()[0] + 1, 0.45) == 2
+    assert cam.rung_for(1e9, 0.45) is None  # beyond the longest frame
     # beyond the 30 s frame, 30 s frames stacked, from 2 to 64 of them
     stacks = [cam.stack(k) for k in range(len(cam.ladder))]
     assert stacks[5:7] == [1, 2] and stacks[-1] == 64 and all(np.diff(stacks[5:]) > 0)
     assert cam.frame_s(len(AUTO_LONG)) == 64 * 30.0
-    assert _Camera(board, CoverConfig(exposure="webcam"), np.random.default_rng(0)).long_rung(500.0) is None
+    assert not _Camera(board, CoverConfig(exposure="webcam"), np.random.default_rng(0)).controlled
 
 
 def test_far_red_lights_keep_the_robot_on_its_sub_cells_on_open_floor():
@@ -258,7 +260,7 @@ def test_on_a_map_the_tour_outruns_its_marks_unless_frames_sit_at_the_row_thresh
     and it runs away again (985 sub-cells at ~67,300 s). (Before issue 16's random streams:
     ~45,700 s, ~21,500 s, 979 at ~67,000 s.)"""
     board = Board.from_file(peer_data / "pythonrobotics_maps" / "spiral_stc_test.png")
-    thrift = dict(perception="ideal", exposure="auto", consensus_frame=False, decision_reach_m=0.27, look_reach_m=0.33)
+    thrift = dict(perception="ideal", exposure="auto", consensus_frame=False, position_margin_m=0.0)
     default = run_cover(board, CoverConfig(perception="ideal", exposure="auto"))
     assert default["abort_reason"].startswith("out of sight") and default["subcells_covered"] < 600
     edge = run_cover(board, CoverConfig(sizing_snr=3.0, **thrift))

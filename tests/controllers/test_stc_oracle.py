@@ -259,6 +259,23 @@ def test_looks_that_find_every_child_marked_return_to_the_parent():
     for _ in range(8):
         s, a = step(s, None)
         actions.append(a)
-        if s.phase is StcPhase.DECIDE:
+        if a is Action.LOOK:
             break
-    assert Action.LOOK not in actions and actions[-1] is Action.FORWARD and s.phase is StcPhase.DECIDE
+    # at the exit to the parent, a look at the sub-cell it lands on (does the tour close there?)
+    assert actions[-1] is Action.LOOK and actions.count(Action.LOOK) == 1 and s.sub == 3 and s.heading == 3
+    s, a = step(s, LookObs(marked=False))
+    assert a is Action.FORWARD and s.phase is StcPhase.DECIDE and not s.closing
+
+
+def test_a_look_at_a_marked_landing_sub_cell_closes_the_tour():
+    """Before a return to the parent the robot looks at the sub-cell it will land on: marked,
+    it is the start sub-cell and the move closes the tour (no decision there)."""
+    from controllers.stc.fsm import LookObs
+
+    s, a = step(StcState(phase=StcPhase.DECIDE), _obs(marks=(1, 1, 1, 0), red=(0, 0, 0, 0)))
+    while a is not Action.LOOK:  # no child: walk to sub-cell 3, face the parent
+        s, a = step(s, None)
+    assert s.sub == 3 and not s.child
+    s, a = step(s, LookObs(marked=True))
+    assert a is Action.FORWARD and s.phase is StcPhase.DECIDE and s.closing
+    assert step(s, None) == (StcState(phase=StcPhase.DONE), Action.DONE)
