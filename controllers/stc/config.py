@@ -30,8 +30,11 @@ class CoverConfig:
     #: uncertainties; README "Red lights as landmarks")
     use_landmarks: bool = True
     #: with exposure control, after each turn also a frame at the shortest long rung (2 s) for the
-    #: lean of all rows: it sees the rows of many minutes, the webcam frame the last one or two
+    #: lean of all rows: it sees the rows of many minutes, the webcam frame the last one or two;
+    #: taken only where the red lights do not give the heading's reference and the short frame
+    #: shows fewer than ``consensus_rows`` rows (a low-noise camera's short frame sees minutes)
     consensus_frame: bool = True
+    consensus_rows: int = 8
     #: with exposure control, a reading takes longer frames until every absence it relies on
     #: is covered: a frame whose horizon at the deciding dot's distance reaches the clock
     #: (:mod:`controllers.stc.claims`: box 2 0.26 m away, the start mark 0.16-0.26 m, the cell

@@ -134,9 +134,17 @@ class IdealPerception(_TakesFrames, OraclePerception):
         # the frames' time: the newest row and the consensus frame
         cam = self.cam
         plant.wait(self.cfg.robot.settle_s)
-        plant.wait(cam.frame_s(0) + (cam.frame_s(1) if self.cfg.consensus_frame and cam.controlled else 0.0))
+        plant.wait(cam.frame_s(0))
+        if self.cfg.consensus_frame and cam.controlled and self._short_rows(plant, floor) < self.cfg.consensus_rows:
+            plant.wait(cam.frame_s(1))
         plant.offset_est = self._offset(plant)
         return self._heading(plant)
+
+    def _short_rows(self, plant, floor) -> int:
+        """The marks a short frame sees from here (the camera counts the lit dots in its ground
+        view, :meth:`CameraPerception.heading_after_turn`)."""
+        seen = self.cam.floor_seen((plant.x, plant.y), plant.t, floor.phosphor, floor.laid, [0])
+        return sum(len(e) for e in seen.edges.values())
 
 
 class CameraPerception(_TakesFrames):
@@ -182,7 +190,8 @@ class CameraPerception(_TakesFrames):
             return res.heading.heading_error_rad if res.heading.ok else None
         rows = None
         # the lean of all rows is wanted only where the red lights do not say it (_heading)
-        if cfg.consensus_frame and cam.controlled and self._lights_rotation(res.observation) is None:
+        few_rows = int(res.dots.lit.sum()) < 4 * cfg.consensus_rows  # (four dots a row)
+        if cfg.consensus_frame and cam.controlled and few_rows and self._lights_rotation(res.observation) is None:
             rows, dt = cam.shoot(
                 plant.pose, plant.t, floor.phosphor, 1, heading_error_rad=res.heading.heading_error_rad
             )
@@ -197,15 +206,34 @@ class CameraPerception(_TakesFrames):
         long frame's result or None, seconds)``. The short frame says where the robot stands
         and, with the red lights, how far its heading has drifted; a drift over
         :data:`REOBSERVE_RAD` means the frames were read askew, so they are taken once more.
-        Returns (reading, the frame that read the old marks)."""
+        Where no lights are in view, a long frame's rows say it: they were laid square to the
+        grid, so their lean is the heading's drift (a robot 7.7 degrees askew read the rows of
+        the cell behind as a start mark and stopped a 12x12 tour half-way). Returns (reading,
+        the frame that read the old marks)."""
         for attempt in range(2):
             reading, short, long, dt = take(plant.pose, plant.t)
             plant.wait(self.cfg.robot.settle_s + dt)
             plant.offset_est = self._where(short.observation, plant)
-            if abs(self._correct_heading(short, plant)) < REOBSERVE_RAD:
+            turned = self._correct_heading(short, plant)
+            if abs(turned) < REOBSERVE_RAD and long is not None:
+                turned = self._correct_lean(long, plant)
+            if abs(turned) < REOBSERVE_RAD:
                 break
             self.reobserved += attempt == 0  # (a second askew reading is kept)
         return reading, long or short
+
+    def _correct_lean(self, long, plant) -> float:
+        """A long frame's rows, read with the short frame's heading, still lean by more than
+        :data:`REOBSERVE_RAD`: the heading has drifted that far; take it out. Returns the
+        rotation made (rad)."""
+        lean = long.observation.pattern_rotation_rad if self.cfg.use_mark_consensus else None
+        if lean is None:
+            return 0.0
+        e = long.observation.heading_error_rad - lean
+        if abs(e) <= REOBSERVE_RAD:
+            return 0.0
+        plant.rotate_by(-e)
+        return -e
 
     def _where(self, observation, plant) -> np.ndarray:
         """The robot's offset from its sub-cell centre (world, m): from the red lights in view
