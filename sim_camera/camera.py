@@ -1,5 +1,6 @@
 """The synthetic catadioptric camera: renders the phosphor floor and red lights into noisy
-8-bit mirror images, with ground truth.
+mirror images at the sensor's ADC depth (uint8 for 8 bits, uint16 ADC counts for more:
+:mod:`sim_camera.sensor`), with ground truth.
 
 Build once, render many: :class:`SyntheticCamera` traces every pixel onto the floor once
 (:func:`sim_camera.optics.trace_pixels`) and draws its fixed-pattern noise once; per frame only
@@ -20,13 +21,15 @@ Rendering
   over a few pixels) and carry veiling glare (``glare_fraction`` of their light over tens of
   pixels); both are added around each such source only.
 * The sensor (:mod:`sim_camera.sensor`) adds dark current, fixed pattern, noise, colour
-  response and crosstalk, saturation, and quantises.
+  response and crosstalk, saturation, and quantises to its ADC's depth; every frame, dark
+  frame and lights-on frame of a camera has the sensor's dtype.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+import numba
 import numpy as np
 
 from sim_camera.optics import FloorProjector, MirrorCameraParams, RayTable, trace_pixels
@@ -64,6 +67,53 @@ _BLOOM_KERNEL = _gauss_kernel(2.0, _GLARE_HALF)
 _GLARE_KERNEL = _gauss_kernel(8.0, _GLARE_HALF)
 
 
+@numba.njit(cache=True, nogil=True)
+def _splat_nb(out, iu, iv, uv, icov, total, bgr, core):
+    """Add Gaussian spots to ``out`` (H, W, 3) float32: spot k centred at ``uv[k]`` with inverse
+    covariance ``icov[k]``, evaluated on the (2P+1)^2 patch around pixel ``(iu[k], iv[k])``,
+    normalised to 1 over the patch, times ``total[k]`` electrons and each channel's ``bgr``
+    response; pixels outside the frame get none. ``core`` (n, 2P+1, 2P+1) receives each spot's
+    electrons per patch pixel (zero outside the frame)."""
+    h, w = out.shape[0], out.shape[1]
+    m = core.shape[1]
+    r = m // 2
+    for k in range(iu.shape[0]):
+        a, b, c = icov[k, 0, 0], icov[k, 0, 1], icov[k, 1, 1]
+        s = 0.0
+        for i in range(m):
+            dv = (iv[k] + i - r) - uv[k, 1]
+            for j in range(m):
+                du = (iu[k] + j - r) - uv[k, 0]
+                q = a * du * du + 2 * b * du * dv
+                q += c * dv * dv
+                g = np.exp(-0.5 * q)
+                core[k, i, j] = g
+                s += g
+        for i in range(m):
+            pv = iv[k] + i - r
+            for j in range(m):
+                pu = iu[k] + j - r
+                if pv < 0 or pv >= h or pu < 0 or pu >= w:
+                    core[k, i, j] = 0.0
+                    continue
+                e = core[k, i, j] / s * total[k]
+                core[k, i, j] = e
+                for ch in range(3):
+                    if bgr[ch] > 0:
+                        out[pv, pu, ch] += np.float32(e * bgr[ch])
+
+
+@numba.njit(cache=True, nogil=True)
+def _spill_nb(out, v_lo, v_hi, u_lo, u_hi, kv, ku, kb, kg, a, b):
+    """``out[v_lo:v_hi, u_lo:u_hi, ch] += kb * a[ch] + kg * b[ch]`` (the kernels' window starting
+    at row ``kv``, column ``ku``), in float32 as numpy's ``+= (...).astype(np.float32)``."""
+    for v in range(v_lo, v_hi):
+        for u in range(u_lo, u_hi):
+            x, y = kb[kv + v - v_lo, ku + u - u_lo], kg[kv + v - v_lo, ku + u - u_lo]
+            for ch in range(3):
+                out[v, u, ch] += np.float32(x * a[ch] + y * b[ch])
+
+
 @dataclass(frozen=True, slots=True)
 class Pose:
     """Robot pose in the world: position (m) and heading (rad, 0 = east, counter-clockwise)."""
@@ -92,7 +142,9 @@ class LightsOnParams:
 
     ``room_floor_cd_m2``: a light floor (albedo ~0.3) under ~300 lx office light,
     ``L = E * albedo / pi ~ 30 cd/m^2``. Tape lines ``grid_line_m`` wide on every cell boundary
-    reflect ``line_contrast`` of the floor; the robot's body ``body_contrast``.
+    reflect ``line_contrast`` of the floor; the robot's body ``body_contrast``. ``target_dn``:
+    where auto-exposure puts the lit floor, on the 8-bit scale (140 of 255; a deeper ADC the
+    same fraction of its range).
     """
 
     room_floor_cd_m2: float = 30.0
@@ -104,7 +156,8 @@ class LightsOnParams:
 
 @dataclass(frozen=True, eq=False)
 class Frame:
-    """One rendered frame: ``image`` (H, W, 3) uint8 BGR and, if asked for, ``truth`` (a dict)."""
+    """One rendered frame: ``image`` (H, W, 3) BGR at the sensor's depth (uint8 for an 8-bit ADC,
+    uint16 ADC counts for more) and, if asked for, ``truth`` (a dict)."""
 
     image: np.ndarray
     truth: dict | None = None
@@ -137,62 +190,50 @@ class SyntheticCamera:
         shape = (self.optics.height_px, self.optics.width_px)
         self.pattern = FixedPattern.draw(shape, self.sensor, np.random.default_rng(pattern_seed))
         self._scratch = np.empty((*shape, 3), np.float32)
+        self._last_projection = None  # (positions, diameters, result) of the last signal()
 
     @property
     def shape(self) -> tuple[int, int]:
         return (self.optics.height_px, self.optics.width_px)
 
     # ------------------------------------------------------------------ sources -> electrons
-    def _splat(self, out, xy_robot, lum_cd_m2, diameter_m, bgr, s: SensorParams):
-        """Add the electrons of emitting discs to ``out`` (H, W, 3); return per-source info."""
-        n = len(xy_robot)
-        info = {
-            "uv": np.full((n, 2), np.nan),
-            "visible": np.zeros(n, bool),
-            "total_e": np.zeros(n),
-            "cov_px": np.zeros((n, 2, 2)),
-        }
-        if n == 0:
-            return info
-        uv, vis = self.projector.project(xy_robot)
-        info["uv"], info["visible"] = uv, vis
-        idx = np.flatnonzero(vis & (np.asarray(lum_cd_m2) > 0))
-        if len(idx) == 0:
-            return info
+    def _geometry(self, uv, vis, diameter_m) -> dict:
+        """What a set of sources' image positions fix, whatever their brightness: for each
+        visible source with a usable floor footprint (``cand``) its nearest pixel, footprint,
+        vignetting and the inverse covariance of its spot (PSF + disc mapped through the local
+        pixel->floor Jacobian: far dots are squashed radially, as a spherical mirror does)."""
         h, w = self.shape
-        iu = np.clip(np.rint(uv[idx, 0]).astype(int), 0, w - 1)
-        iv = np.clip(np.rint(uv[idx, 1]).astype(int), 0, h - 1)
+        cand = np.flatnonzero(vis)
+        iu = np.clip(np.rint(uv[cand, 0]).astype(int), 0, w - 1)
+        iv = np.clip(np.rint(uv[cand, 1]).astype(int), 0, h - 1)
         fp = self.table.footprint_m2[iv, iu]
         good = np.isfinite(fp) & (fp > 0)
-        idx, iu, iv, fp = idx[good], iu[good], iv[good], fp[good]
-        area = np.pi * (diameter_m / 2) ** 2
-        lum = np.broadcast_to(np.asarray(lum_cd_m2, float), (n,))[idx]
-        total = lum * s.e_per_cd_m2_s * s.exposure_s * self.table.vignetting[iv, iu] * (area / fp)
-        info["total_e"][idx] = total
+        cand, iu, iv, fp = cand[good], iu[good], iv[good], fp[good]
         # covariance: PSF + disc (variance r^2/4 per axis on the floor) mapped to pixels
         jinv = np.linalg.inv(self.table.jacobian[iv, iu])
         cov = (diameter_m / 2) ** 2 / 4.0 * jinv @ np.swapaxes(jinv, 1, 2)
         cov += PSF_SIGMA_PX**2 * np.eye(2)
-        info["cov_px"][idx] = cov
-        # evaluate each Gaussian on a 9x9 patch around its nearest pixel, normalised to 1
-        off = np.arange(-_PATCH, _PATCH + 1)
-        pu = iu[:, None, None] + off[None, None, :]
-        pv = iv[:, None, None] + off[None, :, None]
-        du = pu - uv[idx, 0][:, None, None]
-        dv = pv - uv[idx, 1][:, None, None]
-        icov = np.linalg.inv(cov)
-        q = icov[:, 0, 0, None, None] * du * du + 2 * icov[:, 0, 1, None, None] * du * dv
-        q += icov[:, 1, 1, None, None] * dv * dv
-        wgt = np.exp(-0.5 * q)
-        inside = (pu >= 0) & (pu < w) & (pv >= 0) & (pv < h)
-        wgt /= wgt.sum(axis=(1, 2), keepdims=True)
-        wgt *= inside
-        flat = (np.clip(pv, 0, h - 1) * w + np.clip(pu, 0, w - 1)).ravel()
-        core = wgt * total[:, None, None]
-        view = out.reshape(-1, 3)
-        for ch in range(3):
-            if bgr[ch] > 0:
-                np.add.at(view[:, ch], flat, (core.ravel() * bgr[ch]).astype(np.float32))
+        vign = self.table.vignetting[iv, iu]
+        return {"cand": cand, "iu": iu, "iv": iv, "fp": fp, "vign": vign, "cov": cov, "icov": np.linalg.inv(cov)}
+
+    def _splat(self, out, uv, vis, geo, lum_cd_m2, diameter_m, bgr, s: SensorParams):
+        """Add the electrons of emitting discs, projected to ``uv`` (visible where ``vis``; their
+        :meth:`_geometry` ``geo``), to ``out`` (H, W, 3); return per-source info."""
+        n = len(uv)
+        info = {"uv": uv, "visible": vis, "total_e": np.zeros(n), "cov_px": np.zeros((n, 2, 2))}
+        lum = np.broadcast_to(np.asarray(lum_cd_m2, float), (n,))
+        lit = lum[geo["cand"]] > 0
+        if not lit.any():
+            return info
+        idx, iu, iv = geo["cand"][lit], geo["iu"][lit], geo["iv"][lit]
+        area = np.pi * (diameter_m / 2) ** 2
+        total = lum[idx] * s.e_per_cd_m2_s * s.exposure_s * geo["vign"][lit] * (area / geo["fp"][lit])
+        info["total_e"][idx] = total
+        info["cov_px"][idx] = geo["cov"][lit]
+        # evaluate each Gaussian on a 9x9 patch around its nearest pixel, normalised to 1, and add
+        # it to the frame (one compiled pass: the patches are small and many)
+        core = np.empty((len(idx), 2 * _PATCH + 1, 2 * _PATCH + 1))
+        _splat_nb(out, iu, iv, uv[idx], geo["icov"][lit], total, np.asarray(bgr, float), core)
         # Very bright sources (a red LED in the dark) overflow the full well: a fraction of the
         # excess charge blooms into the neighbourhood, and the lens and mirror spread a faint
         # veiling glare around them. Only sources that saturate are worth the wider patches.
@@ -200,6 +241,28 @@ class SyntheticCamera:
         for k in np.flatnonzero(peak > s.full_well_e):
             self._spill(out, iu[k], iv[k], core[k], total[k], bgr, s)
         return info
+
+    def _project(self, sources) -> tuple[np.ndarray, np.ndarray, list]:
+        """Image positions, visibility and :meth:`_geometry` of every source (``sources``: the
+        (name, robot-frame positions, luminance, diameter, colour) of each kind), in one solver
+        call (its cost is mostly per call, not per point). Rendering only what changes: the
+        robot takes several frames where it stands (the short and the long frame, the looks), so
+        the last positions' result is kept and reused when the same positions come again."""
+        xy = np.concatenate([src[1] for src in sources])
+        diameters = tuple(src[3] for src in sources)
+        last = self._last_projection
+        if last is not None and last[1] == diameters and np.array_equal(last[0], xy):
+            return last[2]
+        uv, vis = self.projector.project(xy)
+        uv.setflags(write=False)  # handed out in every frame's info: nobody may change the kept copy
+        vis.setflags(write=False)
+        geos, start = [], 0
+        for src in sources:
+            part = slice(start, start + len(src[1]))
+            start = part.stop
+            geos.append(self._geometry(uv[part], vis[part], src[3]))
+        self._last_projection = (xy, diameters, (uv, vis, geos))
+        return uv, vis, geos
 
     def _spill(self, out, u0, v0, core, total, bgr, s: SensorParams) -> None:
         """Bloom (the excess over the full well) and glare around one saturating source, added
@@ -209,14 +272,11 @@ class SyntheticCamera:
         v_lo, v_hi, u_lo, u_hi = max(v0 - r, 0), min(v0 + r + 1, h), max(u0 - r, 0), min(u0 + r + 1, w)
         if v_lo >= v_hi or u_lo >= u_hi:
             return
-        ks = (slice(v_lo - (v0 - r), v_hi - (v0 - r)), slice(u_lo - (u0 - r), u_hi - (u0 - r)))
-        kb, kg = _BLOOM_KERNEL[ks], _GLARE_KERNEL[ks]
         c = np.asarray(bgr, float)
         excess = np.maximum(core[None] * c[:, None, None] - s.full_well_e, 0.0).sum(axis=(1, 2))
         a = np.where(c > 0, s.bloom_fraction * excess, 0.0)
         b = s.glare_fraction * total * c
-        add = kb[..., None] * a + kg[..., None] * b
-        out[v_lo:v_hi, u_lo:u_hi] += add.astype(np.float32)
+        _spill_nb(out, v_lo, v_hi, u_lo, u_hi, v_lo - (v0 - r), u_lo - (u0 - r), _BLOOM_KERNEL, _GLARE_KERNEL, a, b)
 
     # ------------------------------------------------------------------ public API
     def signal(
@@ -228,16 +288,24 @@ class SyntheticCamera:
         out = self._scratch
         out.fill(0)
         info = {}
+        sources = []  # (name, robot-frame positions, luminance, diameter, colour response)
         if phosphor is not None and len(phosphor):
-            lum = phosphor.luminance_at(t_s)
             xy_r = pose.world_to_robot(phosphor.xy_m)
-            info["dots"] = self._splat(out, xy_r, lum, phosphor.dot_diameter_m, s.phosphor_bgr, s)
-            info["dots"]["lum"] = lum
-            info["dots"]["xy_robot"] = xy_r
+            sources.append(("dots", xy_r, phosphor.luminance_at(t_s), phosphor.dot_diameter_m, s.phosphor_bgr))
         if red_lights_m is not None and len(red_lights_m):
             xy_r = pose.world_to_robot(red_lights_m)
-            info["lights"] = self._splat(out, xy_r, RED_LIGHT_CD_M2, RED_LIGHT_DIAMETER_M, s.red_led_bgr, s)
-            info["lights"]["xy_robot"] = xy_r
+            sources.append(("lights", xy_r, RED_LIGHT_CD_M2, RED_LIGHT_DIAMETER_M, s.red_led_bgr))
+        if not sources:
+            return out, info
+        uv, vis, geos = self._project(sources)
+        start = 0
+        for (name, xy_r, lum, diameter, bgr), geo in zip(sources, geos, strict=True):
+            part = slice(start, start + len(xy_r))
+            start = part.stop
+            info[name] = self._splat(out, uv[part], vis[part], geo, lum, diameter, bgr, s)
+            info[name]["xy_robot"] = xy_r
+            if name == "dots":
+                info[name]["lum"] = lum
         return out, info
 
     def render(
@@ -298,7 +366,7 @@ class SyntheticCamera:
         """The median of ``n`` dark frames at the given settings: what a user captures once
         (lens capped) to subtract from every frame; the median keeps its own noise small."""
         frames = np.stack([self.dark_frame(rng=rng, sensor=sensor) for _ in range(n)])
-        return np.median(frames, axis=0).round().astype(np.uint8)
+        return np.median(frames, axis=0).round().astype(frames.dtype)
 
     def lights_on(
         self,
@@ -334,7 +402,7 @@ class SyntheticCamera:
         if s is None:
             base = self.sensor.replace(gain=1.0)
             e_per_s = room.room_floor_cd_m2 * base.e_per_cd_m2_s
-            exposure = room.target_dn / (base.dn_per_e * e_per_s)
+            exposure = room.target_dn / 255.0 * base.max_dn / (base.dn_per_e * e_per_s)
             s = base.replace(exposure_s=float(exposure))
         sig = (lum * np.float32(s.e_per_cd_m2_s * s.exposure_s))[..., None] * np.asarray(s.floor_bgr, np.float32)
         image = expose(np.ascontiguousarray(sig, np.float32), s, self.pattern, rng)

@@ -21,9 +21,10 @@ JSON (``schema_version`` 1; unit-suffixed keys)::
 A camera file may set any other ``SensorParams`` field too; unknown keys and other schema
 versions are refused with a one-line reason (:class:`stcvision.errors.BadInputError`).
 
-Limitation: frames are 8-bit whatever ``adc_bits`` says (issue 16.5 is not done); the coverage
-loop sets a non-webcam sensor's gains so that its noise shows as many DN as the webcam's
-(:func:`controllers.stc.frames.matched_gain`), else its faint marks would be quantised away.
+``adc_bits`` is the sensor's (:attr:`SensorParams.adc_bits`): frames are sensor-true, uint8 for an
+8-bit ADC and uint16 ADC counts for 12 or 16 bits (:mod:`sim_camera.sensor`); the coverage loop
+chooses each frame's gain from the sensor's own noise
+(:func:`controllers.stc.frames.sensor_gain`).
 """
 
 from __future__ import annotations
@@ -62,8 +63,12 @@ class CameraProfile:
     name: str
     description: str
     sensor: SensorParams = field(default_factory=SensorParams)
-    adc_bits: int = 8  # what the camera digitises (frames are 8-bit here: see the module docstring)
     sources: tuple[tuple[str, str], ...] = ()
+
+    @property
+    def adc_bits(self) -> int:
+        """What the camera digitises (the sensor's ``adc_bits``: the frames' depth)."""
+        return self.sensor.adc_bits
 
 
 _WEBCAM_SRC = "sim_camera/sensor.py defaults: typical of small-pixel consumer CMOS, not one datasheet"
@@ -71,7 +76,6 @@ WEBCAM = CameraProfile(
     name="webcam",
     description="the seed's cheap wireless webcam in the dark (OmniVision OV7725 class VGA CMOS, 4.7 mm f/2.0)",
     sensor=SensorParams(),
-    adc_bits=8,
     sources=(
         ("camera", "seed 003: 'The camera we used, was not intended to work with low-light conditions'"),
         ("quantum_efficiency", f"0.5 at 520 nm; {_WEBCAM_SRC}"),
@@ -80,6 +84,7 @@ WEBCAM = CameraProfile(
         ("pixel_pitch_m", "6.0 um: OmniVision OV7725 datasheet (pixel size 6.0 um x 6.0 um)"),
         ("full_well_e", f"20,000 e-; {_WEBCAM_SRC}"),
         ("f_number", "f/2.0: a 4.7 mm webcam lens (assumed, sim_camera/sensor.py)"),
+        ("adc_bits", "8: what a consumer webcam delivers (8-bit YUV/JPEG; the OV7725's raw output is 10-bit)"),
     ),
 )
 LOWLIGHT = CameraProfile(
@@ -95,8 +100,8 @@ LOWLIGHT = CameraProfile(
         pixel_pitch_m=2.9e-6,
         full_well_e=11200.0,
         f_number=1.4,
+        adc_bits=12,
     ),
-    adc_bits=12,
     sources=(
         ("camera", "seed 003: 'try using a better camera, preferably camera with a fully controlled integration time'"),
         ("quantum_efficiency", "~0.8 at 520 nm: ZWO ASI462MC relative QE curve (peak ~80 %), recalled, not re-checked"),
@@ -108,6 +113,7 @@ LOWLIGHT = CameraProfile(
         ("pixel_pitch_m", "2.9 um: Sony IMX462 product information (unit cell 2.9 um x 2.9 um)"),
         ("full_well_e", "11,200 e-: ZWO ASI462MC specifications, recalled"),
         ("f_number", "f/1.4: assumed, a fast M12 low-light board-camera lens"),
+        ("adc_bits", "12: ZWO ASI462MC specifications (12-bit ADC), recalled"),
     ),
 )
 COOLED = CameraProfile(
@@ -123,8 +129,8 @@ COOLED = CameraProfile(
         pixel_pitch_m=3.76e-6,
         full_well_e=50000.0,
         f_number=1.2,
+        adc_bits=16,
     ),
-    adc_bits=16,
     sources=(
         ("camera", "seed 003: 'try using a better camera'; issue 16's cooled-sensor figures"),
         ("quantum_efficiency", "0.85 at 520 nm: issue 16 (a cooled sensor's figures; IMX571 peak QE ~0.9)"),
@@ -133,6 +139,7 @@ COOLED = CameraProfile(
         ("pixel_pitch_m", "3.76 um: Sony IMX571 (ZWO ASI2600MM Pro specifications)"),
         ("full_well_e", "50,000 e-: ZWO ASI2600MM Pro specifications (50 ke-), recalled"),
         ("f_number", "f/1.2: issue 16"),
+        ("adc_bits", "16: ZWO ASI2600MM Pro specifications (16-bit ADC), recalled"),
     ),
 )
 CAMERAS = {c.name: c for c in (WEBCAM, LOWLIGHT, COOLED)}
@@ -201,18 +208,18 @@ def load_camera(spec: str) -> CameraProfile:
     fig = d.get("sensor")
     if not isinstance(fig, dict) or not set(CAMERA_FIGURES) <= set(fig):
         raise BadInputError(f"camera file {spec}: 'sensor' must give at least {', '.join(CAMERA_FIGURES)}")
-    bits = d.get("adc_bits", 8)
-    if not isinstance(bits, int) or not 8 <= bits <= 16:
-        raise BadInputError(f"camera file {spec}: adc_bits must be an integer from 8 to 16, got {bits!r}")
+    if "adc_bits" in d and "adc_bits" in fig and d["adc_bits"] != fig["adc_bits"]:
+        raise BadInputError(
+            f"camera file {spec}: adc_bits {d['adc_bits']!r} and sensor.adc_bits {fig['adc_bits']!r} differ"
+        )
     try:
-        sensor = SensorParams.from_dict(fig)
+        sensor = SensorParams.from_dict({"adc_bits": d.get("adc_bits", 8), **fig})
     except BadInputError as e:
         raise BadInputError(f"camera file {spec}: {e}") from None
     return CameraProfile(
         name=str(d.get("name", Path(spec).stem)),
         description=str(d.get("description", "")),
         sensor=sensor,
-        adc_bits=bits,
         sources=tuple(d.get("sources", {}).items()),
     )
 

@@ -120,13 +120,15 @@ class Scene:
         return SyntheticCamera(self.optics, self.sensor, pattern_seed=self.pattern_seed)
 
     @classmethod
-    def from_file(cls, path: str | Path) -> Scene:
+    def from_file(cls, path: str | Path, *, sensor_base: SensorParams | None = None) -> Scene:
         from stcvision.fileio import read_json
 
-        return cls.from_dict(read_json(path, what="scene"), base_dir=Path(path).parent)
+        return cls.from_dict(read_json(path, what="scene"), base_dir=Path(path).parent, sensor_base=sensor_base)
 
     @classmethod
-    def from_dict(cls, d: dict, *, base_dir: Path | None = None) -> Scene:
+    def from_dict(cls, d: dict, *, base_dir: Path | None = None, sensor_base: SensorParams | None = None) -> Scene:
+        """``sensor_base``: the sensor the scene's ``sensor`` overrides apply to (a camera
+        profile's, :mod:`sim_camera.hardware`); default the webcam's."""
         if not isinstance(d, dict):
             raise BadInputError("scene must be a JSON object")
         unknown = set(d) - _KEYS
@@ -164,7 +166,8 @@ class Scene:
         else:
             raise BadInputError(f"scene red_lights is {rl!r}; expected 'board', false or a list of [x_m, y_m]")
         optics = MirrorCameraParams.from_dict(_overrides(d.get("camera", {}), "camera"))
-        sensor = SensorParams.from_dict(_overrides(d.get("sensor", {}), "sensor"))
+        base = {} if sensor_base is None else sensor_base.to_dict()
+        sensor = SensorParams.from_dict({**base, **_overrides(d.get("sensor", {}), "sensor")})
         seed = d.get("pattern_seed", 0)
         if not isinstance(seed, int) or isinstance(seed, bool) or seed < 0:
             raise BadInputError(f"scene pattern_seed must be a non-negative integer, got {seed!r}")

@@ -74,13 +74,14 @@ _RECIPE_KEYS = {
     "seed",
     "camera",
     "sensor",
+    "sensor_profile",
     "pattern_seed",
     "dark_frames",
     "calibration",
     "scene",
     "groups",
 }
-_GROUP_KEYS = {"name", "n", "scene", "camera", "sensor", "pattern_seed", "description"}
+_GROUP_KEYS = {"name", "n", "scene", "camera", "sensor", "sensor_profile", "pattern_seed", "description"}
 _CALIB_KEYS = {"lights_on_frames", "profiles"}
 
 
@@ -95,6 +96,8 @@ class Group:
     camera: dict  # optics overrides (MirrorCameraParams fields)
     sensor: dict  # sensor overrides (SensorParams fields)
     pattern_seed: int
+    #: the camera preset (sim_camera.hardware.CAMERAS) whose sensor ``sensor`` overrides; None: the webcam
+    sensor_profile: str | None = None
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -121,6 +124,12 @@ def _int(v: Any, what: str, *, lo: int = 0) -> int:
 def _obj(v: Any, what: str) -> dict:
     if not isinstance(v, dict):
         raise BadInputError(f"{what} must be a JSON object, got {type(v).__name__}")
+    return v
+
+
+def _name(v: Any, what: str) -> str | None:
+    if v is not None and (not isinstance(v, str) or not v):
+        raise BadInputError(f"{what} must be a camera preset's name (e.g. cooled), got {v!r}")
     return v
 
 
@@ -189,6 +198,7 @@ def parse_recipe(d: Any, *, where: str = "recipe") -> Recipe:
                 camera={**base_cam, **_obj(g.get("camera", {}), f"{gw}.camera")},
                 sensor={**base_sensor, **_obj(g.get("sensor", {}), f"{gw}.sensor")},
                 pattern_seed=_int(g.get("pattern_seed", d.get("pattern_seed", 0)), f"{gw}.pattern_seed"),
+                sensor_profile=_name(g.get("sensor_profile", d.get("sensor_profile")), f"{gw}.sensor_profile"),
             )
         )
     return Recipe(
@@ -272,8 +282,10 @@ def open_dataset(root: str | Path) -> Dataset:
     Checked: the manifest exists (when labels do) and is a complete dataset of a known schema;
     every line of ``labels.jsonl`` is a JSON object naming a frame; the manifest's frame count
     matches; every labelled frame exists; every frame in ``frames/`` has a label; the dark
-    frames and profiles the manifest names exist. Frames are decoded later (by the evaluation),
-    where a corrupt frame is skipped and counted and a wrong size is an error.
+    frames and profiles the manifest names exist; every PNG frame and dark frame is 3-channel at
+    its sensor's depth (8-bit, or 16-bit for a deeper ADC: from the PNG header). Frames are
+    decoded later (by the evaluation), where a corrupt frame is skipped and counted and a wrong
+    size is an error.
     """
     root = Path(root)
     if not root.is_dir():
@@ -338,10 +350,46 @@ def open_dataset(root: str | Path) -> Dataset:
         dark = lab.get("dark")
         if dark is not None and not (root / dark).exists():
             raise BadInputError(f"dark frame {root / dark} (for {lab['frame']}) is missing")
+    _check_depths(root, labels)
     for cid, c in m["cameras"].items():
         if c.get("profile") and not (root / c["profile"]).exists():
             raise BadInputError(f"profile {root / c['profile']} of camera {cid} is missing")
     return Dataset(root, m, labels)
+
+
+def _png_header(path: Path) -> tuple[int, int] | None:
+    """(bit depth per channel, PNG colour type) from a PNG's IHDR chunk (its first 26 bytes), or
+    None if ``path`` is not a PNG file. Colour type 2 is RGB (a BGR frame), 0 grey."""
+    with open(path, "rb") as f:
+        head = f.read(26)
+    if len(head) < 26 or head[:8] != b"\x89PNG\r\n\x1a\n" or head[12:16] != b"IHDR":
+        return None
+    return head[24], head[25]
+
+
+def _check_depths(root: Path, labels: list[dict]) -> None:
+    """Every labelled PNG frame and its dark frame hold 3 channels at the depth the label's sensor
+    digitises (8 bits for an 8-bit ADC, 16 for 9-16 bits: the ADC counts), read from the PNG
+    headers (the frames are not decoded)."""
+    seen: dict[str, int] = {}
+    for lab in labels:
+        bits = lab["sensor"].get("adc_bits", 8) if isinstance(lab["sensor"], dict) else 8
+        want = 8 if bits == 8 else 16
+        for name in (lab["frame"], lab.get("dark")):
+            if name is None or seen.get(name) == want:
+                continue
+            head = _png_header(root / name)
+            if head is None:
+                continue  # not a PNG: decoded (and checked) by the evaluation
+            depth, colour = head
+            if colour != 2:
+                raise BadInputError(f"{root / name} is not a 3-channel BGR PNG (colour type {colour}); expected BGR")
+            if depth != want:
+                raise BadInputError(
+                    f"{root / name} is a {depth}-bit PNG but {lab['frame']}'s sensor has a {bits}-bit ADC; "
+                    f"expected a {want}-bit PNG"
+                )
+            seen[name] = want
 
 
 def list_images(root: str | Path) -> list[Path]:

@@ -243,7 +243,7 @@ def evaluate_frames(
     """Run and score the pipeline on the frames ``indices`` of ``ds`` (label order): one
     :class:`FrameRecord` per readable frame, and ``{"frame", "reason"}`` per frame that could not
     be decoded (skipped). ``on_frame(1)`` is called after each frame (progress)."""
-    from stcvision.fileio import read_image
+    from stcvision.fileio import check_same_depth, read_image
     from stcvision.pipeline import Pipeline
     from stcvision.profile import Profile
     from stcvision.scoring import score_frame
@@ -297,6 +297,8 @@ def evaluate_frames(
             )
         cam = lab.get("camera", "cam0")
         pipe = pipeline_for(cam, lab.get("dark"))
+        if lab.get("dark") is not None:
+            check_same_depth(img, darks[lab["dark"]], ds.root / lab["dark"], frame_path=path)
         res = pipe.process(img)
         sc = score_frame(res, lab, pipe.profile)
         rec = FrameRecord(
@@ -455,9 +457,10 @@ def log_worst(ev: Evaluation, ds, rrd_path, *, default_profile, profile=None, n:
     return logged
 
 
-def evaluate_images(paths: list[Path], *, profile, dark, progress=None):
-    """Run the pipeline on the user's own frames; yields (path, result or None, skip reason)."""
-    from stcvision.fileio import read_image
+def evaluate_images(paths: list[Path], *, profile, dark, dark_path=None, progress=None):
+    """Run the pipeline on the user's own frames; yields (path, result or None, skip reason).
+    A frame of another depth than ``dark`` (read from ``dark_path``) is refused."""
+    from stcvision.fileio import check_same_depth, read_image
     from stcvision.pipeline import Pipeline
 
     pipe = Pipeline(profile, dark=dark)
@@ -472,6 +475,8 @@ def evaluate_images(paths: list[Path], *, profile, dark, progress=None):
                 yield p, None, str(exc), pipe
                 continue
             profile.check_frame(img.shape)
+            if dark is not None:
+                check_same_depth(img, dark, dark_path, frame_path=p)
             res = pipe.process(img)
             bar(1)
             yield p, res, None, pipe

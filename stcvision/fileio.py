@@ -17,7 +17,16 @@ import numpy as np
 
 from stcvision.errors import BadInputError, FileExistsRefusedError
 
-__all__ = ["figure_png", "read_image", "read_json", "write_bytes_atomic", "write_figure", "write_image", "write_json"]
+__all__ = [
+    "check_same_depth",
+    "figure_png",
+    "read_image",
+    "read_json",
+    "write_bytes_atomic",
+    "write_figure",
+    "write_image",
+    "write_json",
+]
 
 
 def write_bytes_atomic(path: str | os.PathLike, data: bytes, *, overwrite: bool = False) -> Path:
@@ -82,12 +91,23 @@ def read_json(path: str | os.PathLike, *, what: str = "JSON file") -> Any:
         ) from None
 
 
+#: what 16-bit frames may be written as (OpenCV writes 16 bits per channel to these); JPEG holds 8
+_DEEP_SUFFIXES = (".png", ".tif", ".tiff")
+
+
 def write_image(path: str | os.PathLike, image: np.ndarray, *, overwrite: bool = False) -> Path:
-    """Encode ``image`` (uint8, grey or BGR) by the file's extension and write it atomically."""
+    """Encode ``image`` (grey or BGR; uint8, or uint16 as 16-bit PNG/TIFF, the ADC counts kept
+    as they are) by the file's extension and write it atomically. A uint16 image is refused for
+    JPEG (8 bits only): it is never scaled down silently."""
     import cv2
 
     path = Path(path)
-    ok, buf = cv2.imencode(path.suffix or ".png", image)
+    suffix = path.suffix.lower() or ".png"
+    if image.dtype == np.uint16 and suffix not in _DEEP_SUFFIXES:
+        raise BadInputError(f"cannot write a 16-bit image as {path.suffix or 'no suffix'!r} ({path}); expected .png")
+    if image.dtype not in (np.uint8, np.uint16):
+        raise BadInputError(f"cannot write a {image.dtype} image to {path}; expected uint8 or uint16")
+    ok, buf = cv2.imencode(suffix, image)
     if not ok:
         raise BadInputError(f"cannot encode an image as {path.suffix!r}; expected .png or .jpg")
     return write_bytes_atomic(path, buf.tobytes(), overwrite=overwrite)
@@ -111,9 +131,12 @@ def write_figure(path: str | os.PathLike, fig, *, overwrite: bool = False, dpi: 
 
 
 def read_image(path: str | os.PathLike, *, color: bool = True, what: str = "image") -> np.ndarray:
-    """Read an image file into a uint8 array ((H, W, 3) BGR if ``color`` else (H, W)).
+    """Read an image file: with ``color`` a frame, (H, W, 3) BGR as stored -- uint8, or uint16
+    for a 16-bit PNG (the sensor's ADC counts, never divided by 256); else (H, W) uint8 grey
+    (a map).
 
-    Raises :class:`BadInputError` for a missing, empty or undecodable file.
+    Raises :class:`BadInputError` for a missing, empty or undecodable file, and with ``color``
+    for an image that is not 3-channel BGR (greyscale, alpha) or not 8/16-bit.
     """
     import cv2
 
@@ -126,8 +149,30 @@ def read_image(path: str | os.PathLike, *, color: bool = True, what: str = "imag
         raise BadInputError(f"cannot read {what} {path}: {exc.strerror}") from None
     if not data:
         raise BadInputError(f"{what} {path} is empty; expected a PNG or JPEG image")
-    flag = cv2.IMREAD_COLOR if color else cv2.IMREAD_GRAYSCALE
+    flag = cv2.IMREAD_UNCHANGED if color else cv2.IMREAD_GRAYSCALE
     img = cv2.imdecode(np.frombuffer(data, np.uint8), flag)
     if img is None:
         raise BadInputError(f"{what} {path} is not a readable image; expected a PNG or JPEG file")
+    if color:
+        channels = 1 if img.ndim == 2 else img.shape[2]
+        if channels != 3:
+            kind = "greyscale" if channels == 1 else f"{channels}-channel"
+            raise BadInputError(f"{what} {path} is {kind}; expected a 3-channel BGR frame")
+        if img.dtype not in (np.uint8, np.uint16):
+            raise BadInputError(f"{what} {path} holds {img.dtype} pixels; expected an 8- or 16-bit frame")
     return img
+
+
+def check_same_depth(frame: np.ndarray, dark: np.ndarray, dark_path, *, frame_path=None) -> None:
+    """A dark frame must have the frames' depth (uint8 with uint8, uint16 ADC counts with
+    uint16): a one-line :class:`BadInputError` naming the dark frame otherwise."""
+    if frame.dtype != dark.dtype:
+        of = f" ({frame_path})" if frame_path is not None else ""
+        raise BadInputError(
+            f"dark frame {dark_path} is {_depth(dark)} but the frame{of} is {_depth(frame)}; "
+            "expected a dark frame of the frames' depth, taken with the same camera"
+        )
+
+
+def _depth(img: np.ndarray) -> str:
+    return f"{8 * img.dtype.itemsize}-bit"

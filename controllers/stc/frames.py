@@ -4,12 +4,17 @@
   ``auto``: every observation takes a short webcam frame (red lights without bloom, fresh marks,
   the pose) and then, while the reading relies on an absence that no frame so far could have
   seen (a mark as old as the clock, at the deciding dot's distance: :mod:`controllers.stc.claims`),
-  a longer one (:data:`AUTO_LONG`: 2-30 s at gain 4, then 2 to 64 30 s frames stacked: frame
+  a longer one (:data:`AUTO_LONG`: 2-30 s, then 2 to 64 30 s frames stacked: frame
   stacking), the shortest that covers it (``sizing_snr``); a mark counts if any frame sees it --
   the seed's proposal, "a camera with a fully controlled integration time". Dark frames are
   taken once per setting, at the matching exposure (a master dark of 8n frames for a stack of
   n). When not even the longest frame covers a claim the robot stops ("out of sight: ...",
   :class:`controllers.stc.claims.OutOfSight`), before deciding.
+* **Gain**: the seed's webcam keeps the ladder's gains (16 for the short frame, 4 for the long
+  ones); any other sensor takes at each rung the lowest gain at which its frame's temporal dark
+  noise spans :data:`NOISE_DN` DN (:func:`sensor_gain`: from the sensor's read noise and dark
+  current, EMVA 1288 and the astronomer's rule of thumb), its frames digitised at its own ADC
+  depth (16-bit frames for a 12- or 16-bit camera: :mod:`sim_camera.sensor`).
 * :class:`RobotCamera`: render -> pipeline, one pipeline per exposure setting.
 * :class:`IdealCamera`: the physics-limited camera, the same frames and time, but it sees
   exactly the marks within the frames' visibility horizon.
@@ -35,8 +40,9 @@ WEBCAM = (1 / 30, 16.0, 1)
 #: used while the robot's clock (the oldest age any mark can have) is within its visibility
 #: horizon at the distance of what the frame must rule out (:mod:`controllers.stc.claims`;
 #: ``sim_camera.camera.visibility_horizon_s``: the camera's calibration of the phosphor,
-#: measured once per robot); gain 4 keeps the 8-bit quantisation below the dark
-#: current's noise at every length. 60 s frames were tried and read fewer boxes than 30 s ones
+#: measured once per robot). The gains are the webcam's (4 keeps its 8-bit
+#: quantisation below the dark current's noise at every length); another sensor's come from
+#: :func:`sensor_gain`. 60 s frames were tried and read fewer boxes than 30 s ones
 #: (the fresh mark's bloom), so beyond 30 s the ladder stacks 30 s frames (issue 6: "frame
 #: stacking"): averaging n frames divides the noise variance by n.
 AUTO_LONG = (
@@ -82,22 +88,32 @@ def _merge(a: StcObservation, b: StcObservation) -> StcObservation:
 ROW_EQUIVALENT_STACK = (5.0 / 3.0) ** 2
 
 
-def matched_gain(sensor, exposure_s: float, webcam_gain: float) -> float:
-    """The gain at which ``sensor``'s noise in a frame of ``exposure_s`` is as many DN as the
-    seed's webcam's at ``webcam_gain``: the ladder's gains and the pipeline's DN-level
-    thresholds were chosen for the webcam, so another sensor is set to show its noise alike (and
-    its signal at its own, higher SNR). A robot setting, not the world; the webcam's own gain
-    comes back unchanged."""
+#: the temporal noise a frame's digitised dark level must span (DN): EMVA 1288 (Release 3.1,
+#: 2016, and 4.0 Linear) holds the linear camera model's noise figures valid only where the
+#: temporal dark noise is at least ~0.5 DN, below which the quantisation noise (1/12 DN^2) takes
+#: over; the astronomer's rule of thumb for setting a camera's gain is to sample the read noise
+#: with ~1-2 ADU (S. B. Howell, Handbook of CCD Astronomy, 2nd ed. 2006, ch. 3; both recalled,
+#: not re-checked). At 1 DN the quantisation adds 1/12 of the noise variance (4 % of sigma).
+NOISE_DN = 1.0
+
+
+def sensor_gain(sensor, exposure_s: float, n_avg: int, webcam_gain: float) -> float:
+    """The gain of a frame of ``exposure_s`` (``n_avg`` frames averaged) on ``sensor``: the lowest
+    gain >= 1 at which the frame's temporal dark noise (read noise and the dark current's shot
+    noise, ``sqrt(read^2 + dark * t / n)`` electrons) spans :data:`NOISE_DN` DN, so that no faint
+    mark is quantised away, and no higher, so that the ADC clips as late as it can (at gain g it
+    saturates at ``full_well_e / g`` electrons). The seed's webcam (an 8-bit ADC, the default
+    sensor) keeps the ladder's own gains (``webcam_gain``: the seed's 16x and the issue-6 4x),
+    so its frames are exactly what they were. A robot setting from the sensor's figures, not
+    the world."""
     from sim_camera.sensor import SensorParams
 
     web = SensorParams()
-    if sensor == web:
+    if sensor.replace(exposure_s=web.exposure_s, gain=web.gain) == web:
         return webcam_gain
-
-    def noise_e(s):
-        return (s.read_noise_e**2 + s.dark_current_e_s * exposure_s) ** 0.5
-
-    return webcam_gain * (sensor.full_well_e / web.full_well_e) * (noise_e(web) / noise_e(sensor))
+    noise_e = (sensor.read_noise_e**2 + sensor.dark_current_e_s * exposure_s) ** 0.5 / n_avg**0.5
+    at_unity = sensor.replace(exposure_s=exposure_s, gain=1.0).dn_per_e * noise_e
+    return max(1.0, NOISE_DN / at_unity)
 
 
 class Exposures:
@@ -121,7 +137,7 @@ class Exposures:
         if cfg.gain is not None and cfg.exposure not in ("auto", "webcam"):
             ladder = ((ladder[0][0], cfg.gain, 1),)
         else:
-            ladder = tuple((e, matched_gain(self.cam.sensor, e, g), n) for e, g, n in ladder)
+            ladder = tuple((e, sensor_gain(self.cam.sensor, e, n * cfg.n_stack, g), n) for e, g, n in ladder)
         self.ladder = ladder
         self.frames = 0
         self.long_frames = 0

@@ -100,7 +100,7 @@ def run(args):
     import cv2
     import numpy as np
 
-    from sim_camera.camera import SyntheticCamera
+    from sim_camera.camera import Pose, SyntheticCamera
     from stcvision.errors import BadInputError
 
     if args.frames < 1:
@@ -111,10 +111,14 @@ def run(args):
     rng = np.random.default_rng(args.seed)
     lights = board.red_lights_m()
     render_ms = _median_ms(lambda: cam.render(pose, rng=rng, phosphor=layer, red_lights_m=lights), args.frames)
+    # the same scene from a new pose every frame (a dataset; a robot on the move): no projection reused
+    moving = iter([Pose(pose.x_m + 1e-3 * k, pose.y_m, pose.heading_rad) for k in range(args.frames + 1)])
+    moving_ms = _median_ms(lambda: cam.render(next(moving), rng=rng, phosphor=layer, red_lights_m=lights), args.frames)
     result = {
         "frame_size_px": [cam.optics.width_px, cam.optics.height_px],
         "dots_on_floor": len(layer),
         "render_ms_per_frame": render_ms,
+        "render_moving_ms_per_frame": moving_ms,
         "render_frames_per_s": 1000.0 / render_ms,
         "threads": 1,
     }
@@ -142,6 +146,8 @@ def format_text(r):
         f"render: {r['render_ms_per_frame']:.2f} ms/frame ({r['render_frames_per_s']:.0f} frames/s), "
         f"{r['frame_size_px'][0]}x{r['frame_size_px'][1]} with noise, {r['dots_on_floor']} dots on the floor, 1 thread"
     ]
+    if "render_moving_ms_per_frame" in r:
+        lines.append(f"render from a new pose every frame: {r['render_moving_ms_per_frame']:.2f} ms/frame")
     if "buffon_robot_steps_per_s" in r:
         lines.append(
             f"buffon ({r['buffon_nest']}): batched {r['buffon_robot_steps_per_s']:,.0f} robot-steps/s, pymunk "

@@ -98,7 +98,7 @@ def _dark(args):
     import numpy as np
 
     from stcvision.errors import BadInputError, FileExistsRefusedError
-    from stcvision.fileio import read_image, read_json, write_image
+    from stcvision.fileio import check_same_depth, read_image, read_json, write_image
     from stcvision.stages import hot_pixels
 
     if Path(args.out).exists() and not args.force:
@@ -111,6 +111,8 @@ def _dark(args):
                 f"dark frame {f} is {img.shape[1]}x{img.shape[0]}, the first is "
                 f"{frames[0].shape[1]}x{frames[0].shape[0]}; expected one size"
             )
+        if frames:
+            check_same_depth(frames[0], img, f, frame_path=args.frames[0])
         side = Path(f).with_suffix(".json")  # optional sidecar: {"exposure_s": ...}
         if side.exists():
             exposures.append(float(read_json(side, what="frame sidecar").get("exposure_s", "nan")))
@@ -120,7 +122,7 @@ def _dark(args):
             f"dark frames were taken at different exposures ({min(exposures):g}..{max(exposures):g} s); "
             "expected one exposure"
         )
-    dark = np.median(np.stack(frames), axis=0).round().astype(np.uint8)
+    dark = np.median(np.stack(frames), axis=0).round().astype(frames[0].dtype)  # 8 or 16 bits, as taken
     write_image(args.out, dark, overwrite=True)
     hot = hot_pixels(dark)
     return {

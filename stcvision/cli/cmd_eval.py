@@ -212,7 +212,9 @@ def _run_images(args, root):
     logger = None
     lines, ms, skipped, fits, ndots = [], [], [], 0, []
     try:
-        for i, (p, res, reason, pipe) in enumerate(evaluate_images(paths, profile=profile, dark=dark)):
+        for i, (p, res, reason, pipe) in enumerate(
+            evaluate_images(paths, profile=profile, dark=dark, dark_path=args.dark)
+        ):
             if res is None:
                 skipped.append({"frame": str(p), "reason": reason})
                 lines.append(dumps({"frame": str(p), "skipped": reason}, indent=None))

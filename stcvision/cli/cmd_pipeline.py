@@ -7,13 +7,13 @@ from __future__ import annotations
 
 
 def add_parser(p):
-    p.add_argument("frames", nargs="+", metavar="FRAME", help="frame images (PNG/JPEG, BGR)")
+    p.add_argument("frames", nargs="+", metavar="FRAME", help="frame images (BGR: 8-bit PNG/JPEG or 16-bit PNG)")
     p.add_argument(
         "--profile",
         metavar="PROFILE.json",
         help="calibration profile (default: the shipped profile of the default simulated camera)",
     )
-    p.add_argument("--dark", metavar="DARK.png", help="dark frame at the frames' exposure")
+    p.add_argument("--dark", metavar="DARK.png", help="dark frame at the frames' exposure (and depth)")
     p.add_argument("--no-dark", action="store_true", help="run without a dark frame (not recommended)")
     p.add_argument("--rrd", metavar="OUT.rrd", help="write a rerun recording of every stage")
     p.add_argument("--spawn", action="store_true", help="stream to a spawned rerun viewer")
@@ -24,7 +24,7 @@ def run(args):
     from pathlib import Path
 
     from stcvision.errors import BadInputError, FileExistsRefusedError
-    from stcvision.fileio import read_image
+    from stcvision.fileio import check_same_depth, read_image
     from stcvision.pipeline import Pipeline
     from stcvision.profile import Profile
 
@@ -57,6 +57,8 @@ def run(args):
         for i, path in enumerate(args.frames):
             frame = read_image(path, what="frame")
             profile.check_frame(frame.shape)
+            if dark is not None:
+                check_same_depth(frame, dark, args.dark, frame_path=path)
             res = pipe.process(frame)
             if logger is not None:
                 logger.log(res, frame=i)

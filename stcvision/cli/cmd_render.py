@@ -1,6 +1,8 @@
 """Render a synthetic catadioptric frame of a scene: writes frame.png (the dark-room frame),
 dark.png (a median of dark frames at the same settings), lights_on.png (the lit calibration
-frame at the same pose) and truth.json (ground truth) into --out.
+frame at the same pose) and truth.json (ground truth) into --out. Frames have the camera's
+ADC depth: 8-bit PNGs for the webcam, 16-bit PNGs holding the ADC counts for a 12- or 16-bit
+sensor (``--camera lowlight|cooled|FILE.json``, or ``"sensor": {"adc_bits": 16}`` in the scene).
 
 Print a documented example scene with --example-scene.
 """
@@ -16,6 +18,12 @@ def add_parser(p):
     p.add_argument("--seed", type=int, default=0, help="seed of the temporal noise (default 0)")
     p.add_argument(
         "--dark-frames", type=int, default=16, metavar="N", help="dark frames median-stacked into dark.png (default 16)"
+    )
+    p.add_argument(
+        "--camera",
+        metavar="NAME|FILE.json",
+        help="camera profile whose sensor the scene's sensor overrides apply to (default webcam; "
+        "see stcvision cover --list-cameras)",
     )
     p.add_argument("--force", action="store_true", help="overwrite existing outputs in --out")
     p.add_argument("--example-scene", action="store_true", help="print an example scene and exit")
@@ -44,7 +52,12 @@ def run(args):
     from stcvision.errors import FileExistsRefusedError
     from stcvision.fileio import write_image, write_json
 
-    scene = Scene.from_file(args.scene)
+    base = None
+    if args.camera:
+        from sim_camera.hardware import load_camera
+
+        base = load_camera(args.camera).sensor
+    scene = Scene.from_file(args.scene, sensor_base=base)
     out = Path(args.out)
     if not args.force:
         taken = [n for n in OUTPUTS if (out / n).exists()]
@@ -80,12 +93,14 @@ def run(args):
         "dots_detectable": sum(d["detectable"] for d in dots),
         "red_lights_visible": sum(r["visible"] for r in truth["red_lights"]),
         "pose": truth["pose"],
+        "adc_bits": scene.sensor.adc_bits,
+        "dtype": str(frame.image.dtype),
     }
 
 
 def format_text(r):
     return (
-        f"wrote {', '.join(r['files'])}\n"
+        f"wrote {', '.join(r['files'])} ({r['adc_bits']}-bit ADC, {r['dtype']} PNGs)\n"
         f"dots: {r['dots']} ({r['dots_visible']} visible, {r['dots_detectable']} detectable at SNR>=5); "
         f"red lights visible: {r['red_lights_visible']}"
     )

@@ -39,6 +39,7 @@ STORE = ".sweep.jsonl"
 
 def _plan(recipe: Recipe, seed: int) -> tuple[dict, list[dict]]:
     """Cameras (by identical optics + pattern seed, in order of first use) and groups."""
+    from sim_camera.hardware import CAMERAS
     from sim_camera.optics import MirrorCameraParams
     from sim_camera.sensor import SensorParams
 
@@ -48,8 +49,13 @@ def _plan(recipe: Recipe, seed: int) -> tuple[dict, list[dict]]:
     first = 0
     for g in recipe.groups:
         try:
+            if g.sensor_profile is not None and g.sensor_profile not in CAMERAS:
+                raise BadInputError(
+                    f"unknown sensor_profile {g.sensor_profile!r}; expected one of {', '.join(CAMERAS)}"
+                )
+            base = CAMERAS[g.sensor_profile].sensor.to_dict() if g.sensor_profile else {}
             optics = MirrorCameraParams.from_dict(g.camera).to_dict()
-            sensor = SensorParams.from_dict(g.sensor).to_dict()
+            sensor = SensorParams.from_dict({**base, **g.sensor}).to_dict()
         except BadInputError as exc:
             raise BadInputError(f"recipe {recipe.name}, group {g.name}: {exc}") from None
         k = _key([optics, g.pattern_seed])
