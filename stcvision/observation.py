@@ -14,11 +14,13 @@ back into the entry frame about the robot before they are assigned.
 from __future__ import annotations
 
 import math
+import statistics
 from dataclasses import dataclass
 
 import cv2
 import numpy as np
 
+from stcvision import kernels
 from stcvision.profile import CORNER_ORDER, ROBOT_IN_CELL
 from stcvision.stcgrid import BOXES, DIRECTIONS, NEIGHBOURS, START_MARKS, SUBCELLS, VISITED_BY
 
@@ -42,9 +44,22 @@ LANDING_DOTS = 3
 _LANDING_HALF = 0.44
 
 # sub-cell of a point by its quadrant: [right, up] -> index (from stcgrid.SUBCELLS, built once)
-_SUB_OF_QUADRANT = np.full((2, 2), -1)
+_SUB_OF_QUADRANT = np.full((2, 2), -1, np.int64)
 for _k, (_sr, _su) in SUBCELLS.items():
     _SUB_OF_QUADRANT[int(_sr > 0), int(_su > 0)] = _k
+# box of a dot by [sub-cell, edge right + 1, edge up + 1] (stcgrid.BOXES; the start marks, box
+# -m, along sub-cell m's exterior edge m), built once: one look-up per dot instead of a mask per box
+_BOX_OF = np.zeros((4, 3, 3), np.int64)
+for _b, (_k, (_er, _eu)) in BOXES.items():
+    _BOX_OF[_k, _er + 1, _eu + 1] = _b
+for _m in (1, 2, 3):
+    _er, _eu = DIRECTIONS[START_MARKS[_m]]
+    _BOX_OF[_m, _er + 1, _eu + 1] = -_m
+_NEIGHBOUR_DIRS = np.array(list(NEIGHBOURS.values()), np.int64)
+#: centres (cell units) of the sub-cell of each neighbour (NEIGHBOURS order) next to ours
+_LANDING = np.array(
+    [(0.5 * SUBCELLS[d][0] + dr, 0.5 * SUBCELLS[d][1] + du) for d, (dr, du) in enumerate(NEIGHBOURS.values())]
+)
 
 
 @dataclass(frozen=True, eq=False)
@@ -165,13 +180,7 @@ def row_orientation(ru: np.ndarray) -> np.ndarray:
     """
     if len(ru) == 0:
         return np.zeros(0, int)
-    dr = np.abs(ru[:, None, 0] - ru[None, :, 0])
-    du = np.abs(ru[:, None, 1] - ru[None, :, 1])
-    np.fill_diagonal(dr, np.inf)
-    np.fill_diagonal(du, np.inf)
-    vertical = ((dr < ROW_TOL) & (du < ROW_SPAN)).sum(1)
-    horizontal = ((du < ROW_TOL) & (dr < ROW_SPAN)).sum(1)
-    return np.where(vertical > horizontal, 1, np.where(horizontal > vertical, 0, -1))
+    return kernels.row_orientation(np.ascontiguousarray(ru, np.float64), ROW_TOL, ROW_SPAN)
 
 
 def assign_boxes(ru: np.ndarray, orient: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -181,29 +190,13 @@ def assign_boxes(ru: np.ndarray, orient: np.ndarray | None = None) -> tuple[np.n
     The edge of a dot is the nearer of its sub-cell's two edges across its row (see
     :func:`row_orientation`); an isolated dot takes the nearest edge.
     """
-    r, u = ru[:, 0], ru[:, 1]
     if orient is None:
         orient = row_orientation(ru)
-    inside = (np.abs(r) < 1) & (np.abs(u) < 1)
-    right, up = r >= 0, u >= 0
-    sub = np.where(inside, _SUB_OF_QUADRANT[right.astype(int), up.astype(int)], -1)
-    lr = r - np.where(right, 0.5, -0.5)
-    lu = u - np.where(up, 0.5, -0.5)
-    horiz = np.where(orient == 1, True, np.where(orient == 0, False, np.abs(lr) > np.abs(lu)))
-    er = np.where(horiz, np.sign(lr), 0).astype(int)
-    eu = np.where(horiz, 0, np.sign(lu)).astype(int)
-    box = np.zeros(len(ru), int)
-    for b, (k, (ber, beu)) in BOXES.items():
-        box[(sub == k) & (er == ber) & (eu == beu)] = b
-    # the start mark: sub-cell m along its exterior edge in direction m, coded as box -m
-    # (m = 1, 2, 3; sub-cell 0's is under the robot)
-    for m in (1, 2, 3):
-        ser, seu = DIRECTIONS[START_MARKS[m]]
-        box[(sub == m) & (er == ser) & (eu == seu)] = -m
-    nb = np.full(len(ru), -1)
-    for i, (dr, du) in enumerate(NEIGHBOURS.values()):
-        nb[(np.abs(r - 2 * dr) < 1) & (np.abs(u - 2 * du) < 1)] = i
-    return sub, box, nb
+    # the box of the sub-cell's edge; the start mark, sub-cell m along its exterior edge in
+    # direction m, is coded as box -m (m = 1, 2, 3; sub-cell 0's is under the robot)
+    return kernels.assign_boxes(
+        np.ascontiguousarray(ru, np.float64), np.asarray(orient, np.int64), _SUB_OF_QUADRANT, _BOX_OF, _NEIGHBOUR_DIRS
+    )
 
 
 def mark_offset(ru: np.ndarray, orient: np.ndarray, *, inset: float = 0.125, min_dots: int = 4):
@@ -220,7 +213,7 @@ def mark_offset(ru: np.ndarray, orient: np.ndarray, *, inset: float = 0.125, min
             continue
         k = np.round(p)
         nom = k + np.where(p >= k, inset, -inset)
-        out.append(-float(np.median(p - nom)))
+        out.append(-statistics.median((p - nom).tolist()))  # a few dozen values: no numpy call
     if out[0] is None and out[1] is None:
         return None
     return (out[0] or 0.0, out[1] or 0.0)
@@ -276,6 +269,18 @@ def _row_angles(band: list[tuple[float, float]], along: int) -> list[float]:
                 continue
             out.append(-math.atan(slope) if along == 1 else math.atan(slope))
     return out
+
+
+def _group_stats(code: np.ndarray, n: int, lit: np.ndarray, value: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """For codes 0..n-1 (one per dot): how many of the lit dots have each code, and the largest
+    ``value`` among all dots of each code (0.0 where none has it)."""
+    if not len(code):
+        return np.zeros(n, int), np.zeros(n)
+    counts = np.bincount(code[lit], minlength=n)
+    best = np.full(n, -np.inf)
+    np.maximum.at(best, code, value)
+    best[np.bincount(code, minlength=n) == 0] = 0.0
+    return counts, best
 
 
 def _confidence(value: float, threshold: float, noise: float) -> float:
@@ -337,6 +342,9 @@ class CellObservation:
     #: units), from the lights' centroid-error model and their spread
     landmark_rotation_sigma_rad: float | None = None
     landmark_offset_sigma: float | None = None
+    #: why this reading cannot be trusted ("" when it can): the dot search hit a cap
+    #: (:attr:`stcvision.stages.Dots.untrusted`); a controller must not decide on it
+    untrusted: str = ""
 
     def lit(self, box: int) -> bool:
         return self.boxes[box - 1].lit
@@ -360,6 +368,7 @@ class CellObservation:
             "start_mark": self.start_mark,
             "landing_marked": list(self.landing_marked),
             "stray_dots": self.stray_dots,
+            "untrusted": self.untrusted,
         }
 
 
@@ -423,31 +432,21 @@ def observe_cell(
             ru = ru + np.asarray(offset)
     sub, box, nb = assign_boxes(ru, orient) if len(ru) else (np.zeros(0, int),) * 3
     thr = dots.threshold_snr
+    # per box code (-3..5, offset by 3): lit dots and the best candidate's SNR
+    n_lit_box, best_box = _group_stats(box + 3, 9, dots.lit, dots.snr)
     boxes = []
     for b in BOXES:
-        sel = box == b
-        best = float(dots.snr[sel].max()) if sel.any() else 0.0
-        conf = _confidence(best, thr, 1.0)
-        lit_sel = sel & dots.lit
-        boxes.append(BoxReading(b, bool(lit_sel.sum() >= params.min_dots), conf, int(lit_sel.sum())))
+        n_lit = int(n_lit_box[b + 3])
+        boxes.append(BoxReading(b, bool(n_lit >= params.min_dots), _confidence(best_box[b + 3], thr, 1.0), n_lit))
     lit_b = {b.box: b.lit for b in boxes}
     visited = {m: any(lit_b[b] for b in boxes_) for m, boxes_ in VISITED_BY.items()}
     stray = int(((sub >= 0) & (box == 0) & dots.lit).sum()) if len(ru) else 0
-    start_mark = None
-    for m in (1, 2, 3):
-        if int(((box == -m) & dots.lit).sum()) >= params.min_dots:
-            start_mark = m
-            break
-    landing = []
-    for d, (dr, du) in enumerate(NEIGHBOURS.values()):
-        sr, su = SUBCELLS[d]
-        cr, cu = 0.5 * sr + dr, 0.5 * su + du  # neighbour d's sub-cell next to our sub-cell d
-        # a whole row inside the sub-cell (LANDING_DOTS of its 4 dots, clear of the borders)
-        if len(ru):
-            sel = (np.abs(ru[:, 0] - cr) < _LANDING_HALF) & (np.abs(ru[:, 1] - cu) < _LANDING_HALF) & dots.lit
-        else:
-            sel = np.zeros(0, bool)
-        landing.append(bool(sel.sum() >= max(params.min_dots, LANDING_DOTS)))
+    start_mark = next((m for m in (1, 2, 3) if n_lit_box[3 - m] >= params.min_dots), None)
+    # neighbour d's sub-cell next to our sub-cell d holds a whole row (LANDING_DOTS of its 4
+    # dots, clear of the borders)
+    lit_ru = ru[dots.lit] if len(ru) else np.zeros((0, 2))
+    inside = (np.abs(lit_ru[:, None, :] - _LANDING[None]) < _LANDING_HALF).all(axis=2).sum(axis=0)
+    landing = [bool(c >= max(params.min_dots, LANDING_DOTS)) for c in inside]
     rru = _rotate(geometry.to_cell(red_px), heading_error_rad) if len(red_px) else np.zeros((0, 2))
     # red lights stand at cell centres (even coordinates in cell units): absolute landmarks
     landmark = None
@@ -480,18 +479,16 @@ def observe_cell(
                     landmark_off_sig = off_sig
     _, _, rnb = assign_boxes(rru, np.full(len(rru), -1)) if len(rru) else (None, None, np.zeros(0, int))
     neighbours = {}
+    n_lit_nb, best_nb = _group_stats(nb + 1, 5, dots.lit, dots.snr)
+    n_red_nb, best_red = _group_stats(rnb + 1, 5, np.ones(len(rnb), bool), np.asarray(red_strength, float))
     for i, name in enumerate(NEIGHBOURS):
-        sel = nb == i
-        lit_sel = sel & dots.lit
-        best = float(dots.snr[sel].max()) if sel.any() else 0.0
-        rsel = rnb == i
-        rbest = float(red_strength[rsel].max()) if rsel.any() else 0.0
+        has_red = bool(n_red_nb[i + 1])
         neighbours[name] = NeighbourReading(
             name,
-            bool(lit_sel.sum() >= params.min_dots),
-            bool(rsel.any()),
-            _confidence(best, thr, 1.0),
-            _confidence(rbest, red_threshold_dn, red_threshold_dn / 5.0) if rsel.any() else 1.0,
+            bool(n_lit_nb[i + 1] >= params.min_dots),
+            has_red,
+            _confidence(best_nb[i + 1], thr, 1.0),
+            _confidence(best_red[i + 1], red_threshold_dn, red_threshold_dn / 5.0) if has_red else 1.0,
         )
     lean = pattern_rotation(ru[dots.lit], orient[dots.lit]) if (len(ru) and params.pose_estimates) else None
     return CellObservation(
@@ -508,6 +505,7 @@ def observe_cell(
         landmark_rot,
         landmark_sig if landmark_rot is not None else None,
         landmark_off_sig,
+        getattr(dots, "untrusted", ""),
     )
 
 

@@ -17,6 +17,7 @@ the images it returns. Logging (``stcvision.rr``) observes the result afterwards
 
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import dataclass, field
 
@@ -35,6 +36,7 @@ from stcvision.stages import (
     RedParams,
     RowParams,
     UnwarpMap,
+    check_dark_dtype,
     check_frame,
     estimate_background,
     find_dots,
@@ -42,24 +44,34 @@ from stcvision.stages import (
     find_rows,
     fit_heading,
     hot_pixels,
+    noise_floor,
     noise_gain,
+    quantum_dn,
+    robust_sigma,
     separate_channels,
     subtract_dark,
     unwarp,
     window_sums,
 )
 
-__all__ = ["Pipeline", "PipelineParams", "PipelineResult", "STAGES"]
+__all__ = ["Pipeline", "PipelineParams", "PipelineResult", "STAGES", "display_scale"]
 
 STAGES = ("dark", "window", "unwarp", "channels", "dots", "rows", "red", "heading", "observe")
 
 
 @dataclass(frozen=True, kw_only=True, slots=True)
 class PipelineParams:
-    """Parameters of every stage. ``pedestal_dn``: offset kept by the dark subtraction so the
-    background noise stays measurable (see :func:`~stcvision.stages.subtract_dark`)."""
+    """Parameters of every stage.
 
-    pedestal_dn: int = 10
+    The pedestal is the offset kept by the dark subtraction so the background noise stays
+    measurable (see :func:`~stcvision.stages.subtract_dark`): ``pedestal_k_sigma`` times the
+    dark frame's robust spread (its fixed pattern and noise; the residual after subtraction is
+    no wider), and at least ``pedestal_steps`` quantisation steps (10 DN on the webcam, whose
+    dark frame spreads by ~1.5 DN), in whole steps.
+    """
+
+    pedestal_steps: int = 10
+    pedestal_k_sigma: float = 6.0
     channels: ChannelParams = field(default_factory=ChannelParams)
     dots: DotParams = field(default_factory=DotParams)
     rows: RowParams = field(default_factory=RowParams)
@@ -70,13 +82,25 @@ class PipelineParams:
     use_heading: bool = True
 
 
+def display_scale(frame: np.ndarray) -> float:
+    """Factor taking ``frame``'s values (or window means of them) to 8 bits for display: 1 for
+    a uint8 frame; for a 16-bit one, whatever its ADC depth and alignment, its brightest pixel
+    maps to 255."""
+    if frame.dtype == np.uint8:
+        return 1.0
+    return 255.0 / max(float(frame.max()), 1.0)
+
+
 @dataclass(frozen=True, eq=False)
 class PipelineResult:
     """Everything one frame gave, plus the intermediate images (references, not copies).
 
-    ``green`` and ``red_raw`` are the dark-subtracted mirror-image channels; ``obstacle`` and
-    ``marks`` the ground-view images of window sums (uint16, ``window_area`` pixels each).
-    Display images (8-bit window means, the colour dark-subtracted frame) are made on demand.
+    ``green`` and ``red_raw`` are the dark-subtracted mirror-image channels (of the part of the
+    frame the ground view reads, ``Pipeline.crop``: about half the frame); ``obstacle`` and
+    ``marks`` the ground-view images of window sums (``window_area`` pixels each: uint16 from an
+    8-bit frame, float32 from a 16-bit one). Display images (8-bit window means, the colour
+    dark-subtracted frame) are made on demand. ``untrusted``: why this frame's reading cannot
+    be trusted ("" when it can).
     """
 
     frame: np.ndarray
@@ -101,13 +125,17 @@ class PipelineResult:
         return subtract_dark(self.frame, self.dark, pedestal_dn=self.pedestal_dn)
 
     def _u8(self, img: np.ndarray) -> np.ndarray:
-        return cv2.convertScaleAbs(img, alpha=1.0 / self.window_area)
+        return cv2.convertScaleAbs(img, alpha=display_scale(self.frame) / self.window_area)
 
     def obstacle_u8(self) -> np.ndarray:
         return self._u8(self.obstacle)
 
     def marks_u8(self) -> np.ndarray:
         return self._u8(self.marks)
+
+    @property
+    def untrusted(self) -> str:
+        return self.dots.untrusted
 
     @property
     def total_ms(self) -> float:
@@ -139,6 +167,7 @@ class PipelineResult:
                 for i in range(len(self.red))
             ],
             "observation": self.observation.to_dict(),
+            "untrusted": self.untrusted,
             "stage_ms": {k: round(v, 4) for k, v in self.stage_ms.items()},
             "total_ms": round(self.total_ms, 4),
         }
@@ -152,7 +181,8 @@ class Pipeline:
     ----------
     profile : Profile
     params : PipelineParams
-    dark : (H, W, 3) uint8, optional -- the dark frame for every ``process`` call.
+    dark : (H, W, 3) uint8 or uint16 (the frames' dtype), optional -- the dark frame for every
+        ``process`` call.
     """
 
     def __init__(
@@ -168,7 +198,11 @@ class Pipeline:
         vv, uu = np.mgrid[0:h:5, 0:w:5]
         inside = np.hypot(uu - profile.center_px[0], vv - profile.center_px[1]) < 0.95 * profile.rim_radius_px
         self._sample = (vv[inside] * w + uu[inside]).ravel()
+        self._sample3 = {ch: self._sample * 3 + ch for ch in (1, 2)}  # into a flat BGR frame
         self.dark = None
+        self.pedestal = 0
+        self.quantum = 1
+        self.dark_sigma = 0.0
         # the wide, coarse ground view for far red-light landmarks (pose estimates only)
         self.wide = None
         if self.params.observation.pose_estimates and self.params.observation.landmark_range_m > 0:
@@ -176,25 +210,69 @@ class Pipeline:
             n = 160
             self._wide_profile = profile.replace(ground_size_px=n, ground_px_per_m=(n - 1) / (2 * reach))
             self.wide = UnwarpMap.from_profile(self._wide_profile)
+        # the part of the mirror image the main view reads: the mirror-image stages run on that
+        # crop only (about half the frame); the wide view reads nearly the whole mirror
+        self._crop = (0, 0, w, h) if self.wide is not None else self.umap.reach_px()
+        x0, y0, x1, y1 = self._crop
+        self._umap_crop = self.umap.cropped(x0, y0, x1, y1)
         if dark is not None:
             self.set_dark(dark)
 
+    @property
+    def crop(self) -> tuple[int, int, int, int]:
+        """(x0, y0, x1, y1): the part of the mirror image the stages read."""
+        return self._crop
+
+    def _crop_view(self, image: np.ndarray) -> np.ndarray:
+        x0, y0, x1, y1 = self._crop
+        return image[y0:y1, x0:x1]
+
+    def _sample_values(self, frame: np.ndarray, ch: int) -> np.ndarray:
+        """Channel ``ch`` of ``frame`` at the background sample, dark-subtracted as
+        :meth:`_channel` does it (saturating, pedestal, hot pixels at the pedestal)."""
+        v = frame.reshape(-1)[self._sample3[ch]]
+        if self.dark is None:
+            return v
+        out = cv2.subtract(cv2.add(v, self.pedestal), self._dark_sample[ch - 1]).reshape(-1)
+        out[self._hot_sample[ch - 1]] = self.pedestal
+        return out
+
     def set_dark(self, dark: np.ndarray) -> None:
-        """Use ``dark`` (H, W, 3) uint8 from now on: split it once, map its hot pixels once."""
+        """Use ``dark`` (H, W, 3) uint8 or uint16 from now on: split it once, map its hot pixels
+        once, and take from it the quantisation step and the pedestal."""
         check_frame(dark, "dark frame")
         self.profile.check_frame(dark.shape)
+        p = self.params
+        gr = np.concatenate([cv2.extractChannel(dark, c).reshape(-1)[self._sample] for c in (1, 2)])
+        q = quantum_dn(gr)
+        _, spread = robust_sigma(gr)
+        self.quantum = q
+        self.dark_sigma = spread
+        self.pedestal = int(max(p.pedestal_steps, math.ceil(p.pedestal_k_sigma * spread / q - 1e-9)) * q)
         self.dark = dark
-        self._dark_g = cv2.extractChannel(dark, 1)
-        self._dark_r = cv2.extractChannel(dark, 2)
-        hot = hot_pixels(dark)
-        self._hot_g = hot[hot % 3 == 1] // 3  # flat indices into one channel
-        self._hot_r = hot[hot % 3 == 2] // 3
+        crop = self._crop_view(dark)
+        self._dark_g = cv2.extractChannel(crop, 1)
+        self._dark_r = cv2.extractChannel(crop, 2)
+        hot = hot_pixels(dark, quantum=q)
+        x0, y0, x1, y1 = self._crop
+        w = dark.shape[1]
+        hot_in = []
+        for ch in (1, 2):
+            px = hot[hot % 3 == ch] // 3  # flat indices into one full channel
+            yy, xx = px // w, px % w
+            keep = (xx >= x0) & (xx < x1) & (yy >= y0) & (yy < y1)
+            hot_in.append((yy[keep] - y0) * (x1 - x0) + (xx[keep] - x0))  # into the crop
+        self._hot_g, self._hot_r = hot_in
+        self._dark_sample = [dark.reshape(-1)[self._sample3[ch]] for ch in (1, 2)]
+        hot_set = set(hot.tolist())
+        self._hot_sample = [np.array([(i * 3 + ch) in hot_set for i in self._sample.tolist()], bool) for ch in (1, 2)]
 
     def _channel(self, frame: np.ndarray, ch: int) -> np.ndarray:
-        c = cv2.extractChannel(frame, ch)
+        """Channel ``ch`` of the crop of ``frame`` the view reads, dark-subtracted."""
+        c = cv2.extractChannel(self._crop_view(frame), ch)
         if self.dark is None:
             return c
-        ped = self.params.pedestal_dn
+        ped = self.pedestal
         c = cv2.subtract(cv2.add(c, ped), self._dark_g if ch == 1 else self._dark_r)
         c.reshape(-1)[self._hot_g if ch == 1 else self._hot_r] = ped  # defect-pixel map
         return c
@@ -207,7 +285,8 @@ class Pipeline:
         heading_error_rad: float | None = None,
         position_offset: tuple[float, float] | None = None,
     ) -> PipelineResult:
-        """Run every stage on one (H, W, 3) uint8 BGR frame.
+        """Run every stage on one (H, W, 3) uint8 or uint16 BGR frame (a uint16 frame holds an
+        ADC's counts; the dark frame must have the frame's dtype).
 
         ``heading_error_rad``: read the cell with this heading error instead of this frame's own
         fit -- e.g. the fit of a short frame taken at the same pose, for a long one in which
@@ -218,6 +297,8 @@ class Pipeline:
         self.profile.check_frame(frame.shape)
         if dark is not None and dark is not self.dark:
             self.set_dark(dark)
+        if self.dark is not None:
+            check_dark_dtype(self.dark, frame.dtype)
         p = self.params
         w = p.dots.window_px
         area = w * w
@@ -228,13 +309,23 @@ class Pipeline:
         t.append(clock())
         gs, rs = window_sums(g, w), window_sums(r, w)
         t.append(clock())
-        G, R = unwarp(gs, self.umap), unwarp(rs, self.umap)
+        G, R = unwarp(gs, self._umap_crop), unwarp(rs, self._umap_crop)
         t.append(clock())
-        # background and noise, measured on raw pixels inside the rim
-        bg, noise = estimate_background(g, self._sample)
-        bg_r, noise_r = estimate_background(r, self._sample)
-        leak = area * bg_r + p.channels.leak_k_sigma * max(noise_r, 0.3) * w
-        obstacle, marks = separate_channels(G, R, p.channels, window_area=area, leak_threshold=leak)
+        # background and noise, measured on raw pixels inside the rim, never below the
+        # rounding noise of one quantisation step
+        sg, sr = self._sample_values(frame, 1), self._sample_values(frame, 2)
+        q = self.quantum if self.dark is not None else quantum_dn(sg)
+        floor = noise_floor(q)
+        bg, noise = estimate_background(sg, slice(None), q)
+        bg_r, noise_r = estimate_background(sr, slice(None), q)
+        noise, noise_r = max(noise, floor), max(noise_r, floor)
+        # a red light's level: above the pedestal by the dark frame's spread (a fixed rule per
+        # dark frame), or without one above the frame's own red background by its noise
+        red_levels = (self.pedestal, max(self.dark_sigma, floor)) if self.dark is not None else (bg_r, noise_r)
+        leak = area * bg_r + p.channels.leak_k_sigma * noise_r * w
+        obstacle, marks = separate_channels(
+            G, R, p.channels, window_area=area, leak_threshold=leak, background_dn=red_levels[0], noise_dn=red_levels[1]
+        )
         t.append(clock())
         dots = find_dots(
             marks,
@@ -243,6 +334,7 @@ class Pipeline:
             background_dn=bg,
             noise_dn=noise,
             ground_to_robot=self.profile.ground_to_robot,
+            quantum=q,
         )
         t.append(clock())
         all_dots = find_rows(
@@ -256,13 +348,14 @@ class Pipeline:
             params=p.rows,
             dot_params=p.dots,
             ground_to_robot=self.profile.ground_to_robot,
+            quantum=q,
         )
         t.append(clock())
         red = find_red(obstacle, p.red, window_area=area)
         t.append(clock())
         heading = fit_heading(dots, p.heading)
         t.append(clock())
-        landmark_px = self._far_lights(gs, rs, r, leak) if self.wide is not None else None
+        landmark_px = self._far_lights(gs, rs, r, leak, red_levels) if self.wide is not None else None
         herr = heading.heading_error_rad if (heading.ok and p.use_heading) else 0.0
         if heading_error_rad is not None:
             herr = float(heading_error_rad)
@@ -271,7 +364,7 @@ class Pipeline:
             red.xy_px,
             red.peak_dn,
             self.geometry,
-            red_threshold_dn=p.channels.red_threshold_dn,
+            red_threshold_dn=p.channels.levels(*red_levels)[0],
             heading_error_rad=herr,
             params=p.observation,
             landmark_px=landmark_px,
@@ -281,17 +374,27 @@ class Pipeline:
         t.append(clock())
         stage_ms = {name: (t[i + 1] - t[i]) / 1e6 for i, name in enumerate(STAGES)}
         return PipelineResult(
-            frame, self.dark, p.pedestal_dn, g, r, obstacle, marks, all_dots, red, heading, obs, stage_ms, area
+            frame, self.dark, self.pedestal, g, r, obstacle, marks, all_dots, red, heading, obs, stage_ms, area
         )
 
-    def _far_lights(self, gs: np.ndarray, rs: np.ndarray, red: np.ndarray, leak: float) -> np.ndarray:
+    def _far_lights(
+        self, gs: np.ndarray, rs: np.ndarray, red: np.ndarray, leak: float, red_levels: tuple[float, float]
+    ) -> np.ndarray:
         """Red lights out to ``landmark_range_m`` for the landmark fit, as ground-view pixels of
         the main view (beyond its edges too): found in the wide, coarse view of the window sums
-        ``gs``, ``rs`` and refined on the dark-subtracted red channel ``red``."""
+        ``gs``, ``rs`` and refined on the dark-subtracted red channel ``red`` (``red_levels``:
+        its background and noise)."""
         p = self.params
         area = p.dots.window_px**2
+        bg_r, noise_r = red_levels
         obst, _ = separate_channels(
-            unwarp(gs, self.wide), unwarp(rs, self.wide), p.channels, window_area=area, leak_threshold=leak
+            unwarp(gs, self.wide),
+            unwarp(rs, self.wide),
+            p.channels,
+            window_area=area,
+            leak_threshold=leak,
+            background_dn=bg_r,
+            noise_dn=noise_r,
         )
         far = find_red(obst, p.red, window_area=area)
         xy_m = self._refine_lights(red, self._wide_profile.ground_to_robot(far.xy_px)) if len(far) else np.zeros((0, 2))
@@ -305,7 +408,7 @@ class Pipeline:
         the image edge, nothing above the pedestal) are dropped."""
         uv = self.profile.robot_to_image(xy_m)
         h, w = red.shape
-        ped = float(self.params.pedestal_dn)
+        ped = float(self.pedestal)
         out = []
         for u, v in uv:
             if not (np.isfinite(u) and np.isfinite(v)):
@@ -327,9 +430,10 @@ class Pipeline:
         return xy[np.isfinite(xy).all(axis=1)]
 
     def ground_view(self, image: np.ndarray) -> np.ndarray:
-        """8-bit colour ground view of an image, as the stages see it (window means)."""
+        """8-bit colour ground view of an image, as the stages see it (window means; a 16-bit
+        image scaled by :func:`display_scale`)."""
         w = self.params.dots.window_px
-        return cv2.convertScaleAbs(unwarp(window_sums(image, w), self.umap), alpha=1.0 / (w * w))
+        return cv2.convertScaleAbs(unwarp(window_sums(image, w), self.umap), alpha=display_scale(image) / (w * w))
 
 
 def bench_pipeline(camera, board, layer, pose, *, frames: int, rng, profile: Profile) -> dict:

@@ -129,6 +129,12 @@ class PipelineLogger:
         return self.rec.is_enabled()
 
     def _img(self, path: str, img: np.ndarray, *, bgr: bool = True) -> None:
+        if img.dtype != np.uint8:  # a 16-bit frame: JPEG holds 8 bits
+            import cv2
+
+            from stcvision.pipeline import display_scale
+
+            img = cv2.convertScaleAbs(img, alpha=display_scale(img))
         if img.ndim == 3 and bgr:
             im = rr.Image(img, color_model="BGR")
         else:

@@ -13,7 +13,9 @@ from dataclasses import dataclass, field
 
 import cv2
 import numpy as np
+from scipy.spatial import cKDTree
 
+from stcvision import kernels
 from stcvision.errors import BadInputError
 
 __all__ = [
@@ -27,8 +29,13 @@ __all__ = [
     "RedParams",
     "Recalibration",
     "UnwarpMap",
+    "FRAME_DTYPES",
+    "check_dark_dtype",
     "check_frame",
     "estimate_background",
+    "noise_floor",
+    "quantum_dn",
+    "robust_sigma",
     "noise_gain",
     "separate_channels",
     "filter_channels",
@@ -44,17 +51,56 @@ __all__ = [
 ]
 
 
+#: frame dtypes the pipeline reads: 8-bit, or 16-bit holding an ADC's counts (any depth up to 16
+#: bits, LSB- or MSB-aligned: every threshold comes from the measured noise, not the depth)
+FRAME_DTYPES = (np.uint8, np.uint16)
+#: noise of rounding to whole quantisation steps, in steps (uniform error: 1 / sqrt(12))
+QUANTISATION_SIGMA = 1.0 / math.sqrt(12.0)
+
+
 def check_frame(frame: np.ndarray, name: str = "frame") -> None:
-    """Contract: ``frame`` is an (H, W, 3) uint8 BGR image."""
+    """Contract: ``frame`` is an (H, W, 3) uint8 or uint16 BGR image."""
     if not isinstance(frame, np.ndarray):
         raise BadInputError(f"{name} must be a numpy array, got {type(frame).__name__}")
-    if frame.dtype != np.uint8:
-        raise BadInputError(f"{name} has dtype {frame.dtype}; expected uint8")
+    if frame.dtype not in FRAME_DTYPES:
+        raise BadInputError(f"{name} has dtype {frame.dtype}; expected uint8 or uint16")
     if frame.ndim != 3 or frame.shape[2] != 3:
         raise BadInputError(f"{name} has shape {frame.shape}; expected (H, W, 3) BGR")
 
 
 # --------------------------------------------------------------------------- dark frame
+def check_dark_dtype(dark: np.ndarray, frame_dtype) -> None:
+    """A dark frame must come from the same ADC as the frames: the same dtype."""
+    if dark.dtype != frame_dtype:
+        raise BadInputError(
+            f"dark frame has dtype {dark.dtype}, the frame {np.dtype(frame_dtype)}; "
+            "expected a dark frame from the same camera at the same bit depth"
+        )
+
+
+def quantum_dn(values: np.ndarray) -> int:
+    """The quantisation step of integer pixel values (DN): the greatest common divisor of their
+    differences -- 1 for LSB-aligned data of any depth, 16 for 12-bit counts MSB-aligned in
+    16 bits. Noise floors are fractions of this step, so the alignment does not matter."""
+    v = np.asarray(values).reshape(-1).astype(np.int64)
+    if not len(v):
+        return 1
+    return max(int(np.gcd.reduce(v - v.min())), 1)
+
+
+def robust_sigma(values: np.ndarray) -> tuple[float, float]:
+    """(median, 1.4826 x median absolute deviation) of pixel values. The MAD of quantised data
+    is a whole number of steps: 0 only says the spread is below half a step, i.e. sigma below
+    1.4826 x step / 2 (:data:`UNRESOLVED_SIGMA`)."""
+    v = np.asarray(values).reshape(-1).astype(np.float32)
+    med = float(np.median(v))
+    return med, 1.4826 * float(np.median(np.abs(v - med)))
+
+
+#: the largest sigma (in quantisation steps) of data whose MAD rounds to 0
+UNRESOLVED_SIGMA = 1.4826 * 0.5
+
+
 def subtract_dark(
     frame: np.ndarray,
     dark: np.ndarray,
@@ -63,7 +109,7 @@ def subtract_dark(
     frame_exposure_s: float | None = None,
     dark_exposure_s: float | None = None,
 ) -> np.ndarray:
-    """Subtract a dark frame, saturating at 0 (never wrapping uint8).
+    """Subtract a dark frame, saturating at 0 (never wrapping).
 
     Seed 003, "Noise handling": "we took a photo in complete darkness ... and deducted this
     photo from every taken snapshot". The dark frame must match the frame's size and, where
@@ -75,10 +121,11 @@ def subtract_dark(
 
     Parameters
     ----------
-    frame, dark : (H, W, 3) uint8 BGR
+    frame, dark : (H, W, 3) BGR, both uint8 or both uint16
     """
     check_frame(frame)
     check_frame(dark, "dark frame")
+    check_dark_dtype(dark, frame.dtype)
     if frame.shape != dark.shape:
         raise BadInputError(
             f"dark frame is {dark.shape[1]}x{dark.shape[0]}, frame is {frame.shape[1]}x{frame.shape[0]}; "
@@ -96,16 +143,21 @@ def subtract_dark(
     return cv2.subtract(frame, dark)
 
 
-def hot_pixels(dark: np.ndarray, *, k_sigma: float = 8.0, min_excess_dn: float = 6.0) -> np.ndarray:
+def hot_pixels(dark: np.ndarray, *, k_sigma: float = 8.0, quantum: float | None = None) -> np.ndarray:
     """Flat indices (into ``dark.reshape(-1)`` of an (H, W, 3) frame) of hot pixels: dark-frame
-    values far above the typical dark level. Their dark current's shot noise is several times
-    the read noise, so they stay noisy after subtraction and would pass as faint dots; the
-    pipeline replaces them by the background (a standard defect-pixel map)."""
+    values more than ``k_sigma`` robust sigmas above the typical dark level. Their dark
+    current's shot noise is several times the read noise, so they stay noisy after subtraction
+    and would pass as faint dots; the pipeline replaces them by the background (a standard
+    defect-pixel map). Where the dark frame's spread is below one quantisation step
+    (``quantum``, default :func:`quantum_dn` of the frame) its MAD is 0 and only bounds sigma
+    (:data:`UNRESOLVED_SIGMA`): the excess is then ``k_sigma`` times that bound, in whole steps
+    (6 steps at k = 8)."""
     check_frame(dark, "dark frame")
-    v = dark.reshape(-1).astype(np.float32)
-    med = float(np.median(v[::11]))
-    sigma = 1.4826 * float(np.median(np.abs(v[::11] - med)))
-    return np.flatnonzero(v > med + max(k_sigma * sigma, min_excess_dn))
+    v = dark.reshape(-1)
+    q = quantum_dn(v[::11]) if quantum is None else quantum
+    med, sigma = robust_sigma(v[::11])
+    floor = math.ceil(k_sigma * UNRESOLVED_SIGMA) * q
+    return np.flatnonzero(v.astype(np.float32) > med + max(k_sigma * sigma, floor))
 
 
 # --------------------------------------------------------------------------- unwarp
@@ -142,6 +194,24 @@ class UnwarpMap:
         f1, f2 = cv2.convertMaps(mx, my, cv2.CV_16SC2)
         return cls(mx, my, ok.reshape(n, n), tuple(profile.image_size_px), f1, f2)
 
+    def reach_px(self, margin: int = 2) -> tuple[int, int, int, int]:
+        """(x0, y0, x1, y1): the part of the mirror image the map reads, with ``margin`` pixels
+        more on every side (a window sum there sees only pixels inside), clipped to the image."""
+        w, h = self.image_size_px
+        mx, my = self.map_x[self.valid], self.map_y[self.valid]
+        if not len(mx):
+            return 0, 0, w, h
+        x0, y0 = max(int(np.floor(mx.min())) - margin, 0), max(int(np.floor(my.min())) - margin, 0)
+        x1, y1 = min(int(np.floor(mx.max())) + 2 + margin, w), min(int(np.floor(my.max())) + 2 + margin, h)
+        return x0, y0, x1, y1
+
+    def cropped(self, x0: int, y0: int, x1: int, y1: int) -> UnwarpMap:
+        """The same map reading the crop ``image[y0:y1, x0:x1]`` (shifting a map by whole pixels
+        is exact in float32)."""
+        mx, my = self.map_x - np.float32(x0), self.map_y - np.float32(y0)
+        f1, f2 = cv2.convertMaps(mx, my, cv2.CV_16SC2)
+        return UnwarpMap(mx, my, self.valid, (x1 - x0, y1 - y0), f1, f2)
+
 
 def unwarp(image: np.ndarray, umap: UnwarpMap) -> np.ndarray:
     """Ground view (top-down, robot-centred, forward up) of a mirror image: one ``cv2.remap``.
@@ -169,22 +239,42 @@ class ChannelParams:
     red color is bigger than a threshold. And in the visited cells, we keep the colors that the
     red colors is less than a threshold").
 
-    A pixel is *red light* iff its red value (after dark subtraction) is above
-    ``red_threshold_dn`` and at least its green value (less ``dominance_tol_dn``): a red LED
-    leaks only a few per cent into green (so R >> G, and where both saturate R ~ G), while a
-    green phosphor dot shows about a twelfth as much red as green -- also when its green
-    saturates in a long exposure, where a ratio test would mistake it for red. Red-light pixels go to the
-    obstacle image and are blacked out of the marks image, which removes the crosstalk; the
-    black-out extends ``red_margin_px`` beyond them, over the light's faint halo (blooming and
-    lens glare carry green too), and over every red-dominated pixel whose red is
-    ``leak_k_sigma`` noise levels above the background (a light's faint halo grows with the
-    exposure). Red lights stand at cell centres, marks at least 4 cm away.
+    A pixel is *red light* iff its red value (after dark subtraction) is ``red_k_sigma`` noise
+    levels above the red background and at least its green value (less ``dominance_k_sigma``
+    noise levels): a red LED leaks only a few per cent into green (so R >> G, and where both
+    saturate R ~ G), while a green phosphor dot shows about a twelfth as much red as green --
+    also when its green saturates in a long exposure, where a ratio test would mistake it for
+    red. Background and noise are the caller's (the pipeline: the pedestal and the dark frame's
+    spread), so the rule holds at any bit depth and gain; on the webcam (dark frame spread
+    1.48 DN, 10 DN pedestal) the defaults are the levels the webcam was tuned at, 40 DN and a
+    3 DN tolerance. ``red_threshold_dn`` and ``dominance_tol_dn`` (per pixel, DN) override the
+    noise rule with fixed levels.
+
+    Red-light pixels go to the obstacle image and are blacked out of the marks image, which
+    removes the crosstalk; the black-out extends ``red_margin_px`` beyond them, over the light's
+    faint halo (blooming and lens glare carry green too), and over every red-dominated pixel
+    whose red is ``leak_k_sigma`` noise levels above the background (a light's faint halo grows
+    with the exposure). Red lights stand at cell centres, marks at least 4 cm away.
     """
 
-    red_threshold_dn: int = 40
-    dominance_tol_dn: int = 3
+    red_k_sigma: float = 20.25
+    dominance_k_sigma: float = 2.03
+    red_threshold_dn: float | None = None
+    dominance_tol_dn: float | None = None
     red_margin_px: int = 2
     leak_k_sigma: float = 5.0
+
+    def levels(self, background_dn: float, noise_dn: float) -> tuple[float, float]:
+        """(red threshold, dominance tolerance) per pixel in DN, for a red channel of this
+        background and noise."""
+        thr = background_dn + self.red_k_sigma * noise_dn if self.red_threshold_dn is None else self.red_threshold_dn
+        tol = self.dominance_k_sigma * noise_dn if self.dominance_tol_dn is None else self.dominance_tol_dn
+        return float(thr), float(tol)
+
+
+#: window sums as the stages hold them: uint16 from 8-bit frames, float32 (exact integers up to
+#: 2^24) from 16-bit ones, whose nine-pixel sums overflow 16 bits
+SUM_DTYPES = (np.uint16, np.float32)
 
 
 def filter_channels(
@@ -193,24 +283,34 @@ def filter_channels(
     *,
     window_area: int = 1,
     leak_threshold: float | None = None,
+    background_dn: float | None = None,
+    noise_dn: float | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Split a dark-subtracted BGR image into (obstacle, marks) single-channel images.
 
-    ``image`` is uint8, or uint16 window sums (see :func:`window_sums`) with ``window_area``
-    pixels per sum; the thresholds are per pixel and scale with it. The outputs keep the input
-    dtype. ``leak_threshold`` (same units as ``image``; default: none) is the lower red level
-    above which a red-dominated pixel is still kept out of the marks image: a bright light's
-    faint halo (lens glare, blooming) carries green by crosstalk far beyond the pixels bright
-    enough to count as the light itself.
+    ``image`` is uint8, or window sums (see :func:`window_sums`) with ``window_area`` pixels per
+    sum; the thresholds are per pixel and scale with it. The outputs keep the input dtype.
+    ``background_dn``, ``noise_dn``: the red channel's per-pixel background and noise (default:
+    measured on a uint8 ``image``). ``leak_threshold`` (same units as ``image``; default: none)
+    is the lower red level above which a red-dominated pixel is still kept out of the marks
+    image: a bright light's faint halo (lens glare, blooming) carries green by crosstalk far
+    beyond the pixels bright enough to count as the light itself.
     """
-    if image.ndim != 3 or image.shape[2] != 3 or image.dtype not in (np.uint8, np.uint16):
-        raise BadInputError(f"image must be (H, W, 3) uint8 or uint16, got {image.shape} {image.dtype}")
+    if image.ndim != 3 or image.shape[2] != 3 or image.dtype not in (np.uint8, *SUM_DTYPES):
+        raise BadInputError(f"image must be (H, W, 3) uint8 or window sums, got {image.shape} {image.dtype}")
+    r = cv2.extractChannel(image, 2)
+    if background_dn is None or noise_dn is None:
+        if image.dtype != np.uint8:
+            raise BadInputError("filter_channels: give background_dn and noise_dn with window sums")
+        background_dn, noise_dn = estimate_background(r)
     return separate_channels(
         cv2.extractChannel(image, 1),
-        cv2.extractChannel(image, 2),
+        r,
         params,
         window_area=window_area,
         leak_threshold=leak_threshold,
+        background_dn=background_dn,
+        noise_dn=noise_dn,
     )
 
 
@@ -221,15 +321,22 @@ def separate_channels(
     *,
     window_area: int = 1,
     leak_threshold: float | None = None,
+    background_dn: float,
+    noise_dn: float,
 ) -> tuple[np.ndarray, np.ndarray]:
     """:func:`filter_channels` on a green and a red image already split apart."""
+    thr, tol = params.levels(background_dn, noise_dn)
     # red-dominated: R >= G up to a tolerance (where both saturate, the dark frame decides which
     # reads higher); saturating add. A green dot has R ~ G / 12 even when its green saturates.
-    dominated = cv2.compare(cv2.add(r, float(params.dominance_tol_dn * window_area)), g, cv2.CMP_GE)
-    red = cv2.bitwise_and(cv2.compare(r, float(params.red_threshold_dn * window_area), cv2.CMP_GT), dominated)
+    dominated = cv2.compare(cv2.add(r, float(tol * window_area)), g, cv2.CMP_GE)
+    red = cv2.bitwise_and(cv2.compare(r, float(thr * window_area), cv2.CMP_GT), dominated)
     obstacle = cv2.bitwise_and(r, r, mask=red)
     if leak_threshold is not None:
-        red = cv2.bitwise_or(red, cv2.bitwise_and(cv2.compare(r, float(leak_threshold), cv2.CMP_GT), dominated))
+        leak = cv2.bitwise_and(cv2.compare(r, float(leak_threshold), cv2.CMP_GT), dominated)
+        # a leak level at or below the light's own holds every light pixel already
+        red = leak if leak_threshold <= thr * window_area else cv2.bitwise_or(red, leak)
+    if not cv2.countNonZero(red):
+        return obstacle, g  # nothing to black out (the marks image is the green one)
     if params.red_margin_px > 0:
         k = 2 * params.red_margin_px + 1
         red = cv2.dilate(red, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (k, k)))
@@ -238,7 +345,8 @@ def separate_channels(
 
 
 def window_sums(image: np.ndarray, window_px: int) -> np.ndarray:
-    """Sum over the dot-sized square around every pixel (uint16, no rounding).
+    """Sum over the dot-sized square around every pixel, no rounding: uint16 for a uint8 image,
+    float32 for a uint16 one (exact: 9 x 65535 < 2^24).
 
     Seed 003, "Finding the green dots": "we look for the square of pixels (of a dot's size)
     that has the highest average value". Filtering once, in the mirror image where the pixels
@@ -246,7 +354,8 @@ def window_sums(image: np.ndarray, window_px: int) -> np.ndarray:
     ``window_px**2`` pixels, wherever the dot lies (the unwarp would otherwise skip pixels near
     the robot, where the ground view is coarser than the mirror image).
     """
-    return cv2.boxFilter(image, cv2.CV_16U, (window_px, window_px), normalize=False, borderType=cv2.BORDER_CONSTANT)
+    depth = cv2.CV_16U if image.dtype == np.uint8 else cv2.CV_32F
+    return cv2.boxFilter(image, depth, (window_px, window_px), normalize=False, borderType=cv2.BORDER_CONSTANT)
 
 
 # --------------------------------------------------------------------------- dots
@@ -271,6 +380,12 @@ class DotParams:
     half of it: a fresh dot hundreds of sigma strong still shows at 5 sigma a few pixels out.
     Candidates down to ``candidate_snr`` are reported with ``lit=False`` so that decisions carry
     a confidence.
+
+    Caps (never silent: a frame over either is returned with ``Dots.untrusted`` saying why):
+    ``max_candidates`` local maxima above the candidate level -- a frame of marks holds a few
+    hundred (a 1.15 m ground view holds ~200 sub-cells of 4 dots), so tens of thousands mean the
+    noise estimate does not describe the frame (issue 16.5: a cooled sensor quantised to 8 bits
+    gave 61,145); only the strongest ``max_candidates`` are examined. ``max_dots`` accepted dots.
     """
 
     window_px: int = 3
@@ -281,6 +396,7 @@ class DotParams:
     centroid_px: int = 2
     max_dots: int = 200
     candidate_snr: float = 4.0
+    max_candidates: int = 4000
 
 
 @dataclass(frozen=True, eq=False)
@@ -302,6 +418,9 @@ class Dots:
     background_dn: float
     #: (N,) bool: found as part of a faint row by :func:`find_rows`, not singly (None: none are)
     from_row: np.ndarray | None = None
+    #: why this frame's dots cannot be trusted ("" when they can): a cap of :class:`DotParams`
+    #: was reached, so the search stopped before the frame was read
+    untrusted: str = ""
 
     def __len__(self) -> int:
         return len(self.strength)
@@ -337,20 +456,34 @@ def noise_gain(umap: UnwarpMap, window_px: int, *, n: int = 12, seed: int = 0) -
     return np.maximum(gain, 1e-3)
 
 
-def estimate_background(image: np.ndarray, sample: np.ndarray | None = None) -> tuple[float, float]:
-    """(median, robust sigma) of a uint8 image's pixels (or of ``image.reshape(-1)[sample]``).
+def estimate_background(image: np.ndarray, sample: np.ndarray | None = None, quantum: int = 1) -> tuple[float, float]:
+    """(median, robust sigma) of a uint8 or uint16 image's pixels (or of
+    ``image.reshape(-1)[sample]``), whose values are whole multiples of ``quantum`` apart
+    (:func:`quantum_dn`).
 
-    From a histogram, each integer value spread uniformly over its bin (so sub-DN noise
-    levels are not rounded away): the median, and sigma = interquartile range / 1.349.
+    From a histogram of the quantisation steps, each spread uniformly over its step (so noise
+    levels below a step are not rounded away): the median, and sigma = interquartile range /
+    1.349.
     """
     v = image.reshape(-1)[sample] if sample is not None else image.reshape(-1)[::7]
-    hist = np.bincount(v, minlength=256).astype(np.float64)
+    if image.dtype == np.uint8 and quantum == 1:
+        lo, hist = 0, np.bincount(v, minlength=256)
+    else:  # a histogram of the occupied range only (16-bit data spans few of its 65,536 values)
+        lo = int(v.min())
+        hist = np.bincount((v.astype(np.int64) - lo) // quantum)
+    hist = hist.astype(np.float64)
     cdf = np.concatenate([[0.0], np.cumsum(hist)])
     cdf /= cdf[-1]
-    edges = np.arange(257) - 0.5
+    edges = lo + (np.arange(len(hist) + 1) - 0.5) * quantum
     keep = np.concatenate([[True], np.diff(cdf) > 0])  # strictly increasing for inversion
     q1, med, q3 = np.interp([0.25, 0.5, 0.75], cdf[keep], edges[keep])
     return float(med), float((q3 - q1) / 1.349)
+
+
+def noise_floor(quantum: float = 1.0) -> float:
+    """The least per-pixel noise a measurement may report: the rounding noise of one
+    quantisation step (``quantum`` DN), ``quantum / sqrt(12)``."""
+    return QUANTISATION_SIGMA * quantum
 
 
 def find_dots(
@@ -361,6 +494,7 @@ def find_dots(
     background_dn: float | None = None,
     noise_dn: float | None = None,
     ground_to_robot=None,
+    quantum: float = 1.0,
 ) -> Dots:
     """Find dots in a ground-view marks image: filter once (window mean), keep local maxima
     above the candidate level, accept them strongest first while blacking out a square around
@@ -368,22 +502,24 @@ def find_dots(
 
     Parameters
     ----------
-    marks : (S, S) uint8 image, or uint16 window sums (:func:`window_sums`, then unwarped)
+    marks : (S, S) uint8 image, or window sums (uint16 or float32: :func:`window_sums`, then unwarped)
     gain : (S, S) float32 :func:`noise_gain` map (noise of a window mean per unit raw noise);
         default: white noise, ``1 / window_px``.
     background_dn, noise_dn : background level and raw per-pixel noise; default: measured on
         ``marks`` (median, IQR).
     ground_to_robot : callable (N, 2) px -> (N, 2) m, optional (``Profile.ground_to_robot``).
+    quantum : the raw pixels' quantisation step (DN, :func:`quantum_dn`); the noise is never
+        taken below its rounding noise (:func:`noise_floor`).
     """
-    if marks.ndim != 2 or marks.dtype not in (np.uint8, np.uint16):
-        raise BadInputError(f"marks image must be (H, W) uint8 or uint16 window sums, got {marks.shape} {marks.dtype}")
+    if marks.ndim != 2 or marks.dtype not in (np.uint8, *SUM_DTYPES):
+        raise BadInputError(f"marks image must be (H, W) uint8, or window sums, got {marks.shape} {marks.dtype}")
     w = params.window_px
     area = w * w
     if background_dn is None or noise_dn is None:
         if marks.dtype != np.uint8:
             raise BadInputError("find_dots: give background_dn and noise_dn with window sums")
         background_dn, noise_dn = estimate_background(marks)
-    noise_dn = max(noise_dn, 0.3)  # quantisation floor (1/sqrt(12) DN)
+    noise_dn = max(noise_dn, noise_floor(quantum))
     if marks.dtype == np.uint8:  # a plain image: filter it here
         sums = cv2.boxFilter(marks, cv2.CV_32F, (w, w), normalize=False)
     else:  # window sums of the mirror image, already unwarped
@@ -419,38 +555,62 @@ def find_dots(
         g = gain[ys, xs].astype(np.float64) if gain is not None else 1.0 / w
         vals = mean / (noise_dn * g)
     order = np.argsort(-vals, kind="stable")
+    untrusted = ""
+    if len(order) > params.max_candidates:
+        untrusted = (
+            f"{len(order)} dot candidates above {low:g} sigma, more than the {params.max_candidates} a frame of "
+            "marks can hold: the measured noise does not describe this frame"
+        )
+        order = order[: params.max_candidates]
     xs, ys, vals, mean = xs[order], ys[order], vals[order], mean[order]
-    # greedy black-out, strongest first (plateaus and chains of maxima that the dilation
-    # left): a candidate inside an accepted dot's square is dropped
-    # S[k, j]: the stronger candidate j (j < k) shadows k -- k lies in j's black-out square, or
-    # j's blur explains half of k. Greedy, strongest first: keep k unless a kept j shadows it.
-    dy = np.abs(ys[:, None].astype(np.int64) - ys[None, :])
-    dx = np.abs(xs[:, None].astype(np.int64) - xs[None, :])
-    tail = vals[None, :] * np.exp(-(dx * dx + dy * dy) / (2.0 * params.tail_sigma_px**2))
-    shadow = np.tril(((dy <= b) & (dx <= b)) | (tail >= 0.5 * vals[:, None]), k=-1)
-    rows, cols = np.nonzero(shadow)
-    shadowers: dict[int, list[int]] = {}
-    for k, j in zip(rows.tolist(), cols.tolist(), strict=True):
-        shadowers.setdefault(k, []).append(j)
-    keep = np.zeros(len(vals), bool)
-    kept: list[int] = []
-    for k in range(len(vals)):
-        if any(keep[j] for j in shadowers.get(k, ())):
-            continue
-        keep[k] = True
-        kept.append(k)
-        if len(kept) >= params.max_dots:
-            break
-    kept_a = np.asarray(kept, int)
+    kept_a = _black_out(xs, ys, vals, b, params.tail_sigma_px, params.max_dots)
     n = len(kept_a)
+    if n >= params.max_dots and not untrusted:
+        untrusted = f"{params.max_dots} dots found, the most a frame is read for (DotParams.max_dots)"
     per_px = background_dn * (area if marks.dtype != np.uint8 else 1)  # sums hold w*w pixels
     xy = _centroids(marks, xs[kept_a], ys[kept_a], params.centroid_px, per_px)
     snr_k = vals[kept_a].astype(float) if n else np.zeros(0)
     strength = mean[kept_a] if n else np.zeros(0)
     xy_m = ground_to_robot(xy) if (ground_to_robot is not None and n) else np.zeros((n, 2))
     return Dots(
-        xy, xy_m, strength, snr_k, snr_k >= params.k_sigma, float(params.k_sigma), float(noise_dn), float(background_dn)
+        xy,
+        xy_m,
+        strength,
+        snr_k,
+        snr_k >= params.k_sigma,
+        float(params.k_sigma),
+        float(noise_dn),
+        float(background_dn),
+        untrusted=untrusted,
     )
+
+
+def _black_out(xs: np.ndarray, ys: np.ndarray, vals: np.ndarray, b: int, tail_sigma: float, max_dots: int):
+    """Greedy black-out of candidates sorted strongest first (plateaus and chains of maxima
+    that the dilation left): candidate k is dropped if a kept stronger candidate j shadows it --
+    k lies in j's black-out square (half-side ``b``), or j's blur (a Gaussian of ``tail_sigma``)
+    explains half of k. Indices of the kept candidates, at most ``max_dots``.
+
+    Only pairs closer than the farthest a shadow can reach are examined (a k-d tree), so the
+    cost grows with the candidates and their near neighbours, not their square: a blur explains
+    half of k only within ``tail_sigma * sqrt(2 ln(2 v_j / v_k))`` of j."""
+    n = len(vals)
+    if n == 0:
+        return np.zeros(0, int)
+    vmin = max(float(vals.min()), 1e-12)
+    reach2 = max(2.0 * b * b, 2.0 * tail_sigma**2 * math.log(max(2.0 * float(vals.max()) / vmin, 1.0)))
+    pairs = cKDTree(np.column_stack([xs, ys]).astype(np.float64)).query_pairs(
+        math.sqrt(reach2) + 1e-6, output_type="ndarray"
+    )
+    j, k = pairs[:, 0], pairs[:, 1]  # j < k: j is the stronger
+    dy = np.abs(ys[k].astype(np.int64) - ys[j])
+    dx = np.abs(xs[k].astype(np.int64) - xs[j])
+    tail = vals[j] * np.exp(-(dx * dx + dy * dy) / (2.0 * tail_sigma**2))
+    shadow = ((dy <= b) & (dx <= b)) | (tail >= 0.5 * vals[k])
+    k, j = k[shadow], j[shadow]
+    by_k = np.argsort(k, kind="stable")
+    starts = np.searchsorted(k[by_k], np.arange(n + 1))
+    return kernels.black_out(starts, j[by_k].astype(np.int64), max_dots)
 
 
 def _centroids(marks: np.ndarray, xs: np.ndarray, ys: np.ndarray, r: int, per_px: float) -> np.ndarray:
@@ -524,10 +684,12 @@ def find_rows(
     params: RowParams = RowParams(),
     dot_params: DotParams = DotParams(),
     ground_to_robot=None,
+    quantum: float = 1.0,
 ) -> Dots:
     """Rows of ``params.n_dots`` faint dots along either ground-view axis that the dot search
     missed; returns ``dots`` with the rows' dots appended (``lit=True``, ``from_row=True``,
-    ``snr`` the row's SNR). ``marks``: the uint16 window sums the dot search ran on.
+    ``snr`` the row's SNR). ``marks``: the window sums the dot search ran on; ``quantum`` as
+    for :func:`find_dots`.
 
     Two searches. *Anchored rows*: a fading mark's brightest dot often passes the dot threshold
     while its other three do not (each dot's SNR scatters by +-1 about the mark's), and a row
@@ -538,9 +700,9 @@ def find_rows(
     ``anchor_mean_snr`` on average). *Free rows*: where the dot search found nothing, the
     matched filter below."""
     area = window_px * window_px
-    if not params.enabled or marks.dtype != np.uint16:
+    if not params.enabled or marks.dtype not in SUM_DTYPES:
         return dots
-    noise_dn = max(noise_dn, 0.3)
+    noise_dn = max(noise_dn, noise_floor(quantum))
     z = cv2.addWeighted(marks, 1.0 / area, marks, 0.0, -background_dn, dtype=cv2.CV_32F)
     z = cv2.divide(z, gain, scale=1.0 / noise_dn)
     cv2.min(z, float(dot_params.k_sigma), dst=z)
@@ -549,18 +711,13 @@ def find_rows(
     # row through it (-1e3), nor ending next to it (occ)
     reach = np.ceil(dot_params.tail_sigma_px * np.sqrt(2 * np.log(np.maximum(dots.snr[dots.lit], 1.0)))) + 1
     occ = np.zeros(z.shape, np.uint8)
-    lit_xy = np.clip(np.round(dots.xy_px[dots.lit]).astype(int), 0, [z.shape[1] - 1, z.shape[0] - 1])
-    reach = np.maximum(reach, b).astype(int)
-    for r in np.unique(reach):  # one dilation per blur reach (a handful), not one slice per dot
-        seeds = np.zeros(z.shape, np.uint8)
-        sel = lit_xy[reach == r]
-        seeds[sel[:, 1], sel[:, 0]] = 1
-        cv2.bitwise_or(occ, cv2.dilate(seeds, np.ones((2 * r + 1, 2 * r + 1), np.uint8)), dst=occ)
+    lit_xy = np.clip(np.round(dots.xy_px[dots.lit]).astype(np.int64), 0, [z.shape[1] - 1, z.shape[0] - 1])
+    kernels.fill_squares(occ, lit_xy[:, 0], lit_xy[:, 1], np.maximum(reach, b).astype(np.int64))
     # nor next to a red light blacked out of the marks image (zero there): the edge of its glare,
     # just below the black-out level, runs along the light as a column of faint "dots"
     dark = cv2.compare(marks, 0, cv2.CMP_EQ)
     ring = 2 * b + 1
-    cv2.bitwise_or(occ, cv2.dilate(dark, np.ones((ring, ring), np.uint8)) // 255, dst=occ)
+    cv2.max(occ, cv2.dilate(dark, np.ones((ring, ring), np.uint8)), dst=occ)  # occ: 0 free, else taken
     h, w = z.shape
     n = params.n_dots
     step = params.spacing_m * px_per_m
@@ -572,43 +729,28 @@ def find_rows(
     if 2 * e >= min(h, w):
         return dots
     new_xy, new_s = _anchored_rows(z, occ, dots, step, n, params) if params.anchored else ([], [])
-    np.copyto(z, np.float32(-1e3), where=occ.view(bool))
-    thr = np.float32(params.k_sigma * math.sqrt(n))
-    xs_l, ys_l, st_l, ax_l = [], [], [], []
-    for axis in (0, 1):  # 0: rows along x (top/bottom edges), 1: along y (left/right edges)
-        # the row sum: one small correlation (OpenCV), then every other test only where it passes
-        k = np.zeros((1, 2 * m + 1), np.float32)
-        k[0, offs + m] = 1.0
-        total = cv2.filter2D(z, -1, k.T if axis else k, borderType=cv2.BORDER_CONSTANT)
-        total[:e], total[-e:], total[:, :e], total[:, -e:] = 0, 0, 0, 0
-        hits = cv2.findNonZero(cv2.compare(total, float(thr), cv2.CMP_GE))
-        if hits is None:
-            continue
-        hits = hits.reshape(-1, 2)
-        xs, ys = hits[:, 0], hits[:, 1]
-        pos = [(ys + o, xs) if axis else (ys, xs + o) for o in offs]
-        vals = np.stack([z[p] for p in pos])
-        low = vals.min(axis=0)
-        ok = (low >= params.min_dot_snr) & (low >= vals.mean(axis=0) - params.spread_snr)
-        for o in ends:
-            p = (ys + o, xs) if axis else (ys, xs + o)
-            ok &= (z[p] < params.end_max_snr) & (occ[p] == 0)
-        xs_l.append(xs[ok])
-        ys_l.append(ys[ok])
-        st_l.append(total[ys[ok], xs[ok]] / np.float32(math.sqrt(n)))
-        ax_l.append(np.full(int(ok.sum()), axis))
-    if not xs_l and not new_xy:
+    xs, ys, st, ax = _free_rows(z, occ, offs, ends, e, params)
+    if not len(xs) and not new_xy:
         return dots
-    xs, ys, st, ax = (np.concatenate(v) if v else np.zeros(0) for v in (xs_l, ys_l, st_l, ax_l))
     order = np.argsort(-st, kind="stable")
-    for i in order:  # strongest first; a row may not share a dot with one already accepted
-        if len(new_xy) >= params.max_rows:
-            break
-        x0, y0, a = int(xs[i]), int(ys[i]), int(ax[i])
-        pts = np.array([(x0, y0 + o) if a else (x0 + o, y0) for o in offs], float)
-        if new_xy and (np.abs(np.concatenate(new_xy)[:, None, :] - pts[None]).max(axis=2) <= b).any():
-            continue
-        new_xy.append(pts)
+    # a row may not share a dot with one already accepted (within b along both axes): the
+    # accepted rows' dots, each grown to its (2b+1)^2 square, as an image looked up per row
+    taken = np.zeros(z.shape, np.uint8)
+    if len(new_xy):
+        ix = np.concatenate(new_xy).astype(np.int64)
+        kernels.fill_squares(taken, ix[:, 0], ix[:, 1], np.full(len(ix), b, np.int64))
+    acc = kernels.accept_rows(
+        taken,
+        xs.astype(np.int64),
+        ys.astype(np.int64),
+        ax.astype(np.int64),
+        order,
+        offs.astype(np.int64),
+        b,
+        params.max_rows - len(new_xy),
+    )
+    for i in acc:
+        new_xy.append(np.array([(xs[i], ys[i] + o) if ax[i] else (xs[i] + o, ys[i]) for o in offs], float))
         new_s.append(np.full(n, st[i]))
     if not new_xy:
         return dots
@@ -630,7 +772,51 @@ def find_rows(
         dots.noise_dn,
         dots.background_dn,
         np.concatenate([from_row, np.ones(len(xy), bool)]),
+        untrusted=dots.untrusted,
     )
+
+
+def _free_rows(z: np.ndarray, occ: np.ndarray, offs: np.ndarray, ends: np.ndarray, e: int, params: RowParams):
+    """Free-row candidates of :func:`find_rows`: (x, y, row SNR, axis) where the row sum of the
+    SNRs ``z`` at ``offs`` along either axis reaches ``k_sigma * sqrt(n)``, every dot is at least
+    ``min_dot_snr`` and within ``spread_snr`` of the row's mean, and the floor at ``ends`` is
+    free (``occ`` 0) and below ``end_max_snr``; no dot on a taken pixel. Axis 0 (rows along x)
+    first, each in row-major order.
+
+    Those tests together need every dot of the row at or above ``max(min_dot_snr, mean -
+    spread_snr)`` with the mean at least ``k_sigma / sqrt(n)``: one comparison and three ANDs
+    of shifted masks find the few pixels (~1 % in noise) where that holds, and only there are
+    the row sums and the rest computed."""
+    n = len(offs)
+    h, w = z.shape
+    thr = np.float32(params.k_sigma * math.sqrt(n))
+    gate = max(params.min_dot_snr, params.k_sigma / math.sqrt(n) - params.spread_snr) - 1e-3
+    ok_px = cv2.bitwise_and(cv2.compare(z, gate, cv2.CMP_GE), cv2.compare(occ, 0, cv2.CMP_EQ))
+    out = []
+    for axis in (0, 1):  # 0: rows along x (top/bottom edges), 1: along y (left/right edges)
+
+        def shifted(img, o, axis=axis):
+            return img[e + o : h - e + o, e : w - e] if axis else img[e : h - e, e + o : w - e + o]
+
+        cand = shifted(ok_px, offs[0]).copy()
+        for o in offs[1:]:
+            cv2.bitwise_and(cand, shifted(ok_px, o), dst=cand)
+        pts = cv2.findNonZero(cand)
+        if pts is None:
+            continue
+        pts = pts.reshape(-1, 2)
+        xs, ys = pts[:, 0] + e, pts[:, 1] + e
+        vals = np.stack([z[ys + o, xs] if axis else z[ys, xs + o] for o in offs])
+        total = vals.sum(axis=0)  # float32, dot by dot: the order of the full-image filter
+        low = vals.min(axis=0)
+        ok = (total >= thr) & (low >= params.min_dot_snr) & (low >= vals.mean(axis=0) - params.spread_snr)
+        for o in ends:
+            p = (ys + o, xs) if axis else (ys, xs + o)
+            ok &= (z[p] < params.end_max_snr) & (occ[p] == 0)
+        out.append((xs[ok], ys[ok], total[ok] / np.float32(math.sqrt(n)), np.full(int(ok.sum()), axis)))
+    if not out:
+        return (np.zeros(0, np.int64),) * 2 + (np.zeros(0, np.float32), np.zeros(0, np.int64))
+    return tuple(np.concatenate(v) for v in zip(*out, strict=True))
 
 
 def _anchored_rows(z, occ, dots: Dots, step: float, n: int, params: RowParams):
@@ -648,47 +834,36 @@ def _anchored_rows(z, occ, dots: Dots, step: float, n: int, params: RowParams):
         return out_xy, out_s
     # lone dots only: no other lit dot within 1.5 spacings (else it is a dot of a row found
     # already, which reads as a mark with one lit neighbour)
-    d2 = ((xy_lit[:, None, :] - xy_lit[None, :, :]) ** 2).sum(axis=2)
-    np.fill_diagonal(d2, np.inf)
+    pairs = cKDTree(xy_lit).query_pairs(near * (1 + 1e-9), output_type="ndarray")
+    d2 = ((xy_lit[pairs[:, 0]] - xy_lit[pairs[:, 1]]) ** 2).sum(axis=1)
+    crowded = np.zeros(len(xy_lit), bool)
+    crowded[pairs[d2 <= near * near].reshape(-1)] = True
     lone = (
-        (d2.min(axis=1) > near * near)
+        ~crowded
         & (snr <= params.anchor_max_snr)
         & (xy_lit[:, 0] >= reach)
         & (xy_lit[:, 0] < w - reach)
         & (xy_lit[:, 1] >= reach)
         & (xy_lit[:, 1] < h - reach)
     )
-    for i in np.flatnonzero(lone):
-        xf, yf = xy_lit[i]
-        s0 = snr[i]
-        best = None
-        for axis in (0, 1):
-            u = np.array([0.0, 1.0]) if axis else np.array([1.0, 0.0])
-            for k in range(n):
-                # the other dots and one spacing beyond either end, from the anchor's centroid
-                places = [j - k for j in range(n) if j != k] + [-1 - k, n - k]
-                pts = np.round(np.array([xf, yf]) + np.outer(places, u) * step).astype(int)
-                if occ[pts[:, 1], pts[:, 0]].any():
-                    continue  # another lit dot on the row or next to it: not a lone dot
-                # each place: the best of the three pixels across the row (a lean of a degree or two)
-                vals = [float((z[py, px - 1 : px + 2] if axis else z[py - 1 : py + 2, px]).max()) for px, py in pts]
-                dots_v, ends_v = vals[: n - 1], vals[n - 1 :]
-                total = sum(dots_v)
-                if (
-                    min(dots_v) >= params.anchor_min_snr
-                    and total >= (n - 1) * params.anchor_mean_snr
-                    and max(ends_v) < params.end_max_snr
-                    and (best is None or total > best[0])
-                ):
-                    best = (total, pts[: n - 1].astype(float))
-        if best is None:
-            continue
-        pts = best[1]
-        if out_xy and (np.abs(np.concatenate(out_xy)[:, None, :] - pts[None]).max(axis=2) <= 2).any():
-            continue
-        out_xy.append(pts)
-        out_s.append(np.full(len(pts), (best[0] + min(float(s0), float(params.k_sigma))) / (len(pts) + 1)))
-    return out_xy, out_s
+    # each lone dot: 4 places x 2 axes; at each of the row's other places and one spacing beyond
+    # either end the best of the three pixels across the row (a lean of a degree or two); a row
+    # with another lit dot on it or next to it (occ) is not tried, and the best passing one is
+    # kept unless it comes within 2 px of a row kept already (kernels.anchored_rows)
+    pts, s_row = kernels.anchored_rows(
+        z,
+        occ,
+        np.ascontiguousarray(xy_lit, np.float64),
+        snr.astype(np.float64),
+        lone,
+        float(step),
+        n,
+        float(params.anchor_min_snr),
+        float(params.anchor_mean_snr),
+        float(params.end_max_snr),
+        float(params.k_sigma),
+    )
+    return list(pts), [np.full(n - 1, v) for v in s_row]
 
 
 # --------------------------------------------------------------------------- heading
@@ -743,18 +918,16 @@ def fit_heading(dots: Dots, params: HeadingParams = HeadingParams()) -> HeadingF
         )
     # the row through the brightest dot: of the lines from it to each neighbour, the one most
     # other neighbours lie on (another mark can sit within the row radius, across the row)
-    best = None
-    for j in near:
-        if j == first:
-            continue
-        d = xy[j] - xy[first]
-        d /= np.hypot(*d)
-        off = np.abs((xy[near] - xy[first]) @ np.array([-d[1], d[0]]))
-        on = near[off <= params.max_residual_m]
-        score = (len(on), s[on].sum())
-        if best is None or score > best[0]:
-            best = (score, on)
-    row = best[1]
+    rel = xy[near] - xy[first]
+    cand = near != first
+    d = rel[cand] / np.hypot(rel[cand, 0], rel[cand, 1])[:, None]  # unit directions to each neighbour
+    on = np.abs(rel @ np.array([-d[:, 1], d[:, 0]])) <= params.max_residual_m  # (near, candidates)
+    count = on.sum(axis=0)
+    total = np.where(on, s[near][:, None], 0.0).sum(axis=0)
+    # the most dots on the line, then the brightest; the first such candidate
+    top = np.flatnonzero(count == count.max())
+    pick_c = top[np.flatnonzero(total[top] == total[top].max())[0]]
+    row = near[on[:, pick_c]]
     if len(row) < params.n_dots:
         return HeadingFit(False, reason=f"no row of {params.n_dots} collinear dots at the brightest dot")
     pick = row[np.argsort(-s[row], kind="stable")[: params.n_dots]]
@@ -847,8 +1020,10 @@ class RedLights:
 def find_red(obstacle: np.ndarray, params: RedParams = RedParams(), *, window_area: int = 1) -> RedLights:
     """Blobs of the (already thresholded) obstacle image: outer contours and their moments.
     ``peak_dn`` is per pixel (window sums are divided by ``window_area``)."""
-    if obstacle.ndim != 2 or obstacle.dtype not in (np.uint8, np.uint16):
-        raise BadInputError(f"obstacle image must be (H, W) uint8 or uint16, got {obstacle.shape} {obstacle.dtype}")
+    if obstacle.ndim != 2 or obstacle.dtype not in (np.uint8, *SUM_DTYPES):
+        raise BadInputError(
+            f"obstacle image must be (H, W) uint8 or window sums, got {obstacle.shape} {obstacle.dtype}"
+        )
     binary = cv2.compare(obstacle, 0, cv2.CMP_GT)
     contours, _ = cv2.findContours(binary, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
     xy, peak, area = [], [], []
