@@ -7,8 +7,12 @@ from dataclasses import dataclass
 
 from sim_camera.hardware import WEBCAM, CameraProfile
 from sim_camera.robot import LEGO_STC_ROBOT, MarkingRobot
+from stcvision.stages import DotParams
 
 __all__ = ["LANDMARK_OFFSET_SIGMA", "LANDMARK_TURN_SIGMA_RAD", "REOBSERVE_RAD", "CoverConfig"]
+
+#: the frames' sizing SNR (``CoverConfig.sizing_snr``): one sigma above the dot threshold
+_SIZING_SNR = DotParams().k_sigma + 1.0
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -42,10 +46,13 @@ class CoverConfig:
     #: taken this much farther, for the robot's own offset from its sub-cell centre (it stays
     #: within 1.3-2.9 cm: README "Drift is no longer where it stops")
     position_margin_m: float = 0.02
-    #: a long frame is sized so that the deciding dot, as old as the clock, still has this SNR:
-    #: Rose's 5 (what a lone dot needs); the row search accepts a row of four at a mean of 3
-    #: (:data:`ROW_EQUIVALENT_STACK`), but at its threshold it finds a row only half the time
-    sizing_snr: float = 5.0
+    #: a frame covers a claim while the deciding dot, as old as the clock, still has this
+    #: expected SNR: one noise sigma above the dot search's threshold (``DotParams.k_sigma``,
+    #: 5.5), so each dot is found ~84 % of the time and two of a row's four (what a box needs)
+    #: > 97 %; at Rose's 5 (the earlier sizing) a dot at the horizon is found less than half the
+    #: time (the row search accepts a row of four at a mean of 3, :data:`ROW_EQUIVALENT_STACK`,
+    #: but at its threshold it too finds a row only half the time)
+    sizing_snr: float = _SIZING_SNR
     #: ``perception="ideal"``: every visibility horizon times this (``inf``: it sees every mark,
     #: so a run measures how long the tour takes with the frames it needs)
     ideal_horizon_factor: float = 1.0
