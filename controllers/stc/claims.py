@@ -28,7 +28,16 @@ import numpy as np
 
 from stcvision.stcgrid import BOX_EDGES, DIRECTIONS, START_MARKS, SUBCELLS
 
-__all__ = ["Claim", "OutOfSight", "ahead_claims", "decision_claims", "distance_m", "landing_claims", "read_until_sure"]
+__all__ = [
+    "Claim",
+    "OutOfSight",
+    "ahead_claims",
+    "decision_claims",
+    "distance_m",
+    "landing_claim",
+    "landing_claims",
+    "read_until_sure",
+]
 
 #: where the robot stands in its cell units (sub-cell sides, cell centre at 0): sub-cell 0's
 #: centre, the robot's turning centre (:data:`stcvision.profile.ROBOT_IN_CELL`)
@@ -82,6 +91,9 @@ def _distances(side: float) -> dict[str, float]:
     ahead = [_centre(m, (0.0, 1.0)) for m in range(4)]
     d["cell ahead"] = max(_deciding_distance(c, range(4), box_dots, side) for c in ahead)
     d["landing ahead"] = _deciding_distance(_centre(0, (0.0, 1.0)), range(4), landing_dots, side)
+    # from the decision's sub-cell: neighbour d's sub-cell next to our sub-cell d (where a move
+    # out towards d lands)
+    d |= {f"landing {k}": _deciding_distance(_centre(k, DIRECTIONS[k]), range(4), landing_dots, side) for k in range(4)}
     return {k: v * side for k, v in d.items()}
 
 
@@ -113,6 +125,14 @@ def decision_claims(obs, *, fresh: bool, at_start: bool, subcell_m: float, margi
     return out
 
 
+def landing_claim(direction: int, *, subcell_m: float, margin_m: float) -> Claim:
+    """At a decision: no mark in the sub-cell a move out towards ``direction`` lands on (the
+    return to the parent does not close the tour). Not asked for (no frame is taken for it):
+    when the decision's frames happen to cover it, the look before the return is not needed."""
+    what = f"no mark in the sub-cell beyond exit {direction}"
+    return Claim(what, distance_m(f"landing {direction}", subcell_m, margin_m))
+
+
 def ahead_claims(marked: bool, *, subcell_m: float, margin_m: float) -> list[Claim]:
     """A look at a child: unmarked means no mark anywhere in the cell ahead (a visited cell may
     hold marks in its farthest sub-cell only)."""
@@ -131,7 +151,8 @@ def read_until_sure(cam, t_s: float, read, merge, claims, *, strict: bool = True
     ``t``; ``merge(a, b)`` is what two frames show together; ``claims(reading)`` what it takes for
     absent. The short frame (rung 0) first; then, while a claim is open (no frame taken so far
     sees marks as old as the clock was at that frame, at the claim's distance), the shortest
-    rung that covers the farthest open claim. Returns (reading, seconds, rungs taken); raises
+    rung that covers the farthest open claim. Returns (reading, seconds, the (rung, clock) of
+    each frame taken); raises
     :class:`OutOfSight` when no rung covers it (``strict``; else the longest rung is taken, once,
     and the reading kept as it is)."""
     reading, dt = read(0, t_s)
@@ -139,7 +160,7 @@ def read_until_sure(cam, t_s: float, read, merge, claims, *, strict: bool = True
     while True:
         open_ = [c for c in claims(reading) if all(cam.horizon(k, c.rho_m) < tk for k, tk in taken)]
         if not open_:
-            return reading, dt, [k for k, _ in taken]
+            return reading, dt, taken
         c = max(open_, key=lambda c: c.rho_m)
         now = t_s + dt
         k = cam.rung_for(now, c.rho_m)
@@ -148,7 +169,7 @@ def read_until_sure(cam, t_s: float, read, merge, claims, *, strict: bool = True
             k = last
         if k is None or k in [j for j, _ in taken]:
             if not strict:
-                return reading, dt, [j for j, _ in taken]
+                return reading, dt, taken
             longest = cam.horizon(last, c.rho_m)
             raise OutOfSight(
                 f"out of sight: {c.what} ({c.rho_m:.2f} m away) must hold for marks up to {now:.0f} s old; "

@@ -193,17 +193,36 @@ class Exposures:
         return lambda marked: f(marked, subcell_m=self.subcell_m, margin_m=self.cfg.position_margin_m)
 
     def sure(self, t_s: float, read, merge, claims):
-        """(reading, seconds): with exposure control, frames until every claim of the reading is
-        covered (:func:`controllers.stc.claims.read_until_sure`; raises
+        """(reading, seconds, the (rung, clock) of each frame taken): with exposure control,
+        frames until every claim of the reading is covered
+        (:func:`controllers.stc.claims.read_until_sure`; raises
         :class:`controllers.stc.claims.OutOfSight` when no frame can cover one, unless
         ``CoverConfig.stop_out_of_sight`` is off: then the longest frame is taken and the reading
         kept); without it (the seed's camera) the short frame alone, whatever it misses."""
         from controllers.stc.claims import read_until_sure
 
         if not self.controlled:
-            return read(0, t_s)
-        reading, dt, _ = read_until_sure(self, t_s, read, merge, claims, strict=self.cfg.stop_out_of_sight)
-        return reading, dt
+            reading, dt = read(0, t_s)
+            return reading, dt, [(0, t_s)]
+        return read_until_sure(self, t_s, read, merge, claims, strict=self.cfg.stop_out_of_sight)
+
+    def decision(self, t_s: float, read, fresh: bool, at_start: bool):
+        """(StcObservation, seconds): a decision's frames (:meth:`sure`), and per direction
+        whether its landing reading is sure (``StcObservation.landing_known``): a mark was seen,
+        or a frame taken could have seen one as old as the clock was then. Without exposure
+        control the seed's robot takes what it sees for sure."""
+        from controllers.stc.claims import landing_claim
+
+        obs, dt, taken = self.sure(t_s, read, _merge, self.decision_claims(fresh, at_start))
+        if not self.controlled:
+            return obs, dt
+        kw = dict(subcell_m=self.subcell_m, margin_m=self.cfg.position_margin_m)
+        rho = [landing_claim(d, **kw).rho_m for d in range(4)]
+        known = tuple(
+            bool(m) or any(self.horizon(k, r) >= tk for k, tk in taken)
+            for m, r in zip(obs.landing_marked, rho, strict=True)
+        )
+        return dataclasses.replace(obs, landing_known=known), dt
 
     def _sensor(self, k: int):
         e, g, _ = self.ladder[k]
@@ -267,7 +286,7 @@ class IdealCamera(Exposures):
             seen, dt = self._seen(xy, phosphor, marks, k, t)
             return observe_oracle(seen, self.board, sub, hc, camera_view=True), dt
 
-        return self.sure(t_s, read, _merge, self.decision_claims(fresh, at_start))
+        return self.decision(t_s, read, fresh, at_start)
 
     def look(self, xy, t_s, phosphor, marks, sub, hc, *, landing: bool = False):
         """(marked, seconds spent): the frames :meth:`RobotCamera.look` takes; ``landing``: the
@@ -277,7 +296,7 @@ class IdealCamera(Exposures):
             seen, dt = self._seen(xy, phosphor, marks, k, t)
             return (landing_oracle if landing else look_oracle)(seen, sub, hc).marked, dt
 
-        return self.sure(t_s, read, bool.__or__, self.look_claims(landing))
+        return self.sure(t_s, read, bool.__or__, self.look_claims(landing))[:2]
 
 
 class RobotCamera(Exposures):
@@ -370,7 +389,7 @@ class RobotCamera(Exposures):
             res.append(r)
             return _to_stc_obs(r.observation), dt
 
-        obs, dt = self.sure(t_s, read, _merge, self.decision_claims(fresh, at_start))
+        obs, dt = self.decision(t_s, read, fresh, at_start)
         return obs, res[0], (res[-1] if len(res) > 1 else None), dt
 
     def look(self, pose, t_s, phosphor, *, landing: bool = False):
@@ -393,7 +412,7 @@ class RobotCamera(Exposures):
             n = count(r.dots, self.pipe.geometry, heading_error_rad=herr or 0.0, offset=off)
             return n >= need, dt
 
-        marked, dt = self.sure(t_s, read, bool.__or__, self.look_claims(landing))
+        marked, dt, _ = self.sure(t_s, read, bool.__or__, self.look_claims(landing))
         return marked, res[0], (res[-1] if len(res) > 1 else None), dt
 
 
