@@ -50,10 +50,12 @@ def test_webcam_exposure_fails_where_exposure_control_succeeds():
 
 
 def test_red_light_landmarks_keep_the_robot_on_its_sub_cells():
-    """On 5x5 boards the robot's own marks cannot show its heading drift; the red lights can.
-    Without them it strays 1.5-3.2 cm from its sub-cells on four boards (mean 2.1 cm); with
-    them it stays within 0.9 cm (mean 0.7 cm) and covers every board. (Before the independent
-    random streams of issue 16: 1.2-5.3 cm, mean 2.8, against within 1 cm, mean 0.8.)"""
+    """On 5x5 boards the robot's own marks show its heading drift only as the lean of old
+    rows; the red lights show it absolutely. Without them it strays 1.6-2.8 cm from its
+    sub-cells on four boards (mean 2.1 cm); with them it stays within 1.1 cm (mean 0.8 cm) and
+    covers every board. (Before issue 16.7 turned out the rows' lean at readings the blind
+    robot strayed 1.5-3.2 cm, and the test asked for over 3 cm; before the independent random
+    streams of issue 16: 1.2-5.3 cm, mean 2.8, against within 1 cm, mean 0.8.)"""
     blind, seeing = [], []
     for seed in range(1, 5):
         board = Board.random((5, 5), obstacle_fraction=0.15, rng=np.random.default_rng(seed))
@@ -62,7 +64,7 @@ def test_red_light_landmarks_keep_the_robot_on_its_sub_cells():
         r = run_cover(board, CoverConfig(perception="camera", exposure="auto", seed=seed))
         assert complete(r), r
         seeing.append(r["max_position_error_m"])
-    assert max(seeing) < 0.012 and max(blind) > 0.03
+    assert max(seeing) < 0.012 and max(blind) > 0.025, (blind, seeing)
     assert np.mean(blind) > 2.5 * np.mean(seeing), (blind, seeing)
 
 
