@@ -29,6 +29,7 @@ import numpy as np
 from controllers.stc.config import CoverConfig
 from controllers.stc.fsm import NeighbourObs, StcObservation
 from controllers.stc.oracle import MarkFloor, landing_oracle, look_oracle, observe_oracle
+from sim_camera.board import DEFAULT_SUBCELL_M
 from stcvision.stcgrid import NEIGHBOURS
 
 __all__ = ["AUTO_LONG", "AUTO_REACH_M", "ROW_EQUIVALENT_STACK", "WEBCAM", "Exposures", "IdealCamera", "RobotCamera"]
@@ -120,7 +121,7 @@ class Exposures:
     """The frames a robot's camera takes: the ladder of (exposure_s, gain) settings, the short
     webcam frame first, and which long rung the robot's clock asks for."""
 
-    def __init__(self, cfg: CoverConfig, subcell_m: float):
+    def __init__(self, cfg: CoverConfig, subcell_m: float = DEFAULT_SUBCELL_M):
         from sim_camera.camera import SyntheticCamera
 
         self.cam = SyntheticCamera(sensor=cfg.camera.sensor)
