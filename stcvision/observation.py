@@ -31,9 +31,17 @@ __all__ = [
     "CellObservation",
     "NeighbourReading",
     "ObservationParams",
+    "LANDING_DOTS",
     "marks_ahead",
+    "marks_landing_ahead",
     "observe_cell",
 ]
+
+#: a landing sub-cell counts as marked with a whole row inside it: this many of its four dots,
+#: within this half-width (cell units) of its centre, 1 cm clear of its borders (a row of the
+#: next sub-cell lies 2 cm beyond the edge and must not count)
+LANDING_DOTS = 3
+_LANDING_HALF = 0.44
 
 # sub-cell of a point by its quadrant: [right, up] -> index (from stcgrid.SUBCELLS, built once)
 _SUB_OF_QUADRANT = np.full((2, 2), -1, np.int64)
@@ -397,6 +405,7 @@ def observe_cell(
     params: ObservationParams = ObservationParams(),
     landmark_px: np.ndarray | None = None,
     subcell_m: float | None = None,
+    position_offset: tuple[float, float] | None = None,
 ) -> CellObservation:
     """Classify the five boxes and the four neighbours.
 
@@ -409,6 +418,9 @@ def observe_cell(
         coordinates (may lie beyond its edges: from a wider view); default ``red_px``, within
         2.6 sub-cells of the robot.
     subcell_m : the sub-cell side, to turn ``params.landmark_range_m`` into cell units.
+    position_offset : read the boxes with the robot standing this far off its sub-cell centre
+        (right, up; cell units) instead of where this frame's marks say (e.g. the red lights'
+        offset from a short frame at the same pose: a long frame's marks may mislead it).
     """
     ru = _rotate(geometry.to_cell(dots.xy_px), heading_error_rad) if len(dots) else np.zeros((0, 2))
     orient = np.full(len(ru), -1)
@@ -416,7 +428,7 @@ def observe_cell(
     if len(ru):
         orient[dots.lit] = row_orientation(ru[dots.lit])  # rows are made of lit dots
         # where the robot really stands, from the marks: read the boxes relative to that
-        offset = mark_offset(ru[dots.lit], orient[dots.lit])
+        offset = mark_offset(ru[dots.lit], orient[dots.lit]) if position_offset is None else tuple(position_offset)
         if offset is not None and params.use_offset:
             ru = ru + np.asarray(offset)
     sub, box, nb = assign_boxes(ru, orient) if len(ru) else (np.zeros(0, int),) * 3
@@ -431,11 +443,11 @@ def observe_cell(
     visited = {m: any(lit_b[b] for b in boxes_) for m, boxes_ in VISITED_BY.items()}
     stray = int(((sub >= 0) & (box == 0) & dots.lit).sum()) if len(ru) else 0
     start_mark = next((m for m in (1, 2, 3) if n_lit_box[3 - m] >= params.min_dots), None)
-    # neighbour d's sub-cell next to our sub-cell d holds a whole row (3 of its 4 dots, 1 cm
-    # clear of the borders): a row of the next sub-cell 2 cm beyond its edge must not count
+    # neighbour d's sub-cell next to our sub-cell d holds a whole row (LANDING_DOTS of its 4
+    # dots, clear of the borders)
     lit_ru = ru[dots.lit] if len(ru) else np.zeros((0, 2))
-    inside = (np.abs(lit_ru[:, None, :] - _LANDING[None]) < 0.44).all(axis=2).sum(axis=0)
-    landing = [bool(c >= max(params.min_dots, 3)) for c in inside]
+    inside = (np.abs(lit_ru[:, None, :] - _LANDING[None]) < _LANDING_HALF).all(axis=2).sum(axis=0)
+    landing = [bool(c >= max(params.min_dots, LANDING_DOTS)) for c in inside]
     rru = _rotate(geometry.to_cell(red_px), heading_error_rad) if len(red_px) else np.zeros((0, 2))
     # red lights stand at cell centres (even coordinates in cell units): absolute landmarks
     landmark = None
@@ -513,3 +525,17 @@ def marks_ahead(
     if offset is not None:
         ru = ru + np.asarray(offset)
     return int(((np.abs(ru[:, 0]) < 1) & (ru[:, 1] > 0) & (ru[:, 1] < 2)).sum())
+
+
+def marks_landing_ahead(
+    dots, geometry: CellGeometry, *, heading_error_rad: float = 0.0, offset: tuple[float, float] | None = None
+) -> int:
+    """Lit dots in the sub-cell just ahead of the robot (where it lands when it drives on; the
+    lower-right sub-cell of :func:`marks_ahead`'s cell ahead), 1 cm clear of its borders as
+    :func:`observe_cell`'s landing rule: a row of the next sub-cell must not count."""
+    if not len(dots):
+        return 0
+    ru = _rotate(geometry.to_cell(dots.xy_px[dots.lit]), heading_error_rad)
+    if offset is not None:
+        ru = ru + np.asarray(offset)
+    return int(((np.abs(ru[:, 0] - 0.5) < _LANDING_HALF) & (np.abs(ru[:, 1] - 0.5) < _LANDING_HALF)).sum())

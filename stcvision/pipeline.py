@@ -289,14 +289,21 @@ class Pipeline:
         return c
 
     def process(
-        self, frame: np.ndarray, *, dark: np.ndarray | None = None, heading_error_rad: float | None = None
+        self,
+        frame: np.ndarray,
+        *,
+        dark: np.ndarray | None = None,
+        heading_error_rad: float | None = None,
+        position_offset: tuple[float, float] | None = None,
     ) -> PipelineResult:
         """Run every stage on one (H, W, 3) uint8 or uint16 BGR frame (a uint16 frame holds an
         ADC's counts; the dark frame must have the frame's dtype).
 
         ``heading_error_rad``: read the cell with this heading error instead of this frame's own
         fit -- e.g. the fit of a short frame taken at the same pose, for a long one in which
-        every recent row saturates (the newest row is then no longer the brightest)."""
+        every recent row saturates (the newest row is then no longer the brightest).
+        ``position_offset``: read the cell with the robot this far off its sub-cell centre
+        (:func:`stcvision.observation.observe_cell`) instead of where this frame's marks say."""
         check_frame(frame)
         self.profile.check_frame(frame.shape)
         if dark is not None and dark is not self.dark:
@@ -381,6 +388,7 @@ class Pipeline:
             params=p.observation,
             landmark_px=landmark_px,
             subcell_m=self.profile.subcell_m,
+            position_offset=position_offset,
         )
         t.append(clock())
         stage_ms = {name: (t[i + 1] - t[i]) / 1e6 for i, name in enumerate(STAGES)}

@@ -7,8 +7,12 @@ from dataclasses import dataclass
 
 from sim_camera.hardware import WEBCAM, CameraProfile
 from sim_camera.robot import LEGO_STC_ROBOT, MarkingRobot
+from stcvision.stages import DotParams
 
 __all__ = ["LANDMARK_OFFSET_SIGMA", "LANDMARK_TURN_SIGMA_RAD", "RECENTRE_M", "REOBSERVE_RAD", "CoverConfig"]
+
+#: the frames' sizing SNR (``CoverConfig.sizing_snr``): one sigma above the dot threshold
+_SIZING_SNR = DotParams().k_sigma + 1.0
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -30,23 +34,31 @@ class CoverConfig:
     #: uncertainties; README "Red lights as landmarks")
     use_landmarks: bool = True
     #: with exposure control, after each turn also a frame at the shortest long rung (2 s) for the
-    #: lean of all rows: it sees the rows of many minutes, the webcam frame the last one or two
+    #: lean of all rows: it sees the rows of many minutes, the webcam frame the last one or two;
+    #: taken only where the red lights do not give the heading's reference and the short frame
+    #: shows fewer than ``consensus_rows`` rows (a low-noise camera's short frame sees minutes)
     consensus_frame: bool = True
-    #: with exposure control, the long frame's rung is the shortest whose visibility horizon at
-    #: this distance (m) covers the robot's clock: for a decision, its boxes (box 2 is 0.27 m
-    #: away; a neighbour's marks it misses, the look before entering finds), and for a look, the
-    #: cell ahead (its near sub-cells' marks 0.1-0.25 m, its far ones' from 0.3 m)
-    decision_reach_m: float = 0.30
-    look_reach_m: float = 0.35
-    #: a long frame is sized so that a dot at the reach, as old as the clock, still has this SNR:
-    #: Rose's 5 (what a lone dot needs); the row search accepts a row of four at a mean of 3
-    #: (:data:`ROW_EQUIVALENT_STACK`), but at its threshold it finds a row only half the time
-    sizing_snr: float = 5.0
+    consensus_rows: int = 8
+    #: with exposure control, a reading takes longer frames until every absence it relies on
+    #: is covered: a frame whose horizon at the deciding dot's distance reaches the clock
+    #: (:mod:`controllers.stc.claims`: box 2 0.26 m away, the start mark 0.16-0.26 m, the cell
+    #: ahead at a look 0.41 m, the sub-cell ahead before a return 0.23 m); the distances are
+    #: taken this much farther, for the robot's own offset from its sub-cell centre (it stays
+    #: within 1.3-2.9 cm: README "Drift is no longer where it stops")
+    position_margin_m: float = 0.02
+    #: a frame covers a claim while the deciding dot, as old as the clock, still has this
+    #: expected SNR: one noise sigma above the dot search's threshold (``DotParams.k_sigma``,
+    #: 5.5), so each dot is found ~84 % of the time and two of a row's four (what a box needs)
+    #: > 97 %; at Rose's 5 (the earlier sizing) a dot at the horizon is found less than half the
+    #: time (the row search accepts a row of four at a mean of 3, :data:`ROW_EQUIVALENT_STACK`,
+    #: but at its threshold it too finds a row only half the time)
+    sizing_snr: float = _SIZING_SNR
     #: ``perception="ideal"``: every visibility horizon times this (``inf``: it sees every mark,
     #: so a run measures how long the tour takes with the frames it needs)
     ideal_horizon_factor: float = 1.0
-    #: with exposure control, stop (``abort_reason`` "out of sight") once the clock is past the
-    #: longest frame's horizon at ``decision_reach_m``: the robot knows its camera's limit
+    #: with exposure control, stop (``abort_reason`` "out of sight: ...") when not even the
+    #: longest frame can rule out what a reading must: the robot knows its camera's limit; off,
+    #: it reads the longest frame and decides anyway (a study of what the guess costs)
     stop_out_of_sight: bool = True
     trace: bool = False  # heading from the lean of all rows in view, not the newest only
     #: hardware faults injected into the run: (name, level) pairs (:mod:`controllers.stc.faults`)

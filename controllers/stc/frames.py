@@ -2,14 +2,14 @@
 
 * **Exposure**: ``webcam`` (1/30 s, gain 16: the seed's camera), a fixed ``exposure_s``, or
   ``auto``: every observation takes a short webcam frame (red lights without bloom, fresh marks,
-  the pose) and, where old marks may matter (returns to a parent, the looks), a long one whose
-  length follows the robot's clock (:data:`AUTO_LONG`: 2-30 s, then 2 to 64 30 s frames
-  stacked: frame stacking), sized for what the frame must read
-  (``CoverConfig.decision_reach_m``, ``look_reach_m``, ``sizing_snr``); a mark counts if either
-  frame sees it -- the seed's proposal, "a camera with a fully controlled integration time".
-  Dark frames are taken once per setting, at the matching exposure (a master dark of 8n frames
-  for a stack of n). Past the longest frame's horizon the robot stops ("out of sight",
-  :meth:`Exposures.out_of_sight`).
+  the pose) and then, while the reading relies on an absence that no frame so far could have
+  seen (a mark as old as the clock, at the deciding dot's distance: :mod:`controllers.stc.claims`),
+  a longer one (:data:`AUTO_LONG`: 2-30 s, then 2 to 64 30 s frames stacked: frame
+  stacking), the shortest that covers it (``sizing_snr``); a mark counts if any frame sees it --
+  the seed's proposal, "a camera with a fully controlled integration time". Dark frames are
+  taken once per setting, at the matching exposure (a master dark of 8n frames for a stack of
+  n). When not even the longest frame covers a claim the robot stops ("out of sight: ...",
+  :class:`controllers.stc.claims.OutOfSight`), before deciding.
 * **Gain**: the seed's webcam keeps the ladder's gains (16 for the short frame, 4 for the long
   ones); any other sensor takes at each rung the lowest gain at which its frame's temporal dark
   noise spans :data:`NOISE_DN` DN (:func:`sensor_gain`: from the sensor's read noise and dark
@@ -28,7 +28,8 @@ import numpy as np
 
 from controllers.stc.config import CoverConfig
 from controllers.stc.fsm import NeighbourObs, StcObservation
-from controllers.stc.oracle import MarkFloor, look_oracle, observe_oracle
+from controllers.stc.oracle import MarkFloor, landing_oracle, look_oracle, observe_oracle
+from sim_camera.board import DEFAULT_SUBCELL_M
 from stcvision.stcgrid import NEIGHBOURS
 
 __all__ = ["AUTO_LONG", "AUTO_REACH_M", "ROW_EQUIVALENT_STACK", "WEBCAM", "Exposures", "IdealCamera", "RobotCamera"]
@@ -38,9 +39,9 @@ __all__ = ["AUTO_LONG", "AUTO_REACH_M", "ROW_EQUIVALENT_STACK", "WEBCAM", "Expos
 WEBCAM = (1 / 30, 16.0, 1)
 #: ``--exposure auto``, long frames: (exposure_s, gain, frames averaged), shortest first. Each is
 #: used while the robot's clock (the oldest age any mark can have) is within its visibility
-#: horizon at the distance the frame must read (``CoverConfig.decision_reach_m``,
-#: ``look_reach_m``; ``sim_camera.camera.visibility_horizon_s``: the camera's calibration of the
-#: phosphor, measured once per robot). The gains are the webcam's (4 keeps its 8-bit
+#: horizon at the distance of what the frame must rule out (:mod:`controllers.stc.claims`;
+#: ``sim_camera.camera.visibility_horizon_s``: the camera's calibration of the phosphor,
+#: measured once per robot). The gains are the webcam's (4 keeps its 8-bit
 #: quantisation below the dark current's noise at every length); another sensor's come from
 #: :func:`sensor_gain`. 60 s frames were tried and read fewer boxes than 30 s ones
 #: (the fresh mark's bloom), so beyond 30 s the ladder stacks 30 s frames (issue 6: "frame
@@ -56,7 +57,8 @@ AUTO_LONG = (
 #: the short frame's test of a red blob for white light (:attr:`stcvision.pipeline.PipelineParams.white_blue_ratio`)
 WHITE_BLUE_RATIO = 0.92
 #: the far side of the cell ahead (its near sub-cells' marks are 0.1-0.25 m away, its far
-#: ones' up to 0.45 m): the default distance for :meth:`Exposures.horizons`
+#: ones' up to 0.41 m, 0.45 m with the robot's position margin): the default distance for
+#: :meth:`Exposures.horizons`
 AUTO_REACH_M = 0.45
 
 
@@ -121,12 +123,13 @@ class Exposures:
     """The frames a robot's camera takes: the ladder of (exposure_s, gain) settings, the short
     webcam frame first, and which long rung the robot's clock asks for."""
 
-    def __init__(self, cfg: CoverConfig):
+    def __init__(self, cfg: CoverConfig, subcell_m: float = DEFAULT_SUBCELL_M):
         from sim_camera.camera import SyntheticCamera
 
         self.cam = SyntheticCamera(sensor=cfg.camera.sensor)
         self.cfg = cfg
-        self._horizons: dict[float, tuple[float, ...]] = {}
+        self.subcell_m = subcell_m
+        self._horizons: dict[int, np.ndarray] = {}
         if cfg.exposure == "auto":
             ladder = (WEBCAM, *AUTO_LONG)
         elif cfg.exposure == "webcam":
@@ -143,46 +146,86 @@ class Exposures:
         self.long_frames = 0
         self.per_rung = [0] * len(self.ladder)  # frames taken at each rung
 
-    def horizons(self, reach_m: float = AUTO_REACH_M) -> tuple[float, ...]:
-        """The long rungs' visibility horizons (s) for a dot ``reach_m`` from the robot."""
-        if reach_m not in self._horizons:
+    #: the distances (m) at which each rung's horizon is tabulated once (1 cm steps, read at
+    #: the next step out: never longer than the truth)
+    RHO = np.round(np.arange(0.05, 1.0, 0.01), 2)
+
+    def _curve(self, k: int) -> np.ndarray:
+        """Rung ``k``'s horizon (s) at :data:`RHO`, for a lone dot at ``CoverConfig.sizing_snr``
+        (the camera's calibration of the phosphor, :func:`sim_camera.camera.visibility_horizon_s`)."""
+        if k not in self._horizons:
             from sim_camera.camera import ROSE_SNR, visibility_horizon_s
 
             eq = (ROSE_SNR / self.cfg.sizing_snr) ** 2  # as if that many more frames were stacked
-            self._horizons[reach_m] = tuple(
-                visibility_horizon_s(self.cam, sensor=self._sensor(k), rho_m=reach_m, n_stack=eq * self.stack(k))
-                for k in range(1, len(self.ladder))
+            self._horizons[k] = visibility_horizon_s(
+                self.cam, sensor=self._sensor(k), rho_m=self.RHO, n_stack=eq * self.stack(k)
             )
-        return self._horizons[reach_m]
+        return self._horizons[k]
+
+    def horizon(self, k: int, rho_m: float) -> float:
+        """How old (s) a mark ``rho_m`` from the robot may be and still be seen in a frame at rung ``k``."""
+        i = min(int(np.searchsorted(self.RHO, rho_m - 1e-9)), len(self.RHO) - 1)
+        return float(self._curve(k)[i])
+
+    def horizons(self, reach_m: float = AUTO_REACH_M) -> tuple[float, ...]:
+        """The long rungs' visibility horizons (s) for a dot ``reach_m`` from the robot."""
+        return tuple(self.horizon(k, reach_m) for k in range(1, len(self.ladder)))
 
     @property
     def controlled(self) -> bool:
         """Exposure control: long frames besides the short one."""
         return len(self.ladder) > 1
 
-    def long_rung(self, t_s: float, reach_m: float = AUTO_REACH_M) -> int | None:
-        """The ladder rung for old marks up to ``reach_m`` away at clock ``t_s``: the shortest
-        whose horizon covers the oldest mark there can be (the last one beyond them all); None
-        without exposure control."""
-        if not self.controlled:
-            return None
-        hs = self.horizons(reach_m)
-        return 1 + next((k for k, h in enumerate(hs) if h >= t_s), len(hs) - 1)
+    def rung_for(self, t_s: float, rho_m: float) -> int | None:
+        """The shortest rung (the short frame included) whose horizon ``rho_m`` away covers marks
+        as old as the clock ``t_s``; None when none does."""
+        return next((k for k in range(len(self.ladder)) if self.horizon(k, rho_m) >= t_s), None)
 
-    def out_of_sight(self, t_s: float) -> str | None:
-        """Why the robot stops at clock ``t_s``, or None: with exposure control it knows its
-        camera, and once the clock is past the longest frame's horizon at the decision's reach
-        even that frame may miss the marks it must read: every decision would be a guess."""
+    def decision_claims(self, fresh: bool, at_start: bool):
+        """What a decision's reading takes for absent (:func:`controllers.stc.claims.decision_claims`)."""
+        from controllers.stc.claims import decision_claims
+
+        kw = dict(fresh=fresh, at_start=at_start, subcell_m=self.subcell_m, margin_m=self.cfg.position_margin_m)
+        return lambda obs: decision_claims(obs, **kw)
+
+    def look_claims(self, landing: bool):
+        """What a look's reading takes for absent: the sub-cell ahead (``landing``) or the cell ahead."""
+        from controllers.stc.claims import ahead_claims, landing_claims
+
+        f = landing_claims if landing else ahead_claims
+        return lambda marked: f(marked, subcell_m=self.subcell_m, margin_m=self.cfg.position_margin_m)
+
+    def sure(self, t_s: float, read, merge, claims):
+        """(reading, seconds, the (rung, clock) of each frame taken): with exposure control,
+        frames until every claim of the reading is covered
+        (:func:`controllers.stc.claims.read_until_sure`; raises
+        :class:`controllers.stc.claims.OutOfSight` when no frame can cover one, unless
+        ``CoverConfig.stop_out_of_sight`` is off: then the longest frame is taken and the reading
+        kept); without it (the seed's camera) the short frame alone, whatever it misses."""
+        from controllers.stc.claims import read_until_sure
+
         if not self.controlled:
-            return None
-        reach = self.cfg.decision_reach_m
-        limit = self.horizons(reach)[-1]
-        if t_s <= limit:
-            return None
-        return (
-            f"out of sight: at {t_s:.0f} s the marks may be older than the longest frame sees "
-            f"{reach:.2f} m away ({limit:.0f} s)"
+            reading, dt = read(0, t_s)
+            return reading, dt, [(0, t_s)]
+        return read_until_sure(self, t_s, read, merge, claims, strict=self.cfg.stop_out_of_sight)
+
+    def decision(self, t_s: float, read, fresh: bool, at_start: bool):
+        """(StcObservation, seconds): a decision's frames (:meth:`sure`), and per direction
+        whether its landing reading is sure (``StcObservation.landing_known``): a mark was seen,
+        or a frame taken could have seen one as old as the clock was then. Without exposure
+        control the seed's robot takes what it sees for sure."""
+        from controllers.stc.claims import landing_claim
+
+        obs, dt, taken = self.sure(t_s, read, _merge, self.decision_claims(fresh, at_start))
+        if not self.controlled:
+            return obs, dt
+        kw = dict(subcell_m=self.subcell_m, margin_m=self.cfg.position_margin_m)
+        rho = [landing_claim(d, **kw).rho_m for d in range(4)]
+        known = tuple(
+            bool(m) or any(self.horizon(k, r) >= tk for k, tk in taken)
+            for m, r in zip(obs.landing_marked, rho, strict=True)
         )
+        return dataclasses.replace(obs, landing_known=known), dt
 
     def _sensor(self, k: int):
         e, g, _ = self.ladder[k]
@@ -208,10 +251,8 @@ class IdealCamera(Exposures):
     a row of four dots with ``rows``), and nothing else. No pipeline error and no drift beyond
     the oracle's: what it cannot do, no pipeline on this camera can."""
 
-    RHO = np.arange(0.05, 1.0, 0.01)
-
     def __init__(self, cfg: CoverConfig, board, *, rows: bool = True):
-        super().__init__(cfg)
+        super().__init__(cfg, board.subcell_m)
         from sim_camera.camera import visibility_horizon_s
 
         self.board = board
@@ -239,22 +280,29 @@ class IdealCamera(Exposures):
             seen.mark(*marks[i])
         return seen
 
-    def _rungs(self, t_s: float, reach_m: float, short_only: bool = False) -> list[int]:
-        k = self.long_rung(t_s, reach_m)
-        return [0] if k is None or short_only else [0, k]
+    def _seen(self, xy, phosphor, marks, k: int, t_s: float, dot_mark=None) -> tuple[MarkFloor, float]:
+        """(what a frame at rung ``k`` from ``xy`` at clock ``t_s`` sees, its seconds)."""
+        return self.floor_seen(xy, t_s, phosphor, marks, [k], dot_mark), self.frame_s(k)
 
-    def observe(self, xy, t_s, phosphor, marks, sub, hc, *, fresh: bool = False, dot_mark=None):
+    def observe(self, xy, t_s, phosphor, marks, sub, hc, *, fresh: bool = False, at_start: bool = False,
+                dot_mark=None):  # fmt: skip
         """(StcObservation, seconds spent): the frames :meth:`RobotCamera.observe` takes."""
-        rungs = self._rungs(t_s, self.cfg.decision_reach_m, fresh)
-        dt = sum(self.frame_s(r) for r in rungs)
-        seen = self.floor_seen(xy, t_s, phosphor, marks, rungs, dot_mark)
-        return observe_oracle(seen, self.board, sub, hc, camera_view=True), dt
 
-    def look(self, xy, t_s, phosphor, marks, sub, hc, *, dot_mark=None):
-        """(marked, seconds spent): the frames :meth:`RobotCamera.look` takes."""
-        rungs = self._rungs(t_s, self.cfg.look_reach_m)
-        dt = sum(self.frame_s(r) for r in rungs)
-        return look_oracle(self.floor_seen(xy, t_s, phosphor, marks, rungs, dot_mark), sub, hc).marked, dt
+        def read(k, t):
+            seen, dt = self._seen(xy, phosphor, marks, k, t, dot_mark)
+            return observe_oracle(seen, self.board, sub, hc, camera_view=True), dt
+
+        return self.decision(t_s, read, fresh, at_start)
+
+    def look(self, xy, t_s, phosphor, marks, sub, hc, *, landing: bool = False, dot_mark=None):
+        """(marked, seconds spent): the frames :meth:`RobotCamera.look` takes; ``landing``: the
+        sub-cell ahead (before a return to the parent), else the cell ahead (a child)."""
+
+        def read(k, t):
+            seen, dt = self._seen(xy, phosphor, marks, k, t, dot_mark)
+            return (landing_oracle if landing else look_oracle)(seen, sub, hc).marked, dt
+
+        return self.sure(t_s, read, bool.__or__, self.look_claims(landing))[:2]
 
 
 class RobotCamera(Exposures):
@@ -263,7 +311,7 @@ class RobotCamera(Exposures):
     frame of a decision)."""
 
     def __init__(self, board, cfg: CoverConfig, rng: np.random.Generator):
-        super().__init__(cfg)
+        super().__init__(cfg, board.subcell_m)
         self.board = board
         self.lights = board.red_lights_m()
         self.rng = rng
@@ -307,9 +355,13 @@ class RobotCamera(Exposures):
             pipe.set_dark(self.darks[(e, g, n)])
         return pipe
 
-    def shoot(self, pose, t_s: float, phosphor, k: int = 0, *, heading_error_rad: float | None = None):
+    def shoot(
+        self, pose, t_s: float, phosphor, k: int = 0, *, heading_error_rad: float | None = None, position_offset=None
+    ):
         """Returns (pipeline result, capture seconds). A stacked rung is the average of its
-        frames (:meth:`sim_camera.camera.SyntheticCamera.render`, ``n_avg``).
+        frames (:meth:`sim_camera.camera.SyntheticCamera.render`, ``n_avg``); the frame is read
+        with ``heading_error_rad`` and ``position_offset`` when given
+        (:meth:`stcvision.pipeline.Pipeline.process`).
         A frame lost or black (:func:`controllers.stc.health.frame_fault`) is taken again, up to
         :data:`~controllers.stc.health.FRAME_RETRIES` times (their time counts), then the robot
         stops (:class:`~controllers.stc.health.RobotStop`): it never reads a frame it cannot trust."""
@@ -331,7 +383,7 @@ class RobotCamera(Exposures):
             self.bad_frames += 1
         else:
             raise RobotStop(f"camera: {FRAME_RETRIES + 1} frames in a row {why}")
-        res = self.pipe.process(img, heading_error_rad=heading_error_rad)
+        res = self.pipe.process(img, heading_error_rad=heading_error_rad, position_offset=position_offset)
         self.noise_check.check(res.dots.noise_dn, self._noise_floor(k))
         return res, dt
 
@@ -343,41 +395,60 @@ class RobotCamera(Exposures):
         n = self.stack(k)
         return noise_floor_dn(self._sensor(k), n_avg=n, n_dark=8 * n)
 
-    def observe(self, pose, t_s, phosphor, *, fresh: bool = False):
-        """One observation: (StcObservation, the short frame's result, the long frame's result
-        or None, seconds spent): the short frame, and with exposure
-        control a long one at the rung the clock asks for, what either sees of the marks
-        merged. The pose comes from the short frame, whose red lights do not saturate.
-        ``fresh``: the cell was entered as a child the look found unmarked, so no old mark can
-        be in it and the short frame (red lights, the neighbours' recent marks) is enough; the
-        looks check the rest."""
-        res, dt = self.shoot(pose, t_s, phosphor, 0)
-        obs = _to_stc_obs(res.observation)
-        k = self.long_rung(t_s, self.cfg.decision_reach_m)
-        if k is None or fresh:
-            return obs, res, None, dt
-        long, dt_k = self.shoot(pose, t_s + dt, phosphor, k, heading_error_rad=_fit(res))
-        return _merge(obs, _to_stc_obs(long.observation)), res, long, dt + dt_k
+    def _as_short(self, short) -> dict:
+        """How a long frame is read after the short one at the same pose: with the short frame's
+        heading fit (the long frame's recent rows all saturate) and, when the red lights in it
+        are sure, their offset (the long frame has no far lights, and its many old rows, each
+        laid where the robot then stood, may mislead its own offset by more than the rows' 2 cm
+        inset: a row of the cell behind then reads as a start mark)."""
+        from controllers.stc.config import LANDMARK_OFFSET_SIGMA
 
-    def look(self, pose, t_s, phosphor):
-        """The look at the cell ahead: (marked, the short frame's result (for the pose), the
-        long frame's result or None, seconds spent), the long frame at the rung the clock asks
-        for (the short frame alone without exposure control)."""
-        from stcvision.observation import marks_ahead
+        o = short.observation
+        sure = (
+            self.cfg.use_landmarks
+            and o.landmark_offset is not None
+            and o.landmark_offset_sigma <= LANDMARK_OFFSET_SIGMA
+        )
+        return {"heading_error_rad": _fit(short), "position_offset": o.landmark_offset if sure else None}
 
-        short, dt = self.shoot(pose, t_s, phosphor, 0)
-        k = self.long_rung(t_s, self.cfg.look_reach_m)
-        long = None
-        herr = _fit(short)  # the long frame's recent rows all saturate: its own fit is unsure
-        if k is not None:
-            long, dt_k = self.shoot(pose, t_s + dt, phosphor, k, heading_error_rad=herr)
-            dt += dt_k
-        res = long if long is not None else short
-        geo = self.pipe.geometry  # one profile: every rung's pipeline has the same geometry
-        n = marks_ahead(res.dots, geo, heading_error_rad=herr or 0.0, offset=res.observation.position_offset)
-        if long is not None:  # what the short frame sees counts too (it is never less right)
-            n = max(n, marks_ahead(short.dots, geo, heading_error_rad=herr or 0.0))
-        return n >= 2, short, long, dt
+    def observe(self, pose, t_s, phosphor, *, fresh: bool = False, at_start: bool = False):
+        """One observation: (StcObservation, the short frame's result, the last long frame's
+        result or None, seconds spent): the short frame, and with exposure control the long
+        frames its claims ask for (:meth:`sure`), what any of them sees of the marks merged. The
+        pose comes from the short frame, whose red lights do not saturate; the long ones are
+        read with its heading fit (their recent rows all saturate)."""
+        res: list = []
+
+        def read(k, t):
+            r, dt = self.shoot(pose, t, phosphor, k, **(self._as_short(res[0]) if res else {}))
+            res.append(r)
+            return _to_stc_obs(r.observation), dt
+
+        obs, dt = self.decision(t_s, read, fresh, at_start)
+        return obs, res[0], (res[-1] if len(res) > 1 else None), dt
+
+    def look(self, pose, t_s, phosphor, *, landing: bool = False):
+        """The look ahead: (marked, the short frame's result (for the pose), the last long
+        frame's result or None, seconds spent). ``landing``: marks in the sub-cell just ahead
+        (before a return to the parent: does the tour close there?), else in the cell ahead (a
+        child). What any frame sees counts (it is never less right); the long frames are read
+        with the short frame's heading fit."""
+        from stcvision.observation import LANDING_DOTS, marks_ahead, marks_landing_ahead
+
+        count, need = (marks_landing_ahead, LANDING_DOTS) if landing else (marks_ahead, 2)
+        res: list = []
+
+        def read(k, t):
+            how = self._as_short(res[0]) if res else {}
+            herr = how.get("heading_error_rad")
+            r, dt = self.shoot(pose, t, phosphor, k, **how)
+            res.append(r)
+            off = r.observation.position_offset if k > 0 else None
+            n = count(r.dots, self.pipe.geometry, heading_error_rad=herr or 0.0, offset=off)
+            return n >= need, dt
+
+        marked, dt, _ = self.sure(t_s, read, bool.__or__, self.look_claims(landing))
+        return marked, res[0], (res[-1] if len(res) > 1 else None), dt
 
 
 def _fit(res) -> float | None:

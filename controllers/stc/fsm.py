@@ -53,7 +53,11 @@ reached through unvisited sub-cells (the exit towards ``d`` is from sub-cell ``d
 camera, a neighbour that looks new beyond a visited sub-cell has marks it missed, and walking
 there would cover sub-cells twice. Before entering a child the robot looks at it once more
 from the sub-cell next to it (:data:`Action.LOOK`); if it is marked after all the exit moves on
-to the next candidate, or back to the parent.
+to the next candidate, or back to the parent. A mark in the sub-cell a return to the parent
+lands on (the start mark, laid at the very beginning) is the tour closing. The decision sees
+that sub-cell 0.2-0.4 m away; where its frames could not have seen a mark as old as the tour
+there (``StcObservation.landing_known``, :mod:`controllers.stc.claims`), the robot looks at it
+again before the return, from next to it.
 
 Controller
 ----------
@@ -90,7 +94,7 @@ class Action(enum.Enum):
     TURN_LEFT = "turn_left"  # 90 deg counter-clockwise in place
     TURN_RIGHT = "turn_right"  # 90 deg clockwise in place
     MARK = "mark"  # rear LEDs on without moving (only to lay the start mark)
-    LOOK = "look"  # before leaving into a child: look at the cell ahead (the next tick gets a LookObs)
+    LOOK = "look"  # before leaving a cell: look ahead (the next tick gets a LookObs)
     DONE = "done"
 
 
@@ -101,7 +105,7 @@ class StcPhase(enum.Enum):
     DECIDE = 3  # just entered a cell (sub-cell 0, heading up): read the floor and decide
     MOVE = 4  # walking the cell's sub-cells counter-clockwise towards the exit
     DONE = 5
-    LOOK = 6  # at the exit into a child, facing it: is the cell ahead really unmarked?
+    LOOK = 6  # at the exit, facing it: is the child really unmarked / does the tour close here?
 
 
 @dataclass(frozen=True, slots=True)
@@ -120,6 +124,7 @@ class StcState:
     free: int = 0  # bit d: neighbour d looked free (no mark, no red light) at the decision
     is_start: bool = False  # this is the start cell (its virtual parent is the last candidate)
     land_parent: bool = False  # the sub-cell beyond the exit to the parent is marked
+    land_known: bool = True  # ... and the decision's frames could tell (else: a look at the exit)
     child: bool = False  # the exit ``target`` leads into a child (not back to the parent)
     fresh: bool = False  # DECIDE: this cell was just entered as a child the look found unmarked
 
@@ -148,11 +153,16 @@ class StcObservation:
     #: -- read from the floor, before the move, since the start mark under the robot is hidden
     #: from its own camera.
     landing_marked: tuple[bool, bool, bool, bool] = (False, False, False, False)
+    #: per direction: ``landing_marked`` is sure -- a mark was seen, or the frames could have
+    #: seen one as old as any can be (:mod:`controllers.stc.claims`); where it is not, the
+    #: robot looks at that sub-cell from next to it before it leaves that way
+    landing_known: tuple[bool, bool, bool, bool] = (True, True, True, True)
 
 
 @dataclass(frozen=True, slots=True)
 class LookObs:
-    """What the look before leaving into a child reports: any mark in the cell ahead."""
+    """What the look before leaving a cell reports: into a child, any mark in the cell ahead;
+    back to the parent, any mark in the sub-cell just ahead (where the robot lands)."""
 
     marked: bool
 
@@ -210,7 +220,9 @@ def _next_child(parent: int, free, is_start: bool, after: int | None = None) -> 
     return next((d for d in order if free[d]), None)
 
 
-def _plan(dec_parent: int, free, is_start: bool, land_parent: bool, child: int | None, **kw) -> StcState:
+def _plan(
+    dec_parent: int, free, is_start: bool, land_parent: bool, child: int | None, land_known: bool = True, **kw
+) -> StcState:
     """The MOVE state towards ``child``, or back to the parent when there is none."""
     mask = sum(1 << d for d in range(4) if free[d])
     if child is not None:
@@ -220,7 +232,7 @@ def _plan(dec_parent: int, free, is_start: bool, land_parent: bool, child: int |
         closing = not final and land_parent
     return StcState(
         phase=StcPhase.MOVE, target=target, final=final, closing=closing, parent=dec_parent, free=mask,
-        is_start=is_start, land_parent=land_parent, child=child is not None, **kw,
+        is_start=is_start, land_parent=land_parent, land_known=land_known, child=child is not None, **kw,
     )  # fmt: skip
 
 
@@ -250,21 +262,36 @@ def step(state: StcState, obs: StcObservation | LookObs | None) -> tuple[StcStat
         dec = decide(obs, at_start=state.at_start)
         if dec.done:
             return StcState(phase=StcPhase.DONE), Action.DONE
-        state = _plan(dec.parent, dec.free, dec.is_start, bool(obs.landing_marked[dec.parent]), dec.child)
+        land = bool(obs.landing_marked[dec.parent])
+        known = land or bool(obs.landing_known[dec.parent])
+        state = _plan(dec.parent, dec.free, dec.is_start, land, dec.child, known)
     if ph is StcPhase.LOOK:
         if not isinstance(obs, LookObs):
             raise ValueError("the LOOK phase needs a LookObs")
+        if not state.child:  # the look at the parent's sub-cell ahead: marked, the tour closes there
+            return StcState(phase=StcPhase.DECIDE, closing=obs.marked), Action.FORWARD
         if not obs.marked:  # a new cell indeed: enter it
             return StcState(phase=StcPhase.DECIDE, fresh=True), Action.FORWARD
         free = [bool(state.free >> d & 1) and d != state.target for d in range(4)]
         nxt = _next_child(state.parent, free, state.is_start, after=state.target)
-        state = _plan(state.parent, free, state.is_start, state.land_parent, nxt, sub=state.sub, heading=state.heading)
+        state = _plan(
+            state.parent,
+            free,
+            state.is_start,
+            state.land_parent,
+            nxt,
+            state.land_known,
+            sub=state.sub,
+            heading=state.heading,
+        )
     m, r, j = state.sub, state.heading, state.target
     if state.final and m == j:
         return StcState(phase=StcPhase.DONE, sub=m, heading=r, target=j, final=True), Action.DONE
     want = j if m == j else (m + 1) % 4
     if r == want:
-        if m == j and state.child:  # look at the child before entering it
+        if m == j and (state.child or not (state.closing or state.land_known)):
+            # look at the child before entering it; before a return to the parent, at the
+            # sub-cell it lands on, now just ahead, unless the decision's frames could tell
             return dataclasses.replace(state, phase=StcPhase.LOOK), Action.LOOK
         if m == j:  # leave the cell: new entry frame in the next cell
             return StcState(phase=StcPhase.DECIDE, closing=state.closing), Action.FORWARD

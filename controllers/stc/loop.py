@@ -25,9 +25,10 @@ import time
 
 import numpy as np
 
+from controllers.stc.claims import OutOfSight
 from controllers.stc.config import RECENTRE_M, CoverConfig
 from controllers.stc.faults import Faults
-from controllers.stc.fsm import Action, LookObs, StcPhase, decide, initial_state, step
+from controllers.stc.fsm import Action, LookObs, StcObservation, StcPhase, decide, initial_state, step
 from controllers.stc.geometry import COMPASS_VEC
 from controllers.stc.health import RobotStop, done_away_from_start
 from controllers.stc.observers import Observers, Reading, Trace
@@ -106,20 +107,19 @@ def _loop(run: _Run, cfg, plant, floor, see, watch, referee) -> None:
     ``cfg.max_decisions`` is reached; the outcome goes into ``run``."""
     state = initial_state()
     while run.decisions < cfg.max_decisions:
-        obs = None
-        if state.phase is StcPhase.DECIDE and not state.closing:
-            run.abort = see.out_of_sight(plant.t)
-            if run.abort is not None:
-                return
+        try:
+            obs = _read(state, plant, floor, see)
+        except OutOfSight as e:  # what the reading must rule out, no frame of its camera can
+            run.abort = f"{e} (at sub-cell {plant.sub}, decision {run.decisions + (state.phase is StcPhase.DECIDE)})"
+            return
+        if isinstance(obs, StcObservation):
             run.decisions += 1
-            obs = see.observe(plant, floor, fresh=state.fresh)
             watch.on_reading(Reading("decision", run.decisions, plant, floor, obs=obs,
                                      decision=decide(obs, at_start=state.at_start), frame=see.last_frame))  # fmt: skip
             referee.decision(plant, floor, obs, state, run.decisions)
-        elif state.phase is StcPhase.LOOK:
+        elif obs is not None:
             run.looks += 1
-            obs = LookObs(see.look(plant, floor))
-            referee.look(plant, floor, obs.marked)
+            referee.look(plant, floor, obs.marked, landing=not state.child)
             watch.on_reading(Reading("look", run.decisions, plant, floor, marked=obs.marked, frame=see.last_frame))
         prev = state
         state, action = step(state, obs)
@@ -137,6 +137,15 @@ def _loop(run: _Run, cfg, plant, floor, see, watch, referee) -> None:
             run.abort = f"{abort} (decision {run.decisions})" if abort.startswith("drove") else abort
             return
     run.abort = f"gave up after {cfg.max_decisions} decisions"
+
+
+def _read(state, plant: Plant, floor: Floor, see) -> StcObservation | LookObs | None:
+    """What the controller reads in ``state``: a decision's observation, a look's, or nothing."""
+    if state.phase is StcPhase.DECIDE and not state.closing:
+        return see.observe(plant, floor, fresh=state.fresh, at_start=state.at_start)
+    if state.phase is StcPhase.LOOK:
+        return LookObs(see.look(plant, floor, landing=not state.child))
+    return None
 
 
 def _act(action: Action, plant: Plant, floor: Floor, see, watch) -> str | None:

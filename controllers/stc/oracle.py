@@ -17,7 +17,7 @@ from controllers.stc.fsm import Action, LookObs, NeighbourObs, StcObservation, S
 from controllers.stc.geometry import BOXES, COMPASS_NAMES, COMPASS_VEC, frame_compass, frame_subcells, start_heading
 from stcvision.stcgrid import START_MARKS
 
-__all__ = ["MarkFloor", "coverage", "look_oracle", "observe_oracle", "run_oracle"]
+__all__ = ["MarkFloor", "coverage", "landing_oracle", "look_oracle", "observe_oracle", "run_oracle"]
 
 
 class MarkFloor:
@@ -78,6 +78,13 @@ def look_oracle(floor: MarkFloor, robot_subcell: tuple[int, int], heading: int) 
     return LookObs(floor.cell_has_marks(i // 2, j // 2))
 
 
+def landing_oracle(floor: MarkFloor, robot_subcell: tuple[int, int], heading: int) -> LookObs:
+    """The perfect look before a return to the parent: any mark in the sub-cell just ahead (the
+    one the robot lands on; marked only when the tour closes there, on the start sub-cell)."""
+    di, dj = COMPASS_VEC[heading]
+    return LookObs(bool(floor.edges.get((robot_subcell[0] + di, robot_subcell[1] + dj))))
+
+
 def run_oracle(board, *, max_steps: int = 1_000_000, keep_mismatches: int = 20, camera_view: bool = False) -> dict:
     """Run :func:`step` against :func:`observe_oracle` on ``board``.
 
@@ -109,7 +116,7 @@ def run_oracle(board, *, max_steps: int = 1_000_000, keep_mismatches: int = 20, 
         deciding = state.phase is StcPhase.DECIDE and not state.closing  # closing: DONE without looking
         obs = observe_oracle(floor, board, s, h, camera_view=camera_view) if deciding else None
         if state.phase is StcPhase.LOOK:
-            obs = look_oracle(floor, s, h)
+            obs = (look_oracle if state.child else landing_oracle)(floor, s, h)
         if deciding:
             decisions += 1
             dec = decide(obs, at_start=state.at_start)

@@ -33,7 +33,7 @@ from controllers.stc.config import (
 from controllers.stc.frames import IdealCamera, RobotCamera
 from controllers.stc.fsm import StcObservation
 from controllers.stc.health import RobotStop
-from controllers.stc.oracle import look_oracle, observe_oracle
+from controllers.stc.oracle import landing_oracle, look_oracle, observe_oracle
 from controllers.stc.plant import Floor, Plant
 from stcvision.stcgrid import entry_axes
 
@@ -60,11 +60,12 @@ class Perception(Protocol):
     #: decisions and looks observed again because their frames were read askew (camera only)
     reobserved: int
 
-    def out_of_sight(self, t_s: float) -> str | None: ...
+    def observe(self, plant: Plant, floor: Floor, *, fresh: bool, at_start: bool) -> StcObservation:
+        """The decision's reading; may raise :class:`controllers.stc.claims.OutOfSight`."""
 
-    def observe(self, plant: Plant, floor: Floor, *, fresh: bool) -> StcObservation: ...
-
-    def look(self, plant: Plant, floor: Floor) -> bool: ...
+    def look(self, plant: Plant, floor: Floor, *, landing: bool) -> bool:
+        """The look ahead (``landing``: at the sub-cell ahead, before a return to the parent);
+        may raise :class:`controllers.stc.claims.OutOfSight`."""
 
     def heading_after_turn(self, plant: Plant, floor: Floor) -> float | None: ...
 
@@ -81,9 +82,6 @@ class OraclePerception:
         self.board = board
         self.rng = rng  # the read-out noise of the pose
 
-    def out_of_sight(self, t_s: float) -> str | None:
-        return None
-
     def _offset(self, plant: Plant) -> np.ndarray:
         """The truth with the marks' read-out noise."""
         return plant.true_offset() + self.rng.normal(0, self.cfg.position_sigma_oracle_m, 2)
@@ -92,15 +90,15 @@ class OraclePerception:
         """The truth with the pipeline's measured heading noise."""
         return plant.heading_error() + self.rng.normal(0, self.cfg.heading_sigma_oracle_rad)
 
-    def observe(self, plant, floor, *, fresh):
+    def observe(self, plant, floor, *, fresh, at_start=False):
         plant.wait(self.cfg.robot.settle_s)
         obs = observe_oracle(floor.record, self.board, plant.sub, plant.hc, camera_view=True)
         plant.offset_est = self._offset(plant)
         return obs
 
-    def look(self, plant, floor):
+    def look(self, plant, floor, *, landing=False):
         plant.wait(self.cfg.robot.settle_s)
-        return look_oracle(floor.record, plant.sub, plant.hc).marked
+        return (landing_oracle if landing else look_oracle)(floor.record, plant.sub, plant.hc).marked
 
     def heading_after_turn(self, plant, floor):
         plant.wait(self.cfg.robot.settle_s)
@@ -110,7 +108,7 @@ class OraclePerception:
 
 class _TakesFrames:
     """What a perception with a camera (``self.cam``: :class:`controllers.stc.frames.Exposures`)
-    reports of its frames, and its camera's limit."""
+    reports of its frames."""
 
     @property
     def frames(self) -> int:
@@ -119,9 +117,6 @@ class _TakesFrames:
     @property
     def long_frames(self) -> int:
         return self.cam.long_frames
-
-    def out_of_sight(self, t_s):
-        return self.cam.out_of_sight(t_s) if self.cfg.stop_out_of_sight else None
 
 
 class IdealPerception(_TakesFrames, OraclePerception):
@@ -134,18 +129,19 @@ class IdealPerception(_TakesFrames, OraclePerception):
         super().__init__(cfg, board, rng)
         self.cam = IdealCamera(cfg, board)
 
-    def observe(self, plant, floor, *, fresh):
+    def observe(self, plant, floor, *, fresh, at_start=False):
         obs, dt = self.cam.observe(
             (plant.x, plant.y), plant.t, floor.phosphor, floor.laid, plant.sub, plant.hc, fresh=fresh,
-            dot_mark=floor.dot_mark,
+            at_start=at_start, dot_mark=floor.dot_mark,
         )  # fmt: skip
         plant.wait(self.cfg.robot.settle_s + dt)
         plant.offset_est = self._offset(plant)
         return obs
 
-    def look(self, plant, floor):
+    def look(self, plant, floor, *, landing=False):
+        xy = (plant.x, plant.y)
         marked, dt = self.cam.look(
-            (plant.x, plant.y), plant.t, floor.phosphor, floor.laid, plant.sub, plant.hc, dot_mark=floor.dot_mark
+            xy, plant.t, floor.phosphor, floor.laid, plant.sub, plant.hc, landing=landing, dot_mark=floor.dot_mark
         )
         plant.wait(self.cfg.robot.settle_s + dt)
         plant.offset_est = self._offset(plant)
@@ -155,9 +151,17 @@ class IdealPerception(_TakesFrames, OraclePerception):
         # the frames' time: the newest row and the consensus frame
         cam = self.cam
         plant.wait(self.cfg.robot.settle_s)
-        plant.wait(cam.frame_s(0) + (cam.frame_s(1) if self.cfg.consensus_frame and cam.controlled else 0.0))
+        plant.wait(cam.frame_s(0))
+        if self.cfg.consensus_frame and cam.controlled and self._short_rows(plant, floor) < self.cfg.consensus_rows:
+            plant.wait(cam.frame_s(1))
         plant.offset_est = self._offset(plant)
         return self._heading(plant)
+
+    def _short_rows(self, plant, floor) -> int:
+        """The marks a short frame sees from here (the camera counts the lit dots in its ground
+        view, :meth:`CameraPerception.heading_after_turn`)."""
+        seen = self.cam.floor_seen((plant.x, plant.y), plant.t, floor.phosphor, floor.laid, [0])
+        return sum(len(e) for e in seen.edges.values())
 
 
 class CameraPerception(_TakesFrames):
@@ -173,13 +177,14 @@ class CameraPerception(_TakesFrames):
         self.reobserved = 0
 
     # ------------------------------------------------------------------ the loop's three readings
-    def observe(self, plant, floor, *, fresh):
-        obs, res = self._read(plant, partial(self.cam.observe, phosphor=floor.phosphor, fresh=fresh))
+    def observe(self, plant, floor, *, fresh, at_start=False):
+        take = partial(self.cam.observe, phosphor=floor.phosphor, fresh=fresh, at_start=at_start)
+        obs, res = self._read(plant, take)
         self.last_frame = (res, self.cam.pipe)
         return obs
 
-    def look(self, plant, floor):
-        marked, res = self._read(plant, partial(self.cam.look, phosphor=floor.phosphor))
+    def look(self, plant, floor, *, landing=False):
+        marked, res = self._read(plant, partial(self.cam.look, phosphor=floor.phosphor, landing=landing))
         self.last_frame = (res, self.cam.pipe)
         return marked
 
@@ -192,17 +197,18 @@ class CameraPerception(_TakesFrames):
         if not res.heading.ok:
             # no newest row to fit: the red lights, when they are sure enough, else the newest
             # row of a 2 s frame (a turn left uncorrected leaves the next cell read askew)
-            o = res.observation
-            if cfg.use_landmarks and o.landmark_rotation_rad is not None:
-                if o.landmark_rotation_sigma_rad <= LANDMARK_TURN_SIGMA_RAD:
-                    return -o.landmark_rotation_rad
+            lights = self._lights_rotation(res.observation)
+            if lights is not None:
+                return -lights
             if not cam.controlled:
                 return None
             res, dt = cam.shoot(plant.pose, plant.t, floor.phosphor, 1)
             plant.wait(dt)
             return res.heading.heading_error_rad if res.heading.ok else None
         rows = None
-        if cfg.consensus_frame and cam.controlled:
+        # the lean of all rows is wanted only where the red lights do not say it (_heading)
+        few_rows = int(res.dots.lit.sum()) < 4 * cfg.consensus_rows  # (four dots a row)
+        if cfg.consensus_frame and cam.controlled and few_rows and self._lights_rotation(res.observation) is None:
             rows, dt = cam.shoot(
                 plant.pose, plant.t, floor.phosphor, 1, heading_error_rad=res.heading.heading_error_rad
             )
@@ -219,7 +225,10 @@ class CameraPerception(_TakesFrames):
         :data:`REOBSERVE_RAD` means the frames were read askew, so they are taken once more; so
         are they when the robot finds itself over :data:`RECENTRE_M` off its sub-cell centre
         (it drives back first) or its newest row leaning (:meth:`_check_heading`).
-        Returns (reading, the frame that read the old marks)."""
+        Where no lights are in view, a long frame's rows say it: they were laid square to the
+        grid, so their lean is the heading's drift (a robot 7.7 degrees askew read the rows of
+        the cell behind as a start mark and stopped a 12x12 tour half-way). Returns (reading,
+        the frame that read the old marks)."""
         for attempt in range(2):
             reading, short, long, dt = take(plant.pose, plant.t)
             plant.wait(self.cfg.robot.settle_s + dt)
@@ -228,6 +237,8 @@ class CameraPerception(_TakesFrames):
             turned = self._correct_heading(short, plant)
             if turned == 0.0:
                 turned = self._check_heading(short, plant)
+            if abs(turned) < REOBSERVE_RAD and long is not None:
+                turned = self._correct_lean(long, plant)
             moved = np.hypot(*plant.offset_est) > RECENTRE_M
             if moved:  # read the cell from where the robot should stand
                 plant.recentre()
@@ -235,6 +246,19 @@ class CameraPerception(_TakesFrames):
                 break
             self.reobserved += attempt == 0  # (a second askew reading is kept)
         return reading, long or short
+
+    def _correct_lean(self, long, plant) -> float:
+        """A long frame's rows, read with the short frame's heading, still lean by more than
+        :data:`REOBSERVE_RAD`: the heading has drifted that far; take it out. Returns the
+        rotation made (rad)."""
+        lean = long.observation.pattern_rotation_rad if self.cfg.use_mark_consensus else None
+        if lean is None:
+            return 0.0
+        e = long.observation.heading_error_rad - lean
+        if abs(e) <= REOBSERVE_RAD:
+            return 0.0
+        plant.rotate_by(-e)
+        return -e
 
     def _where(self, observation, plant) -> np.ndarray:
         """The robot's offset from its sub-cell centre (world, m): from the red lights in view
@@ -256,9 +280,7 @@ class CameraPerception(_TakesFrames):
         if not res.heading.ok:
             return None
         cfg, o = self.cfg, res.observation
-        left = o.landmark_rotation_rad if cfg.use_landmarks else None
-        if left is not None and o.landmark_rotation_sigma_rad > LANDMARK_TURN_SIGMA_RAD:
-            left = None  # too unsure to take over from the consensus of the marks
+        left = self._lights_rotation(o)
         if left is None and cfg.use_mark_consensus:
             left = o.pattern_rotation_rad
             if rows is not None and rows.observation.pattern_rotation_rad is not None:
@@ -288,6 +310,14 @@ class CameraPerception(_TakesFrames):
                     f"a white light (not a red obstacle light) {d:.2f} m from the robot at sub-cell "
                     f"{tuple(int(v) for v in plant.sub)}: its glare hides the marks there"
                 )
+
+    def _lights_rotation(self, o) -> float | None:
+        """How far the red lights in view are still turned (rad), when they are sure enough to
+        be the heading's reference (:data:`LANDMARK_TURN_SIGMA_RAD`); None otherwise (then the
+        consensus of the marks is)."""
+        if not self.cfg.use_landmarks or o.landmark_rotation_rad is None:
+            return None
+        return o.landmark_rotation_rad if o.landmark_rotation_sigma_rad <= LANDMARK_TURN_SIGMA_RAD else None
 
     def _correct_heading(self, res, plant) -> float:
         """Two or more red lights in view say how far the heading has drifted: take it out.

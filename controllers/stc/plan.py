@@ -14,6 +14,7 @@ from __future__ import annotations
 import dataclasses
 import math
 
+from controllers.stc.claims import distance_m
 from controllers.stc.config import CoverConfig
 from controllers.stc.loop import is_complete, run_cover
 from controllers.stc.perception import IdealPerception
@@ -27,7 +28,9 @@ def plan(board, cfg: CoverConfig | None = None) -> dict:
     seen: list[IdealPerception] = []
     r = run_cover(board, cfg, perception_hook=seen.append)
     cam = seen[0].cam
-    limit = cam.horizons(cfg.decision_reach_m)[-1]
+    # the farthest claim a reading must make: no mark in the cell ahead, at a look
+    reach = distance_m("cell ahead", board.subcell_m, cfg.position_margin_m)
+    limit = cam.horizon(len(cam.ladder) - 1, reach)
     frames = [
         {"exposure_s": e, "gain": g, "stack": cam.stack(k), "frame_s": e * cam.stack(k), "count": n}
         for k, ((e, g, _), n) in enumerate(zip(cam.ladder, cam.per_rung, strict=True))
@@ -44,8 +47,9 @@ def plan(board, cfg: CoverConfig | None = None) -> dict:
         "tour_s": r["sim_time_s"],
         "oldest_mark_read_s": r["max_mark_age_read_s"],
         "longest_frame_s": max(f["frame_s"] for f in frames),
-        # how old a mark the longest frame still sees at the decision's reach (None: any age)
+        # how old a mark the longest frame still sees at the farthest claim (None: any age)
         "horizon_limit_s": limit if math.isfinite(limit) else None,
+        "horizon_limit_reach_m": round(reach, 3),
         "frames": frames,
         "wall_s": r["wall_s"],
     }

@@ -10,7 +10,7 @@ from collections.abc import Callable
 
 from controllers.stc.fsm import Action, StcObservation, StcPhase, StcState, decide
 from controllers.stc.geometry import COMPASS_VEC, cell_of
-from controllers.stc.oracle import look_oracle, observe_oracle
+from controllers.stc.oracle import landing_oracle, look_oracle, observe_oracle
 from controllers.stc.plant import Floor, Plant
 
 __all__ = ["Referee"]
@@ -52,8 +52,10 @@ class Referee:
             self._expected = ("leave", od.target, od.parent, od.child is None and o_obs.landing_marked[od.target])
         self._at = {"decision": k, "subcell": plant.sub, "camera": obs, "oracle": o_obs}
 
-    def look(self, plant: Plant, floor: Floor, marked: bool) -> None:
-        if not self.active or marked == look_oracle(floor.record, plant.sub, plant.hc).marked:
+    def look(self, plant: Plant, floor: Floor, marked: bool, *, landing: bool = False) -> None:
+        """A look read ``marked`` (``landing``: the sub-cell ahead, else the cell ahead)."""
+        truth = (landing_oracle if landing else look_oracle)(floor.record, plant.sub, plant.hc).marked
+        if not self.active or marked == truth:
             return
         self.look_errors += 1
         di, dj = COMPASS_VEC[plant.hc]
@@ -65,7 +67,8 @@ class Referee:
         ]
         self.report(
             "look error",
-            f"look error at {plant.sub} heading {plant.hc}: camera {marked}, t={plant.t:.0f}, marks ahead {seen}",
+            f"{'landing ' if landing else ''}look error at {plant.sub} heading {plant.hc}: camera {marked}, "
+            f"t={plant.t:.0f}, marks ahead {seen}",
         )
 
     def step(self, prev: StcState, state: StcState, action: Action, plant: Plant, k: int) -> None:

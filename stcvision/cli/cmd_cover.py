@@ -314,7 +314,8 @@ def format_text(r):
                 f"converges: {r['converges']}" + ("" if r["converges"] else f" ({r['abort_reason'] or 'incomplete'})"),
                 f"sub-cells covered / reachable: {r['subcells_covered']} / {r['subcells_reachable']}",
                 f"tour: {r['tour_s']:.0f} s; oldest mark read: {r['oldest_mark_read_s']:.0f} s; longest frame sees "
-                + (f"{r['horizon_limit_s']:.0f} s back" if r["horizon_limit_s"] is not None else "marks of any age"),
+                + (f"{r['horizon_limit_s']:.0f} s back" if r["horizon_limit_s"] is not None else "marks of any age")
+                + f" {r['horizon_limit_reach_m']:.2f} m away (the look's claim)",
                 f"frames (length x count): {sizes}",
             ]
         )

@@ -261,4 +261,24 @@ def test_looks_that_find_every_child_marked_return_to_the_parent():
         actions.append(a)
         if s.phase is StcPhase.DECIDE:
             break
+    # the decision's frames could tell the landing sub-cell is unmarked: no look before leaving
     assert Action.LOOK not in actions and actions[-1] is Action.FORWARD and s.phase is StcPhase.DECIDE
+
+
+@pytest.mark.parametrize("marked", [False, True])
+def test_a_landing_the_decision_could_not_see_is_looked_at_before_the_return(marked):
+    """The decision's frames could not tell whether the sub-cell a return to the parent lands
+    on is marked (``landing_known`` false): at the exit the robot looks at it, from next to it.
+    Marked, it is the start sub-cell and the move closes the tour (no decision there)."""
+    from controllers.stc.fsm import LookObs
+
+    obs = dataclasses.replace(_obs(marks=(1, 1, 1, 0)), landing_known=(True, True, True, False))
+    s, a = step(StcState(phase=StcPhase.DECIDE), obs)
+    while a is not Action.LOOK:  # no child: walk to sub-cell 3, face the parent
+        assert s.phase is not StcPhase.DECIDE
+        s, a = step(s, None)
+    assert s.sub == 3 and s.heading == 3 and not s.child
+    s, a = step(s, LookObs(marked=marked))
+    assert a is Action.FORWARD and s.phase is StcPhase.DECIDE and s.closing is marked
+    if marked:
+        assert step(s, None) == (StcState(phase=StcPhase.DONE), Action.DONE)

@@ -1,0 +1,120 @@
+"""Issue 16.7: a reading's absences are only worth what its frames could have seen. The claim
+distances come from the STC geometry; frames are added until each claim is covered, or the
+robot stops before deciding."""
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from controllers.stc.claims import (
+    OutOfSight,
+    ahead_claims,
+    decision_claims,
+    distance_m,
+    landing_claims,
+    read_until_sure,
+)
+from controllers.stc.fsm import NeighbourObs, StcObservation
+from controllers.stc.loop import CoverConfig, run_cover
+from sim_camera.board import Board
+from sim_camera.robot import LEGO_STC_ROBOT
+
+
+def test_claim_distances_follow_the_geometry():
+    """The deciding dot of each claim, 0.16 m sub-cells, no margin (hand-computed from the
+    entry frame: robot at sub-cell 0's centre, rows 2 cm inside their edge, dots at +-1.5 and
+    +-4.5 cm along it; the second-nearest dot for a box, the third for a landing sub-cell)."""
+    kinds = ("box 1", "box 2", "box 5", "start mark 2", "cell ahead", "landing ahead")
+    d = {k: distance_m(k, 0.16, 0.0) for k in kinds}
+    assert d["box 5"] == pytest.approx(0.101, abs=1e-3)  # sub-cell 1's bottom edge, beside the robot
+    assert d["box 1"] == pytest.approx(0.157, abs=1e-3)
+    assert d["box 2"] == pytest.approx(0.263, abs=1e-3) == d["start mark 2"]  # the far corner
+    assert d["cell ahead"] == pytest.approx(0.407, abs=1e-3)  # the far sub-cell's far edge
+    assert d["landing ahead"] == pytest.approx(0.225, abs=1e-3)
+    assert distance_m("box 2", 0.16, 0.02) == pytest.approx(d["box 2"] + 0.02)
+
+
+def _obs(boxes, start=None):
+    n = (NeighbourObs(False, False),) * 4
+    return StcObservation(tuple(bool(b) for b in boxes), n, start)
+
+
+def test_what_a_decision_rules_out():
+    kw = dict(subcell_m=0.16, margin_m=0.0)
+    claims = decision_claims(_obs((0, 1, 0, 1, 0)), fresh=False, at_start=False, **kw)
+    assert [c.what for c in claims] == [
+        "box 1 unlit", "box 3 unlit", "box 5 unlit",
+        "no start mark in sub-cell 1", "no start mark in sub-cell 2", "no start mark in sub-cell 3",
+    ]  # fmt: skip
+    assert not decision_claims(_obs((0,) * 5), fresh=True, at_start=False, **kw)  # the look ruled them out
+    seen_start = decision_claims(_obs((1, 1, 0, 1, 1), start=2), fresh=False, at_start=False, **kw)
+    assert [c.what for c in seen_start] == ["box 3 unlit"]
+    assert ahead_claims(True, **kw) == [] and landing_claims(True, **kw) == []  # what is seen needs no proof
+    assert ahead_claims(False, **kw)[0].rho_m > landing_claims(False, **kw)[0].rho_m
+
+
+class _Ladder:
+    """A camera of three rungs whose horizon falls with the distance: 100 / 1,000 / 10,000 s at
+    0.1 m, halving every 0.1 m."""
+
+    ladder = (0, 1, 2)
+
+    def horizon(self, k, rho_m):
+        return 10.0 ** (k + 2) * 0.5 ** ((rho_m - 0.1) / 0.1)
+
+    def rung_for(self, t_s, rho_m):
+        return next((k for k in self.ladder if self.horizon(k, rho_m) >= t_s), None)
+
+
+class _Claim:
+    def __init__(self, what, rho_m):
+        self.what, self.rho_m = what, rho_m
+
+
+def _reader(seen_by):
+    """read(k, t): the reading is the set of marks rung k sees; each frame takes 10 s."""
+    taken = []
+
+    def read(k, t):
+        taken.append((k, t))
+        return frozenset(seen_by.get(k, ())), 10.0
+
+    return read, taken
+
+
+def test_frames_are_added_until_every_absence_is_covered():
+    cam = _Ladder()
+    claims = lambda seen: [] if "far" in seen else [_Claim("no far mark", 0.3)]  # noqa: E731
+    # at t = 50 s the short frame covers 0.3 m (25 s)? no: 100 * 0.25 = 25 s < 50 s -> rung 1 (250 s)
+    read, taken = _reader({})
+    reading, dt, frames = read_until_sure(cam, 50.0, read, frozenset.union, claims)
+    assert frames == taken == [(0, 50.0), (1, 60.0)] and dt == 20.0
+    # a mark the short frame already sees needs no longer frame
+    read, taken = _reader({0: {"far"}})
+    assert read_until_sure(cam, 50.0, read, frozenset.union, claims)[2] == [(0, 50.0)]
+    # a mark only the long frame sees ends the claim there
+    read, taken = _reader({2: {"far"}})
+    reading, _, frames = read_until_sure(cam, 2000.0, read, frozenset.union, claims)
+    assert [k for k, _ in frames] == [0, 2] and "far" in reading
+    # past the longest frame's horizon at that distance (2,500 s): stop, saying what and where
+    read, taken = _reader({})
+    with pytest.raises(OutOfSight, match=r"no far mark \(0\.30 m away\).*3010 s old.*2500 s there"):
+        read_until_sure(cam, 3000.0, read, frozenset.union, claims)
+    # not strict: the longest frame, once, and the reading kept
+    read, taken = _reader({})
+    assert [k for k, _ in read_until_sure(cam, 3000.0, read, frozenset.union, claims, strict=False)[2]] == [0, 2]
+
+
+@pytest.mark.parametrize("perception", ["ideal", "camera"])
+def test_a_robot_past_its_camera_stops_before_deciding(perception):
+    """A robot that waits 10 minutes before every reading: on a 5x5 board its clock soon passes
+    what the webcam's longest frame (64 x 30 s) sees 0.43 m away, so it stops "out of sight" at
+    a look, saying what it could not rule out -- having covered nothing twice and decided
+    nothing wrong."""
+    robot = dataclasses.replace(LEGO_STC_ROBOT, settle_s=600.0, fade_per_h=0.0)  # (no flat battery)
+    board = Board.random((5, 5), obstacle_fraction=0.1, rng=np.random.default_rng(7))
+    r = run_cover(board, CoverConfig(perception=perception, exposure="auto", seed=3, robot=robot))
+    assert r["abort_reason"].startswith("out of sight: no mark in the cell ahead (0.43 m away)"), r
+    assert not r["complete"] and r["subcells_covered"] < r["subcells_reachable"]
+    assert r["subcells_covered_more_than_once"] == 0 and r["decision_errors"] == 0 and r["look_errors"] == 0
