@@ -509,12 +509,6 @@ def noise_floor(quantum: float = 1.0) -> float:
     return QUANTISATION_SIGMA * quantum
 
 
-#: find_dots refuses a marks image with more candidates than this times ``max_dots``: a frame
-#: with a bright green area (found by fuzzing) had 43,512, and the N x N black-out asked for
-#: 14 GiB; rendered dark-room frames have about 100
-_MAX_CANDIDATES_PER_DOT = 10
-
-
 def find_dots(
     marks: np.ndarray,
     params: DotParams = DotParams(),
@@ -579,11 +573,6 @@ def find_dots(
     cand[:e], cand[-e:], cand[:, :e], cand[:, -e:] = 0, 0, 0, 0
     pts = cv2.findNonZero(cand)
     pts = np.zeros((0, 2), np.int32) if pts is None else pts.reshape(-1, 2)
-    if len(pts) > _MAX_CANDIDATES_PER_DOT * params.max_dots:  # the black-out below is N x N in memory
-        raise BadInputError(
-            f"marks image has {len(pts):,} dot candidates (more than {_MAX_CANDIDATES_PER_DOT} x max_dots); "
-            "expected a dark-room frame of dots, not a lit or overexposed area"
-        )
     xs, ys = pts[:, 0], pts[:, 1]
     mean = sums[ys, xs].astype(np.float64) / area - background_dn
     if params.threshold_dn is not None:
