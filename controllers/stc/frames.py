@@ -384,6 +384,8 @@ class RobotCamera(Exposures):
         else:
             raise RobotStop(f"camera: {FRAME_RETRIES + 1} frames in a row {why}")
         res = self.pipe.process(img, heading_error_rad=heading_error_rad, position_offset=position_offset)
+        if res.observation.untrusted:  # the pipeline could not read this frame honestly (too many candidates)
+            raise RobotStop(f"camera: a frame the pipeline cannot trust ({res.observation.untrusted})")
         self.noise_check.check(res.dots.noise_dn, self._noise_floor(k))
         return res, dt
 

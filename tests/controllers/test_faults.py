@@ -109,6 +109,29 @@ def test_a_dead_camera_stops_the_robot():
     assert cam.bad_frames == FRAME_RETRIES + 1 and cam.frames == FRAME_RETRIES + 1
 
 
+def test_a_frame_the_pipeline_cannot_trust_stops_the_robot(monkeypatch):
+    """A frame the pipeline flags untrusted (more dot candidates than marks can make, or the dot
+    cap reached: ``CellObservation.untrusted``) stops the robot with the pipeline's reason
+    instead of a decision on it."""
+    import dataclasses
+
+    from controllers.stc.frames import RobotCamera
+    from sim_camera.phosphor import PhosphorLayer
+    from stcvision.pipeline import Pipeline
+
+    process = Pipeline.process
+
+    def flagged(self, *a, **k):
+        res = process(self, *a, **k)
+        obs = dataclasses.replace(res.observation, untrusted="8101 dot candidates above 4 sigma")
+        return dataclasses.replace(res, observation=obs)
+
+    monkeypatch.setattr(Pipeline, "process", flagged)
+    cam = RobotCamera(random_board(2, 2, 0.0, 0), CoverConfig(exposure="auto"), np.random.default_rng(0))
+    with pytest.raises(RobotStop, match="cannot trust .8101 dot candidates"):
+        cam.shoot((0.2, 0.2, 0.0), 0.0, PhosphorLayer())
+
+
 # ---------------------------------------------------------------------------------- the invariant
 @pytest.mark.parametrize(
     ("fault", "seed", "expect"),
