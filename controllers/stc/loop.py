@@ -114,6 +114,11 @@ def _loop(run: _Run, cfg, plant, floor, see, watch, referee) -> None:
             return
         if isinstance(obs, StcObservation):
             run.decisions += 1
+            if obs.start_mark is not None and not state.at_start:  # the start mark lies in the start cell only
+                away = done_away_from_start(tuple(plant.board.start_subcell), run.moved)
+                if away is not None:
+                    run.abort = f"start mark read away from the start ({away.split(': ', 1)[1]})"
+                    return
             watch.on_reading(Reading("decision", run.decisions, plant, floor, obs=obs,
                                      decision=decide(obs, at_start=state.at_start), frame=see.last_frame))  # fmt: skip
             referee.decision(plant, floor, obs, state, run.decisions)
