@@ -124,6 +124,9 @@ class PipelineResult:
     observation: CellObservation
     stage_ms: dict[str, float]
     window_area: int = 9
+    #: (N, 2) robot-frame positions (m) of the white lights (not red:
+    #: :attr:`PipelineParams.white_blue_ratio`) this frame showed
+    white_lights_m: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
 
     @property
     def dark_subtracted(self) -> np.ndarray:
@@ -211,9 +214,6 @@ class Pipeline:
         self.pedestal = 0
         self.quantum = 1
         self.dark_sigma = 0.0
-        #: the white lights (not red: :attr:`PipelineParams.white_blue_ratio`) of the last frame,
-        #: robot frame (m)
-        self.white_lights_m = np.zeros((0, 2))
         # the wide, coarse ground view for far red-light landmarks (pose estimates only)
         self.wide = None
         if self.params.observation.pose_estimates and self.params.observation.landmark_range_m > 0:
@@ -366,10 +366,11 @@ class Pipeline:
         )
         t.append(clock())
         red = find_red(obstacle, p.red, window_area=area)
+        white_m = np.zeros((0, 2))
         if p.white_blue_ratio is not None:
             xy_m = self.profile.ground_to_robot(red.xy_px) if len(red) else np.zeros((0, 2))
             white = self._white(frame, xy_m)
-            self.white_lights_m = xy_m[white]  # robot frame (m): for the caller's checks
+            white_m = xy_m[white]
             red = RedLights(red.xy_px[~white], red.peak_dn[~white], red.area_px[~white])
         t.append(clock())
         heading = fit_heading(dots, p.heading)
@@ -393,7 +394,7 @@ class Pipeline:
         t.append(clock())
         stage_ms = {name: (t[i + 1] - t[i]) / 1e6 for i, name in enumerate(STAGES)}
         return PipelineResult(
-            frame, self.dark, self.pedestal, g, r, obstacle, marks, all_dots, red, heading, obs, stage_ms, area
+            frame, self.dark, self.pedestal, g, r, obstacle, marks, all_dots, red, heading, obs, stage_ms, area, white_m
         )
 
     def _white(self, frame: np.ndarray, xy_m: np.ndarray, *, half: int = 4) -> np.ndarray:

@@ -232,7 +232,7 @@ class CameraPerception(_TakesFrames):
         for attempt in range(2):
             reading, short, long, dt = take(plant.pose, plant.t)
             plant.wait(self.cfg.robot.settle_s + dt)
-            self._check_lights(plant)
+            self._check_lights(short, plant)
             plant.offset_est = self._where(short.observation, plant)
             turned = self._correct_heading(short, plant)
             if turned == 0.0:
@@ -297,12 +297,11 @@ class CameraPerception(_TakesFrames):
             return -e
         return 0.0
 
-    def _check_lights(self, plant) -> None:
-        """A white light (a lamp, not a red obstacle light) within :data:`WHITE_BLIND_M` of the
-        robot: its glare hides the marks around it from the short frame, so the cell cannot be
-        read: stop rather than decide on it."""
-        pipe = self.cam.pipes.get(self.cam.ladder[0][:2])  # the short frame's
-        xy = getattr(pipe, "white_lights_m", np.zeros((0, 2)))
+    def _check_lights(self, short, plant) -> None:
+        """A white light (a lamp, not a red obstacle light) in the short frame ``short`` within
+        :data:`WHITE_BLIND_M` of the robot: its glare hides the marks around it, so the cell
+        cannot be read: stop rather than decide on it."""
+        xy = short.white_lights_m
         if len(xy):
             d = float(np.hypot(*xy.T).min())
             if d < WHITE_BLIND_M:
