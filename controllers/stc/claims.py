@@ -37,6 +37,7 @@ __all__ = [
     "landing_claim",
     "landing_claims",
     "read_until_sure",
+    "return_misread",
 ]
 
 #: where the robot stands in its cell units (sub-cell sides, cell centre at 0): sub-cell 0's
@@ -123,6 +124,24 @@ def decision_claims(obs, *, fresh: bool, at_start: bool, subcell_m: float, margi
             for m in (1, 2, 3)
         ]
     return out
+
+
+def return_misread(obs) -> str | None:
+    """Why ``obs`` (a :class:`controllers.stc.fsm.StcObservation` at a decision after a return
+    from a child: not the first one, not in a cell just entered as a child) cannot be right, or
+    None: the lit boxes of a cell re-entered are one of :data:`controllers.stc.fsm.REENTRY_BOXES`
+    (box 4 always). A cross-check of the reading against the tour, not against the frames'
+    reach: it catches a mark missed *within* the horizon (a pipeline miss), which no claim can."""
+    from controllers.stc.fsm import REENTRY_BOXES
+
+    def name(boxes) -> str:
+        return "{" + ",".join(map(str, boxes)) + "}"
+
+    lit = tuple(b for b, on in enumerate(obs.boxes, 1) if on)
+    if lit in REENTRY_BOXES:
+        return None
+    sets = ", ".join(name(b) for b in sorted(REENTRY_BOXES, key=lambda b: (len(b), b)))
+    return f"misread: boxes {name(lit)} lit in a cell re-entered from a child, which shows one of {sets}"
 
 
 def landing_claim(direction: int, *, subcell_m: float, margin_m: float) -> Claim:

@@ -60,6 +60,12 @@ class CoverConfig:
     #: longest frame can rule out what a reading must: the robot knows its camera's limit; off,
     #: it reads the longest frame and decides anyway (a study of what the guess costs)
     stop_out_of_sight: bool = True
+    #: with exposure control, cross-check a return's reading against the tour: a cell re-entered
+    #: from a child shows box 4 and one of :data:`controllers.stc.fsm.REENTRY_BOXES`; a reading
+    #: that does not is read again with a longer frame, and still wrong the robot stops
+    #: ("misread: ...") rather than decide on a mark missed within its frames' reach; off, it
+    #: decides on what it read (a study of what the misread costs)
+    check_returns: bool = True
     trace: bool = False  # heading from the lean of all rows in view, not the newest only
     #: hardware faults injected into the run: (name, level) pairs (:mod:`controllers.stc.faults`)
     faults: tuple[tuple[str, float], ...] = ()

@@ -219,6 +219,8 @@ class Exposures:
         obs, dt, taken = self.sure(t_s, read, _merge, self.decision_claims(fresh, at_start))
         if not self.controlled:
             return obs, dt
+        if self.cfg.check_returns and not (fresh or at_start):
+            obs, dt = self._check_return(t_s, read, obs, dt, taken)
         kw = dict(subcell_m=self.subcell_m, margin_m=self.cfg.position_margin_m)
         rho = [landing_claim(d, **kw).rho_m for d in range(4)]
         known = tuple(
@@ -226,6 +228,31 @@ class Exposures:
             for m, r in zip(obs.landing_marked, rho, strict=True)
         )
         return dataclasses.replace(obs, landing_known=known), dt
+
+    def _check_return(self, t_s: float, read, obs, dt: float, taken: list):
+        """A return's reading that no STC tour shows (:func:`controllers.stc.claims.return_misread`)
+        is read once more with a frame one rung longer than any taken (the longest again at the
+        top), merged; still wrong, it says why (``StcObservation.misread``: the loop stops
+        rather than decide on it). Returns (reading, seconds)."""
+        from controllers.stc.claims import return_misread
+
+        if return_misread(obs) is None:
+            return obs, dt
+        k = min(max(j for j, _ in taken) + 1, len(self.ladder) - 1)
+        more, dk = read(k, t_s + dt)
+        taken.append((k, t_s + dt))
+        obs, dt = _merge(obs, more), dt + dk
+        why = return_misread(obs)
+        if why is not None:
+            obs = dataclasses.replace(obs, misread=f"{why}, also with a {self.frame_label(k)} frame")
+        return obs, dt
+
+    def frame_label(self, k: int) -> str:
+        """Rung ``k`` in words: "2 s", "4 x 30 s"."""
+        e, _, n = self.ladder[k]
+        n *= self.cfg.n_stack
+        length = f"{e:g} s" if e >= 1 else f"1/{round(1 / e)} s"
+        return length if n == 1 else f"{n} x {length}"
 
     def _sensor(self, k: int):
         e, g, _ = self.ladder[k]

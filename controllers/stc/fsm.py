@@ -77,6 +77,7 @@ from stcvision.stcgrid import VISITED_BY
 
 __all__ = [
     "Action",
+    "REENTRY_BOXES",
     "Decision",
     "LookObs",
     "NeighbourObs",
@@ -87,6 +88,14 @@ __all__ = [
     "initial_state",
     "step",
 ]
+
+
+#: the lit-box sets a cell shows when the robot comes back into it from a child (every decision
+#: but the first and those in a cell just entered as a child): box 4 always -- it left into
+#: that child from sub-cell 3 going down, and comes back up into sub-cell 0 (STC goes round a
+#: child counter-clockwise) -- and nothing else occurs (``run_oracle``'s ``box_patterns``,
+#: tested on random boards and all start headings)
+REENTRY_BOXES = frozenset({(4,), (2, 4), (3, 4), (2, 4, 5), (3, 4, 5), (1, 2, 4), (1, 3, 4)})
 
 
 class Action(enum.Enum):
@@ -157,6 +166,9 @@ class StcObservation:
     #: seen one as old as any can be (:mod:`controllers.stc.claims`); where it is not, the
     #: robot looks at that sub-cell from next to it before it leaves that way
     landing_known: tuple[bool, bool, bool, bool] = (True, True, True, True)
+    #: why no STC tour can show this reading ("" when one can: :func:`controllers.stc.claims.return_misread`);
+    #: the loop stops before deciding on it
+    misread: str = ""
 
 
 @dataclass(frozen=True, slots=True)

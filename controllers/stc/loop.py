@@ -114,6 +114,9 @@ def _loop(run: _Run, cfg, plant, floor, see, watch, referee) -> None:
             return
         if isinstance(obs, StcObservation):
             run.decisions += 1
+            if obs.misread:  # no STC tour shows this reading, not even with a longer frame
+                run.abort = f"{obs.misread} (at sub-cell {plant.sub}, decision {run.decisions})"
+                return
             if obs.start_mark is not None and not state.at_start:  # the start mark lies in the start cell only
                 away = done_away_from_start(tuple(plant.board.start_subcell), run.moved)
                 if away is not None:

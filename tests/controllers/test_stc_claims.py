@@ -14,8 +14,9 @@ from controllers.stc.claims import (
     distance_m,
     landing_claims,
     read_until_sure,
+    return_misread,
 )
-from controllers.stc.fsm import NeighbourObs, StcObservation
+from controllers.stc.fsm import REENTRY_BOXES, NeighbourObs, StcObservation
 from controllers.stc.loop import CoverConfig, run_cover
 from sim_camera.board import Board
 from sim_camera.robot import LEGO_STC_ROBOT
@@ -118,3 +119,55 @@ def test_a_robot_past_its_camera_stops_before_deciding(perception):
     assert r["abort_reason"].startswith("out of sight: no mark in the cell ahead (0.43 m away)"), r
     assert not r["complete"] and r["subcells_covered"] < r["subcells_reachable"]
     assert r["subcells_covered_more_than_once"] == 0 and r["decision_errors"] == 0 and r["look_errors"] == 0
+
+
+def test_a_return_reads_box_4_and_one_of_the_reentry_sets():
+    """Of the 32 lit-box sets, a return from a child accepts exactly the seven the oracle shows
+    on re-entry (tests/controllers/test_stc_oracle.py); any other says which boxes it read."""
+    for bits in range(32):
+        lit = tuple(b for b in range(1, 6) if bits >> (b - 1) & 1)
+        why = return_misread(_obs([b in lit for b in range(1, 6)]))
+        assert (why is None) == (lit in REENTRY_BOXES), lit
+        if why is not None:
+            assert why.startswith("misread: boxes {" + ",".join(map(str, lit)) + "} lit in a cell re-entered")
+    assert all(4 in s for s in REENTRY_BOXES)
+
+
+def _blind_to_box_4(up_to_rung: int):
+    """A perception hook: every decision frame at rungs <= ``up_to_rung`` misses box 4 (a mark
+    missed within the frame's reach, as the pipeline's red test once did on long webcam frames)."""
+
+    def hook(see):
+        decide_frames = see.cam.decision
+
+        def decision(t_s, read, fresh, at_start):
+            def blind(k, t):
+                obs, dt = read(k, t)
+                if k <= up_to_rung:
+                    obs = dataclasses.replace(obs, boxes=(*obs.boxes[:3], False, obs.boxes[4]))
+                return obs, dt
+
+            return decide_frames(t_s, blind, fresh, at_start)
+
+        see.cam.decision = decision
+
+    return hook
+
+
+def test_a_return_missing_box_4_is_read_again_then_stops_before_deciding():
+    """The physics-limited camera made blind to box 4: with the return check the robot reads a
+    return again with a longer frame and, blind there too, stops ("misread") at its first
+    return with nothing covered twice and no wrong decision; without the check it decides on
+    the misreading. Blind only in the short and the 2 s frame, the longer frame mends the
+    reading and the tour completes."""
+    board = Board.random((4, 4), obstacle_fraction=0.1, rng=np.random.default_rng(2))
+    cfg = CoverConfig(perception="ideal", exposure="auto", seed=1)
+    r = run_cover(board, cfg, perception_hook=_blind_to_box_4(99))
+    assert r["abort_reason"].startswith("misread: boxes {"), r["abort_reason"]
+    assert "also with a" in r["abort_reason"] and "(at sub-cell" in r["abort_reason"]
+    assert r["subcells_covered_more_than_once"] == 0 and r["decision_errors"] == 0
+    unchecked = run_cover(board, dataclasses.replace(cfg, check_returns=False), perception_hook=_blind_to_box_4(99))
+    assert unchecked["decision_errors"] > 0 and not unchecked["complete"]
+    mended = run_cover(board, cfg, perception_hook=_blind_to_box_4(1))
+    assert mended["complete"], mended["abort_reason"]
+    assert mended["long_exposures"] > run_cover(board, cfg)["long_exposures"]  # the re-reads
