@@ -15,6 +15,7 @@ from stcvision.stages import (
     find_dots,
     fit_heading,
     recalibrate_turn,
+    separate_channels,
     subtract_dark,
     unwarp,
 )
@@ -66,6 +67,24 @@ def test_channel_filter_separates_red_lights_from_green_dots():
     assert marks[5, 5] == 200 and obstacle[5, 5] == 0
     assert marks[12, 12] == 0 and obstacle[12, 12] == 255
     assert marks[15, 3] == 0 and obstacle[15, 3] == 255
+
+
+def test_a_dot_is_never_taken_for_red_under_a_wide_dominance_tolerance():
+    """A 30 s webcam frame (issue 16.7, measured): pedestal 107 DN, the dark frame's spread ~18
+    DN, so the dominance tolerance is ~37 DN; a dot 30 DN above the pedestal, its red crosstalk
+    6 DN above it (over the leak level), was blacked out as a red light's halo. Its red is a
+    fifth of its green: it stays in the marks; a red halo (red 40, green 3 DN up) and a pixel
+    saturated in both channels still go."""
+    g = np.full((1, 13), 107, np.uint16)
+    r = g.copy()
+    # a dot, a red halo, a pixel saturated in both (less the dark frame), apart by more than the
+    # black-out's margin
+    g[0, [0, 6, 12]], r[0, [0, 6, 12]] = (137, 110, 255 - 9), (113, 147, 255 - 12)
+    kw = dict(window_area=1, leak_threshold=110.0, background_dn=107.0, noise_dn=18.0)
+    obstacle, marks = separate_channels(g, r, ChannelParams(), **kw)
+    assert marks[0, [0, 6, 12]].tolist() == [137, 0, 0] and obstacle[0, 0] == 0
+    _, old = separate_channels(g, r, ChannelParams(red_min_fraction=0.0), **kw)
+    assert old[0, [0, 6, 12]].tolist() == [0, 0, 0]  # the rule before: the dot went with them
 
 
 def _blobs(rng, pts, amp=40.0, sigma=1.0, noise=1.5, size=120):
