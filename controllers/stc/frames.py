@@ -150,6 +150,11 @@ class Exposures:
     #: the next step out: never longer than the truth)
     RHO = np.round(np.arange(0.05, 1.0, 0.01), 2)
 
+    #: with ``CoverConfig.size_by_frame_noise``, size the frames by the noise they will have
+    #: (:meth:`stack_equivalent`); the physics-limited camera keeps the idealised noise (an
+    #: upper bound)
+    frame_noise = False
+
     def _curve(self, k: int) -> np.ndarray:
         """Rung ``k``'s horizon (s) at :data:`RHO`, for a lone dot at ``CoverConfig.sizing_snr``
         (the camera's calibration of the phosphor, :func:`sim_camera.camera.visibility_horizon_s`)."""
@@ -157,10 +162,32 @@ class Exposures:
             from sim_camera.camera import ROSE_SNR, visibility_horizon_s
 
             eq = (ROSE_SNR / self.cfg.sizing_snr) ** 2  # as if that many more frames were stacked
-            self._horizons[k] = visibility_horizon_s(
-                self.cam, sensor=self._sensor(k), rho_m=self.RHO, n_stack=eq * self.stack(k)
-            )
+            n = self.stack_equivalent(k) if self.frame_noise and self.cfg.size_by_frame_noise else self.stack(k)
+            self._horizons[k] = visibility_horizon_s(self.cam, sensor=self._sensor(k), rho_m=self.RHO, n_stack=eq * n)
         return self._horizons[k]
+
+    def stack_equivalent(self, k: int) -> float:
+        """The frames rung ``k`` is worth in the horizon: :func:`sim_camera.camera.visibility_horizon_s`
+        divides a frame's noise by the square root of the frames stacked, rounding included, but a
+        stack arrives digitised once at the ADC's depth and is read against a dark frame digitised
+        too, so its noise is :func:`controllers.stc.health.noise_floor_dn` (the figure the noise
+        check holds every frame to; measured 1.05-1.28x of it). On the webcam's 8-bit frames
+        the two roundings are as large as a 30 s frame's noise over 32: 32 frames are worth 12
+        (its 64 x 30 s frame sees a mark 0.45 m away for 8,900 s, not 17,100 s: a box 0.13-0.21
+        m away, 24,746 s old, read at a dot SNR of 4.6-6.2 in a 32 x 30 s frame where the
+        idealised noise promised 9-12, was missed); a 12- or 16-bit camera's, whose gain makes
+        its noise span a DN, 0.8-0.85 of their number."""
+        s, n = self._sensor(k), self.stack(k)
+        idealised = (s.dark_current_e_s * s.exposure_s + s.read_noise_e**2 + 1 / (12 * s.dn_per_e**2)) / n
+        return n * idealised * s.dn_per_e**2 / self._noise_floor(k) ** 2
+
+    def _noise_floor(self, k: int) -> float:
+        """Rung ``k``'s noise floor by the camera's figures (:func:`controllers.stc.health.noise_floor_dn`),
+        with its dark frame (a median of 8, or a mean of 8n frames for a stack of n)."""
+        from controllers.stc.health import noise_floor_dn
+
+        n = self.stack(k)
+        return noise_floor_dn(self._sensor(k), n_avg=n, n_dark=8 * n)
 
     def horizon(self, k: int, rho_m: float) -> float:
         """How old (s) a mark ``rho_m`` from the robot may be and still be seen in a frame at rung ``k``."""
@@ -337,6 +364,8 @@ class RobotCamera(Exposures):
     frame taken at its exposure (so no dark frame is re-prepared between the short and the long
     frame of a decision)."""
 
+    frame_noise = True
+
     def __init__(self, board, cfg: CoverConfig, rng: np.random.Generator):
         super().__init__(cfg, board.subcell_m)
         self.board = board
@@ -415,14 +444,6 @@ class RobotCamera(Exposures):
             raise RobotStop(f"camera: a frame the pipeline cannot trust ({res.observation.untrusted})")
         self.noise_check.check(res.dots.noise_dn, self._noise_floor(k))
         return res, dt
-
-    def _noise_floor(self, k: int) -> float:
-        """Rung ``k``'s noise floor by the camera's figures (:func:`controllers.stc.health.noise_floor_dn`),
-        with its dark frame (a median of 8, or a mean of 8n frames for a stack of n)."""
-        from controllers.stc.health import noise_floor_dn
-
-        n = self.stack(k)
-        return noise_floor_dn(self._sensor(k), n_avg=n, n_dark=8 * n)
 
     def _as_short(self, short) -> dict:
         """How a long frame is read after the short one at the same pose: with the short frame's

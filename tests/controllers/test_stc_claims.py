@@ -171,3 +171,23 @@ def test_a_return_missing_box_4_is_read_again_then_stops_before_deciding():
     mended = run_cover(board, cfg, perception_hook=_blind_to_box_4(1))
     assert mended["complete"], mended["abort_reason"]
     assert mended["long_exposures"] > run_cover(board, cfg)["long_exposures"]  # the re-reads
+
+
+def test_frames_sized_by_their_own_noise_see_less_far_on_the_webcam():
+    """A stack arrives digitised once, against a dark frame digitised too: on the webcam's 8-bit
+    frames 32 x 30 s are worth ~12 frames (noise 0.52 DN by the camera's figures, measured 0.54
+    in a run; the idealised noise over sqrt(32) says 0.32), a 16-bit cooled camera's ~0.85 of
+    them. Sized so, the webcam's longest frame sees a mark 0.45 m away about half as long."""
+    from controllers.stc.frames import Exposures, IdealCamera, RobotCamera
+    from sim_camera.hardware import load_camera
+
+    web = Exposures(CoverConfig(exposure="auto"))
+    k = next(i for i, (e, _, n) in enumerate(web.ladder) if (e, n) == (30.0, 32))
+    assert web.stack_equivalent(k) == pytest.approx(12.3, abs=0.3)
+    cooled = Exposures(CoverConfig(exposure="auto", camera=load_camera("cooled")))
+    assert 0.8 < cooled.stack_equivalent(k) / cooled.stack(k) < 0.9
+    assert RobotCamera.frame_noise and not IdealCamera.frame_noise  # (the physics-limited camera stays ideal)
+    honest = Exposures(CoverConfig(exposure="auto", size_by_frame_noise=True))
+    honest.frame_noise = True
+    last = len(web.ladder) - 1
+    assert 0.45 < honest.horizon(last, 0.45) / web.horizon(last, 0.45) < 0.6
