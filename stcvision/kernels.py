@@ -13,8 +13,23 @@ import math
 
 import numba
 import numpy as np
+from llvmlite import ir
+from numba.core import cgutils, types
+from numba.extending import intrinsic
 
-__all__ = ["anchored_rows", "accept_rows", "black_out", "fill_squares", "gauss_centroids"]
+__all__ = [
+    "anchored_rows",
+    "accept_rows",
+    "black_out",
+    "fill_squares",
+    "gauss_centroids",
+    "dark_channels",
+    "window_sums_pair",
+    "unwarp_pair",
+    "separate_pair",
+    "black_out_grown",
+    "sample_values",
+]
 
 
 @numba.njit(cache=True)
@@ -320,3 +335,191 @@ def gauss_centroids(image, uv, background, half, sigma, iters):
             out[i, 1] = cv
             ok[i] = True
     return out, ok
+
+
+# --- front end ---
+# The mirror-image stages of the pipeline (dark subtraction, window sums, unwarp, channel
+# separation) as compiled passes over the green and red channels together. Indices are cast to
+# ``np.uintp`` in the inner loops: numba then drops its negative-index wraparound test and LLVM
+# vectorises the loops (measured here: a 390 x 390 row-sum pass 316 -> 22 us).
+
+_U = np.uintp
+
+
+@intrinsic
+def _fma32(typingctx, a, b, c):
+    """``a * b + c`` in float32 with one rounding (LLVM's ``llvm.fma.f32``: the hardware FMA
+    where there is one, a correctly rounded library call elsewhere)."""
+    sig = types.float32(types.float32, types.float32, types.float32)
+
+    def codegen(context, builder, signature, args):
+        f32 = ir.FloatType()
+        fn = cgutils.get_or_insert_function(builder.module, ir.FunctionType(f32, [f32, f32, f32]), "llvm.fma.f32")
+        return builder.call(fn, args)
+
+    return sig, codegen
+
+
+@numba.njit(cache=True)
+def dark_channels(frame, y0, x0, dark_g, dark_r, ped, top, hot_g, hot_r, g, r):
+    """Green and red of ``frame[y0:, x0:]`` (an (H, W, 3) BGR frame) into ``g``, ``r`` (the
+    crop's shape), dark-subtracted as ``cv2.subtract(cv2.add(c, ped), dark)`` does it
+    (saturating at ``top`` and at 0); the flat crop indices ``hot_g``, ``hot_r`` (hot pixels)
+    set to ``ped``."""
+    h, w = g.shape
+    for y in range(h):
+        row = frame[y0 + y]
+        dg = dark_g[y]
+        dr = dark_r[y]
+        gy = g[y]
+        ry = r[y]
+        for x in range(_U(w)):
+            xx = _U(x0) + x
+            vg = min(np.int32(row[xx, _U(1)]) + ped, top) - np.int32(dg[x])
+            vr = min(np.int32(row[xx, _U(2)]) + ped, top) - np.int32(dr[x])
+            gy[x] = max(vg, 0)
+            ry[x] = max(vr, 0)
+    gf = g.reshape(-1)
+    rf = r.reshape(-1)
+    for i in hot_g:
+        gf[i] = ped
+    for i in hot_r:
+        rf[i] = ped
+
+
+@numba.njit(cache=True)
+def window_sums_pair(g, r, k, tg, tr, out):
+    """Sums of ``g`` and of ``r`` over the k x k square about every pixel (``cv2.boxFilter``'s
+    anchor, zeros outside), exact, into ``out`` ((H, 2 W) float32: green and red of a pixel side
+    by side). ``tg``, ``tr``: (H, W) int32 scratch (the row sums)."""
+    h, w = g.shape
+    lo = k // 2
+    for y in range(h):
+        a = tg[y]
+        b = tr[y]
+        gy = g[y]
+        ry = r[y]
+        a[:] = 0
+        b[:] = 0
+        for d in range(k):
+            s = d - lo
+            for x in range(_U(max(0, -s)), _U(min(w, w - s))):
+                a[x] += gy[_U(x + s)]
+                b[x] += ry[_U(x + s)]
+    ag = np.empty(w, np.int32)
+    ar = np.empty(w, np.int32)
+    for y in range(h):
+        ag[:] = 0
+        ar[:] = 0
+        for yy in range(max(y - lo, 0), min(y - lo + k, h)):
+            a = tg[yy]
+            b = tr[yy]
+            for x in range(_U(w)):
+                ag[x] += a[x]
+                ar[x] += b[x]
+        o = out[y]
+        for x in range(_U(w)):
+            o[_U(2) * x] = np.float32(ag[x])
+            o[_U(2) * x + _U(1)] = np.float32(ar[x])
+
+
+@numba.njit(cache=True)
+def unwarp_pair(sums, w, h, base, alpha, beta, dst, border, border_xy, rnd, out_g, out_r):
+    """Bilinear remap of the pair image ``sums`` (flat float32, green and red side by side, rows
+    of ``w`` pixels) as ``cv2.remap`` (float maps, ``INTER_LINEAR``, ``BORDER_CONSTANT`` 0)
+    computes it here: ``v0 = fma(a, p01 - p00, p00)``, ``v1`` likewise a row down,
+    ``fma(b, v1 - v0, v0)`` in float32, rounded half to even for integer outputs (``rnd``).
+
+    Entry i (an interior pixel: all four source pixels inside) reads at flat pixel ``base[i]``
+    with weights ``alpha[i]``, ``beta[i]`` and writes output pixel ``dst[i]``; the ``border``
+    outputs read ``border_xy`` (their float map coordinates) with zeros outside the image."""
+    zero = np.float32(0.0)
+    top = np.float32(65535.0)
+    row = _U(2 * w)
+    for i in range(_U(len(base))):
+        o = _U(2) * _U(base[i])
+        ow = o + row
+        aa = alpha[i]
+        bb = beta[i]
+        v0 = _fma32(aa, sums[o + _U(2)] - sums[o], sums[o])
+        v1 = _fma32(aa, sums[ow + _U(2)] - sums[ow], sums[ow])
+        vg = _fma32(bb, v1 - v0, v0)
+        v0 = _fma32(aa, sums[o + _U(3)] - sums[o + _U(1)], sums[o + _U(1)])
+        v1 = _fma32(aa, sums[ow + _U(3)] - sums[ow + _U(1)], sums[ow + _U(1)])
+        vr = _fma32(bb, v1 - v0, v0)
+        j = _U(dst[i])
+        if rnd:
+            vg = min(max(np.rint(vg), zero), top)
+            vr = min(max(np.rint(vr), zero), top)
+        out_g[j] = vg
+        out_r[j] = vr
+    for i in range(len(border)):
+        mx = border_xy[i, 0]
+        my = border_xy[i, 1]
+        x = int(math.floor(mx))
+        y = int(math.floor(my))
+        aa = mx - np.float32(x)
+        bb = my - np.float32(y)
+        for c in range(2):
+            p = np.zeros(4, np.float32)
+            for k in range(4):
+                xx = x + (k & 1)
+                yy = y + (k >> 1)
+                if 0 <= xx < w and 0 <= yy < h:
+                    p[k] = sums[2 * (yy * w + xx) + c]
+            v0 = _fma32(aa, p[1] - p[0], p[0])
+            v1 = _fma32(aa, p[3] - p[2], p[2])
+            v = _fma32(bb, v1 - v0, v0)
+            if rnd:
+                v = min(max(np.rint(v), zero), top)
+            if c == 0:
+                out_g[border[i]] = v
+            else:
+                out_r[border[i]] = v
+
+
+@numba.njit(cache=True)
+def separate_pair(g, r, thr, tol, top, leak, leak_only, obstacle, marks, red_px):
+    """The red/green separation of :func:`stcvision.stages.separate_channels` (the rule is
+    documented there) in one pass over the flat ground-view green ``g`` and red ``r``, as
+    OpenCV's saturating arithmetic computes it: red-dominated where ``min(r + tol, top) >= g``;
+    a light pixel where also ``r > thr`` (``obstacle`` keeps its red, else 0); ``marks`` is
+    ``g``, and the pixels to black out of it (red-dominated with ``r > leak``, and the light
+    pixels unless ``leak_only``) go to ``red_px`` (scratch of len(g)). Returns their count;
+    :func:`black_out_grown` grows and applies the black-out."""
+    n = 0
+    for i in range(len(g)):
+        gv = g[i]
+        rv = r[i]
+        dom = min(np.float32(rv) + tol, top) >= gv
+        light = dom and np.float64(rv) > thr
+        obstacle[i] = rv if light else 0
+        marks[i] = gv
+        if dom and (np.float64(rv) > leak or (light and not leak_only)):
+            red_px[n] = i
+            n += 1
+    return n
+
+
+@numba.njit(cache=True)
+def black_out_grown(marks, width, red_px, n, stamp):
+    """Zero ``marks`` (flat, rows of ``width``) at every (dy, dx) of ``stamp`` around each of
+    the first ``n`` flat pixels ``red_px`` (a dilation of those pixels, clipped at the edges)."""
+    h = len(marks) // width
+    for k in range(n):
+        y, x = divmod(red_px[k], width)
+        for j in range(len(stamp)):
+            yy = y + stamp[j, 0]
+            xx = x + stamp[j, 1]
+            if 0 <= yy < h and 0 <= xx < width:
+                marks[yy * width + xx] = 0
+
+
+@numba.njit(cache=True)
+def sample_values(flat, idx, dark, hot, ped, top, out):
+    """``flat[idx]`` dark-subtracted as :func:`dark_channels` does it, ``ped`` where ``hot``."""
+    for i in range(len(idx)):
+        if hot[i]:
+            out[i] = ped
+        else:
+            out[i] = max(min(np.int64(flat[idx[i]]) + ped, top) - np.int64(dark[i]), 0)

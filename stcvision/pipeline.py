@@ -20,10 +20,12 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 import cv2
 import numpy as np
 
+from stcvision import kernels
 from stcvision.observation import CellGeometry, CellObservation, ObservationParams, observe_cell
 from stcvision.profile import Profile
 from stcvision.stages import (
@@ -32,13 +34,14 @@ from stcvision.stages import (
     Dots,
     HeadingFit,
     HeadingParams,
+    PairRemap,
     RedLights,
     RedParams,
     RowParams,
     UnwarpMap,
+    background_of_values,
     check_dark_dtype,
     check_frame,
-    estimate_background,
     find_dots,
     find_red,
     find_rows,
@@ -49,7 +52,6 @@ from stcvision.stages import (
     noise_gain,
     quantum_dn,
     robust_sigma,
-    separate_channels,
     subtract_dark,
     unwarp,
     window_sums,
@@ -185,6 +187,20 @@ class PipelineResult:
         return out
 
 
+class _Front(NamedTuple):
+    """What the front end (:meth:`Pipeline._front`) gives the later stages."""
+
+    green: np.ndarray
+    red: np.ndarray
+    obstacle: np.ndarray
+    marks: np.ndarray
+    bg: float
+    noise: float
+    quantum: int
+    red_levels: tuple[float, float]
+    leak: float
+
+
 class Pipeline:
     """Build once per profile, then ``process`` frames.
 
@@ -210,10 +226,6 @@ class Pipeline:
         inside = np.hypot(uu - profile.center_px[0], vv - profile.center_px[1]) < 0.95 * profile.rim_radius_px
         self._sample = (vv[inside] * w + uu[inside]).ravel()
         self._sample3 = {ch: self._sample * 3 + ch for ch in (1, 2)}  # into a flat BGR frame
-        self.dark = None
-        self.pedestal = 0
-        self.quantum = 1
-        self.dark_sigma = 0.0
         # the wide, coarse ground view for far red-light landmarks (pose estimates only)
         self.wide = None
         if self.params.observation.pose_estimates and self.params.observation.landmark_range_m > 0:
@@ -226,6 +238,21 @@ class Pipeline:
         self._crop = (0, 0, w, h) if self.wide is not None else self.umap.reach_px()
         x0, y0, x1, y1 = self._crop
         self._umap_crop = self.umap.cropped(x0, y0, x1, y1)
+        # the front end's compiled passes: gather tables and scratch images, built once (the
+        # images a result holds are allocated per frame)
+        self._pair = PairRemap.from_map(self._umap_crop)
+        self._wide_pair = PairRemap.from_map(self.wide) if self.wide is not None else None
+        ch, cw = y1 - y0, x1 - x0
+        self._rows = (np.empty((ch, cw), np.int32), np.empty((ch, cw), np.int32))
+        self._sums = np.empty((ch, 2 * cw), np.float32)
+        self._ground = {}  # (shape, dtype) -> (green, red) ground-view scratch
+        self._red_px = np.empty(max(self.umap.map_x.size, 0 if self.wide is None else self.wide.map_x.size), np.int64)
+        k = 2 * self.params.channels.red_margin_px + 1
+        se = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (k, k))
+        # cv2.dilate's element, reflected: the pixels a red pixel blacks out around it
+        self._stamp = np.ascontiguousarray(np.argwhere(se[::-1, ::-1] > 0) - k // 2, np.int64)
+        self._sample_buf: dict = {}
+        self._no_dark()
         if dark is not None:
             self.set_dark(dark)
 
@@ -238,15 +265,26 @@ class Pipeline:
         x0, y0, x1, y1 = self._crop
         return image[y0:y1, x0:x1]
 
-    def _sample_values(self, frame: np.ndarray, ch: int) -> np.ndarray:
-        """Channel ``ch`` of ``frame`` at the background sample, dark-subtracted as
-        :meth:`_channel` does it (saturating, pedestal, hot pixels at the pedestal)."""
-        v = frame.reshape(-1)[self._sample3[ch]]
-        if self.dark is None:
-            return v
-        out = cv2.subtract(cv2.add(v, self.pedestal), self._dark_sample[ch - 1]).reshape(-1)
-        out[self._hot_sample[ch - 1]] = self.pedestal
-        return out
+    def _no_dark(self) -> None:
+        """No dark frame: the front end's subtraction is then of zeros, without pedestal."""
+        self.dark = None
+        self.pedestal = 0
+        self.quantum = 1
+        self.dark_sigma = 0.0
+        self._dark_planes = {}  # dtype -> zero planes, made on first use
+        self._hot = (np.zeros(0, np.int64), np.zeros(0, np.int64))
+        self._hot_sample = [np.zeros(len(self._sample), bool)] * 2
+
+    def _planes(self, dtype) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """(dark green crop, dark red crop, dark green sample, dark red sample) for frames of
+        ``dtype``: the dark frame's, or zeros without one."""
+        dtype = np.dtype(dtype)
+        if dtype not in self._dark_planes:
+            x0, y0, x1, y1 = self._crop
+            z = np.zeros((y1 - y0, x1 - x0), dtype)
+            zs = np.zeros(len(self._sample), dtype)
+            self._dark_planes[dtype] = (z, z, zs, zs)
+        return self._dark_planes[dtype]
 
     def set_dark(self, dark: np.ndarray) -> None:
         """Use ``dark`` (H, W, 3) uint8 or uint16 from now on: split it once, map its hot pixels
@@ -262,8 +300,8 @@ class Pipeline:
         self.pedestal = int(max(p.pedestal_steps, math.ceil(p.pedestal_k_sigma * spread / q - 1e-9)) * q)
         self.dark = dark
         crop = self._crop_view(dark)
-        self._dark_g = cv2.extractChannel(crop, 1)
-        self._dark_r = cv2.extractChannel(crop, 2)
+        samples = [np.ascontiguousarray(dark.reshape(-1)[self._sample3[ch]]) for ch in (1, 2)]
+        self._dark_planes = {dark.dtype: (cv2.extractChannel(crop, 1), cv2.extractChannel(crop, 2), *samples)}
         hot = hot_pixels(dark, quantum=q)
         x0, y0, x1, y1 = self._crop
         w = dark.shape[1]
@@ -272,21 +310,92 @@ class Pipeline:
             px = hot[hot % 3 == ch] // 3  # flat indices into one full channel
             yy, xx = px // w, px % w
             keep = (xx >= x0) & (xx < x1) & (yy >= y0) & (yy < y1)
-            hot_in.append((yy[keep] - y0) * (x1 - x0) + (xx[keep] - x0))  # into the crop
-        self._hot_g, self._hot_r = hot_in
-        self._dark_sample = [dark.reshape(-1)[self._sample3[ch]] for ch in (1, 2)]
-        hot_set = set(hot.tolist())
-        self._hot_sample = [np.array([(i * 3 + ch) in hot_set for i in self._sample.tolist()], bool) for ch in (1, 2)]
+            hot_in.append(((yy[keep] - y0) * (x1 - x0) + (xx[keep] - x0)).astype(np.int64))  # into the crop
+        self._hot = tuple(hot_in)
+        self._hot_sample = [np.isin(self._sample3[ch], hot) for ch in (1, 2)]
 
-    def _channel(self, frame: np.ndarray, ch: int) -> np.ndarray:
-        """Channel ``ch`` of the crop of ``frame`` the view reads, dark-subtracted."""
-        c = cv2.extractChannel(self._crop_view(frame), ch)
-        if self.dark is None:
-            return c
-        ped = self.pedestal
-        c = cv2.subtract(cv2.add(c, ped), self._dark_g if ch == 1 else self._dark_r)
-        c.reshape(-1)[self._hot_g if ch == 1 else self._hot_r] = ped  # defect-pixel map
-        return c
+    def _background(self, frame: np.ndarray) -> tuple[float, float, float, float, int]:
+        """(green background, green noise, red background, red noise, quantisation step) of
+        ``frame``, measured on raw pixels inside the rim (:attr:`_sample`), dark-subtracted as
+        the mirror image is; the noise never below the rounding noise of one step."""
+        flat = frame.reshape(-1)
+        buf = self._sample_buf.get(frame.dtype)
+        if buf is None:
+            buf = self._sample_buf[frame.dtype] = np.empty((2, len(self._sample)), frame.dtype)
+        dark_s = self._planes(frame.dtype)[2:]
+        top = np.iinfo(frame.dtype).max
+        for k, ch in enumerate((1, 2)):
+            kernels.sample_values(flat, self._sample3[ch], dark_s[k], self._hot_sample[k], self.pedestal, top, buf[k])
+        q = self.quantum if self.dark is not None else quantum_dn(buf[0])
+        floor = noise_floor(q)
+        bg, noise = background_of_values(buf[0], q)
+        bg_r, noise_r = background_of_values(buf[1], q)
+        return bg, max(noise, floor), bg_r, max(noise_r, floor), q
+
+    def _ground_scratch(self, shape: tuple[int, int], dtype) -> tuple[np.ndarray, np.ndarray]:
+        key = (shape, np.dtype(dtype))
+        if key not in self._ground:
+            self._ground[key] = (np.empty(shape[0] * shape[1], dtype), np.empty(shape[0] * shape[1], dtype))
+        return self._ground[key]
+
+    def _unwarp_pair(self, table: PairRemap, sum_dtype) -> tuple[np.ndarray, np.ndarray]:
+        """Ground views (flat) of the green and red window sums in :attr:`_sums` (scratch,
+        valid until the next call with the same table shape)."""
+        gg, rr = self._ground_scratch(table.shape, sum_dtype)
+        w, h = table.image_size_px
+        kernels.unwarp_pair(
+            self._sums.reshape(-1), w, h, table.base, table.alpha, table.beta, table.dst,
+            table.border, table.border_xy, sum_dtype == np.uint16, gg, rr,
+        )  # fmt: skip
+        return gg, rr
+
+    def _separate(self, gg, rr, shape, leak: float, red_levels: tuple[float, float]) -> tuple[np.ndarray, np.ndarray]:
+        """(obstacle, marks) of the flat ground views ``gg``, ``rr``: the rule and the
+        arithmetic of :func:`~stcvision.stages.separate_channels`, compiled (new arrays)."""
+        area = self.params.dots.window_px**2
+        thr, tol = self.params.channels.levels(*red_levels)
+        thr_a, tol_a = float(thr * area), float(tol * area)
+        if gg.dtype == np.uint16:  # OpenCV: the added scalar rounded, comparisons exact
+            tol32, top = np.float32(np.rint(tol_a)), np.float32(65535)
+        else:  # float images: the scalars rounded to float32, no saturation
+            tol32, top = np.float32(tol_a), np.float32(np.inf)
+            thr_a, leak = float(np.float32(thr_a)), float(np.float32(leak))
+        obstacle = np.empty(shape, gg.dtype)
+        marks = np.empty(shape, gg.dtype)
+        n = kernels.separate_pair(
+            gg, rr, thr_a, tol32, top, leak, leak <= thr_a, obstacle.reshape(-1), marks.reshape(-1), self._red_px
+        )
+        if n and self.params.channels.red_margin_px > 0:
+            kernels.black_out_grown(marks.reshape(-1), shape[1], self._red_px, n, self._stamp)
+        elif n:
+            marks.reshape(-1)[self._red_px[:n]] = 0
+        return obstacle, marks
+
+    def _front(self, frame: np.ndarray, clock, t: list) -> _Front:
+        """The mirror-image stages and the channel separation (dark, window, unwarp, channels;
+        their end times appended to ``t``): compiled passes over green and red together."""
+        p = self.params
+        w = p.dots.window_px
+        x0, y0, x1, y1 = self._crop
+        dg, dr = self._planes(frame.dtype)[:2]
+        g = np.empty((y1 - y0, x1 - x0), frame.dtype)  # the result holds these: new each frame
+        r = np.empty_like(g)
+        top = np.iinfo(frame.dtype).max
+        kernels.dark_channels(frame, y0, x0, dg, dr, self.pedestal, top, self._hot[0], self._hot[1], g, r)
+        t.append(clock())
+        kernels.window_sums_pair(g, r, w, self._rows[0], self._rows[1], self._sums)
+        t.append(clock())
+        sum_dtype = np.uint16 if frame.dtype == np.uint8 else np.float32
+        gg, rr = self._unwarp_pair(self._pair, sum_dtype)
+        t.append(clock())
+        bg, noise, bg_r, noise_r, q = self._background(frame)
+        # a red light's level: above the pedestal by the dark frame's spread (a fixed rule per
+        # dark frame), or without one above the frame's own red background by its noise
+        red_levels = (self.pedestal, max(self.dark_sigma, noise_floor(q))) if self.dark is not None else (bg_r, noise_r)
+        leak = w * w * bg_r + p.channels.leak_k_sigma * noise_r * w
+        obstacle, marks = self._separate(gg, rr, self._pair.shape, leak, red_levels)
+        t.append(clock())
+        return _Front(g, r, obstacle, marks, bg, noise, q, red_levels, leak)
 
     def process(
         self,
@@ -303,41 +412,23 @@ class Pipeline:
         fit -- e.g. the fit of a short frame taken at the same pose, for a long one in which
         every recent row saturates (the newest row is then no longer the brightest).
         ``position_offset``: read the cell with the robot this far off its sub-cell centre
-        (:func:`stcvision.observation.observe_cell`) instead of where this frame's marks say."""
+        (:func:`stcvision.observation.observe_cell`) instead of where this frame's marks say.
+
+        Not re-entrant: one ``Pipeline`` per thread (the front end's scratch images are its own)."""
         check_frame(frame)
         self.profile.check_frame(frame.shape)
         if dark is not None and dark is not self.dark:
             self.set_dark(dark)
         if self.dark is not None:
             check_dark_dtype(self.dark, frame.dtype)
+        frame = np.ascontiguousarray(frame)
         p = self.params
         w = p.dots.window_px
         area = w * w
         clock = time.perf_counter_ns
         t = [clock()]
-        g = self._channel(frame, 1)  # only green and red carry marks and lights
-        r = self._channel(frame, 2)
-        t.append(clock())
-        gs, rs = window_sums(g, w), window_sums(r, w)
-        t.append(clock())
-        G, R = unwarp(gs, self._umap_crop), unwarp(rs, self._umap_crop)
-        t.append(clock())
-        # background and noise, measured on raw pixels inside the rim, never below the
-        # rounding noise of one quantisation step
-        sg, sr = self._sample_values(frame, 1), self._sample_values(frame, 2)
-        q = self.quantum if self.dark is not None else quantum_dn(sg)
-        floor = noise_floor(q)
-        bg, noise = estimate_background(sg, slice(None), q)
-        bg_r, noise_r = estimate_background(sr, slice(None), q)
-        noise, noise_r = max(noise, floor), max(noise_r, floor)
-        # a red light's level: above the pedestal by the dark frame's spread (a fixed rule per
-        # dark frame), or without one above the frame's own red background by its noise
-        red_levels = (self.pedestal, max(self.dark_sigma, floor)) if self.dark is not None else (bg_r, noise_r)
-        leak = area * bg_r + p.channels.leak_k_sigma * noise_r * w
-        obstacle, marks = separate_channels(
-            G, R, p.channels, window_area=area, leak_threshold=leak, background_dn=red_levels[0], noise_dn=red_levels[1]
-        )
-        t.append(clock())
+        f = self._front(frame, clock, t)
+        g, r, obstacle, marks, bg, noise, q = f.green, f.red, f.obstacle, f.marks, f.bg, f.noise, f.quantum
         dots = find_dots(
             marks,
             p.dots,
@@ -375,7 +466,7 @@ class Pipeline:
         t.append(clock())
         heading = fit_heading(dots, p.heading)
         t.append(clock())
-        landmark_px = self._far_lights(gs, rs, r, leak, red_levels, frame) if self.wide is not None else None
+        landmark_px = self._far_lights(r, f.leak, f.red_levels, frame) if self.wide is not None else None
         herr = heading.heading_error_rad if (heading.ok and p.use_heading) else 0.0
         if heading_error_rad is not None:
             herr = float(heading_error_rad)
@@ -384,7 +475,7 @@ class Pipeline:
             red.xy_px,
             red.peak_dn,
             self.geometry,
-            red_threshold_dn=p.channels.levels(*red_levels)[0],
+            red_threshold_dn=p.channels.levels(*f.red_levels)[0],
             heading_error_rad=herr,
             params=p.observation,
             landmark_px=landmark_px,
@@ -415,30 +506,17 @@ class Pipeline:
         return out
 
     def _far_lights(
-        self,
-        gs: np.ndarray,
-        rs: np.ndarray,
-        red: np.ndarray,
-        leak: float,
-        red_levels: tuple[float, float],
-        frame: np.ndarray,
+        self, red: np.ndarray, leak: float, red_levels: tuple[float, float], frame: np.ndarray
     ) -> np.ndarray:
         """Red lights out to ``landmark_range_m`` for the landmark fit, as ground-view pixels of
-        the main view (beyond its edges too): found in the wide, coarse view of the window sums
-        ``gs``, ``rs`` and refined on the dark-subtracted red channel ``red`` (``red_levels``:
-        its background and noise)."""
+        the main view (beyond its edges too): found in the wide, coarse view of this frame's
+        window sums (:attr:`_sums`) and refined on the dark-subtracted red channel ``red``
+        (``red_levels``: its background and noise)."""
         p = self.params
         area = p.dots.window_px**2
-        bg_r, noise_r = red_levels
-        obst, _ = separate_channels(
-            unwarp(gs, self.wide),
-            unwarp(rs, self.wide),
-            p.channels,
-            window_area=area,
-            leak_threshold=leak,
-            background_dn=bg_r,
-            noise_dn=noise_r,
-        )
+        sum_dtype = np.uint16 if frame.dtype == np.uint8 else np.float32
+        gg, rr = self._unwarp_pair(self._wide_pair, sum_dtype)
+        obst, _ = self._separate(gg, rr, self._wide_pair.shape, leak, red_levels)
         far = find_red(obst, p.red, window_area=area)
         xy_m = self._refine_lights(red, self._wide_profile.ground_to_robot(far.xy_px)) if len(far) else np.zeros((0, 2))
         if p.white_blue_ratio is not None and len(xy_m):
