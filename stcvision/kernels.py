@@ -23,12 +23,10 @@ __all__ = [
     "black_out",
     "fill_squares",
     "gauss_centroids",
-    "dark_channels",
-    "window_sums_pair",
     "unwarp_pair",
     "separate_pair",
-    "black_out_grown",
-    "sample_values",
+    "zero_where",
+    "sample_quartiles",
 ]
 
 
@@ -338,12 +336,14 @@ def gauss_centroids(image, uv, background, half, sigma, iters):
 
 
 # --- front end ---
-# The mirror-image stages of the pipeline (dark subtraction, window sums, unwarp, channel
-# separation) as compiled passes over the green and red channels together. Indices are cast to
+# The pipeline's front end where a compiled pass beats OpenCV's calls (issue 18): the unwarp of
+# green and red in one pass, the channel separation, the background sample. (Dark subtraction
+# and window sums stay OpenCV's: compiled versions measured slower here.) Indices are cast to
 # ``np.uintp`` in the inner loops: numba then drops its negative-index wraparound test and LLVM
-# vectorises the loops (measured here: a 390 x 390 row-sum pass 316 -> 22 us).
+# can vectorise them (measured here: a 390 x 390 row-sum pass 316 -> 22 us).
 
 _U = np.uintp
+_f32 = np.float32
 
 
 @intrinsic
@@ -361,98 +361,49 @@ def _fma32(typingctx, a, b, c):
 
 
 @numba.njit(cache=True)
-def dark_channels(frame, y0, x0, dark_g, dark_r, ped, top, hot_g, hot_r, g, r):
-    """Green and red of ``frame[y0:, x0:]`` (an (H, W, 3) BGR frame) into ``g``, ``r`` (the
-    crop's shape), dark-subtracted as ``cv2.subtract(cv2.add(c, ped), dark)`` does it
-    (saturating at ``top`` and at 0); the flat crop indices ``hot_g``, ``hot_r`` (hot pixels)
-    set to ``ped``."""
-    h, w = g.shape
-    for y in range(h):
-        row = frame[y0 + y]
-        dg = dark_g[y]
-        dr = dark_r[y]
-        gy = g[y]
-        ry = r[y]
-        for x in range(_U(w)):
-            xx = _U(x0) + x
-            vg = min(np.int32(row[xx, _U(1)]) + ped, top) - np.int32(dg[x])
-            vr = min(np.int32(row[xx, _U(2)]) + ped, top) - np.int32(dr[x])
-            gy[x] = max(vg, 0)
-            ry[x] = max(vr, 0)
-    gf = g.reshape(-1)
-    rf = r.reshape(-1)
-    for i in hot_g:
-        gf[i] = ped
-    for i in hot_r:
-        rf[i] = ped
+def unwarp_pair(gs, rs, w, h, base, alpha, beta, border, border_xy, rnd, out_g, out_r, scratch):
+    """Bilinear remap of two images at once, ``gs`` and ``rs`` (flat uint16 or float32, ``h``
+    rows of ``w`` pixels), as ``cv2.remap`` (float maps, ``INTER_LINEAR``, ``BORDER_CONSTANT``
+    0) computes it on this machine: ``v0 = fma(a, p01 - p00, p00)``, ``v1`` likewise a row
+    down, ``fma(b, v1 - v0, v0)`` in float32, rounded half to even and saturated for integer
+    outputs (``rnd``).
 
-
-@numba.njit(cache=True)
-def window_sums_pair(g, r, k, tg, tr, out):
-    """Sums of ``g`` and of ``r`` over the k x k square about every pixel (``cv2.boxFilter``'s
-    anchor, zeros outside), exact, into ``out`` ((H, 2 W) float32: green and red of a pixel side
-    by side). ``tg``, ``tr``: (H, W) int32 scratch (the row sums)."""
-    h, w = g.shape
-    lo = k // 2
-    for y in range(h):
-        a = tg[y]
-        b = tr[y]
-        gy = g[y]
-        ry = r[y]
-        a[:] = 0
-        b[:] = 0
-        for d in range(k):
-            s = d - lo
-            for x in range(_U(max(0, -s)), _U(min(w, w - s))):
-                a[x] += gy[_U(x + s)]
-                b[x] += ry[_U(x + s)]
-    ag = np.empty(w, np.int32)
-    ar = np.empty(w, np.int32)
-    for y in range(h):
-        ag[:] = 0
-        ar[:] = 0
-        for yy in range(max(y - lo, 0), min(y - lo + k, h)):
-            a = tg[yy]
-            b = tr[yy]
-            for x in range(_U(w)):
-                ag[x] += a[x]
-                ar[x] += b[x]
-        o = out[y]
-        for x in range(_U(w)):
-            o[_U(2) * x] = np.float32(ag[x])
-            o[_U(2) * x + _U(1)] = np.float32(ar[x])
-
-
-@numba.njit(cache=True)
-def unwarp_pair(sums, w, h, base, alpha, beta, dst, border, border_xy, rnd, out_g, out_r):
-    """Bilinear remap of the pair image ``sums`` (flat float32, green and red side by side, rows
-    of ``w`` pixels) as ``cv2.remap`` (float maps, ``INTER_LINEAR``, ``BORDER_CONSTANT`` 0)
-    computes it here: ``v0 = fma(a, p01 - p00, p00)``, ``v1`` likewise a row down,
-    ``fma(b, v1 - v0, v0)`` in float32, rounded half to even for integer outputs (``rnd``).
-
-    Entry i (an interior pixel: all four source pixels inside) reads at flat pixel ``base[i]``
-    with weights ``alpha[i]``, ``beta[i]`` and writes output pixel ``dst[i]``; the ``border``
-    outputs read ``border_xy`` (their float map coordinates) with zeros outside the image."""
+    Output pixel i reads the four source pixels from flat index ``base[i]`` with weights
+    ``alpha[i]``, ``beta[i]``; the ``border`` pixels (some source pixel outside the image) are
+    redone from their map coordinates ``border_xy`` with zeros outside. Block by block: the
+    gathers into ``scratch`` ((8, N), the images' dtype), then the arithmetic over contiguous
+    arrays, which LLVM vectorises."""
+    n = len(base)
+    nb = scratch.shape[1]
+    row = _U(w)
     zero = np.float32(0.0)
     top = np.float32(65535.0)
-    row = _U(2 * w)
-    for i in range(_U(len(base))):
-        o = _U(2) * _U(base[i])
-        ow = o + row
-        aa = alpha[i]
-        bb = beta[i]
-        v0 = _fma32(aa, sums[o + _U(2)] - sums[o], sums[o])
-        v1 = _fma32(aa, sums[ow + _U(2)] - sums[ow], sums[ow])
-        vg = _fma32(bb, v1 - v0, v0)
-        v0 = _fma32(aa, sums[o + _U(3)] - sums[o + _U(1)], sums[o + _U(1)])
-        v1 = _fma32(aa, sums[ow + _U(3)] - sums[ow + _U(1)], sums[ow + _U(1)])
-        vr = _fma32(bb, v1 - v0, v0)
-        j = _U(dst[i])
-        if rnd:
-            vg = min(max(np.rint(vg), zero), top)
-            vr = min(max(np.rint(vr), zero), top)
-        out_g[j] = vg
-        out_r[j] = vr
+    s0, s1, s2, s3 = scratch[0], scratch[1], scratch[2], scratch[3]
+    s4, s5, s6, s7 = scratch[4], scratch[5], scratch[6], scratch[7]
+    for start in range(0, n, nb):
+        m = _U(min(nb, n - start))
+        st = _U(start)
+        for i in range(m):
+            o = _U(base[st + i])
+            s0[i] = gs[o]
+            s1[i] = gs[o + _U(1)]
+            s2[i] = gs[o + row]
+            s3[i] = gs[o + row + _U(1)]
+            s4[i] = rs[o]
+            s5[i] = rs[o + _U(1)]
+            s6[i] = rs[o + row]
+            s7[i] = rs[o + row + _U(1)]
+        for i in range(m):
+            j = st + i
+            aa = alpha[j]
+            bb = beta[j]
+            p00, p01, p10, p11 = _f32(s0[i]), _f32(s1[i]), _f32(s2[i]), _f32(s3[i])
+            v = _fma32(bb, _fma32(aa, p11 - p10, p10) - _fma32(aa, p01 - p00, p00), _fma32(aa, p01 - p00, p00))
+            out_g[j] = min(max(np.rint(v), zero), top) if rnd else v
+            p00, p01, p10, p11 = _f32(s4[i]), _f32(s5[i]), _f32(s6[i]), _f32(s7[i])
+            v = _fma32(bb, _fma32(aa, p11 - p10, p10) - _fma32(aa, p01 - p00, p00), _fma32(aa, p01 - p00, p00))
+            out_r[j] = min(max(np.rint(v), zero), top) if rnd else v
+    p = np.zeros(4, np.float32)
     for i in range(len(border)):
         mx = border_xy[i, 0]
         my = border_xy[i, 1]
@@ -461,15 +412,13 @@ def unwarp_pair(sums, w, h, base, alpha, beta, dst, border, border_xy, rnd, out_
         aa = mx - np.float32(x)
         bb = my - np.float32(y)
         for c in range(2):
-            p = np.zeros(4, np.float32)
+            src = gs if c == 0 else rs
             for k in range(4):
                 xx = x + (k & 1)
                 yy = y + (k >> 1)
-                if 0 <= xx < w and 0 <= yy < h:
-                    p[k] = sums[2 * (yy * w + xx) + c]
+                p[k] = _f32(src[yy * w + xx]) if (0 <= xx < w and 0 <= yy < h) else zero
             v0 = _fma32(aa, p[1] - p[0], p[0])
-            v1 = _fma32(aa, p[3] - p[2], p[2])
-            v = _fma32(bb, v1 - v0, v0)
+            v = _fma32(bb, _fma32(aa, p[3] - p[2], p[2]) - v0, v0)
             if rnd:
                 v = min(max(np.rint(v), zero), top)
             if c == 0:
@@ -479,47 +428,45 @@ def unwarp_pair(sums, w, h, base, alpha, beta, dst, border, border_xy, rnd, out_
 
 
 @numba.njit(cache=True)
-def separate_pair(g, r, thr, tol, top, leak, leak_only, obstacle, marks, red_px):
+def separate_pair(g, r, thr, tol, top, leak, leak_only, obstacle, marks, black):
     """The red/green separation of :func:`stcvision.stages.separate_channels` (the rule is
     documented there) in one pass over the flat ground-view green ``g`` and red ``r``, as
     OpenCV's saturating arithmetic computes it: red-dominated where ``min(r + tol, top) >= g``;
     a light pixel where also ``r > thr`` (``obstacle`` keeps its red, else 0); ``marks`` is
-    ``g``, and the pixels to black out of it (red-dominated with ``r > leak``, and the light
-    pixels unless ``leak_only``) go to ``red_px`` (scratch of len(g)). Returns their count;
-    :func:`black_out_grown` grows and applies the black-out."""
+    ``g``; ``black`` (uint8) 1 where the marks are to be blacked out before the margin grows it
+    (red-dominated with ``r > leak``, and the light pixels unless ``leak_only``). Returns the
+    number of those."""
     n = 0
-    for i in range(len(g)):
+    for i in range(_U(len(g))):
         gv = g[i]
         rv = r[i]
         dom = min(np.float32(rv) + tol, top) >= gv
         light = dom and np.float64(rv) > thr
         obstacle[i] = rv if light else 0
         marks[i] = gv
-        if dom and (np.float64(rv) > leak or (light and not leak_only)):
-            red_px[n] = i
-            n += 1
+        b = (dom and np.float64(rv) > leak) or (light and not leak_only)
+        black[i] = b
+        n += b
     return n
 
 
 @numba.njit(cache=True)
-def black_out_grown(marks, width, red_px, n, stamp):
-    """Zero ``marks`` (flat, rows of ``width``) at every (dy, dx) of ``stamp`` around each of
-    the first ``n`` flat pixels ``red_px`` (a dilation of those pixels, clipped at the edges)."""
-    h = len(marks) // width
-    for k in range(n):
-        y, x = divmod(red_px[k], width)
-        for j in range(len(stamp)):
-            yy = y + stamp[j, 0]
-            xx = x + stamp[j, 1]
-            if 0 <= yy < h and 0 <= xx < width:
-                marks[yy * width + xx] = 0
+def zero_where(img, mask):
+    """``img[mask != 0] = 0`` (flat arrays)."""
+    for i in range(_U(len(img))):
+        if mask[i]:
+            img[i] = 0
 
 
 @numba.njit(cache=True)
-def sample_values(flat, idx, dark, hot, ped, top, out):
-    """``flat[idx]`` dark-subtracted as :func:`dark_channels` does it, ``ped`` where ``hot``."""
+def sample_quartiles(flat, idx, dark, hot, ped, top, quantum, whole_u8, out):
+    """Quartiles (:func:`histogram_quartiles`) of ``flat[idx]`` dark-subtracted as the pipeline
+    subtracts it (``max(min(v + ped, top) - dark, 0)``, ``ped`` where ``hot``), the values left
+    in ``out``; ``whole_u8``: 8-bit values in steps of 1 (a histogram of all 256 values, else
+    of the occupied range), as :func:`stcvision.stages.background_of_values` chooses."""
     for i in range(len(idx)):
-        if hot[i]:
-            out[i] = ped
-        else:
-            out[i] = max(min(np.int64(flat[idx[i]]) + ped, top) - np.int64(dark[i]), 0)
+        out[i] = ped if hot[i] else max(min(np.int64(flat[idx[i]]) + ped, top) - np.int64(dark[i]), 0)
+    if whole_u8:
+        return histogram_quartiles(out, 0, 1, 256)
+    lo = np.int64(out.min())
+    return histogram_quartiles(out, lo, quantum, (np.int64(out.max()) - lo) // quantum + 1)

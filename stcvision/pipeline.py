@@ -39,7 +39,6 @@ from stcvision.stages import (
     RedParams,
     RowParams,
     UnwarpMap,
-    background_of_values,
     check_dark_dtype,
     check_frame,
     find_dots,
@@ -192,6 +191,8 @@ class _Front(NamedTuple):
 
     green: np.ndarray
     red: np.ndarray
+    green_sums: np.ndarray
+    red_sums: np.ndarray
     obstacle: np.ndarray
     marks: np.ndarray
     bg: float
@@ -242,16 +243,9 @@ class Pipeline:
         # images a result holds are allocated per frame)
         self._pair = PairRemap.from_map(self._umap_crop)
         self._wide_pair = PairRemap.from_map(self.wide) if self.wide is not None else None
-        ch, cw = y1 - y0, x1 - x0
-        self._rows = (np.empty((ch, cw), np.int32), np.empty((ch, cw), np.int32))
-        self._sums = np.empty((ch, 2 * cw), np.float32)
-        self._ground = {}  # (shape, dtype) -> (green, red) ground-view scratch
-        self._red_px = np.empty(max(self.umap.map_x.size, 0 if self.wide is None else self.wide.map_x.size), np.int64)
+        self._scratch = {}  # (purpose, shape, dtype) -> scratch arrays, made on first use
         k = 2 * self.params.channels.red_margin_px + 1
-        se = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (k, k))
-        # cv2.dilate's element, reflected: the pixels a red pixel blacks out around it
-        self._stamp = np.ascontiguousarray(np.argwhere(se[::-1, ::-1] > 0) - k // 2, np.int64)
-        self._sample_buf: dict = {}
+        self._margin = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (k, k)) if k > 1 else None
         self._no_dark()
         if dark is not None:
             self.set_dark(dark)
@@ -266,25 +260,22 @@ class Pipeline:
         return image[y0:y1, x0:x1]
 
     def _no_dark(self) -> None:
-        """No dark frame: the front end's subtraction is then of zeros, without pedestal."""
+        """No dark frame: the background sample is then read as it is, without pedestal."""
         self.dark = None
         self.pedestal = 0
         self.quantum = 1
         self.dark_sigma = 0.0
-        self._dark_planes = {}  # dtype -> zero planes, made on first use
-        self._hot = (np.zeros(0, np.int64), np.zeros(0, np.int64))
+        self._hot_g = self._hot_r = np.zeros(0, np.int64)
+        self._dark_sample = None
         self._hot_sample = [np.zeros(len(self._sample), bool)] * 2
 
-    def _planes(self, dtype) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """(dark green crop, dark red crop, dark green sample, dark red sample) for frames of
-        ``dtype``: the dark frame's, or zeros without one."""
-        dtype = np.dtype(dtype)
-        if dtype not in self._dark_planes:
-            x0, y0, x1, y1 = self._crop
-            z = np.zeros((y1 - y0, x1 - x0), dtype)
-            zs = np.zeros(len(self._sample), dtype)
-            self._dark_planes[dtype] = (z, z, zs, zs)
-        return self._dark_planes[dtype]
+    def _buffer(self, purpose: str, shape, dtype) -> np.ndarray:
+        """A scratch array of the front end, reused from frame to frame (never one a result
+        holds: the next ``process`` call overwrites it)."""
+        key = (purpose, tuple(shape), np.dtype(dtype))
+        if key not in self._scratch:
+            self._scratch[key] = np.empty(shape, dtype)
+        return self._scratch[key]
 
     def set_dark(self, dark: np.ndarray) -> None:
         """Use ``dark`` (H, W, 3) uint8 or uint16 from now on: split it once, map its hot pixels
@@ -300,8 +291,8 @@ class Pipeline:
         self.pedestal = int(max(p.pedestal_steps, math.ceil(p.pedestal_k_sigma * spread / q - 1e-9)) * q)
         self.dark = dark
         crop = self._crop_view(dark)
-        samples = [np.ascontiguousarray(dark.reshape(-1)[self._sample3[ch]]) for ch in (1, 2)]
-        self._dark_planes = {dark.dtype: (cv2.extractChannel(crop, 1), cv2.extractChannel(crop, 2), *samples)}
+        self._dark_g = cv2.extractChannel(crop, 1)
+        self._dark_r = cv2.extractChannel(crop, 2)
         hot = hot_pixels(dark, quantum=q)
         x0, y0, x1, y1 = self._crop
         w = dark.shape[1]
@@ -310,42 +301,53 @@ class Pipeline:
             px = hot[hot % 3 == ch] // 3  # flat indices into one full channel
             yy, xx = px // w, px % w
             keep = (xx >= x0) & (xx < x1) & (yy >= y0) & (yy < y1)
-            hot_in.append(((yy[keep] - y0) * (x1 - x0) + (xx[keep] - x0)).astype(np.int64))  # into the crop
-        self._hot = tuple(hot_in)
+            hot_in.append((yy[keep] - y0) * (x1 - x0) + (xx[keep] - x0))  # into the crop
+        self._hot_g, self._hot_r = hot_in
+        self._dark_sample = [np.ascontiguousarray(dark.reshape(-1)[self._sample3[ch]]) for ch in (1, 2)]
         self._hot_sample = [np.isin(self._sample3[ch], hot) for ch in (1, 2)]
+
+    def _channel(self, frame: np.ndarray, ch: int) -> np.ndarray:
+        """Channel ``ch`` of the crop of ``frame`` the view reads, dark-subtracted."""
+        c = cv2.extractChannel(self._crop_view(frame), ch)
+        if self.dark is None:
+            return c
+        ped = self.pedestal
+        c = cv2.subtract(cv2.add(c, ped), self._dark_g if ch == 1 else self._dark_r)
+        c.reshape(-1)[self._hot_g if ch == 1 else self._hot_r] = ped  # defect-pixel map
+        return c
 
     def _background(self, frame: np.ndarray) -> tuple[float, float, float, float, int]:
         """(green background, green noise, red background, red noise, quantisation step) of
-        ``frame``, measured on raw pixels inside the rim (:attr:`_sample`), dark-subtracted as
-        the mirror image is; the noise never below the rounding noise of one step."""
+        ``frame``: :func:`~stcvision.stages.estimate_background` of raw pixels inside the rim
+        (:attr:`_sample`), dark-subtracted as :meth:`_channel` does it (compiled: one call per
+        channel); the noise never below the rounding noise of one step."""
         flat = frame.reshape(-1)
-        buf = self._sample_buf.get(frame.dtype)
-        if buf is None:
-            buf = self._sample_buf[frame.dtype] = np.empty((2, len(self._sample)), frame.dtype)
-        dark_s = self._planes(frame.dtype)[2:]
-        top = np.iinfo(frame.dtype).max
+        n = len(self._sample)
+        vals = self._buffer("sample", (n,), frame.dtype)
+        dark = self._dark_sample or [self._buffer("no dark", (n,), frame.dtype)] * 2
+        if self.dark is None:
+            dark[0][:] = 0
+            q = quantum_dn(flat[self._sample3[1]])
+        else:
+            q = self.quantum
+        top, whole = np.iinfo(frame.dtype).max, frame.dtype == np.uint8 and q == 1
+        out = []
         for k, ch in enumerate((1, 2)):
-            kernels.sample_values(flat, self._sample3[ch], dark_s[k], self._hot_sample[k], self.pedestal, top, buf[k])
-        q = self.quantum if self.dark is not None else quantum_dn(buf[0])
-        floor = noise_floor(q)
-        bg, noise = background_of_values(buf[0], q)
-        bg_r, noise_r = background_of_values(buf[1], q)
-        return bg, max(noise, floor), bg_r, max(noise_r, floor), q
+            q1, med, q3 = kernels.sample_quartiles(
+                flat, self._sample3[ch], dark[k], self._hot_sample[k], self.pedestal, top, q, whole, vals
+            )
+            out += [float(med), max(float((q3 - q1) / 1.349), noise_floor(q))]
+        return (*out, q)
 
-    def _ground_scratch(self, shape: tuple[int, int], dtype) -> tuple[np.ndarray, np.ndarray]:
-        key = (shape, np.dtype(dtype))
-        if key not in self._ground:
-            self._ground[key] = (np.empty(shape[0] * shape[1], dtype), np.empty(shape[0] * shape[1], dtype))
-        return self._ground[key]
-
-    def _unwarp_pair(self, table: PairRemap, sum_dtype) -> tuple[np.ndarray, np.ndarray]:
-        """Ground views (flat) of the green and red window sums in :attr:`_sums` (scratch,
-        valid until the next call with the same table shape)."""
-        gg, rr = self._ground_scratch(table.shape, sum_dtype)
+    def _unwarp_pair(self, table: PairRemap, gs: np.ndarray, rs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Ground views (flat scratch, valid until the next call) of the window sums ``gs``,
+        ``rs``: one compiled pass for both."""
+        n = table.shape[0] * table.shape[1]
+        gg, rr = self._buffer("ground g", (n,), gs.dtype), self._buffer("ground r", (n,), gs.dtype)
         w, h = table.image_size_px
         kernels.unwarp_pair(
-            self._sums.reshape(-1), w, h, table.base, table.alpha, table.beta, table.dst,
-            table.border, table.border_xy, sum_dtype == np.uint16, gg, rr,
+            gs.reshape(-1), rs.reshape(-1), w, h, table.base, table.alpha, table.beta, table.border,
+            table.border_xy, gs.dtype == np.uint16, gg, rr, self._buffer("gather", (8, 512), gs.dtype),
         )  # fmt: skip
         return gg, rr
 
@@ -362,32 +364,29 @@ class Pipeline:
             thr_a, leak = float(np.float32(thr_a)), float(np.float32(leak))
         obstacle = np.empty(shape, gg.dtype)
         marks = np.empty(shape, gg.dtype)
+        black = self._buffer("black", shape, np.uint8)
         n = kernels.separate_pair(
-            gg, rr, thr_a, tol32, top, leak, leak <= thr_a, obstacle.reshape(-1), marks.reshape(-1), self._red_px
+            gg, rr, thr_a, tol32, top, leak, leak <= thr_a, obstacle.reshape(-1), marks.reshape(-1), black.reshape(-1)
         )
-        if n and self.params.channels.red_margin_px > 0:
-            kernels.black_out_grown(marks.reshape(-1), shape[1], self._red_px, n, self._stamp)
-        elif n:
-            marks.reshape(-1)[self._red_px[:n]] = 0
+        if n:
+            if self._margin is not None:
+                black = cv2.dilate(black, self._margin, dst=self._buffer("grown", shape, np.uint8))
+            kernels.zero_where(marks.reshape(-1), black.reshape(-1))
         return obstacle, marks
 
     def _front(self, frame: np.ndarray, clock, t: list) -> _Front:
         """The mirror-image stages and the channel separation (dark, window, unwarp, channels;
-        their end times appended to ``t``): compiled passes over green and red together."""
+        their end times appended to ``t``)."""
         p = self.params
         w = p.dots.window_px
-        x0, y0, x1, y1 = self._crop
-        dg, dr = self._planes(frame.dtype)[:2]
-        g = np.empty((y1 - y0, x1 - x0), frame.dtype)  # the result holds these: new each frame
-        r = np.empty_like(g)
-        top = np.iinfo(frame.dtype).max
-        kernels.dark_channels(frame, y0, x0, dg, dr, self.pedestal, top, self._hot[0], self._hot[1], g, r)
+        g = self._channel(frame, 1)  # only green and red carry marks and lights
+        r = self._channel(frame, 2)
         t.append(clock())
-        kernels.window_sums_pair(g, r, w, self._rows[0], self._rows[1], self._sums)
+        gs, rs = window_sums(g, w), window_sums(r, w)
         t.append(clock())
-        sum_dtype = np.uint16 if frame.dtype == np.uint8 else np.float32
-        gg, rr = self._unwarp_pair(self._pair, sum_dtype)
+        gg, rr = self._unwarp_pair(self._pair, gs, rs)
         t.append(clock())
+        # background and noise, measured on raw pixels inside the rim
         bg, noise, bg_r, noise_r, q = self._background(frame)
         # a red light's level: above the pedestal by the dark frame's spread (a fixed rule per
         # dark frame), or without one above the frame's own red background by its noise
@@ -395,7 +394,7 @@ class Pipeline:
         leak = w * w * bg_r + p.channels.leak_k_sigma * noise_r * w
         obstacle, marks = self._separate(gg, rr, self._pair.shape, leak, red_levels)
         t.append(clock())
-        return _Front(g, r, obstacle, marks, bg, noise, q, red_levels, leak)
+        return _Front(g, r, gs, rs, obstacle, marks, bg, noise, q, red_levels, leak)
 
     def process(
         self,
@@ -466,7 +465,7 @@ class Pipeline:
         t.append(clock())
         heading = fit_heading(dots, p.heading)
         t.append(clock())
-        landmark_px = self._far_lights(r, f.leak, f.red_levels, frame) if self.wide is not None else None
+        landmark_px = self._far_lights(f, frame) if self.wide is not None else None
         herr = heading.heading_error_rad if (heading.ok and p.use_heading) else 0.0
         if heading_error_rad is not None:
             herr = float(heading_error_rad)
@@ -505,20 +504,18 @@ class Pipeline:
             out[i] = r > 0 and b >= self.params.white_blue_ratio * r
         return out
 
-    def _far_lights(
-        self, red: np.ndarray, leak: float, red_levels: tuple[float, float], frame: np.ndarray
-    ) -> np.ndarray:
+    def _far_lights(self, f: _Front, frame: np.ndarray) -> np.ndarray:
         """Red lights out to ``landmark_range_m`` for the landmark fit, as ground-view pixels of
-        the main view (beyond its edges too): found in the wide, coarse view of this frame's
-        window sums (:attr:`_sums`) and refined on the dark-subtracted red channel ``red``
-        (``red_levels``: its background and noise)."""
+        the main view (beyond its edges too): found in the wide, coarse view of the window sums
+        of the front end ``f`` and refined on its dark-subtracted red channel."""
         p = self.params
         area = p.dots.window_px**2
-        sum_dtype = np.uint16 if frame.dtype == np.uint8 else np.float32
-        gg, rr = self._unwarp_pair(self._wide_pair, sum_dtype)
-        obst, _ = self._separate(gg, rr, self._wide_pair.shape, leak, red_levels)
+        gg, rr = self._unwarp_pair(self._wide_pair, f.green_sums, f.red_sums)
+        obst, _ = self._separate(gg, rr, self._wide_pair.shape, f.leak, f.red_levels)
         far = find_red(obst, p.red, window_area=area)
-        xy_m = self._refine_lights(red, self._wide_profile.ground_to_robot(far.xy_px)) if len(far) else np.zeros((0, 2))
+        xy_m = (
+            self._refine_lights(f.red, self._wide_profile.ground_to_robot(far.xy_px)) if len(far) else np.zeros((0, 2))
+        )
         if p.white_blue_ratio is not None and len(xy_m):
             xy_m = xy_m[~self._white(frame, xy_m)]
         return self.profile.robot_to_ground(xy_m)
