@@ -23,7 +23,6 @@ __all__ = [
     "black_out",
     "fill_squares",
     "gauss_centroids",
-    "unwarp_pair",
     "separate_pair",
     "zero_where",
     "sample_quartiles",
@@ -336,11 +335,12 @@ def gauss_centroids(image, uv, background, half, sigma, iters):
 
 
 # --- front end ---
-# The pipeline's front end where a compiled pass beats OpenCV's calls (issue 18): the unwarp of
-# green and red in one pass, the channel separation, the background sample. (Dark subtraction
-# and window sums stay OpenCV's: compiled versions measured slower here.) Indices are cast to
-# ``np.uintp`` in the inner loops: numba then drops its negative-index wraparound test and LLVM
-# can vectorise them (measured here: a 390 x 390 row-sum pass 316 -> 22 us).
+# The pipeline's front end where one compiled pass beats a chain of OpenCV calls (issue 18): the
+# channel separation and the background sample. (Dark subtraction, window sums and the unwarp
+# stay OpenCV's: compiled versions, bit for bit the same, measured slower or no faster within
+# the pipeline on this machine.) Indices are cast to ``np.uintp`` in the inner loops: numba then
+# drops its negative-index wraparound test and LLVM can vectorise them (measured here: a
+# 390 x 390 row-sum pass 316 -> 22 us).
 
 _U = np.uintp
 _f32 = np.float32
@@ -349,7 +349,9 @@ _f32 = np.float32
 @intrinsic
 def _fma32(typingctx, a, b, c):
     """``a * b + c`` in float32 with one rounding (LLVM's ``llvm.fma.f32``: the hardware FMA
-    where there is one, a correctly rounded library call elsewhere)."""
+    where there is one, a correctly rounded library call elsewhere): OpenCV's vectorised
+    ``addWeighted`` on this machine (AVX2) rounds so; without FMA hardware OpenCV may round
+    twice, and the two differ only where the result is within a rounding step of 0."""
     sig = types.float32(types.float32, types.float32, types.float32)
 
     def codegen(context, builder, signature, args):
@@ -361,86 +363,25 @@ def _fma32(typingctx, a, b, c):
 
 
 @numba.njit(cache=True)
-def unwarp_pair(gs, rs, w, h, base, alpha, beta, border, border_xy, rnd, out_g, out_r, scratch):
-    """Bilinear remap of two images at once, ``gs`` and ``rs`` (flat uint16 or float32, ``h``
-    rows of ``w`` pixels), as ``cv2.remap`` (float maps, ``INTER_LINEAR``, ``BORDER_CONSTANT``
-    0) computes it on this machine: ``v0 = fma(a, p01 - p00, p00)``, ``v1`` likewise a row
-    down, ``fma(b, v1 - v0, v0)`` in float32, rounded half to even and saturated for integer
-    outputs (``rnd``).
-
-    Output pixel i reads the four source pixels from flat index ``base[i]`` with weights
-    ``alpha[i]``, ``beta[i]``; the ``border`` pixels (some source pixel outside the image) are
-    redone from their map coordinates ``border_xy`` with zeros outside. Block by block: the
-    gathers into ``scratch`` ((8, N), the images' dtype), then the arithmetic over contiguous
-    arrays, which LLVM vectorises."""
-    n = len(base)
-    nb = scratch.shape[1]
-    row = _U(w)
-    zero = np.float32(0.0)
-    top = np.float32(65535.0)
-    s0, s1, s2, s3 = scratch[0], scratch[1], scratch[2], scratch[3]
-    s4, s5, s6, s7 = scratch[4], scratch[5], scratch[6], scratch[7]
-    for start in range(0, n, nb):
-        m = _U(min(nb, n - start))
-        st = _U(start)
-        for i in range(m):
-            o = _U(base[st + i])
-            s0[i] = gs[o]
-            s1[i] = gs[o + _U(1)]
-            s2[i] = gs[o + row]
-            s3[i] = gs[o + row + _U(1)]
-            s4[i] = rs[o]
-            s5[i] = rs[o + _U(1)]
-            s6[i] = rs[o + row]
-            s7[i] = rs[o + row + _U(1)]
-        for i in range(m):
-            j = st + i
-            aa = alpha[j]
-            bb = beta[j]
-            p00, p01, p10, p11 = _f32(s0[i]), _f32(s1[i]), _f32(s2[i]), _f32(s3[i])
-            v = _fma32(bb, _fma32(aa, p11 - p10, p10) - _fma32(aa, p01 - p00, p00), _fma32(aa, p01 - p00, p00))
-            out_g[j] = min(max(np.rint(v), zero), top) if rnd else v
-            p00, p01, p10, p11 = _f32(s4[i]), _f32(s5[i]), _f32(s6[i]), _f32(s7[i])
-            v = _fma32(bb, _fma32(aa, p11 - p10, p10) - _fma32(aa, p01 - p00, p00), _fma32(aa, p01 - p00, p00))
-            out_r[j] = min(max(np.rint(v), zero), top) if rnd else v
-    p = np.zeros(4, np.float32)
-    for i in range(len(border)):
-        mx = border_xy[i, 0]
-        my = border_xy[i, 1]
-        x = int(math.floor(mx))
-        y = int(math.floor(my))
-        aa = mx - np.float32(x)
-        bb = my - np.float32(y)
-        for c in range(2):
-            src = gs if c == 0 else rs
-            for k in range(4):
-                xx = x + (k & 1)
-                yy = y + (k >> 1)
-                p[k] = _f32(src[yy * w + xx]) if (0 <= xx < w and 0 <= yy < h) else zero
-            v0 = _fma32(aa, p[1] - p[0], p[0])
-            v = _fma32(bb, _fma32(aa, p[3] - p[2], p[2]) - v0, v0)
-            if rnd:
-                v = min(max(np.rint(v), zero), top)
-            if c == 0:
-                out_g[border[i]] = v
-            else:
-                out_r[border[i]] = v
-
-
-@numba.njit(cache=True)
-def separate_pair(g, r, thr, tol, top, leak, leak_only, obstacle, marks, black):
+def separate_pair(g, r, thr, tol, top, frac, gamma, leak, leak_only, obstacle, marks, black):
     """The red/green separation of :func:`stcvision.stages.separate_channels` (the rule is
     documented there) in one pass over the flat ground-view green ``g`` and red ``r``, as
-    OpenCV's saturating arithmetic computes it: red-dominated where ``min(r + tol, top) >= g``;
-    a light pixel where also ``r > thr`` (``obstacle`` keeps its red, else 0); ``marks`` is
-    ``g``; ``black`` (uint8) 1 where the marks are to be blacked out before the margin grows it
-    (red-dominated with ``r > leak``, and the light pixels unless ``leak_only``). Returns the
-    number of those."""
+    OpenCV's arithmetic computes it: red-dominated where ``min(r + tol, top) >= g`` (the
+    saturating add) and, with ``frac`` (float32, the negated ``red_min_fraction``; 0: off),
+    ``fma(r, 1, fma(g, frac, gamma)) >= 0`` (``cv2.addWeighted`` to float32); a light pixel
+    where also ``r > thr`` (``obstacle`` keeps its red, else 0); ``marks`` is ``g``; ``black``
+    (uint8) 1 where the marks are to be blacked out before the margin grows it (red-dominated
+    with ``r > leak``, and the light pixels unless ``leak_only``). Returns the number of those."""
     n = 0
+    one = np.float32(1.0)
+    zero = np.float32(0.0)
+    use_frac = frac != zero
     for i in range(_U(len(g))):
         gv = g[i]
         rv = r[i]
-        dom = min(np.float32(rv) + tol, top) >= gv
+        dom = min(_f32(rv) + tol, top) >= gv
+        if use_frac:
+            dom = dom and _fma32(_f32(rv), one, _fma32(_f32(gv), frac, gamma)) >= zero
         light = dom and np.float64(rv) > thr
         obstacle[i] = rv if light else 0
         marks[i] = gv

@@ -34,7 +34,6 @@ from stcvision.stages import (
     Dots,
     HeadingFit,
     HeadingParams,
-    PairRemap,
     RedLights,
     RedParams,
     RowParams,
@@ -239,10 +238,7 @@ class Pipeline:
         self._crop = (0, 0, w, h) if self.wide is not None else self.umap.reach_px()
         x0, y0, x1, y1 = self._crop
         self._umap_crop = self.umap.cropped(x0, y0, x1, y1)
-        # the front end's compiled passes: gather tables and scratch images, built once (the
-        # images a result holds are allocated per frame)
-        self._pair = PairRemap.from_map(self._umap_crop)
-        self._wide_pair = PairRemap.from_map(self.wide) if self.wide is not None else None
+        # the front end's scratch images, made once (the images a result holds are new per frame)
         self._scratch = {}  # (purpose, shape, dtype) -> scratch arrays, made on first use
         k = 2 * self.params.channels.red_margin_px + 1
         self._margin = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (k, k)) if k > 1 else None
@@ -339,24 +335,22 @@ class Pipeline:
             out += [float(med), max(float((q3 - q1) / 1.349), noise_floor(q))]
         return (*out, q)
 
-    def _unwarp_pair(self, table: PairRemap, gs: np.ndarray, rs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Ground views (flat scratch, valid until the next call) of the window sums ``gs``,
-        ``rs``: one compiled pass for both."""
-        n = table.shape[0] * table.shape[1]
-        gg, rr = self._buffer("ground g", (n,), gs.dtype), self._buffer("ground r", (n,), gs.dtype)
-        w, h = table.image_size_px
-        kernels.unwarp_pair(
-            gs.reshape(-1), rs.reshape(-1), w, h, table.base, table.alpha, table.beta, table.border,
-            table.border_xy, gs.dtype == np.uint16, gg, rr, self._buffer("gather", (8, 512), gs.dtype),
-        )  # fmt: skip
-        return gg, rr
+    def _unwarp_pair(self, umap: UnwarpMap, gs: np.ndarray, rs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Flat ground views of the window sums ``gs``, ``rs`` (one ``cv2.remap`` each: a
+        compiled remap of both in one pass, bit for bit the same, measured no faster within the
+        pipeline; OpenCV remaps a 2-channel image more slowly than two 1-channel ones)."""
+        return unwarp(gs, umap).reshape(-1), unwarp(rs, umap).reshape(-1)
 
     def _separate(self, gg, rr, shape, leak: float, red_levels: tuple[float, float]) -> tuple[np.ndarray, np.ndarray]:
         """(obstacle, marks) of the flat ground views ``gg``, ``rr``: the rule and the
         arithmetic of :func:`~stcvision.stages.separate_channels`, compiled (new arrays)."""
         area = self.params.dots.window_px**2
-        thr, tol = self.params.channels.levels(*red_levels)
+        cp = self.params.channels
+        thr, tol = cp.levels(*red_levels)
         thr_a, tol_a = float(thr * area), float(tol * area)
+        # the red-fraction test as cv2.addWeighted(r, 1, g, -f, -(1 - f) bg) >= 0 takes it
+        frac = np.float32(-cp.red_min_fraction if cp.red_min_fraction > 0 else 0.0)
+        gamma = np.float32(-(1.0 - cp.red_min_fraction) * (red_levels[0] * area))
         if gg.dtype == np.uint16:  # OpenCV: the added scalar rounded, comparisons exact
             tol32, top = np.float32(np.rint(tol_a)), np.float32(65535)
         else:  # float images: the scalars rounded to float32, no saturation
@@ -366,7 +360,18 @@ class Pipeline:
         marks = np.empty(shape, gg.dtype)
         black = self._buffer("black", shape, np.uint8)
         n = kernels.separate_pair(
-            gg, rr, thr_a, tol32, top, leak, leak <= thr_a, obstacle.reshape(-1), marks.reshape(-1), black.reshape(-1)
+            gg,
+            rr,
+            thr_a,
+            tol32,
+            top,
+            frac,
+            gamma,
+            leak,
+            leak <= thr_a,
+            obstacle.reshape(-1),
+            marks.reshape(-1),
+            black.reshape(-1),
         )
         if n:
             if self._margin is not None:
@@ -384,7 +389,7 @@ class Pipeline:
         t.append(clock())
         gs, rs = window_sums(g, w), window_sums(r, w)
         t.append(clock())
-        gg, rr = self._unwarp_pair(self._pair, gs, rs)
+        gg, rr = self._unwarp_pair(self._umap_crop, gs, rs)
         t.append(clock())
         # background and noise, measured on raw pixels inside the rim
         bg, noise, bg_r, noise_r, q = self._background(frame)
@@ -392,7 +397,7 @@ class Pipeline:
         # dark frame), or without one above the frame's own red background by its noise
         red_levels = (self.pedestal, max(self.dark_sigma, noise_floor(q))) if self.dark is not None else (bg_r, noise_r)
         leak = w * w * bg_r + p.channels.leak_k_sigma * noise_r * w
-        obstacle, marks = self._separate(gg, rr, self._pair.shape, leak, red_levels)
+        obstacle, marks = self._separate(gg, rr, self._umap_crop.map_x.shape, leak, red_levels)
         t.append(clock())
         return _Front(g, r, gs, rs, obstacle, marks, bg, noise, q, red_levels, leak)
 
@@ -510,8 +515,8 @@ class Pipeline:
         of the front end ``f`` and refined on its dark-subtracted red channel."""
         p = self.params
         area = p.dots.window_px**2
-        gg, rr = self._unwarp_pair(self._wide_pair, f.green_sums, f.red_sums)
-        obst, _ = self._separate(gg, rr, self._wide_pair.shape, f.leak, f.red_levels)
+        gg, rr = self._unwarp_pair(self.wide, f.green_sums, f.red_sums)
+        obst, _ = self._separate(gg, rr, self.wide.map_x.shape, f.leak, f.red_levels)
         far = find_red(obst, p.red, window_area=area)
         xy_m = (
             self._refine_lights(f.red, self._wide_profile.ground_to_robot(far.xy_px)) if len(far) else np.zeros((0, 2))

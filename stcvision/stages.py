@@ -29,7 +29,6 @@ __all__ = [
     "RedParams",
     "Recalibration",
     "UnwarpMap",
-    "PairRemap",
     "FRAME_DTYPES",
     "check_dark_dtype",
     "check_frame",
@@ -222,45 +221,6 @@ class UnwarpMap:
         mx, my = self.map_x - np.float32(x0), self.map_y - np.float32(y0)
         f1, f2 = cv2.convertMaps(mx, my, cv2.CV_16SC2)
         return UnwarpMap(mx, my, self.valid, (x1 - x0, y1 - y0), f1, f2)
-
-
-@dataclass(frozen=True, eq=False)
-class PairRemap:
-    """An :class:`UnwarpMap` as gather tables for :func:`stcvision.kernels.unwarp_pair`, which
-    remaps the green and red window sums in one pass, bit for bit as ``cv2.remap`` with the
-    float maps does.
-
-    Per ground pixel (flat, in order): ``base``, the flat source pixel of the top-left of the
-    four it reads; ``alpha``, ``beta``, the map's fractional parts; ``border``: the ground
-    pixels some of whose four source pixels lie outside the image (read as zeros), with their
-    map coordinates ``border_xy``.
-    """
-
-    base: np.ndarray
-    alpha: np.ndarray
-    beta: np.ndarray
-    border: np.ndarray
-    border_xy: np.ndarray
-    shape: tuple[int, int]
-    image_size_px: tuple[int, int]
-
-    @classmethod
-    def from_map(cls, umap: UnwarpMap) -> PairRemap:
-        w, h = umap.image_size_px
-        mx, my = umap.map_x.reshape(-1), umap.map_y.reshape(-1)
-        ix, iy = np.floor(mx).astype(np.int64), np.floor(my).astype(np.int64)
-        inside = (ix >= 0) & (iy >= 0) & (ix + 1 < w) & (iy + 1 < h)
-        out = np.flatnonzero(~inside)
-        ix[out], iy[out] = 0, 0  # read somewhere harmless; redone as border pixels
-        return cls(
-            (iy * w + ix).astype(np.int32),
-            np.where(inside, mx - ix.astype(np.float32), 0).astype(np.float32),
-            np.where(inside, my - iy.astype(np.float32), 0).astype(np.float32),
-            out.astype(np.int64),
-            np.ascontiguousarray(np.column_stack([mx[out], my[out]]), np.float32),
-            umap.map_x.shape,
-            (w, h),
-        )
 
 
 def unwarp(image: np.ndarray, umap: UnwarpMap) -> np.ndarray:
