@@ -58,7 +58,8 @@ def main(argv=None) -> int:
     for pipe in pipes.values():
         pipe.process(imgs[0])  # warm up (compiles)
     for i in range(a.frames):
-        for name, pipe in pipes.items():
+        order = list(pipes.items()) if i % 2 else list(pipes.items())[::-1]  # no first-mover bias
+        for name, pipe in order:
             c0 = time.thread_time_ns()
             r = pipe.process(imgs[i % len(imgs)])
             cpu[name] += time.thread_time_ns() - c0

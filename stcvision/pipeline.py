@@ -352,27 +352,17 @@ class Pipeline:
         frac = np.float32(-cp.red_min_fraction if cp.red_min_fraction > 0 else 0.0)
         gamma = np.float32(-(1.0 - cp.red_min_fraction) * (red_levels[0] * area))
         if gg.dtype == np.uint16:  # OpenCV: the added scalar rounded, comparisons exact
-            tol32, top = np.float32(np.rint(tol_a)), np.float32(65535)
+            tol32, bottom, top = np.float32(np.rint(tol_a)), np.float32(0), np.float32(65535)
+            # v > t for whole v <= 65535 is v > floor(t), exact in float32 once clipped
+            thr32, leak32 = (np.float32(min(max(math.floor(x), -1), 65536)) for x in (thr_a, leak))
         else:  # float images: the scalars rounded to float32, no saturation
-            tol32, top = np.float32(tol_a), np.float32(np.inf)
-            thr_a, leak = float(np.float32(thr_a)), float(np.float32(leak))
+            tol32, thr32, leak32 = np.float32(tol_a), np.float32(thr_a), np.float32(leak)
+            bottom, top = np.float32(-np.inf), np.float32(np.inf)
         obstacle = np.empty(shape, gg.dtype)
         marks = np.empty(shape, gg.dtype)
         black = self._buffer("black", shape, np.uint8)
-        n = kernels.separate_pair(
-            gg,
-            rr,
-            thr_a,
-            tol32,
-            top,
-            frac,
-            gamma,
-            leak,
-            leak <= thr_a,
-            obstacle.reshape(-1),
-            marks.reshape(-1),
-            black.reshape(-1),
-        )
+        flat = obstacle.reshape(-1), marks.reshape(-1), black.reshape(-1)
+        n = kernels.separate_pair(gg, rr, thr32, tol32, bottom, top, frac, gamma, leak32, *flat)
         if n:
             if self._margin is not None:
                 black = cv2.dilate(black, self._margin, dst=self._buffer("grown", shape, np.uint8))

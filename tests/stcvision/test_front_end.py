@@ -21,6 +21,7 @@ from stcvision.stages import ChannelParams, estimate_background, noise_floor, se
         (ChannelParams(), 5000.0),  # above: lights and leak together
         (ChannelParams(red_margin_px=0, red_min_fraction=0.0), 300.0),
         (ChannelParams(red_threshold_dn=30.5, dominance_tol_dn=2.5, red_min_fraction=0.3), 200.0),
+        (ChannelParams(dominance_tol_dn=-3.0), 150.0),  # a negative tolerance saturates at 0
     ],
 )
 def test_separation_is_separate_channels(default_profile, dtype, channels, leak):
