@@ -12,7 +12,9 @@ Stages (``stcvision.stages``), in the order they run::
     observe   five boxes, visited sub-cells, four neighbours
 
 The runner is built once per profile (remap table, cell homography); ``process`` allocates only
-the images it returns. Logging (``stcvision.rr``) observes the result afterwards.
+the images it returns, besides a few scratch images it keeps (so one ``Pipeline`` per thread). The
+channel separation and the background sample are compiled passes (``stcvision.kernels``),
+bit-identical to the OpenCV stages they stand for. Logging (``stcvision.rr``) observes the result afterwards.
 """
 
 from __future__ import annotations
@@ -415,7 +417,6 @@ class Pipeline:
             self.set_dark(dark)
         if self.dark is not None:
             check_dark_dtype(self.dark, frame.dtype)
-        frame = np.ascontiguousarray(frame)
         p = self.params
         w = p.dots.window_px
         area = w * w
