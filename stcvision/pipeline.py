@@ -310,7 +310,7 @@ class Pipeline:
         if self.dark is None:
             return c
         ped = self.pedestal
-        c = cv2.subtract(cv2.add(c, ped), self._dark_g if ch == 1 else self._dark_r)
+        cv2.subtract(cv2.add(c, ped, dst=c), self._dark_g if ch == 1 else self._dark_r, dst=c)  # in place
         c.reshape(-1)[self._hot_g if ch == 1 else self._hot_r] = ped  # defect-pixel map
         return c
 
