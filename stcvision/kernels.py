@@ -406,14 +406,26 @@ def zero_where(img, mask):
 
 
 @numba.njit(cache=True)
-def sample_quartiles(flat, idx, dark, hot, ped, top, quantum, whole_u8, out):
-    """Quartiles (:func:`histogram_quartiles`) of ``flat[idx]`` dark-subtracted as the pipeline
-    subtracts it (``max(min(v + ped, top) - dark, 0)``, ``ped`` where ``hot``), the values left
-    in ``out``; ``whole_u8``: 8-bit values in steps of 1 (a histogram of all 256 values, else
-    of the occupied range), as :func:`stcvision.stages.background_of_values` chooses."""
-    for i in range(len(idx)):
-        out[i] = ped if hot[i] else max(min(np.int64(flat[idx[i]]) + ped, top) - np.int64(dark[i]), 0)
+def _quartiles_of(v, quantum, whole_u8):
     if whole_u8:
-        return histogram_quartiles(out, 0, 1, 256)
-    lo = np.int64(out.min())
-    return histogram_quartiles(out, lo, quantum, (np.int64(out.max()) - lo) // quantum + 1)
+        return histogram_quartiles(v, 0, 1, 256)
+    lo = np.int64(v.min())
+    return histogram_quartiles(v, lo, quantum, (np.int64(v.max()) - lo) // quantum + 1)
+
+
+@numba.njit(cache=True)
+def sample_quartiles(flat, idx, dark_g, dark_r, hot_g, hot_r, ped, top, quantum, whole_u8, out_g, out_r):
+    """Quartiles (:func:`histogram_quartiles`, one row per channel) of the green and red of a
+    flat BGR frame at the flat green indices ``idx`` (red: the next byte, so one pass reads
+    each pixel once), dark-subtracted as the pipeline subtracts them (``max(min(v + ped, top) -
+    dark, 0)``, ``ped`` where hot), the values left in ``out_g``, ``out_r``; ``whole_u8``:
+    8-bit values in steps of 1 (a histogram of all 256 values, else of the occupied range), as
+    :func:`stcvision.stages.estimate_background` chooses."""
+    for i in range(len(idx)):
+        j = idx[i]
+        out_g[i] = ped if hot_g[i] else max(min(np.int64(flat[j]) + ped, top) - np.int64(dark_g[i]), 0)
+        out_r[i] = ped if hot_r[i] else max(min(np.int64(flat[j + 1]) + ped, top) - np.int64(dark_r[i]), 0)
+    out = np.empty((2, 3))
+    out[0] = _quartiles_of(out_g, quantum, whole_u8)
+    out[1] = _quartiles_of(out_r, quantum, whole_u8)
+    return out

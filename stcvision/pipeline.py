@@ -317,25 +317,25 @@ class Pipeline:
     def _background(self, frame: np.ndarray) -> tuple[float, float, float, float, int]:
         """(green background, green noise, red background, red noise, quantisation step) of
         ``frame``: :func:`~stcvision.stages.estimate_background` of raw pixels inside the rim
-        (:attr:`_sample`), dark-subtracted as :meth:`_channel` does it (compiled: one call per
-        channel); the noise never below the rounding noise of one step."""
+        (:attr:`_sample`), dark-subtracted as :meth:`_channel` does it (one compiled pass over
+        both channels); the noise never below the rounding noise of one step."""
         flat = frame.reshape(-1)
         n = len(self._sample)
-        vals = self._buffer("sample", (n,), frame.dtype)
-        dark = self._dark_sample or [self._buffer("no dark", (n,), frame.dtype)] * 2
+        vals = self._buffer("sample g", (n,), frame.dtype), self._buffer("sample r", (n,), frame.dtype)
         if self.dark is None:
+            dark = [self._buffer("no dark", (n,), frame.dtype)] * 2
             dark[0][:] = 0
             q = quantum_dn(flat[self._sample3[1]])
         else:
-            q = self.quantum
+            dark, q = self._dark_sample, self.quantum
         top, whole = np.iinfo(frame.dtype).max, frame.dtype == np.uint8 and q == 1
-        out = []
-        for k, ch in enumerate((1, 2)):
-            q1, med, q3 = kernels.sample_quartiles(
-                flat, self._sample3[ch], dark[k], self._hot_sample[k], self.pedestal, top, q, whole, vals
-            )
-            out += [float(med), max(float((q3 - q1) / 1.349), noise_floor(q))]
-        return (*out, q)
+        quart = kernels.sample_quartiles(
+            flat, self._sample3[1], *dark, *self._hot_sample, self.pedestal, top, q, whole, *vals
+        )
+        (gq1, g_med, gq3), (rq1, r_med, rq3) = quart
+        floor = noise_floor(q)
+        g_noise, r_noise = max(float((gq3 - gq1) / 1.349), floor), max(float((rq3 - rq1) / 1.349), floor)
+        return float(g_med), g_noise, float(r_med), r_noise, q
 
     def _unwarp_pair(self, umap: UnwarpMap, gs: np.ndarray, rs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Flat ground views of the window sums ``gs``, ``rs`` (one ``cv2.remap`` each: a
