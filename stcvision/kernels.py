@@ -14,7 +14,16 @@ import math
 import numba
 import numpy as np
 
-__all__ = ["anchored_rows", "accept_rows", "black_out", "fill_squares", "gauss_centroids"]
+__all__ = [
+    "anchored_rows",
+    "accept_rows",
+    "dot_candidates",
+    "fill_squares",
+    "free_rows",
+    "gauss_centroids",
+    "greedy_black_out",
+    "window_centroids",
+]
 
 
 @numba.njit(cache=True)
@@ -38,28 +47,258 @@ def _taken(img, px, py):
     return False
 
 
+@numba.njit(inline="always")
+def _grow(a, m):
+    """``a`` (1-D) with room for twice ``m`` entries, its first ``m`` kept."""
+    out = np.empty(2 * m, a.dtype)
+    out[:m] = a[:m]
+    return out
+
+
 @numba.njit(cache=True)
-def black_out(starts, shadowers, max_dots):
-    """Greedy black-out (:func:`stcvision.stages._black_out`): candidate i (strongest first) is
-    kept unless a kept candidate among ``shadowers[starts[i]:starts[i + 1]]`` shadows it."""
-    n = len(starts) - 1
-    keep = np.zeros(n, np.bool_)
+def dot_candidates(sums, gain, mode, a, c, e, area, background, noise):
+    """Candidates of :func:`stcvision.stages.find_dots` in one pass over the window sums: the
+    pixels at least ``e`` inside the border that reach the candidate level and are a 3x3 local
+    maximum (``>=`` all eight neighbours, as ``sums >= cv2.dilate(sums, 3x3)``), in row-major
+    order (``cv2.findNonZero``'s); with their SNR and window mean above the background.
+
+    The level, per ``mode``: 0, uint16 sums: ``gain * a + c`` rounded half to even and saturated
+    to 16 bits, with ``a``, ``c`` rounded to float32 and one float32 multiply-add
+    (``cv2.addWeighted(..., dtype=CV_16U)`` with FMA, which the machines here have: float64
+    product and sum, exact for these operands, then rounded to float32); 1, float32 sums:
+    ``float32(gain * a) + c`` in float32; 2: the scalar ``c`` (already in the sums' units).
+    SNR: ``(sum / area - background) / (noise * gain)`` in float64 (``gain`` of one element:
+    ``gain[0, 0]`` everywhere), as the numpy version.
+
+    Per image row, a branch-free loop (vectorised) marks the pixels at or near the level, and
+    only those marked, eight at a time skipped where none is, are tested exactly."""
+    h, w = sums.shape
+    nx = w - 2 * e
+    flag = np.zeros((nx + 7) // 8 * 8, np.uint8)
+    words = flag.view(np.uint64)
+    xs = np.empty(256, np.int64)
+    ys = np.empty(256, np.int64)
+    m = 0
+    a32 = np.float64(np.float32(a))
+    c32 = np.float64(np.float32(c))
+    fa = np.float32(a)
+    fc = np.float32(c)
+    for y in range(e, h - e):
+        # the pixel, its eight neighbours and its gain as views shifted by whole pixels, indexed
+        # from 0 up (no negative-index check per access)
+        c0 = sums[y, e : w - e]
+        if mode == 0:
+            gr = gain[y, e : w - e]
+            for i in range(nx):  # within the level's rounding, or saturated
+                s = np.float64(c0[i])
+                flag[i] = (s + 1.0 >= np.float64(gr[i]) * a32 + c32) | (s >= 65535.0)
+        elif mode == 1:
+            gr = gain[y, e : w - e]
+            for i in range(nx):
+                flag[i] = c0[i] >= np.float32(gr[i] * fa) + fc
+        else:
+            for i in range(nx):
+                flag[i] = c0[i] >= c
+        ul, uc, ur = sums[y - 1, e - 1 : w - e - 1], sums[y - 1, e : w - e], sums[y - 1, e + 1 : w - e + 1]
+        cl, cr = sums[y, e - 1 : w - e - 1], sums[y, e + 1 : w - e + 1]
+        dl, dc, dr = sums[y + 1, e - 1 : w - e - 1], sums[y + 1, e : w - e], sums[y + 1, e + 1 : w - e + 1]
+        for k in range(len(words)):
+            if words[k] == 0:
+                continue
+            for i in range(8 * k, 8 * k + 8):
+                if not flag[i]:
+                    continue
+                s = c0[i]
+                if mode == 0:
+                    lv = np.rint(np.float32(np.float64(gain[y, e + i]) * a32 + c32))
+                    if s < min(max(lv, 0.0), 65535.0):
+                        continue
+                if s < ul[i] or s < uc[i] or s < ur[i] or s < cl[i] or s < cr[i] or s < dl[i] or s < dc[i] or s < dr[i]:
+                    continue
+                if m == len(xs):
+                    xs, ys = _grow(xs, m), _grow(ys, m)
+                xs[m] = e + i
+                ys[m] = y
+                m += 1
+    mean = np.empty(m)
+    vals = np.empty(m)
+    for i in range(m):
+        mean[i] = np.float64(sums[ys[i], xs[i]]) / area - background
+        g = np.float64(gain[0, 0]) if gain.size == 1 else np.float64(gain[ys[i], xs[i]])
+        vals[i] = mean[i] / (noise * g)
+    return xs[:m], ys[:m], vals, mean
+
+
+@numba.njit(cache=True)
+def greedy_black_out(xs, ys, vals, b, tail_sigma, max_dots):
+    """The black-out of :func:`stcvision.stages._black_out` as one greedy loop over candidates
+    sorted strongest first: candidate k is kept unless a kept one j has it in its black-out
+    square (``|dx|, |dy| <= b``) or its blur explains half of it (``vals[j] exp(-d^2 / (2
+    tail_sigma^2)) >= vals[k] / 2``). Each candidate is checked against the kept ones only
+    (at most ``max_dots``), so no pair search is needed. Indices of the kept candidates."""
+    n = len(vals)
     out = np.empty(min(n, max_dots), np.int64)
     m = 0
-    for i in range(n):
+    two_s2 = 2.0 * tail_sigma**2
+    # farther than this no kept candidate can shadow (its blur explains half of the weakest
+    # candidate only within it): the exponential is evaluated for near pairs only
+    vmin = max(vals.min(), 1e-12)
+    reach2 = max(2.0 * b * b, two_s2 * math.log(max(2.0 * vals.max() / vmin, 1.0))) * (1 + 1e-9) + 1e-9
+    for k in range(n):
         if m >= max_dots:
             break
         shadowed = False
-        for t in range(starts[i], starts[i + 1]):
-            if keep[shadowers[t]]:
+        for t in range(m):
+            j = out[t]
+            dx = abs(xs[k] - xs[j])
+            dy = abs(ys[k] - ys[j])
+            d2 = dx * dx + dy * dy
+            if d2 > reach2:
+                continue
+            if (dy <= b and dx <= b) or vals[j] * math.exp(-d2 / two_s2) >= 0.5 * vals[k]:
                 shadowed = True
                 break
-        if shadowed:
-            continue
-        keep[i] = True
-        out[m] = i
-        m += 1
+        if not shadowed:
+            out[m] = k
+            m += 1
     return out[:m]
+
+
+@numba.njit(inline="always")
+def _pairwise_sum(a, n):
+    """numpy's pairwise sum of ``a[:n]`` (n < 128: eight interleaved partial sums, then the
+    rest in order; below eight, in order), in ``a``'s dtype: the order ``ndarray.sum`` adds a
+    small contiguous block in, so the result is numpy's to the bit."""
+    if n < 8:
+        res = a[0] - a[0]
+        for i in range(n):
+            res += a[i]
+        return res
+    r0, r1, r2, r3, r4, r5, r6, r7 = a[0], a[1], a[2], a[3], a[4], a[5], a[6], a[7]
+    i = 8
+    while i < n - (n % 8):
+        r0 += a[i]
+        r1 += a[i + 1]
+        r2 += a[i + 2]
+        r3 += a[i + 3]
+        r4 += a[i + 4]
+        r5 += a[i + 5]
+        r6 += a[i + 6]
+        r7 += a[i + 7]
+        i += 8
+    res = ((r0 + r1) + (r2 + r3)) + ((r4 + r5) + (r6 + r7))
+    while i < n:
+        res += a[i]
+        i += 1
+    return res
+
+
+@numba.njit(cache=True)
+def window_centroids(marks, xs, ys, r, per_px):
+    """Centroids of :func:`stcvision.stages._centroids`: over the (2r+1)^2 square about each
+    (xs, ys) (coordinates clipped to the image), the float32 values ``max(marks - per_px, 0)``
+    and their x- and y-weighted sums (float64), each summed as numpy sums the square; the
+    integer position where the square holds nothing above ``per_px``."""
+    h, w = marks.shape
+    n = len(xs)
+    k = 2 * r + 1
+    out = np.zeros((n, 2))
+    p = np.empty(k * k, np.float32)
+    px = np.empty(k * k)
+    py = np.empty(k * k)
+    thr = np.float32(per_px)
+    zero = np.float32(0.0)
+    for i in range(n):
+        c = 0
+        for dy in range(-r, r + 1):
+            yy = min(max(ys[i] + dy, 0), h - 1)
+            for dx in range(-r, r + 1):
+                xx = min(max(xs[i] + dx, 0), w - 1)
+                v = max(np.float32(marks[yy, xx]) - thr, zero)
+                p[c] = v
+                px[c] = xx * np.float64(v)
+                py[c] = yy * np.float64(v)
+                c += 1
+        tot = _pairwise_sum(p, k * k)
+        if tot > 0:
+            t64 = np.float64(tot)
+            out[i, 0] = _pairwise_sum(px, k * k) / t64
+            out[i, 1] = _pairwise_sum(py, k * k) / t64
+        else:
+            out[i, 0] = xs[i]
+            out[i, 1] = ys[i]
+    return out
+
+
+@numba.njit(cache=True)
+def free_rows(z, occ, offs, ends, e, gate, thr, min_dot, spread, end_max):
+    """Free-row candidates of :func:`stcvision.stages._free_rows`: where every dot of the row
+    at ``offs`` (along x for axis 0, along y for axis 1) has ``z >= gate`` on a free pixel
+    (``occ`` 0) -- a mask, then per image row the AND of its shifted rows, both loops the
+    compiler vectorises, scanned eight pixels at a time -- the float32 row sum (added dot by
+    dot, in ``offs`` order), its least dot and mean pass (``sum >= thr``, ``low >= min_dot``,
+    ``low >= mean - spread``) and the floor at ``ends`` is free and below ``end_max``. All
+    comparisons in float32, as numpy makes them against Python floats. Returns (xs, ys, row SNR
+    = sum / sqrt(n), axis) over the interior (``e`` from the border): axis 0 first, each in
+    row-major order."""
+    h, w = z.shape
+    n = len(offs)
+    g = np.float32(gate)
+    t32 = np.float32(thr)
+    md = np.float32(min_dot)
+    sp = np.float32(spread)
+    em = np.float32(end_max)
+    nf = np.float32(n)
+    sq = np.float32(math.sqrt(n))
+    ok = np.empty((h, w), np.uint8)
+    for y in range(h):
+        zr, orow, okr = z[y], occ[y], ok[y]
+        for x in range(w):
+            okr[x] = (zr[x] >= g) & (orow[x] == 0)
+    nx = w - 2 * e
+    acc = np.zeros((nx + 7) // 8 * 8, np.uint8)
+    words = acc.view(np.uint64)
+    xs = np.empty(256, np.int64)
+    ys = np.empty(256, np.int64)
+    st = np.empty(256, np.float32)
+    ax = np.empty(256, np.int64)
+    m = 0
+    for axis in range(2):
+        for y in range(e, h - e):
+            acc[:nx] = 1
+            for o in offs:  # the row's dots as shifted views: indices the compiler can vectorise
+                src = ok[y + o, e : w - e] if axis else ok[y, e + o : w - e + o]
+                for i in range(nx):
+                    acc[i] &= src[i]
+            for k in range(len(words)):
+                if words[k] == 0:
+                    continue
+                for i in range(8 * k, 8 * k + 8):
+                    if not acc[i]:
+                        continue
+                    x = e + i
+                    total = np.float32(0.0)
+                    low = np.float32(np.inf)
+                    for c in range(n):
+                        v = z[y + offs[c], x] if axis else z[y, x + offs[c]]
+                        total = v if c == 0 else total + v
+                        low = min(low, v)
+                    if not (total >= t32 and low >= md and low >= total / nf - sp):
+                        continue
+                    free = True
+                    for o in ends:
+                        yy, xx = (y + o, x) if axis else (y, x + o)
+                        free &= z[yy, xx] < em and occ[yy, xx] == 0
+                    if not free:
+                        continue
+                    if m == len(xs):
+                        xs, ys, st, ax = _grow(xs, m), _grow(ys, m), _grow(st, m), _grow(ax, m)
+                    xs[m] = x
+                    ys[m] = y
+                    st[m] = total / sq
+                    ax[m] = axis
+                    m += 1
+    return xs[:m], ys[:m], st[:m], ax[:m]
 
 
 @numba.njit(cache=True)
