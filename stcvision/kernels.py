@@ -13,6 +13,8 @@ import math
 
 import numba
 import numpy as np
+from numba import types
+from numba.extending import intrinsic
 
 __all__ = [
     "anchored_rows",
@@ -21,6 +23,13 @@ __all__ = [
     "fill_squares",
     "free_rows",
     "gauss_centroids",
+    "heading_row",
+    "landing_counts",
+    "mark_offset",
+    "mirror_shift",
+    "rotate_about",
+    "row_snr",
+    "zero_ring",
     "greedy_black_out",
     "window_centroids",
 ]
@@ -230,6 +239,66 @@ def window_centroids(marks, xs, ys, r, per_px):
     return out
 
 
+@intrinsic
+def _fma32(typingctx, a, b, c):
+    """float32 ``a * b + c`` rounded once (LLVM's fma: the instruction OpenCV's SIMD loops use)."""
+    sig = types.float32(types.float32, types.float32, types.float32)
+
+    def codegen(context, builder, signature, args):
+        return builder.fma(*args)
+
+    return sig, codegen
+
+
+@numba.njit(cache=True, error_model="numpy")
+def row_snr(marks, gain, area, background, noise, clip):
+    """Per-pixel SNR of window sums, clipped (:func:`stcvision.stages._row_snr`), in one pass:
+    ``min(fma(marks, 1 / area, -background) * (1 / noise) / gain, clip)`` in float32, the
+    arithmetic of ``cv2.addWeighted(..., dtype=CV_32F)``, ``cv2.divide(..., scale)`` and
+    ``cv2.min`` it replaced (to the bit; numpy's error model: no zero-division check per pixel,
+    which would keep the loop from being vectorised)."""
+    h, w = marks.shape
+    out = np.empty((h, w), np.float32)
+    a = np.float32(1.0 / area)
+    g = np.float32(-background)
+    s = np.float32(1.0 / noise)
+    c = np.float32(clip)
+    for y in range(h):
+        mr, gr, o = marks[y], gain[y], out[y]
+        for x in range(w):
+            v = _fma32(np.float32(mr[x]), a, g) * s / gr[x]
+            o[x] = v if v < c else c
+    return out
+
+
+@numba.njit(cache=True)
+def zero_ring(marks, b):
+    """uint8 image: 1 within ``b`` pixels (along both axes) of a pixel where ``marks`` is 0 --
+    ``cv2.dilate(marks == 0, (2b+1)^2 square)``, pixels beyond the border not counted: a
+    separable OR of shifted rows, then of shifted columns, on a zero-padded copy."""
+    h, w = marks.shape
+    pad = np.zeros((h + 2 * b, w + 2 * b), np.uint8)
+    for y in range(h):
+        mr, pr = marks[y], pad[y + b, b : b + w]
+        for x in range(w):
+            pr[x] = mr[x] == 0
+    across = np.zeros((h + 2 * b, w), np.uint8)
+    for y in range(b, h + b):
+        ar = across[y]
+        for d in range(2 * b + 1):
+            src = pad[y, d : d + w]
+            for x in range(w):
+                ar[x] |= src[x]
+    out = np.zeros((h, w), np.uint8)
+    for y in range(h):
+        orow = out[y]
+        for d in range(2 * b + 1):
+            src = across[y + d]
+            for x in range(w):
+                orow[x] |= src[x]
+    return out
+
+
 @numba.njit(cache=True)
 def free_rows(z, occ, offs, ends, e, gate, thr, min_dot, spread, end_max):
     """Free-row candidates of :func:`stcvision.stages._free_rows`: where every dot of the row
@@ -299,6 +368,136 @@ def free_rows(z, occ, offs, ends, e, gate, thr, min_dot, spread, end_max):
                     ax[m] = axis
                     m += 1
     return xs[:m], ys[:m], st[:m], ax[:m]
+
+
+@numba.njit(cache=True, error_model="numpy")
+def mirror_shift(m, c, ok, xy, max_shift2):
+    """The ground-view positions of :func:`stcvision.stages.mirror_centroids`: per dot, the
+    mirror-image centroid ``c`` taken back through the unwarp map's local Jacobian (``m``: the
+    map at the dot and +-0.5 px in x and y, (n, 5, 2)); a dot whose centroid could not be
+    measured (``ok``), whose Jacobian is singular or whose shift exceeds ``sqrt(max_shift2)``
+    keeps ``xy``. Element by element as the numpy version."""
+    n = len(xy)
+    out = xy.copy()
+    for i in range(n):
+        jx0, jx1 = m[i, 1, 0] - m[i, 2, 0], m[i, 1, 1] - m[i, 2, 1]
+        jy0, jy1 = m[i, 3, 0] - m[i, 4, 0], m[i, 3, 1] - m[i, 4, 1]
+        det = jx0 * jy1 - jy0 * jx1
+        if not (ok[i] and abs(det) > 1e-6):
+            continue
+        du, dv = c[i, 0] - m[i, 0, 0], c[i, 1] - m[i, 0, 1]
+        g0 = (jy1 * du - jy0 * dv) / det
+        g1 = (jx0 * dv - jx1 * du) / det
+        if g0 * g0 + g1 * g1 <= max_shift2:
+            out[i, 0] = xy[i, 0] + g0
+            out[i, 1] = xy[i, 1] + g1
+    return out
+
+
+@numba.njit(cache=True, error_model="numpy")
+def heading_row(xy, s, n_dots, radius, max_residual):
+    """The dots :func:`stcvision.stages.fit_heading` fits, among lit dots at ``xy`` (robot
+    frame, m) of strengths ``s``: the brightest, and of the lines from it to each neighbour
+    within ``radius`` the one most neighbours lie on (within ``max_residual``; then the
+    brightest in sum; then the first), its ``n_dots`` brightest dots (stable order). Returns
+    (status, value, picks): status 0 with the picked indices; 1 with the neighbours' count
+    (too few); 2 (no row of ``n_dots``)."""
+    first = 0
+    for i in range(1, len(s)):
+        if s[i] > s[first]:
+            first = i
+    fx, fy = xy[first, 0], xy[first, 1]
+    near = np.empty(len(s), np.int64)
+    k = 0
+    for i in range(len(s)):
+        if np.hypot(xy[i, 0] - fx, xy[i, 1] - fy) <= radius:
+            near[k] = i
+            k += 1
+    near = near[:k]
+    if k < n_dots:
+        return 1, k, np.zeros(0, np.int64)
+    best_c, best_count, best_total = -1, -1, -np.inf
+    for ci in range(k):
+        j = near[ci]
+        if j == first:
+            continue
+        rx, ry = xy[j, 0] - fx, xy[j, 1] - fy
+        norm = np.hypot(rx, ry)
+        dx, dy = rx / norm, ry / norm
+        count = 0
+        total = 0.0
+        for t in range(k):  # the neighbours on this line, in order
+            i = near[t]
+            if abs((xy[i, 0] - fx) * -dy + (xy[i, 1] - fy) * dx) <= max_residual:
+                total = s[i] if count == 0 else total + s[i]
+                count += 1
+        if count > best_count or (count == best_count and total > best_total):
+            best_c, best_count, best_total = ci, count, total
+    j = near[best_c]
+    rx, ry = xy[j, 0] - fx, xy[j, 1] - fy
+    norm = np.hypot(rx, ry)
+    dx, dy = rx / norm, ry / norm
+    row = np.empty(k, np.int64)
+    m = 0
+    for t in range(k):
+        i = near[t]
+        if abs((xy[i, 0] - fx) * -dy + (xy[i, 1] - fy) * dx) <= max_residual:
+            row[m] = i
+            m += 1
+    if m < n_dots:
+        return 2, m, np.zeros(0, np.int64)
+    row = row[:m]
+    order = np.argsort(-s[row], kind="mergesort")
+    return 0, m, row[order[:n_dots]]
+
+
+@numba.njit(cache=True)
+def rotate_about(ru, c, s, cx, cy):
+    """Points rotated about (cx, cy) by the angle of cosine ``c`` and sine ``s``
+    (:func:`stcvision.observation._rotate`), element by element as the numpy version."""
+    out = np.empty_like(ru)
+    for i in range(len(ru)):
+        dx, dy = ru[i, 0] - cx, ru[i, 1] - cy
+        out[i, 0] = (c * dx - s * dy) + cx
+        out[i, 1] = (s * dx + c * dy) + cy
+    return out
+
+
+@numba.njit(cache=True)
+def mark_offset(ru, orient, lit, inset, min_dots):
+    """The median residuals of :func:`stcvision.observation.mark_offset` over the lit dots:
+    per axis (0: right, from the rows along 'up'; 1: up, from those along 'right'), whether
+    ``min_dots`` rows' dots were there, and minus the median of each dot's coordinate less its
+    nominal one (the nearest integer, half to even, +- ``inset``)."""
+    have = np.zeros(2, np.bool_)
+    out = np.zeros(2)
+    for axis in range(2):
+        along = 1 - axis
+        r = np.empty(len(ru))
+        k = 0
+        for i in range(len(ru)):
+            if lit[i] and orient[i] == along:
+                p = ru[i, axis]
+                q = np.round(p)
+                r[k] = p - (q + (inset if p >= q else -inset))
+                k += 1
+        if k >= min_dots:
+            have[axis] = True
+            out[axis] = -np.median(r[:k])
+    return have, out
+
+
+@numba.njit(cache=True)
+def landing_counts(ru, lit, centres, half):
+    """Per landing centre, the lit dots within ``half`` of it along both axes."""
+    out = np.zeros(len(centres), np.int64)
+    for i in range(len(ru)):
+        if not lit[i]:
+            continue
+        for k in range(len(centres)):
+            if abs(ru[i, 0] - centres[k, 0]) < half and abs(ru[i, 1] - centres[k, 1]) < half:
+                out[k] += 1
+    return out
 
 
 @numba.njit(cache=True)

@@ -679,20 +679,12 @@ def mirror_centroids(
     g0 = dots.xy_px.astype(np.float64)
     # the dots' mirror positions, and the map's Jacobian there (central differences, +-0.5 px)
     m = _map_at(umap, (g0[:, None, :] + _JAC_STEPS[None]).reshape(-1, 2)).reshape(n, 5, 2)
-    uv0 = m[:, 0]
-    jx, jy = m[:, 1] - m[:, 2], m[:, 3] - m[:, 4]  # d(u, v) / d(ground x), d(u, v) / d(ground y)
-    det = jx[:, 0] * jy[:, 1] - jy[:, 0] * jx[:, 1]
-    # the centroids (kernels.gauss_centroids: a loop per dot over its square, compiled)
+    # the centroids (kernels.gauss_centroids: a loop per dot over its square, compiled), back
+    # to the ground view through the inverse Jacobian (kernels.mirror_shift)
     c, ok = kernels.gauss_centroids(
-        image, uv0, float(background_dn), params.mirror_half_px, float(params.mirror_sigma_px), params.mirror_iters
+        image, m[:, 0], float(background_dn), params.mirror_half_px, float(params.mirror_sigma_px), params.mirror_iters
     )
-    ok &= np.abs(det) > 1e-6
-    du, dv = (c - uv0).T
-    # back to the ground view: the inverse Jacobian times the shift
-    det = np.where(ok, det, 1.0)
-    dg = np.column_stack([jy[:, 1] * du - jy[:, 0] * dv, jx[:, 0] * dv - jx[:, 1] * du]) / det[:, None]
-    ok &= (dg * dg).sum(axis=1) <= params.mirror_max_shift_px**2
-    xy_px = np.where(ok[:, None], g0 + dg, dots.xy_px)
+    xy_px = kernels.mirror_shift(m, c, ok, g0, float(params.mirror_max_shift_px**2))
     xy_m = ground_to_robot(xy_px) if ground_to_robot is not None else dots.xy_m
     return replace(dots, xy_px=xy_px, xy_m=xy_m)
 
@@ -791,7 +783,10 @@ def find_rows(
 
 def _row_snr(marks: np.ndarray, gain: np.ndarray, area: int, background_dn: float, noise_dn: float, clip: float):
     """Per-pixel SNR of the window sums ``marks`` (float32), clipped at the dot threshold
-    ``clip``: a single bright dot must not make a row."""
+    ``clip``: a single bright dot must not make a row. One compiled pass
+    (:func:`kernels.row_snr`) for uint16 sums; float32 ones (16-bit frames) through OpenCV."""
+    if marks.dtype == np.uint16 and gain.dtype == np.float32:
+        return kernels.row_snr(marks, gain, area, float(background_dn), float(noise_dn), float(clip))
     z = cv2.addWeighted(marks, 1.0 / area, marks, 0.0, -background_dn, dtype=cv2.CV_32F)
     z = cv2.divide(z, gain, scale=1.0 / noise_dn)
     return cv2.min(z, float(clip), dst=z)
@@ -803,8 +798,7 @@ def _taken_floor(marks: np.ndarray, dots: Dots, dot_params: DotParams) -> np.nda
     square of a red light blacked out of the marks image (zero there): the edge of its glare,
     just below the black-out level, runs along the light as a column of faint "dots"."""
     b = dot_params.blackout_px
-    ring = 2 * b + 1
-    occ = cv2.dilate(cv2.compare(marks, 0, cv2.CMP_EQ), np.ones((ring, ring), np.uint8))
+    occ = kernels.zero_ring(marks, b)
     lit = dots.lit
     if lit.any():
         reach = np.ceil(dot_params.tail_sigma_px * np.sqrt(2 * np.log(np.maximum(dots.snr[lit], 1.0)))) + 1
@@ -978,29 +972,23 @@ def fit_heading(dots: Dots, params: HeadingParams = HeadingParams()) -> HeadingF
     lit = np.flatnonzero(dots.lit)
     if len(lit) < params.n_dots:
         return HeadingFit(False, reason=f"fewer than {params.n_dots} dots ({len(lit)} lit)")
-    xy = dots.xy_m[lit]
-    s = dots.strength[lit]
-    first = int(np.argmax(s))
-    near = np.flatnonzero(np.hypot(*(xy - xy[first]).T) <= params.row_radius_m)
-    if len(near) < params.n_dots:
+    xy = np.ascontiguousarray(dots.xy_m[lit], np.float64)
+    # the row through the brightest dot: of the lines from it to each neighbour within the row
+    # radius, the one most other neighbours lie on (another mark can sit within the row radius,
+    # across the row), then the brightest; its n_dots brightest dots (kernels.heading_row)
+    status, count, pick = kernels.heading_row(
+        xy,
+        np.ascontiguousarray(dots.strength[lit], np.float64),
+        params.n_dots,
+        float(params.row_radius_m),
+        float(params.max_residual_m),
+    )
+    if status == 1:
         return HeadingFit(
-            False, reason=f"the brightest dot has only {len(near) - 1} lit neighbours within {params.row_radius_m} m"
+            False, reason=f"the brightest dot has only {count - 1} lit neighbours within {params.row_radius_m} m"
         )
-    # the row through the brightest dot: of the lines from it to each neighbour, the one most
-    # other neighbours lie on (another mark can sit within the row radius, across the row)
-    rel = xy[near] - xy[first]
-    cand = near != first
-    d = rel[cand] / np.hypot(rel[cand, 0], rel[cand, 1])[:, None]  # unit directions to each neighbour
-    on = np.abs(rel @ np.array([-d[:, 1], d[:, 0]])) <= params.max_residual_m  # (near, candidates)
-    count = on.sum(axis=0)
-    total = np.where(on, s[near][:, None], 0.0).sum(axis=0)
-    # the most dots on the line, then the brightest; the first such candidate
-    top = np.flatnonzero(count == count.max())
-    pick_c = top[np.flatnonzero(total[top] == total[top].max())[0]]
-    row = near[on[:, pick_c]]
-    if len(row) < params.n_dots:
+    if status == 2:
         return HeadingFit(False, reason=f"no row of {params.n_dots} collinear dots at the brightest dot")
-    pick = row[np.argsort(-s[row], kind="stable")[: params.n_dots]]
     pts = xy[pick]
     c = pts.mean(0)
     _, sv, vt = np.linalg.svd(pts - c)
