@@ -98,9 +98,9 @@ def dot_candidates(sums, gain, mode, a, c, e, area, background, noise):
         c0 = sums[y, e : w - e]
         if mode == 0:
             gr = gain[y, e : w - e]
-            for i in range(nx):  # within the level's rounding, or saturated
-                s = np.float64(c0[i])
-                flag[i] = (s + 1.0 >= np.float64(gr[i]) * a32 + c32) | (s >= 65535.0)
+            for i in range(nx):  # within the level's rounding (float32: off by < 0.01), or saturated
+                s = np.float32(c0[i])
+                flag[i] = (s + np.float32(2.0) >= gr[i] * fa + fc) | (c0[i] == 65535)
         elif mode == 1:
             gr = gain[y, e : w - e]
             for i in range(nx):
@@ -274,29 +274,38 @@ def row_snr(marks, gain, area, background, noise, clip):
 @numba.njit(cache=True)
 def zero_ring(marks, b):
     """uint8 image: 1 within ``b`` pixels (along both axes) of a pixel where ``marks`` is 0 --
-    ``cv2.dilate(marks == 0, (2b+1)^2 square)``, pixels beyond the border not counted: a
-    separable OR of shifted rows, then of shifted columns, on a zero-padded copy."""
+    ``cv2.dilate(marks == 0, (2b+1)^2 square)``, pixels beyond the border not counted. On a
+    zero-padded copy, separably: the OR over a run of 2b+1 pixels grown by doubling (runs of 1,
+    2, 4, ... pixels, each step the OR of two shifted views: loops the compiler vectorises),
+    along x, then along y."""
     h, w = marks.shape
-    pad = np.zeros((h + 2 * b, w + 2 * b), np.uint8)
+    k = 2 * b + 1
+    hp, wp = h + 2 * b, w + 2 * b
+    cur = np.zeros((hp, wp), np.uint8)
     for y in range(h):
-        mr, pr = marks[y], pad[y + b, b : b + w]
+        mr, pr = marks[y], cur[y + b, b : b + w]
         for x in range(w):
             pr[x] = mr[x] == 0
-    across = np.zeros((h + 2 * b, w), np.uint8)
-    for y in range(b, h + b):
-        ar = across[y]
-        for d in range(2 * b + 1):
-            src = pad[y, d : d + w]
+    nxt = np.zeros((hp, wp), np.uint8)
+    run = 1
+    while run < k:  # along x: cur[y, x] = OR of the run of pixels from x
+        sh = min(run, k - run)
+        for y in range(b, h + b):
+            c0, c1, o = cur[y, 0 : wp - sh], cur[y, sh:wp], nxt[y, 0 : wp - sh]
+            for x in range(wp - sh):
+                o[x] = c0[x] | c1[x]
+        cur, nxt = nxt, cur
+        run += sh
+    run = 1
+    while run < k:  # along y, over the x-runs (starting at x - b: column x of the result)
+        sh = min(run, k - run)
+        for y in range(hp - sh):
+            c0, c1, o = cur[y, 0:w], cur[y + sh, 0:w], nxt[y, 0:w]
             for x in range(w):
-                ar[x] |= src[x]
-    out = np.zeros((h, w), np.uint8)
-    for y in range(h):
-        orow = out[y]
-        for d in range(2 * b + 1):
-            src = across[y + d]
-            for x in range(w):
-                orow[x] |= src[x]
-    return out
+                o[x] = c0[x] | c1[x]
+        cur, nxt = nxt, cur
+        run += sh
+    return np.ascontiguousarray(cur[0:h, 0:w])
 
 
 @numba.njit(cache=True)

@@ -504,7 +504,9 @@ def _read_neighbours(dots, nb, rru, red_strength, red_threshold_dn: float, thr: 
     return neighbours
 
 
-def _landmarks(rru, landmark_px, geometry: CellGeometry, heading_error_rad: float, params: ObservationParams, subcell_m):
+def _landmarks(
+    rru, landmark_px, geometry: CellGeometry, heading_error_rad: float, params: ObservationParams, subcell_m
+):
     """Red lights stand at cell centres (even coordinates in cell units): absolute landmarks.
     (offset, rotation, rotation sigma, offset sigma) of :func:`_landmark_fit` over the lights
     near a cell centre within reach (``landmark_px`` out to ``params.landmark_range_m``, else

@@ -1081,6 +1081,8 @@ def find_red(obstacle: np.ndarray, params: RedParams = RedParams(), *, window_ar
     _check_image(obstacle, "obstacle image (uint8, or window sums)", (np.uint8, *SUM_DTYPES), ndims=(2,))
     if min(obstacle.shape) < 2:  # OpenCV takes a 1 x 1 array for a scalar and fails (fuzzing)
         raise BadInputError(f"obstacle image must be at least 2x2 pixels, got {obstacle.shape}")
+    if not cv2.countNonZero(obstacle):  # no red light in view (most frames): no contour pass
+        return RedLights(np.zeros((0, 2)), np.zeros(0), np.zeros(0))
     binary = cv2.compare(obstacle, 0, cv2.CMP_GT)
     contours, _ = cv2.findContours(binary, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
     xy, peak, area = [], [], []
