@@ -18,6 +18,7 @@ from numba.extending import intrinsic
 
 __all__ = [
     "anchored_rows",
+    "blur_squares",
     "accept_rows",
     "dot_candidates",
     "fill_squares",
@@ -46,6 +47,25 @@ def fill_squares(img, xs, ys, half):
         for y in range(y0, y1):
             for x in range(x0, x1):
                 img[y, x] = 1
+
+
+@numba.njit(cache=True)
+def blur_squares(img, xy, snr, lit, tail_sigma, b):
+    """Set to 1 in ``img`` (uint8) the square about each lit dot (its position rounded half to
+    even, clipped to the image) as far as its blur still shows above 1 sigma:
+    half-side ``max(ceil(tail_sigma sqrt(2 ln max(snr, 1))) + 1, b)``
+    (:func:`stcvision.stages._taken_floor`)."""
+    h, w = img.shape
+    for i in range(len(xy)):
+        if not lit[i]:
+            continue
+        r = max(np.ceil(tail_sigma * np.sqrt(2 * np.log(max(snr[i], 1.0)))) + 1, b)
+        half = np.int64(r)
+        x = min(max(np.int64(np.round(xy[i, 0])), 0), w - 1)
+        y = min(max(np.int64(np.round(xy[i, 1])), 0), h - 1)
+        for yy in range(max(y - half, 0), min(y + half + 1, h)):
+            for xx in range(max(x - half, 0), min(x + half + 1, w)):
+                img[yy, xx] = 1
 
 
 @numba.njit(cache=True)
@@ -308,7 +328,7 @@ def zero_ring(marks, b):
     return np.ascontiguousarray(cur[0:h, 0:w])
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, error_model="numpy")
 def free_rows(z, occ, offs, ends, e, gate, thr, min_dot, spread, end_max):
     """Free-row candidates of :func:`stcvision.stages._free_rows`: where every dot of the row
     at ``offs`` (along x for axis 0, along y for axis 1) has ``z >= gate`` on a free pixel
@@ -341,7 +361,9 @@ def free_rows(z, occ, offs, ends, e, gate, thr, min_dot, spread, end_max):
     st = np.empty(256, np.float32)
     ax = np.empty(256, np.int64)
     m = 0
+    zf, of = z.ravel(), occ.ravel()
     for axis in range(2):
+        stride = w if axis else 1
         for y in range(e, h - e):
             acc[:nx] = 1
             for o in offs:  # the row's dots as shifted views: indices the compiler can vectorise
@@ -354,24 +376,24 @@ def free_rows(z, occ, offs, ends, e, gate, thr, min_dot, spread, end_max):
                 for i in range(8 * k, 8 * k + 8):
                     if not acc[i]:
                         continue
-                    x = e + i
-                    total = np.float32(0.0)
-                    low = np.float32(np.inf)
-                    for c in range(n):
-                        v = z[y + offs[c], x] if axis else z[y, x + offs[c]]
-                        total = v if c == 0 else total + v
+                    base = y * w + e + i  # flat index of (x, y); the row's dots stride apart
+                    total = zf[base + offs[0] * stride]
+                    low = total
+                    for c in range(1, n):
+                        v = zf[base + offs[c] * stride]
+                        total += v
                         low = min(low, v)
                     if not (total >= t32 and low >= md and low >= total / nf - sp):
                         continue
                     free = True
                     for o in ends:
-                        yy, xx = (y + o, x) if axis else (y, x + o)
-                        free &= z[yy, xx] < em and occ[yy, xx] == 0
+                        p = base + o * stride
+                        free &= zf[p] < em and of[p] == 0
                     if not free:
                         continue
                     if m == len(xs):
                         xs, ys, st, ax = _grow(xs, m), _grow(ys, m), _grow(st, m), _grow(ax, m)
-                    xs[m] = x
+                    xs[m] = e + i
                     ys[m] = y
                     st[m] = total / sq
                     ax[m] = axis
@@ -510,10 +532,22 @@ def landing_counts(ru, lit, centres, half):
 
 
 @numba.njit(cache=True)
-def anchored_rows(z, occ, xy, snr, lone, step, n, min_snr, mean_snr, end_max, k_sigma):
+def anchored_rows(z, occ, xy, snr, crowded, max_snr, reach, step, n, min_snr, mean_snr, end_max, k_sigma):
     """Rows through one lone found dot (:func:`stcvision.stages._anchored_rows`): for each lone
-    dot, the best of its ``2 n`` row hypotheses; a row within 2 px of an accepted one is
-    skipped. Returns the accepted rows' points ((R, n - 1, 2) float) and SNRs (R,)."""
+    dot (not ``crowded``, SNR at most ``max_snr``, ``reach`` inside the image), the best of its
+    ``2 n`` row hypotheses; a row within 2 px of an accepted one is skipped. Returns the
+    accepted rows' points ((R, n - 1, 2) float) and SNRs (R,)."""
+    h, w = z.shape
+    lone = np.empty(len(xy), np.bool_)
+    for i in range(len(xy)):
+        lone[i] = (
+            not crowded[i]
+            and snr[i] <= max_snr
+            and xy[i, 0] >= reach
+            and xy[i, 0] < w - reach
+            and xy[i, 1] >= reach
+            and xy[i, 1] < h - reach
+        )
     taken = np.zeros(z.shape, np.uint8)
     out_pts = np.empty((len(xy), n - 1, 2))
     out_s = np.empty(len(xy))

@@ -772,13 +772,17 @@ def find_rows(
     e = max(m, window_px // 2 + 1)  # rows reaching beyond the image are not sought
     if 2 * e >= min(h, w):
         return dots
-    new_xy, new_s = _anchored_rows(z, occ, dots, step, n, params) if params.anchored else ([], [])
+    if params.anchored:
+        rows_xy, rows_s = _anchored_rows(z, occ, dots, step, n, params)
+    else:
+        rows_xy, rows_s = np.zeros((0, n - 1, 2)), np.zeros(0)
     xs, ys, st, ax = _free_rows(z, occ, offs, ends, e, params)
-    if len(xs):
-        _accept_free_rows(z.shape, xs, ys, st, ax, offs, new_xy, new_s, dot_params.blackout_px, params.max_rows)
-    if not new_xy:
+    free_xy, free_s = _accept_free_rows(z.shape, xs, ys, st, ax, offs, rows_xy, dot_params.blackout_px, params.max_rows)
+    if not len(rows_s) and not len(free_s):
         return dots
-    return _with_rows(dots, marks, z, gain, new_xy, new_s, area, background_dn, noise_dn, dot_params, ground_to_robot)
+    pts = np.concatenate([rows_xy.reshape(-1, 2), free_xy.reshape(-1, 2)])
+    snr = np.concatenate([np.repeat(rows_s, n - 1), np.repeat(free_s, n)])  # float64
+    return _with_rows(dots, marks, z, gain, pts, snr, area, background_dn, noise_dn, dot_params, ground_to_robot)
 
 
 def _row_snr(marks: np.ndarray, gain: np.ndarray, area: int, background_dn: float, noise_dn: float, clip: float):
@@ -799,40 +803,38 @@ def _taken_floor(marks: np.ndarray, dots: Dots, dot_params: DotParams) -> np.nda
     just below the black-out level, runs along the light as a column of faint "dots"."""
     b = dot_params.blackout_px
     occ = kernels.zero_ring(marks, b)
-    lit = dots.lit
-    if lit.any():
-        reach = np.ceil(dot_params.tail_sigma_px * np.sqrt(2 * np.log(np.maximum(dots.snr[lit], 1.0)))) + 1
-        lit_xy = np.clip(np.round(dots.xy_px[lit]).astype(np.int64), 0, [occ.shape[1] - 1, occ.shape[0] - 1])
-        kernels.fill_squares(occ, lit_xy[:, 0], lit_xy[:, 1], np.maximum(reach, b).astype(np.int64))
+    kernels.blur_squares(occ, dots.xy_px.reshape(-1, 2), dots.snr, dots.lit, float(dot_params.tail_sigma_px), b)
     return occ
 
 
-def _accept_free_rows(shape, xs, ys, st, ax, offs, new_xy: list, new_s: list, b: int, max_rows: int) -> None:
-    """Append to ``new_xy``, ``new_s`` (the anchored rows) the free rows accepted strongest
-    first: a row may not share a dot with one already accepted (within ``b`` along both axes;
-    :func:`kernels.accept_rows`), at most ``max_rows`` rows in all."""
+def _accept_free_rows(shape, xs, ys, st, ax, offs, rows_xy: np.ndarray, b: int, max_rows: int):
+    """The free rows accepted strongest first, after the anchored rows ``rows_xy`` ((R, n - 1,
+    2)): a row may not share a dot with one already accepted (within ``b`` along both axes;
+    :func:`kernels.accept_rows`), at most ``max_rows`` rows in all. Returns their points ((A,
+    n, 2) float) and SNRs (A,), in the order accepted."""
     n = len(offs)
+    if not len(xs):
+        return np.zeros((0, n, 2)), np.zeros(0, np.float32)
     order = np.argsort(-st, kind="stable")
     # the accepted rows' dots, each grown to its (2b+1)^2 square, as an image looked up per row
     taken = np.zeros(shape, np.uint8)
-    if len(new_xy):
-        ix = np.concatenate(new_xy).astype(np.int64)
+    if len(rows_xy):
+        ix = rows_xy.reshape(-1, 2).astype(np.int64)
         kernels.fill_squares(taken, ix[:, 0], ix[:, 1], np.full(len(ix), b, np.int64))
-    acc = kernels.accept_rows(taken, xs, ys, ax, order, offs, b, max_rows - len(new_xy))
-    for i in acc:
-        along = offs if ax[i] else np.zeros(n, np.int64)
-        across = np.zeros(n, np.int64) if ax[i] else offs
-        new_xy.append(np.column_stack([xs[i] + across, ys[i] + along]).astype(float))
-        new_s.append(np.full(n, st[i]))
+    acc = kernels.accept_rows(taken, xs, ys, ax, order, offs, b, max_rows - len(rows_xy))
+    along = ax[acc, None].astype(bool)  # axis 1: the row runs along y
+    pts = np.empty((len(acc), n, 2))
+    pts[:, :, 0] = xs[acc, None] + np.where(along, 0, offs[None])
+    pts[:, :, 1] = ys[acc, None] + np.where(along, offs[None], 0)
+    return pts, st[acc]
 
 
-def _with_rows(dots, marks, z, gain, new_xy, new_s, area, background_dn, noise_dn, dot_params, ground_to_robot):
-    """``dots`` with the rows' dots appended: centroids as :func:`find_dots` takes them,
-    strength the window mean above background, ``lit`` and ``from_row`` set."""
-    pts = np.concatenate(new_xy)
+def _with_rows(dots, marks, z, gain, pts, snr, area, background_dn, noise_dn, dot_params, ground_to_robot):
+    """``dots`` with the rows' dots at ``pts`` (SNR ``snr``) appended: centroids as
+    :func:`find_dots` takes them, strength the window mean above background, ``lit`` and
+    ``from_row`` set."""
     ix = np.round(pts).astype(np.int64)
     xy = _centroids(marks, ix[:, 0], ix[:, 1], dot_params.centroid_px, background_dn * area)
-    snr = np.concatenate(new_s)
     strength = z[ix[:, 1], ix[:, 0]] * gain[ix[:, 1], ix[:, 0]] * noise_dn
     xy_m = ground_to_robot(xy) if ground_to_robot is not None else np.zeros((len(xy), 2))
     k = len(dots)
@@ -880,21 +882,17 @@ def _free_rows(z: np.ndarray, occ: np.ndarray, offs: np.ndarray, ends: np.ndarra
 
 
 def _anchored_rows(z, occ, dots: Dots, step: float, n: int, params: RowParams):
-    """Rows through one found dot (:func:`find_rows`): lists of the added points ((n - 1, 2)
-    float ground px) and their SNRs. ``z``: per-pixel SNR clipped at the dot threshold, before
+    """Rows through one found dot (:func:`find_rows`): the added points ((R, n - 1, 2) float
+    ground px) and the rows' SNRs (R,). ``z``: per-pixel SNR clipped at the dot threshold, before
     the black-out; ``occ``: the lit dots' blur masks; ``step``: the dot spacing (px)."""
-    h, w = z.shape
-    out_xy: list[np.ndarray] = []
-    out_s: list[np.ndarray] = []
-    xy_lit = dots.xy_px[dots.lit].reshape(-1, 2)
-    snr = dots.snr[dots.lit]
-    near = 1.5 * step
-    reach = int(np.ceil((n + 1) * step)) + 2
+    xy_lit = np.ascontiguousarray(dots.xy_px[dots.lit].reshape(-1, 2), np.float64)
     if not len(xy_lit):
-        return out_xy, out_s
+        return np.zeros((0, n - 1, 2)), np.zeros(0)
+    snr = np.ascontiguousarray(dots.snr[dots.lit], np.float64)
+    near = 1.5 * step
     # lone dots only: no other lit dot within 1.5 spacings (else it is a dot of a row found
-    # already, which reads as a mark with one lit neighbour)
-    xy_lit = np.ascontiguousarray(xy_lit, np.float64)
+    # already, which reads as a mark with one lit neighbour), at most anchor_max_snr, the row's
+    # reach inside the image
     if len(xy_lit) <= 256:
         crowded = kernels.crowded(xy_lit, near)
     else:  # more dots than a frame is read for: neighbours by a k-d tree, not all pairs
@@ -902,24 +900,18 @@ def _anchored_rows(z, occ, dots: Dots, step: float, n: int, params: RowParams):
         d2 = ((xy_lit[pairs[:, 0]] - xy_lit[pairs[:, 1]]) ** 2).sum(axis=1)
         crowded = np.zeros(len(xy_lit), bool)
         crowded[pairs[d2 <= near * near].reshape(-1)] = True
-    lone = (
-        ~crowded
-        & (snr <= params.anchor_max_snr)
-        & (xy_lit[:, 0] >= reach)
-        & (xy_lit[:, 0] < w - reach)
-        & (xy_lit[:, 1] >= reach)
-        & (xy_lit[:, 1] < h - reach)
-    )
     # each lone dot: 4 places x 2 axes; at each of the row's other places and one spacing beyond
     # either end the best of the three pixels across the row (a lean of a degree or two); a row
     # with another lit dot on it or next to it (occ) is not tried, and the best passing one is
     # kept unless it comes within 2 px of a row kept already (kernels.anchored_rows)
-    pts, s_row = kernels.anchored_rows(
+    return kernels.anchored_rows(
         z,
         occ,
-        np.ascontiguousarray(xy_lit, np.float64),
-        snr.astype(np.float64),
-        lone,
+        xy_lit,
+        snr,
+        crowded,
+        float(params.anchor_max_snr),
+        int(np.ceil((n + 1) * step)) + 2,
         float(step),
         n,
         float(params.anchor_min_snr),
@@ -927,7 +919,6 @@ def _anchored_rows(z, occ, dots: Dots, step: float, n: int, params: RowParams):
         float(params.end_max_snr),
         float(params.k_sigma),
     )
-    return list(pts), [np.full(n - 1, v) for v in s_row]
 
 
 # --------------------------------------------------------------------------- heading
