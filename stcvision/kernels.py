@@ -18,6 +18,8 @@ from numba.extending import intrinsic
 
 __all__ = [
     "anchored_rows",
+    "box_counts",
+    "cell_dots",
     "blur_squares",
     "accept_rows",
     "dot_candidates",
@@ -92,9 +94,8 @@ def dot_candidates(sums, gain, mode, a, c, e, area, background, noise):
     order (``cv2.findNonZero``'s); with their SNR and window mean above the background.
 
     The level, per ``mode``: 0, uint16 sums: ``gain * a + c`` rounded half to even and saturated
-    to 16 bits, with ``a``, ``c`` rounded to float32 and one float32 multiply-add
-    (``cv2.addWeighted(..., dtype=CV_16U)`` with FMA, which the machines here have: float64
-    product and sum, exact for these operands, then rounded to float32); 1, float32 sums:
+    to 16 bits, with ``a``, ``c`` rounded to float32 and one fused float32 multiply-add (as
+    ``cv2.addWeighted(..., dtype=CV_16U)`` computes it on the FMA machines here); 1, float32 sums:
     ``float32(gain * a) + c`` in float32; 2: the scalar ``c`` (already in the sums' units).
     SNR: ``(sum / area - background) / (noise * gain)`` in float64 (``gain`` of one element:
     ``gain[0, 0]`` everywhere), as the numpy version.
@@ -108,13 +109,11 @@ def dot_candidates(sums, gain, mode, a, c, e, area, background, noise):
     xs = np.empty(256, np.int64)
     ys = np.empty(256, np.int64)
     m = 0
-    a32 = np.float64(np.float32(a))
-    c32 = np.float64(np.float32(c))
     fa = np.float32(a)
     fc = np.float32(c)
     for y in range(e, h - e):
-        # the pixel, its eight neighbours and its gain as views shifted by whole pixels, indexed
-        # from 0 up (no negative-index check per access)
+        # the row and its gain as views from the first interior pixel (indices from 0 up: no
+        # negative-index check per access, a loop the compiler vectorises)
         c0 = sums[y, e : w - e]
         if mode == 0:
             gr = gain[y, e : w - e]
@@ -128,9 +127,6 @@ def dot_candidates(sums, gain, mode, a, c, e, area, background, noise):
         else:
             for i in range(nx):
                 flag[i] = c0[i] >= c
-        ul, uc, ur = sums[y - 1, e - 1 : w - e - 1], sums[y - 1, e : w - e], sums[y - 1, e + 1 : w - e + 1]
-        cl, cr = sums[y, e - 1 : w - e - 1], sums[y, e + 1 : w - e + 1]
-        dl, dc, dr = sums[y + 1, e - 1 : w - e - 1], sums[y + 1, e : w - e], sums[y + 1, e + 1 : w - e + 1]
         for k in range(len(words)):
             if words[k] == 0:
                 continue
@@ -139,10 +135,21 @@ def dot_candidates(sums, gain, mode, a, c, e, area, background, noise):
                     continue
                 s = c0[i]
                 if mode == 0:
-                    lv = np.rint(np.float32(np.float64(gain[y, e + i]) * a32 + c32))
+                    lv = np.rint(_fma32(gain[y, e + i], fa, fc))
                     if s < min(max(lv, 0.0), 65535.0):
                         continue
-                if s < ul[i] or s < uc[i] or s < ur[i] or s < cl[i] or s < cr[i] or s < dl[i] or s < dc[i] or s < dr[i]:
+                x = e + i
+                up, mid, dn = sums[y - 1], sums[y], sums[y + 1]
+                if (
+                    s < up[x - 1]
+                    or s < up[x]
+                    or s < up[x + 1]
+                    or s < mid[x - 1]
+                    or s < mid[x + 1]
+                    or s < dn[x - 1]
+                    or s < dn[x]
+                    or s < dn[x + 1]
+                ):
                     continue
                 if m == len(xs):
                     xs, ys = _grow(xs, m), _grow(ys, m)
@@ -755,6 +762,39 @@ def group_stats(code, n, lit, value):
         if not seen[c]:
             best[c] = 0.0
     return counts, best
+
+
+@numba.njit(cache=True)
+def cell_dots(ru, lit, tol, span, inset, min_dots):
+    """Row orientation and mark offset of the dots ``ru`` (cell units, already rotated), in
+    one call (:func:`stcvision.observation._cell_dots`): per dot, :func:`row_orientation` among
+    the lit dots (-1 for the rest), then :func:`mark_offset` over the lit dots. Returns
+    (orient, have, offset)."""
+    idx = np.flatnonzero(lit)
+    sub = np.empty((len(idx), 2))
+    for k in range(len(idx)):
+        sub[k, 0] = ru[idx[k], 0]
+        sub[k, 1] = ru[idx[k], 1]
+    orient = np.full(len(ru), -1, np.int64)
+    o = row_orientation(sub, tol, span)
+    for k in range(len(idx)):
+        orient[idx[k]] = o[k]
+    have, off = mark_offset(ru, orient, lit, inset, min_dots)
+    return orient, have, off
+
+
+@numba.njit(cache=True)
+def box_counts(box, nb, sub, lit, snr):
+    """Per box code (box + 3: -3..5) and neighbour code (nb + 1: -1..3): the lit dots and the
+    best SNR of any dot (:func:`group_stats`), and the stray lit dots (in a sub-cell, in no
+    box) (:func:`stcvision.observation._read_boxes`)."""
+    n_box, best_box = group_stats(box + 3, 9, lit, snr)
+    n_nb, best_nb = group_stats(nb + 1, 5, lit, snr)
+    stray = 0
+    for i in range(len(box)):
+        if sub[i] >= 0 and box[i] == 0 and lit[i]:
+            stray += 1
+    return n_box, best_box, n_nb, best_nb, stray
 
 
 @numba.njit(cache=True)

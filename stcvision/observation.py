@@ -204,7 +204,13 @@ def assign_boxes(ru: np.ndarray, orient: np.ndarray | None = None) -> tuple[np.n
     )
 
 
-def mark_offset(ru: np.ndarray, orient: np.ndarray, *, inset: float = 0.125, min_dots: int = 4):
+#: a mark's dots lie this far (cell units) inside its sub-cell's edge; :func:`mark_offset` needs
+#: this many dots of rows along an axis before it measures the offset across them
+MARK_INSET = 0.125
+MARK_MIN_DOTS = 4
+
+
+def mark_offset(ru: np.ndarray, orient: np.ndarray, *, inset: float = MARK_INSET, min_dots: int = MARK_MIN_DOTS):
     """The robot's offset from its sub-cell centre (right, up; cell units) from the marks in
     view: every mark lies ``inset`` inside one edge of its sub-cell, so across its row a dot's
     coordinate should be an integer (an edge) +- ``inset``; the median residual of the rows
@@ -213,12 +219,14 @@ def mark_offset(ru: np.ndarray, orient: np.ndarray, *, inset: float = 0.125, min
     if not len(ru):
         return None
     lit = np.ones(len(ru), np.bool_)
-    return _mark_offset(np.ascontiguousarray(ru, np.float64), np.asarray(orient, np.int64), lit, inset, min_dots)
+    have, off = kernels.mark_offset(
+        np.ascontiguousarray(ru, np.float64), np.asarray(orient, np.int64), lit, inset, min_dots
+    )
+    return _offset_of(have, off)
 
 
-def _mark_offset(ru: np.ndarray, orient: np.ndarray, lit: np.ndarray, inset: float = 0.125, min_dots: int = 4):
-    """:func:`mark_offset` over the ``lit`` dots (one compiled loop, :func:`kernels.mark_offset`)."""
-    have, off = kernels.mark_offset(ru, orient, lit, inset, min_dots)
+def _offset_of(have: np.ndarray, off: np.ndarray):
+    """(right, up) from :func:`kernels.mark_offset`'s answer; None where neither axis had rows."""
     if not have.any():
         return None
     return (float(off[0]) or 0.0, float(off[1]) or 0.0)
@@ -423,7 +431,7 @@ def observe_cell(
     ru, orient, offset = _cell_dots(dots, geometry, heading_error_rad, params, position_offset)
     sub, box, nb = assign_boxes(ru, orient) if len(ru) else (np.zeros(0, np.int64),) * 3
     thr = dots.threshold_snr
-    boxes, visited, stray, start_mark = _read_boxes(dots, sub, box, params)
+    boxes, visited, stray, start_mark, nb_stats = _read_boxes(dots, sub, box, nb, params)
     # neighbour d's sub-cell next to our sub-cell d holds a whole row (LANDING_DOTS of its 4
     # dots, clear of the borders)
     inside = kernels.landing_counts(ru, np.asarray(dots.lit, np.bool_), _LANDING, _LANDING_HALF)
@@ -432,7 +440,7 @@ def observe_cell(
     landmark = (None,) * 4
     if params.pose_estimates:
         landmark = _landmarks(rru, landmark_px, geometry, heading_error_rad, params, subcell_m)
-    neighbours = _read_neighbours(dots, nb, rru, red_strength, red_threshold_dn, thr, params)
+    neighbours = _read_neighbours(nb_stats, rru, red_strength, red_threshold_dn, thr, params)
     lean = pattern_rotation(ru[dots.lit], orient[dots.lit]) if (len(ru) and params.pose_estimates) else None
     return CellObservation(
         tuple(boxes),
@@ -458,40 +466,43 @@ def _cell_dots(dots, geometry: CellGeometry, heading_error_rad: float, params: O
         return np.zeros((0, 2)), np.zeros(0, np.int64), None
     ru = _rotate(geometry.to_cell(dots.xy_px), heading_error_rad)
     lit = np.asarray(dots.lit, np.bool_)
-    orient = np.full(len(ru), -1, np.int64)
-    orient[lit] = row_orientation(ru[lit])
+    orient, have, off = kernels.cell_dots(ru, lit, ROW_TOL, ROW_SPAN, MARK_INSET, MARK_MIN_DOTS)
     # where the robot really stands, from the marks: read the boxes relative to that
-    offset = _mark_offset(ru, orient, lit) if position_offset is None else tuple(position_offset)
+    offset = _offset_of(have, off) if position_offset is None else tuple(position_offset)
     if offset is not None and params.use_offset:
         ru = ru + np.asarray(offset)
     return ru, orient, offset
 
 
-def _read_boxes(dots, sub: np.ndarray, box: np.ndarray, params: ObservationParams):
+def _read_boxes(dots, sub: np.ndarray, box: np.ndarray, nb: np.ndarray, params: ObservationParams):
     """The five boxes (lit with ``params.min_dots`` lit dots; confidence from the best
-    candidate's SNR), the visited sub-cells, the stray lit dots (in the cell, in no box) and the
-    start mark's sub-cell (or None)."""
+    candidate's SNR), the visited sub-cells, the stray lit dots (in the cell, in no box), the
+    start mark's sub-cell (or None), and per neighbour code (``nb + 1``) the lit dots and the
+    best SNR (:func:`kernels.box_counts`)."""
     thr = dots.threshold_snr
     # per box code (-3..5, offset by 3): lit dots and the best candidate's SNR
-    n_lit_box, best_box = _group_stats(box + 3, 9, dots.lit, dots.snr)
+    n_box, best_box, n_nb, best_nb, stray = kernels.box_counts(
+        box, nb, sub, np.asarray(dots.lit, np.bool_), np.asarray(dots.snr, float)
+    )
+    n_lit_box, best_box = n_box.tolist(), best_box.tolist()
     boxes = []
     for b in BOXES:
-        n_lit = int(n_lit_box[b + 3])
+        n_lit = n_lit_box[b + 3]
         boxes.append(BoxReading(b, bool(n_lit >= params.min_dots), _confidence(best_box[b + 3], thr, 1.0), n_lit))
     lit_b = {b.box: b.lit for b in boxes}
     visited = {m: any(lit_b[b] for b in boxes_) for m, boxes_ in VISITED_BY.items()}
-    stray = int(((sub >= 0) & (box == 0) & dots.lit).sum()) if len(sub) else 0
     start_mark = next((m for m in (1, 2, 3) if n_lit_box[3 - m] >= params.min_dots), None)
-    return boxes, visited, stray, start_mark
+    return boxes, visited, int(stray), start_mark, (n_nb.tolist(), best_nb.tolist())
 
 
-def _read_neighbours(dots, nb, rru, red_strength, red_threshold_dn: float, thr: float, params: ObservationParams):
-    """The four neighbours: marked (``params.min_dots`` lit dots in the cell), red (a red light
-    in it), each with a confidence."""
+def _read_neighbours(nb_stats, rru, red_strength, red_threshold_dn: float, thr: float, params: ObservationParams):
+    """The four neighbours: marked (``params.min_dots`` lit dots in the cell: ``nb_stats`` from
+    :func:`_read_boxes`), red (a red light ``rru`` in it), each with a confidence."""
     _, _, rnb = assign_boxes(rru, np.full(len(rru), -1)) if len(rru) else (None, None, np.zeros(0, np.int64))
     neighbours = {}
-    n_lit_nb, best_nb = _group_stats(nb + 1, 5, dots.lit, dots.snr)
+    n_lit_nb, best_nb = nb_stats
     n_red_nb, best_red = _group_stats(rnb + 1, 5, np.ones(len(rnb), bool), np.asarray(red_strength, float))
+    n_red_nb, best_red = n_red_nb.tolist(), best_red.tolist()
     for i, name in enumerate(NEIGHBOURS):
         has_red = bool(n_red_nb[i + 1])
         neighbours[name] = NeighbourReading(
