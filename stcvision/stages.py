@@ -274,6 +274,11 @@ class ChannelParams:
     dominance_tol_dn: float | None = None
     red_margin_px: int = 2
     leak_k_sigma: float = 5.0
+    #: ... and only where its red above the background is at least this fraction of its green
+    #: (a dot's red is ~8 % of its green, a red LED's green ~6 % of its red, both ~1 where both
+    #: saturate): on long webcam frames the tolerance (2 x the dark frame's spread, ~37 DN at
+    #: 30 s) took dots 20-40 DN above the background for red and blacked them out (issue 16.7)
+    red_min_fraction: float = 0.5
 
     def levels(self, background_dn: float, noise_dn: float) -> tuple[float, float]:
         """(red threshold, dominance tolerance) per pixel in DN, for a red channel of this
@@ -341,6 +346,10 @@ def separate_channels(
     # red-dominated: R >= G up to a tolerance (where both saturate, the dark frame decides which
     # reads higher); saturating add. A green dot has R ~ G / 12 even when its green saturates.
     dominated = cv2.compare(cv2.add(r, float(tol * window_area)), g, cv2.CMP_GE)
+    if params.red_min_fraction > 0:  # R - bg >= f (G - bg), in float (no unsigned wrap)
+        f, bg = params.red_min_fraction, background_dn * window_area
+        redder = cv2.addWeighted(r, 1.0, g, -f, -(1.0 - f) * bg, dtype=cv2.CV_32F)
+        dominated = cv2.bitwise_and(dominated, cv2.compare(redder, 0.0, cv2.CMP_GE))
     red = cv2.bitwise_and(cv2.compare(r, float(thr * window_area), cv2.CMP_GT), dominated)
     obstacle = cv2.bitwise_and(r, r, mask=red)
     if leak_threshold is not None:
