@@ -17,6 +17,7 @@ from numba import types
 from numba.extending import intrinsic
 
 __all__ = [
+    "accept_free_rows",
     "anchored_rows",
     "box_counts",
     "cell_dots",
@@ -639,6 +640,32 @@ def accept_rows(taken, xs, ys, axis, order, offs, half, room):
         out[m] = i
         m += 1
     return out[:m]
+
+
+@numba.njit(cache=True)
+def accept_free_rows(shape, rows_xy, xs, ys, st, axis, offs, half, room):
+    """The free rows of :func:`stcvision.stages._accept_free_rows`, strongest first (stable):
+    the anchored rows' dots ``rows_xy`` ((R, n - 1, 2)) and each accepted row's dots grown by
+    ``half`` are taken, a row with a dot on a taken pixel is skipped, at most ``room`` rows
+    (:func:`accept_rows`). Returns the accepted rows' points ((A, n, 2) float) and SNRs (A,)."""
+    taken = np.zeros(shape, np.uint8)
+    h, w = shape
+    for r in range(rows_xy.shape[0]):
+        for c in range(rows_xy.shape[1]):
+            x, y = np.int64(rows_xy[r, c, 0]), np.int64(rows_xy[r, c, 1])
+            taken[max(y - half, 0) : min(y + half + 1, h), max(x - half, 0) : min(x + half + 1, w)] = 1
+    order = np.argsort(-st, kind="mergesort")
+    acc = accept_rows(taken, xs, ys, axis, order, offs, half, room)
+    n = len(offs)
+    pts = np.empty((len(acc), n, 2))
+    s = np.empty(len(acc), st.dtype)
+    for k in range(len(acc)):
+        i = acc[k]
+        for c in range(n):
+            pts[k, c, 0] = xs[i] if axis[i] else xs[i] + offs[c]
+            pts[k, c, 1] = ys[i] + offs[c] if axis[i] else ys[i]
+        s[k] = st[i]
+    return pts, s
 
 
 @numba.njit(cache=True)

@@ -821,21 +821,9 @@ def _accept_free_rows(shape, xs, ys, st, ax, offs, rows_xy: np.ndarray, b: int, 
     2)): a row may not share a dot with one already accepted (within ``b`` along both axes;
     :func:`kernels.accept_rows`), at most ``max_rows`` rows in all. Returns their points ((A,
     n, 2) float) and SNRs (A,), in the order accepted."""
-    n = len(offs)
     if not len(xs):
-        return np.zeros((0, n, 2)), np.zeros(0, np.float32)
-    order = np.argsort(-st, kind="stable")
-    # the accepted rows' dots, each grown to its (2b+1)^2 square, as an image looked up per row
-    taken = np.zeros(shape, np.uint8)
-    if len(rows_xy):
-        ix = rows_xy.reshape(-1, 2).astype(np.int64)
-        kernels.fill_squares(taken, ix[:, 0], ix[:, 1], np.full(len(ix), b, np.int64))
-    acc = kernels.accept_rows(taken, xs, ys, ax, order, offs, b, max_rows - len(rows_xy))
-    along = ax[acc, None].astype(bool)  # axis 1: the row runs along y
-    pts = np.empty((len(acc), n, 2))
-    pts[:, :, 0] = xs[acc, None] + np.where(along, 0, offs[None])
-    pts[:, :, 1] = ys[acc, None] + np.where(along, offs[None], 0)
-    return pts, st[acc]
+        return np.zeros((0, len(offs), 2)), np.zeros(0, np.float32)
+    return kernels.accept_free_rows(shape, rows_xy, xs, ys, st, ax, offs, b, max_rows - len(rows_xy))
 
 
 def _with_rows(dots, marks, z, gain, pts, snr, area, background_dn, noise_dn, dot_params, ground_to_robot):
