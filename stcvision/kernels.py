@@ -87,6 +87,29 @@ def _grow(a, m):
     return out
 
 
+@numba.njit(inline="always")
+def _row_flags(nx):
+    """A zeroed byte per pixel of an image row of ``nx`` pixels (padded to whole uint64
+    words), its uint64 view, and room for the positions :func:`_marked` finds."""
+    flag = np.zeros((nx + 7) // 8 * 8, np.uint8)
+    return flag, flag.view(np.uint64), np.empty(len(flag), np.int64)
+
+
+@numba.njit(inline="always")
+def _marked(flag, words, out):
+    """Positions of the non-zero bytes of ``flag`` into ``out`` (scanned eight at a time:
+    ``words`` is its uint64 view); returns how many."""
+    m = 0
+    for k in range(len(words)):
+        if words[k] == 0:
+            continue
+        for i in range(8 * k, 8 * k + 8):
+            if flag[i]:
+                out[m] = i
+                m += 1
+    return m
+
+
 @numba.njit(cache=True)
 def dot_candidates(sums, gain, mode, a, c, e, area, background, noise):
     """Candidates of :func:`stcvision.stages.find_dots` in one pass over the window sums: the
@@ -105,8 +128,7 @@ def dot_candidates(sums, gain, mode, a, c, e, area, background, noise):
     only those marked, eight at a time skipped where none is, are tested exactly."""
     h, w = sums.shape
     nx = w - 2 * e
-    flag = np.zeros((nx + 7) // 8 * 8, np.uint8)
-    words = flag.view(np.uint64)
+    flag, words, idx = _row_flags(nx)
     xs = np.empty(256, np.int64)
     ys = np.empty(256, np.int64)
     m = 0
@@ -128,35 +150,31 @@ def dot_candidates(sums, gain, mode, a, c, e, area, background, noise):
         else:
             for i in range(nx):
                 flag[i] = c0[i] >= c
-        for k in range(len(words)):
-            if words[k] == 0:
+        for t in range(_marked(flag, words, idx)):
+            i = idx[t]
+            s = c0[i]
+            if mode == 0:
+                lv = np.rint(_fma32(gain[y, e + i], fa, fc))
+                if s < min(max(lv, 0.0), 65535.0):
+                    continue
+            x = e + i
+            up, mid, dn = sums[y - 1], sums[y], sums[y + 1]
+            if (
+                s < up[x - 1]
+                or s < up[x]
+                or s < up[x + 1]
+                or s < mid[x - 1]
+                or s < mid[x + 1]
+                or s < dn[x - 1]
+                or s < dn[x]
+                or s < dn[x + 1]
+            ):
                 continue
-            for i in range(8 * k, 8 * k + 8):
-                if not flag[i]:
-                    continue
-                s = c0[i]
-                if mode == 0:
-                    lv = np.rint(_fma32(gain[y, e + i], fa, fc))
-                    if s < min(max(lv, 0.0), 65535.0):
-                        continue
-                x = e + i
-                up, mid, dn = sums[y - 1], sums[y], sums[y + 1]
-                if (
-                    s < up[x - 1]
-                    or s < up[x]
-                    or s < up[x + 1]
-                    or s < mid[x - 1]
-                    or s < mid[x + 1]
-                    or s < dn[x - 1]
-                    or s < dn[x]
-                    or s < dn[x + 1]
-                ):
-                    continue
-                if m == len(xs):
-                    xs, ys = _grow(xs, m), _grow(ys, m)
-                xs[m] = e + i
-                ys[m] = y
-                m += 1
+            if m == len(xs):
+                xs, ys = _grow(xs, m), _grow(ys, m)
+            xs[m] = e + i
+            ys[m] = y
+            m += 1
     mean = np.empty(m)
     vals = np.empty(m)
     for i in range(m):
@@ -362,8 +380,7 @@ def free_rows(z, occ, offs, ends, e, gate, thr, min_dot, spread, end_max):
         for x in range(w):
             okr[x] = (zr[x] >= g) & (orow[x] == 0)
     nx = w - 2 * e
-    acc = np.zeros((nx + 7) // 8 * 8, np.uint8)
-    words = acc.view(np.uint64)
+    acc, words, idx = _row_flags(nx)
     xs = np.empty(256, np.int64)
     ys = np.empty(256, np.int64)
     st = np.empty(256, np.float32)
@@ -378,34 +395,30 @@ def free_rows(z, occ, offs, ends, e, gate, thr, min_dot, spread, end_max):
                 src = ok[y + o, e : w - e] if axis else ok[y, e + o : w - e + o]
                 for i in range(nx):
                     acc[i] &= src[i]
-            for k in range(len(words)):
-                if words[k] == 0:
+            for t in range(_marked(acc, words, idx)):
+                i = idx[t]
+                base = y * w + e + i  # flat index of (x, y); the row's dots stride apart
+                total = zf[base + offs[0] * stride]
+                low = total
+                for c in range(1, n):
+                    v = zf[base + offs[c] * stride]
+                    total += v
+                    low = min(low, v)
+                if not (total >= t32 and low >= md and low >= total / nf - sp):
                     continue
-                for i in range(8 * k, 8 * k + 8):
-                    if not acc[i]:
-                        continue
-                    base = y * w + e + i  # flat index of (x, y); the row's dots stride apart
-                    total = zf[base + offs[0] * stride]
-                    low = total
-                    for c in range(1, n):
-                        v = zf[base + offs[c] * stride]
-                        total += v
-                        low = min(low, v)
-                    if not (total >= t32 and low >= md and low >= total / nf - sp):
-                        continue
-                    free = True
-                    for o in ends:
-                        p = base + o * stride
-                        free &= zf[p] < em and of[p] == 0
-                    if not free:
-                        continue
-                    if m == len(xs):
-                        xs, ys, st, ax = _grow(xs, m), _grow(ys, m), _grow(st, m), _grow(ax, m)
-                    xs[m] = e + i
-                    ys[m] = y
-                    st[m] = total / sq
-                    ax[m] = axis
-                    m += 1
+                free = True
+                for o in ends:
+                    p = base + o * stride
+                    free &= zf[p] < em and of[p] == 0
+                if not free:
+                    continue
+                if m == len(xs):
+                    xs, ys, st, ax = _grow(xs, m), _grow(ys, m), _grow(st, m), _grow(ax, m)
+                xs[m] = e + i
+                ys[m] = y
+                st[m] = total / sq
+                ax[m] = axis
+                m += 1
     return xs[:m], ys[:m], st[:m], ax[:m]
 
 
