@@ -12,7 +12,9 @@ Stages (``stcvision.stages``), in the order they run::
     observe   five boxes, visited sub-cells, four neighbours
 
 The runner is built once per profile (remap table, cell homography); ``process`` allocates only
-the images it returns. Logging (``stcvision.rr``) observes the result afterwards.
+the images it returns, besides a few scratch images it keeps (so one ``Pipeline`` per thread). The
+channel separation and the background sample are compiled passes (``stcvision.kernels``),
+bit-identical to the OpenCV stages they stand for. Logging (``stcvision.rr``) observes the result afterwards.
 """
 
 from __future__ import annotations
@@ -20,10 +22,12 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 import cv2
 import numpy as np
 
+from stcvision import kernels
 from stcvision.observation import CellGeometry, CellObservation, ObservationParams, observe_cell
 from stcvision.profile import Profile
 from stcvision.stages import (
@@ -38,7 +42,6 @@ from stcvision.stages import (
     UnwarpMap,
     check_dark_dtype,
     check_frame,
-    estimate_background,
     find_dots,
     find_red,
     find_rows,
@@ -49,7 +52,6 @@ from stcvision.stages import (
     noise_gain,
     quantum_dn,
     robust_sigma,
-    separate_channels,
     subtract_dark,
     unwarp,
     window_sums,
@@ -185,6 +187,22 @@ class PipelineResult:
         return out
 
 
+class _Front(NamedTuple):
+    """What the front end (:meth:`Pipeline._front`) gives the later stages."""
+
+    green: np.ndarray
+    red: np.ndarray
+    green_sums: np.ndarray
+    red_sums: np.ndarray
+    obstacle: np.ndarray
+    marks: np.ndarray
+    bg: float
+    noise: float
+    quantum: int
+    red_levels: tuple[float, float]
+    leak: float
+
+
 class Pipeline:
     """Build once per profile, then ``process`` frames.
 
@@ -210,10 +228,6 @@ class Pipeline:
         inside = np.hypot(uu - profile.center_px[0], vv - profile.center_px[1]) < 0.95 * profile.rim_radius_px
         self._sample = (vv[inside] * w + uu[inside]).ravel()
         self._sample3 = {ch: self._sample * 3 + ch for ch in (1, 2)}  # into a flat BGR frame
-        self.dark = None
-        self.pedestal = 0
-        self.quantum = 1
-        self.dark_sigma = 0.0
         # the wide, coarse ground view for far red-light landmarks (pose estimates only)
         self.wide = None
         if self.params.observation.pose_estimates and self.params.observation.landmark_range_m > 0:
@@ -226,6 +240,11 @@ class Pipeline:
         self._crop = (0, 0, w, h) if self.wide is not None else self.umap.reach_px()
         x0, y0, x1, y1 = self._crop
         self._umap_crop = self.umap.cropped(x0, y0, x1, y1)
+        # the front end's scratch images, made once (the images a result holds are new per frame)
+        self._scratch = {}  # (purpose, shape, dtype) -> scratch arrays, made on first use
+        k = 2 * self.params.channels.red_margin_px + 1
+        self._margin = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (k, k)) if k > 1 else None
+        self._no_dark()
         if dark is not None:
             self.set_dark(dark)
 
@@ -238,15 +257,23 @@ class Pipeline:
         x0, y0, x1, y1 = self._crop
         return image[y0:y1, x0:x1]
 
-    def _sample_values(self, frame: np.ndarray, ch: int) -> np.ndarray:
-        """Channel ``ch`` of ``frame`` at the background sample, dark-subtracted as
-        :meth:`_channel` does it (saturating, pedestal, hot pixels at the pedestal)."""
-        v = frame.reshape(-1)[self._sample3[ch]]
-        if self.dark is None:
-            return v
-        out = cv2.subtract(cv2.add(v, self.pedestal), self._dark_sample[ch - 1]).reshape(-1)
-        out[self._hot_sample[ch - 1]] = self.pedestal
-        return out
+    def _no_dark(self) -> None:
+        """No dark frame: the background sample is then read as it is, without pedestal."""
+        self.dark = None
+        self.pedestal = 0
+        self.quantum = 1
+        self.dark_sigma = 0.0
+        self._hot_g = self._hot_r = np.zeros(0, np.int64)
+        self._dark_sample = None
+        self._hot_sample = [np.zeros(len(self._sample), bool)] * 2
+
+    def _buffer(self, purpose: str, shape, dtype) -> np.ndarray:
+        """A scratch array of the front end, reused from frame to frame (never one a result
+        holds: the next ``process`` call overwrites it)."""
+        key = (purpose, tuple(shape), np.dtype(dtype))
+        if key not in self._scratch:
+            self._scratch[key] = np.empty(shape, dtype)
+        return self._scratch[key]
 
     def set_dark(self, dark: np.ndarray) -> None:
         """Use ``dark`` (H, W, 3) uint8 or uint16 from now on: split it once, map its hot pixels
@@ -274,9 +301,8 @@ class Pipeline:
             keep = (xx >= x0) & (xx < x1) & (yy >= y0) & (yy < y1)
             hot_in.append((yy[keep] - y0) * (x1 - x0) + (xx[keep] - x0))  # into the crop
         self._hot_g, self._hot_r = hot_in
-        self._dark_sample = [dark.reshape(-1)[self._sample3[ch]] for ch in (1, 2)]
-        hot_set = set(hot.tolist())
-        self._hot_sample = [np.array([(i * 3 + ch) in hot_set for i in self._sample.tolist()], bool) for ch in (1, 2)]
+        self._dark_sample = [np.ascontiguousarray(dark.reshape(-1)[self._sample3[ch]]) for ch in (1, 2)]
+        self._hot_sample = [np.isin(self._sample3[ch], hot) for ch in (1, 2)]
 
     def _channel(self, frame: np.ndarray, ch: int) -> np.ndarray:
         """Channel ``ch`` of the crop of ``frame`` the view reads, dark-subtracted."""
@@ -284,9 +310,88 @@ class Pipeline:
         if self.dark is None:
             return c
         ped = self.pedestal
-        c = cv2.subtract(cv2.add(c, ped), self._dark_g if ch == 1 else self._dark_r)
+        cv2.subtract(cv2.add(c, ped, dst=c), self._dark_g if ch == 1 else self._dark_r, dst=c)  # in place
         c.reshape(-1)[self._hot_g if ch == 1 else self._hot_r] = ped  # defect-pixel map
         return c
+
+    def _background(self, frame: np.ndarray) -> tuple[float, float, float, float, int]:
+        """(green background, green noise, red background, red noise, quantisation step) of
+        ``frame``: :func:`~stcvision.stages.estimate_background` of raw pixels inside the rim
+        (:attr:`_sample`), dark-subtracted as :meth:`_channel` does it (one compiled pass over
+        both channels); the noise never below the rounding noise of one step."""
+        flat = frame.reshape(-1)
+        n = len(self._sample)
+        vals = self._buffer("sample g", (n,), frame.dtype), self._buffer("sample r", (n,), frame.dtype)
+        if self.dark is None:
+            dark = [self._buffer("no dark", (n,), frame.dtype)] * 2
+            dark[0][:] = 0
+            q = quantum_dn(flat[self._sample3[1]])
+        else:
+            dark, q = self._dark_sample, self.quantum
+        top, whole = np.iinfo(frame.dtype).max, frame.dtype == np.uint8 and q == 1
+        quart = kernels.sample_quartiles(
+            flat, self._sample3[1], *dark, *self._hot_sample, self.pedestal, top, q, whole, *vals
+        )
+        (gq1, g_med, gq3), (rq1, r_med, rq3) = quart
+        floor = noise_floor(q)
+        g_noise, r_noise = max(float((gq3 - gq1) / 1.349), floor), max(float((rq3 - rq1) / 1.349), floor)
+        return float(g_med), g_noise, float(r_med), r_noise, q
+
+    def _unwarp_pair(self, umap: UnwarpMap, gs: np.ndarray, rs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Flat ground views of the window sums ``gs``, ``rs`` (one ``cv2.remap`` each: a
+        compiled remap of both in one pass, bit for bit the same, measured no faster within the
+        pipeline; OpenCV remaps a 2-channel image more slowly than two 1-channel ones)."""
+        return unwarp(gs, umap).reshape(-1), unwarp(rs, umap).reshape(-1)
+
+    def _separate(self, gg, rr, shape, leak: float, red_levels: tuple[float, float]) -> tuple[np.ndarray, np.ndarray]:
+        """(obstacle, marks) of the flat ground views ``gg``, ``rr``: the rule and the
+        arithmetic of :func:`~stcvision.stages.separate_channels`, compiled (new arrays)."""
+        area = self.params.dots.window_px**2
+        cp = self.params.channels
+        thr, tol = cp.levels(*red_levels)
+        thr_a, tol_a = float(thr * area), float(tol * area)
+        # the red-fraction test as cv2.addWeighted(r, 1, g, -f, -(1 - f) bg) >= 0 takes it
+        frac = np.float32(-cp.red_min_fraction if cp.red_min_fraction > 0 else 0.0)
+        gamma = np.float32(-(1.0 - cp.red_min_fraction) * (red_levels[0] * area))
+        if gg.dtype == np.uint16:  # OpenCV: the added scalar rounded, comparisons exact
+            tol32, bottom, top = np.float32(np.rint(tol_a)), np.float32(0), np.float32(65535)
+            # v > t for whole v <= 65535 is v > floor(t), exact in float32 once clipped
+            thr32, leak32 = (np.float32(min(max(math.floor(x), -1), 65536)) for x in (thr_a, leak))
+        else:  # float images: the scalars rounded to float32, no saturation
+            tol32, thr32, leak32 = np.float32(tol_a), np.float32(thr_a), np.float32(leak)
+            bottom, top = np.float32(-np.inf), np.float32(np.inf)
+        obstacle = np.empty(shape, gg.dtype)
+        marks = np.empty(shape, gg.dtype)
+        black = self._buffer("black", shape, np.uint8)
+        flat = obstacle.reshape(-1), marks.reshape(-1), black.reshape(-1)
+        n = kernels.separate_pair(gg, rr, thr32, tol32, bottom, top, frac, gamma, leak32, *flat)
+        if n:
+            if self._margin is not None:
+                black = cv2.dilate(black, self._margin, dst=self._buffer("grown", shape, np.uint8))
+            kernels.zero_where(marks.reshape(-1), black.reshape(-1))
+        return obstacle, marks
+
+    def _front(self, frame: np.ndarray, clock, t: list) -> _Front:
+        """The mirror-image stages and the channel separation (dark, window, unwarp, channels;
+        their end times appended to ``t``)."""
+        p = self.params
+        w = p.dots.window_px
+        g = self._channel(frame, 1)  # only green and red carry marks and lights
+        r = self._channel(frame, 2)
+        t.append(clock())
+        gs, rs = window_sums(g, w), window_sums(r, w)
+        t.append(clock())
+        gg, rr = self._unwarp_pair(self._umap_crop, gs, rs)
+        t.append(clock())
+        # background and noise, measured on raw pixels inside the rim
+        bg, noise, bg_r, noise_r, q = self._background(frame)
+        # a red light's level: above the pedestal by the dark frame's spread (a fixed rule per
+        # dark frame), or without one above the frame's own red background by its noise
+        red_levels = (self.pedestal, max(self.dark_sigma, noise_floor(q))) if self.dark is not None else (bg_r, noise_r)
+        leak = w * w * bg_r + p.channels.leak_k_sigma * noise_r * w
+        obstacle, marks = self._separate(gg, rr, self._umap_crop.map_x.shape, leak, red_levels)
+        t.append(clock())
+        return _Front(g, r, gs, rs, obstacle, marks, bg, noise, q, red_levels, leak)
 
     def process(
         self,
@@ -303,7 +408,9 @@ class Pipeline:
         fit -- e.g. the fit of a short frame taken at the same pose, for a long one in which
         every recent row saturates (the newest row is then no longer the brightest).
         ``position_offset``: read the cell with the robot this far off its sub-cell centre
-        (:func:`stcvision.observation.observe_cell`) instead of where this frame's marks say."""
+        (:func:`stcvision.observation.observe_cell`) instead of where this frame's marks say.
+
+        Not re-entrant: one ``Pipeline`` per thread (the front end's scratch images are its own)."""
         check_frame(frame)
         self.profile.check_frame(frame.shape)
         if dark is not None and dark is not self.dark:
@@ -315,29 +422,8 @@ class Pipeline:
         area = w * w
         clock = time.perf_counter_ns
         t = [clock()]
-        g = self._channel(frame, 1)  # only green and red carry marks and lights
-        r = self._channel(frame, 2)
-        t.append(clock())
-        gs, rs = window_sums(g, w), window_sums(r, w)
-        t.append(clock())
-        G, R = unwarp(gs, self._umap_crop), unwarp(rs, self._umap_crop)
-        t.append(clock())
-        # background and noise, measured on raw pixels inside the rim, never below the
-        # rounding noise of one quantisation step
-        sg, sr = self._sample_values(frame, 1), self._sample_values(frame, 2)
-        q = self.quantum if self.dark is not None else quantum_dn(sg)
-        floor = noise_floor(q)
-        bg, noise = estimate_background(sg, slice(None), q)
-        bg_r, noise_r = estimate_background(sr, slice(None), q)
-        noise, noise_r = max(noise, floor), max(noise_r, floor)
-        # a red light's level: above the pedestal by the dark frame's spread (a fixed rule per
-        # dark frame), or without one above the frame's own red background by its noise
-        red_levels = (self.pedestal, max(self.dark_sigma, floor)) if self.dark is not None else (bg_r, noise_r)
-        leak = area * bg_r + p.channels.leak_k_sigma * noise_r * w
-        obstacle, marks = separate_channels(
-            G, R, p.channels, window_area=area, leak_threshold=leak, background_dn=red_levels[0], noise_dn=red_levels[1]
-        )
-        t.append(clock())
+        f = self._front(frame, clock, t)
+        g, r, obstacle, marks, bg, noise, q = f.green, f.red, f.obstacle, f.marks, f.bg, f.noise, f.quantum
         dots = find_dots(
             marks,
             p.dots,
@@ -375,7 +461,7 @@ class Pipeline:
         t.append(clock())
         heading = fit_heading(dots, p.heading)
         t.append(clock())
-        landmark_px = self._far_lights(gs, rs, r, leak, red_levels, frame) if self.wide is not None else None
+        landmark_px = self._far_lights(f, frame) if self.wide is not None else None
         herr = heading.heading_error_rad if (heading.ok and p.use_heading) else 0.0
         if heading_error_rad is not None:
             herr = float(heading_error_rad)
@@ -384,7 +470,7 @@ class Pipeline:
             red.xy_px,
             red.peak_dn,
             self.geometry,
-            red_threshold_dn=p.channels.levels(*red_levels)[0],
+            red_threshold_dn=p.channels.levels(*f.red_levels)[0],
             heading_error_rad=herr,
             params=p.observation,
             landmark_px=landmark_px,
@@ -414,33 +500,18 @@ class Pipeline:
             out[i] = r > 0 and b >= self.params.white_blue_ratio * r
         return out
 
-    def _far_lights(
-        self,
-        gs: np.ndarray,
-        rs: np.ndarray,
-        red: np.ndarray,
-        leak: float,
-        red_levels: tuple[float, float],
-        frame: np.ndarray,
-    ) -> np.ndarray:
+    def _far_lights(self, f: _Front, frame: np.ndarray) -> np.ndarray:
         """Red lights out to ``landmark_range_m`` for the landmark fit, as ground-view pixels of
         the main view (beyond its edges too): found in the wide, coarse view of the window sums
-        ``gs``, ``rs`` and refined on the dark-subtracted red channel ``red`` (``red_levels``:
-        its background and noise)."""
+        of the front end ``f`` and refined on its dark-subtracted red channel."""
         p = self.params
         area = p.dots.window_px**2
-        bg_r, noise_r = red_levels
-        obst, _ = separate_channels(
-            unwarp(gs, self.wide),
-            unwarp(rs, self.wide),
-            p.channels,
-            window_area=area,
-            leak_threshold=leak,
-            background_dn=bg_r,
-            noise_dn=noise_r,
-        )
+        gg, rr = self._unwarp_pair(self.wide, f.green_sums, f.red_sums)
+        obst, _ = self._separate(gg, rr, self.wide.map_x.shape, f.leak, f.red_levels)
         far = find_red(obst, p.red, window_area=area)
-        xy_m = self._refine_lights(red, self._wide_profile.ground_to_robot(far.xy_px)) if len(far) else np.zeros((0, 2))
+        xy_m = (
+            self._refine_lights(f.red, self._wide_profile.ground_to_robot(far.xy_px)) if len(far) else np.zeros((0, 2))
+        )
         if p.white_blue_ratio is not None and len(xy_m):
             xy_m = xy_m[~self._white(frame, xy_m)]
         return self.profile.robot_to_ground(xy_m)

@@ -499,6 +499,7 @@ def estimate_background(image: np.ndarray, sample: np.ndarray | None = None, qua
     """
     _check_image(image, "pixel values", (np.uint8, np.uint16), ndims=(1, 2, 3))
     v = image.reshape(-1)[sample] if sample is not None else image.reshape(-1)[::7]
+    # (the pipeline's per-frame sample: kernels.sample_quartiles, the same histogram choice)
     if image.dtype == np.uint8 and quantum == 1:
         lo, nbins = 0, 256
     else:  # a histogram of the occupied range only (16-bit data spans few of its 65,536 values)

@@ -1,0 +1,87 @@
+"""The pipeline's compiled front end (issue 18) against the OpenCV stages it replaced, bit for
+bit: the channel separation against ``separate_channels``, the background sample against
+``estimate_background``; and a result's images are its own (the next frame does not overwrite
+them)."""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+import pytest
+
+from stcvision.pipeline import Pipeline, PipelineParams
+from stcvision.stages import ChannelParams, estimate_background, noise_floor, separate_channels
+
+
+@pytest.mark.parametrize("dtype", [np.uint16, np.float32])
+@pytest.mark.parametrize(
+    "channels,leak",
+    [
+        (ChannelParams(), 120.0),  # leak below the light threshold: the leak mask alone
+        (ChannelParams(), 5000.0),  # above: lights and leak together
+        (ChannelParams(red_margin_px=0, red_min_fraction=0.0), 300.0),
+        (ChannelParams(red_threshold_dn=30.5, dominance_tol_dn=2.5, red_min_fraction=0.3), 200.0),
+        (ChannelParams(dominance_tol_dn=-3.0), 150.0),  # a negative tolerance saturates at 0
+    ],
+)
+def test_separation_is_separate_channels(default_profile, dtype, channels, leak):
+    pipe = Pipeline(default_profile, PipelineParams(channels=channels))
+    rng = np.random.default_rng(11)
+    shape = pipe._umap_crop.map_x.shape
+    # dots (green), lights (red, with green crosstalk) and a noisy floor, as window sums
+    g = rng.normal(90, 14, shape).clip(0)
+    r = rng.normal(90, 14, shape).clip(0)
+    g[rng.random(shape) < 0.01] += 900
+    lit = rng.random(shape) < 0.005
+    r[lit] += rng.uniform(100, 2000, lit.sum())
+    g[lit] += 0.06 * r[lit]
+    g, r = g.round().astype(dtype), r.round().astype(dtype)
+    levels = (10.0, 1.48)
+    obst, marks = pipe._separate(g.reshape(-1), r.reshape(-1), shape, leak, levels)
+    ref_o, ref_m = separate_channels(
+        g, r, channels, window_area=9, leak_threshold=leak, background_dn=levels[0], noise_dn=levels[1]
+    )
+    assert obst.dtype == ref_o.dtype and marks.dtype == ref_m.dtype
+    assert np.array_equal(obst, ref_o)
+    assert np.array_equal(marks, ref_m)
+    assert (marks == 0).sum() > (g == 0).sum()  # something was blacked out
+
+
+@pytest.mark.parametrize("dtype", [np.uint8, np.uint16])
+def test_background_is_estimate_background(default_profile, dtype):
+    rng = np.random.default_rng(5)
+    w, h = default_profile.image_size_px
+    hi = 255 if dtype == np.uint8 else 4095
+    dark = rng.integers(0, 12, (h, w, 3)).astype(dtype)
+    dark.reshape(-1)[rng.choice(dark.size, 500, replace=False)] = hi // 2  # hot pixels
+    frame = (rng.normal(30, 4, (h, w, 3)).clip(0, hi)).astype(dtype)
+    for d in (None, dark):
+        pipe = Pipeline(default_profile, dark=d)
+        got = pipe._background(frame)
+        q = pipe.quantum
+        ref = []
+        for k, ch in enumerate((1, 2)):
+            v = frame.reshape(-1)[pipe._sample3[ch]]
+            if d is not None:
+                v = cv2.subtract(cv2.add(v, pipe.pedestal), d.reshape(-1)[pipe._sample3[ch]]).reshape(-1)
+                v[pipe._hot_sample[k]] = pipe.pedestal
+                assert pipe._hot_sample[k].any()
+            else:
+                q = 1
+            bg, noise = estimate_background(v, slice(None), q)
+            ref += [bg, max(noise, noise_floor(q))]
+        assert got == (*ref, q)
+
+
+def test_result_images_are_its_own(default_profile):
+    """The front end reuses scratch images from frame to frame; what a result holds is not one."""
+    rng = np.random.default_rng(3)
+    w, h = default_profile.image_size_px
+    pipe = Pipeline(default_profile)
+    f1 = rng.integers(0, 60, (h, w, 3)).astype(np.uint8)
+    f2 = rng.integers(0, 60, (h, w, 3)).astype(np.uint8)
+    r1 = pipe.process(f1)
+    kept = [x.copy() for x in (r1.green, r1.red_raw, r1.obstacle, r1.marks)]
+    pipe.process(f2)
+    for a, b in zip(kept, (r1.green, r1.red_raw, r1.obstacle, r1.marks), strict=True):
+        assert np.array_equal(a, b)
