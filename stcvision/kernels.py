@@ -1,10 +1,13 @@
 """The stages' per-candidate loops, compiled by numba (``cache=True``: compiled once per machine).
 
-Each kernel is the loop of a stage in :mod:`stcvision.stages` that numpy cannot vectorise (a
-greedy choice, strongest first, where each choice depends on the earlier ones), written out
-element by element in the stage's own arithmetic order, so its results are those of the
-numpy/Python version it replaced, bit for bit (the pipeline's outputs on 800 dataset frames were
-compared). The stages document what the loops mean; here is only how.
+Each kernel is the loop of a stage in :mod:`stcvision.stages` or :mod:`stcvision.observation`
+that numpy cannot vectorise (a greedy choice, strongest first, where each choice depends on the
+earlier ones), or a chain of OpenCV / numpy passes fused into one (issue 18: each pass over the
+view, each call on a small array, costs microseconds), written out element by element in the
+stage's own arithmetic order, so its results are those of the numpy/OpenCV version it replaced,
+bit for bit (the pipeline's outputs on 480-800 dataset frames were compared). Image loops index
+views from 0 up or use numpy's error model so the compiler can vectorise them. The stages
+document what the loops mean; here is only how.
 """
 
 from __future__ import annotations
