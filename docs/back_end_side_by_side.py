@@ -137,18 +137,12 @@ def main(argv=None) -> int:
     import stcvision.observation as this_ob
     import stcvision.stages as this_st
     from calibration.profiles import default_profile
-    from sim_camera.camera import SyntheticCamera
-    from stcvision.cli.cmd_bench import benchmark_scene
+    from stcvision.cli.cmd_bench import benchmark_frames
     from stcvision.pipeline import Pipeline
 
     cv2.setNumThreads(1)
     other_st, other_ob = load_other(Path(a.other).resolve())
-    board, layer, pose = benchmark_scene(a.seed)
-    cam = SyntheticCamera()
-    rng = np.random.default_rng(a.seed)
-    dark = cam.median_dark(8, rng=rng)
-    lights = board.red_lights_m()
-    imgs = [cam.render(pose, rng=rng, phosphor=layer, red_lights_m=lights).image for _ in range(8)]
+    dark, imgs = benchmark_frames(a.seed)
     pipe = Pipeline(default_profile(), dark=dark)
     fronts = [front(pipe, im) for im in imgs]
     identical = all(same(back(this_st, this_ob, pipe, f), back(other_st, other_ob, pipe, f)) for f in fronts)
