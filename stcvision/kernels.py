@@ -1,10 +1,13 @@
 """The stages' per-candidate loops, compiled by numba (``cache=True``: compiled once per machine).
 
-Each kernel is the loop of a stage in :mod:`stcvision.stages` that numpy cannot vectorise (a
-greedy choice, strongest first, where each choice depends on the earlier ones), written out
-element by element in the stage's own arithmetic order, so its results are those of the
-numpy/Python version it replaced, bit for bit (the pipeline's outputs on 800 dataset frames were
-compared). The stages document what the loops mean; here is only how.
+Each kernel is the loop of a stage in :mod:`stcvision.stages` or :mod:`stcvision.observation`
+that numpy cannot vectorise (a greedy choice, strongest first, where each choice depends on the
+earlier ones), or a chain of OpenCV / numpy passes fused into one (issue 18: each pass over the
+view, each call on a small array, costs microseconds), written out element by element in the
+stage's own arithmetic order, so its results are those of the numpy/OpenCV version it replaced,
+bit for bit (the pipeline's outputs on 480-800 dataset frames were compared). Image loops index
+views from 0 up or use numpy's error model so the compiler can vectorise them. The stages
+document what the loops mean; here is only how.
 """
 
 from __future__ import annotations
@@ -18,14 +21,28 @@ from numba.core import cgutils, types
 from numba.extending import intrinsic
 
 __all__ = [
-    "anchored_rows",
+    "accept_free_rows",
     "accept_rows",
-    "black_out",
+    "anchored_rows",
+    "blur_squares",
+    "box_counts",
+    "cell_dots",
+    "dot_candidates",
     "fill_squares",
+    "free_rows",
     "gauss_centroids",
-    "separate_pair",
-    "zero_where",
+    "greedy_black_out",
+    "heading_row",
+    "landing_counts",
+    "mark_offset",
+    "mirror_shift",
+    "rotate_about",
+    "row_snr",
     "sample_quartiles",
+    "separate_pair",
+    "window_centroids",
+    "zero_ring",
+    "zero_where",
 ]
 
 
@@ -43,6 +60,25 @@ def fill_squares(img, xs, ys, half):
 
 
 @numba.njit(cache=True)
+def blur_squares(img, xy, snr, lit, tail_sigma, b):
+    """Set to 1 in ``img`` (uint8) the square about each lit dot (its position rounded half to
+    even, clipped to the image) as far as its blur still shows above 1 sigma:
+    half-side ``max(ceil(tail_sigma sqrt(2 ln max(snr, 1))) + 1, b)``
+    (:func:`stcvision.stages._taken_floor`)."""
+    h, w = img.shape
+    for i in range(len(xy)):
+        if not lit[i]:
+            continue
+        r = max(np.ceil(tail_sigma * np.sqrt(2 * np.log(max(snr[i], 1.0)))) + 1, b)
+        half = np.int64(r)
+        x = min(max(np.int64(np.round(xy[i, 0])), 0), w - 1)
+        y = min(max(np.int64(np.round(xy[i, 1])), 0), h - 1)
+        for yy in range(max(y - half, 0), min(y + half + 1, h)):
+            for xx in range(max(x - half, 0), min(x + half + 1, w)):
+                img[yy, xx] = 1
+
+
+@numba.njit(cache=True)
 def _taken(img, px, py):
     for i in range(len(px)):
         if img[py[i], px[i]]:
@@ -50,35 +86,486 @@ def _taken(img, px, py):
     return False
 
 
+@numba.njit(inline="always")
+def _grow(a, m):
+    """``a`` (1-D) with room for twice ``m`` entries, its first ``m`` kept."""
+    out = np.empty(2 * m, a.dtype)
+    out[:m] = a[:m]
+    return out
+
+
+@numba.njit(inline="always")
+def _row_flags(nx):
+    """A zeroed byte per pixel of an image row of ``nx`` pixels (padded to whole uint64
+    words), its uint64 view, and room for the positions :func:`_marked` finds."""
+    flag = np.zeros((nx + 7) // 8 * 8, np.uint8)
+    return flag, flag.view(np.uint64), np.empty(len(flag), np.int64)
+
+
+@numba.njit(inline="always")
+def _marked(flag, words, out):
+    """Positions of the non-zero bytes of ``flag`` into ``out`` (scanned eight at a time:
+    ``words`` is its uint64 view); returns how many."""
+    m = 0
+    for k in range(len(words)):
+        if words[k] == 0:
+            continue
+        for i in range(8 * k, 8 * k + 8):
+            if flag[i]:
+                out[m] = i
+                m += 1
+    return m
+
+
 @numba.njit(cache=True)
-def black_out(starts, shadowers, max_dots):
-    """Greedy black-out (:func:`stcvision.stages._black_out`): candidate i (strongest first) is
-    kept unless a kept candidate among ``shadowers[starts[i]:starts[i + 1]]`` shadows it."""
-    n = len(starts) - 1
-    keep = np.zeros(n, np.bool_)
+def dot_candidates(sums, gain, mode, a, c, e, area, background, noise):
+    """Candidates of :func:`stcvision.stages.find_dots` in one pass over the window sums: the
+    pixels at least ``e`` inside the border that reach the candidate level and are a 3x3 local
+    maximum (``>=`` all eight neighbours, as ``sums >= cv2.dilate(sums, 3x3)``), in row-major
+    order (``cv2.findNonZero``'s); with their SNR and window mean above the background.
+
+    The level, per ``mode``: 0, uint16 sums: ``gain * a + c`` rounded half to even and saturated
+    to 16 bits, with ``a``, ``c`` rounded to float32 and one fused float32 multiply-add (as
+    ``cv2.addWeighted(..., dtype=CV_16U)`` computes it on the FMA machines here); 1, float32 sums:
+    ``float32(gain * a) + c`` in float32; 2: the scalar ``c`` (already in the sums' units).
+    SNR: ``(sum / area - background) / (noise * gain)`` in float64 (``gain`` of one element:
+    ``gain[0, 0]`` everywhere), as the numpy version.
+
+    Per image row, a branch-free loop (vectorised) marks the pixels at or near the level, and
+    only those marked, eight at a time skipped where none is, are tested exactly."""
+    h, w = sums.shape
+    nx = w - 2 * e
+    flag, words, idx = _row_flags(nx)
+    xs = np.empty(256, np.int64)
+    ys = np.empty(256, np.int64)
+    m = 0
+    fa = np.float32(a)
+    fc = np.float32(c)
+    for y in range(e, h - e):
+        # the row and its gain as views from the first interior pixel (indices from 0 up: no
+        # negative-index check per access, a loop the compiler vectorises)
+        c0 = sums[y, e : w - e]
+        if mode == 0:
+            gr = gain[y, e : w - e]
+            for i in range(nx):  # within the level's rounding (float32: off by < 0.01), or saturated
+                s = np.float32(c0[i])
+                flag[i] = (s + np.float32(2.0) >= gr[i] * fa + fc) | (c0[i] == 65535)
+        elif mode == 1:
+            gr = gain[y, e : w - e]
+            for i in range(nx):
+                flag[i] = c0[i] >= np.float32(gr[i] * fa) + fc
+        else:
+            for i in range(nx):
+                flag[i] = c0[i] >= c
+        for t in range(_marked(flag, words, idx)):
+            i = idx[t]
+            s = c0[i]
+            if mode == 0:
+                lv = np.rint(_fma32(gain[y, e + i], fa, fc))
+                if s < min(max(lv, 0.0), 65535.0):
+                    continue
+            x = e + i
+            up, mid, dn = sums[y - 1], sums[y], sums[y + 1]
+            if (
+                s < up[x - 1]
+                or s < up[x]
+                or s < up[x + 1]
+                or s < mid[x - 1]
+                or s < mid[x + 1]
+                or s < dn[x - 1]
+                or s < dn[x]
+                or s < dn[x + 1]
+            ):
+                continue
+            if m == len(xs):
+                xs, ys = _grow(xs, m), _grow(ys, m)
+            xs[m] = e + i
+            ys[m] = y
+            m += 1
+    mean = np.empty(m)
+    vals = np.empty(m)
+    for i in range(m):
+        mean[i] = np.float64(sums[ys[i], xs[i]]) / area - background
+        g = np.float64(gain[0, 0]) if gain.size == 1 else np.float64(gain[ys[i], xs[i]])
+        vals[i] = mean[i] / (noise * g)
+    return xs[:m], ys[:m], vals, mean
+
+
+@numba.njit(cache=True)
+def greedy_black_out(xs, ys, vals, b, tail_sigma, max_dots):
+    """The black-out of :func:`stcvision.stages._black_out` as one greedy loop over candidates
+    sorted strongest first: candidate k is kept unless a kept one j has it in its black-out
+    square (``|dx|, |dy| <= b``) or its blur explains half of it (``vals[j] exp(-d^2 / (2
+    tail_sigma^2)) >= vals[k] / 2``). Each candidate is checked against the kept ones only
+    (at most ``max_dots``), so no pair search is needed. Indices of the kept candidates."""
+    n = len(vals)
     out = np.empty(min(n, max_dots), np.int64)
     m = 0
-    for i in range(n):
+    two_s2 = 2.0 * tail_sigma**2
+    # farther than this no kept candidate can shadow (its blur explains half of the weakest
+    # candidate only within it): the exponential is evaluated for near pairs only
+    vmin = max(vals.min(), 1e-12)
+    reach2 = max(2.0 * b * b, two_s2 * math.log(max(2.0 * vals.max() / vmin, 1.0))) * (1 + 1e-9) + 1e-9
+    for k in range(n):
         if m >= max_dots:
             break
         shadowed = False
-        for t in range(starts[i], starts[i + 1]):
-            if keep[shadowers[t]]:
+        for t in range(m):
+            j = out[t]
+            dx = abs(xs[k] - xs[j])
+            dy = abs(ys[k] - ys[j])
+            d2 = dx * dx + dy * dy
+            if d2 > reach2:
+                continue
+            if (dy <= b and dx <= b) or vals[j] * math.exp(-d2 / two_s2) >= 0.5 * vals[k]:
                 shadowed = True
                 break
-        if shadowed:
-            continue
-        keep[i] = True
-        out[m] = i
-        m += 1
+        if not shadowed:
+            out[m] = k
+            m += 1
     return out[:m]
 
 
+@numba.njit(inline="always")
+def _pairwise_sum(a, n):
+    """numpy's pairwise sum of ``a[:n]`` (n < 128: eight interleaved partial sums, then the
+    rest in order; below eight, in order), in ``a``'s dtype: the order ``ndarray.sum`` adds a
+    small contiguous block in, so the result is numpy's to the bit."""
+    if n < 8:
+        res = a[0] - a[0]
+        for i in range(n):
+            res += a[i]
+        return res
+    r0, r1, r2, r3, r4, r5, r6, r7 = a[0], a[1], a[2], a[3], a[4], a[5], a[6], a[7]
+    i = 8
+    while i < n - (n % 8):
+        r0 += a[i]
+        r1 += a[i + 1]
+        r2 += a[i + 2]
+        r3 += a[i + 3]
+        r4 += a[i + 4]
+        r5 += a[i + 5]
+        r6 += a[i + 6]
+        r7 += a[i + 7]
+        i += 8
+    res = ((r0 + r1) + (r2 + r3)) + ((r4 + r5) + (r6 + r7))
+    while i < n:
+        res += a[i]
+        i += 1
+    return res
+
+
 @numba.njit(cache=True)
-def anchored_rows(z, occ, xy, snr, lone, step, n, min_snr, mean_snr, end_max, k_sigma):
+def window_centroids(marks, xs, ys, r, per_px):
+    """Centroids of :func:`stcvision.stages._centroids`: over the (2r+1)^2 square about each
+    (xs, ys) (coordinates clipped to the image), the float32 values ``max(marks - per_px, 0)``
+    and their x- and y-weighted sums (float64), each summed as numpy sums the square; the
+    integer position where the square holds nothing above ``per_px``."""
+    h, w = marks.shape
+    n = len(xs)
+    k = 2 * r + 1
+    out = np.zeros((n, 2))
+    p = np.empty(k * k, np.float32)
+    px = np.empty(k * k)
+    py = np.empty(k * k)
+    thr = np.float32(per_px)
+    zero = np.float32(0.0)
+    for i in range(n):
+        c = 0
+        for dy in range(-r, r + 1):
+            yy = min(max(ys[i] + dy, 0), h - 1)
+            for dx in range(-r, r + 1):
+                xx = min(max(xs[i] + dx, 0), w - 1)
+                v = max(np.float32(marks[yy, xx]) - thr, zero)
+                p[c] = v
+                px[c] = xx * np.float64(v)
+                py[c] = yy * np.float64(v)
+                c += 1
+        tot = _pairwise_sum(p, k * k)
+        if tot > 0:
+            t64 = np.float64(tot)
+            out[i, 0] = _pairwise_sum(px, k * k) / t64
+            out[i, 1] = _pairwise_sum(py, k * k) / t64
+        else:
+            out[i, 0] = xs[i]
+            out[i, 1] = ys[i]
+    return out
+
+
+@numba.njit(cache=True, error_model="numpy")
+def row_snr(marks, gain, area, background, noise, clip):
+    """Per-pixel SNR of window sums, clipped (:func:`stcvision.stages._row_snr`), in one pass:
+    ``min(fma(marks, 1 / area, -background) * (1 / noise) / gain, clip)`` in float32 (``_fma32``
+    below, with the front end's kernels), the
+    arithmetic of ``cv2.addWeighted(..., dtype=CV_32F)``, ``cv2.divide(..., scale)`` and
+    ``cv2.min`` it replaced (to the bit; numpy's error model: no zero-division check per pixel,
+    which would keep the loop from being vectorised)."""
+    h, w = marks.shape
+    out = np.empty((h, w), np.float32)
+    a = np.float32(1.0 / area)
+    g = np.float32(-background)
+    s = np.float32(1.0 / noise)
+    c = np.float32(clip)
+    for y in range(h):
+        mr, gr, o = marks[y], gain[y], out[y]
+        for x in range(w):
+            v = _fma32(np.float32(mr[x]), a, g) * s / gr[x]
+            o[x] = v if v < c else c
+    return out
+
+
+@numba.njit(cache=True)
+def zero_ring(marks, b):
+    """uint8 image: 1 within ``b`` pixels (along both axes) of a pixel where ``marks`` is 0 --
+    ``cv2.dilate(marks == 0, (2b+1)^2 square)``, pixels beyond the border not counted. On a
+    zero-padded copy, separably: the OR over a run of 2b+1 pixels grown by doubling (runs of 1,
+    2, 4, ... pixels, each step the OR of two shifted views: loops the compiler vectorises),
+    along x, then along y."""
+    h, w = marks.shape
+    k = 2 * b + 1
+    hp, wp = h + 2 * b, w + 2 * b
+    cur = np.zeros((hp, wp), np.uint8)
+    for y in range(h):
+        mr, pr = marks[y], cur[y + b, b : b + w]
+        for x in range(w):
+            pr[x] = mr[x] == 0
+    nxt = np.zeros((hp, wp), np.uint8)
+    run = 1
+    while run < k:  # along x: cur[y, x] = OR of the run of pixels from x
+        sh = min(run, k - run)
+        for y in range(b, h + b):
+            c0, c1, o = cur[y, 0 : wp - sh], cur[y, sh:wp], nxt[y, 0 : wp - sh]
+            for x in range(wp - sh):
+                o[x] = c0[x] | c1[x]
+        cur, nxt = nxt, cur
+        run += sh
+    run = 1
+    while run < k:  # along y, over the x-runs (starting at x - b: column x of the result)
+        sh = min(run, k - run)
+        for y in range(hp - sh):
+            c0, c1, o = cur[y, 0:w], cur[y + sh, 0:w], nxt[y, 0:w]
+            for x in range(w):
+                o[x] = c0[x] | c1[x]
+        cur, nxt = nxt, cur
+        run += sh
+    return np.ascontiguousarray(cur[0:h, 0:w])
+
+
+@numba.njit(cache=True, error_model="numpy")
+def free_rows(z, occ, offs, ends, e, gate, thr, min_dot, spread, end_max):
+    """Free-row candidates of :func:`stcvision.stages._free_rows`: where every dot of the row
+    at ``offs`` (along x for axis 0, along y for axis 1) has ``z >= gate`` on a free pixel
+    (``occ`` 0) -- a mask, then per image row the AND of its shifted rows, both loops the
+    compiler vectorises, scanned eight pixels at a time -- the float32 row sum (added dot by
+    dot, in ``offs`` order), its least dot and mean pass (``sum >= thr``, ``low >= min_dot``,
+    ``low >= mean - spread``) and the floor at ``ends`` is free and below ``end_max``. All
+    comparisons in float32, as numpy makes them against Python floats. Returns (xs, ys, row SNR
+    = sum / sqrt(n), axis) over the interior (``e`` from the border): axis 0 first, each in
+    row-major order."""
+    h, w = z.shape
+    n = len(offs)
+    g = np.float32(gate)
+    t32 = np.float32(thr)
+    md = np.float32(min_dot)
+    sp = np.float32(spread)
+    em = np.float32(end_max)
+    nf = np.float32(n)
+    sq = np.float32(math.sqrt(n))
+    ok = np.empty((h, w), np.uint8)
+    for y in range(h):
+        zr, orow, okr = z[y], occ[y], ok[y]
+        for x in range(w):
+            okr[x] = (zr[x] >= g) & (orow[x] == 0)
+    nx = w - 2 * e
+    acc, words, idx = _row_flags(nx)
+    xs = np.empty(256, np.int64)
+    ys = np.empty(256, np.int64)
+    st = np.empty(256, np.float32)
+    ax = np.empty(256, np.int64)
+    m = 0
+    zf, of = z.ravel(), occ.ravel()
+    for axis in range(2):
+        stride = w if axis else 1
+        for y in range(e, h - e):
+            acc[:nx] = 1
+            for o in offs:  # the row's dots as shifted views: indices the compiler can vectorise
+                src = ok[y + o, e : w - e] if axis else ok[y, e + o : w - e + o]
+                for i in range(nx):
+                    acc[i] &= src[i]
+            for t in range(_marked(acc, words, idx)):
+                i = idx[t]
+                base = y * w + e + i  # flat index of (x, y); the row's dots stride apart
+                total = zf[base + offs[0] * stride]
+                low = total
+                for c in range(1, n):
+                    v = zf[base + offs[c] * stride]
+                    total += v
+                    low = min(low, v)
+                if not (total >= t32 and low >= md and low >= total / nf - sp):
+                    continue
+                free = True
+                for o in ends:
+                    p = base + o * stride
+                    free &= zf[p] < em and of[p] == 0
+                if not free:
+                    continue
+                if m == len(xs):
+                    xs, ys, st, ax = _grow(xs, m), _grow(ys, m), _grow(st, m), _grow(ax, m)
+                xs[m] = e + i
+                ys[m] = y
+                st[m] = total / sq
+                ax[m] = axis
+                m += 1
+    return xs[:m], ys[:m], st[:m], ax[:m]
+
+
+@numba.njit(cache=True, error_model="numpy")
+def mirror_shift(m, c, ok, xy, max_shift2):
+    """The ground-view positions of :func:`stcvision.stages.mirror_centroids`: per dot, the
+    mirror-image centroid ``c`` taken back through the unwarp map's local Jacobian (``m``: the
+    map at the dot and +-0.5 px in x and y, (n, 5, 2)); a dot whose centroid could not be
+    measured (``ok``), whose Jacobian is singular or whose shift exceeds ``sqrt(max_shift2)``
+    keeps ``xy``. Element by element as the numpy version."""
+    n = len(xy)
+    out = xy.copy()
+    for i in range(n):
+        jx0, jx1 = m[i, 1, 0] - m[i, 2, 0], m[i, 1, 1] - m[i, 2, 1]
+        jy0, jy1 = m[i, 3, 0] - m[i, 4, 0], m[i, 3, 1] - m[i, 4, 1]
+        det = jx0 * jy1 - jy0 * jx1
+        if not (ok[i] and abs(det) > 1e-6):
+            continue
+        du, dv = c[i, 0] - m[i, 0, 0], c[i, 1] - m[i, 0, 1]
+        g0 = (jy1 * du - jy0 * dv) / det
+        g1 = (jx0 * dv - jx1 * du) / det
+        if g0 * g0 + g1 * g1 <= max_shift2:
+            out[i, 0] = xy[i, 0] + g0
+            out[i, 1] = xy[i, 1] + g1
+    return out
+
+
+@numba.njit(cache=True, error_model="numpy")
+def heading_row(xy, s, n_dots, radius, max_residual):
+    """The dots :func:`stcvision.stages.fit_heading` fits, among lit dots at ``xy`` (robot
+    frame, m) of strengths ``s``: the brightest, and of the lines from it to each neighbour
+    within ``radius`` the one most neighbours lie on (within ``max_residual``; then the
+    brightest in sum; then the first), its ``n_dots`` brightest dots (stable order). Returns
+    (status, value, picks): status 0 with the picked indices; 1 with the neighbours' count
+    (too few); 2 (no row of ``n_dots``)."""
+    first = 0
+    for i in range(1, len(s)):
+        if s[i] > s[first]:
+            first = i
+    fx, fy = xy[first, 0], xy[first, 1]
+    near = np.empty(len(s), np.int64)
+    k = 0
+    for i in range(len(s)):
+        if np.hypot(xy[i, 0] - fx, xy[i, 1] - fy) <= radius:
+            near[k] = i
+            k += 1
+    near = near[:k]
+    if k < n_dots:
+        return 1, k, np.zeros(0, np.int64)
+    best_c, best_count, best_total = -1, -1, -np.inf
+    for ci in range(k):
+        j = near[ci]
+        if j == first:
+            continue
+        rx, ry = xy[j, 0] - fx, xy[j, 1] - fy
+        norm = np.hypot(rx, ry)
+        dx, dy = rx / norm, ry / norm
+        count = 0
+        total = 0.0
+        for t in range(k):  # the neighbours on this line, in order
+            i = near[t]
+            if abs((xy[i, 0] - fx) * -dy + (xy[i, 1] - fy) * dx) <= max_residual:
+                total = s[i] if count == 0 else total + s[i]
+                count += 1
+        if count > best_count or (count == best_count and total > best_total):
+            best_c, best_count, best_total = ci, count, total
+    j = near[best_c]
+    rx, ry = xy[j, 0] - fx, xy[j, 1] - fy
+    norm = np.hypot(rx, ry)
+    dx, dy = rx / norm, ry / norm
+    row = np.empty(k, np.int64)
+    m = 0
+    for t in range(k):
+        i = near[t]
+        if abs((xy[i, 0] - fx) * -dy + (xy[i, 1] - fy) * dx) <= max_residual:
+            row[m] = i
+            m += 1
+    if m < n_dots:
+        return 2, m, np.zeros(0, np.int64)
+    row = row[:m]
+    order = np.argsort(-s[row], kind="mergesort")
+    return 0, m, row[order[:n_dots]]
+
+
+@numba.njit(cache=True)
+def rotate_about(ru, c, s, cx, cy):
+    """Points rotated about (cx, cy) by the angle of cosine ``c`` and sine ``s``
+    (:func:`stcvision.observation._rotate`), element by element as the numpy version."""
+    out = np.empty_like(ru)
+    for i in range(len(ru)):
+        dx, dy = ru[i, 0] - cx, ru[i, 1] - cy
+        out[i, 0] = (c * dx - s * dy) + cx
+        out[i, 1] = (s * dx + c * dy) + cy
+    return out
+
+
+@numba.njit(cache=True)
+def mark_offset(ru, orient, lit, inset, min_dots):
+    """The median residuals of :func:`stcvision.observation.mark_offset` over the lit dots:
+    per axis (0: right, from the rows along 'up'; 1: up, from those along 'right'), whether
+    ``min_dots`` rows' dots were there, and minus the median of each dot's coordinate less its
+    nominal one (the nearest integer, half to even, +- ``inset``)."""
+    have = np.zeros(2, np.bool_)
+    out = np.zeros(2)
+    for axis in range(2):
+        along = 1 - axis
+        r = np.empty(len(ru))
+        k = 0
+        for i in range(len(ru)):
+            if lit[i] and orient[i] == along:
+                p = ru[i, axis]
+                q = np.round(p)
+                r[k] = p - (q + (inset if p >= q else -inset))
+                k += 1
+        if k >= min_dots:
+            have[axis] = True
+            out[axis] = -np.median(r[:k])
+    return have, out
+
+
+@numba.njit(cache=True)
+def landing_counts(ru, lit, centres, half):
+    """Per landing centre, the lit dots within ``half`` of it along both axes."""
+    out = np.zeros(len(centres), np.int64)
+    for i in range(len(ru)):
+        if not lit[i]:
+            continue
+        for k in range(len(centres)):
+            if abs(ru[i, 0] - centres[k, 0]) < half and abs(ru[i, 1] - centres[k, 1]) < half:
+                out[k] += 1
+    return out
+
+
+@numba.njit(cache=True)
+def anchored_rows(z, occ, xy, snr, crowded, max_snr, reach, step, n, min_snr, mean_snr, end_max, k_sigma):
     """Rows through one lone found dot (:func:`stcvision.stages._anchored_rows`): for each lone
-    dot, the best of its ``2 n`` row hypotheses; a row within 2 px of an accepted one is
-    skipped. Returns the accepted rows' points ((R, n - 1, 2) float) and SNRs (R,)."""
+    dot (not ``crowded``, SNR at most ``max_snr``, ``reach`` inside the image), the best of its
+    ``2 n`` row hypotheses; a row within 2 px of an accepted one is skipped. Returns the
+    accepted rows' points ((R, n - 1, 2) float) and SNRs (R,)."""
+    h, w = z.shape
+    lone = np.empty(len(xy), np.bool_)
+    for i in range(len(xy)):
+        lone[i] = (
+            not crowded[i]
+            and snr[i] <= max_snr
+            and xy[i, 0] >= reach
+            and xy[i, 0] < w - reach
+            and xy[i, 1] >= reach
+            and xy[i, 1] < h - reach
+        )
     taken = np.zeros(z.shape, np.uint8)
     out_pts = np.empty((len(xy), n - 1, 2))
     out_s = np.empty(len(xy))
@@ -163,6 +650,32 @@ def accept_rows(taken, xs, ys, axis, order, offs, half, room):
         out[m] = i
         m += 1
     return out[:m]
+
+
+@numba.njit(cache=True)
+def accept_free_rows(shape, rows_xy, xs, ys, st, axis, offs, half, room):
+    """The free rows of :func:`stcvision.stages._accept_free_rows`, strongest first (stable):
+    the anchored rows' dots ``rows_xy`` ((R, n - 1, 2)) and each accepted row's dots grown by
+    ``half`` are taken, a row with a dot on a taken pixel is skipped, at most ``room`` rows
+    (:func:`accept_rows`). Returns the accepted rows' points ((A, n, 2) float) and SNRs (A,)."""
+    taken = np.zeros(shape, np.uint8)
+    h, w = shape
+    for r in range(rows_xy.shape[0]):
+        for c in range(rows_xy.shape[1]):
+            x, y = np.int64(rows_xy[r, c, 0]), np.int64(rows_xy[r, c, 1])
+            taken[max(y - half, 0) : min(y + half + 1, h), max(x - half, 0) : min(x + half + 1, w)] = 1
+    order = np.argsort(-st, kind="mergesort")
+    acc = accept_rows(taken, xs, ys, axis, order, offs, half, room)
+    n = len(offs)
+    pts = np.empty((len(acc), n, 2))
+    s = np.empty(len(acc), st.dtype)
+    for k in range(len(acc)):
+        i = acc[k]
+        for c in range(n):
+            pts[k, c, 0] = xs[i] if axis[i] else xs[i] + offs[c]
+            pts[k, c, 1] = ys[i] + offs[c] if axis[i] else ys[i]
+        s[k] = st[i]
+    return pts, s
 
 
 @numba.njit(cache=True)
@@ -291,6 +804,39 @@ def group_stats(code, n, lit, value):
         if not seen[c]:
             best[c] = 0.0
     return counts, best
+
+
+@numba.njit(cache=True)
+def cell_dots(ru, lit, tol, span, inset, min_dots):
+    """Row orientation and mark offset of the dots ``ru`` (cell units, already rotated), in
+    one call (:func:`stcvision.observation._cell_dots`): per dot, :func:`row_orientation` among
+    the lit dots (-1 for the rest), then :func:`mark_offset` over the lit dots. Returns
+    (orient, have, offset)."""
+    idx = np.flatnonzero(lit)
+    sub = np.empty((len(idx), 2))
+    for k in range(len(idx)):
+        sub[k, 0] = ru[idx[k], 0]
+        sub[k, 1] = ru[idx[k], 1]
+    orient = np.full(len(ru), -1, np.int64)
+    o = row_orientation(sub, tol, span)
+    for k in range(len(idx)):
+        orient[idx[k]] = o[k]
+    have, off = mark_offset(ru, orient, lit, inset, min_dots)
+    return orient, have, off
+
+
+@numba.njit(cache=True)
+def box_counts(box, nb, sub, lit, snr):
+    """Per box code (box + 3: -3..5) and neighbour code (nb + 1: -1..3): the lit dots and the
+    best SNR of any dot (:func:`group_stats`), and the stray lit dots (in a sub-cell, in no
+    box) (:func:`stcvision.observation._read_boxes`)."""
+    n_box, best_box = group_stats(box + 3, 9, lit, snr)
+    n_nb, best_nb = group_stats(nb + 1, 5, lit, snr)
+    stray = 0
+    for i in range(len(box)):
+        if sub[i] >= 0 and box[i] == 0 and lit[i]:
+            stray += 1
+    return n_box, best_box, n_nb, best_nb, stray
 
 
 @numba.njit(cache=True)

@@ -14,7 +14,6 @@ back into the entry frame about the robot before they are assigned.
 from __future__ import annotations
 
 import math
-import statistics
 from dataclasses import dataclass
 
 import cv2
@@ -167,8 +166,7 @@ def _rotate(ru: np.ndarray, angle_rad: float) -> np.ndarray:
     if angle_rad == 0.0:
         return ru
     c, s = math.cos(angle_rad), math.sin(angle_rad)
-    d = ru - ROBOT_IN_CELL
-    return np.column_stack([c * d[:, 0] - s * d[:, 1], s * d[:, 0] + c * d[:, 1]]) + ROBOT_IN_CELL
+    return kernels.rotate_about(np.ascontiguousarray(ru, np.float64), c, s, *ROBOT_IN_CELL)
 
 
 #: Half-width (cell units, i.e. fractions of D) of the band a row's dots share across the row
@@ -206,24 +204,32 @@ def assign_boxes(ru: np.ndarray, orient: np.ndarray | None = None) -> tuple[np.n
     )
 
 
-def mark_offset(ru: np.ndarray, orient: np.ndarray, *, inset: float = 0.125, min_dots: int = 4):
+#: a mark's dots lie this far (cell units) inside its sub-cell's edge; :func:`mark_offset` needs
+#: this many dots of rows along an axis before it measures the offset across them
+MARK_INSET = 0.125
+MARK_MIN_DOTS = 4
+
+
+def mark_offset(ru: np.ndarray, orient: np.ndarray, *, inset: float = MARK_INSET, min_dots: int = MARK_MIN_DOTS):
     """The robot's offset from its sub-cell centre (right, up; cell units) from the marks in
     view: every mark lies ``inset`` inside one edge of its sub-cell, so across its row a dot's
     coordinate should be an integer (an edge) +- ``inset``; the median residual of the rows
     running along 'up' gives the offset to the right, of those along 'right' the offset up.
     Unambiguous while the robot is less than ``inset`` off (the residual would flip sides)."""
-    out = []
-    for axis, along in ((0, 1), (1, 0)):
-        p = ru[orient == along, axis]
-        if len(p) < min_dots:
-            out.append(None)
-            continue
-        k = np.round(p)
-        nom = k + np.where(p >= k, inset, -inset)
-        out.append(-statistics.median((p - nom).tolist()))  # a few dozen values: no numpy call
-    if out[0] is None and out[1] is None:
+    if not len(ru):
         return None
-    return (out[0] or 0.0, out[1] or 0.0)
+    lit = np.ones(len(ru), np.bool_)
+    have, off = kernels.mark_offset(
+        np.ascontiguousarray(ru, np.float64), np.asarray(orient, np.int64), lit, inset, min_dots
+    )
+    return _offset_of(have, off)
+
+
+def _offset_of(have: np.ndarray, off: np.ndarray):
+    """(right, up) from :func:`kernels.mark_offset`'s answer; None where neither axis had rows."""
+    if not have.any():
+        return None
+    return (float(off[0]) or 0.0, float(off[1]) or 0.0)
 
 
 def pattern_rotation(ru: np.ndarray, orient: np.ndarray, *, min_rows: int = 2, max_rad: float = 0.06) -> float | None:
@@ -422,44 +428,107 @@ def observe_cell(
         (right, up; cell units) instead of where this frame's marks say (e.g. the red lights'
         offset from a short frame at the same pose: a long frame's marks may mislead it).
     """
-    ru = _rotate(geometry.to_cell(dots.xy_px), heading_error_rad) if len(dots) else np.zeros((0, 2))
-    orient = np.full(len(ru), -1)
-    offset = None
-    if len(ru):
-        orient[dots.lit] = row_orientation(ru[dots.lit])  # rows are made of lit dots
-        # where the robot really stands, from the marks: read the boxes relative to that
-        offset = mark_offset(ru[dots.lit], orient[dots.lit]) if position_offset is None else tuple(position_offset)
-        if offset is not None and params.use_offset:
-            ru = ru + np.asarray(offset)
-    sub, box, nb = assign_boxes(ru, orient) if len(ru) else (np.zeros(0, int),) * 3
+    ru, orient, offset = _cell_dots(dots, geometry, heading_error_rad, params, position_offset)
+    sub, box, nb = assign_boxes(ru, orient) if len(ru) else (np.zeros(0, np.int64),) * 3
+    thr = dots.threshold_snr
+    boxes, visited, stray, start_mark, nb_stats = _read_boxes(dots, sub, box, nb, params)
+    # neighbour d's sub-cell next to our sub-cell d holds a whole row (LANDING_DOTS of its 4
+    # dots, clear of the borders)
+    inside = kernels.landing_counts(ru, np.asarray(dots.lit, np.bool_), _LANDING, _LANDING_HALF)
+    landing = tuple(bool(c >= max(params.min_dots, LANDING_DOTS)) for c in inside)
+    rru = _rotate(geometry.to_cell(red_px), heading_error_rad) if len(red_px) else np.zeros((0, 2))
+    landmark = (None,) * 4
+    if params.pose_estimates:
+        landmark = _landmarks(rru, landmark_px, geometry, heading_error_rad, params, subcell_m)
+    neighbours = _read_neighbours(nb_stats, rru, red_strength, red_threshold_dn, thr, params)
+    lean = pattern_rotation(ru[dots.lit], orient[dots.lit]) if (len(ru) and params.pose_estimates) else None
+    return CellObservation(
+        tuple(boxes),
+        visited,
+        neighbours,
+        float(heading_error_rad),
+        stray,
+        start_mark,
+        landing,
+        offset,
+        lean,
+        *landmark,
+        getattr(dots, "untrusted", ""),
+    )
+
+
+def _cell_dots(dots, geometry: CellGeometry, heading_error_rad: float, params: ObservationParams, position_offset):
+    """The dots in cell units, rotated back by the heading error and shifted by the robot's
+    offset (``position_offset``, else where the marks say it stands); their row orientation
+    (:func:`row_orientation`, lit dots only: rows are made of lit dots; -1 for the rest); and
+    that offset (None: too few rows)."""
+    if not len(dots):
+        return np.zeros((0, 2)), np.zeros(0, np.int64), None
+    ru = _rotate(geometry.to_cell(dots.xy_px), heading_error_rad)
+    lit = np.asarray(dots.lit, np.bool_)
+    orient, have, off = kernels.cell_dots(ru, lit, ROW_TOL, ROW_SPAN, MARK_INSET, MARK_MIN_DOTS)
+    # where the robot really stands, from the marks: read the boxes relative to that
+    offset = _offset_of(have, off) if position_offset is None else tuple(position_offset)
+    if offset is not None and params.use_offset:
+        ru = ru + np.asarray(offset)
+    return ru, orient, offset
+
+
+def _read_boxes(dots, sub: np.ndarray, box: np.ndarray, nb: np.ndarray, params: ObservationParams):
+    """The five boxes (lit with ``params.min_dots`` lit dots; confidence from the best
+    candidate's SNR), the visited sub-cells, the stray lit dots (in the cell, in no box), the
+    start mark's sub-cell (or None), and per neighbour code (``nb + 1``) the lit dots and the
+    best SNR (:func:`kernels.box_counts`)."""
     thr = dots.threshold_snr
     # per box code (-3..5, offset by 3): lit dots and the best candidate's SNR
-    n_lit_box, best_box = _group_stats(box + 3, 9, dots.lit, dots.snr)
+    n_box, best_box, n_nb, best_nb, stray = kernels.box_counts(
+        box, nb, sub, np.asarray(dots.lit, np.bool_), np.asarray(dots.snr, float)
+    )
+    n_lit_box, best_box = n_box.tolist(), best_box.tolist()
     boxes = []
     for b in BOXES:
-        n_lit = int(n_lit_box[b + 3])
+        n_lit = n_lit_box[b + 3]
         boxes.append(BoxReading(b, bool(n_lit >= params.min_dots), _confidence(best_box[b + 3], thr, 1.0), n_lit))
     lit_b = {b.box: b.lit for b in boxes}
     visited = {m: any(lit_b[b] for b in boxes_) for m, boxes_ in VISITED_BY.items()}
-    stray = int(((sub >= 0) & (box == 0) & dots.lit).sum()) if len(ru) else 0
     start_mark = next((m for m in (1, 2, 3) if n_lit_box[3 - m] >= params.min_dots), None)
-    # neighbour d's sub-cell next to our sub-cell d holds a whole row (LANDING_DOTS of its 4
-    # dots, clear of the borders)
-    lit_ru = ru[dots.lit] if len(ru) else np.zeros((0, 2))
-    inside = (np.abs(lit_ru[:, None, :] - _LANDING[None]) < _LANDING_HALF).all(axis=2).sum(axis=0)
-    landing = [bool(c >= max(params.min_dots, LANDING_DOTS)) for c in inside]
-    rru = _rotate(geometry.to_cell(red_px), heading_error_rad) if len(red_px) else np.zeros((0, 2))
-    # red lights stand at cell centres (even coordinates in cell units): absolute landmarks
-    landmark = None
-    landmark_rot = None
-    landmark_sig = None
-    landmark_off_sig = None
+    return boxes, visited, int(stray), start_mark, (n_nb.tolist(), best_nb.tolist())
+
+
+def _read_neighbours(nb_stats, rru, red_strength, red_threshold_dn: float, thr: float, params: ObservationParams):
+    """The four neighbours: marked (``params.min_dots`` lit dots in the cell: ``nb_stats`` from
+    :func:`_read_boxes`), red (a red light ``rru`` in it), each with a confidence."""
+    _, _, rnb = assign_boxes(rru, np.full(len(rru), -1)) if len(rru) else (None, None, np.zeros(0, np.int64))
+    neighbours = {}
+    n_lit_nb, best_nb = nb_stats
+    n_red_nb, best_red = _group_stats(rnb + 1, 5, np.ones(len(rnb), bool), np.asarray(red_strength, float))
+    n_red_nb, best_red = n_red_nb.tolist(), best_red.tolist()
+    for i, name in enumerate(NEIGHBOURS):
+        has_red = bool(n_red_nb[i + 1])
+        neighbours[name] = NeighbourReading(
+            name,
+            bool(n_lit_nb[i + 1] >= params.min_dots),
+            has_red,
+            _confidence(best_nb[i + 1], thr, 1.0),
+            _confidence(best_red[i + 1], red_threshold_dn, red_threshold_dn / 5.0) if has_red else 1.0,
+        )
+    return neighbours
+
+
+def _landmarks(
+    rru, landmark_px, geometry: CellGeometry, heading_error_rad: float, params: ObservationParams, subcell_m
+):
+    """Red lights stand at cell centres (even coordinates in cell units): absolute landmarks.
+    (offset, rotation, rotation sigma, offset sigma) of :func:`_landmark_fit` over the lights
+    near a cell centre within reach (``landmark_px`` out to ``params.landmark_range_m``, else
+    the view's lights ``rru`` within 2.6 sub-cells), each None where not fixed."""
+    landmark = landmark_rot = landmark_sig = landmark_off_sig = None
     if landmark_px is not None and subcell_m:
         lru = _rotate(geometry.to_cell(landmark_px), heading_error_rad) if len(landmark_px) else np.zeros((0, 2))
         reach = params.landmark_range_m / subcell_m
     else:
         lru, reach = rru, 2.6  # well inside the ground view (a blob cut by its border is biased)
-    if len(lru) and params.pose_estimates:
+    if len(lru):
         resid = lru - 2.0 * np.round(lru / 2.0)
         near = (np.abs(resid) < 0.6).all(axis=1) & (np.hypot(*(lru - ROBOT_IN_CELL).T) < reach)
         obs_p = lru[near]
@@ -478,36 +547,7 @@ def observe_cell(
                     landmark_rot = th
                     landmark = off
                     landmark_off_sig = off_sig
-    _, _, rnb = assign_boxes(rru, np.full(len(rru), -1)) if len(rru) else (None, None, np.zeros(0, int))
-    neighbours = {}
-    n_lit_nb, best_nb = _group_stats(nb + 1, 5, dots.lit, dots.snr)
-    n_red_nb, best_red = _group_stats(rnb + 1, 5, np.ones(len(rnb), bool), np.asarray(red_strength, float))
-    for i, name in enumerate(NEIGHBOURS):
-        has_red = bool(n_red_nb[i + 1])
-        neighbours[name] = NeighbourReading(
-            name,
-            bool(n_lit_nb[i + 1] >= params.min_dots),
-            has_red,
-            _confidence(best_nb[i + 1], thr, 1.0),
-            _confidence(best_red[i + 1], red_threshold_dn, red_threshold_dn / 5.0) if has_red else 1.0,
-        )
-    lean = pattern_rotation(ru[dots.lit], orient[dots.lit]) if (len(ru) and params.pose_estimates) else None
-    return CellObservation(
-        tuple(boxes),
-        visited,
-        neighbours,
-        float(heading_error_rad),
-        stray,
-        start_mark,
-        tuple(landing),
-        offset,
-        lean,
-        landmark,
-        landmark_rot,
-        landmark_sig if landmark_rot is not None else None,
-        landmark_off_sig,
-        getattr(dots, "untrusted", ""),
-    )
+    return landmark, landmark_rot, landmark_sig if landmark_rot is not None else None, landmark_off_sig
 
 
 def marks_ahead(

@@ -465,9 +465,6 @@ class Dots:
         return int(self.lit.sum())
 
 
-_K3 = np.ones((3, 3), np.uint8)
-
-
 def noise_gain(umap: UnwarpMap, window_px: int, *, n: int = 12, seed: int = 0) -> np.ndarray:
     """Standard deviation, per ground pixel, of the unwarped window mean of unit white noise.
 
@@ -519,6 +516,23 @@ def noise_floor(quantum: float = 1.0) -> float:
     return QUANTISATION_SIGMA * quantum
 
 
+def _candidate_level(dtype, gain, params: DotParams, area: int, background_dn: float, noise_dn: float, low: float):
+    """The dot candidate level for :func:`kernels.dot_candidates`: (mode, a, c), the level
+    ``gain * a + c`` per pixel in the sums' own units (mode 0: uint16 sums, rounded to whole
+    DN; 1: float32 sums), or the scalar ``c`` (mode 2: a fixed ``threshold_dn``, or no gain map)."""
+    if params.threshold_dn is not None:
+        level = np.float32(area * (background_dn + params.threshold_dn * low / params.k_sigma))
+    elif gain is not None and dtype == np.uint16:
+        return 0, area * low * noise_dn, area * background_dn + 0.5
+    elif gain is not None:
+        return 1, area * low * noise_dn, area * background_dn
+    else:
+        level = np.float32(area * (background_dn + low * noise_dn / params.window_px))
+    if dtype == np.uint16:
+        return 2, 0.0, float(min(int(np.ceil(level)), 65535))
+    return 2, 0.0, float(level)
+
+
 def find_dots(
     marks: np.ndarray,
     params: DotParams = DotParams(),
@@ -557,39 +571,20 @@ def find_dots(
     else:  # window sums of the mirror image, already unwarped
         sums = marks
     low = min(params.candidate_snr, params.k_sigma)
-    # the candidate level as an image in the sums' own units (no float copy of the image):
-    # area * (background + snr * noise of the window mean there)
-    if params.threshold_dn is not None:
-        level = np.float32(area * (background_dn + params.threshold_dn * low / params.k_sigma))
-    elif gain is not None and sums.dtype == np.uint16:  # one saturating OpenCV op, rounded up
-        level = cv2.addWeighted(gain, area * low * noise_dn, gain, 0.0, area * background_dn + 0.5, dtype=cv2.CV_16U)
-    elif gain is not None:
-        level = gain * np.float32(area * low * noise_dn)
-        level += np.float32(area * background_dn)
-    else:
-        level = np.float32(area * (background_dn + low * noise_dn / w))
-    if sums.dtype == np.uint16 and not np.ndim(level):
-        level = min(int(np.ceil(level)), 65535)
-    # local maxima (3x3); the black-out below does the suppression between peaks. Not a dilation
-    # over the whole black-out square: that also dropped a dot whose brighter neighbour's flank
-    # reaches into the square -- the end dots of two marks meeting at a corner, 1.5 cm (3.9 px)
-    # apart along each axis, whose peaks the black-out keeps (issue 18: 4 of 9 missed SNR >= 8
-    # dots on ages frames, at SNR 12-20)
-    b = params.blackout_px
-    peaks = cv2.dilate(sums, _K3)
-    above = cv2.compare(sums, level, cv2.CMP_GE) if np.ndim(level) else cv2.compare(sums, float(level), cv2.CMP_GE)
-    cand = cv2.bitwise_and(cv2.compare(sums, peaks, cv2.CMP_GE), above)
+    # local maxima (3x3) at or above the candidate level, area * (background + snr * noise of
+    # the window mean there), in one compiled pass (kernels.dot_candidates: the level image,
+    # the 3x3 dilation, the compares and findNonZero it replaced, to the bit); the black-out
+    # below does the suppression between peaks. Not a dilation over the whole black-out square:
+    # that also dropped a dot whose brighter neighbour's flank reaches into the square -- the
+    # end dots of two marks meeting at a corner, 1.5 cm (3.9 px) apart along each axis, whose
+    # peaks the black-out keeps (issue 18: 4 of 9 missed SNR >= 8 dots on ages frames, at SNR 12-20)
     e = w // 2 + 1  # a window cut by the image border sees reflected pixels: no dot there
-    cand[:e], cand[-e:], cand[:, :e], cand[:, -e:] = 0, 0, 0, 0
-    pts = cv2.findNonZero(cand)
-    pts = np.zeros((0, 2), np.int32) if pts is None else pts.reshape(-1, 2)
-    xs, ys = pts[:, 0], pts[:, 1]
-    mean = sums[ys, xs].astype(np.float64) / area - background_dn
+    mode, a, c = _candidate_level(sums.dtype, gain, params, area, background_dn, noise_dn, low)
+    g = gain if (gain is not None and params.threshold_dn is None) else np.full((1, 1), 1.0 / w)
+    xs, ys, vals, mean = kernels.dot_candidates(sums, g, mode, a, c, e, area, float(background_dn), float(noise_dn))
     if params.threshold_dn is not None:
         vals = mean * (params.k_sigma / params.threshold_dn)
-    else:
-        g = gain[ys, xs].astype(np.float64) if gain is not None else 1.0 / w
-        vals = mean / (noise_dn * g)
+    b = params.blackout_px
     order = np.argsort(-vals, kind="stable")
     untrusted = ""
     if len(order) > params.max_candidates:
@@ -623,49 +618,30 @@ def find_dots(
 
 def _black_out(xs: np.ndarray, ys: np.ndarray, vals: np.ndarray, b: int, tail_sigma: float, max_dots: int):
     """Greedy black-out of candidates sorted strongest first (plateaus and chains of maxima
-    that the dilation left): candidate k is dropped if a kept stronger candidate j shadows it --
-    k lies in j's black-out square (half-side ``b``), or j's blur (a Gaussian of ``tail_sigma``)
-    explains half of k. Indices of the kept candidates, at most ``max_dots``.
+    that the 3x3 maximum left): candidate k is dropped if a kept stronger candidate j shadows
+    it -- k lies in j's black-out square (half-side ``b``), or j's blur (a Gaussian of
+    ``tail_sigma``) explains half of k. Indices of the kept candidates, at most ``max_dots``.
 
-    Only pairs closer than the farthest a shadow can reach are examined (a k-d tree), so the
-    cost grows with the candidates and their near neighbours, not their square: a blur explains
-    half of k only within ``tail_sigma * sqrt(2 ln(2 v_j / v_k))`` of j."""
-    n = len(vals)
-    if n == 0:
-        return np.zeros(0, int)
-    vmin = max(float(vals.min()), 1e-12)
-    reach2 = max(2.0 * b * b, 2.0 * tail_sigma**2 * math.log(max(2.0 * float(vals.max()) / vmin, 1.0)))
-    pairs = cKDTree(np.column_stack([xs, ys]).astype(np.float64)).query_pairs(
-        math.sqrt(reach2) + 1e-6, output_type="ndarray"
+    One compiled loop (:func:`kernels.greedy_black_out`) checks each candidate against the
+    dots kept so far only, at most ``max_dots`` of them (earlier a k-d tree of all candidate
+    pairs within a shadow's reach, then a loop over them: the same choice, several times the
+    cost)."""
+    if len(vals) == 0:
+        return np.zeros(0, np.int64)
+    return kernels.greedy_black_out(
+        np.ascontiguousarray(xs, np.int64), np.ascontiguousarray(ys, np.int64), vals, b, float(tail_sigma), max_dots
     )
-    j, k = pairs[:, 0], pairs[:, 1]  # j < k: j is the stronger
-    dy = np.abs(ys[k].astype(np.int64) - ys[j])
-    dx = np.abs(xs[k].astype(np.int64) - xs[j])
-    tail = vals[j] * np.exp(-(dx * dx + dy * dy) / (2.0 * tail_sigma**2))
-    shadow = ((dy <= b) & (dx <= b)) | (tail >= 0.5 * vals[k])
-    k, j = k[shadow], j[shadow]
-    by_k = np.argsort(k, kind="stable")
-    starts = np.searchsorted(k[by_k], np.arange(n + 1))
-    return kernels.black_out(starts, j[by_k].astype(np.int64), max_dots)
 
 
 def _centroids(marks: np.ndarray, xs: np.ndarray, ys: np.ndarray, r: int, per_px: float) -> np.ndarray:
-    """Intensity-weighted centroids above ``per_px`` in the (2r+1)^2 squares around (xs, ys),
-    all at once; the integer position where the square holds nothing above it."""
-    n = len(xs)
-    xy = np.zeros((n, 2))
-    if not n:
-        return xy
-    h, wid = marks.shape
-    off = np.arange(-r, r + 1)
-    py = np.clip(ys[:, None, None] + off[None, :, None], 0, h - 1)
-    px = np.clip(xs[:, None, None] + off[None, None, :], 0, wid - 1)
-    patch = np.maximum(marks[py, px].astype(np.float32) - np.float32(per_px), 0)
-    tot = patch.sum(axis=(1, 2))
-    safe = np.where(tot > 0, tot, 1)
-    xy[:, 0] = np.where(tot > 0, (px * patch).sum(axis=(1, 2)) / safe, xs)
-    xy[:, 1] = np.where(tot > 0, (py * patch).sum(axis=(1, 2)) / safe, ys)
-    return xy
+    """Intensity-weighted centroids above ``per_px`` in the (2r+1)^2 squares around (xs, ys)
+    (clipped to the image), each compiled (:func:`kernels.window_centroids`, summing as numpy
+    did); the integer position where the square holds nothing above it."""
+    if not len(xs):
+        return np.zeros((0, 2))
+    return kernels.window_centroids(
+        marks, np.ascontiguousarray(xs, np.int64), np.ascontiguousarray(ys, np.int64), r, float(per_px)
+    )
 
 
 #: ground-view steps at which the unwarp map is read for a dot: the dot, then +-0.5 px in x and y
@@ -713,20 +689,12 @@ def mirror_centroids(
     g0 = dots.xy_px.astype(np.float64)
     # the dots' mirror positions, and the map's Jacobian there (central differences, +-0.5 px)
     m = _map_at(umap, (g0[:, None, :] + _JAC_STEPS[None]).reshape(-1, 2)).reshape(n, 5, 2)
-    uv0 = m[:, 0]
-    jx, jy = m[:, 1] - m[:, 2], m[:, 3] - m[:, 4]  # d(u, v) / d(ground x), d(u, v) / d(ground y)
-    det = jx[:, 0] * jy[:, 1] - jy[:, 0] * jx[:, 1]
-    # the centroids (kernels.gauss_centroids: a loop per dot over its square, compiled)
+    # the centroids (kernels.gauss_centroids: a loop per dot over its square, compiled), back
+    # to the ground view through the inverse Jacobian (kernels.mirror_shift)
     c, ok = kernels.gauss_centroids(
-        image, uv0, float(background_dn), params.mirror_half_px, float(params.mirror_sigma_px), params.mirror_iters
+        image, m[:, 0], float(background_dn), params.mirror_half_px, float(params.mirror_sigma_px), params.mirror_iters
     )
-    ok &= np.abs(det) > 1e-6
-    du, dv = (c - uv0).T
-    # back to the ground view: the inverse Jacobian times the shift
-    det = np.where(ok, det, 1.0)
-    dg = np.column_stack([jy[:, 1] * du - jy[:, 0] * dv, jx[:, 0] * dv - jx[:, 1] * du]) / det[:, None]
-    ok &= (dg * dg).sum(axis=1) <= params.mirror_max_shift_px**2
-    xy_px = np.where(ok[:, None], g0 + dg, dots.xy_px)
+    xy_px = kernels.mirror_shift(m, c, ok, g0, float(params.mirror_max_shift_px**2))
     xy_m = ground_to_robot(xy_px) if ground_to_robot is not None else dots.xy_m
     return replace(dots, xy_px=xy_px, xy_m=xy_m)
 
@@ -802,61 +770,69 @@ def find_rows(
     if not params.enabled or marks.dtype not in SUM_DTYPES:
         return dots
     noise_dn = max(noise_dn, noise_floor(quantum))
-    z = cv2.addWeighted(marks, 1.0 / area, marks, 0.0, -background_dn, dtype=cv2.CV_32F)
-    z = cv2.divide(z, gain, scale=1.0 / noise_dn)
-    cv2.min(z, float(dot_params.k_sigma), dst=z)
-    b = dot_params.blackout_px
-    # found already: black out each lit dot, as far as its blur still shows above 1 sigma; no
-    # row through it (-1e3), nor ending next to it (occ)
-    reach = np.ceil(dot_params.tail_sigma_px * np.sqrt(2 * np.log(np.maximum(dots.snr[dots.lit], 1.0)))) + 1
-    occ = np.zeros(z.shape, np.uint8)
-    lit_xy = np.clip(np.round(dots.xy_px[dots.lit]).astype(np.int64), 0, [z.shape[1] - 1, z.shape[0] - 1])
-    kernels.fill_squares(occ, lit_xy[:, 0], lit_xy[:, 1], np.maximum(reach, b).astype(np.int64))
-    # nor next to a red light blacked out of the marks image (zero there): the edge of its glare,
-    # just below the black-out level, runs along the light as a column of faint "dots"
-    dark = cv2.compare(marks, 0, cv2.CMP_EQ)
-    ring = 2 * b + 1
-    cv2.max(occ, cv2.dilate(dark, np.ones((ring, ring), np.uint8)), dst=occ)  # occ: 0 free, else taken
+    z = _row_snr(marks, gain, area, background_dn, noise_dn, dot_params.k_sigma)
+    occ = _taken_floor(marks, dots, dot_params)
     h, w = z.shape
     n = params.n_dots
     step = params.spacing_m * px_per_m
-    offs = np.round((np.arange(n) - (n - 1) / 2) * step).astype(int)
+    offs = np.round((np.arange(n) - (n - 1) / 2) * step).astype(np.int64)
     # one spacing beyond either end: a row shifted along a real one by a dot has a dot there
-    ends = np.round(np.array([-1, 1]) * ((n + 1) / 2) * step).astype(int)
+    ends = np.round(np.array([-1, 1]) * ((n + 1) / 2) * step).astype(np.int64)
     m = int(np.abs(ends).max())
     e = max(m, window_px // 2 + 1)  # rows reaching beyond the image are not sought
     if 2 * e >= min(h, w):
         return dots
-    new_xy, new_s = _anchored_rows(z, occ, dots, step, n, params) if params.anchored else ([], [])
+    if params.anchored:
+        rows_xy, rows_s = _anchored_rows(z, occ, dots, step, n, params)
+    else:
+        rows_xy, rows_s = np.zeros((0, n - 1, 2)), np.zeros(0)
     xs, ys, st, ax = _free_rows(z, occ, offs, ends, e, params)
-    if not len(xs) and not new_xy:
+    free_xy, free_s = _accept_free_rows(z.shape, xs, ys, st, ax, offs, rows_xy, dot_params.blackout_px, params.max_rows)
+    if not len(rows_s) and not len(free_s):
         return dots
-    order = np.argsort(-st, kind="stable")
-    # a row may not share a dot with one already accepted (within b along both axes): the
-    # accepted rows' dots, each grown to its (2b+1)^2 square, as an image looked up per row
-    taken = np.zeros(z.shape, np.uint8)
-    if len(new_xy):
-        ix = np.concatenate(new_xy).astype(np.int64)
-        kernels.fill_squares(taken, ix[:, 0], ix[:, 1], np.full(len(ix), b, np.int64))
-    acc = kernels.accept_rows(
-        taken,
-        xs.astype(np.int64),
-        ys.astype(np.int64),
-        ax.astype(np.int64),
-        order,
-        offs.astype(np.int64),
-        b,
-        params.max_rows - len(new_xy),
-    )
-    for i in acc:
-        new_xy.append(np.array([(xs[i], ys[i] + o) if ax[i] else (xs[i] + o, ys[i]) for o in offs], float))
-        new_s.append(np.full(n, st[i]))
-    if not new_xy:
-        return dots
-    pts = np.concatenate(new_xy)
-    ix = np.round(pts).astype(int)
+    pts = np.concatenate([rows_xy.reshape(-1, 2), free_xy.reshape(-1, 2)])
+    snr = np.concatenate([np.repeat(rows_s, n - 1), np.repeat(free_s, n)])  # float64
+    return _with_rows(dots, marks, z, gain, pts, snr, area, background_dn, noise_dn, dot_params, ground_to_robot)
+
+
+def _row_snr(marks: np.ndarray, gain: np.ndarray, area: int, background_dn: float, noise_dn: float, clip: float):
+    """Per-pixel SNR of the window sums ``marks`` (float32), clipped at the dot threshold
+    ``clip``: a single bright dot must not make a row. One compiled pass
+    (:func:`kernels.row_snr`) for uint16 sums; float32 ones (16-bit frames) through OpenCV."""
+    if marks.dtype == np.uint16 and gain.dtype == np.float32:
+        return kernels.row_snr(marks, gain, area, float(background_dn), float(noise_dn), float(clip))
+    z = cv2.addWeighted(marks, 1.0 / area, marks, 0.0, -background_dn, dtype=cv2.CV_32F)
+    z = cv2.divide(z, gain, scale=1.0 / noise_dn)
+    return cv2.min(z, float(clip), dst=z)
+
+
+def _taken_floor(marks: np.ndarray, dots: Dots, dot_params: DotParams) -> np.ndarray:
+    """uint8 image, non-zero where no row may run nor end: within each lit dot's blur (as far as
+    it still shows above 1 sigma, at least the black-out square), and within the black-out
+    square of a red light blacked out of the marks image (zero there): the edge of its glare,
+    just below the black-out level, runs along the light as a column of faint "dots"."""
+    b = dot_params.blackout_px
+    occ = kernels.zero_ring(marks, b)
+    kernels.blur_squares(occ, dots.xy_px.reshape(-1, 2), dots.snr, dots.lit, float(dot_params.tail_sigma_px), b)
+    return occ
+
+
+def _accept_free_rows(shape, xs, ys, st, ax, offs, rows_xy: np.ndarray, b: int, max_rows: int):
+    """The free rows accepted strongest first, after the anchored rows ``rows_xy`` ((R, n - 1,
+    2)): a row may not share a dot with one already accepted (within ``b`` along both axes;
+    :func:`kernels.accept_rows`), at most ``max_rows`` rows in all. Returns their points ((A,
+    n, 2) float) and SNRs (A,), in the order accepted."""
+    if not len(xs):
+        return np.zeros((0, len(offs), 2)), np.zeros(0, np.float32)
+    return kernels.accept_free_rows(shape, rows_xy, xs, ys, st, ax, offs, b, max_rows - len(rows_xy))
+
+
+def _with_rows(dots, marks, z, gain, pts, snr, area, background_dn, noise_dn, dot_params, ground_to_robot):
+    """``dots`` with the rows' dots at ``pts`` (SNR ``snr``) appended: centroids as
+    :func:`find_dots` takes them, strength the window mean above background, ``lit`` and
+    ``from_row`` set."""
+    ix = np.round(pts).astype(np.int64)
     xy = _centroids(marks, ix[:, 0], ix[:, 1], dot_params.centroid_px, background_dn * area)
-    snr = np.concatenate(new_s)
     strength = z[ix[:, 1], ix[:, 0]] * gain[ix[:, 1], ix[:, 0]] * noise_dn
     xy_m = ground_to_robot(xy) if ground_to_robot is not None else np.zeros((len(xy), 2))
     k = len(dots)
@@ -883,63 +859,38 @@ def _free_rows(z: np.ndarray, occ: np.ndarray, offs: np.ndarray, ends: np.ndarra
     first, each in row-major order.
 
     Those tests together need every dot of the row at or above ``max(min_dot_snr, mean -
-    spread_snr)`` with the mean at least ``k_sigma / sqrt(n)``: one comparison and three ANDs
-    of shifted masks find the few pixels (~1 % in noise) where that holds, and only there are
-    the row sums and the rest computed."""
+    spread_snr)`` with the mean at least ``k_sigma / sqrt(n)``: that bound prunes almost every
+    pixel after a dot or two, and only where all dots pass are the row sums and the rest
+    computed, in one compiled pass per axis (:func:`kernels.free_rows`; earlier about twenty
+    OpenCV passes over shifted masks, then numpy on the few pixels left: the same rows)."""
     n = len(offs)
-    h, w = z.shape
-    thr = np.float32(params.k_sigma * math.sqrt(n))
     gate = max(params.min_dot_snr, params.k_sigma / math.sqrt(n) - params.spread_snr) - 1e-3
-    ok_px = cv2.bitwise_and(cv2.compare(z, gate, cv2.CMP_GE), cv2.compare(occ, 0, cv2.CMP_EQ))
-    # per interior pixel: bit 1 where all dots of the row along x pass, bit 2 along y; one scan
-    # for the few pixels where either does
-    both = np.zeros((h - 2 * e, w - 2 * e), np.uint8)
-    for axis in (0, 1):
-        cand = None
-        for o in offs:
-            sl = ok_px[e + o : h - e + o, e : w - e] if axis else ok_px[e : h - e, e + o : w - e + o]
-            cand = sl.copy() if cand is None else cv2.bitwise_and(cand, sl, dst=cand)
-        cv2.bitwise_or(both, cv2.bitwise_and(cand, 1 << axis), dst=both)
-    pts = cv2.findNonZero(both)
-    if pts is None:
-        return (np.zeros(0, np.int64),) * 2 + (np.zeros(0, np.float32), np.zeros(0, np.int64))
-    pts = pts.reshape(-1, 2)
-    bits = both[pts[:, 1], pts[:, 0]]
-    out = []
-    for axis in (0, 1):  # 0: rows along x (top/bottom edges), 1: along y (left/right edges)
-        sel = pts[(bits & (1 << axis)) > 0]  # row-major, as the scan found them
-        if not len(sel):
-            continue
-        xs, ys = sel[:, 0] + e, sel[:, 1] + e
-        vals = np.stack([z[ys + o, xs] if axis else z[ys, xs + o] for o in offs])
-        total = vals.sum(axis=0)  # float32, dot by dot: the order of the full-image filter
-        low = vals.min(axis=0)
-        ok = (total >= thr) & (low >= params.min_dot_snr) & (low >= vals.mean(axis=0) - params.spread_snr)
-        for o in ends:
-            p = (ys + o, xs) if axis else (ys, xs + o)
-            ok &= (z[p] < params.end_max_snr) & (occ[p] == 0)
-        out.append((xs[ok], ys[ok], total[ok] / np.float32(math.sqrt(n)), np.full(int(ok.sum()), axis)))
-    if not out:
-        return (np.zeros(0, np.int64),) * 2 + (np.zeros(0, np.float32), np.zeros(0, np.int64))
-    return tuple(np.concatenate(v) for v in zip(*out, strict=True))
+    return kernels.free_rows(
+        z,
+        occ,
+        np.asarray(offs, np.int64),
+        np.asarray(ends, np.int64),
+        e,
+        gate,
+        float(np.float32(params.k_sigma * math.sqrt(n))),
+        float(params.min_dot_snr),
+        float(params.spread_snr),
+        float(params.end_max_snr),
+    )
 
 
 def _anchored_rows(z, occ, dots: Dots, step: float, n: int, params: RowParams):
-    """Rows through one found dot (:func:`find_rows`): lists of the added points ((n - 1, 2)
-    float ground px) and their SNRs. ``z``: per-pixel SNR clipped at the dot threshold, before
+    """Rows through one found dot (:func:`find_rows`): the added points ((R, n - 1, 2) float
+    ground px) and the rows' SNRs (R,). ``z``: per-pixel SNR clipped at the dot threshold, before
     the black-out; ``occ``: the lit dots' blur masks; ``step``: the dot spacing (px)."""
-    h, w = z.shape
-    out_xy: list[np.ndarray] = []
-    out_s: list[np.ndarray] = []
-    xy_lit = dots.xy_px[dots.lit].reshape(-1, 2)
-    snr = dots.snr[dots.lit]
-    near = 1.5 * step
-    reach = int(np.ceil((n + 1) * step)) + 2
+    xy_lit = np.ascontiguousarray(dots.xy_px[dots.lit].reshape(-1, 2), np.float64)
     if not len(xy_lit):
-        return out_xy, out_s
+        return np.zeros((0, n - 1, 2)), np.zeros(0)
+    snr = np.ascontiguousarray(dots.snr[dots.lit], np.float64)
+    near = 1.5 * step
     # lone dots only: no other lit dot within 1.5 spacings (else it is a dot of a row found
-    # already, which reads as a mark with one lit neighbour)
-    xy_lit = np.ascontiguousarray(xy_lit, np.float64)
+    # already, which reads as a mark with one lit neighbour), at most anchor_max_snr, the row's
+    # reach inside the image
     if len(xy_lit) <= 256:
         crowded = kernels.crowded(xy_lit, near)
     else:  # more dots than a frame is read for: neighbours by a k-d tree, not all pairs
@@ -947,24 +898,18 @@ def _anchored_rows(z, occ, dots: Dots, step: float, n: int, params: RowParams):
         d2 = ((xy_lit[pairs[:, 0]] - xy_lit[pairs[:, 1]]) ** 2).sum(axis=1)
         crowded = np.zeros(len(xy_lit), bool)
         crowded[pairs[d2 <= near * near].reshape(-1)] = True
-    lone = (
-        ~crowded
-        & (snr <= params.anchor_max_snr)
-        & (xy_lit[:, 0] >= reach)
-        & (xy_lit[:, 0] < w - reach)
-        & (xy_lit[:, 1] >= reach)
-        & (xy_lit[:, 1] < h - reach)
-    )
     # each lone dot: 4 places x 2 axes; at each of the row's other places and one spacing beyond
     # either end the best of the three pixels across the row (a lean of a degree or two); a row
     # with another lit dot on it or next to it (occ) is not tried, and the best passing one is
     # kept unless it comes within 2 px of a row kept already (kernels.anchored_rows)
-    pts, s_row = kernels.anchored_rows(
+    return kernels.anchored_rows(
         z,
         occ,
-        np.ascontiguousarray(xy_lit, np.float64),
-        snr.astype(np.float64),
-        lone,
+        xy_lit,
+        snr,
+        crowded,
+        float(params.anchor_max_snr),
+        int(np.ceil((n + 1) * step)) + 2,
         float(step),
         n,
         float(params.anchor_min_snr),
@@ -972,7 +917,6 @@ def _anchored_rows(z, occ, dots: Dots, step: float, n: int, params: RowParams):
         float(params.end_max_snr),
         float(params.k_sigma),
     )
-    return list(pts), [np.full(n - 1, v) for v in s_row]
 
 
 # --------------------------------------------------------------------------- heading
@@ -1017,29 +961,23 @@ def fit_heading(dots: Dots, params: HeadingParams = HeadingParams()) -> HeadingF
     lit = np.flatnonzero(dots.lit)
     if len(lit) < params.n_dots:
         return HeadingFit(False, reason=f"fewer than {params.n_dots} dots ({len(lit)} lit)")
-    xy = dots.xy_m[lit]
-    s = dots.strength[lit]
-    first = int(np.argmax(s))
-    near = np.flatnonzero(np.hypot(*(xy - xy[first]).T) <= params.row_radius_m)
-    if len(near) < params.n_dots:
+    xy = np.ascontiguousarray(dots.xy_m[lit], np.float64)
+    # the row through the brightest dot: of the lines from it to each neighbour within the row
+    # radius, the one most other neighbours lie on (another mark can sit within the row radius,
+    # across the row), then the brightest; its n_dots brightest dots (kernels.heading_row)
+    status, count, pick = kernels.heading_row(
+        xy,
+        np.ascontiguousarray(dots.strength[lit], np.float64),
+        params.n_dots,
+        float(params.row_radius_m),
+        float(params.max_residual_m),
+    )
+    if status == 1:
         return HeadingFit(
-            False, reason=f"the brightest dot has only {len(near) - 1} lit neighbours within {params.row_radius_m} m"
+            False, reason=f"the brightest dot has only {count - 1} lit neighbours within {params.row_radius_m} m"
         )
-    # the row through the brightest dot: of the lines from it to each neighbour, the one most
-    # other neighbours lie on (another mark can sit within the row radius, across the row)
-    rel = xy[near] - xy[first]
-    cand = near != first
-    d = rel[cand] / np.hypot(rel[cand, 0], rel[cand, 1])[:, None]  # unit directions to each neighbour
-    on = np.abs(rel @ np.array([-d[:, 1], d[:, 0]])) <= params.max_residual_m  # (near, candidates)
-    count = on.sum(axis=0)
-    total = np.where(on, s[near][:, None], 0.0).sum(axis=0)
-    # the most dots on the line, then the brightest; the first such candidate
-    top = np.flatnonzero(count == count.max())
-    pick_c = top[np.flatnonzero(total[top] == total[top].max())[0]]
-    row = near[on[:, pick_c]]
-    if len(row) < params.n_dots:
+    if status == 2:
         return HeadingFit(False, reason=f"no row of {params.n_dots} collinear dots at the brightest dot")
-    pick = row[np.argsort(-s[row], kind="stable")[: params.n_dots]]
     pts = xy[pick]
     c = pts.mean(0)
     _, sv, vt = np.linalg.svd(pts - c)
@@ -1132,6 +1070,8 @@ def find_red(obstacle: np.ndarray, params: RedParams = RedParams(), *, window_ar
     _check_image(obstacle, "obstacle image (uint8, or window sums)", (np.uint8, *SUM_DTYPES), ndims=(2,))
     if min(obstacle.shape) < 2:  # OpenCV takes a 1 x 1 array for a scalar and fails (fuzzing)
         raise BadInputError(f"obstacle image must be at least 2x2 pixels, got {obstacle.shape}")
+    if not cv2.countNonZero(obstacle):  # no red light in view (most frames): no contour pass
+        return RedLights(np.zeros((0, 2)), np.zeros(0), np.zeros(0))
     binary = cv2.compare(obstacle, 0, cv2.CMP_GT)
     contours, _ = cv2.findContours(binary, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
     xy, peak, area = [], [], []

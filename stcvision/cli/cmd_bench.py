@@ -200,6 +200,21 @@ def benchmark_scene(seed: int = 0):
     return board, layer, Pose(float(c[0]), float(c[1]), np.pi / 2 + 0.03)
 
 
+def benchmark_frames(seed: int = 0, n: int = 8):
+    """(dark frame, ``n`` frames) of :func:`benchmark_scene` as the bench renders them: a
+    median dark of 8, then the frames, from one stream seeded ``seed``."""
+    import numpy as np
+
+    from sim_camera.camera import SyntheticCamera
+
+    board, layer, pose = benchmark_scene(seed)
+    cam = SyntheticCamera()
+    rng = np.random.default_rng(seed)
+    dark = cam.median_dark(8, rng=rng)
+    lights = board.red_lights_m()
+    return dark, [cam.render(pose, rng=rng, phosphor=layer, red_lights_m=lights).image for _ in range(n)]
+
+
 def run(args):
     if args.sweep:
         return _bench_sweep(args)
