@@ -56,10 +56,12 @@ class CoverConfig:
     #: size the camera's frames by the noise they will have, the stack's and the dark frame's
     #: rounding included (:meth:`controllers.stc.frames.Exposures.stack_equivalent`), not the
     #: idealised noise over the square root of the frames stacked: on the webcam's 8-bit frames a
-    #: 32 x 30 s stack is worth 12 frames and the longest frame's reach halves. Off by default:
-    #: measured (README "Coverage per camera preset") it turns webcam 12x12 seed 11's wrong
-    #: decision into a safe stop but half of the 10x10 tours into safe stops too
-    size_by_frame_noise: bool = False
+    #: 32 x 30 s stack is worth 12 frames and the longest frame's reach halves. On by default
+    #: (issue 16.7: never decide on a frame sized for noise it will not have): measured (README
+    #: "Coverage per camera preset") it turns webcam 12x12 seed 11's wrong decision into a safe
+    #: stop, and half of the webcam's 10x10 tours into safe stops too; off, those tours complete
+    #: on frames whose real reach is shorter than the robot assumed (a study of the risk)
+    size_by_frame_noise: bool = True
     #: ``perception="ideal"``: every visibility horizon times this (``inf``: it sees every mark,
     #: so a run measures how long the tour takes with the frames it needs)
     ideal_horizon_factor: float = 1.0
