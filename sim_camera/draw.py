@@ -66,114 +66,87 @@ def draw_world(
         )
     img = np.full((f.h, f.w, 3), 255, np.uint8)
     arena = world.arena
-    s = f.s
     # outer walls are built outward from the boundary: draw a line twice the wall thickness
     # centred on the boundary, then clear the inside, so only the outer half shows
     verts = f.px(arena.outer_vertices())
-    cv2.polylines(
-        img,
-        [verts],
-        True,
-        (0, 0, 0),
-        max(1, int(round(2 * arena.wall_thickness_m * s))),
-        cv2.LINE_AA,
-    )
+    cv2.polylines(img, [verts], True, (0, 0, 0), max(1, int(round(2 * arena.wall_thickness_m * f.s))), cv2.LINE_AA)
     cv2.fillPoly(img, [verts], (255, 255, 255), cv2.LINE_AA)
-
-    # floor layers, sampled at pixel centres
-    if world.pheromone is not None or world.chemical is not None:
-        vv, uu = np.mgrid[0 : f.h, 0 : f.w]
-        x, y = f.world(uu.ravel(), vv.ravel())
-        pts = np.c_[x, y]
-        if world.chemical is not None and world.chemical.patches:
-            c = world.chemical.concentration(pts).reshape(f.h, f.w)
-            c = np.clip(c / max(1e-12, float(c.max())), 0, 1)
-            img[c > 0] = (255 - 120 * c[c > 0, None] * np.array([1.0, 0.0, 0.0])).astype(np.uint8)
-        if world.pheromone is not None:
-            m = world.pheromone.read(pts).reshape(f.h, f.w)
-            img[m] = (235, 190, 120)
-
+    _draw_floor(img, f, world)
     if isinstance(arena, BoardArena):
-        d = arena.subcell_m
-        rows, cols = arena.blocked.shape
-        top = arena.size_m[1]
-        for i, j in np.argwhere(arena.blocked):
-            p = f.px([[j * d, top - i * d], [(j + 1) * d, top - (i + 1) * d]])
-            cv2.rectangle(img, tuple(map(int, p[0])), tuple(map(int, p[1])), (90, 90, 90), -1)
-        for j in range(cols + 1):
-            p = f.px([[j * d, 0], [j * d, top]])
-            cv2.line(
-                img,
-                tuple(map(int, p[0])),
-                tuple(map(int, p[1])),
-                (150, 150, 150) if j % 2 == 0 else (215, 215, 215),
-                1,
-            )
-        for i in range(rows + 1):
-            p = f.px([[0, i * d], [cols * d, i * d]])
-            cv2.line(
-                img,
-                tuple(map(int, p[0])),
-                tuple(map(int, p[1])),
-                (150, 150, 150) if i % 2 == 0 else (215, 215, 215),
-                1,
-            )
-        if len(arena.red_lights):
-            inside = (
-                (arena.red_lights[:, 0] > 0)
-                & (arena.red_lights[:, 0] < arena.size_m[0])
-                & (arena.red_lights[:, 1] > 0)
-                & (arena.red_lights[:, 1] < top)
-            )
-            for u, v in f.px(arena.red_lights[inside]):
-                cv2.circle(img, (int(u), int(v)), max(2, int(0.02 * s)), (0, 0, 255), -1, cv2.LINE_AA)
+        _draw_board(img, f, arena)
     else:
-        for o in arena.obstacles:
-            if isinstance(o, CircleObstacle):
-                c = f.px([o.center_m])[0]
-                cv2.circle(
-                    img,
-                    (int(c[0]), int(c[1])),
-                    max(1, int(round(o.radius_m * s))),
-                    (120, 120, 120),
-                    -1,
-                    cv2.LINE_AA,
-                )
-            else:
-                cv2.fillPoly(img, [f.px(o.vertices_m)], (120, 120, 120), cv2.LINE_AA)
-
+        _draw_obstacles(img, f, arena)
     cv2.polylines(img, [verts], True, (0, 0, 0), 1, cv2.LINE_AA)
     for b in arena.barriers:
         p = f.px([b.start_m, b.end_m])
-        cv2.line(
-            img,
-            tuple(map(int, p[0])),
-            tuple(map(int, p[1])),
-            (0, 0, 0),
-            max(1, int(round(b.thickness_m * s))),
-            cv2.LINE_AA,
-        )
+        width = max(1, int(round(b.thickness_m * f.s)))
+        cv2.line(img, tuple(map(int, p[0])), tuple(map(int, p[1])), (0, 0, 0), width, cv2.LINE_AA)
+    _draw_robots(img, f, world.robots, trails=trails, odometry=odometry)
+    return img
 
-    for r in world.robots:
+
+def _draw_floor(img: np.ndarray, f: _Frame, world) -> None:
+    """The floor layers (chemical patches, pheromone), sampled at pixel centres."""
+    if world.pheromone is None and world.chemical is None:
+        return
+    vv, uu = np.mgrid[0 : f.h, 0 : f.w]
+    x, y = f.world(uu.ravel(), vv.ravel())
+    pts = np.c_[x, y]
+    if world.chemical is not None and world.chemical.patches:
+        c = world.chemical.concentration(pts).reshape(f.h, f.w)
+        c = np.clip(c / max(1e-12, float(c.max())), 0, 1)
+        img[c > 0] = (255 - 120 * c[c > 0, None] * np.array([1.0, 0.0, 0.0])).astype(np.uint8)
+    if world.pheromone is not None:
+        m = world.pheromone.read(pts).reshape(f.h, f.w)
+        img[m] = (235, 190, 120)
+
+
+def _draw_board(img: np.ndarray, f: _Frame, arena) -> None:
+    """A board's blocked sub-cells, its grid (cell lines darker than sub-cell lines) and red lights."""
+    d = arena.subcell_m
+    rows, cols = arena.blocked.shape
+    top = arena.size_m[1]
+    for i, j in np.argwhere(arena.blocked):
+        p = f.px([[j * d, top - i * d], [(j + 1) * d, top - (i + 1) * d]])
+        cv2.rectangle(img, tuple(map(int, p[0])), tuple(map(int, p[1])), (90, 90, 90), -1)
+    lines = [([j * d, 0], [j * d, top], j) for j in range(cols + 1)]
+    lines += [([0, i * d], [cols * d, i * d], i) for i in range(rows + 1)]
+    for a, b, k in lines:
+        p = f.px([a, b])
+        colour = (150, 150, 150) if k % 2 == 0 else (215, 215, 215)  # cell lines, sub-cell lines
+        cv2.line(img, tuple(map(int, p[0])), tuple(map(int, p[1])), colour, 1)
+    if len(arena.red_lights):
+        xy = arena.red_lights
+        inside = (xy[:, 0] > 0) & (xy[:, 0] < arena.size_m[0]) & (xy[:, 1] > 0) & (xy[:, 1] < top)
+        for u, v in f.px(xy[inside]):
+            cv2.circle(img, (int(u), int(v)), max(2, int(0.02 * f.s)), (0, 0, 255), -1, cv2.LINE_AA)
+
+
+def _draw_obstacles(img: np.ndarray, f: _Frame, arena) -> None:
+    """An open arena's circle and polygon obstacles."""
+    for o in arena.obstacles:
+        if isinstance(o, CircleObstacle):
+            c = f.px([o.center_m])[0]
+            rad = max(1, int(round(o.radius_m * f.s)))
+            cv2.circle(img, (int(c[0]), int(c[1])), rad, (120, 120, 120), -1, cv2.LINE_AA)
+        else:
+            cv2.fillPoly(img, [f.px(o.vertices_m)], (120, 120, 120), cv2.LINE_AA)
+
+
+def _draw_robots(img: np.ndarray, f: _Frame, robots, *, trails: bool, odometry: bool) -> None:
+    """Every robot's trail (all trails first, under every robot), body, heading and odometry."""
+    for r in robots:
         if trails and len(r.trail) > 1:
             tr = np.asarray(r.trail)
             stride = max(1, len(tr) // 20000)
             cv2.polylines(img, [f.px(tr[::stride])], False, (200, 80, 0), 1, cv2.LINE_AA)
-    for r in world.robots:
+    for r in robots:
         x, y, th = r.pose
         c = f.px([[x, y]])[0]
-        rad = max(2, int(round(r.params.radius_m * s)))
+        rad = max(2, int(round(r.params.radius_m * f.s)))
         cv2.circle(img, (int(c[0]), int(c[1])), rad, (0, 160, 0), 2, cv2.LINE_AA)
         tip = f.px([[x + r.params.radius_m * math.cos(th), y + r.params.radius_m * math.sin(th)]])
-        cv2.line(
-            img,
-            (int(c[0]), int(c[1])),
-            (int(tip[0][0]), int(tip[0][1])),
-            (0, 160, 0),
-            2,
-            cv2.LINE_AA,
-        )
+        cv2.line(img, (int(c[0]), int(c[1])), (int(tip[0][0]), int(tip[0][1])), (0, 160, 0), 2, cv2.LINE_AA)
         if odometry:
             o = f.px([[r.odometry.x, r.odometry.y]])[0]
             cv2.drawMarker(img, (int(o[0]), int(o[1])), (200, 0, 200), cv2.MARKER_CROSS, max(6, rad), 1)
-    return img
