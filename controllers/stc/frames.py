@@ -123,9 +123,11 @@ class Exposures:
     """The frames a robot's camera takes: the ladder of (exposure_s, gain) settings, the short
     webcam frame first, and which long rung the robot's clock asks for."""
 
-    def __init__(self, cfg: CoverConfig, subcell_m: float = DEFAULT_SUBCELL_M):
+    def __init__(self, cfg: CoverConfig, subcell_m: float = DEFAULT_SUBCELL_M, *, frame_noise: bool | None = None):
         from sim_camera.camera import SyntheticCamera
 
+        if frame_noise is not None:  # size the horizons as the camera-mode robot does (or not)
+            self.frame_noise = frame_noise
         self.cam = SyntheticCamera(sensor=cfg.camera.sensor)
         self.cfg = cfg
         self.subcell_m = subcell_m

@@ -6,7 +6,10 @@ robot profiles with exposure control, and reports whether the tour converges (co
 reachable sub-cell once, back at the start) or runs past the longest frame ("out of sight"), how
 long it takes, the oldest mark a decision had to read, and the frames it takes (length x count).
 It is an upper bound: a real pipeline does no better than the physics (README, "The
-physics-limited camera").
+physics-limited camera"). It counts a stack's noise as idealised (over the square root of its
+frames); the camera-mode robot sizes its frames by the noise the stack will have, digitised
+(``CoverConfig.size_by_frame_noise``), so the plan also gives that robot's limit: on 8-bit
+frames its longest frame sees about half as far back.
 """
 
 from __future__ import annotations
@@ -16,6 +19,7 @@ import math
 
 from controllers.stc.claims import distance_m
 from controllers.stc.config import CoverConfig
+from controllers.stc.frames import Exposures
 from controllers.stc.loop import is_complete, run_cover
 from controllers.stc.perception import IdealPerception
 
@@ -31,6 +35,7 @@ def plan(board, cfg: CoverConfig | None = None) -> dict:
     # the farthest claim a reading must make: no mark in the cell ahead, at a look
     reach = distance_m("cell ahead", board.subcell_m, cfg.position_margin_m)
     limit = cam.horizon(len(cam.ladder) - 1, reach)
+    camera_limit = Exposures(cfg, board.subcell_m, frame_noise=True).horizon(len(cam.ladder) - 1, reach)
     frames = [
         {"exposure_s": e, "gain": g, "stack": cam.stack(k), "frame_s": e * cam.stack(k), "count": n}
         for k, ((e, g, _), n) in enumerate(zip(cam.ladder, cam.per_rung, strict=True))
@@ -50,6 +55,8 @@ def plan(board, cfg: CoverConfig | None = None) -> dict:
         # how old a mark the longest frame still sees at the farthest claim (None: any age)
         "horizon_limit_s": limit if math.isfinite(limit) else None,
         "horizon_limit_reach_m": round(reach, 3),
+        # the same for the camera-mode robot, whose frames are sized by the noise they will have
+        "camera_horizon_limit_s": camera_limit if math.isfinite(camera_limit) else None,
         "frames": frames,
         "wall_s": r["wall_s"],
     }

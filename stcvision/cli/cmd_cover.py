@@ -316,6 +316,9 @@ def format_text(r):
                 f"tour: {r['tour_s']:.0f} s; oldest mark read: {r['oldest_mark_read_s']:.0f} s; longest frame sees "
                 + (f"{r['horizon_limit_s']:.0f} s back" if r["horizon_limit_s"] is not None else "marks of any age")
                 + f" {r['horizon_limit_reach_m']:.2f} m away (the look's claim)",
+                "in camera mode (frames sized by the noise they will have) the longest frame sees "
+                + (f"{r['camera_horizon_limit_s']:.0f} s back" if r["camera_horizon_limit_s"] else "any age")
+                + " there: a tour needing more stops 'out of sight' earlier than the plan",
                 f"frames (length x count): {sizes}",
             ]
         )

@@ -340,3 +340,8 @@ def test_cover_plan_says_which_camera_a_map_needs(peer_data, capsys):
     assert low["converges"] and low["subcells_covered"] == low["subcells_reachable"] == 1024
     assert low["longest_frame_s"] <= 30.0 and low["oldest_mark_read_s"] < low["tour_s"] < 20_000
     assert sum(f["frame_s"] * f["count"] for f in low["frames"]) < low["tour_s"]
+    # the camera-mode robot's limit (frames sized by the noise they will have): on the webcam's
+    # 8-bit stacks about half the idealised one (64 x 30 s is worth ~15 frames, not 64: the
+    # horizon grows as ~n^(1/2.2)), on the 12-bit camera within 10 % of it
+    assert 0.4 < web["camera_horizon_limit_s"] / web["horizon_limit_s"] < 0.65
+    assert 0.9 < low["camera_horizon_limit_s"] / low["horizon_limit_s"] < 1.0
