@@ -30,3 +30,12 @@ class FileExistsRefusedError(StcVisionError):
 class OutputError(StcVisionError):
     """An output file or folder cannot be made (a directory in the way, a parent that is a file,
     no permission, a full disk...)."""
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM (or SIGHUP) turned into an exception, so that ``finally`` blocks run and no
+    temporary file is left behind."""
+
+    def __init__(self, signum: int) -> None:
+        super().__init__(signum)
+        self.signum = signum

@@ -118,9 +118,34 @@ def _sweep_once(folder: Path) -> None:
         remove_stale_temps(folder)
 
 
+#: termination signals received during this run (the CLI's handler notes them before it raises
+#: :class:`~stcvision.errors.Terminated`): if a library swallows that exception (numba's compiler,
+#: a logging wrapper), no output is committed after it all the same
+_SIGNALS: list[int] = []
+
+
 def new_run() -> None:
     """Start a new run (the CLI calls it first): folders are swept for stale temporaries again."""
     _SWEPT.clear()
+    _SIGNALS.clear()
+
+
+def signal_received(signum: int) -> None:
+    """Note a termination signal (SIGTERM, SIGHUP) for :func:`raise_if_signalled`."""
+    _SIGNALS.append(signum)
+
+
+def forget_signals() -> None:
+    """The run is over (the CLI calls it last): a later write in this process is not refused."""
+    _SIGNALS.clear()
+
+
+def raise_if_signalled() -> None:
+    """Raise :class:`~stcvision.errors.Terminated` if a termination signal arrived in this run."""
+    if _SIGNALS:
+        from stcvision.errors import Terminated
+
+        raise Terminated(_SIGNALS[0])
 
 
 def _alive(pid: int) -> bool:
@@ -177,7 +202,9 @@ def remove_live_temps() -> None:
 
 
 def commit_temp(tmp: Path, path: Path) -> None:
-    """Rename the temporary ``tmp`` over ``path`` (atomic on one file system) and forget it."""
+    """Rename the temporary ``tmp`` over ``path`` (atomic on one file system) and forget it; never
+    after a termination signal (:func:`raise_if_signalled`: the temporary is then removed)."""
+    raise_if_signalled()
     os.replace(tmp, path)
     _LIVE_TEMPS.discard(tmp)
 

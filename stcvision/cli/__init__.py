@@ -85,19 +85,13 @@ _PATH_ERRNOS = frozenset(
 )
 
 
-class Terminated(KeyboardInterrupt):
-    """SIGTERM (or SIGHUP) turned into an exception, so that ``finally`` blocks run and no
-    temporary file is left behind."""
-
-    def __init__(self, signum: int) -> None:
-        super().__init__(signum)
-        self.signum = signum
-
-
 def _install_signal_handlers() -> dict:
     """Turn SIGTERM and SIGHUP into :class:`Terminated`; returns the handlers they had."""
     import os
     import signal
+
+    from stcvision.errors import Terminated
+    from stcvision.fileio import signal_received
 
     main_pid = os.getpid()
     previous = {}
@@ -107,6 +101,7 @@ def _install_signal_handlers() -> dict:
             signal.signal(signum, signal.SIG_DFL)
             os.kill(os.getpid(), signum)
             return
+        signal_received(signum)  # remembered: a library that swallows the exception cannot commit outputs
         raise Terminated(signum)
 
     for sig in (signal.SIGTERM, signal.SIGHUP):
@@ -155,7 +150,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     and SIGHUP end with 128 + the signal's number, leaving no temporary file behind. Any other
     exception is a bug and keeps its traceback.
     """
-    from stcvision.fileio import new_run, remove_live_temps
+    from stcvision.errors import Terminated
+    from stcvision.fileio import forget_signals, new_run, raise_if_signalled, remove_live_temps
 
     new_run()
     parser = build_parser()
@@ -174,6 +170,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     previous = _install_signal_handlers()
     try:
         result = mod.run(args)
+        raise_if_signalled()  # a signal whose exception a library swallowed still ends the run
         if isinstance(result, int):
             return result
         if result is None:
@@ -196,5 +193,6 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 128 + signum
     finally:
         remove_live_temps()
+        forget_signals()
         _restore_signal_handlers(previous)
     return int(result.get("exit_code", EXIT_OK)) if isinstance(result, dict) else EXIT_OK

@@ -312,9 +312,11 @@ def test_a_closed_stdout_ends_quietly(files):
 
 
 def test_sigterm_leaves_no_temporary_recording(tmp_path):
-    """SIGTERM once the recording's temporary file exists: exit 143, no .rrd, no temp."""
+    """SIGTERM once the recording's temporary file exists: exit 143, no .rrd, no temp. The run is
+    an 8x8 board (seconds of work after the recording opens; the signal ends it long before): a
+    3x3 run, now a fraction of a second, could finish between the poll and the signal."""
     rrd = tmp_path / "run.rrd"
-    p = _stcvision("cover", "--board", "3x3", "--rrd", rrd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    p = _stcvision("cover", "--board", "8x8", "--rrd", rrd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
     try:
         while not no_temps(tmp_path) and p.poll() is None:
             time.sleep(0.02)  # polling for an event, not timing anything
@@ -325,6 +327,33 @@ def test_sigterm_leaves_no_temporary_recording(tmp_path):
         p.kill()
     assert "interrupted" in p.stderr.read().decode()
     assert list(tmp_path.iterdir()) == []
+
+
+def test_a_signal_a_library_swallowed_still_commits_nothing(tmp_path, capsys, monkeypatch):
+    """A SIGTERM whose exception a library swallowed (numba's compiler, a logging wrapper): the
+    run goes on, but its outputs are not committed and it ends with 143 (no file, no temp)."""
+    import stcvision.cli.cmd_cover as cmd_cover
+    from stcvision.fileio import signal_received
+
+    real = cmd_cover.run_recorded
+
+    def swallowed(board, cfg, rrd, observers=()):
+        try:
+            signal_received(signal.SIGTERM)  # what the CLI's handler notes before it raises
+            raise KeyboardInterrupt
+        except KeyboardInterrupt:
+            pass  # the library's catch-all
+        return real(board, cfg, rrd, observers)
+
+    monkeypatch.setattr(cmd_cover, "run_recorded", swallowed)
+    rrd = tmp_path / "run.rrd"
+    code = main(["cover", "--board", "2x2", "--perception", "oracle", "--rrd", str(rrd)])
+    assert code == 128 + signal.SIGTERM
+    assert "interrupted" in capsys.readouterr().err
+    assert list(tmp_path.iterdir()) == []
+    from stcvision.fileio import write_json
+
+    write_json(tmp_path / "later.json", {})  # the run is over: a later write is not refused
 
 
 def test_cover_exit_status_3_when_the_robot_did_not_complete(capsys, monkeypatch):
