@@ -24,19 +24,23 @@ __all__ = [
     "accept_free_rows",
     "accept_rows",
     "anchored_rows",
+    "assign_boxes",
     "blur_squares",
     "box_counts",
     "cell_dots",
+    "crowded",
     "dot_candidates",
-    "fill_squares",
     "free_rows",
     "gauss_centroids",
     "greedy_black_out",
+    "group_stats",
     "heading_row",
+    "histogram_quartiles",
     "landing_counts",
     "mark_offset",
     "mirror_shift",
     "rotate_about",
+    "row_orientation",
     "row_snr",
     "sample_quartiles",
     "separate_pair",
@@ -44,19 +48,6 @@ __all__ = [
     "zero_ring",
     "zero_where",
 ]
-
-
-@numba.njit(cache=True)
-def fill_squares(img, xs, ys, half):
-    """Set the squares of half-side ``half[i]`` around (xs[i], ys[i]) to 1 in ``img`` (uint8)."""
-    h, w = img.shape
-    for i in range(len(xs)):
-        r = half[i]
-        y0, y1 = max(ys[i] - r, 0), min(ys[i] + r + 1, h)
-        x0, x1 = max(xs[i] - r, 0), min(xs[i] + r + 1, w)
-        for y in range(y0, y1):
-            for x in range(x0, x1):
-                img[y, x] = 1
 
 
 @numba.njit(cache=True)
