@@ -2,10 +2,12 @@
 
 Stages (``stcvision.stages``), in the order they run::
 
-    dark      subtract the dark frame (saturating, with a pedestal), mask hot pixels
+    dark      green and red of the frame, dark frame subtracted (saturating, with a pedestal),
+              hot pixels masked; the frame's background and noise
     window    sums over the dot-sized square, in the mirror image (filter once)
-    unwarp    phi/theta remap of the window sums to the ground view (one cv2.remap)
-    channels  red-light mask: obstacle and marks images
+    unwarp    phi/theta remap of the window sums to the ground view, and the red/green test
+              per ground pixel (one compiled pass: obstacle and marks images)
+    channels  the red lights' black-out margin in the marks image
     dots      window-mean dot search with black-out; centroids on the mirror image
     red       red-light blobs
     heading   line fit through the newest mark row
@@ -13,8 +15,10 @@ Stages (``stcvision.stages``), in the order they run::
 
 The runner is built once per profile (remap table, cell homography); ``process`` allocates only
 the images it returns, besides a few scratch images it keeps (so one ``Pipeline`` per thread). The
-channel separation and the background sample are compiled passes (``stcvision.kernels``),
-bit-identical to the OpenCV stages they stand for. Logging (``stcvision.rr``) observes the result afterwards.
+unwarp with the channel separation, and the background sample, are compiled passes
+(``stcvision.kernels``), bit-identical to the OpenCV stages they stand for; green and red travel
+together as one two-channel image from the dark subtraction to the unwarp. Logging
+(``stcvision.rr``) observes the result afterwards.
 """
 
 from __future__ import annotations
@@ -34,6 +38,7 @@ from stcvision.stages import (
     ChannelParams,
     DotParams,
     Dots,
+    GatherTables,
     HeadingFit,
     HeadingParams,
     RedLights,
@@ -106,7 +111,8 @@ class PipelineResult:
     """Everything one frame gave, plus the intermediate images (references, not copies).
 
     ``green`` and ``red_raw`` are the dark-subtracted mirror-image channels (of the part of the
-    frame the ground view reads, ``Pipeline.crop``: about half the frame); ``obstacle`` and
+    frame the ground view reads, ``Pipeline.crop``: about half the frame; views of one
+    two-channel image, green first); ``obstacle`` and
     ``marks`` the ground-view images of window sums (``window_area`` pixels each: uint16 from an
     8-bit frame, float32 from a 16-bit one). Display images (8-bit window means, the colour
     dark-subtracted frame) are made on demand. ``untrusted``: why this frame's reading cannot
@@ -192,8 +198,7 @@ class _Front(NamedTuple):
 
     green: np.ndarray
     red: np.ndarray
-    green_sums: np.ndarray
-    red_sums: np.ndarray
+    sums: np.ndarray
     obstacle: np.ndarray
     marks: np.ndarray
     bg: float
@@ -240,6 +245,8 @@ class Pipeline:
         self._crop = (0, 0, w, h) if self.wide is not None else self.umap.reach_px()
         x0, y0, x1, y1 = self._crop
         self._umap_crop = self.umap.cropped(x0, y0, x1, y1)
+        self._tables = GatherTables.from_map(self._umap_crop)
+        self._wide_tables = GatherTables.from_map(self.wide) if self.wide is not None else None
         # the front end's scratch images, made once (the images a result holds are new per frame)
         self._scratch = {}  # (purpose, shape, dtype) -> scratch arrays, made on first use
         k = 2 * self.params.channels.red_margin_px + 1
@@ -263,7 +270,7 @@ class Pipeline:
         self.pedestal = 0
         self.quantum = 1
         self.dark_sigma = 0.0
-        self._hot_g = self._hot_r = np.zeros(0, np.int64)
+        self._hot_g = self._hot_r = self._hot2 = np.zeros(0, np.int64)
         self._dark_sample = None
         self._hot_sample = [np.zeros(len(self._sample), bool)] * 2
 
@@ -288,9 +295,7 @@ class Pipeline:
         self.dark_sigma = spread
         self.pedestal = int(max(p.pedestal_steps, math.ceil(p.pedestal_k_sigma * spread / q - 1e-9)) * q)
         self.dark = dark
-        crop = self._crop_view(dark)
-        self._dark_g = cv2.extractChannel(crop, 1)
-        self._dark_r = cv2.extractChannel(crop, 2)
+        self._dark2 = np.ascontiguousarray(self._crop_view(dark)[..., 1:3])  # green, red
         hot = hot_pixels(dark, quantum=q)
         x0, y0, x1, y1 = self._crop
         w = dark.shape[1]
@@ -301,18 +306,23 @@ class Pipeline:
             keep = (xx >= x0) & (xx < x1) & (yy >= y0) & (yy < y1)
             hot_in.append((yy[keep] - y0) * (x1 - x0) + (xx[keep] - x0))  # into the crop
         self._hot_g, self._hot_r = hot_in
+        self._hot2 = np.concatenate([2 * hot_in[0], 2 * hot_in[1] + 1])  # into the (h, w, 2) crop
         self._dark_sample = [np.ascontiguousarray(dark.reshape(-1)[self._sample3[ch]]) for ch in (1, 2)]
         self._hot_sample = [np.isin(self._sample3[ch], hot) for ch in (1, 2)]
 
-    def _channel(self, frame: np.ndarray, ch: int) -> np.ndarray:
-        """Channel ``ch`` of the crop of ``frame`` the view reads, dark-subtracted."""
-        c = cv2.extractChannel(self._crop_view(frame), ch)
+    def _channels(self, frame: np.ndarray) -> np.ndarray:
+        """Green and red of the crop of ``frame`` the view reads, dark-subtracted: a new
+        (h, w, 2) image (one ``cv2.mixChannels``, then the pedestal added and the dark frame
+        subtracted, both saturating, on both channels at once)."""
+        x0, y0, x1, y1 = self._crop
+        gr = np.empty((y1 - y0, x1 - x0, 2), frame.dtype)
+        cv2.mixChannels([self._crop_view(frame)], [gr], [1, 0, 2, 1])
         if self.dark is None:
-            return c
+            return gr
         ped = self.pedestal
-        cv2.subtract(cv2.add(c, ped, dst=c), self._dark_g if ch == 1 else self._dark_r, dst=c)  # in place
-        c.reshape(-1)[self._hot_g if ch == 1 else self._hot_r] = ped  # defect-pixel map
-        return c
+        cv2.subtract(cv2.add(gr, (ped, ped, 0, 0), dst=gr), self._dark2, dst=gr)  # in place
+        gr.reshape(-1)[self._hot2] = ped  # defect-pixel map
+        return gr
 
     def _background(self, frame: np.ndarray) -> tuple[float, float, float, float, int]:
         """(green background, green noise, red background, red noise, quantisation step) of
@@ -337,15 +347,14 @@ class Pipeline:
         g_noise, r_noise = max(float((gq3 - gq1) / 1.349), floor), max(float((rq3 - rq1) / 1.349), floor)
         return float(g_med), g_noise, float(r_med), r_noise, q
 
-    def _unwarp_pair(self, umap: UnwarpMap, gs: np.ndarray, rs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Flat ground views of the window sums ``gs``, ``rs`` (one ``cv2.remap`` each: a
-        compiled remap of both in one pass, bit for bit the same, measured no faster within the
-        pipeline; OpenCV remaps a 2-channel image more slowly than two 1-channel ones)."""
-        return unwarp(gs, umap).reshape(-1), unwarp(rs, umap).reshape(-1)
-
-    def _separate(self, gg, rr, shape, leak: float, red_levels: tuple[float, float]) -> tuple[np.ndarray, np.ndarray]:
-        """(obstacle, marks) of the flat ground views ``gg``, ``rr``: the rule and the
-        arithmetic of :func:`~stcvision.stages.separate_channels`, compiled (new arrays)."""
+    def _unwarp_separate(
+        self, tables: GatherTables, sums: np.ndarray, shape, leak: float, red_levels: tuple[float, float]
+    ) -> tuple[np.ndarray, np.ndarray, int]:
+        """(obstacle, marks, n): the ground views of the (h, w, 2) green/red window sums
+        ``sums`` through ``tables`` and their red/green separation, the rule and the arithmetic
+        of ``cv2.remap`` then :func:`~stcvision.stages.separate_channels`, in one compiled pass
+        (:func:`stcvision.kernels.unwarp_separate`; new arrays); ``n`` ground pixels of the
+        marks are to be blacked out (:meth:`_black_out`)."""
         area = self.params.dots.window_px**2
         cp = self.params.channels
         thr, tol = cp.levels(*red_levels)
@@ -353,45 +362,56 @@ class Pipeline:
         # the red-fraction test as cv2.addWeighted(r, 1, g, -f, -(1 - f) bg) >= 0 takes it
         frac = np.float32(-cp.red_min_fraction if cp.red_min_fraction > 0 else 0.0)
         gamma = np.float32(-(1.0 - cp.red_min_fraction) * (red_levels[0] * area))
-        if gg.dtype == np.uint16:  # OpenCV: the added scalar rounded, comparisons exact
+        if sums.dtype == np.uint16:  # OpenCV: the added scalar rounded, comparisons exact
             tol32, bottom, top = np.float32(np.rint(tol_a)), np.float32(0), np.float32(65535)
             # v > t for whole v <= 65535 is v > floor(t), exact in float32 once clipped
             thr32, leak32 = (np.float32(min(max(math.floor(x), -1), 65536)) for x in (thr_a, leak))
+            src32 = sums.reshape(-1).view(np.uint32)  # green in the low half (little-endian)
+            scratch = self._buffer("gather", (4, 256), np.uint32)
         else:  # float images: the scalars rounded to float32, no saturation
             tol32, thr32, leak32 = np.float32(tol_a), np.float32(thr_a), np.float32(leak)
             bottom, top = np.float32(-np.inf), np.float32(np.inf)
-        obstacle = np.empty(shape, gg.dtype)
-        marks = np.empty(shape, gg.dtype)
+            src32, scratch = None, self._buffer("gather", (8, 256), np.float32)
+        h, w = sums.shape[:2]
+        obstacle = np.empty(shape, sums.dtype)
+        marks = np.empty(shape, sums.dtype)
         black = self._buffer("black", shape, np.uint8)
         flat = obstacle.reshape(-1), marks.reshape(-1), black.reshape(-1)
-        n = kernels.separate_pair(gg, rr, thr32, tol32, bottom, top, frac, gamma, leak32, *flat)
-        if n:
-            if self._margin is not None:
-                black = cv2.dilate(black, self._margin, dst=self._buffer("grown", shape, np.uint8))
-            kernels.zero_where(marks.reshape(-1), black.reshape(-1))
-        return obstacle, marks
+        n = kernels.unwarp_separate(
+            sums.reshape(-1), src32, w, h, *tables, thr32, tol32, bottom, top, frac, gamma, leak32, *flat, scratch
+        )
+        return obstacle, marks, n
+
+    def _black_out(self, marks: np.ndarray, n: int) -> None:
+        """Zero in ``marks`` the ``n`` pixels :meth:`_unwarp_separate` marked, grown by the
+        red-light margin (``ChannelParams.red_margin_px``), in place."""
+        if not n:
+            return
+        black = self._buffer("black", marks.shape, np.uint8)
+        if self._margin is not None:
+            black = cv2.dilate(black, self._margin, dst=self._buffer("grown", marks.shape, np.uint8))
+        kernels.zero_where(marks.reshape(-1), black.reshape(-1))
 
     def _front(self, frame: np.ndarray, clock, t: list) -> _Front:
         """The mirror-image stages and the channel separation (dark, window, unwarp, channels;
         their end times appended to ``t``)."""
         p = self.params
         w = p.dots.window_px
-        g = self._channel(frame, 1)  # only green and red carry marks and lights
-        r = self._channel(frame, 2)
-        t.append(clock())
-        gs, rs = window_sums(g, w), window_sums(r, w)
-        t.append(clock())
-        gg, rr = self._unwarp_pair(self._umap_crop, gs, rs)
-        t.append(clock())
+        gr = self._channels(frame)  # only green and red carry marks and lights
         # background and noise, measured on raw pixels inside the rim
         bg, noise, bg_r, noise_r, q = self._background(frame)
+        t.append(clock())
+        sums = window_sums(gr, w)
+        t.append(clock())
         # a red light's level: above the pedestal by the dark frame's spread (a fixed rule per
         # dark frame), or without one above the frame's own red background by its noise
         red_levels = (self.pedestal, max(self.dark_sigma, noise_floor(q))) if self.dark is not None else (bg_r, noise_r)
         leak = w * w * bg_r + p.channels.leak_k_sigma * noise_r * w
-        obstacle, marks = self._separate(gg, rr, self._umap_crop.map_x.shape, leak, red_levels)
+        obstacle, marks, n = self._unwarp_separate(self._tables, sums, self._umap_crop.map_x.shape, leak, red_levels)
         t.append(clock())
-        return _Front(g, r, gs, rs, obstacle, marks, bg, noise, q, red_levels, leak)
+        self._black_out(marks, n)
+        t.append(clock())
+        return _Front(gr[..., 0], gr[..., 1], sums, obstacle, marks, bg, noise, q, red_levels, leak)
 
     def process(
         self,
@@ -506,8 +526,7 @@ class Pipeline:
         of the front end ``f`` and refined on its dark-subtracted red channel."""
         p = self.params
         area = p.dots.window_px**2
-        gg, rr = self._unwarp_pair(self.wide, f.green_sums, f.red_sums)
-        obst, _ = self._separate(gg, rr, self.wide.map_x.shape, f.leak, f.red_levels)
+        obst, _, _ = self._unwarp_separate(self._wide_tables, f.sums, self.wide.map_x.shape, f.leak, f.red_levels)
         far = find_red(obst, p.red, window_area=area)
         xy_m = (
             self._refine_lights(f.red, self._wide_profile.ground_to_robot(far.xy_px)) if len(far) else np.zeros((0, 2))

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field, replace
+from typing import NamedTuple
 
 import cv2
 import numpy as np
@@ -29,6 +30,7 @@ __all__ = [
     "RedParams",
     "Recalibration",
     "UnwarpMap",
+    "GatherTables",
     "FRAME_DTYPES",
     "check_dark_dtype",
     "check_frame",
@@ -221,6 +223,37 @@ class UnwarpMap:
         mx, my = self.map_x - np.float32(x0), self.map_y - np.float32(y0)
         f1, f2 = cv2.convertMaps(mx, my, cv2.CV_16SC2)
         return UnwarpMap(mx, my, self.valid, (x1 - x0, y1 - y0), f1, f2)
+
+
+class GatherTables(NamedTuple):
+    """An :class:`UnwarpMap` as gather tables for :func:`stcvision.kernels.unwarp_separate`,
+    which unwarps the green and red window sums in one pass, bit for bit as ``cv2.remap`` with
+    the float maps does. Per ground pixel (flat, in order): ``base``, the source pixel (flat
+    index) at the top left of the four it reads; ``alpha``, ``beta``, the map's fractional parts;
+    ``border``: the ground pixels some of whose four source pixels lie outside the image (read
+    as zeros), with their map coordinates ``border_xy``."""
+
+    base: np.ndarray
+    alpha: np.ndarray
+    beta: np.ndarray
+    border: np.ndarray
+    border_xy: np.ndarray
+
+    @classmethod
+    def from_map(cls, umap: UnwarpMap) -> GatherTables:
+        w, h = umap.image_size_px
+        mx, my = umap.map_x.reshape(-1), umap.map_y.reshape(-1)
+        fx, fy = np.floor(mx), np.floor(my)
+        inside = (fx >= 0) & (fy >= 0) & (fx + 1 < w) & (fy + 1 < h)
+        ix, iy = np.where(inside, fx, 0).astype(np.int64), np.where(inside, fy, 0).astype(np.int64)
+        out = np.flatnonzero(~inside)
+        return cls(
+            iy * w + ix,
+            np.where(inside, mx - fx, 0).astype(np.float32),
+            np.where(inside, my - fy, 0).astype(np.float32),
+            out.astype(np.int64),
+            np.ascontiguousarray(np.column_stack([mx[out], my[out]]), np.float32),
+        )
 
 
 def unwarp(image: np.ndarray, umap: UnwarpMap) -> np.ndarray:

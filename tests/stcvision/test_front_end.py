@@ -1,5 +1,6 @@
 """The pipeline's compiled front end (issue 18) against the OpenCV stages it replaced, bit for
-bit: the channel separation against ``separate_channels``, the background sample against
+bit: the unwarp and channel separation against ``cv2.remap`` and ``separate_channels``, the
+two-channel dark subtraction against each channel's, the background sample against
 ``estimate_background``; and a result's images are its own (the next frame does not overwrite
 them)."""
 
@@ -9,10 +10,12 @@ import cv2
 import numpy as np
 import pytest
 
+from stcvision.observation import ObservationParams
 from stcvision.pipeline import Pipeline, PipelineParams
 from stcvision.stages import ChannelParams, estimate_background, noise_floor, separate_channels
 
 
+@pytest.mark.parametrize("view", ["main", "wide"])
 @pytest.mark.parametrize("dtype", [np.uint16, np.float32])
 @pytest.mark.parametrize(
     "channels,leak",
@@ -24,27 +27,66 @@ from stcvision.stages import ChannelParams, estimate_background, noise_floor, se
         (ChannelParams(dominance_tol_dn=-3.0), 150.0),  # a negative tolerance saturates at 0
     ],
 )
-def test_separation_is_separate_channels(default_profile, dtype, channels, leak):
-    pipe = Pipeline(default_profile, PipelineParams(channels=channels))
+def test_unwarp_and_separation_are_remap_and_separate_channels(default_profile, view, dtype, channels, leak):
+    """The compiled unwarp + separation (kernels.unwarp_separate) against two ``cv2.remap``s
+    and ``separate_channels``; the wide view's map reads the whole frame, and its ground pixels
+    beyond the mirror or at the frame's edge are the border pixels, redone with zeros outside."""
+    obs = ObservationParams(pose_estimates=True) if view == "wide" else ObservationParams()
+    pipe = Pipeline(default_profile, PipelineParams(channels=channels, observation=obs))
+    umap, tables = (pipe.wide, pipe._wide_tables) if view == "wide" else (pipe._umap_crop, pipe._tables)
+    if view == "wide":
+        assert len(tables.border) > 0
     rng = np.random.default_rng(11)
-    shape = pipe._umap_crop.map_x.shape
+    w, h = umap.image_size_px
     # dots (green), lights (red, with green crosstalk) and a noisy floor, as window sums
-    g = rng.normal(90, 14, shape).clip(0)
-    r = rng.normal(90, 14, shape).clip(0)
-    g[rng.random(shape) < 0.01] += 900
-    lit = rng.random(shape) < 0.005
+    g = rng.normal(90, 14, (h, w)).clip(0)
+    r = rng.normal(90, 14, (h, w)).clip(0)
+    g[rng.random((h, w)) < 0.01] += 900
+    lit = rng.random((h, w)) < 0.005
     r[lit] += rng.uniform(100, 2000, lit.sum())
     g[lit] += 0.06 * r[lit]
-    g, r = g.round().astype(dtype), r.round().astype(dtype)
+    sums = np.dstack([g, r]).round().astype(dtype)
     levels = (10.0, 1.48)
-    obst, marks = pipe._separate(g.reshape(-1), r.reshape(-1), shape, leak, levels)
+    shape = umap.map_x.shape
+    obst, marks, n = pipe._unwarp_separate(tables, sums, shape, leak, levels)
+    pipe._black_out(marks, n)
+    gg, rr = (
+        cv2.remap(
+            np.ascontiguousarray(sums[..., c]),
+            umap.map_x,
+            umap.map_y,
+            cv2.INTER_LINEAR,
+            borderMode=cv2.BORDER_CONSTANT,
+            borderValue=0,
+        )
+        for c in (0, 1)
+    )
     ref_o, ref_m = separate_channels(
-        g, r, channels, window_area=9, leak_threshold=leak, background_dn=levels[0], noise_dn=levels[1]
+        gg, rr, channels, window_area=9, leak_threshold=leak, background_dn=levels[0], noise_dn=levels[1]
     )
     assert obst.dtype == ref_o.dtype and marks.dtype == ref_m.dtype
     assert np.array_equal(obst, ref_o)
     assert np.array_equal(marks, ref_m)
-    assert (marks == 0).sum() > (g == 0).sum()  # something was blacked out
+    assert (marks == 0).sum() > (gg == 0).sum()  # something was blacked out
+
+
+def test_channels_are_extract_and_subtract(default_profile):
+    """The two-channel dark subtraction (one mixChannels, then add and subtract on both
+    channels) against each channel extracted, dark-subtracted and its hot pixels set alone."""
+    rng = np.random.default_rng(2)
+    w, h = default_profile.image_size_px
+    dark = rng.integers(0, 14, (h, w, 3)).astype(np.uint8)
+    dark.reshape(-1)[rng.choice(dark.size, 300, replace=False)] = 200  # hot pixels
+    frame = rng.integers(0, 256, (h, w, 3)).astype(np.uint8)  # saturating both ways
+    pipe = Pipeline(default_profile, dark=dark)
+    gr = pipe._channels(frame)
+    x0, y0, x1, y1 = pipe.crop
+    for k, (ch, hot) in enumerate(((1, pipe._hot_g), (2, pipe._hot_r))):
+        c = cv2.extractChannel(frame[y0:y1, x0:x1], ch)
+        ref = cv2.subtract(cv2.add(c, pipe.pedestal), cv2.extractChannel(dark[y0:y1, x0:x1], ch))
+        ref.reshape(-1)[hot] = pipe.pedestal
+        assert len(hot) > 0
+        assert np.array_equal(gr[..., k], ref)
 
 
 @pytest.mark.parametrize("dtype", [np.uint8, np.uint16])
