@@ -994,7 +994,7 @@ def _unwarp_u16(
 
 @numba.njit(cache=True)
 def _unwarp_f32(
-    src, w, base, alpha, beta, use_frac, thr, tol, bottom, top, frac, gamma, leak, obstacle, marks, black, scratch
+    src, w, base, alpha, beta, rnd, use_frac, thr, tol, bottom, top, frac, gamma, leak, obstacle, marks, black, scratch
 ):
     n = 0
     nb = scratch.shape[1]
@@ -1017,7 +1017,7 @@ def _unwarp_f32(
             gv = _lerp(aa, bb, scratch[0, i], scratch[1, i], scratch[2, i], scratch[3, i])
             rv = _lerp(aa, bb, scratch[4, i], scratch[5, i], scratch[6, i], scratch[7, i])
             n += _separate_px(
-                j, gv, rv, False, use_frac, thr, tol, bottom, top, frac, gamma, leak, obstacle, marks, black
+                j, gv, rv, rnd, use_frac, thr, tol, bottom, top, frac, gamma, leak, obstacle, marks, black
             )
     return n
 
@@ -1026,6 +1026,7 @@ def _unwarp_f32(
 def unwarp_separate(
     src,
     src32,
+    rnd,
     w,
     h,
     base,
@@ -1058,74 +1059,23 @@ def unwarp_separate(
     Returns the number of those. (The thresholds are the caller's, as OpenCV compares: whole
     numbers below them for integer sums.)
 
-    ``src``: the (h, w, 2) green/red sums, flat; ``src32``: for uint16 sums the same memory as
-    uint32 (one load per source pixel gathers both channels; little-endian: green in the low
-    half; ``scratch`` (4, N) uint32), else None (``scratch`` (8, N) float32). Ground pixel
+    ``src``: the (h, w, 2) green/red sums, flat; ``rnd``: they are integers (uint16: round and
+    saturate); ``src32``: for uint16 sums on a little-endian machine the same memory as uint32
+    (one load per source pixel gathers both channels, green in the low half; ``scratch`` (4, N)
+    uint32), else None (``scratch`` (8, N) float32). Ground pixel
     ``i`` reads the four source pixels from pixel ``base[i]`` with weights ``alpha[i]``,
     ``beta[i]``; the ``border`` pixels are redone from their map coordinates ``border_xy``
     (:func:`_unwarp_border`). Block by block: the gathers into ``scratch``, then the arithmetic
     over contiguous arrays, which LLVM vectorises (measured here: the two remaps and the
     separation 348 -> 221 us)."""
     use_frac = frac != np.float32(0.0)
+    sep = (thr, tol, bottom, top, frac, gamma, leak, obstacle, marks, black)
     if src32 is not None:
-        n = _unwarp_u16(
-            src32,
-            w,
-            base,
-            alpha,
-            beta,
-            use_frac,
-            thr,
-            tol,
-            bottom,
-            top,
-            frac,
-            gamma,
-            leak,
-            obstacle,
-            marks,
-            black,
-            scratch,
-        )
+        n = _unwarp_u16(src32, w, base, alpha, beta, use_frac, *sep, scratch)
     else:
-        n = _unwarp_f32(
-            src,
-            w,
-            base,
-            alpha,
-            beta,
-            use_frac,
-            thr,
-            tol,
-            bottom,
-            top,
-            frac,
-            gamma,
-            leak,
-            obstacle,
-            marks,
-            black,
-            scratch,
-        )
+        n = _unwarp_f32(src, w, base, alpha, beta, rnd, use_frac, *sep, scratch)
     if len(border):
-        n += _unwarp_border(
-            src,
-            w,
-            h,
-            border,
-            border_xy,
-            src32 is not None,
-            thr,
-            tol,
-            bottom,
-            top,
-            frac,
-            gamma,
-            leak,
-            obstacle,
-            marks,
-            black,
-        )
+        n += _unwarp_border(src, w, h, border, border_xy, rnd, *sep)
     return n
 
 

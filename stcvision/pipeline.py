@@ -24,6 +24,7 @@ together as one two-channel image from the dark subtraction to the unwarp. Loggi
 from __future__ import annotations
 
 import math
+import sys
 import time
 from dataclasses import dataclass, field
 from typing import NamedTuple
@@ -366,19 +367,25 @@ class Pipeline:
             tol32, bottom, top = np.float32(np.rint(tol_a)), np.float32(0), np.float32(65535)
             # v > t for whole v <= 65535 is v > floor(t), exact in float32 once clipped
             thr32, leak32 = (np.float32(min(max(math.floor(x), -1), 65536)) for x in (thr_a, leak))
-            src32 = sums.reshape(-1).view(np.uint32)  # green in the low half (little-endian)
-            scratch = self._buffer("gather", (4, 256), np.uint32)
+            # both channels in one uint32 load, green in the low half (little-endian machines)
+            src32 = sums.reshape(-1).view(np.uint32) if sys.byteorder == "little" else None
         else:  # float images: the scalars rounded to float32, no saturation
             tol32, thr32, leak32 = np.float32(tol_a), np.float32(thr_a), np.float32(leak)
             bottom, top = np.float32(-np.inf), np.float32(np.inf)
-            src32, scratch = None, self._buffer("gather", (8, 256), np.float32)
+            src32 = None
         h, w = sums.shape[:2]
+        scratch = (
+            self._buffer("gather", (4, 256), np.uint32)
+            if src32 is not None
+            else self._buffer("gather", (8, 256), np.float32)
+        )
         obstacle = np.empty(shape, sums.dtype)
         marks = np.empty(shape, sums.dtype)
         black = self._buffer("black", shape, np.uint8)
         flat = obstacle.reshape(-1), marks.reshape(-1), black.reshape(-1)
+        sep = (thr32, tol32, bottom, top, frac, gamma, leak32)
         n = kernels.unwarp_separate(
-            sums.reshape(-1), src32, w, h, *tables, thr32, tol32, bottom, top, frac, gamma, leak32, *flat, scratch
+            sums.reshape(-1), src32, sums.dtype == np.uint16, w, h, *tables, *sep, *flat, scratch
         )
         return obstacle, marks, n
 

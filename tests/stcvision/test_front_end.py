@@ -6,6 +6,8 @@ them)."""
 
 from __future__ import annotations
 
+import sys
+
 import cv2
 import numpy as np
 import pytest
@@ -27,7 +29,9 @@ from stcvision.stages import ChannelParams, estimate_background, noise_floor, se
         (ChannelParams(dominance_tol_dn=-3.0), 150.0),  # a negative tolerance saturates at 0
     ],
 )
-def test_unwarp_and_separation_are_remap_and_separate_channels(default_profile, view, dtype, channels, leak):
+def test_unwarp_and_separation_are_remap_and_separate_channels(
+    default_profile, view, dtype, channels, leak, monkeypatch
+):
     """The compiled unwarp + separation (kernels.unwarp_separate) against two ``cv2.remap``s
     and ``separate_channels``; the wide view's map reads the whole frame, and its ground pixels
     beyond the mirror or at the frame's edge are the border pixels, redone with zeros outside."""
@@ -68,6 +72,11 @@ def test_unwarp_and_separation_are_remap_and_separate_channels(default_profile, 
     assert np.array_equal(obst, ref_o)
     assert np.array_equal(marks, ref_m)
     assert (marks == 0).sum() > (gg == 0).sum()  # something was blacked out
+    if dtype == np.uint16:  # the gathers a big-endian machine takes (one channel at a time)
+        monkeypatch.setattr(sys, "byteorder", "big")
+        obst2, marks2, n2 = pipe._unwarp_separate(tables, sums, shape, leak, levels)
+        pipe._black_out(marks2, n2)
+        assert n2 == n and np.array_equal(obst2, ref_o) and np.array_equal(marks2, ref_m)
 
 
 def test_channels_are_extract_and_subtract(default_profile):
