@@ -226,7 +226,7 @@ class UnwarpMap:
 
 
 class GatherTables(NamedTuple):
-    """An :class:`UnwarpMap` as gather tables for :func:`stcvision.kernels.unwarp_separate`,
+    """An :class:`UnwarpMap` as gather tables for :func:`stcvision.kernels.unwarp_separate_u16`,
     which unwarps the green and red window sums in one pass, bit for bit as ``cv2.remap`` with
     the float maps does. Per ground pixel (flat, in order): ``base``, the source pixel (flat
     index) at the top left of the four it reads; ``alpha``, ``beta``, the map's fractional parts;
@@ -248,7 +248,7 @@ class GatherTables(NamedTuple):
         ix, iy = np.where(inside, fx, 0).astype(np.int64), np.where(inside, fy, 0).astype(np.int64)
         out = np.flatnonzero(~inside)
         return cls(
-            iy * w + ix,
+            (iy * w + ix).astype(np.int32 if w * h < 2**31 else np.int64),
             np.where(inside, mx - fx, 0).astype(np.float32),
             np.where(inside, my - fy, 0).astype(np.float32),
             out.astype(np.int64),

@@ -14,7 +14,7 @@ import pytest
 
 from stcvision.observation import ObservationParams
 from stcvision.pipeline import Pipeline, PipelineParams
-from stcvision.stages import ChannelParams, estimate_background, noise_floor, separate_channels
+from stcvision.stages import ChannelParams, estimate_background, noise_floor, separate_channels, window_sums
 
 
 @pytest.mark.parametrize("view", ["main", "wide"])
@@ -32,7 +32,7 @@ from stcvision.stages import ChannelParams, estimate_background, noise_floor, se
 def test_unwarp_and_separation_are_remap_and_separate_channels(
     default_profile, view, dtype, channels, leak, monkeypatch
 ):
-    """The compiled unwarp + separation (kernels.unwarp_separate) against two ``cv2.remap``s
+    """The compiled unwarp + separation (kernels.unwarp_separate_u16, _f32 and unwarp_border) against two ``cv2.remap``s
     and ``separate_channels``; the wide view's map reads the whole frame, and its ground pixels
     beyond the mirror or at the frame's edge are the border pixels, redone with zeros outside."""
     obs = ObservationParams(pose_estimates=True) if view == "wide" else ObservationParams()
@@ -77,6 +77,18 @@ def test_unwarp_and_separation_are_remap_and_separate_channels(
         obst2, marks2, n2 = pipe._unwarp_separate(tables, sums, shape, leak, levels)
         pipe._black_out(marks2, n2)
         assert n2 == n and np.array_equal(obst2, ref_o) and np.array_equal(marks2, ref_m)
+
+
+@pytest.mark.parametrize("shape", [(389, 390), (1, 5), (4, 1), (2, 2)])
+def test_window_sums_are_box_filter(default_profile, shape):
+    """The compiled 3 x 3 window sums of a two-channel image (kernels.box3_pair) against
+    ``window_sums`` (cv2.boxFilter), edges included, on bright and saturated pixels."""
+    pipe = Pipeline(default_profile)
+    gr = np.random.default_rng(4).integers(0, 256, (*shape, 2)).astype(np.uint8)
+    got = pipe._window_sums(gr)
+    ref = window_sums(gr, 3)
+    assert got.dtype == ref.dtype == np.uint16
+    assert np.array_equal(got, ref)
 
 
 def test_channels_are_extract_and_subtract(default_profile):
