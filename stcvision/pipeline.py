@@ -16,8 +16,8 @@ Stages (``stcvision.stages``), in the order they run::
 The runner is built once per profile (remap table, cell homography); ``process`` allocates only
 the images it returns, besides a few scratch images it keeps (so one ``Pipeline`` per thread). The
 unwarp with the channel separation, and the background sample, are compiled passes
-(``stcvision.kernels``), bit-identical to the OpenCV stages they stand for; green and red travel
-together as one two-channel image from the dark subtraction to the unwarp. Logging
+(``stcvision.kernels``), bit-identical to the OpenCV stages they stand for; the window sums of
+green and red are one two-channel image, which the unwarp gathers both channels of at once. Logging
 (``stcvision.rr``) observes the result afterwards.
 """
 
@@ -112,8 +112,7 @@ class PipelineResult:
     """Everything one frame gave, plus the intermediate images (references, not copies).
 
     ``green`` and ``red_raw`` are the dark-subtracted mirror-image channels (of the part of the
-    frame the ground view reads, ``Pipeline.crop``: about half the frame; views of one
-    two-channel image, green first); ``obstacle`` and
+    frame the ground view reads, ``Pipeline.crop``: about half the frame); ``obstacle`` and
     ``marks`` the ground-view images of window sums (``window_area`` pixels each: uint16 from an
     8-bit frame, float32 from a 16-bit one). Display images (8-bit window means, the colour
     dark-subtracted frame) are made on demand. ``untrusted``: why this frame's reading cannot
@@ -271,7 +270,7 @@ class Pipeline:
         self.pedestal = 0
         self.quantum = 1
         self.dark_sigma = 0.0
-        self._hot_g = self._hot_r = self._hot2 = np.zeros(0, np.int64)
+        self._hot_g = self._hot_r = np.zeros(0, np.int64)
         self._dark_sample = None
         self._hot_sample = [np.zeros(len(self._sample), bool)] * 2
 
@@ -296,7 +295,8 @@ class Pipeline:
         self.dark_sigma = spread
         self.pedestal = int(max(p.pedestal_steps, math.ceil(p.pedestal_k_sigma * spread / q - 1e-9)) * q)
         self.dark = dark
-        self._dark2 = np.ascontiguousarray(self._crop_view(dark)[..., 1:3])  # green, red
+        crop = self._crop_view(dark)
+        self._dark_g, self._dark_r = cv2.extractChannel(crop, 1), cv2.extractChannel(crop, 2)
         hot = hot_pixels(dark, quantum=q)
         x0, y0, x1, y1 = self._crop
         w = dark.shape[1]
@@ -307,23 +307,26 @@ class Pipeline:
             keep = (xx >= x0) & (xx < x1) & (yy >= y0) & (yy < y1)
             hot_in.append((yy[keep] - y0) * (x1 - x0) + (xx[keep] - x0))  # into the crop
         self._hot_g, self._hot_r = hot_in
-        self._hot2 = np.concatenate([2 * hot_in[0], 2 * hot_in[1] + 1])  # into the (h, w, 2) crop
         self._dark_sample = [np.ascontiguousarray(dark.reshape(-1)[self._sample3[ch]]) for ch in (1, 2)]
         self._hot_sample = [np.isin(self._sample3[ch], hot) for ch in (1, 2)]
 
-    def _channels(self, frame: np.ndarray) -> np.ndarray:
-        """Green and red of the crop of ``frame`` the view reads, dark-subtracted: a new
-        (h, w, 2) image (one ``cv2.mixChannels``, then the pedestal added and the dark frame
-        subtracted, both saturating, on both channels at once)."""
+    def _channels(self, frame: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Green and red of the crop of ``frame`` the view reads, dark-subtracted: two new
+        (h, w) images. One ``cv2.split`` of the crop's rows (a contiguous block: OpenCV's
+        vectorised path, ~2x faster here than extracting or mixing channels out of the crop),
+        then per channel the pedestal added and the dark frame subtracted, both saturating,
+        and the hot pixels set to the pedestal."""
         x0, y0, x1, y1 = self._crop
-        gr = np.empty((y1 - y0, x1 - x0, 2), frame.dtype)
-        cv2.mixChannels([self._crop_view(frame)], [gr], [1, 0, 2, 1])
+        planes = cv2.split(frame[y0:y1])
+        g, r = planes[1][:, x0:x1], planes[2][:, x0:x1]
         if self.dark is None:
-            return gr
+            return np.ascontiguousarray(g), np.ascontiguousarray(r)
         ped = self.pedestal
-        cv2.subtract(cv2.add(gr, (ped, ped, 0, 0), dst=gr), self._dark2, dst=gr)  # in place
-        gr.reshape(-1)[self._hot2] = ped  # defect-pixel map
-        return gr
+        g = cv2.subtract(cv2.add(g, ped), self._dark_g)
+        r = cv2.subtract(cv2.add(r, ped), self._dark_r)
+        g.reshape(-1)[self._hot_g] = ped  # defect-pixel map
+        r.reshape(-1)[self._hot_r] = ped
+        return g, r
 
     def _background(self, frame: np.ndarray) -> tuple[float, float, float, float, int]:
         """(green background, green noise, red background, red noise, quantisation step) of
@@ -348,20 +351,18 @@ class Pipeline:
         g_noise, r_noise = max(float((gq3 - gq1) / 1.349), floor), max(float((rq3 - rq1) / 1.349), floor)
         return float(g_med), g_noise, float(r_med), r_noise, q
 
-    def _window_sums(self, gr: np.ndarray) -> np.ndarray:
-        """:func:`~stcvision.stages.window_sums` of the two-channel image ``gr`` (a new image):
-        3 x 3 windows of 8-bit pixels by a compiled pass (:func:`stcvision.kernels.box3_pair`,
-        bit for bit OpenCV's box filter, twice as fast here), others by OpenCV."""
+    def _window_sums(self, g: np.ndarray, r: np.ndarray) -> np.ndarray:
+        """:func:`~stcvision.stages.window_sums` of the green and red images ``g``, ``r`` as one
+        new (h, w, 2) image, green first: 3 x 3 windows of 8-bit pixels by a compiled pass
+        (:func:`stcvision.kernels.box3_pair`, bit for bit OpenCV's box filter, faster here),
+        others by OpenCV."""
         w = self.params.dots.window_px
-        if w != 3 or gr.dtype != np.uint8 or min(gr.shape[:2]) < 2:
-            return window_sums(gr, w)
-        sums = np.empty(gr.shape, np.uint16)
+        if w != 3 or g.dtype != np.uint8:
+            return window_sums(cv2.merge([g, r]), w)
+        sums = np.empty((*g.shape, 2), np.uint16)
+        h, wd = g.shape
         kernels.box3_pair(
-            gr.reshape(-1),
-            gr.shape[0],
-            gr.shape[1],
-            sums.reshape(-1),
-            self._buffer("rows", (3, 2 * gr.shape[1]), np.uint16),
+            g.reshape(-1), r.reshape(-1), h, wd, sums.reshape(-1), self._buffer("rows", (6 * wd,), np.uint16)
         )
         return sums
 
@@ -426,11 +427,11 @@ class Pipeline:
         their end times appended to ``t``)."""
         p = self.params
         w = p.dots.window_px
-        gr = self._channels(frame)  # only green and red carry marks and lights
+        g, r = self._channels(frame)  # only green and red carry marks and lights
         # background and noise, measured on raw pixels inside the rim
         bg, noise, bg_r, noise_r, q = self._background(frame)
         t.append(clock())
-        sums = self._window_sums(gr)
+        sums = self._window_sums(g, r)
         t.append(clock())
         # a red light's level: above the pedestal by the dark frame's spread (a fixed rule per
         # dark frame), or without one above the frame's own red background by its noise
@@ -440,7 +441,7 @@ class Pipeline:
         t.append(clock())
         self._black_out(marks, n)
         t.append(clock())
-        return _Front(gr[..., 0], gr[..., 1], sums, obstacle, marks, bg, noise, q, red_levels, leak)
+        return _Front(g, r, sums, obstacle, marks, bg, noise, q, red_levels, leak)
 
     def process(
         self,
