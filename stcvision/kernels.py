@@ -38,6 +38,7 @@ __all__ = [
     "heading_row",
     "histogram_quartiles",
     "landing_counts",
+    "map_at",
     "mark_offset",
     "mirror_shift",
     "rotate_about",
@@ -411,6 +412,37 @@ def free_rows(z, occ, offs, ends, e, gate, thr, min_dot, spread, end_max):
                 ax[m] = axis
                 m += 1
     return xs[:m], ys[:m], st[:m], ax[:m]
+
+
+@numba.njit(cache=True)
+def map_at(map_x, map_y, xy, steps, border):
+    """The unwarp map (``map_x``, ``map_y``: (S, S) float32) read at each ground-view point
+    ``xy[i]`` plus each of ``steps`` ((K, 2); the points rounded to float32 after the add):
+    (N, K, 2) float64 mirror-image positions, as ``cv2.remap`` of each map (``INTER_LINEAR``,
+    ``BORDER_CONSTANT`` ``border``) at those points computes them (:func:`_lerp`), in one pass
+    instead of two OpenCV calls and the arrays around them."""
+    h, w = map_x.shape
+    n, k = len(xy), len(steps)
+    out = np.empty((n, k, 2))
+    bv = np.float32(border)
+    for i in range(n):
+        for j in range(k):
+            gx = np.float32(xy[i, 0] + steps[j, 0])
+            gy = np.float32(xy[i, 1] + steps[j, 1])
+            fx = math.floor(gx)
+            fy = math.floor(gy)
+            x = int(fx)
+            y = int(fy)
+            aa = gx - np.float32(fx)
+            bb = gy - np.float32(fy)
+            for c in range(2):
+                img = map_x if c == 0 else map_y
+                p00 = img[y, x] if (0 <= x < w and 0 <= y < h) else bv
+                p01 = img[y, x + 1] if (0 <= x + 1 < w and 0 <= y < h) else bv
+                p10 = img[y + 1, x] if (0 <= x < w and 0 <= y + 1 < h) else bv
+                p11 = img[y + 1, x + 1] if (0 <= x + 1 < w and 0 <= y + 1 < h) else bv
+                out[i, j, c] = _lerp(aa, bb, p00, p01, p10, p11)
+    return out
 
 
 @numba.njit(cache=True, error_model="numpy")

@@ -474,13 +474,14 @@ class Pipeline:
         t = [clock()]
         f = self._front(frame, clock, t)
         g, r, obstacle, marks, bg, noise, q = f.green, f.red, f.obstacle, f.marks, f.bg, f.noise, f.quantum
-        dots = find_dots(
+        g2r = self.profile.ground_to_robot
+        dots = find_dots(  # robot-frame positions from the mirror-image centroids when they run
             marks,
             p.dots,
             gain=self.gain,
             background_dn=bg,
             noise_dn=noise,
-            ground_to_robot=self.profile.ground_to_robot,
+            ground_to_robot=None if p.dots.mirror_sigma_px > 0 else g2r,
             quantum=q,
         )
         dots = mirror_centroids(  # g is the crop the view reads: its own map

@@ -197,7 +197,11 @@ class Profile:
         """Ground-view pixels (x right, y down) -> robot frame metres (x forward, y left)."""
         g = np.asarray(gxy_px, float).reshape(-1, 2)
         c = (self.ground_size_px - 1) / 2.0
-        return np.column_stack([(c - g[:, 1]) / self.ground_px_per_m, (c - g[:, 0]) / self.ground_px_per_m])
+        out = np.empty((len(g), 2))  # (c - g) / px_per_m per column, without column_stack's copies
+        np.subtract(c, g[:, 1], out=out[:, 0])
+        np.subtract(c, g[:, 0], out=out[:, 1])
+        out /= self.ground_px_per_m
+        return out
 
     def robot_to_ground(self, xy_m) -> np.ndarray:
         xy = np.asarray(xy_m, float).reshape(-1, 2)

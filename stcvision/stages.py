@@ -8,6 +8,7 @@ results. A missing detection is a value (``ok=False`` with a reason), not an exc
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass, field, replace
 from typing import NamedTuple
@@ -681,16 +682,6 @@ def _centroids(marks: np.ndarray, xs: np.ndarray, ys: np.ndarray, r: int, per_px
 _JAC_STEPS = np.array([[0.0, 0.0], [0.5, 0.0], [-0.5, 0.0], [0.0, 0.5], [0.0, -0.5]])
 
 
-def _map_at(umap: UnwarpMap, gxy: np.ndarray) -> np.ndarray:
-    """(N, 2) mirror-image positions of (N, 2) ground-view positions: the unwarp's own maps,
-    interpolated (one ``cv2.remap`` per map over the N points)."""
-    gx = np.ascontiguousarray(gxy[:, 0], np.float32).reshape(1, -1)
-    gy = np.ascontiguousarray(gxy[:, 1], np.float32).reshape(1, -1)
-    u = cv2.remap(umap.map_x, gx, gy, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=-10.0)
-    v = cv2.remap(umap.map_y, gx, gy, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=-10.0)
-    return np.column_stack([u.ravel(), v.ravel()]).astype(np.float64)
-
-
 def mirror_centroids(
     dots: Dots,
     image: np.ndarray,
@@ -720,8 +711,9 @@ def mirror_centroids(
     if not n or params.mirror_sigma_px <= 0:
         return dots
     g0 = dots.xy_px.astype(np.float64)
-    # the dots' mirror positions, and the map's Jacobian there (central differences, +-0.5 px)
-    m = _map_at(umap, (g0[:, None, :] + _JAC_STEPS[None]).reshape(-1, 2)).reshape(n, 5, 2)
+    # the dots' mirror positions, and the map's Jacobian there (central differences, +-0.5 px;
+    # kernels.map_at: the map read as cv2.remap reads it, -10 beyond it)
+    m = kernels.map_at(umap.map_x, umap.map_y, g0, _JAC_STEPS, -10.0)
     # the centroids (kernels.gauss_centroids: a loop per dot over its square, compiled), back
     # to the ground view through the inverse Jacobian (kernels.mirror_shift)
     c, ok = kernels.gauss_centroids(
@@ -808,10 +800,7 @@ def find_rows(
     h, w = z.shape
     n = params.n_dots
     step = params.spacing_m * px_per_m
-    offs = np.round((np.arange(n) - (n - 1) / 2) * step).astype(np.int64)
-    # one spacing beyond either end: a row shifted along a real one by a dot has a dot there
-    ends = np.round(np.array([-1, 1]) * ((n + 1) / 2) * step).astype(np.int64)
-    m = int(np.abs(ends).max())
+    offs, ends, m = _row_offsets(step, n)
     e = max(m, window_px // 2 + 1)  # rows reaching beyond the image are not sought
     if 2 * e >= min(h, w):
         return dots
@@ -826,6 +815,19 @@ def find_rows(
     pts = np.concatenate([rows_xy.reshape(-1, 2), free_xy.reshape(-1, 2)])
     snr = np.concatenate([np.repeat(rows_s, n - 1), np.repeat(free_s, n)])  # float64
     return _with_rows(dots, marks, z, gain, pts, snr, area, background_dn, noise_dn, dot_params, ground_to_robot)
+
+
+@functools.lru_cache(maxsize=64)
+def _row_offsets(step: float, n: int) -> tuple[np.ndarray, np.ndarray, int]:
+    """(offsets of a row's ``n`` dots from its centre, of the floor one spacing beyond either
+    end, the larger reach) in whole pixels for a dot spacing of ``step`` px: the same for every
+    frame of a profile, so made once (read-only arrays)."""
+    offs = np.round((np.arange(n) - (n - 1) / 2) * step).astype(np.int64)
+    # one spacing beyond either end: a row shifted along a real one by a dot has a dot there
+    ends = np.round(np.array([-1, 1]) * ((n + 1) / 2) * step).astype(np.int64)
+    offs.setflags(write=False)
+    ends.setflags(write=False)
+    return offs, ends, int(np.abs(ends).max())
 
 
 def _row_snr(marks: np.ndarray, gain: np.ndarray, area: int, background_dn: float, noise_dn: float, clip: float):

@@ -149,3 +149,22 @@ def test_result_images_are_its_own(default_profile):
     pipe.process(f2)
     for a, b in zip(kept, (r1.green, r1.red_raw, r1.obstacle, r1.marks), strict=True):
         assert np.array_equal(a, b)
+
+
+def test_map_at_is_remap_of_the_map(default_profile):
+    """kernels.map_at (the unwarp map read at the dots and +-0.5 px, for the mirror-image
+    centroids) against cv2.remap of each map at those points, beyond the map's edges too."""
+    from stcvision import kernels
+    from stcvision.stages import _JAC_STEPS
+
+    um = Pipeline(default_profile)._umap_crop
+    pts = np.random.default_rng(0).uniform(-2, um.map_x.shape[0] + 2, (3000, 2))
+    q = (pts[:, None, :] + _JAC_STEPS[None]).reshape(1, -1, 2).astype(np.float32)
+    ref = np.stack(
+        [
+            cv2.remap(m, q[..., 0], q[..., 1], cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=-10.0)
+            for m in (um.map_x, um.map_y)
+        ],
+        axis=-1,
+    ).reshape(len(pts), len(_JAC_STEPS), 2)
+    assert np.array_equal(kernels.map_at(um.map_x, um.map_y, pts, _JAC_STEPS, -10.0), ref)
