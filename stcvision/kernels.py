@@ -41,6 +41,8 @@ __all__ = [
     "map_at",
     "mark_offset",
     "mirror_shift",
+    "nonzero_mask",
+    "rect_max",
     "rotate_about",
     "row_orientation",
     "row_snr",
@@ -1148,6 +1150,37 @@ def box3_pair(g, r, h, w, sums, scratch):
             for x in range(uw):
                 sums[o + _U(2) * x] = scratch[mid + x]
                 sums[o + _U(2) * x + _U(1)] = scratch[mid + uw + x]
+
+
+@numba.njit(cache=True)
+def nonzero_mask(img, out):
+    """``out`` (uint8, ``img``'s shape) 255 where ``img`` is above 0, else 0 (``cv2.compare(img,
+    0, CMP_GT)``); returns how many (``cv2.countNonZero``), in one pass."""
+    h, w = img.shape
+    n = 0
+    for y in range(h):
+        row, o = img[y], out[y]
+        for x in range(w):
+            v = row[x] > 0
+            o[x] = 255 if v else 0
+            n += v
+    return n
+
+
+@numba.njit(cache=True)
+def rect_max(img, rects):
+    """The largest value of ``img`` in each rectangle (x, y, w, h) of ``rects`` ((n, 4)), as
+    float64: ``img[y:y + h, x:x + w].max()`` of each, in one call."""
+    out = np.empty(len(rects))
+    for i in range(len(rects)):
+        x, y, w, h = rects[i, 0], rects[i, 1], rects[i, 2], rects[i, 3]
+        best = img[y, x]
+        for yy in range(y, y + h):
+            for xx in range(x, x + w):
+                if img[yy, xx] > best:
+                    best = img[yy, xx]
+        out[i] = best
+    return out
 
 
 @numba.njit(cache=True)
