@@ -6,7 +6,9 @@ candidate dot's position and SNR, the red blobs' areas and (with ``--pose``) the
     python docs/pipeline_identity.py --other /path/to/other/checkout DATASET [DATASET ...] [--pose]
 
 Prints how many frames differ and the first differences; exit code 1 if any differ. Used for
-issue 18's speed-ups, each bit-identical on the ages, rotation and obstacles sets.
+issue 18's speed-ups, each bit-identical on the ages, rotation and obstacles sets, except the
+heading fit's closed form (``--rtol 1e-9``: every decision, count, flag and string the same,
+every number within that relative difference; the largest one found is printed).
 """
 
 from __future__ import annotations
@@ -59,6 +61,12 @@ def main(argv=None) -> int:
     p.add_argument("datasets", nargs="+", metavar="DATASET")
     p.add_argument("--other", required=False, metavar="CHECKOUT", help="the other checkout's root")
     p.add_argument("--pose", action="store_true", help="with the pose estimates (the wide view)")
+    p.add_argument(
+        "--rtol",
+        type=float,
+        default=0.0,
+        help="numbers may differ by this much relative (default 0: bit for bit); all else exactly",
+    )
     p.add_argument("--dump", metavar="OUT.json", help=argparse.SUPPRESS)  # internal: one side
     a = p.parse_args(argv)
     if a.dump:
@@ -75,12 +83,33 @@ def main(argv=None) -> int:
             subprocess.run(cmd, env=env, check=True)
             outs.append(json.loads(Path(out).read_text()))
     this, other = outs
-    differ = [k for k in this if json.dumps(this[k], sort_keys=True) != json.dumps(other.get(k), sort_keys=True)]
-    print(f"{len(this)} frames, {len(differ)} differ")
+    worst = [0.0]
+    differ = [k for k in this if not _same(this[k], other.get(k), a.rtol, worst)]
+    print(
+        f"{len(this)} frames, {len(differ)} differ"
+        + (f" (rtol {a.rtol:g}; largest relative difference {worst[0]:.3g})" if a.rtol else "")
+    )
     for k in differ[:5]:
-        fields = [f for f in this[k] if json.dumps(this[k][f], sort_keys=True) != json.dumps(other[k].get(f))]
+        fields = [f for f in this[k] if not _same(this[k][f], other[k].get(f), a.rtol, [0.0])]
         print(f"  {k}: {', '.join(fields)}")
     return 1 if differ else 0
+
+
+def _same(x, y, rtol: float, worst: list) -> bool:
+    """``x`` and ``y`` (JSON values) alike: numbers within ``rtol`` relative (``worst[0]``: the
+    largest relative difference seen), everything else equal; bools are not numbers here."""
+    num = (int, float)
+    if isinstance(x, num) and isinstance(y, num) and not isinstance(x, bool) and not isinstance(y, bool):
+        if x == y:
+            return True
+        rel = abs(x - y) / max(abs(x), abs(y))
+        worst[0] = max(worst[0], rel)
+        return rel <= rtol
+    if isinstance(x, list) and isinstance(y, list):
+        return len(x) == len(y) and all(_same(a, b, rtol, worst) for a, b in zip(x, y, strict=True))
+    if isinstance(x, dict) and isinstance(y, dict):
+        return x.keys() == y.keys() and all(_same(x[k], y[k], rtol, worst) for k in x)
+    return x == y
 
 
 if __name__ == "__main__":

@@ -61,6 +61,17 @@ _LANDING = np.array(
 )
 
 
+def _apply(H: np.ndarray, xy) -> np.ndarray:
+    """(N, 2) points through the homography ``H``: homogeneous coordinates (the points and a
+    column of ones, filled in place rather than stacked) times ``H.T``, then divided."""
+    p = np.asarray(xy, float).reshape(-1, 2)
+    q = np.empty((len(p), 3))
+    q[:, :2] = p
+    q[:, 2] = 1.0
+    q = q @ H.T
+    return q[:, :2] / q[:, 2:3]
+
+
 @dataclass(frozen=True, eq=False)
 class CellGeometry:
     """Homography from ground-view pixels to cell units, built once from a profile."""
@@ -83,14 +94,10 @@ class CellGeometry:
         return cls(H, np.linalg.inv(H))
 
     def to_cell(self, xy_px: np.ndarray) -> np.ndarray:
-        p = np.asarray(xy_px, float).reshape(-1, 2)
-        q = np.column_stack([p, np.ones(len(p))]) @ self.H.T
-        return q[:, :2] / q[:, 2:3]
+        return _apply(self.H, xy_px)
 
     def to_ground(self, ru: np.ndarray) -> np.ndarray:
-        p = np.asarray(ru, float).reshape(-1, 2)
-        q = np.column_stack([p, np.ones(len(p))]) @ self.H_inv.T
-        return q[:, :2] / q[:, 2:3]
+        return _apply(self.H_inv, ru)
 
     def outline_px(self, heading_error_rad: float = 0.0) -> dict[str, np.ndarray]:
         """Ground-view polygons of the cell, its sub-cells, the five boxes and the four

@@ -1014,18 +1014,14 @@ def fit_heading(dots: Dots, params: HeadingParams = HeadingParams()) -> HeadingF
     if status == 2:
         return HeadingFit(False, reason=f"no row of {params.n_dots} collinear dots at the brightest dot")
     pts = xy[pick]
-    c = pts.mean(0)
-    _, sv, vt = np.linalg.svd(pts - c)
-    direction = vt[0]
-    span = sv[0] / math.sqrt(len(pts))
-    resid = sv[-1] / math.sqrt(len(pts))
+    # the line's direction, and the spread along and across it (kernels.tls_line: closed form)
+    ang, span, resid = kernels.tls_line(pts)
     if span * 2 < params.min_span_m:
         return HeadingFit(False, points_m=pts, reason="dots too close together to define a line")
     if resid > params.max_residual_m:
         return HeadingFit(
             False, residual_m=float(resid), points_m=pts, reason=f"dots not on a line (residual {resid * 1000:.1f} mm)"
         )
-    ang = math.atan2(direction[1], direction[0])
     folded = (ang + math.pi / 4) % (math.pi / 2) - math.pi / 4
     return HeadingFit(True, float(folded), float(-folded), float(resid), pts)
 

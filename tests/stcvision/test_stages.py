@@ -163,3 +163,24 @@ def test_unwarp_rejects_a_frame_of_the_wrong_size(default_profile):
     with pytest.raises(BadInputError, match="640x480"):
         unwarp(np.zeros((100, 100, 3), np.uint8), umap)
     assert cv2.remap is not None
+
+
+def test_tls_line_is_the_svd_fit():
+    """The heading fit's closed-form line (kernels.tls_line) against numpy's SVD of the centred
+    points: the direction (modulo pi: a line has no sign) and the RMS spreads along and across
+    it, on rows of every orientation, noisy and exact (the residual of a thin row is not lost)."""
+    from stcvision import kernels
+
+    rng = np.random.default_rng(8)
+    for k in range(400):
+        n = int(rng.integers(2, 9))
+        ang = rng.uniform(-np.pi, np.pi) if k % 4 else rng.choice([0.0, np.pi / 2, np.pi / 4, -np.pi / 4])
+        t = rng.uniform(-0.05, 0.05, n)
+        noise = 0.0 if k % 3 == 0 else 10 ** rng.uniform(-7, -3)
+        pts = np.column_stack([0.3 + t * np.cos(ang), 0.1 + t * np.sin(ang)]) + rng.normal(0, noise, (n, 2))
+        _, sv, vt = np.linalg.svd(pts - pts.mean(0))
+        got, span, resid = kernels.tls_line(pts)
+        d = (np.arctan2(vt[0, 1], vt[0, 0]) - got + np.pi / 2) % np.pi - np.pi / 2
+        assert abs(d) < 1e-9 or sv[0] < 1e-12
+        assert span == pytest.approx(sv[0] / np.sqrt(n), rel=1e-12, abs=1e-15)
+        assert resid == pytest.approx(sv[-1] / np.sqrt(n), rel=1e-6, abs=1e-15)
