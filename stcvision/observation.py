@@ -63,8 +63,10 @@ _LANDING = np.array(
 
 def _apply(H: np.ndarray, xy) -> np.ndarray:
     """(N, 2) points through the homography ``H``: homogeneous coordinates (the points and a
-    column of ones, filled in place rather than stacked) times ``H.T``, then divided."""
+    column of ones) times ``H.T``, then divided."""
     p = np.asarray(xy, float).reshape(-1, 2)
+    if len(p) >= 2:  # compiled, bit for bit numpy's product (kernels.homography)
+        return kernels.homography(H, np.ascontiguousarray(p))
     q = np.empty((len(p), 3))
     q[:, :2] = p
     q[:, 2] = 1.0

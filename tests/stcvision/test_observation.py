@@ -134,3 +134,20 @@ def test_far_red_lights_pin_the_robot_down_in_open_floor(default_profile):
             assert abs(np.degrees(o.landmark_rotation_rad - (res.heading.heading_error_rad - herr))) < 0.25
     assert n_far >= 22 and n_far >= 3 * max(n_near, 1), (n_near, n_far)
     assert np.median(errs) < 1.5 and max(errs) < 5.0, errs
+
+
+def test_homography_kernel_is_numpy_product(default_profile):
+    """CellGeometry.to_cell's compiled product (kernels.homography, N >= 2) against numpy's
+    ``[p, 1] @ H.T`` then division, bit for bit on this machine; N = 1 keeps numpy's own path."""
+    from stcvision import kernels
+    from stcvision.observation import CellGeometry
+
+    g = CellGeometry.from_profile(default_profile)
+    rng = np.random.default_rng(6)
+    for n in (1, 2, 3, 68, 5000):
+        p = rng.uniform(-10, 310, (n, 2))
+        q = np.column_stack([p, np.ones(n)]) @ g.H.T
+        ref = q[:, :2] / q[:, 2:3]
+        assert np.array_equal(g.to_cell(p), ref)
+        if n >= 2:
+            assert np.array_equal(kernels.homography(g.H, p), ref)
