@@ -27,6 +27,7 @@ __all__ = [
     "assign_boxes",
     "blur_squares",
     "box3_pair",
+    "blobs",
     "box_counts",
     "cell_dots",
     "crowded",
@@ -43,7 +44,6 @@ __all__ = [
     "mark_offset",
     "mirror_shift",
     "nonzero_mask",
-    "rect_max",
     "rotate_about",
     "row_orientation",
     "row_snr",
@@ -1236,19 +1236,64 @@ def nonzero_mask(img, out):
 
 
 @numba.njit(cache=True)
-def rect_max(img, rects):
-    """The largest value of ``img`` in each rectangle (x, y, w, h) of ``rects`` ((n, 4)), as
-    float64: ``img[y:y + h, x:x + w].max()`` of each, in one call."""
-    out = np.empty(len(rects))
-    for i in range(len(rects)):
-        x, y, w, h = rects[i, 0], rects[i, 1], rects[i, 2], rects[i, 3]
-        best = img[y, x]
-        for yy in range(y, y + h):
-            for xx in range(x, x + w):
-                if img[yy, xx] > best:
-                    best = img[yy, xx]
-        out[i] = best
-    return out
+def blobs(obstacle, pts, starts, min_area, window_area):
+    """:func:`stcvision.stages.find_red`'s blobs from their contours (contour ``k``: the points
+    ``pts[starts[k]:starts[k + 1]]``, (T, 2) integers, as ``cv2.findContours`` gives them):
+    the area ``m00`` and first moments of each (``cv2.moments`` of the polygon: OpenCV's
+    contour sums, exact in float64 for integer points, then scaled by +-1/2 and +-1/6 by the
+    sign of the area; zero for an area within ``FLT_EPSILON`` of 0); a blob's area is the
+    larger of that and its number of points (a thin blob has none), and those under
+    ``min_area`` are dropped; its position the centroid, or the mean of its points where the
+    area is 0; its peak the largest value of ``obstacle`` in its bounding box
+    (``cv2.boundingRect``) over ``window_area``. Returns (xy (M, 2), peak (M,), area (M,))."""
+    nc = len(starts) - 1
+    xy = np.zeros((nc, 2))
+    peak = np.zeros(nc)
+    area = np.zeros(nc)
+    m = 0
+    for k in range(nc):
+        a, b = starts[k], starts[k + 1]
+        xi_1, yi_1 = float(pts[b - 1, 0]), float(pts[b - 1, 1])
+        a00 = 0.0
+        a10 = 0.0
+        a01 = 0.0
+        sx = 0.0
+        sy = 0.0
+        x0 = x1 = pts[a, 0]
+        y0 = y1 = pts[a, 1]
+        for i in range(a, b):
+            xi, yi = float(pts[i, 0]), float(pts[i, 1])
+            dxy = xi_1 * yi - xi * yi_1
+            a00 += dxy
+            a10 += dxy * (xi_1 + xi)
+            a01 += dxy * (yi_1 + yi)
+            xi_1, yi_1 = xi, yi
+            sx += xi
+            sy += yi
+            x0 = min(x0, pts[i, 0])
+            x1 = max(x1, pts[i, 0])
+            y0 = min(y0, pts[i, 1])
+            y1 = max(y1, pts[i, 1])
+        m00 = m10 = m01 = 0.0
+        if abs(a00) > 1.1920928955078125e-07:  # FLT_EPSILON
+            h, s6 = (0.5, 0.16666666666666666) if a00 > 0 else (-0.5, -0.16666666666666666)
+            m00, m10, m01 = a00 * h, a10 * s6, a01 * s6
+        ar = max(m00, float(b - a))
+        if ar < min_area:
+            continue
+        if m00 > 0:
+            xy[m, 0], xy[m, 1] = m10 / m00, m01 / m00
+        else:
+            xy[m, 0], xy[m, 1] = sx / (b - a), sy / (b - a)
+        best = obstacle[y0, x0]
+        for yy in range(y0, y1 + 1):
+            for xx in range(x0, x1 + 1):
+                if obstacle[yy, xx] > best:
+                    best = obstacle[yy, xx]
+        peak[m] = float(best) / window_area
+        area[m] = ar
+        m += 1
+    return xy[:m], peak[:m], area[:m]
 
 
 @numba.njit(cache=True)

@@ -1105,18 +1105,13 @@ def find_red(obstacle: np.ndarray, params: RedParams = RedParams(), *, window_ar
     if not kernels.nonzero_mask(obstacle, binary):  # no red light in view (most frames): no contour pass
         return RedLights(np.zeros((0, 2)), np.zeros(0), np.zeros(0))
     contours, _ = cv2.findContours(binary, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
-    xy, rects, area = [], [], []
-    for c in contours:
-        m = cv2.moments(c)
-        a = max(m["m00"], float(len(c)))  # a thin blob has zero contour area: count its points
-        if a < params.min_area_px:
-            continue
-        if m["m00"] > 0:
-            xy.append((m["m10"] / m["m00"], m["m01"] / m["m00"]))
-        else:
-            xy.append(tuple(c.reshape(-1, 2).mean(0)))
-        rects.append(cv2.boundingRect(c))
-        area.append(a)
-    # each blob's peak: the largest value in its bounding box (kernels.rect_max: one call)
-    peak = kernels.rect_max(obstacle, np.array(rects, np.int64).reshape(-1, 4)) / window_area
-    return RedLights(np.array(xy, float).reshape(-1, 2), peak, np.array(area))
+    if not contours:
+        return RedLights(np.zeros((0, 2)), np.zeros(0), np.zeros(0))
+    # every contour's moments, area, position and peak in one call (kernels.blobs: cv2.moments'
+    # and cv2.boundingRect's own arithmetic)
+    starts = np.zeros(len(contours) + 1, np.int64)
+    np.cumsum([len(c) for c in contours], out=starts[1:])
+    xy, peak, area = kernels.blobs(
+        obstacle, np.concatenate(contours).reshape(-1, 2), starts, float(params.min_area_px), float(window_area)
+    )
+    return RedLights(xy, peak, area)

@@ -184,3 +184,34 @@ def test_tls_line_is_the_svd_fit():
         assert abs(d) < 1e-9 or sv[0] < 1e-12
         assert span == pytest.approx(sv[0] / np.sqrt(n), rel=1e-12, abs=1e-15)
         assert resid == pytest.approx(sv[-1] / np.sqrt(n), rel=1e-6, abs=1e-15)
+
+
+def test_red_blobs_are_opencvs_moments():
+    """find_red's compiled blob pass (kernels.blobs) against cv2.moments, cv2.boundingRect and
+    numpy per contour, as find_red computed them before: random discs and lone pixels (thin
+    blobs: zero area, the points' mean), bit for bit."""
+    import cv2
+
+    from stcvision.stages import RedParams, find_red
+
+    rng = np.random.default_rng(0)
+    for _ in range(60):
+        img = np.zeros((120, 130), np.uint16)
+        for _ in range(rng.integers(1, 8)):
+            c = (int(rng.integers(0, 130)), int(rng.integers(0, 120)))
+            cv2.circle(img, c, int(rng.integers(0, 9)), int(rng.integers(50, 4000)), -1)
+        img[rng.random(img.shape) < 0.01] = 77
+        got = find_red(img, RedParams(min_area_px=2), window_area=9)
+        contours, _ = cv2.findContours((img > 0).astype(np.uint8), cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
+        xy, peak, area = [], [], []
+        for c in contours:
+            m = cv2.moments(c)
+            a = max(m["m00"], float(len(c)))
+            if a < 2:
+                continue
+            xy.append((m["m10"] / m["m00"], m["m01"] / m["m00"]) if m["m00"] > 0 else tuple(c.reshape(-1, 2).mean(0)))
+            x, y, w, h = cv2.boundingRect(c)
+            peak.append(float(img[y : y + h, x : x + w].max()) / 9)
+            area.append(a)
+        assert np.array_equal(got.xy_px, np.array(xy, float).reshape(-1, 2))
+        assert np.array_equal(got.peak_dn, np.array(peak)) and np.array_equal(got.area_px, np.array(area))
