@@ -316,38 +316,31 @@ def row_snr(marks, gain, area, background, noise, clip):
 @numba.njit(cache=True)
 def zero_ring(marks, b):
     """uint8 image: 1 within ``b`` pixels (along both axes) of a pixel where ``marks`` is 0 --
-    ``cv2.dilate(marks == 0, (2b+1)^2 square)``, pixels beyond the border not counted. On a
-    zero-padded copy, separably: the OR over a run of 2b+1 pixels grown by doubling (runs of 1,
-    2, 4, ... pixels, each step the OR of two shifted views: loops the compiler vectorises),
-    along x, then along y."""
+    ``cv2.dilate(marks == 0, (2b+1)^2 square)``, pixels beyond the border not counted. Zeros
+    are few (the red lights' black-out), so: a vectorised scan finds the rows holding any;
+    each such row's zeros are grown along it into a row buffer, which is OR-ed into the
+    2b + 1 output rows about it (earlier: two OR-doubling passes over a padded copy of the
+    whole image, 30 us here; this ~10 us for the bench scene's lights)."""
     h, w = marks.shape
-    k = 2 * b + 1
-    hp, wp = h + 2 * b, w + 2 * b
-    cur = np.zeros((hp, wp), np.uint8)
+    out = np.zeros((h, w), np.uint8)
+    row = np.zeros(w, np.uint8)
     for y in range(h):
-        mr, pr = marks[y], cur[y + b, b : b + w]
+        mr = marks[y]
+        nz = 0
+        for x in range(w):  # any zero in the row (branch-free: vectorised)
+            nz += mr[x] == 0
+        if nz == 0:
+            continue
+        row[:] = 0
         for x in range(w):
-            pr[x] = mr[x] == 0
-    nxt = np.zeros((hp, wp), np.uint8)
-    run = 1
-    while run < k:  # along x: cur[y, x] = OR of the run of pixels from x
-        sh = min(run, k - run)
-        for y in range(b, h + b):
-            c0, c1, o = cur[y, 0 : wp - sh], cur[y, sh:wp], nxt[y, 0 : wp - sh]
-            for x in range(wp - sh):
-                o[x] = c0[x] | c1[x]
-        cur, nxt = nxt, cur
-        run += sh
-    run = 1
-    while run < k:  # along y, over the x-runs (starting at x - b: column x of the result)
-        sh = min(run, k - run)
-        for y in range(hp - sh):
-            c0, c1, o = cur[y, 0:w], cur[y + sh, 0:w], nxt[y, 0:w]
+            if mr[x] == 0:
+                for xx in range(max(x - b, 0), min(x + b + 1, w)):
+                    row[xx] = 1
+        for yy in range(max(y - b, 0), min(y + b + 1, h)):
+            o = out[yy]
             for x in range(w):
-                o[x] = c0[x] | c1[x]
-        cur, nxt = nxt, cur
-        run += sh
-    return np.ascontiguousarray(cur[0:h, 0:w])
+                o[x] |= row[x]
+    return out
 
 
 @numba.njit(cache=True, error_model="numpy")

@@ -144,3 +144,21 @@ def test_free_row_search_prunes_only_pixels_that_cannot_pass():
             z, occ, offs, ends, 20, p
         )
         assert len(xs) > 0 or trial > 0
+
+
+def test_zero_ring_is_a_square_dilation():
+    """kernels.zero_ring against cv2.dilate of the zeros by a (2b+1)^2 square (beyond the
+    border not counted), on sparse and dense zeros, at the edges and for every b up to 4."""
+    import cv2
+
+    from stcvision import kernels
+
+    rng = np.random.default_rng(0)
+    for t in range(150):
+        h, w = (int(v) for v in rng.integers(1, 60, 2))
+        m = (rng.random((h, w)) * 4).astype(np.uint16)
+        if t % 3 == 0:
+            m[rng.random((h, w)) < 0.95] = 5
+        b = int(rng.integers(0, 5))
+        ref = cv2.dilate((m == 0).astype(np.uint8), np.ones((2 * b + 1, 2 * b + 1), np.uint8))
+        assert np.array_equal(kernels.zero_ring(m, b), ref)
