@@ -45,6 +45,7 @@ __all__ = [
     "mirror_shift",
     "nonzero_mask",
     "rotate_about",
+    "row_dots",
     "row_orientation",
     "row_snr",
     "sample_quartiles",
@@ -289,6 +290,24 @@ def window_centroids(marks, xs, ys, r, per_px):
             out[i, 0] = xs[i]
             out[i, 1] = ys[i]
     return out
+
+
+@numba.njit(cache=True)
+def row_dots(marks, z, gain, pts, r, per_px, noise):
+    """The rows' dots of :func:`stcvision.stages._with_rows` at ``pts`` ((n, 2) float): their
+    pixels (rounded half to even), :func:`window_centroids` there, and their strength
+    ``z * gain * noise`` at those pixels in float32 (numpy's arithmetic for float32 images
+    and a Python scalar). Returns (xy (n, 2), strength (n,) float32)."""
+    n = len(pts)
+    xs = np.empty(n, np.int64)
+    ys = np.empty(n, np.int64)
+    strength = np.empty(n, np.float32)
+    nz = np.float32(noise)
+    for i in range(n):
+        xs[i] = int(np.rint(pts[i, 0]))
+        ys[i] = int(np.rint(pts[i, 1]))
+        strength[i] = np.float32(z[ys[i], xs[i]] * gain[ys[i], xs[i]]) * nz
+    return window_centroids(marks, xs, ys, r, per_px), strength
 
 
 @numba.njit(cache=True, error_model="numpy")

@@ -866,9 +866,8 @@ def _with_rows(dots, marks, z, gain, pts, snr, area, background_dn, noise_dn, do
     """``dots`` with the rows' dots at ``pts`` (SNR ``snr``) appended: centroids as
     :func:`find_dots` takes them, strength the window mean above background, ``lit`` and
     ``from_row`` set."""
-    ix = np.round(pts).astype(np.int64)
-    xy = _centroids(marks, ix[:, 0], ix[:, 1], dot_params.centroid_px, background_dn * area)
-    strength = z[ix[:, 1], ix[:, 0]] * gain[ix[:, 1], ix[:, 0]] * noise_dn
+    # centroids and strengths at the rows' pixels (kernels.row_dots: one call)
+    xy, strength = kernels.row_dots(marks, z, gain, pts, dot_params.centroid_px, float(background_dn * area), noise_dn)
     xy_m = ground_to_robot(xy) if ground_to_robot is not None else np.zeros((len(xy), 2))
     k = len(dots)
     from_row = np.zeros(k, bool) if dots.from_row is None else dots.from_row
