@@ -45,6 +45,7 @@ __all__ = [
     "mirror_shift",
     "nonzero_mask",
     "rotate_about",
+    "rank_dots",
     "row_dots",
     "row_orientation",
     "row_snr",
@@ -193,7 +194,8 @@ def dot_candidates(sums, gain, mode, a, c, e, area, background, noise):
 
 @numba.njit(cache=True)
 def greedy_black_out(xs, ys, vals, b, tail_sigma, max_dots):
-    """The black-out of :func:`stcvision.stages._black_out` as one greedy loop over candidates
+    """The black-out of :func:`stcvision.stages.find_dots` (plateaus and chains of maxima that the
+    3x3 maximum left) as one greedy loop over candidates
     sorted strongest first: candidate k is kept unless a kept one j has it in its black-out
     square (``|dx|, |dy| <= b``) or its blur explains half of it (``vals[j] exp(-d^2 / (2
     tail_sigma^2)) >= vals[k] / 2``). Each candidate is checked against the kept ones only
@@ -257,7 +259,7 @@ def _pairwise_sum(a, n):
 
 @numba.njit(cache=True)
 def window_centroids(marks, xs, ys, r, per_px):
-    """Centroids of :func:`stcvision.stages._centroids`: over the (2r+1)^2 square about each
+    """Intensity-weighted centroids (:func:`stcvision.stages.find_dots`): over the (2r+1)^2 square about each
     (xs, ys) (coordinates clipped to the image), the float32 values ``max(marks - per_px, 0)``
     and their x- and y-weighted sums (float64), each summed as numpy sums the square; the
     integer position where the square holds nothing above ``per_px``."""
@@ -290,6 +292,23 @@ def window_centroids(marks, xs, ys, r, per_px):
             out[i, 0] = xs[i]
             out[i, 1] = ys[i]
     return out
+
+
+@numba.njit(cache=True)
+def rank_dots(xs, ys, vals, mean, b, tail_sigma, max_dots, max_candidates, marks, r, per_px):
+    """The rest of :func:`stcvision.stages.find_dots` after the candidates, in one call: the
+    candidates sorted strongest first (a stable sort, as numpy's ``kind="stable"``), the
+    strongest ``max_candidates`` kept, :func:`greedy_black_out`, then :func:`window_centroids`
+    of those kept. Returns (number of candidates, centroids (n, 2), SNRs (n,) float64, window
+    means (n,))."""
+    nc = len(vals)
+    if nc == 0:
+        return 0, np.zeros((0, 2)), np.zeros(0), mean[:0]
+    order = np.argsort(-vals, kind="mergesort")[:max_candidates]
+    xs, ys, vals, mean = xs[order], ys[order], vals[order], mean[order]
+    kept = greedy_black_out(xs, ys, vals, b, tail_sigma, max_dots)
+    xy = window_centroids(marks, xs[kept], ys[kept], r, per_px)
+    return nc, xy, vals[kept].astype(np.float64), mean[kept]
 
 
 @numba.njit(cache=True)

@@ -618,24 +618,37 @@ def find_dots(
     xs, ys, vals, mean = kernels.dot_candidates(sums, g, mode, a, c, e, area, float(background_dn), float(noise_dn))
     if params.threshold_dn is not None:
         vals = mean * (params.k_sigma / params.threshold_dn)
-    b = params.blackout_px
-    order = np.argsort(-vals, kind="stable")
+    per_px = background_dn * (area if marks.dtype != np.uint8 else 1)  # sums hold w*w pixels
+    # strongest first (at most max_candidates), then the greedy black-out: a candidate is
+    # dropped if a kept stronger one shadows it -- it lies in that one's black-out square
+    # (half-side blackout_px), or that one's blur (a Gaussian of tail_sigma_px) explains half of
+    # it -- checked against the dots kept so far only (earlier a k-d tree of all candidate pairs:
+    # the same choice, several times the cost); then the intensity-weighted centroids above the
+    # background in the (2 centroid_px + 1)^2 squares: kernels.rank_dots, one call
+    n_cand, xy, snr_k, strength = kernels.rank_dots(
+        xs,
+        ys,
+        vals,
+        mean,
+        params.blackout_px,
+        float(params.tail_sigma_px),
+        params.max_dots,
+        params.max_candidates,
+        marks,
+        params.centroid_px,
+        float(per_px),
+    )
     untrusted = ""
-    if len(order) > params.max_candidates:
+    if n_cand > params.max_candidates:
         untrusted = (
-            f"{len(order)} dot candidates above {low:g} sigma, more than the {params.max_candidates} a frame of "
+            f"{n_cand} dot candidates above {low:g} sigma, more than the {params.max_candidates} a frame of "
             "marks can hold: the measured noise does not describe this frame"
         )
-        order = order[: params.max_candidates]
-    xs, ys, vals, mean = xs[order], ys[order], vals[order], mean[order]
-    kept_a = _black_out(xs, ys, vals, b, params.tail_sigma_px, params.max_dots)
-    n = len(kept_a)
+    n = len(snr_k)
     if n >= params.max_dots and not untrusted:
         untrusted = f"{params.max_dots} dots found, the most a frame is read for (DotParams.max_dots)"
-    per_px = background_dn * (area if marks.dtype != np.uint8 else 1)  # sums hold w*w pixels
-    xy = _centroids(marks, xs[kept_a], ys[kept_a], params.centroid_px, per_px)
-    snr_k = vals[kept_a].astype(float) if n else np.zeros(0)
-    strength = mean[kept_a] if n else np.zeros(0)
+    if not n:
+        strength = np.zeros(0)
     xy_m = ground_to_robot(xy) if (ground_to_robot is not None and n) else np.zeros((n, 2))
     return Dots(
         xy,
@@ -647,34 +660,6 @@ def find_dots(
         float(noise_dn),
         float(background_dn),
         untrusted=untrusted,
-    )
-
-
-def _black_out(xs: np.ndarray, ys: np.ndarray, vals: np.ndarray, b: int, tail_sigma: float, max_dots: int):
-    """Greedy black-out of candidates sorted strongest first (plateaus and chains of maxima
-    that the 3x3 maximum left): candidate k is dropped if a kept stronger candidate j shadows
-    it -- k lies in j's black-out square (half-side ``b``), or j's blur (a Gaussian of
-    ``tail_sigma``) explains half of k. Indices of the kept candidates, at most ``max_dots``.
-
-    One compiled loop (:func:`kernels.greedy_black_out`) checks each candidate against the
-    dots kept so far only, at most ``max_dots`` of them (earlier a k-d tree of all candidate
-    pairs within a shadow's reach, then a loop over them: the same choice, several times the
-    cost)."""
-    if len(vals) == 0:
-        return np.zeros(0, np.int64)
-    return kernels.greedy_black_out(
-        np.ascontiguousarray(xs, np.int64), np.ascontiguousarray(ys, np.int64), vals, b, float(tail_sigma), max_dots
-    )
-
-
-def _centroids(marks: np.ndarray, xs: np.ndarray, ys: np.ndarray, r: int, per_px: float) -> np.ndarray:
-    """Intensity-weighted centroids above ``per_px`` in the (2r+1)^2 squares around (xs, ys)
-    (clipped to the image), each compiled (:func:`kernels.window_centroids`, summing as numpy
-    did); the integer position where the square holds nothing above it."""
-    if not len(xs):
-        return np.zeros((0, 2))
-    return kernels.window_centroids(
-        marks, np.ascontiguousarray(xs, np.int64), np.ascontiguousarray(ys, np.int64), r, float(per_px)
     )
 
 
