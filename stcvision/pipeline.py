@@ -393,7 +393,7 @@ class Pipeline:
             src32 = None
         h, w = sums.shape[:2]
         scratch = (
-            self._buffer("gather", (4, 256), np.uint32)
+            self._buffer("gather", (2, 256), np.uint64)
             if src32 is not None
             else self._buffer("gather", (8, 256), np.float32)
         )
