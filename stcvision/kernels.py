@@ -993,33 +993,29 @@ _U = np.uintp
 _f32 = np.float32
 
 
+def _fma_codegen(ty, name: str):
+    """LLVM code calling the fused multiply-add intrinsic ``name`` on three values of ``ty``."""
+
+    def codegen(context, builder, signature, args):
+        fn = cgutils.get_or_insert_function(builder.module, ir.FunctionType(ty, [ty, ty, ty]), name)
+        return builder.call(fn, args)
+
+    return codegen
+
+
 @intrinsic
 def _fma32(typingctx, a, b, c):
     """``a * b + c`` in float32 with one rounding (LLVM's ``llvm.fma.f32``: the hardware FMA
     where there is one, a correctly rounded library call elsewhere): OpenCV's vectorised
     ``addWeighted`` on this machine (AVX2) rounds so; without FMA hardware OpenCV may round
     twice, and the two differ only where the result is within a rounding step of 0."""
-    sig = types.float32(types.float32, types.float32, types.float32)
-
-    def codegen(context, builder, signature, args):
-        f32 = ir.FloatType()
-        fn = cgutils.get_or_insert_function(builder.module, ir.FunctionType(f32, [f32, f32, f32]), "llvm.fma.f32")
-        return builder.call(fn, args)
-
-    return sig, codegen
+    return types.float32(types.float32, types.float32, types.float32), _fma_codegen(ir.FloatType(), "llvm.fma.f32")
 
 
 @intrinsic
 def _fma64(typingctx, a, b, c):
     """``a * b + c`` in float64 with one rounding (``llvm.fma.f64``), as :func:`_fma32`."""
-    sig = types.float64(types.float64, types.float64, types.float64)
-
-    def codegen(context, builder, signature, args):
-        f64 = ir.DoubleType()
-        fn = cgutils.get_or_insert_function(builder.module, ir.FunctionType(f64, [f64, f64, f64]), "llvm.fma.f64")
-        return builder.call(fn, args)
-
-    return sig, codegen
+    return types.float64(types.float64, types.float64, types.float64), _fma_codegen(ir.DoubleType(), "llvm.fma.f64")
 
 
 @intrinsic
