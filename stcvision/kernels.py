@@ -1019,6 +1019,16 @@ def _fma64(typingctx, a, b, c):
 
 
 @intrinsic
+def _as_f32(typingctx, v):
+    """The float32 whose bits are the uint32 ``v`` (a bitcast)."""
+
+    def codegen(context, builder, signature, args):
+        return builder.bitcast(args[0], ir.FloatType())
+
+    return types.float32(types.uint32), codegen
+
+
+@intrinsic
 def _load_u64(typingctx, arr, idx):
     """``arr[idx]`` and ``arr[idx + 1]`` of a uint32 array as one uint64 (one unaligned 8-byte
     load, little-endian: ``arr[idx]`` in the low half), where numba would make two loads."""
@@ -1181,33 +1191,76 @@ def unwarp_separate_u16(
 
 @numba.njit(cache=True)
 def unwarp_separate_f32(
-    src, w, base, alpha, beta, rnd, thr, tol, bottom, top, frac, gamma, leak, obstacle, marks, black, scratch
+    src64,
+    green_low,
+    w,
+    base,
+    alpha,
+    beta,
+    rnd,
+    thr,
+    tol,
+    bottom,
+    top,
+    frac,
+    gamma,
+    leak,
+    obstacle,
+    marks,
+    black,
+    scratch,
 ):
-    """:func:`unwarp_separate_u16` for any sums (``rnd``: integers, rounded and saturated)."""
-    use_frac = frac != np.float32(0.0)
+    """:func:`unwarp_separate_u16` for float32 sums (16-bit frames; and uint16 sums on a
+    big-endian machine, converted: ``rnd`` rounds and saturates): ``src64``, the (h, w, 2)
+    sums as one uint64 per pixel (both channels: green in the low half where ``green_low``),
+    four aligned loads per ground pixel; ``scratch`` (4, N) uint64. The separation written
+    out, as there."""
+    one = np.float32(1.0)
+    zero = np.float32(0.0)
+    hi = np.float32(65535.0)
+    use_frac = frac != zero
     n = 0
     nb = scratch.shape[1]
-    r2 = _U(2 * w)
+    row = _U(w)
+    lo = np.uint64(0xFFFFFFFF)
+    gs = np.uint64(0) if green_low else np.uint64(32)
+    rs = np.uint64(32) if green_low else np.uint64(0)
+    s0, s1, s2, s3 = scratch[0], scratch[1], scratch[2], scratch[3]
     N = len(base)
     for start in range(0, N, nb):
         m = _U(min(nb, N - start))
         st = _U(start)
         for i in range(m):
-            o = _U(2) * _U(base[st + i])
-            for c in range(2):
-                scratch[4 * c, i] = src[o + _U(c)]
-                scratch[4 * c + 1, i] = src[o + _U(2 + c)]
-                scratch[4 * c + 2, i] = src[o + r2 + _U(c)]
-                scratch[4 * c + 3, i] = src[o + r2 + _U(2 + c)]
+            o = _U(base[st + i])
+            s0[i] = src64[o]
+            s1[i] = src64[o + _U(1)]
+            s2[i] = src64[o + row]
+            s3[i] = src64[o + row + _U(1)]
         for i in range(m):
             j = st + i
             aa = alpha[j]
             bb = beta[j]
-            gv = _lerp(aa, bb, scratch[0, i], scratch[1, i], scratch[2, i], scratch[3, i])
-            rv = _lerp(aa, bb, scratch[4, i], scratch[5, i], scratch[6, i], scratch[7, i])
-            n += _separate_px(
-                j, gv, rv, rnd, use_frac, thr, tol, bottom, top, frac, gamma, leak, obstacle, marks, black
-            )
+            q0, q1, q2, q3 = s0[i], s1[i], s2[i], s3[i]
+            p00, p01 = _as_f32(np.uint32((q0 >> gs) & lo)), _as_f32(np.uint32((q1 >> gs) & lo))
+            p10, p11 = _as_f32(np.uint32((q2 >> gs) & lo)), _as_f32(np.uint32((q3 >> gs) & lo))
+            v0 = _fma32(aa, p01 - p00, p00)
+            gv = _fma32(bb, _fma32(aa, p11 - p10, p10) - v0, v0)
+            p00, p01 = _as_f32(np.uint32((q0 >> rs) & lo)), _as_f32(np.uint32((q1 >> rs) & lo))
+            p10, p11 = _as_f32(np.uint32((q2 >> rs) & lo)), _as_f32(np.uint32((q3 >> rs) & lo))
+            v0 = _fma32(aa, p01 - p00, p00)
+            rv = _fma32(bb, _fma32(aa, p11 - p10, p10) - v0, v0)
+            if rnd:
+                gv = min(max(np.rint(gv), zero), hi)
+                rv = min(max(np.rint(rv), zero), hi)
+            dom = min(max(rv + tol, bottom), top) >= gv
+            if use_frac:
+                dom = dom & (_fma32(rv, one, _fma32(gv, frac, gamma)) >= zero)
+            light = dom & (rv > thr)
+            obstacle[j] = rv if light else zero
+            marks[j] = gv
+            b = light | (dom & (rv > leak))
+            black[j] = b
+            n += b
     return n
 
 

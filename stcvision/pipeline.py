@@ -65,6 +65,12 @@ from stcvision.stages import (
 
 __all__ = ["Pipeline", "PipelineParams", "PipelineResult", "STAGES", "display_scale"]
 
+#: the byte order the unwarp's gathers read pairs of channels in (green first in memory)
+_LITTLE = sys.byteorder == "little"
+#: uint16 window sums gathered as uint32 pairs (little-endian machines); else converted to
+#: float32 and gathered as those are (tests switch it off to check that path)
+_U32_GATHERS = True
+
 STAGES = ("dark", "window", "unwarp", "channels", "dots", "rows", "red", "heading", "observe")
 
 
@@ -386,17 +392,13 @@ class Pipeline:
             # v > t for whole v <= 65535 is v > floor(t), exact in float32 once clipped
             thr32, leak32 = (np.float32(min(max(math.floor(x), -1), 65536)) for x in (thr_a, leak))
             # both channels in one uint32 load, green in the low half (little-endian machines)
-            src32 = sums.reshape(-1).view(np.uint32) if sys.byteorder == "little" else None
+            src32 = sums.reshape(-1).view(np.uint32) if (_LITTLE and _U32_GATHERS) else None
         else:  # float images: the scalars rounded to float32, no saturation
             tol32, thr32, leak32 = np.float32(tol_a), np.float32(thr_a), np.float32(leak)
             bottom, top = np.float32(-np.inf), np.float32(np.inf)
             src32 = None
         h, w = sums.shape[:2]
-        scratch = (
-            self._buffer("gather", (2, 256), np.uint64)
-            if src32 is not None
-            else self._buffer("gather", (8, 256), np.float32)
-        )
+        scratch = self._buffer("gather", (2, 256) if src32 is not None else (4, 256), np.uint64)
         obstacle = np.empty(shape, sums.dtype)
         marks = np.empty(shape, sums.dtype)
         black = self._buffer("black", shape, np.uint8)
@@ -406,8 +408,9 @@ class Pipeline:
         src, rnd = sums.reshape(-1), sums.dtype == np.uint16
         if src32 is not None:
             n = kernels.unwarp_separate_u16(src32, w, base, alpha, beta, *sep, scratch)
-        else:
-            n = kernels.unwarp_separate_f32(src, w, base, alpha, beta, rnd, *sep, scratch)
+        else:  # float32 pairs, one uint64 per pixel (uint16 sums converted: exact)
+            src64 = np.ascontiguousarray(sums, np.float32).reshape(-1).view(np.uint64)
+            n = kernels.unwarp_separate_f32(src64, _LITTLE, w, base, alpha, beta, rnd, *sep, scratch)
         if len(border):
             n += kernels.unwarp_border(src, w, h, border, border_xy, rnd, *sep)
         return obstacle, marks, n
