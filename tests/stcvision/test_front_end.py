@@ -136,11 +136,14 @@ def test_background_is_estimate_background(default_profile, dtype):
         assert got == (*ref, q)
 
 
-def test_result_images_are_its_own(default_profile):
+@pytest.mark.parametrize("pose", [False, True])  # with the pose estimates the crop is the whole frame
+@pytest.mark.parametrize("with_dark", [False, True])
+def test_result_images_are_its_own(default_profile, pose, with_dark):
     """The front end reuses scratch images from frame to frame; what a result holds is not one."""
     rng = np.random.default_rng(3)
     w, h = default_profile.image_size_px
-    pipe = Pipeline(default_profile)
+    dark = rng.integers(0, 8, (h, w, 3)).astype(np.uint8) if with_dark else None
+    pipe = Pipeline(default_profile, PipelineParams(observation=ObservationParams(pose_estimates=pose)), dark=dark)
     f1 = rng.integers(0, 60, (h, w, 3)).astype(np.uint8)
     f2 = rng.integers(0, 60, (h, w, 3)).astype(np.uint8)
     r1 = pipe.process(f1)
