@@ -330,15 +330,14 @@ def row_dots(marks, z, gain, pts, r, per_px, noise):
 
 
 @numba.njit(cache=True, error_model="numpy")
-def row_snr(marks, gain, area, background, noise, clip):
+def row_snr(marks, gain, area, background, noise, clip, out):
     """Per-pixel SNR of window sums, clipped (:func:`stcvision.stages._row_snr`), in one pass:
     ``min(fma(marks, 1 / area, -background) * (1 / noise) / gain, clip)`` in float32 (``_fma32``
     below, with the front end's kernels), the
     arithmetic of ``cv2.addWeighted(..., dtype=CV_32F)``, ``cv2.divide(..., scale)`` and
     ``cv2.min`` it replaced (to the bit; numpy's error model: no zero-division check per pixel,
-    which would keep the loop from being vectorised)."""
+    which would keep the loop from being vectorised). Into ``out`` ((h, w) float32), returned."""
     h, w = marks.shape
-    out = np.empty((h, w), np.float32)
     a = np.float32(1.0 / area)
     g = np.float32(-background)
     s = np.float32(1.0 / noise)
@@ -352,7 +351,7 @@ def row_snr(marks, gain, area, background, noise, clip):
 
 
 @numba.njit(cache=True)
-def zero_ring(marks, b):
+def zero_ring(marks, b, out):
     """uint8 image: 1 within ``b`` pixels (along both axes) of a pixel where ``marks`` is 0 --
     ``cv2.dilate(marks == 0, (2b+1)^2 square)``, pixels beyond the border not counted. Zeros
     are few (the red lights' black-out), so: a vectorised scan finds the rows holding any;
@@ -360,7 +359,7 @@ def zero_ring(marks, b):
     2b + 1 output rows about it (earlier: two OR-doubling passes over a padded copy of the
     whole image, 30 us here; this ~10 us for the bench scene's lights)."""
     h, w = marks.shape
-    out = np.zeros((h, w), np.uint8)
+    out[:] = 0  # out: (h, w) uint8, returned
     row = np.zeros(w, np.uint8)
     for y in range(h):
         mr = marks[y]
@@ -382,7 +381,7 @@ def zero_ring(marks, b):
 
 
 @numba.njit(cache=True, error_model="numpy")
-def free_rows(z, occ, offs, ends, e, gate, thr, min_dot, spread, end_max):
+def free_rows(z, occ, offs, ends, e, gate, thr, min_dot, spread, end_max, ok):
     """Free-row candidates of :func:`stcvision.stages._free_rows`: where every dot of the row
     at ``offs`` (along x for axis 0, along y for axis 1) has ``z >= gate`` on a free pixel
     (``occ`` 0) -- a mask, then per image row the AND of its shifted rows, both loops the
@@ -400,8 +399,7 @@ def free_rows(z, occ, offs, ends, e, gate, thr, min_dot, spread, end_max):
     sp = np.float32(spread)
     em = np.float32(end_max)
     nf = np.float32(n)
-    sq = np.float32(math.sqrt(n))
-    ok = np.empty((h, w), np.uint8)
+    sq = np.float32(math.sqrt(n))  # ok: (h, w) uint8 scratch
     for y in range(h):
         zr, orow, okr = z[y], occ[y], ok[y]
         for x in range(w):

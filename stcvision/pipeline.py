@@ -508,6 +508,7 @@ class Pipeline:
             dot_params=p.dots,
             ground_to_robot=self.profile.ground_to_robot,
             quantum=q,
+            buffers=self._buffer,
         )
         t.append(clock())
         red = find_red(obstacle, p.red, window_area=area)

@@ -762,11 +762,13 @@ def find_rows(
     dot_params: DotParams = DotParams(),
     ground_to_robot=None,
     quantum: float = 1.0,
+    buffers=None,
 ) -> Dots:
     """Rows of ``params.n_dots`` faint dots along either ground-view axis that the dot search
     missed; returns ``dots`` with the rows' dots appended (``lit=True``, ``from_row=True``,
     ``snr`` the row's SNR). ``marks``: the window sums the dot search ran on; ``quantum`` as
-    for :func:`find_dots`.
+    for :func:`find_dots`; ``buffers``: ``buffers(name, shape, dtype)`` gives the search's
+    scratch images (a caller reusing them from frame to frame: the pipeline), default new ones.
 
     Two searches. *Anchored rows*: a fading mark's brightest dot often passes the dot threshold
     while its other three do not (each dot's SNR scatters by +-1 about the mark's), and a row
@@ -780,8 +782,11 @@ def find_rows(
     if not params.enabled or marks.dtype not in SUM_DTYPES:
         return dots
     noise_dn = max(noise_dn, noise_floor(quantum))
-    z = _row_snr(marks, gain, area, background_dn, noise_dn, dot_params.k_sigma)
-    occ = _taken_floor(marks, dots, dot_params)
+    buf = buffers or (lambda name, shape, dtype: np.empty(shape, dtype))
+    z = _row_snr(
+        marks, gain, area, background_dn, noise_dn, dot_params.k_sigma, buf("row snr", marks.shape, np.float32)
+    )
+    occ = _taken_floor(marks, dots, dot_params, buf("taken", marks.shape, np.uint8))
     h, w = z.shape
     n = params.n_dots
     step = params.spacing_m * px_per_m
@@ -793,7 +798,7 @@ def find_rows(
         rows_xy, rows_s = _anchored_rows(z, occ, dots, step, n, params)
     else:
         rows_xy, rows_s = np.zeros((0, n - 1, 2)), np.zeros(0)
-    xs, ys, st, ax = _free_rows(z, occ, offs, ends, e, params)
+    xs, ys, st, ax = _free_rows(z, occ, offs, ends, e, params, buf("row mask", marks.shape, np.uint8))
     free_xy, free_s = _accept_free_rows(z.shape, xs, ys, st, ax, offs, rows_xy, dot_params.blackout_px, params.max_rows)
     if not len(rows_s) and not len(free_s):
         return dots
@@ -815,24 +820,26 @@ def _row_offsets(step: float, n: int) -> tuple[np.ndarray, np.ndarray, int]:
     return offs, ends, int(np.abs(ends).max())
 
 
-def _row_snr(marks: np.ndarray, gain: np.ndarray, area: int, background_dn: float, noise_dn: float, clip: float):
+def _row_snr(
+    marks: np.ndarray, gain: np.ndarray, area: int, background_dn: float, noise_dn: float, clip: float, out: np.ndarray
+):
     """Per-pixel SNR of the window sums ``marks`` (float32), clipped at the dot threshold
     ``clip``: a single bright dot must not make a row. One compiled pass
     (:func:`kernels.row_snr`) for uint16 sums; float32 ones (16-bit frames) through OpenCV."""
     if marks.dtype == np.uint16 and gain.dtype == np.float32:
-        return kernels.row_snr(marks, gain, area, float(background_dn), float(noise_dn), float(clip))
+        return kernels.row_snr(marks, gain, area, float(background_dn), float(noise_dn), float(clip), out)
     z = cv2.addWeighted(marks, 1.0 / area, marks, 0.0, -background_dn, dtype=cv2.CV_32F)
     z = cv2.divide(z, gain, scale=1.0 / noise_dn)
     return cv2.min(z, float(clip), dst=z)
 
 
-def _taken_floor(marks: np.ndarray, dots: Dots, dot_params: DotParams) -> np.ndarray:
+def _taken_floor(marks: np.ndarray, dots: Dots, dot_params: DotParams, out: np.ndarray) -> np.ndarray:
     """uint8 image, non-zero where no row may run nor end: within each lit dot's blur (as far as
     it still shows above 1 sigma, at least the black-out square), and within the black-out
     square of a red light blacked out of the marks image (zero there): the edge of its glare,
     just below the black-out level, runs along the light as a column of faint "dots"."""
     b = dot_params.blackout_px
-    occ = kernels.zero_ring(marks, b)
+    occ = kernels.zero_ring(marks, b, out)
     kernels.blur_squares(occ, dots.xy_px.reshape(-1, 2), dots.snr, dots.lit, float(dot_params.tail_sigma_px), b)
     return occ
 
@@ -870,7 +877,9 @@ def _with_rows(dots, marks, z, gain, pts, snr, area, background_dn, noise_dn, do
     )
 
 
-def _free_rows(z: np.ndarray, occ: np.ndarray, offs: np.ndarray, ends: np.ndarray, e: int, params: RowParams):
+def _free_rows(
+    z: np.ndarray, occ: np.ndarray, offs: np.ndarray, ends: np.ndarray, e: int, params: RowParams, ok: np.ndarray
+):
     """Free-row candidates of :func:`find_rows`: (x, y, row SNR, axis) where the row sum of the
     SNRs ``z`` at ``offs`` along either axis reaches ``k_sigma * sqrt(n)``, every dot is at least
     ``min_dot_snr`` and within ``spread_snr`` of the row's mean, and the floor at ``ends`` is
@@ -895,6 +904,7 @@ def _free_rows(z: np.ndarray, occ: np.ndarray, offs: np.ndarray, ends: np.ndarra
         float(params.min_dot_snr),
         float(params.spread_snr),
         float(params.end_max_snr),
+        ok,
     )
 
 

@@ -139,7 +139,7 @@ def test_free_row_search_prunes_only_pixels_that_cannot_pass():
                     z[y, x + o] += rng.uniform(2.5, 4.0)
         np.minimum(z, np.float32(5.5), out=z)
         occ = (rng.random(z.shape) < 0.05).astype(np.uint8)
-        xs, ys, st, ax = _free_rows(z, occ, offs, ends, 20, p)
+        xs, ys, st, ax = _free_rows(z, occ, offs, ends, 20, p, np.empty(z.shape, np.uint8))
         assert list(zip(xs.tolist(), ys.tolist(), ax.tolist(), strict=True)) == _free_rows_everywhere(
             z, occ, offs, ends, 20, p
         )
@@ -161,4 +161,4 @@ def test_zero_ring_is_a_square_dilation():
             m[rng.random((h, w)) < 0.95] = 5
         b = int(rng.integers(0, 5))
         ref = cv2.dilate((m == 0).astype(np.uint8), np.ones((2 * b + 1, 2 * b + 1), np.uint8))
-        assert np.array_equal(kernels.zero_ring(m, b), ref)
+        assert np.array_equal(kernels.zero_ring(m, b, np.full((h, w), 7, np.uint8)), ref)
