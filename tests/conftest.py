@@ -1,18 +1,19 @@
-"""Shared fixtures. Paths to the peer data other projects made (used as users would)."""
+"""Shared fixtures. Paths to the peer data other projects made (used as users would).
+
+The peer files are vendored in ``datasets/peer_data/`` (sources and licences in its README), so a
+clone anywhere runs every test: a missing file is a failure, never a skip."""
 
 from pathlib import Path
 
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
-SHARED = ROOT.parent / "shared"
-PEER = SHARED / "peer_data"
+PEER = ROOT / "datasets" / "peer_data"
 
 
 @pytest.fixture(scope="session")
 def peer_data() -> Path:
-    if not PEER.is_dir():
-        pytest.skip(f"peer data not found at {PEER}")
+    assert PEER.is_dir(), f"the vendored peer data is missing: {PEER}"
     return PEER
 
 

@@ -22,7 +22,7 @@ from controllers.stc.geometry import COMPASS_VEC, start_heading
 from controllers.stc.oracle import MarkFloor, look_oracle, observe_oracle, run_oracle
 from sim_camera.board import Board
 
-MAPS = Path(__file__).resolve().parents[2].parent / "shared" / "peer_data" / "pythonrobotics_maps"
+MAPS = Path(__file__).resolve().parents[2] / "datasets" / "peer_data" / "pythonrobotics_maps"
 
 
 def _assert_full_cover(r, board):
@@ -102,10 +102,7 @@ def test_corridor_closes_loop_on_start_subcell():
 
 @pytest.mark.parametrize("name", ["spiral_stc_test.png", "spiral_stc_test_2.png", "spiral_stc_test_3.png"])
 def test_pythonrobotics_maps(name):
-    path = MAPS / name
-    if not path.is_file():
-        pytest.skip(f"{path} missing")
-    b = Board.from_file(path)
+    b = Board.from_file(MAPS / name)
     r = run_oracle(b, max_steps=1_000_000)
     _assert_full_cover(r, b)
 
