@@ -31,3 +31,27 @@ def check_board_cells(w: int, h: int) -> None:
         raise BadInputError(
             f"--board {w}x{h}: expected at least 1x1 and at most {MAX_BOARD_CELLS:,} cells in all (W x H)"
         )
+
+
+# ---------------------------------------------------------------- sweeps of the STC robot
+# (``stcvision cover sweep`` and ``cover faults``; ``controllers.stc.experiments``)
+
+#: seeds per board family (``--runs N``, ``--seeds A-B``): a camera run on a 22x22 board takes
+#: ~40 s of one core, so 10,000 seeds of one family are ~4.6 core-days, far beyond any table a
+#: person reads; the seeds are listed in memory before the first run starts
+MAX_SWEEP_SEEDS = 10_000
+#: runs in one sweep (boards x seeds x exposures x perceptions x cameras): each is a task held in
+#: memory with its parameters (up to ~7 kB with a map of 100 x 100 cells), a line of the store
+#: and a row of runs.csv; at ~25 s a run, 50,000 are two weeks of one core. Without a cap,
+#: ``--runs 1000000000`` grew until the machine gave up (listing the tasks)
+MAX_SWEEP_TASKS = 50_000
+#: map files of one sweep (``--maps``): each is read and checked before the first run
+MAX_SWEEP_MAPS = 1_000
+
+
+def check_count(flag: str, n: int, cap: int, what: str) -> None:
+    """Refuse ``n`` over ``cap`` in one line that names the flag, the cap and what it counts."""
+    from stcvision.errors import BadInputError
+
+    if n > cap:
+        raise BadInputError(f"{flag}: {n:,} {what} is over the cap of {cap:,}")

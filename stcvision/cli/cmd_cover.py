@@ -13,20 +13,21 @@ in its start cell), 3 when it ran but did not (aborted, covered a sub-cell twice
 abort_reason), 2 for bad input.
 
   stcvision cover plan --map M --camera C [--robot R]
-  stcvision cover sweep --sizes 2,3,4 --runs 6 --out DIR [--workers N | --scheduler tcp://H:P]
+  stcvision cover sweep [--maps FILE,...] [--sizes N,A-B,...] --runs 6 | --seeds A-B --out DIR
+                        [--workers N | --scheduler tcp://H:P]
   stcvision cover faults --out DIR [--cells 6 --runs 3 --faults rate,led,...]
   stcvision cover --fault NAME[:LEVEL] ...   (--list-faults)
 
 plan says what the tour needs of the camera, from the physics-limited camera (exposure auto):
-does it converge, how long, the oldest mark it reads, the frame lengths it uses. sweep
-
-runs the robot over boards x seeds x exposure modes x perceptions through the sweep runner
-(resumable; see README 'Scaling out') and writes a table (summary.md, table.csv, runs.csv) and a
-plot (coverage.png) of complete runs and sub-cells covered vs board size.
+does it converge, how long, the oldest mark it reads, the frame lengths it uses. sweep runs the
+robot over map files and random boards x seeds x exposure modes x perceptions x cameras through
+the sweep runner (resumable; see README 'Scaling out') and writes the dependability table
+(summary.md, table.csv, runs.csv) and its plot (dependability.png).
 """
 
 from __future__ import annotations
 
+from controllers.stc.experiments import OBSTACLE_FRACTION
 from stcvision.cli._args import seed
 
 
@@ -36,7 +37,9 @@ def add_parser(p):
     p.formatter_class = argparse.RawDescriptionHelpFormatter  # keep the usage lines of the docstring
     # 'stcvision cover --board 4x4' stays a flat command; a leading 'plan' or 'sweep' is a sub-action
     sub = p.add_subparsers(dest="action", metavar="{plan,sweep,faults}", parser_class=type(p))
-    _add_sweep_parser(sub)
+    from stcvision.cli.cover_sweep import add_parser as add_sweep_parser
+
+    add_sweep_parser(sub)
     from stcvision.cli.cover_faults import add_parser as add_faults_parser
 
     add_faults_parser(sub)
@@ -111,83 +114,8 @@ def _add_hardware_arguments(p) -> None:
     p.add_argument("--robot", default="lego", metavar="NAME|FILE.json", help="robot preset (lego) or a robot JSON file")
 
 
-def _add_sweep_parser(sub):
-    import argparse
-
-    from stcvision.cli._args import positive
-    from stcvision.sweep import add_sweep_arguments
-
-    def ints(text):
-        try:
-            return [int(t) for t in text.split(",")]
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"{text!r} is not comma-separated integers (e.g. 2,3,4)") from None
-
-    def words(text):
-        return [t for t in text.split(",") if t]
-
-    s = sub.add_parser(
-        "sweep",
-        help="coverage over boards x seeds x exposure modes x perceptions: a table and a plot",
-        description="Run the STC robot over random boards (sizes x seeds) for every exposure mode and "
-        "perception, through the sweep runner (resumable: OUT/sweep.jsonl), and write summary.md, table.csv, "
-        "runs.csv and coverage.png (complete runs and sub-cells covered vs board size).",
-    )
-    s.add_argument(
-        "--sizes",
-        type=ints,
-        default=[2, 3, 4, 5, 6, 7, 8, 10, 12],
-        metavar="N,N,...",
-        help="board sizes in cells per side (default 2,...,8,10,12)",
-    )
-    s.add_argument("--runs", type=positive(int), default=6, help="boards (seeds 0..runs-1) per size (default 6)")
-    for flag, default, help_ in (
-        ("--exposures", ["webcam", "auto"], "exposure modes: webcam, auto or seconds (default webcam,auto)"),
-        (
-            "--perceptions",
-            ["camera", "ideal"],
-            "camera, ideal (the physics-limited camera) or oracle (default camera,ideal)",
-        ),
-        ("--cameras", ["webcam"], "camera presets or JSON files (webcam, lowlight, cooled; default webcam)"),
-    ):
-        s.add_argument(flag, type=words, default=default, metavar=f"{flag[2].upper()},...", help=help_)
-    s.add_argument(
-        "--obstacle-fraction",
-        type=float,
-        default=OBSTACLE_FRACTION,
-        help=f"obstacle cells of the boards (default {OBSTACLE_FRACTION})",
-    )
-    s.add_argument(
-        "--decisions-per-subcell",
-        type=positive(int),
-        default=10,
-        help="stop a run after this many decisions per reachable sub-cell (default 10)",
-    )
-    s.add_argument("--out", required=True, metavar="DIR", help="folder for the store, the tables and the plot")
-    s.add_argument("--force", action="store_true", help="overwrite tables/plot in a folder that holds no cover sweep")
-    s.add_argument("--json", action="store_true", help="print the result as one JSON object")
-    add_sweep_arguments(s)
-
-
-#: obstacle cells of a random board (--board, and the sweep's boards)
-OBSTACLE_FRACTION = 0.15
-
-
-def random_board(w: int, h: int, obstacle_fraction: float, seed: int):
-    """The random board of ``--board WxH --obstacle-fraction F --seed S`` (also the sweep's): drawn
-    from the board's own stream of the run's seed (:func:`controllers.stc.loop.streams`)."""
-    from controllers.stc.loop import streams
-    from sim_camera.board import Board
-    from stcvision.errors import BadInputError
-    from stcvision.limits import check_board_cells
-
-    check_board_cells(w, h)
-    if not 0 <= obstacle_fraction < 1:
-        raise BadInputError(f"--obstacle-fraction must be in [0, 1), got {obstacle_fraction}")
-    return Board.random((h, w), obstacle_fraction=obstacle_fraction, rng=streams(seed)["board"])
-
-
 def load_board(args):
+    from controllers.stc.experiments import random_board
     from sim_camera.board import Board
 
     if args.map:

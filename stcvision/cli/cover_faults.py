@@ -60,7 +60,7 @@ def fault_run(params: dict, seed) -> dict:
     ``params["seed"]`` makes it the same run as ``stcvision cover --seed S --fault F:L``."""
     from controllers.stc.loop import CoverConfig, is_complete, run_cover
     from sim_camera import hardware
-    from stcvision.cli.cmd_cover import random_board
+    from controllers.stc.experiments import random_board
 
     n = params["cells"]
     board = random_board(n, n, params["obstacle_fraction"], params["seed"])
@@ -110,24 +110,18 @@ def plan(faults, runs: int, *, cells: int, obstacle_fraction: float, exposure: s
 
 def summarise(runs: list[dict]) -> list[dict]:
     """One row per (fault, level): how many runs ended in each outcome, and the abort reasons."""
+    from controllers.stc.experiments import stop_kind
+
     groups: dict[tuple, list[dict]] = {}
     order = list(LEVELS)
     for r in sorted(runs, key=lambda r: (order.index(r["fault"]), r["level"], r["seed"])):
         groups.setdefault((r["fault"], r["level"]), []).append(r)
     rows = []
     for (f, lv), rs in groups.items():
-        reasons = sorted({_reason(r["abort_reason"]) for r in rs if r["abort_reason"]})
+        reasons = sorted({stop_kind(r["abort_reason"]) for r in rs if r["abort_reason"]})
         counts = {o: sum(r["outcome"] == o for r in rs) for o in OUTCOMES}
         rows.append({"fault": f, "level": lv, "runs": len(rs), **counts, "abort_reasons": "; ".join(reasons)})
     return rows
-
-
-def _reason(text: str) -> str:
-    """An abort reason's kind, without its figures (where, how far, which decision)."""
-    head, _, rest = text.partition(":")
-    if head == "camera":
-        return "camera: noise floor" if "noise floor" in rest else "camera: frames lost or black"
-    return text.split(" at (")[0].split(" (")[0].split(":")[0]
 
 
 def markdown_table(rows: list[dict]) -> str:
@@ -170,7 +164,8 @@ def plot(rows: list[dict]) -> bytes:
 
 
 def write_outputs(out: Path, runs: list[dict], rows: list[dict], args, report_summary: str) -> list[str]:
-    from stcvision.cli.cover_sweep import _csv, write_files
+    from controllers.stc.experiments import write_csv as _csv
+    from controllers.stc.experiments import write_files
 
     n = args.cells
     md = [
@@ -237,7 +232,10 @@ def add_parser(sub) -> None:
     s.add_argument("--faults", type=lambda t: [w for w in t.split(",") if w], default=list(LEVELS),
                    metavar="F,...", help=f"faults to run (default all: {','.join(LEVELS)})")  # fmt: skip
     s.add_argument("--cells", type=positive(int), default=6, help="board size in cells per side (default 6)")
-    s.add_argument("--runs", type=positive(int), default=3, help="boards (seeds 0..runs-1) per level (default 3)")
+    from stcvision.limits import MAX_SWEEP_SEEDS
+
+    runs = positive(int, maximum=MAX_SWEEP_SEEDS, why="seeds per fault level")
+    s.add_argument("--runs", type=runs, default=3, help="boards (seeds 0..runs-1) per level (default 3)")
     s.add_argument("--obstacle-fraction", type=float, default=0.15, help="obstacle cells (default 0.15)")
     s.add_argument("--exposure", choices=("webcam", "auto"), default="auto", help="default auto")
     s.add_argument("--camera", default="webcam", help="camera preset or JSON file (default webcam)")

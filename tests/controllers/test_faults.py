@@ -14,7 +14,7 @@ from controllers.stc.faults import FAULTS, Faults, FaultyCamera, fault_stream, p
 from controllers.stc.health import FRAME_RETRIES, RobotStop, frame_fault
 from controllers.stc.loop import CoverConfig, run_cover, streams
 from stcvision.cli import main
-from stcvision.cli.cmd_cover import random_board
+from controllers.stc.experiments import random_board
 from stcvision.cli.cover_faults import outcome
 from stcvision.errors import BadInputError
 
