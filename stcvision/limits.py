@@ -45,6 +45,9 @@ MAX_SWEEP_SEEDS = 10_000
 #: and a row of runs.csv; at ~25 s a run, 50,000 are two weeks of one core. Without a cap,
 #: ``--runs 1000000000`` grew until the machine gave up (listing the tasks)
 MAX_SWEEP_TASKS = 50_000
+#: ``--decisions-per-subcell``: a complete tour makes 1-2 decisions per sub-cell, so 1,000 lets a
+#: lost robot wander ~1,000 tours' worth of decisions before the run is stopped
+MAX_DECISIONS_PER_SUBCELL = 1_000
 #: map files of one sweep (``--maps``): each is read and checked before the first run
 MAX_SWEEP_MAPS = 1_000
 

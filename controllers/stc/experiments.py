@@ -33,6 +33,7 @@ __all__ = [
     "BoardFamily",
     "cover_run",
     "draw_board",
+    "first_seeds",
     "family_of",
     "map_family",
     "outcome_of",
@@ -200,6 +201,16 @@ def parse_seeds(text: str) -> list[int]:
     if len(set(seeds)) != len(seeds):
         raise BadInputError(f"--seeds {text!r} lists a seed twice")
     return seeds
+
+
+def first_seeds(runs: int) -> list[int]:
+    """``--runs N``: seeds 0..N-1, N from 1 to :data:`~stcvision.limits.MAX_SWEEP_SEEDS`."""
+    from stcvision.limits import MAX_SWEEP_SEEDS, check_count
+
+    if runs < 1:
+        raise BadInputError(f"--runs must be >= 1, got {runs}")
+    check_count("--runs", runs, MAX_SWEEP_SEEDS, "seeds per board family")
+    return list(range(runs))
 
 
 def encode_grid(board) -> dict:

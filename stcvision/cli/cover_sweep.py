@@ -12,20 +12,10 @@ __all__ = ["add_parser", "format_text", "sweep_cover"]
 def add_parser(sub) -> None:
     import argparse
 
-    from controllers.stc.experiments import OBSTACLE_FRACTION, parse_fraction, parse_seeds, parse_sizes
+    from controllers.stc.experiments import OBSTACLE_FRACTION
     from stcvision.cli._args import positive
-    from stcvision.errors import BadInputError
-    from stcvision.limits import MAX_SWEEP_SEEDS
+    from stcvision.limits import MAX_DECISIONS_PER_SUBCELL
     from stcvision.sweep import add_sweep_arguments
-
-    def argtype(parse):
-        def f(text):
-            try:
-                return parse(text)
-            except BadInputError as e:
-                raise argparse.ArgumentTypeError(str(e)) from None
-
-        return f
 
     def words(text):
         return [t for t in text.split(",") if t]
@@ -49,13 +39,12 @@ not complete is listed with the 'stcvision cover' command that replays it.
     s.add_argument("--maps", type=words, default=[], metavar="FILE,...",
                    help="map files (.txt '.', '#', 'S' or an image, one pixel a sub-cell); the start as the map "
                    "gives it or as the loader picks (unless --start random)")  # fmt: skip
-    s.add_argument("--sizes", type=argtype(parse_sizes), default=None, metavar="N,WxH,A-B,...",
+    s.add_argument("--sizes", default=None, metavar="N,WxH,A-B,...",
                    help="random boards: N (N x N cells), WxH, A-B (square, the side drawn per seed from A..B) or "
                    "A-BxC-D (width and height drawn apart); default 2,...,8,10,12 when no --maps")  # fmt: skip
     seeds = s.add_mutually_exclusive_group()
-    seeds.add_argument("--runs", type=positive(int, maximum=MAX_SWEEP_SEEDS, why="seeds per board family"),
-                       default=None, help="seeds 0..runs-1 per board family (default 6)")  # fmt: skip
-    seeds.add_argument("--seeds", type=argtype(parse_seeds), default=None, metavar="A-B,...",
+    seeds.add_argument("--runs", type=int, default=None, help="seeds 0..runs-1 per board family (default 6)")  # fmt: skip
+    seeds.add_argument("--seeds", default=None, metavar="A-B,...",
                        help="the seeds to run, e.g. 100-119 (held-out seeds) or 0-4,50")  # fmt: skip
     for flag, default, help_ in (
         ("--exposures", ["auto"], "exposure modes: webcam, auto or seconds (default auto, as 'stcvision cover')"),
@@ -64,13 +53,14 @@ not complete is listed with the 'stcvision cover' command that replays it.
         ("--cameras", ["webcam"], "camera presets or JSON files (webcam, lowlight, cooled; default webcam)"),
     ):  # fmt: skip
         s.add_argument(flag, type=words, default=default, metavar=f"{flag[2].upper()},...", help=help_)
-    s.add_argument("--obstacle-fraction", type=argtype(parse_fraction), default=(OBSTACLE_FRACTION,) * 2,
+    s.add_argument("--obstacle-fraction", default=str(OBSTACLE_FRACTION),
                    metavar="F|A-B", help=f"obstacle cells of the random boards, or a range drawn per seed "
                    f"(default {OBSTACLE_FRACTION})")  # fmt: skip
     s.add_argument("--start", choices=("board", "random"), default="board",
                    help="board: the map's start or the loader's pick; random: any free sub-cell, drawn per seed "
                    "(default board)")  # fmt: skip
-    s.add_argument("--decisions-per-subcell", type=positive(int, maximum=1000, why="a lost robot's decisions"),
+    cap = positive(int, maximum=MAX_DECISIONS_PER_SUBCELL, why="a lost robot's decisions per sub-cell")
+    s.add_argument("--decisions-per-subcell", type=cap,
                    default=10, help="stop a run after this many decisions per reachable sub-cell (default 10)")  # fmt: skip
     s.add_argument("--out", required=True, metavar="DIR", help="folder for the store, the tables and the plot")
     s.add_argument("--force", action="store_true", help="overwrite tables/plot in a folder that holds no cover sweep")
@@ -80,13 +70,14 @@ not complete is listed with the 'stcvision cover' command that replays it.
 
 def sweep_cover(args) -> dict:
     """The ``cover sweep`` action."""
-    from controllers.stc.experiments import parse_sizes, sweep
+    from controllers.stc.experiments import first_seeds, parse_fraction, parse_seeds, parse_sizes, sweep
     from stcvision.sweep import sweep_options_from_args
 
-    sizes = args.sizes if args.sizes is not None else ([] if args.maps else parse_sizes("2,3,4,5,6,7,8,10,12"))
-    seeds = args.seeds if args.seeds is not None else list(range(args.runs or 6))
-    return sweep(args.out, maps=args.maps, sizes=sizes, seeds=seeds, exposures=args.exposures,
-                 perceptions=args.perceptions, cameras=args.cameras, obstacle_fraction=args.obstacle_fraction,
+    sizes = args.sizes if args.sizes is not None else ("" if args.maps else "2,3,4,5,6,7,8,10,12")
+    seeds = parse_seeds(args.seeds) if args.seeds is not None else first_seeds(6 if args.runs is None else args.runs)
+    return sweep(args.out, maps=args.maps, sizes=parse_sizes(sizes) if sizes else [], seeds=seeds,
+                 exposures=args.exposures, perceptions=args.perceptions, cameras=args.cameras,
+                 obstacle_fraction=parse_fraction(args.obstacle_fraction),
                  start=args.start, decisions_per_subcell=args.decisions_per_subcell,
                  options=sweep_options_from_args(args), force=args.force)  # fmt: skip
 
