@@ -379,7 +379,8 @@ def plan(
     for c in cameras:
         hardware.load_camera(c)  # an unknown preset or a bad file: one line, exit 2
     n = len(families) * len(seeds) * len(exposures) * len(perceptions) * len(cameras)
-    check_count("the sweep", n, MAX_SWEEP_TASKS, "runs in one sweep (boards x seeds x exposures x perceptions x cameras)")
+    what = "runs in one sweep (boards x seeds x exposures x perceptions x cameras)"
+    check_count("the sweep", n, MAX_SWEEP_TASKS, what)
     order = sorted(families, key=lambda f: -f.largest_cells())
     return [
         Task(
@@ -624,7 +625,7 @@ RUN_CSV_FIELDS = ("family", "board", "map", "seed", "start", "exposure", "percep
                   *RUN_FIELDS)  # fmt: skip
 
 
-def write_outputs(out: Path, runs: list[dict], rows: list[dict], report_summary: str, maps: dict[str, str]) -> list[str]:
+def write_outputs(out: Path, runs: list[dict], rows: list[dict], report_summary: str, maps: dict) -> list[str]:
     """runs.csv, table.csv (``rows``: :func:`summarise` of ``runs``), summary.md, dependability.png.
     ``maps``: map name -> the path it was read from (for the replay commands)."""
     bad = [r for r in runs if not r["complete"]]

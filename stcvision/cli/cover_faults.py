@@ -58,9 +58,9 @@ def outcome(r: dict) -> str:
 def fault_run(params: dict, seed) -> dict:
     """One run (the sweep's task); ``seed`` (the sweep's stream) is not used: the run's own
     ``params["seed"]`` makes it the same run as ``stcvision cover --seed S --fault F:L``."""
+    from controllers.stc.experiments import random_board
     from controllers.stc.loop import CoverConfig, is_complete, run_cover
     from sim_camera import hardware
-    from controllers.stc.experiments import random_board
 
     n = params["cells"]
     board = random_board(n, n, params["obstacle_fraction"], params["seed"])

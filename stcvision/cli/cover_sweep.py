@@ -43,7 +43,7 @@ not complete is listed with the 'stcvision cover' command that replays it.
                    help="random boards: N (N x N cells), WxH, A-B (square, the side drawn per seed from A..B) or "
                    "A-BxC-D (width and height drawn apart); default 2,...,8,10,12 when no --maps")  # fmt: skip
     seeds = s.add_mutually_exclusive_group()
-    seeds.add_argument("--runs", type=int, default=None, help="seeds 0..runs-1 per board family (default 6)")  # fmt: skip
+    seeds.add_argument("--runs", type=int, default=None, help="seeds 0..runs-1 per board family (default 6)")
     seeds.add_argument("--seeds", default=None, metavar="A-B,...",
                        help="the seeds to run, e.g. 100-119 (held-out seeds) or 0-4,50")  # fmt: skip
     for flag, default, help_ in (
@@ -60,8 +60,8 @@ not complete is listed with the 'stcvision cover' command that replays it.
                    help="board: the map's start or the loader's pick; random: any free sub-cell, drawn per seed "
                    "(default board)")  # fmt: skip
     cap = positive(int, maximum=MAX_DECISIONS_PER_SUBCELL, why="a lost robot's decisions per sub-cell")
-    s.add_argument("--decisions-per-subcell", type=cap,
-                   default=10, help="stop a run after this many decisions per reachable sub-cell (default 10)")  # fmt: skip
+    s.add_argument("--decisions-per-subcell", type=cap, default=10,
+                   help="stop a run after this many decisions per reachable sub-cell (default 10)")  # fmt: skip
     s.add_argument("--out", required=True, metavar="DIR", help="folder for the store, the tables and the plot")
     s.add_argument("--force", action="store_true", help="overwrite tables/plot in a folder that holds no cover sweep")
     s.add_argument("--json", action="store_true", help="print the result as one JSON object")
