@@ -182,3 +182,25 @@ def test_bad_input_is_one_line_and_writes_nothing(tmp_path, cli, two_maps):
         code, text, err = cli(*base, *bad)
         assert code == 2 and words in err and err.count("\n") == 1 and text == "", (bad, err)
     assert not out.exists()
+
+
+def test_readme_acceptance_commands_small(tmp_path, cli, peer_data):
+    """The README's two dependability commands, small: the three peer maps and the drawn random
+    boards, with the oracle's perception (the camera is not the point here: the plumbing is)."""
+    maps = ",".join(str(peer_data / "pythonrobotics_maps" / f"spiral_stc_test{s}.png") for s in ("", "_2", "_3"))
+    code, text, err = cli("cover", "sweep", "--maps", maps, "--runs", "1", "--cameras", "cooled,lowlight",
+                          "--perceptions", "oracle", "--out", tmp_path / "D", "--workers", "1", "--json")  # fmt: skip
+    assert code == 0, err
+    rows = json.loads(text)["table"]
+    assert [(r["camera"], r["family"]) for r in rows] == [
+        (c, f) for c in ("cooled", "lowlight")
+        for f in ("map spiral_stc_test", "map spiral_stc_test_2", "map spiral_stc_test_3", "all")
+    ]  # fmt: skip
+    assert all(r["complete"] == r["runs"] for r in rows)
+    code, text, err = cli("cover", "sweep", "--sizes", "8-22", "--obstacle-fraction", "0.05-0.25", "--start",
+                          "random", "--seeds", "20-21", "--cameras", "cooled", "--perceptions", "oracle",
+                          "--out", tmp_path / "D2", "--workers", "1", "--json")  # fmt: skip
+    assert code == 0, err
+    rows = json.loads(text)["table"]
+    assert sum(r["runs"] for r in rows if r["family"] != "all") == 2
+    assert all(r["family"] in ("random 8-12", "random 13-17", "random 18-22", "all") for r in rows)
