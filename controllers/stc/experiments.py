@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import csv
 import io
+import itertools
 import statistics
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
@@ -382,26 +383,11 @@ def plan(
     what = "runs in one sweep (boards x seeds x exposures x perceptions x cameras)"
     check_count("the sweep", n, MAX_SWEEP_TASKS, what)
     order = sorted(families, key=lambda f: -f.largest_cells())
-    return [
-        Task(
-            experiment=EXPERIMENT,
-            params={
-                **f.params(),
-                "seed": s,
-                "start": start,
-                "exposure": e,
-                "perception": p,
-                "camera": c,
-                "decisions_per_subcell": decisions_per_subcell,
-            },
-            seed=s,
-        )
-        for f in order
-        for e in exposures
-        for p in perceptions
-        for c in cameras
-        for s in seeds
-    ]
+    common = {"start": start, "decisions_per_subcell": decisions_per_subcell}
+    grid = itertools.product(order, exposures, perceptions, cameras, seeds)
+    kw = ("exposure", "perception", "camera", "seed")
+    return [Task(EXPERIMENT, {**f.params(), **common, **dict(zip(kw, rest, strict=True))}, rest[-1])
+            for f, *rest in grid]  # fmt: skip
 
 
 def _exposure(text) -> str | float:
