@@ -31,3 +31,17 @@ def check_board_cells(w: int, h: int) -> None:
         raise BadInputError(
             f"--board {w}x{h}: expected at least 1x1 and at most {MAX_BOARD_CELLS:,} cells in all (W x H)"
         )
+
+
+# ----------------------------------------------------------------------------- the TASTI 2 search
+#: search-path steps of one ``stcvision search`` pattern (radial: petals x steps per petal, or
+#: --max-steps): a 12 x 32 flower (384 steps) runs in ~4 s, so 10,000 steps is ~2 minutes
+MAX_SEARCH_STEPS = 10_000
+#: how far from the start the pattern, an obstacle or the patch may lie (metres): the shadow
+#: area is rasterised at 5 mm over the run's bounding box, 4,000 x 4,000 cells at 10 m
+MAX_SEARCH_REACH_M = 10.0
+#: round obstacles of one search (each is a body in the physics world and a pass over the raster)
+MAX_SEARCH_OBSTACLES = 100
+#: seeds per row of ``stcvision search reproduce`` (15 rows: 1,000 seeds is ~15,000 runs, a
+#: day on one core)
+MAX_SEARCH_SEEDS = 1_000

@@ -19,7 +19,7 @@ from controllers.search.patterns import RadialPattern, SpiralPattern
 from controllers.search.run import SearchScene, run_search
 from controllers.search.scenarios import FIG6_OBSTACLE, FIG7_OBSTACLE, FIG13_CAN, PAPER_PATCH
 
-__all__ = ["TABLES", "build_run", "reproduce", "row_task", "run_trial"]
+__all__ = ["FIGURES", "OUTPUTS", "TABLES", "build_run", "reproduce", "row_task", "row_tasks", "run_trial", "table_seed"]
 
 
 def _pattern(params: dict):
@@ -124,95 +124,138 @@ def table_markdown(title: str, rows: list[tuple[str, list[dict]]]) -> str:
     return "\n".join(lines)
 
 
-def _figures(out, seed: np.random.SeedSequence) -> list[str]:
-    """Figs. 1, 2, 6, 7, 8, 11-14 as PNGs; returns their file names."""
+#: the figures of ``reproduce`` (file names, known before any work so the output folder is
+#: checked for them first)
+FIGURES = (
+    "fig01_radial.png",
+    "fig02_density.png",
+    "fig06_radial_obstacle.png",
+    "fig07_spiral_simple.png",
+    "fig08_spiral_improved.png",
+    "fig11_spiral.png",
+    "fig12_spiral_timeline.png",
+    "fig13_spiral_can.png",
+    "fig14_spiral_can_timeline.png",
+)
+#: every file ``reproduce`` writes; summary.md last (the set is complete when it is there)
+OUTPUTS = (*FIGURES, "results.json", "summary.md")
+STORE_NAME = "sweep.jsonl"
+
+
+def cut(params: dict, max_steps: int | None) -> dict:
+    """``params`` with its pattern cut at ``max_steps`` search steps (None: as they are)."""
+    if max_steps is None:
+        return params
+    return {**params, "max_steps": min(max_steps, params.get("max_steps") or max_steps)}
+
+
+def _figures(seed: np.random.SeedSequence, max_steps: int | None = None) -> dict[str, bytes]:
+    """Figs. 1, 2, 6, 7, 8, 11-14 as PNG bytes (nothing is written here), in :data:`FIGURES`'
+    order; the runs' patterns cut at ``max_steps``."""
     from controllers.search.patterns import planned_points
-    from controllers.search.plots import plot_density, plot_path, plot_pattern, plot_timeline, save_figure
+    from controllers.search.plots import plot_density, plot_path, plot_pattern, plot_timeline
+    from stcvision.fileio import figure_png
 
-    names = []
-
-    def save(fig, name):
-        save_figure(fig, out / name, overwrite=True)
-        names.append(name)
+    def png(fig):
+        return figure_png(fig, bbox_inches="tight")
 
     fig1 = planned_points(RadialPattern(petals=12, steps_per_petal=30, step_m=12.0))
-    save(plot_pattern(fig1, "Fig. 1: radial search, 12 petals, 30 steps per petal, step 12 units"), "fig01_radial.png")
-    save(plot_density(fig1, "Fig. 2: sampling points by distance from the centre (12 x 30)"), "fig02_density.png")
     s1, s2, s3, s4, s5 = seed.spawn(5)
     ideal = {"odometry_noise": False}
-    r6 = build_run({**_RADIAL, **ideal, "policy": "simple", "obstacles": [list(FIG6_OBSTACLE)]}, s1)
-    save(
-        plot_path(r6, "Fig. 6: radial search avoiding an obstacle (simple policy, exact wheels)"),
-        "fig06_radial_obstacle.png",
+    r6 = build_run(cut({**_RADIAL, **ideal, "policy": "simple", "obstacles": [list(FIG6_OBSTACLE)]}, max_steps), s1)
+    r7 = build_run(cut({**_SPIRAL, **ideal, "policy": "simple", "obstacles": [list(FIG7_OBSTACLE)]}, max_steps), s2)
+    r8 = build_run(cut({**_SPIRAL, **ideal, "policy": "improved", "obstacles": [list(FIG7_OBSTACLE)]}, max_steps), s3)
+    r11 = build_run(cut({**_SPIRAL, "policy": "simple"}, max_steps), s4)
+    r13 = build_run(cut({**_SPIRAL, "policy": "simple", "obstacles": [list(FIG13_CAN)]}, max_steps), s5)
+    pngs = (
+        png(plot_pattern(fig1, "Fig. 1: radial search, 12 petals, 30 steps per petal, step 12 units")),
+        png(plot_density(fig1, "Fig. 2: sampling points by distance from the centre (12 x 30)")),
+        png(plot_path(r6, "Fig. 6: radial search avoiding an obstacle (simple policy, exact wheels)")),
+        png(plot_path(r7, "Fig. 7: spiral, simple policy: the shadow (red) left of the obstacle")),
+        png(plot_path(r8, "Fig. 8: spiral, improved policy")),
+        png(plot_path(r11, "Fig. 11: TASTI 2's spiral toward the 350 mm patch (odometry noise on)")),
+        png(plot_timeline(r11, "Fig. 12: tongue reading and phase (phase 1 only)", 0.5)),
+        png(plot_path(r13, "Fig. 13: the spiral avoids the can")),
+        png(plot_timeline(r13, "Fig. 14: tongue reading and phase during the detour", 0.5)),
     )
-    r7 = build_run({**_SPIRAL, **ideal, "policy": "simple", "obstacles": [list(FIG7_OBSTACLE)]}, s2)
-    save(
-        plot_path(r7, "Fig. 7: spiral, simple policy: the shadow (red) left of the obstacle"), "fig07_spiral_simple.png"
-    )
-    r8 = build_run({**_SPIRAL, **ideal, "policy": "improved", "obstacles": [list(FIG7_OBSTACLE)]}, s3)
-    save(plot_path(r8, "Fig. 8: spiral, improved policy"), "fig08_spiral_improved.png")
-    r11 = build_run({**_SPIRAL, "policy": "simple"}, s4)
-    save(plot_path(r11, "Fig. 11: TASTI 2's spiral toward the 350 mm patch (odometry noise on)"), "fig11_spiral.png")
-    save(plot_timeline(r11, "Fig. 12: tongue reading and phase (phase 1 only)", 0.5), "fig12_spiral_timeline.png")
-    r13 = build_run({**_SPIRAL, "policy": "simple", "obstacles": [list(FIG13_CAN)]}, s5)
-    save(plot_path(r13, "Fig. 13: the spiral avoids the can"), "fig13_spiral_can.png")
-    save(
-        plot_timeline(r13, "Fig. 14: tongue reading and phase during the detour", 0.5), "fig14_spiral_can_timeline.png"
-    )
-    return names
+    return dict(zip(FIGURES, pngs, strict=True))
+
+
+def table_seed(root_seed: int, index: int) -> np.random.SeedSequence:
+    """Seed ``index`` of the tables' runs: the same in every row (the rows' runs are paired) and
+    independent of how many seeds a reproduction asks for (more seeds reuse the runs done)."""
+    return np.random.SeedSequence(root_seed, spawn_key=(1, index))
 
 
 def row_task(params: dict, seed: np.random.SeedSequence) -> dict:
-    """One row of a table, the sweep runner's unit of work: ``params["run"]`` over ``n_seeds``
-    seeds. The seeds come from ``root_seed`` (part of the task's key), the same for every row, so
-    the rows' runs are paired; ``seed`` (the runner's) is not needed."""
-    return {"runs": [run_trial(params["run"], s) for s in _table_seeds(params["root_seed"], params["n_seeds"])]}
+    """One run of one row of a table, the sweep runner's unit of work: ``params["run"]`` on seed
+    ``params["seed_index"]`` of ``params["root_seed"]`` (:func:`table_seed`; the runner's
+    ``seed`` is not needed). ``params["row"]`` ("table/label") is what makes two rows with the
+    same parameters (e.g. the same case in two tables) two tasks."""
+    return run_trial(params["run"], table_seed(params["root_seed"], params["seed_index"]))
 
 
-def _table_seeds(root_seed: int, n_seeds: int) -> list[np.random.SeedSequence]:
-    return np.random.SeedSequence(root_seed).spawn(2)[1].spawn(n_seeds)
+def row_tasks(n_seeds: int, root_seed: int, max_steps: int | None = None) -> dict:
+    """``{(table, label, seed_index): Task}`` of every row of :data:`TABLES` (patterns cut at
+    ``max_steps``); a duplicate row id is refused here, before anything is written."""
+    from stcvision.errors import BadInputError
+    from stcvision.sweep import Task
+
+    tasks = {}
+    for t, _, rows in TABLES:
+        for label, params in rows:
+            _pattern(cut(params, max_steps))  # a bad --max-steps fails here, in one line
+            for k in range(n_seeds):
+                if (t, label, k) in tasks:
+                    raise BadInputError(f"table {t} lists the row {label!r} twice")
+                tasks[(t, label, k)] = Task(
+                    experiment="controllers.search.experiments:row_task",
+                    params={"row": f"{t}/{label}", "run": cut(params, max_steps), "seed_index": k, "root_seed": root_seed},
+                    seed=root_seed,
+                )
+    return tasks
 
 
-def reproduce(out, *, n_seeds: int = 8, root_seed: int = 2024, sweep=None) -> dict:
-    """Write the figures, the tables over ``n_seeds`` seeds per row and summary.md into ``out``;
-    the rows run as tasks of the sweep runner (``sweep``: its options; resumable through
-    ``out/sweep.jsonl``)."""
-    from pathlib import Path
+def reproduce(
+    out, *, n_seeds: int = 8, root_seed: int = 2024, sweep=None, force: bool = False, max_steps: int | None = None
+) -> dict:
+    """Write the figures, the tables over ``n_seeds`` seeds per row and summary.md into ``out``
+    (``max_steps``: every run's pattern cut at that many search steps, a quick look; the paper's
+    statements need the whole patterns).
 
-    from stcvision.fileio import write_bytes_atomic, write_json
-    from stcvision.sweep import SweepOptions, Task, run_sweep
+    Everything is checked before the first file: the rows (:func:`row_tasks`) and the folder (new,
+    holding none of :data:`OUTPUTS`, holding an earlier reproduction's store, or ``force``). The
+    runs go through the sweep runner, one task per row and seed, into ``out/sweep.jsonl``: an
+    interrupted reproduction leaves only that store and the next one resumes from it. The
+    figures and tables are made in memory and written last, as one set (summary.md last)."""
+    from stcvision.fileio import dumps, write_set
+    from stcvision.sweep import SweepOptions, output_folder, run_sweep
 
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
-    ss_fig = np.random.SeedSequence(root_seed).spawn(2)[0]
-    figures = _figures(out, ss_fig)
-    jobs = [(t, label, params) for t, _, rows in TABLES for label, params in rows]
-    tasks = {
-        (t, label): Task(
-            experiment="controllers.search.experiments:row_task",
-            params={"run": params, "n_seeds": n_seeds, "root_seed": root_seed},
-            seed=root_seed,
-        )
-        for t, label, params in jobs
+    tasks = row_tasks(n_seeds, root_seed, max_steps)
+    out = output_folder(out, OUTPUTS, store=STORE_NAME, force=force, what="search reproduction")
+    report = run_sweep(list(tasks.values()), out / STORE_NAME, sweep or SweepOptions(), desc="search reproduce")
+    report.raise_if_failed("table runs")
+    results = {
+        (t, label): [report.results[tasks[(t, label, k)].key] for k in range(n_seeds)]
+        for t, _, rows in TABLES
+        for label, _ in rows
     }
-    report = run_sweep(list(tasks.values()), out / "sweep.jsonl", sweep or SweepOptions(), desc="search reproduce")
-    report.raise_if_failed("table rows")
-    results = {k: report.results[task.key]["runs"] for k, task in tasks.items()}
     tables = {
         t: table_markdown(title, [(label, results[(t, label)]) for label, _ in rows]) for t, title, rows in TABLES
     }
-    md = _summary_markdown(tables, results, figures, n_seeds)
-    write_bytes_atomic(out / "summary.md", md.encode(), overwrite=True)
-    write_json(
-        out / "results.json",
-        {f"{t}/{label}": results[(t, label)] for t, label, _ in jobs},
-        overwrite=True,
-    )
-    return {"out": str(out), "figures": figures, "summary": str(out / "summary.md"), "tables": tables,
-            "sweep": report.summary()}  # fmt: skip
+    figures = _figures(np.random.SeedSequence(root_seed).spawn(2)[0], max_steps)
+    md = _summary_markdown(tables, results, list(figures), n_seeds, max_steps)
+    files = {
+        **figures,
+        "results.json": dumps({f"{t}/{label}": runs for (t, label), runs in results.items()}).encode(),
+        "summary.md": md.encode(),
+    }
+    write_set(out, files, overwrite=True)
+    return {"out": str(out), "figures": list(figures), "summary": str(out / "summary.md"), "tables": tables,
+            "sweep": report.summary(), "resumed": report.skipped}  # fmt: skip
 
 
-def _summary_markdown(tables: dict, results: dict, figures: list[str], n_seeds: int) -> str:
+def _summary_markdown(tables: dict, results: dict, figures: list[str], n_seeds: int, max_steps=None) -> str:
     def mean(key, t, label):
         v = [r[key] for r in results[(t, label)] if r[key] is not None]
         return statistics.mean(v) if v else float("nan")
@@ -245,6 +288,11 @@ def _summary_markdown(tables: dict, results: dict, figures: list[str], n_seeds: 
         "patch is first sampled on step 21, as in the paper). Means over "
         f"{n_seeds} seeds (the same seeds in every row).",
         "",
+        *(
+            [f"**Cut short**: every pattern stopped after {max_steps} search steps (`--max-steps`); the paper's "
+             "statements hold for the whole patterns only.", ""]
+            if max_steps is not None else []
+        ),  # fmt: skip
         "| statement | paper | here (mean) |",
         "|---|---|---|",
         *[f"| {a} | {b} | {c} |" for a, b, c in rows],

@@ -20,6 +20,7 @@ def add_parser(p):
     import re
 
     from stcvision.cli._args import pair, positive
+    from stcvision.limits import MAX_SEARCH_SEEDS
 
     # "--patch -0.5,0.3,0.175": argparse takes a value starting with "-<digit>" for an option
     # unless it looks like a number; coordinates lists should read as values
@@ -38,7 +39,10 @@ def add_parser(p):
     p.add_argument("--step-m", type=float, default=0.141, help="step length between sampling points (default 0.141 m)")
     p.add_argument("--spacing-m", type=float, default=None, help="spiral: distance between turns (default 0.25 m)")
     p.add_argument(
-        "--max-steps", type=int, default=None, help="cap on search steps (spiral default 150; radial: one flower)"
+        "--max-steps",
+        type=int,
+        default=None,
+        help="cap on search steps (spiral default 150; radial: one flower); reproduce: every run cut short",
     )
     p.add_argument("--policy", choices=("none", "simple", "improved"), default="improved", help="obstacle policy")
     p.add_argument(
@@ -70,7 +74,12 @@ def add_parser(p):
     p.add_argument("--rrd", metavar="OUT.rrd", help="rerun recording of the run")
     p.add_argument("--plot", metavar="OUT.png", help="plot of the paths, sampling points and shadow")
     p.add_argument("--out", metavar="DIR", help="reproduce: output folder")
-    p.add_argument("--seeds", type=int, default=8, help="reproduce: seeds per row of the tables (default 8; 10-20 min)")
+    p.add_argument(
+        "--seeds",
+        type=positive(int, maximum=MAX_SEARCH_SEEDS, why="stcvision.limits.MAX_SEARCH_SEEDS"),
+        default=8,
+        help="reproduce: seeds per row of the tables (default 8)",
+    )
     p.add_argument("--force", action="store_true", help="overwrite --rrd, --plot or files in --out")
     from stcvision.sweep import add_sweep_arguments
 
@@ -110,9 +119,10 @@ def run(args):
 
     from controllers.search.controller import Policy, SearchConfig
     from controllers.search.metrics import summarise
-    from controllers.search.run import SearchScene, run_search
+    from controllers.search.run import SearchScene, check_reach, run_search
 
     pattern = _pattern(args)
+    check_reach(pattern)
     scene = SearchScene(obstacles=tuple(args.obstacle), patch=args.patch)
     cfg = SearchConfig(pattern=pattern, policy=Policy(args.policy), threshold=args.threshold)
     _check_plot(args.plot, args.force)
@@ -174,29 +184,26 @@ def run(args):
 
 
 def _reproduce(args):
+    import sys
     from pathlib import Path
 
-    from controllers.search.experiments import reproduce
+    from controllers.search.experiments import STORE_NAME, reproduce
     from stcvision.errors import BadInputError
+    from stcvision.sweep import sweep_options_from_args
 
     if not args.out:
         raise BadInputError("search reproduce needs --out DIR")
-    if args.seeds < 1:
-        raise BadInputError(f"--seeds must be >= 1, got {args.seeds}")
-    from stcvision.sweep import sweep_options_from_args
-
-    out = Path(args.out)
-    ours = (out / "sweep.jsonl").exists()  # an earlier (maybe interrupted) reproduction: resume it
-    if out.exists() and any(out.iterdir()) and not ours and not args.force:
-        from stcvision.errors import FileExistsRefusedError
-
-        raise FileExistsRefusedError(f"{out} is not empty; refusing to overwrite it (use --force)")
-    return reproduce(out, n_seeds=args.seeds, sweep=sweep_options_from_args(args))
+    opts = sweep_options_from_args(args)
+    store = Path(args.out) / STORE_NAME
+    if store.is_file() and not opts.fresh:
+        print(f"stcvision search reproduce: resuming the runs kept in {store} (--fresh starts over)", file=sys.stderr)
+    return reproduce(args.out, n_seeds=args.seeds, sweep=opts, force=args.force, max_steps=args.max_steps)
 
 
 def format_text(r):
     if "figures" in r:
-        return f"wrote {len(r['figures'])} figures and {r['summary']}"
+        reused = f" ({r['resumed']} runs reused from the earlier run's store)" if r.get("resumed") else ""
+        return f"wrote {len(r['figures'])} figures and {r['summary']}{reused}"
     keys = (
         "pattern",
         "policy",
