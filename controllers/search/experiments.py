@@ -210,7 +210,12 @@ def row_tasks(n_seeds: int, root_seed: int, max_steps: int | None = None) -> dic
                     raise BadInputError(f"table {t} lists the row {label!r} twice")
                 tasks[(t, label, k)] = Task(
                     experiment="controllers.search.experiments:row_task",
-                    params={"row": f"{t}/{label}", "run": cut(params, max_steps), "seed_index": k, "root_seed": root_seed},
+                    params={
+                        "row": f"{t}/{label}",
+                        "run": cut(params, max_steps),
+                        "seed_index": k,
+                        "root_seed": root_seed,
+                    },
                     seed=root_seed,
                 )
     return tasks
@@ -289,9 +294,13 @@ def _summary_markdown(tables: dict, results: dict, figures: list[str], n_seeds: 
         f"{n_seeds} seeds (the same seeds in every row).",
         "",
         *(
-            [f"**Cut short**: every pattern stopped after {max_steps} search steps (`--max-steps`); the paper's "
-             "statements hold for the whole patterns only.", ""]
-            if max_steps is not None else []
+            [
+                f"**Cut short**: every pattern stopped after {max_steps} search steps (`--max-steps`); the paper's "
+                "statements hold for the whole patterns only.",
+                "",
+            ]
+            if max_steps is not None
+            else []
         ),  # fmt: skip
         "| statement | paper | here (mean) |",
         "|---|---|---|",
