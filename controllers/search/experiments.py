@@ -18,8 +18,25 @@ from controllers.search.metrics import summarise
 from controllers.search.patterns import RadialPattern, SpiralPattern
 from controllers.search.run import SearchScene, run_search
 from controllers.search.scenarios import FIG6_OBSTACLE, FIG7_OBSTACLE, FIG13_CAN, PAPER_PATCH
+from sim_camera.sensors import CapacitiveRingParams
 
-__all__ = ["FIGURES", "OUTPUTS", "TABLES", "build_run", "reproduce", "row_task", "row_tasks", "run_trial", "table_seed"]
+__all__ = [
+    "DETOUR_PATTERNS",
+    "DETOUR_PLACES",
+    "DETOUR_SIZES_M",
+    "FIGURES",
+    "OUTPUTS",
+    "TABLES",
+    "build_run",
+    "detour_obstacle",
+    "detour_tasks",
+    "detours",
+    "reproduce",
+    "row_task",
+    "row_tasks",
+    "run_trial",
+    "table_seed",
+]
 
 
 def _pattern(params: dict):
@@ -319,3 +336,140 @@ def _summary_markdown(tables: dict, results: dict, figures: list[str], n_seeds: 
         "the same against the true sensing positions, drift included (README, the TASTI 2 search robot).",
     ]
     return "\n".join(lines) + "\n"
+
+
+# ------------------------------------------------------------------------------------ detours
+#: obstacle radii of the detour check (m): from the ring's reference can to 0.5 m, larger than
+#: the robot (0.153 m) and wider than three turns of the default spiral
+DETOUR_SIZES_M = (CapacitiveRingParams().reference_can_radius_m, 0.1, 0.2, 0.3, 0.4, 0.5)
+#: where the obstacle stands: on the planned path at these fractions of the pattern's steps (moved
+#: on along the path until it clears the start by 5 cm)
+DETOUR_PLACES = (0.25, 0.5, 0.75)
+#: the two patterns, cut so that one run takes seconds: three petals of the flower, 90 spiral steps
+DETOUR_PATTERNS = (
+    ("radial", {"pattern": "radial", "petals": 12, "steps_per_petal": 32, "max_steps": 96}),
+    ("spiral", {"pattern": "spiral", "max_steps": 90}),
+)
+DETOUR_OUTPUTS = ("detours.png", "results.json", "summary.md")
+DETOUR_CLEAR_START_M = 0.05
+
+
+def detour_obstacle(params: dict, radius_m: float, place: float) -> list[float]:
+    """The obstacle ``[x, y, r]`` of one cell: centred on the planned point at ``place`` of the
+    pattern's steps, or the first one after it that keeps ``DETOUR_CLEAR_START_M`` off the robot
+    at the start."""
+    from controllers.search.patterns import planned_points
+    from sim_camera.robot import TASTI2
+
+    pts = planned_points(_pattern(params))
+    for k in range(int(place * (len(pts) - 1)), len(pts)):
+        if float(np.hypot(*pts[k])) >= radius_m + TASTI2.radius_m + DETOUR_CLEAR_START_M:
+            return [round(float(pts[k][0]), 4), round(float(pts[k][1]), 4), radius_m]
+    raise ValueError(f"no place on the pattern clears the start for a {radius_m} m obstacle")
+
+
+def detour_tasks(n_seeds: int, root_seed: int) -> dict:
+    """``{(pattern, radius, place, seed_index): Task}`` of the detour check (improved policy,
+    odometry noise on, no patch: a run finishes when its pattern is done)."""
+    from stcvision.sweep import Task
+
+    tasks = {}
+    for name, params in DETOUR_PATTERNS:
+        for r in DETOUR_SIZES_M:
+            for place in DETOUR_PLACES:
+                run = {**params, "policy": "improved", "obstacles": [detour_obstacle(params, r, place)]}
+                for k in range(n_seeds):
+                    tasks[(name, r, place, k)] = Task(
+                        experiment="controllers.search.experiments:row_task",
+                        params={
+                            "row": f"detours/{name}/{r}/{place}",
+                            "run": run,
+                            "seed_index": k,
+                            "root_seed": root_seed,
+                        },
+                        seed=root_seed,
+                    )
+    return tasks
+
+
+def _finished(run: dict) -> bool:
+    return run["stop_reason"] == "pattern done" and run["containment_events"] == 0
+
+
+def _rate(runs: list[dict]) -> tuple[int, int, float, float]:
+    """Finished, runs and the exact (Clopper-Pearson) 95 % interval of the finish rate."""
+    from scipy.stats import binomtest
+
+    k, n = sum(map(_finished, runs)), len(runs)
+    ci = binomtest(k, n).proportion_ci(confidence_level=0.95)
+    return k, n, float(ci.low), float(ci.high)
+
+
+def detours(out, *, n_seeds: int = 4, root_seed: int = 2026, sweep=None, force: bool = False) -> dict:
+    """Detours round one obstacle of every size in :data:`DETOUR_SIZES_M` at every place of
+    :data:`DETOUR_PLACES` on both patterns, ``n_seeds`` runs each (seeds apart from those the
+    controller was developed on): how many finish their pattern, with 95 % intervals; summary.md,
+    detours.png and results.json into ``out`` (checked first, resumable like :func:`reproduce`)."""
+    import collections
+
+    from stcvision.fileio import dumps, figure_png, write_set
+    from stcvision.sweep import SweepOptions, output_folder, run_sweep
+
+    tasks = detour_tasks(n_seeds, root_seed)
+    out = output_folder(out, DETOUR_OUTPUTS, store=STORE_NAME, force=force, what="detour check")
+    report = run_sweep(list(tasks.values()), out / STORE_NAME, sweep or SweepOptions(), desc="search detours")
+    report.raise_if_failed("detour runs")
+    cells = collections.defaultdict(list)
+    for (name, r, place, _), task in tasks.items():
+        cells[(name, r, place)].append(report.results[task.key])
+    lines = [
+        "# TASTI 2 detours round one obstacle of every size",
+        "",
+        f"Improved policy, TASTI 2's odometry noise, no patch; a run *finishes* when its pattern is done "
+        f"(three petals of the 12 x 32 flower, 90 spiral steps) with no contact. {n_seeds} seeds a cell "
+        f"(root seed {root_seed}, none of them used while developing the detour). Intervals: exact "
+        "binomial 95 % (`scipy.stats.binomtest`). Regenerate with `stcvision search detours --out DIR`.",
+        "",
+        "| pattern | obstacle radius m | finished | 95 % interval | places (x, y): finished | other stops |",
+        "|---|---|---|---|---|---|",
+    ]
+    pooled = {}
+    for name, params in DETOUR_PATTERNS:
+        for r in DETOUR_SIZES_M:
+            runs = [x for place in DETOUR_PLACES for x in cells[(name, r, place)]]
+            k, n, lo, hi = pooled[(name, r)] = _rate(runs)
+            per = ", ".join(
+                f"({o[0]:.2f}, {o[1]:.2f}): {sum(map(_finished, cells[(name, r, p)]))}/{len(cells[(name, r, p)])}"
+                for p in DETOUR_PLACES
+                for o in [detour_obstacle(params, r, p)]
+            )
+            stops = collections.Counter(x["stop_reason"] for x in runs if not _finished(x))
+            other = "; ".join(f"{c} x {why}" for why, c in stops.items()) or "-"
+            lines.append(f"| {name} | {r:g} | {k}/{n} | {lo:.2f}-{hi:.2f} | {per} | {other} |")
+    k, n, lo, hi = _rate([x for v in cells.values() for x in v])
+    lines += ["", f"All cells: {k}/{n} finished (95 % interval {lo:.3f}-{hi:.3f}).", "", "![detours](detours.png)"]
+    files = {
+        "detours.png": figure_png(_detour_figure(pooled), bbox_inches="tight"),
+        "results.json": dumps({"/".join(map(str, key)): runs for key, runs in cells.items()}).encode(),
+        "summary.md": ("\n".join(lines) + "\n").encode(),
+    }
+    write_set(out, files, overwrite=True)
+    return {"out": str(out), "summary": str(out / "summary.md"), "finished": k, "runs": n, "ci95": [lo, hi],
+            "sweep": report.summary(), "resumed": report.skipped}  # fmt: skip
+
+
+def _detour_figure(pooled: dict):
+    from controllers.search.plots import _figure
+
+    fig, ax = _figure(figsize=(6, 3.5))
+    for dx, (name, _) in zip((-0.004, 0.004), DETOUR_PATTERNS, strict=True):
+        rs = np.array(DETOUR_SIZES_M)
+        k, n, lo, hi = (np.array(v, float) for v in zip(*(pooled[(name, r)] for r in DETOUR_SIZES_M), strict=True))
+        p = k / n
+        ax.errorbar(rs + dx, p, yerr=[p - lo, hi - p], fmt="o-", capsize=3, label=name)
+    ax.set_xlabel("obstacle radius (m)")
+    ax.set_ylabel("runs that finish their pattern")
+    ax.set_ylim(-0.05, 1.05)
+    ax.legend(fontsize=8)
+    ax.set_title("Detours round one obstacle (improved policy, 95 % intervals)", fontsize=9)
+    return fig

@@ -4,6 +4,9 @@ moves (--policy simple, improved, or none), navigating by dead reckoning; --beac
 two-light red beacon at the start and corrects the odometry from the catadioptric camera
 whenever the beacon is in view. Coordinates are metres relative to the start, heading 0 = +x.
 
+`stcvision search detours --out DIR` counts how many runs finish round one obstacle of every size
+(six radii, three places on each pattern, binomial intervals).
+
 `stcvision search reproduce --out DIR` regenerates the paper's figures (1, 2, 6, 7, 8, 11-14),
 a summary.md comparing with the paper's statements and the tables of shadow area and odometry
 error over many seeds per policy, with and without the beacon.
@@ -29,9 +32,10 @@ def add_parser(p):
     p.add_argument(
         "action",
         nargs="?",
-        choices=("run", "reproduce"),
+        choices=("run", "reproduce", "detours"),
         default="run",
-        help="run (default): one search; reproduce: the paper's figures and tables into --out",
+        help="run (default): one search; reproduce: the paper's figures and tables into --out; detours: how "
+        "many runs finish round one obstacle of every size, at three places on both patterns, into --out",
     )
     p.add_argument("--pattern", choices=("radial", "spiral"), default="radial", help="search pattern (default radial)")
     p.add_argument("--petals", type=int, default=12, help="radial: petals (default 12)")
@@ -77,8 +81,8 @@ def add_parser(p):
     p.add_argument(
         "--seeds",
         type=positive(int, maximum=MAX_SEARCH_SEEDS, why="stcvision.limits.MAX_SEARCH_SEEDS"),
-        default=8,
-        help="reproduce: seeds per row of the tables (default 8)",
+        default=None,
+        help="reproduce: seeds per row of the tables (default 8); detours: seeds per cell (default 4)",
     )
     p.add_argument("--force", action="store_true", help="overwrite --rrd, --plot or files in --out")
     from stcvision.sweep import add_sweep_arguments
@@ -112,7 +116,7 @@ def _check_plot(path, force):
 
 
 def run(args):
-    if args.action == "reproduce":
+    if args.action in ("reproduce", "detours"):
         return _reproduce(args)
     import numpy as np
     from tqdm import tqdm
@@ -187,20 +191,27 @@ def _reproduce(args):
     import sys
     from pathlib import Path
 
-    from controllers.search.experiments import STORE_NAME, reproduce
+    from controllers.search.experiments import STORE_NAME, detours, reproduce
     from stcvision.errors import BadInputError
     from stcvision.sweep import sweep_options_from_args
 
     if not args.out:
-        raise BadInputError("search reproduce needs --out DIR")
+        raise BadInputError(f"search {args.action} needs --out DIR")
     opts = sweep_options_from_args(args)
     store = Path(args.out) / STORE_NAME
     if store.is_file() and not opts.fresh:
-        print(f"stcvision search reproduce: resuming the runs kept in {store} (--fresh starts over)", file=sys.stderr)
-    return reproduce(args.out, n_seeds=args.seeds, sweep=opts, force=args.force, max_steps=args.max_steps)
+        print(
+            f"stcvision search {args.action}: resuming the runs kept in {store} (--fresh starts over)", file=sys.stderr
+        )
+    if args.action == "detours":
+        return detours(args.out, n_seeds=args.seeds or 4, sweep=opts, force=args.force)
+    return reproduce(args.out, n_seeds=args.seeds or 8, sweep=opts, force=args.force, max_steps=args.max_steps)
 
 
 def format_text(r):
+    if "finished" in r:
+        lo, hi = r["ci95"]
+        return f"{r['finished']}/{r['runs']} detours finished (95 % interval {lo:.3f}-{hi:.3f}); wrote {r['summary']}"
     if "figures" in r:
         reused = f" ({r['resumed']} runs reused from the earlier run's store)" if r.get("resumed") else ""
         return f"wrote {len(r['figures'])} figures and {r['summary']}{reused}"

@@ -154,3 +154,22 @@ def test_reproduce_end_to_end_resumes_and_refuses_without_writing(tmp_path, caps
     cap = capsys.readouterr()
     assert json.loads(cap.out)["resumed"] == n_rows and "resuming the runs kept in" in cap.err
     assert sorted(p.name for p in fresh.iterdir()) == sorted([*ex.OUTPUTS, ex.STORE_NAME])
+
+
+def test_detours_writes_its_table_with_intervals_and_resumes(tmp_path, capsys, monkeypatch):
+    """`search detours` on one size at one place (both patterns, 2 seeds): the table with the
+    finish counts and their binomial intervals, the figure, the runs; a re-run reuses them."""
+    import controllers.search.experiments as ex
+
+    monkeypatch.setattr(ex, "DETOUR_SIZES_M", (0.2,))
+    monkeypatch.setattr(ex, "DETOUR_PLACES", (0.25,))
+    monkeypatch.setattr(ex, "DETOUR_PATTERNS", tuple((n, {**p, "max_steps": 40}) for n, p in ex.DETOUR_PATTERNS))
+    out = tmp_path / "D"
+    argv = ["search", "detours", "--out", str(out), "--seeds", "2", "--workers", "1"]
+    r = _json(capsys, argv)
+    assert sorted(p.name for p in out.iterdir()) == sorted([*ex.DETOUR_OUTPUTS, ex.STORE_NAME])
+    assert r["runs"] == 4 and 0 <= r["finished"] <= 4 and r["ci95"][0] <= r["finished"] / 4 <= r["ci95"][1]
+    md = (out / "summary.md").read_text()
+    assert "| radial | 0.2 |" in md and "| spiral | 0.2 |" in md and "95 % interval" in md
+    assert (out / "detours.png").read_bytes()[:4] == b"\x89PNG"
+    assert _json(capsys, argv)["resumed"] == 4
