@@ -351,6 +351,8 @@ DETOUR_PATTERNS = (
     ("spiral", {"pattern": "spiral", "max_steps": 90}),
 )
 DETOUR_OUTPUTS = ("detours.png", "results.json", "summary.md")
+#: the detour check's own store, so that it and a reproduction never take each other's folder
+DETOUR_STORE_NAME = "detours.jsonl"
 DETOUR_CLEAR_START_M = 0.05
 
 
@@ -416,8 +418,8 @@ def detours(out, *, n_seeds: int = 4, root_seed: int = 2026, sweep=None, force: 
     from stcvision.sweep import SweepOptions, output_folder, run_sweep
 
     tasks = detour_tasks(n_seeds, root_seed)
-    out = output_folder(out, DETOUR_OUTPUTS, store=STORE_NAME, force=force, what="detour check")
-    report = run_sweep(list(tasks.values()), out / STORE_NAME, sweep or SweepOptions(), desc="search detours")
+    out = output_folder(out, DETOUR_OUTPUTS, store=DETOUR_STORE_NAME, force=force, what="detour check")
+    report = run_sweep(list(tasks.values()), out / DETOUR_STORE_NAME, sweep or SweepOptions(), desc="search detours")
     report.raise_if_failed("detour runs")
     cells = collections.defaultdict(list)
     for (name, r, place, _), task in tasks.items():

@@ -191,14 +191,14 @@ def _reproduce(args):
     import sys
     from pathlib import Path
 
-    from controllers.search.experiments import STORE_NAME, detours, reproduce
+    from controllers.search.experiments import DETOUR_STORE_NAME, STORE_NAME, detours, reproduce
     from stcvision.errors import BadInputError
     from stcvision.sweep import sweep_options_from_args
 
     if not args.out:
         raise BadInputError(f"search {args.action} needs --out DIR")
     opts = sweep_options_from_args(args)
-    store = Path(args.out) / STORE_NAME
+    store = Path(args.out) / (DETOUR_STORE_NAME if args.action == "detours" else STORE_NAME)
     if store.is_file() and not opts.fresh:
         print(
             f"stcvision search {args.action}: resuming the runs kept in {store} (--fresh starts over)", file=sys.stderr

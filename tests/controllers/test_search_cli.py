@@ -167,9 +167,12 @@ def test_detours_writes_its_table_with_intervals_and_resumes(tmp_path, capsys, m
     out = tmp_path / "D"
     argv = ["search", "detours", "--out", str(out), "--seeds", "2", "--workers", "1"]
     r = _json(capsys, argv)
-    assert sorted(p.name for p in out.iterdir()) == sorted([*ex.DETOUR_OUTPUTS, ex.STORE_NAME])
+    assert sorted(p.name for p in out.iterdir()) == sorted([*ex.DETOUR_OUTPUTS, ex.DETOUR_STORE_NAME])
     assert r["runs"] == 4 and 0 <= r["finished"] <= 4 and r["ci95"][0] <= r["finished"] / 4 <= r["ci95"][1]
     md = (out / "summary.md").read_text()
     assert "| radial | 0.2 |" in md and "| spiral | 0.2 |" in md and "95 % interval" in md
     assert (out / "detours.png").read_bytes()[:4] == b"\x89PNG"
     assert _json(capsys, argv)["resumed"] == 4
+    # a reproduction into the detour check's folder is refused (its summary.md is not a reproduction's)
+    assert _exit(["search", "reproduce", "--out", str(out), "--seeds", "1", "--max-steps", "10"]) == 2
+    assert "holds no search reproduction" in capsys.readouterr().err
