@@ -45,3 +45,7 @@ MAX_SEARCH_OBSTACLES = 100
 #: seeds per row of ``stcvision search reproduce`` (15 rows: 1,000 seeds is ~15,000 runs, a
 #: day on one core)
 MAX_SEARCH_SEEDS = 1_000
+#: the narrowest spiral spacing (m): the chords are found by growing a bracket along the spiral,
+#: which at spacings far below the step runs for ever in floating point; 1 cm is 1/14 of
+#: TASTI 2's 141 mm step
+MIN_SEARCH_SPIRAL_SPACING_M = 0.01

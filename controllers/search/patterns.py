@@ -139,6 +139,13 @@ class SpiralPattern:
         spacing = (
             DEFAULT_SPIRAL_SPACING_M if self.spacing_m is None else _positive("spiral spacing (m)", self.spacing_m)
         )
+        from stcvision.limits import MIN_SEARCH_SPIRAL_SPACING_M
+
+        if spacing < MIN_SEARCH_SPIRAL_SPACING_M:
+            raise BadInputError(
+                f"spiral spacing {spacing:g} m is under the minimum of {MIN_SEARCH_SPIRAL_SPACING_M:g} m "
+                "(stcvision.limits.MIN_SEARCH_SPIRAL_SPACING_M)"
+            )
         n = _positive_int("max steps", self.max_steps)
         _check_steps(n, "max steps")
         b = spacing / (2.0 * math.pi)

@@ -57,6 +57,16 @@ def test_search_prints_the_issue_keys_and_finds_a_reachable_patch(capsys):
         (["--obstacle", "1,2"], "3 comma-separated"),
         (["--obstacle", "nan,1,0.1"], "finite"),
         (["reproduce"], "--out"),
+        (["detours"], "--out"),
+        (["--petals", "100000000"], "MAX_SEARCH_STEPS"),
+        (["--pattern", "spiral", "--max-steps", "100000000"], "MAX_SEARCH_STEPS"),
+        (["--step-m", "1e6"], "MAX_SEARCH_REACH_M"),
+        (["--obstacle", "1e7,0,0.1"], "MAX_SEARCH_REACH_M"),
+        (["--patch", "1e7,0,0.1"], "MAX_SEARCH_REACH_M"),
+        (["--obstacle", *[f"{3 + i / 100},3,0.001" for i in range(101)]], "MAX_SEARCH_OBSTACLES"),
+        (["--pattern", "spiral", "--spacing-m", "1e-300"], "MIN_SEARCH_SPIRAL_SPACING_M"),
+        (["reproduce", "--out", "x", "--seeds", "100000"], "MAX_SEARCH_SEEDS"),
+        (["reproduce", "--out", "x", "--seeds", "0"], "must be > 0"),
     ],
 )
 def test_bad_input_is_one_line_and_exit_2(capsys, argv, message):
