@@ -58,3 +58,21 @@ def check_count(flag: str, n: int, cap: int, what: str) -> None:
 
     if n > cap:
         raise BadInputError(f"{flag}: {n:,} {what} is over the cap of {cap:,}")
+
+
+# ----------------------------------------------------------------------------- the TASTI 2 search
+#: search-path steps of one ``stcvision search`` pattern (radial: petals x steps per petal, or
+#: --max-steps): a 12 x 32 flower (384 steps) runs in ~4 s, so 10,000 steps is ~2 minutes
+MAX_SEARCH_STEPS = 10_000
+#: how far from the start the pattern, an obstacle or the patch may lie (metres): the shadow
+#: area is rasterised at 5 mm over the run's bounding box, 4,000 x 4,000 cells at 10 m
+MAX_SEARCH_REACH_M = 10.0
+#: round obstacles of one search (each is a body in the physics world and a pass over the raster)
+MAX_SEARCH_OBSTACLES = 100
+#: seeds per row of ``stcvision search reproduce`` (15 rows: 1,000 seeds is ~15,000 runs, a
+#: day on one core)
+MAX_SEARCH_SEEDS = 1_000
+#: the narrowest spiral spacing (m): the chords are found by growing a bracket along the spiral,
+#: which at spacings far below the step runs for ever in floating point; 1 cm is 1/14 of
+#: TASTI 2's 141 mm step
+MIN_SEARCH_SPIRAL_SPACING_M = 0.01

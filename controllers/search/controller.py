@@ -17,10 +17,7 @@ Phases (the four circled phases of Fig. 5; Fig. 12 and 14 plot them over time):
    back one avoid move.
 
 Detour (sec. III, equations (6)-(8)): on the first blocked search step the avoid heading ``a1``
-is chosen 90 degrees right of the search heading. (Our addition: if that very first avoid move is
-blocked too -- the obstacle stands to the front right, and the ring, one signal over the front
-half, cannot tell -- ``a1`` turns to 90 degrees *left* and the robot goes round the other way,
-clockwise; the rest of the machine is the same.) Each avoid move adds ``+1`` to its counter,
+is chosen 90 degrees right of the search heading. Each avoid move adds ``+1`` to its counter,
 each unavoid ``-1``; the search steps go on "where possible" in between. The order of tries (so
 that the robot works its way round the obstacle anticlockwise, keeping it on its left):
 
@@ -30,15 +27,35 @@ last move                   next try
 search step done            unavoid (pay back)
 search step blocked         avoid
 avoid done                  search step
-avoid blocked               unavoid if anything is owed, else avoid to the left (once), else stop
+avoid along a2 blocked      avoid along a1 (improved)
+avoid blocked               unavoid if anything is owed, else go round the other way (below)
 unavoid done                unavoid again, or the detour is over when every counter is 0
 unavoid blocked             the other heading's unavoid if owed (improved), else search step
 ==========================  ==========================================
 
 The detour ends when the avoid moves sum to zero (equation (8)): the robot is back on the search
-path, beyond the obstacle, and the pattern goes on. A detour that does not rejoin the path within
-``max_detour_moves`` moves without a search step, or four blocked moves in a row (every
-direction tried from one point), stops the robot with that reason.
+path, beyond the obstacle, and the pattern goes on.
+
+**Going round the other way** (our addition). The ring is one signal over the front half: it
+says an obstacle is ahead, not on which side. When the obstacle stands to the front *right*, the
+paper's avoid moves (to the right) run across its face instead of away from it: the first avoid
+move is blocked, or a few avoid and unavoid moves bring the robot back to the very search step
+it was blocked at without one search step taken (the counters at zero, so by equation (8) the
+detour "ends" where it began, and the next collision would start the same detour again, for
+ever; a 0.3 m obstacle beside the radial flower's petal does this). Either way the side is
+booked as failed at that step, and the next detour from it chooses ``a1`` 90 degrees *left*
+and goes round clockwise, the obstacle on its right; the rest of the machine is the same. When
+both sides came back to the same step the robot stops, trapped, saying so.
+
+**Avoid along a2 blocked** (our addition, improved policy): the obstacle is ahead and along
+``a2`` too; the remaining way clear of it is along ``a1`` (the next heading round, 90 degrees on
+from ``a2``), so that avoid move is tried before paying back. Without it the robot at the far
+side of a large obstacle, where the path turns back across it, tried the search step, ``a2`` and
+the unavoid, all three toward the obstacle, and stopped "trapped" with a free way behind it.
+
+A detour that does not rejoin the path within ``max_detour_moves`` moves without a search step,
+or five blocked moves in a row (the search step and both headings' avoid and unavoid moves,
+every direction tried from one point), stops the robot with that reason.
 
 Policies: ``none`` stops at the first blocked step (the baseline); ``simple`` is the above with
 one avoid heading; ``improved`` (sec. "B. Improved Obstacle Avoidance") adds a second avoid heading
@@ -152,6 +169,10 @@ class SearchState:
     pending: Move | None = None  # the move whose result the next observation reports
     detour_moves: int = 0  # moves since the last search step (loop guard)
     blocked_run: int = 0  # consecutive blocked moves
+    tried: int = 0  # the moves blocked from this point (bits of :func:`_bit`), cleared by a move done
+    origin_i: int = -1  # the search step the current (or last) detour began at
+    failed_i: int = -1  # the search step at which the detours in ``failed_sides`` came to nothing
+    failed_sides: int = 0  # bit 1: round to the right (side -1) failed at ``failed_i``; bit 2: to the left
     reason: str = ""
 
     @property
@@ -186,16 +207,36 @@ def _avoid_heading(s: SearchState) -> tuple[SearchState, int]:
     return s, 1
 
 
-def _unavoid(s: SearchState, after: int = 3) -> Move | None:
-    """The next unavoid move: heading 2 before heading 1 (most recent first), only those owed,
-    only indices below ``after`` (the ones not yet tried from this point); None if none is left."""
-    owed = [j for j in (2, 1) if j < after and (s.k2 if j == 2 else s.k1) != 0]
-    if not owed:
-        return None
-    j = owed[0]
+def _unavoid(s: SearchState, j: int) -> Move | None:
+    """The unavoid move paying back one avoid move along heading ``j`` (opposite it); None if
+    nothing is owed along it."""
     a, k = (s.a2, s.k2) if j == 2 else (s.a1, s.k1)
-    heading = a + math.pi if k > 0 else a
-    return Move(_wrap(heading), s.config.pattern.step_m, MoveKind.UNAVOID, Phase.UNAVOID, j)
+    if k <= 0:
+        return None
+    return Move(_wrap(a + math.pi), s.config.pattern.step_m, MoveKind.UNAVOID, Phase.UNAVOID, j)
+
+
+def _avoid(s: SearchState, j: int) -> Move | None:
+    """An avoid move along heading ``j`` (None for ``a2`` before the improved policy set it)."""
+    a = s.a2 if j == 2 else s.a1
+    if a is None:
+        return None
+    return Move(a, s.config.pattern.step_m, MoveKind.AVOID, Phase.AVOID, j)
+
+
+def _bit(m: Move) -> int:
+    """A move's bit in :attr:`SearchState.tried`: search 1, avoid 2 / 4, unavoid 8 / 16 (heading 1 / 2)."""
+    if m.kind is MoveKind.SEARCH:
+        return 1
+    return (2 if m.kind is MoveKind.AVOID else 8) * m.heading_index
+
+
+def _try(s: SearchState, moves: list[Move | None]) -> tuple[SearchState, Move | Stop]:
+    """The first of ``moves`` not yet blocked from this point; a stop when every one was."""
+    for m in moves:
+        if m is not None and not s.tried & _bit(m):
+            return _go(s, m)
+    return _stop(s, "trapped: every move from here is blocked")
 
 
 def _account(s: SearchState, done: bool) -> SearchState:
@@ -209,6 +250,20 @@ def _account(s: SearchState, done: bool) -> SearchState:
     if m.heading_index == 2:
         return dataclasses.replace(s, k2=s.k2 + sign)
     return dataclasses.replace(s, k1=s.k1 + sign)
+
+
+def _untried_side(s: SearchState) -> int | None:
+    """The side to go round an obstacle met at search step ``s.i``: right (-1, the paper's) unless
+    a detour that way already came back to this step without progress, then left (+1); None when
+    both did."""
+    tried = s.failed_sides if s.failed_i == s.i else 0
+    return next((side for side, bit in ((-1, 1), (1, 2)) if not tried & bit), None)
+
+
+def _failed(s: SearchState) -> SearchState:
+    """Book that the detour on ``s.side`` came to nothing at search step ``s.i``."""
+    tried = s.failed_sides if s.failed_i == s.i else 0
+    return dataclasses.replace(s, failed_i=s.i, failed_sides=tried | (1 if s.side == -1 else 2))
 
 
 def _go(s: SearchState, move: Move) -> tuple[SearchState, Move]:
@@ -226,13 +281,16 @@ def step(state: SearchState, obs: SearchObs) -> tuple[SearchState, Move | Stop]:
     cfg = state.config
     done = obs.last_move == "done"
     s = _account(state, done)
-    s = dataclasses.replace(s, blocked_run=0 if done or state.pending is None else s.blocked_run + 1)
+    if done or state.pending is None:
+        s = dataclasses.replace(s, blocked_run=0, tried=0)
+    else:
+        s = dataclasses.replace(s, blocked_run=s.blocked_run + 1, tried=s.tried | _bit(state.pending))
     last = state.pending
     if obs.tongue >= cfg.threshold:
         return _stop(s, "found")
     if s.i >= cfg.pattern.n_steps:
         return _stop(s, "pattern done")
-    if s.blocked_run >= 4:  # search step, avoid and unavoid all blocked from this point
+    if s.blocked_run >= 5:  # the search step, both avoid and both unavoid headings blocked from here
         return _stop(s, "trapped: every move from here is blocked")
     if s.detour_moves >= cfg.max_detour_moves:
         return _stop(s, "detour did not rejoin the search path")
@@ -242,25 +300,39 @@ def step(state: SearchState, obs: SearchObs) -> tuple[SearchState, Move | Stop]:
     if last.kind is MoveKind.SEARCH and not done:
         if cfg.policy is Policy.NONE:
             return _stop(s, "blocked (policy none)")
-        if not s.in_detour:  # first collision: avoid heading 90 degrees right of the heading
+        if not s.in_detour and not s.tried & ~_bit(last):  # first collision: a new detour
+            side = _untried_side(s)
+            if side is None:
+                return _stop(s, f"trapped: the detours both ways round the obstacle came back to search step {s.i}")
             th = cfg.pattern.headings_rad[s.i]
-            s = dataclasses.replace(s, a1=_wrap(th - 0.5 * math.pi), a2=None, side=-1)
+            s = dataclasses.replace(s, a1=_wrap(th + side * 0.5 * math.pi), a2=None, side=side, origin_i=s.i)
         s, j = _avoid_heading(s)
-        a = s.a2 if j == 2 else s.a1
-        return _go(s, Move(a, cfg.pattern.step_m, MoveKind.AVOID, Phase.AVOID, j))
+        return _try(s, [_avoid(s, j), _avoid(s, 3 - j), _unavoid(s, 2), _unavoid(s, 1)])
     if last.kind is MoveKind.AVOID and not done:
-        if s.in_detour:
-            return _go(s, _unavoid(s))
-        if s.side == -1:  # the obstacle is to the front right: go round it the other way
-            s = dataclasses.replace(s, a1=_wrap(s.a1 + math.pi), a2=None, side=1)
+        if s.in_detour or s.a2 is not None:
+            # the other avoid heading first (beside a large obstacle the one tried may point
+            # into it while the other leads clear), then pay back
+            s, _ = _avoid_heading(s)
+            later = [_unavoid(s, 2), _unavoid(s, 1), _search_move(s, Phase.DETOUR_STEP)]
+            return _try(s, [_avoid(s, 3 - last.heading_index), *later])
+        s = _failed(s)
+        side = _untried_side(s)
+        if side is not None:  # the obstacle is to the front right: go round it the other way
+            s = dataclasses.replace(s, a1=_wrap(s.a1 + math.pi), a2=None, side=side, tried=0)
             return _go(s, Move(s.a1, cfg.pattern.step_m, MoveKind.AVOID, Phase.AVOID, 1))
         return _stop(s, "trapped: search step and avoid move both blocked")
+    if last.kind is MoveKind.UNAVOID and not done:  # the other heading's unavoid, then the search step
+        s, j = _avoid_heading(s)
+        return _try(
+            s, [_unavoid(s, 2), _unavoid(s, 1), _search_move(s, Phase.DETOUR_STEP), _avoid(s, j), _avoid(s, 3 - j)]
+        )
     if not s.in_detour:
+        if state.in_detour and s.i == s.origin_i:  # back where it began without a search step
+            s = _failed(s)
         return _go(s, _search_move(s, Phase.SEARCH))  # the detour is over (equation (8))
     if last.kind is MoveKind.SEARCH:  # done, in a detour: pay back
-        return _go(s, _unavoid(s))
+        return _go(s, _unavoid(s, 2) or _unavoid(s, 1))
     if last.kind is MoveKind.AVOID:  # done
         return _go(s, _search_move(s, Phase.DETOUR_STEP))
-    # unavoid: again while it works; when blocked, the other heading's unavoid, then the search step
-    nxt = _unavoid(s) if done else _unavoid(s, after=last.heading_index)
+    nxt = _unavoid(s, 2) or _unavoid(s, 1)  # unavoid done: again while it works
     return _go(s, nxt if nxt is not None else _search_move(s, Phase.DETOUR_STEP))

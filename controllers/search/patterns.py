@@ -66,6 +66,15 @@ def _positive(name: str, v) -> float:
     return float(v)
 
 
+def _check_steps(n: int, what: str) -> None:
+    from stcvision.limits import MAX_SEARCH_STEPS
+
+    if n > MAX_SEARCH_STEPS:
+        raise BadInputError(
+            f"{what}: {n:,} search steps is over the cap of {MAX_SEARCH_STEPS:,} (stcvision.limits.MAX_SEARCH_STEPS)"
+        )
+
+
 def radial_turn_rad(i: int, n: int, petals: int) -> float:
     """Equations (1)-(2): the turn after step ``i`` of a flower of ``petals`` petals of ``n``
     steps (``rem(i, n) == n // 4`` for the petal kick; see the module docstring)."""
@@ -97,6 +106,7 @@ class RadialPattern:
         total = n * petals
         if self.max_steps is not None:
             total = min(total, _positive_int("max steps", self.max_steps))
+        _check_steps(total, f"{petals} petals x {n} steps per petal" if total == n * petals else "--max-steps")
         th, out = 0.0, []
         i0 = n // 4 + 1  # the flower's centre (module docstring)
         for j in range(total):
@@ -129,7 +139,15 @@ class SpiralPattern:
         spacing = (
             DEFAULT_SPIRAL_SPACING_M if self.spacing_m is None else _positive("spiral spacing (m)", self.spacing_m)
         )
+        from stcvision.limits import MIN_SEARCH_SPIRAL_SPACING_M
+
+        if spacing < MIN_SEARCH_SPIRAL_SPACING_M:
+            raise BadInputError(
+                f"spiral spacing {spacing:g} m is under the minimum of {MIN_SEARCH_SPIRAL_SPACING_M:g} m "
+                "(stcvision.limits.MIN_SEARCH_SPIRAL_SPACING_M)"
+            )
         n = _positive_int("max steps", self.max_steps)
+        _check_steps(n, "max steps")
         b = spacing / (2.0 * math.pi)
 
         def pt(phi):

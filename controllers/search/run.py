@@ -33,7 +33,7 @@ from sim_camera.robot import TASTI2
 from sim_camera.world import World
 from stcvision.errors import BadInputError
 
-__all__ = ["MoveRecord", "SearchRun", "SearchScene", "execute_move", "run_search", "robot_params"]
+__all__ = ["MoveRecord", "SearchRun", "SearchScene", "check_reach", "execute_move", "run_search", "robot_params"]
 
 MOVE_TIMEOUT_S = 60.0
 RING_RISE_SIGMAS = 5.0  # the ring must rise this many noise sigmas above its start to halt a drive
@@ -48,10 +48,23 @@ class SearchScene:
     patch: tuple[float, float, float] | None = None
 
     def __post_init__(self):
+        from stcvision.limits import MAX_SEARCH_OBSTACLES, MAX_SEARCH_REACH_M
+
         rr = TASTI2.radius_m
+        if len(self.obstacles) > MAX_SEARCH_OBSTACLES:
+            raise BadInputError(
+                f"{len(self.obstacles)} obstacles is over the cap of {MAX_SEARCH_OBSTACLES} "
+                "(stcvision.limits.MAX_SEARCH_OBSTACLES)"
+            )
         for what, v in [("obstacle", o) for o in self.obstacles] + [("patch", self.patch)] * (self.patch is not None):
             if len(v) != 3 or not all(isinstance(c, int | float) and math.isfinite(c) for c in v):
                 raise BadInputError(f"{what} {v}: expected three finite numbers x, y, radius (metres)")
+        for what, v in [("obstacle", o) for o in self.obstacles] + [("patch", self.patch)] * (self.patch is not None):
+            if math.hypot(v[0], v[1]) + abs(v[2]) > MAX_SEARCH_REACH_M:
+                raise BadInputError(
+                    f"{what} {tuple(v)} reaches beyond {MAX_SEARCH_REACH_M:g} m from the start, the cap "
+                    "(stcvision.limits.MAX_SEARCH_REACH_M)"
+                )
         for o in self.obstacles:
             x, y, r = o
             if not r > 0:
@@ -155,6 +168,18 @@ def execute_move(world: World, robot, move: Move, *, back_off: bool = True) -> s
     return "blocked"
 
 
+def check_reach(pattern) -> None:
+    """Refuse a pattern whose planned sampling points go beyond the search's reach cap."""
+    from stcvision.limits import MAX_SEARCH_REACH_M
+
+    reach = float(np.hypot(*planned_points(pattern).T).max())
+    if reach > MAX_SEARCH_REACH_M:
+        raise BadInputError(
+            f"the {pattern.describe()} pattern reaches {reach:.3g} m from the start, beyond the cap of "
+            f"{MAX_SEARCH_REACH_M:g} m (stcvision.limits.MAX_SEARCH_REACH_M); fewer or shorter steps"
+        )
+
+
 def build_world(scene: SearchScene, pattern, *, seed: np.random.SeedSequence, odometry_noise: bool = True):
     """The world (open square arena, obstacles, chemical layer) and TASTI 2 at the origin."""
     pts = planned_points(pattern)
@@ -186,6 +211,7 @@ def run_search(
     the beacon camera's. ``beacon``: a :class:`controllers.search.beacon.Beacon` (or None).
     ``observer``: an object with ``on_move(record, world, robot, fixer=)`` (e.g. the rerun recorder).
     ``progress``: callable(search_steps) after each move (a progress bar)."""
+    check_reach(config.pattern)
     ss_world, ss_beacon = seed.spawn(2)
     world, robot = build_world(scene, config.pattern, seed=ss_world, odometry_noise=odometry_noise)
     fixer = beacon.fixer(world, robot, ss_beacon) if beacon is not None else None

@@ -4,6 +4,9 @@ moves (--policy simple, improved, or none), navigating by dead reckoning; --beac
 two-light red beacon at the start and corrects the odometry from the catadioptric camera
 whenever the beacon is in view. Coordinates are metres relative to the start, heading 0 = +x.
 
+`stcvision search detours --out DIR` counts how many runs finish round one obstacle of every size
+(six radii, three places on each pattern, binomial intervals).
+
 `stcvision search reproduce --out DIR` regenerates the paper's figures (1, 2, 6, 7, 8, 11-14),
 a summary.md comparing with the paper's statements and the tables of shadow area and odometry
 error over many seeds per policy, with and without the beacon.
@@ -20,6 +23,7 @@ def add_parser(p):
     import re
 
     from stcvision.cli._args import pair, positive
+    from stcvision.limits import MAX_SEARCH_SEEDS
 
     # "--patch -0.5,0.3,0.175": argparse takes a value starting with "-<digit>" for an option
     # unless it looks like a number; coordinates lists should read as values
@@ -28,9 +32,10 @@ def add_parser(p):
     p.add_argument(
         "action",
         nargs="?",
-        choices=("run", "reproduce"),
+        choices=("run", "reproduce", "detours"),
         default="run",
-        help="run (default): one search; reproduce: the paper's figures and tables into --out",
+        help="run (default): one search; reproduce: the paper's figures and tables into --out; detours: how "
+        "many runs finish round one obstacle of every size, at three places on both patterns, into --out",
     )
     p.add_argument("--pattern", choices=("radial", "spiral"), default="radial", help="search pattern (default radial)")
     p.add_argument("--petals", type=int, default=12, help="radial: petals (default 12)")
@@ -38,7 +43,10 @@ def add_parser(p):
     p.add_argument("--step-m", type=float, default=0.141, help="step length between sampling points (default 0.141 m)")
     p.add_argument("--spacing-m", type=float, default=None, help="spiral: distance between turns (default 0.25 m)")
     p.add_argument(
-        "--max-steps", type=int, default=None, help="cap on search steps (spiral default 150; radial: one flower)"
+        "--max-steps",
+        type=int,
+        default=None,
+        help="cap on search steps (spiral default 150; radial: one flower); reproduce: every run cut short",
     )
     p.add_argument("--policy", choices=("none", "simple", "improved"), default="improved", help="obstacle policy")
     p.add_argument(
@@ -70,7 +78,12 @@ def add_parser(p):
     p.add_argument("--rrd", metavar="OUT.rrd", help="rerun recording of the run")
     p.add_argument("--plot", metavar="OUT.png", help="plot of the paths, sampling points and shadow")
     p.add_argument("--out", metavar="DIR", help="reproduce: output folder")
-    p.add_argument("--seeds", type=int, default=8, help="reproduce: seeds per row of the tables (default 8; 10-20 min)")
+    p.add_argument(
+        "--seeds",
+        type=positive(int, maximum=MAX_SEARCH_SEEDS, why="stcvision.limits.MAX_SEARCH_SEEDS"),
+        default=None,
+        help="reproduce: seeds per row of the tables (default 8); detours: seeds per cell (default 4)",
+    )
     p.add_argument("--force", action="store_true", help="overwrite --rrd, --plot or files in --out")
     from stcvision.sweep import add_sweep_arguments
 
@@ -103,16 +116,17 @@ def _check_plot(path, force):
 
 
 def run(args):
-    if args.action == "reproduce":
+    if args.action in ("reproduce", "detours"):
         return _reproduce(args)
     import numpy as np
     from tqdm import tqdm
 
     from controllers.search.controller import Policy, SearchConfig
     from controllers.search.metrics import summarise
-    from controllers.search.run import SearchScene, run_search
+    from controllers.search.run import SearchScene, check_reach, run_search
 
     pattern = _pattern(args)
+    check_reach(pattern)
     scene = SearchScene(obstacles=tuple(args.obstacle), patch=args.patch)
     cfg = SearchConfig(pattern=pattern, policy=Policy(args.policy), threshold=args.threshold)
     _check_plot(args.plot, args.force)
@@ -174,29 +188,33 @@ def run(args):
 
 
 def _reproduce(args):
+    import sys
     from pathlib import Path
 
-    from controllers.search.experiments import reproduce
+    from controllers.search.experiments import DETOUR_STORE_NAME, STORE_NAME, detours, reproduce
     from stcvision.errors import BadInputError
-
-    if not args.out:
-        raise BadInputError("search reproduce needs --out DIR")
-    if args.seeds < 1:
-        raise BadInputError(f"--seeds must be >= 1, got {args.seeds}")
     from stcvision.sweep import sweep_options_from_args
 
-    out = Path(args.out)
-    ours = (out / "sweep.jsonl").exists()  # an earlier (maybe interrupted) reproduction: resume it
-    if out.exists() and any(out.iterdir()) and not ours and not args.force:
-        from stcvision.errors import FileExistsRefusedError
-
-        raise FileExistsRefusedError(f"{out} is not empty; refusing to overwrite it (use --force)")
-    return reproduce(out, n_seeds=args.seeds, sweep=sweep_options_from_args(args))
+    if not args.out:
+        raise BadInputError(f"search {args.action} needs --out DIR")
+    opts = sweep_options_from_args(args)
+    store = Path(args.out) / (DETOUR_STORE_NAME if args.action == "detours" else STORE_NAME)
+    if store.is_file() and not opts.fresh:
+        print(
+            f"stcvision search {args.action}: resuming the runs kept in {store} (--fresh starts over)", file=sys.stderr
+        )
+    if args.action == "detours":
+        return detours(args.out, n_seeds=args.seeds or 4, sweep=opts, force=args.force)
+    return reproduce(args.out, n_seeds=args.seeds or 8, sweep=opts, force=args.force, max_steps=args.max_steps)
 
 
 def format_text(r):
+    if "finished" in r:
+        lo, hi = r["ci95"]
+        return f"{r['finished']}/{r['runs']} detours finished (95 % interval {lo:.3f}-{hi:.3f}); wrote {r['summary']}"
     if "figures" in r:
-        return f"wrote {len(r['figures'])} figures and {r['summary']}"
+        reused = f" ({r['resumed']} runs reused from the earlier run's store)" if r.get("resumed") else ""
+        return f"wrote {len(r['figures'])} figures and {r['summary']}{reused}"
     keys = (
         "pattern",
         "policy",

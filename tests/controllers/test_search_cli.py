@@ -57,6 +57,16 @@ def test_search_prints_the_issue_keys_and_finds_a_reachable_patch(capsys):
         (["--obstacle", "1,2"], "3 comma-separated"),
         (["--obstacle", "nan,1,0.1"], "finite"),
         (["reproduce"], "--out"),
+        (["detours"], "--out"),
+        (["--petals", "100000000"], "MAX_SEARCH_STEPS"),
+        (["--pattern", "spiral", "--max-steps", "100000000"], "MAX_SEARCH_STEPS"),
+        (["--step-m", "1e6"], "MAX_SEARCH_REACH_M"),
+        (["--obstacle", "1e7,0,0.1"], "MAX_SEARCH_REACH_M"),
+        (["--patch", "1e7,0,0.1"], "MAX_SEARCH_REACH_M"),
+        (["--obstacle", *[f"{3 + i / 100},3,0.001" for i in range(101)]], "MAX_SEARCH_OBSTACLES"),
+        (["--pattern", "spiral", "--spacing-m", "1e-300"], "MIN_SEARCH_SPIRAL_SPACING_M"),
+        (["reproduce", "--out", "x", "--seeds", "100000"], "MAX_SEARCH_SEEDS"),
+        (["reproduce", "--out", "x", "--seeds", "0"], "must be > 0"),
     ],
 )
 def test_bad_input_is_one_line_and_exit_2(capsys, argv, message):
@@ -100,18 +110,79 @@ def test_run_trial_is_json_and_deterministic():
     assert a == b and json.loads(json.dumps(a)) == a
 
 
-def test_reproduce_runs_its_rows_on_the_sweep_runner(tmp_path, monkeypatch):
-    """One small table through the sweep runner: paired seeds, a store, a re-run that skips."""
+def test_reproduce_end_to_end_resumes_and_refuses_without_writing(tmp_path, capsys, monkeypatch):
+    """`search reproduce` cut short (every pattern 10 steps, 2 seeds): every figure, table and
+    results.json; the two rows with the same parameters in two tables (the can case, improved
+    policy, without the beacon) are two tasks by their row ids and, on the same paired seeds,
+    give the same runs; a re-run resumes from the store; a refused run writes nothing; a failure
+    after the runs leaves only the store, and the next run completes."""
     import controllers.search.experiments as ex
-    from stcvision.sweep import SweepOptions
 
-    row = {"pattern": "spiral", "max_steps": 6, "policy": "simple"}
-    monkeypatch.setattr(ex, "TABLES", (("t", "a tiny table", [("a", row), ("b", {**row, "policy": "improved"})]),))
-    monkeypatch.setattr(ex, "_figures", lambda out, seed: [])
-    monkeypatch.setattr(ex, "_summary_markdown", lambda tables, results, figures, n: "\n".join(tables.values()))
-    r = ex.reproduce(tmp_path, n_seeds=2, sweep=SweepOptions(workers=1))
-    assert "2 done" in r["sweep"] and (tmp_path / "summary.md").exists()
-    runs = json.loads((tmp_path / "results.json").read_text())
-    assert len(runs["t/a"]) == 2 and runs["t/a"] == runs["t/b"]  # no obstacle: the policies run alike
-    again = ex.reproduce(tmp_path, n_seeds=2, sweep=SweepOptions(workers=1))
-    assert "2 skipped as done" in again["sweep"]
+    out = tmp_path / "SR"
+    argv = ["search", "reproduce", "--out", str(out), "--seeds", "2", "--max-steps", "10", "--workers", "1"]
+    r = _json(capsys, argv)
+    assert sorted(p.name for p in out.iterdir()) == sorted([*ex.OUTPUTS, ex.STORE_NAME])
+    assert all((out / f).read_bytes()[:4] == b"\x89PNG" for f in ex.FIGURES)
+    runs = json.loads((out / "results.json").read_text())
+    n_rows = sum(len(rows) for _, _, rows in ex.TABLES)
+    assert len(runs) == n_rows and all(len(v) == 2 for v in runs.values())
+    assert runs["spiral_can/improved"] == runs["beacon/spiral + can, no beacon"]
+    assert runs["spiral_can/improved"][0] != runs["spiral_can/improved"][1]  # two seeds differ
+    md = (out / "summary.md").read_text()
+    assert "Cut short" in md and md.count("| case | seeds |") == len(ex.TABLES) and r["resumed"] == 0
+
+    again = _json(capsys, argv)  # everything in the store: reused, the outputs rewritten
+    assert again["resumed"] == 2 * n_rows
+    assert json.loads((out / "results.json").read_text()) == runs
+
+    user = tmp_path / "mine"  # a user's folder holding a file of the same name: refused, untouched
+    user.mkdir()
+    (user / "summary.md").write_text("my notes")
+    assert _exit(["search", "reproduce", "--out", str(user), "--seeds", "1", "--max-steps", "10"]) == 2
+    err = capsys.readouterr().err
+    assert "summary.md exists" in err and len(err.strip().splitlines()) == 1
+    assert [p.name for p in user.iterdir()] == ["summary.md"] and (user / "summary.md").read_text() == "my notes"
+    bad = tmp_path / "bad"
+    assert _exit(["search", "reproduce", "--out", str(bad), "--max-steps", "0"]) == 2
+    assert "max steps" in capsys.readouterr().err and not bad.exists()
+
+    def broken(*a, **k):
+        raise KeyboardInterrupt
+
+    import shutil
+
+    fresh = tmp_path / "SR2"  # an earlier run's store only (seed 0 of every row: the first run's)
+    fresh.mkdir()
+    shutil.copy(out / ex.STORE_NAME, fresh / ex.STORE_NAME)
+    monkeypatch.setattr(ex, "_figures", broken)  # interrupted after the runs, before any output
+    argv2 = ["search", "reproduce", "--out", str(fresh), "--seeds", "1", "--max-steps", "10", "--workers", "1"]
+    assert _exit(argv2) != 0
+    assert [p.name for p in fresh.iterdir()] == [ex.STORE_NAME]
+    monkeypatch.undo()
+    capsys.readouterr()
+    assert main([*argv2, "--json"]) == 0
+    cap = capsys.readouterr()
+    assert json.loads(cap.out)["resumed"] == n_rows and "resuming the runs kept in" in cap.err
+    assert sorted(p.name for p in fresh.iterdir()) == sorted([*ex.OUTPUTS, ex.STORE_NAME])
+
+
+def test_detours_writes_its_table_with_intervals_and_resumes(tmp_path, capsys, monkeypatch):
+    """`search detours` on one size at one place (both patterns, 2 seeds): the table with the
+    finish counts and their binomial intervals, the figure, the runs; a re-run reuses them."""
+    import controllers.search.experiments as ex
+
+    monkeypatch.setattr(ex, "DETOUR_SIZES_M", (0.2,))
+    monkeypatch.setattr(ex, "DETOUR_PLACES", (0.25,))
+    monkeypatch.setattr(ex, "DETOUR_PATTERNS", tuple((n, {**p, "max_steps": 40}) for n, p in ex.DETOUR_PATTERNS))
+    out = tmp_path / "D"
+    argv = ["search", "detours", "--out", str(out), "--seeds", "2", "--workers", "1"]
+    r = _json(capsys, argv)
+    assert sorted(p.name for p in out.iterdir()) == sorted([*ex.DETOUR_OUTPUTS, ex.DETOUR_STORE_NAME])
+    assert r["runs"] == 4 and 0 <= r["finished"] <= 4 and r["ci95"][0] <= r["finished"] / 4 <= r["ci95"][1]
+    md = (out / "summary.md").read_text()
+    assert "| radial | 0.2 |" in md and "| spiral | 0.2 |" in md and "95 % interval" in md
+    assert (out / "detours.png").read_bytes()[:4] == b"\x89PNG"
+    assert _json(capsys, argv)["resumed"] == 4
+    # a reproduction into the detour check's folder is refused (its summary.md is not a reproduction's)
+    assert _exit(["search", "reproduce", "--out", str(out), "--seeds", "1", "--max-steps", "10"]) == 2
+    assert "holds no search reproduction" in capsys.readouterr().err
