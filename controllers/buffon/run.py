@@ -42,7 +42,7 @@ def measure(
     barrier: str | None = None,
     *,
     trials: int = 100,
-    visit_steps: int = AREA_VISIT_STEPS,
+    visit_steps: int | str = AREA_VISIT_STEPS,
     trail_width_u: float = PAPER_TRAIL_WIDTH_U,
     seed: int = 0,
     rrd: str | None = None,
@@ -58,7 +58,7 @@ def measure(
         from stcvision.rr import check_recording_path
 
         check_recording_path(rrd, overwrite=force)
-    with _bar(2 * trials * visit_steps, f"buffon {nest.label}") as bar:
+    with _bar(None if config.auto else 2 * trials * visit_steps, f"buffon {nest.label}") as bar:
         threads = threads or machine_workers()
         ts = run_trials(
             nest,

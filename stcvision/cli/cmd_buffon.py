@@ -20,24 +20,46 @@ from stcvision.cli._args import seed
 NESTED = True  # --json belongs to each action
 
 
+def visit_steps(text: str):
+    """argparse type of ``--visit-steps``: ``auto`` or a positive integer within the cap."""
+    import argparse
+
+    from stcvision.cli._args import positive
+    from stcvision.limits import MAX_BUFFON_VISIT_STEPS
+
+    if text == "auto":
+        return text
+    try:
+        return positive(int, maximum=MAX_BUFFON_VISIT_STEPS, why="MAX_BUFFON_VISIT_STEPS")(text)
+    except argparse.ArgumentTypeError as exc:
+        raise argparse.ArgumentTypeError(f"{exc} (or 'auto')") from None
+
+
 def add_parser(p):
     import argparse
 
     from controllers.buffon.estimate import AREA_VISIT_STEPS
     from stcvision.cli._args import positive
+    from stcvision.limits import MAX_BUFFON_TRIALS, MAX_BUFFON_VISIT_STEPS
 
     p.formatter_class = argparse.RawDescriptionHelpFormatter
     sub = p.add_subparsers(dest="action", metavar="{reproduce,compare,calibrate}", parser_class=type(p))
     _nest_arguments(p, required=False)
     p.add_argument(
         "--visit-steps",
-        type=positive(int),
+        type=visit_steps,
         default=AREA_VISIT_STEPS,
-        metavar="N",
-        help=f"steps of 0.05 s per visit (default {AREA_VISIT_STEPS:,}: long enough for the paths to mix through a "
-        "standard nest; the paper's 50,000 leave a single trial ~15 %% off)",
+        metavar="N|auto",
+        help=f"steps of 0.05 s per visit, or 'auto': the robot ends each visit itself (first: when its "
+        f"trail covers a tenth of the floor, from how often it meets it; second: when its crossing rate is "
+        f"pinned down), at most {MAX_BUFFON_VISIT_STEPS:,} (default {AREA_VISIT_STEPS})",
     )
-    p.add_argument("--trials", type=positive(int), default=100, help="independent trials (default 100)")
+    p.add_argument(
+        "--trials",
+        type=positive(int, maximum=MAX_BUFFON_TRIALS, why="MAX_BUFFON_TRIALS"),
+        default=100,
+        help="independent trials (default 100)",
+    )
     p.add_argument("--seed", type=seed, default=0, help="seed of every trial's streams (default 0)")
     p.add_argument("--threads", type=positive(int), metavar="N", help="threads for the trials (default: one per core)")
     p.add_argument("--rrd", metavar="OUT.rrd", help="record trial 0 in rerun (nest, trail, path, crossings, nBC)")
@@ -68,6 +90,13 @@ def _nest_arguments(p, *, required: bool) -> None:
     )
 
 
+def _trials():
+    from stcvision.cli._args import positive
+    from stcvision.limits import MAX_BUFFON_TRIALS
+
+    return positive(int, maximum=MAX_BUFFON_TRIALS, why="MAX_BUFFON_TRIALS")
+
+
 def _add_reproduce(sub):
     from stcvision.cli._args import positive
 
@@ -77,7 +106,7 @@ def _add_reproduce(sub):
         description="Run every nest of sec. 5 (and the absolute-area set) through the sweep runner "
         "(resumable: DIR/sweep.jsonl) and write the figures, nests.csv and summary.md.",
     )
-    s.add_argument("--trials", type=positive(int), default=100, help="trials per nest (default 100)")
+    s.add_argument("--trials", type=_trials(), default=100, help="trials per nest (default 100)")
     _folder_run_arguments(s)
 
 
@@ -94,6 +123,7 @@ def _folder_run_arguments(s) -> None:
 
 def _add_compare(sub):
     from stcvision.cli._args import positive
+    from stcvision.limits import MAX_PYMUNK_VISIT_STEPS
 
     s = sub.add_parser(
         "compare",
@@ -103,10 +133,10 @@ def _add_compare(sub):
         "Kolmogorov-Smirnov, two-sided).",
     )
     _nest_arguments(s, required=True)
-    s.add_argument("--trials", type=positive(int), default=100, help="trials per path (default 100)")
+    s.add_argument("--trials", type=_trials(), default=100, help="trials per path (default 100)")
     s.add_argument(
         "--visit-steps",
-        type=positive(int),
+        type=positive(int, maximum=MAX_PYMUNK_VISIT_STEPS, why="the pymunk path runs ~3,000 steps/s"),
         default=3000,
         metavar="N",
         help="steps per visit (default 3,000: the pymunk path runs ~3,000 steps/s)",
@@ -124,7 +154,7 @@ def _add_calibrate(sub):
         description="Measure A_true / median(A_dt) on the standard circle at the default visit "
         "length; the shipped factor is held fixed, this shows where it comes from.",
     )
-    s.add_argument("--trials", type=positive(int), default=100, help="trials (default 100)")
+    s.add_argument("--trials", type=_trials(), default=100, help="trials (default 100)")
     s.add_argument("--seed", type=seed, default=0)
     s.add_argument("--json", action="store_true", help="print the result as one JSON object")
 
