@@ -38,7 +38,7 @@ from controllers.buffon.behaviour import ExplorerParams, explorer_core_nb, wheel
 from controllers.buffon.counter import CounterParams, integrate_nb
 from controllers.buffon.nests import BODY_LENGTH_M, Nest
 from controllers.buffon.stopping import StopParams, batch_add, batch_rel_se, first_visit_done, new_batch_state
-from controllers.buffon.stopping import second_visit_done
+from controllers.buffon.stopping import first_visit_hopeless, second_visit_done
 from sim_camera.fastworld import (
     StaticGeometry,
     cell_span,
@@ -88,6 +88,7 @@ class VisitConfig:
     visit_steps: int | str = PAPER_VISIT_STEPS
     stop: StopParams = StopParams()
     max_visit_steps: int = 0  # 0: the cap of stcvision.limits
+    trail_turn: float = 0.0  # trail-aware exploration (beta; 0: the paper's behaviour); see README
     trail_width_u: float = PAPER_TRAIL_WIDTH_U
     dt_s: float = 0.05
     robot: DiffDriveParams = KHEPERA
@@ -105,6 +106,8 @@ class VisitConfig:
                 f"visit steps must be 'auto' or a positive integer at most {MAX_BUFFON_VISIT_STEPS:,} "
                 f"(stcvision.limits.MAX_BUFFON_VISIT_STEPS); got {self.visit_steps!r}"
             )
+        if not (isinstance(self.trail_turn, int | float) and 0 <= self.trail_turn <= 1):
+            raise BadInputError(f"trail turn must be a number in [0, 1]; got {self.trail_turn!r}")
         if not (isinstance(self.max_visit_steps, int) and 0 <= self.max_visit_steps <= MAX_BUFFON_VISIT_STEPS):
             raise BadInputError(f"max visit steps must be an integer in [0, {MAX_BUFFON_VISIT_STEPS:,}]")
         if not (math.isfinite(self.trail_width_u) and self.trail_width_u > 0):
@@ -156,6 +159,7 @@ class VisitConfig:
             "hyst": c.hysteresis,
             "half_w": 0.5 * self.trail_width_m,
             "recent_stamps": self.stop.recent_u * BODY_LENGTH_M / STAMP_M,
+            "avoid": self.trail_turn,
         }
         return np.array([vals[k] for k in _P], dtype=np.float64)
 
@@ -183,10 +187,11 @@ _P = (
     "hyst",
     "half_w",
     "recent_stamps",
+    "avoid",
 )
 # state columns
-X, Y, TH, R, WL, WR, LEVEL, PLEN, ABOVE, GAIN, BLIND, ESC, CROSS, STEPS = range(14)
-N_STATE = 14
+X, Y, TH, R, WL, WR, LEVEL, PLEN, ABOVE, GAIN, BLIND, ESC, CROSS, STEPS, GAVE_UP = range(15)
+N_STATE = 15
 
 
 @numba.njit(cache=True, nogil=True)
@@ -215,9 +220,9 @@ def _visit(st, beh, irg, slip, steps, grid, lay, geo, outer, trail, prm, ir_ang,
     noise, esc_min, esc_max, vmax, radius = prm[5], prm[6], prm[7], prm[8], prm[9]
     b_true, dl_ratio, dr_ratio, slip_k = prm[10], prm[11], prm[12], prm[13]
     ir_sat, ir_range, ir_sigma = prm[14], prm[15], prm[16]
-    rate, thr, hyst, half_w, recent_stamps = prm[17], prm[18], prm[19], prm[20], prm[21]
+    rate, thr, hyst, half_w, recent_stamps, avoid = prm[17], prm[18], prm[19], prm[20], prm[21], prm[22]
     coverage, min_self, pi_w, second_ratio = sp[0], sp[1], sp[2], sp[3]
-    min_cross, rel_se, batches = sp[4], sp[5], int(sp[6])
+    min_cross, rel_se, batches, max_ratio = sp[4], sp[5], int(sp[6]), sp[7]
     n_ir = ir_ang.shape[0]
     ir_cos, ir_sin = np.cos(ir_ang), np.sin(ir_ang)
     ir = np.empty(6)
@@ -229,6 +234,7 @@ def _visit(st, beh, irg, slip, steps, grid, lay, geo, outer, trail, prm, ir_ang,
     done = int(st[STEPS])
     escapes = 0
     stopped = False
+    turn = 0.0  # trail-aware exploration: the turn away from the old trail under way (+1 left, -1 right)
     recording = rec.shape[0] > 0
     for s in range(steps):
         # 1. six IR rays from the rim (sim_camera.sensors.IrSensors), noise from their stream
@@ -251,6 +257,8 @@ def _visit(st, beh, irg, slip, steps, grid, lay, geo, outer, trail, prm, ir_ang,
         r, wl, wr, esc, rbar = explorer_core_nb(
             r, wl, wr, esc, ir[0], ir[1], ir[2], ir[3], ir[4], ir[5], n, nbar, gamma, front_thr, side_thr
         )
+        if lay and avoid > 0.0 and above and esc == 0.0:  # laying over its old trail, no wall escape: turn off it
+            rbar = min(1.0, max(-1.0, rbar + avoid * turn))
         ml, mr = wheel_speeds_nb(rbar, k)
         # 3. wheels -> body, as sim_camera.robot.DiffDriveRobot._pre_step
         dl = min(vmax, max(-vmax, ml)) * dt * gain * dl_ratio
@@ -278,6 +286,8 @@ def _visit(st, beh, irg, slip, steps, grid, lay, geo, outer, trail, prm, ir_ang,
             seen = 1.0 if stamp > 0 else 0.0
         x, y = nx_, ny_
         level, above, crossed = integrate_nb(level, above, seen, rate, thr, hyst)
+        if crossed and avoid > 0.0:
+            turn = 1.0 if beh.random() < 0.5 else -1.0
         crossings += crossed
         blind += above
         if not lay:  # the batch means of the crossing rate (its standard error), whatever the rule
@@ -289,9 +299,12 @@ def _visit(st, beh, irg, slip, steps, grid, lay, geo, outer, trail, prm, ir_ang,
         if auto and (s & 63) == 63:
             if lay:
                 stopped = first_visit_done(plen / BODY_LENGTH_M, crossings, coverage, min_self, pi_w)
+                if not stopped and first_visit_hopeless(done + s + 1, blind, crossings, min_self):
+                    stopped = True
+                    st[GAVE_UP] = 1.0
             else:
                 stopped = second_visit_done(
-                    bst, plen / BODY_LENGTH_M, crossings, l1_u, second_ratio, min_cross, rel_se, batches
+                    bst, plen / BODY_LENGTH_M, crossings, l1_u, second_ratio, min_cross, rel_se, batches, max_ratio
                 )
             if stopped:
                 done += s + 1
@@ -331,6 +344,7 @@ class TrialSet:
     rate_rel_se: np.ndarray | None = None
     steps: np.ndarray | None = None
     converged: np.ndarray | None = None
+    online: bool = False  # both visits' lengths decided by the online rule
 
     @property
     def nbc(self) -> np.ndarray:
@@ -427,7 +441,7 @@ def run_trials(
         np.array(l1), np.array(l2), np.array(n, dtype=np.int64), np.array(blind), int(sum(esc)),
         int(sum(steps)), time.perf_counter() - t0, next((t for t in trails if t), {}),
         time.process_time() - c0, np.array(n_self, dtype=np.int64), np.array(se), np.array(steps, dtype=np.int64),
-        np.array(conv, dtype=bool),
+        np.array(conv, dtype=bool), config.auto,
     )  # fmt: skip
 
 
@@ -484,7 +498,7 @@ class _TrialWorld:
                     recs.append(rec[: int(st[STEPS]) - before])
                 if progress is not None:
                     progress(int(st[STEPS]) - before)
-            converged &= stopped or not c.auto
+            converged &= (stopped and st[GAVE_UP] == 0.0) or not c.auto
             done = int(st[STEPS])
             steps += done
             out[visit - 1] = st[PLEN] / BODY_LENGTH_M

@@ -71,21 +71,25 @@ class StopParams:
     min_self : self-encounters needed before (1) is trusted.
     recent_u : trail younger than this much path (body lengths) is the robot's own fresh stripe.
     second_ratio : the second visit lasts at least this share of the first visit's path.
+    max_ratio : ... and at most this multiple of it: where the crossing rate's error will not come
+        down (a corridor, in which the path lingers for long stretches), the visit ends there and
+        reports the error it reached (the per-trial interval uses it).
     min_crossings : crossings the second visit needs at least.
     rel_se : the relative standard error (2) of the crossing rate at which it may stop.
     batches : bins of the batch-means estimate (between this and twice this are full).
     """
 
-    coverage: float = 0.1
+    coverage: float = 0.13
     min_self: int = 40
     recent_u: float = 2.0
-    second_ratio: float = 0.5
-    min_crossings: int = 300
-    rel_se: float = 0.03
+    second_ratio: float = 0.4
+    max_ratio: float = 3.0
+    min_crossings: int = 200
+    rel_se: float = 0.05
     batches: int = 16
 
     def __post_init__(self):
-        for name in ("coverage", "recent_u", "second_ratio", "rel_se"):
+        for name in ("coverage", "recent_u", "second_ratio", "max_ratio", "rel_se"):
             v = getattr(self, name)
             if not (isinstance(v, int | float) and math.isfinite(v) and v > 0):
                 raise BadInputError(f"stopping rule: {name} must be a positive number; got {v!r}")
@@ -96,7 +100,7 @@ class StopParams:
 
     def array(self, trail_width_u: float) -> np.ndarray:
         """The constants the compiled loop reads: coverage, min_self, pi w, second_ratio,
-        min_crossings, rel_se, batches."""
+        min_crossings, rel_se, batches, max_ratio."""
         return np.array(
             [
                 self.coverage,
@@ -106,6 +110,7 @@ class StopParams:
                 self.min_crossings,
                 self.rel_se,
                 self.batches,
+                self.max_ratio,
             ],
             dtype=np.float64,
         )
@@ -117,6 +122,19 @@ def first_visit_done(path_u, n_self, coverage, min_self, pi_w):
     reached the target coverage?"""
     return n_self >= min_self and pi_w * n_self >= coverage * path_u
 
+
+@numba.njit(cache=True)
+def first_visit_hopeless(steps, blind_steps, n_self, min_self):
+    """The first visit gives up (the measurement is then untrusted) once, after ``min_self``
+    encounters, its counter has been blind for more than :data:`MAX_FIRST_BLIND` of its steps:
+    in a nest a few body lengths across the robot is on its own trail most of the time, the
+    counter merges encounters, and rule (1) could never be met (measured: a 10 u circle's
+    first visit ran to the cap of 10^8 steps)."""
+    return n_self >= min_self and blind_steps > MAX_FIRST_BLIND * steps
+
+
+#: the first visit's blind share beyond which it gives up (0.1-0.35 in nests of 700 u^2 and more)
+MAX_FIRST_BLIND = 0.6
 
 # batch-means state: [bin width (steps), steps in the current bin, full bins, then 2B crossings, then 2B paths]
 _W, _IN, _FULL, _BINS = 0, 1, 2, 3
@@ -177,9 +195,12 @@ def batch_rel_se(st, batches):
 
 
 @numba.njit(cache=True)
-def second_visit_done(st, path_u, n, l1_u, second_ratio, min_crossings, rel_se, batches):
+def second_visit_done(st, path_u, n, l1_u, second_ratio, min_crossings, rel_se, batches, max_ratio):
     """The second visit's rule: mixed (path >= second_ratio * L1), enough crossings, and the
-    rate's relative standard error (2) at most ``rel_se`` over at least ``batches`` full bins."""
+    rate's relative standard error (2) at most ``rel_se`` over at least ``batches`` full bins;
+    or a path of ``max_ratio`` * L1 in any case."""
+    if path_u >= max_ratio * l1_u and st[_FULL] >= batches:
+        return True
     if path_u < second_ratio * l1_u or n < min_crossings or st[_FULL] < batches:
         return False
     return batch_rel_se(st, batches) <= rel_se

@@ -1,11 +1,12 @@
 """Measure a nest's area blind, with Buffon's needle (seed 000, Girgin & Sahin): a Khepera-sized
 explorer makes two visits from the nest's central bottom, lays a pheromone trail on the first,
 counts its crossings on the second; nBC = crossings / second-visit length, and the area is
-A = 2 L1 L2 / (pi N) (with a dead-time and a calibrated correction; see README). Lengths are in body
-lengths (u = 55 mm).
+A = 2 L1 L2 / (pi N) (with a dead-time and a calibrated correction; see README). By default the robot
+ends each visit itself (--visit-steps auto). Lengths are in body lengths (u = 55 mm).
 
   stcvision buffon --nest circle:100 [--barrier plus:0.5] [--trials 100] [--json] [--rrd R.rrd]
   stcvision buffon reproduce --out DIR [--trials 100] [--workers N | --scheduler tcp://H:P]
+  stcvision buffon online --out DIR [--trials 12] [--workers N]
   stcvision buffon compare --nest square:88.6 --out DIR [--trials 100] [--visit-steps 3000]
   stcvision buffon calibrate [--trials 100]
 
@@ -38,21 +39,20 @@ def visit_steps(text: str):
 def add_parser(p):
     import argparse
 
-    from controllers.buffon.estimate import AREA_VISIT_STEPS
     from stcvision.cli._args import positive
     from stcvision.limits import MAX_BUFFON_TRIALS, MAX_BUFFON_VISIT_STEPS
 
     p.formatter_class = argparse.RawDescriptionHelpFormatter
-    sub = p.add_subparsers(dest="action", metavar="{reproduce,compare,calibrate}", parser_class=type(p))
+    sub = p.add_subparsers(dest="action", metavar="{reproduce,online,compare,calibrate}", parser_class=type(p))
     _nest_arguments(p, required=False)
     p.add_argument(
         "--visit-steps",
         type=visit_steps,
-        default=AREA_VISIT_STEPS,
+        default="auto",
         metavar="N|auto",
         help=f"steps of 0.05 s per visit, or 'auto': the robot ends each visit itself (first: when its "
         f"trail covers a tenth of the floor, from how often it meets it; second: when its crossing rate is "
-        f"pinned down), at most {MAX_BUFFON_VISIT_STEPS:,} (default {AREA_VISIT_STEPS})",
+        f"pinned down), at most {MAX_BUFFON_VISIT_STEPS:,} (default auto)",
     )
     p.add_argument(
         "--trials",
@@ -66,6 +66,7 @@ def add_parser(p):
     p.add_argument("--force", action="store_true", help="overwrite --rrd")
     p.add_argument("--json", action="store_true", help="print the result as one JSON object")
     _add_reproduce(sub)
+    _add_online(sub)
     _add_compare(sub)
     _add_calibrate(sub)
 
@@ -107,6 +108,18 @@ def _add_reproduce(sub):
         "(resumable: DIR/sweep.jsonl) and write the figures, nests.csv and summary.md.",
     )
     s.add_argument("--trials", type=_trials(), default=100, help="trials per nest (default 100)")
+    _folder_run_arguments(s)
+
+
+def _add_online(sub):
+    s = sub.add_parser(
+        "online",
+        help="the online visit lengths: calibration, held-out coverage of the intervals, error vs steps",
+        description="Run the online rule on its calibration family, on a held-out family of 42 nests (circles, "
+        "squares, ellipses, barriers, concave and random polygons; 2,000-30,000 u^2) and on the size sweep's ends, "
+        "and fixed lengths beside it on the standard circle; write online.csv, online_summary.md and figures.",
+    )
+    s.add_argument("--trials", type=_trials(), default=12, help="trials per nest (default 12)")
     _folder_run_arguments(s)
 
 
@@ -163,10 +176,12 @@ def run(args):
     from controllers.buffon import run as buffon
     from stcvision.errors import BadInputError
 
-    if args.action in ("reproduce", "compare"):
+    if args.action in ("reproduce", "compare", "online"):
         from stcvision.sweep import sweep_options_from_args
 
         opts = sweep_options_from_args(args)
+        if args.action == "online":
+            return buffon.online(args.out, trials=args.trials, seed=args.seed, sweep=opts, force=args.force)
         if args.action == "reproduce":
             return buffon.reproduce(args.out, trials=args.trials, seed=args.seed, sweep=opts, force=args.force)
         return buffon.compare(

@@ -175,3 +175,41 @@ def test_compare_runs_both_paths(cli, tmp_path):
     assert r["escapes_pymunk"] == 0 and r["escapes_batched"] == 0
     assert 0 <= r["mannwhitney_p"] <= 1 and r["speed_ratio"] > 1
     assert (tmp_path / "compare.png").exists() and (tmp_path / "compare.md").exists()
+
+
+def _mini_evaluation(folder):
+    import controllers.buffon.online as exp
+
+    fams = [("circles", "circle:22"), ("squares", "square:20"), ("ellipses", "ellipse:400:2"),
+            ("barriers", "circle:24"), ("concave", None), ("random", None)]  # fmt: skip
+    out = []
+    for fam, spec in fams:
+        if spec is None:
+            p = folder / f"{fam}.json"
+            folder.mkdir(parents=True, exist_ok=True)
+            p.write_text(json.dumps(exp._l_shape(22, 8) if fam == "concave" else [[0, 0], [24, 2], [20, 22], [2, 18]]))
+            spec = f"polygon:{p}"
+        out.append({"family": fam, "spec": spec, "barrier": "bar:0.4" if fam == "barriers" else None})
+    return out
+
+
+def test_online_experiment_writes_its_tables_and_figures(cli, tmp_path, monkeypatch):
+    import controllers.buffon.online as exp
+
+    monkeypatch.setattr(exp, "CALIBRATION_NESTS", (("circle:21", None), ("square:19", None)))
+    monkeypatch.setattr(exp, "evaluation_nests", _mini_evaluation)
+    monkeypatch.setattr(buffon_run, "SIZE_ENDS", ("circle:12",))
+    monkeypatch.setattr(buffon_run, "FIXED_STEPS", (2000, 4000))
+    monkeypatch.setattr(buffon_run, "TRAIL_AWARE_NESTS", ("circle:20",))
+    monkeypatch.setattr(buffon_run, "SHAPE_PAIR_AREAS", (300,))
+    out = tmp_path / "on"
+    code, stdout, err = cli("buffon", "online", "--out", out, "--trials", 3, "--workers", 1, "--json")
+    assert code == 0, err
+    r = json.loads(stdout)
+    for name in buffon_run.ONLINE_FILES:
+        assert (out / name).stat().st_size > 0, name
+    assert [t["family"] for t in r["coverage"]][-1] == "all" and r["coverage"][-1]["nests"] == 6
+    assert r["calibration"]["nests"] == 2 and r["shape_pairs"]["areas"][0]["area"] == 300
+    summary = (out / "online_summary.md").read_text()
+    for part in ("Calibration", "Coverage on the held-out family", "equal areas", "Trail-aware", "Every nest"):
+        assert part in summary
