@@ -173,12 +173,10 @@ def reproduce(out: str | Path, *, trials: int = 100, seed: int = 0, sweep=None, 
     results = {c: refresh(rep.results[t.key], rep.results[t.key]["area_true"]) for c, t in tasks.items()}
     steps = sum(r["robot_steps"] for r in results.values())
     busy = sum(r["wall_s"] for r in results.values())
-    write_bytes_atomic(out / "nests.csv", report.table_csv(cases, results).encode(), overwrite=True)
-    for name, fig in report.figures(cases, results, _patterns(seed)).items():
-        write_figure(out / name, fig, overwrite=True)
+    _write_tables(out, {"nests.csv": report.table_csv(cases, results)}, report.figures(cases, results, _patterns(seed)))
     wall = time.perf_counter() - t0
     text = report.claims(cases, results, trials=trials, wall_s=wall, steps_per_s=steps / busy)
-    write_bytes_atomic(out / "summary.md", text.encode(), overwrite=True)
+    _write_tables(out, {"summary.md": text}, {})
     return {
         "out": str(out),
         "nests": len(cases),
@@ -415,24 +413,19 @@ def online(out: str | Path, *, trials: int = 12, seed: int = 0, sweep=None, forc
     cal = exp.calibrate_online([r for r in rows if r["family"] == "calibration"])
     evaluation = [r for r in rows if r["family"] in exp.EVALUATION_FAMILIES]
     table = exp.coverage_table(evaluation)
-    write_bytes_atomic(out / "online.csv", report.online_csv(rows).encode(), overwrite=True)
-    for name, fig in report.online_figures(rows).items():
-        write_figure(out / name, fig, overwrite=True)
+    _write_tables(out, {"online.csv": report.online_csv(rows)}, report.online_figures(rows))
+    pairs, aware = report.shape_pairs(rows), report.trail_aware(rows)
     wall = time.perf_counter() - t0
-    pairs = report.shape_pairs(rows)
-    aware = report.trail_aware(rows)
     text = report.online_summary(rows, table, cal, pairs, aware, trials=trials, wall_s=wall)
-    write_bytes_atomic(out / "online_summary.md", text.encode(), overwrite=True)
-    return {
-        "out": str(out),
-        "nests": len(rows),
-        "trials": trials,
-        "calibration": cal,
-        "coverage": table,
-        "shape_pairs": pairs,
-        "trail_aware": aware,
-        "wall_s": wall,
-        "sweep": rep.summary(),
-        "claims": True,
-        "summary_text": text,
-    }
+    _write_tables(out, {"online_summary.md": text}, {})
+    result = {"calibration": cal, "coverage": table, "shape_pairs": pairs, "trail_aware": aware}
+    return {"out": str(out), "nests": len(rows), "trials": trials, **result, "wall_s": wall,
+            "sweep": rep.summary(), "claims": True, "summary_text": text}  # fmt: skip
+
+
+def _write_tables(out: Path, texts: dict, figures: dict) -> None:
+    """A folder run's text files and figures, each written atomically (its store says it is ours)."""
+    for name, text in texts.items():
+        write_bytes_atomic(out / name, text.encode(), overwrite=True)
+    for name, fig in figures.items():
+        write_figure(out / name, fig, overwrite=True)

@@ -99,27 +99,32 @@ def _trials():
 
 
 def _add_reproduce(sub):
-    from stcvision.cli._args import positive
-
-    s = sub.add_parser(
+    _folder_action(
+        sub,
         "reproduce",
+        100,
         help="the paper's five experiment sets and trail thickness: figures, CSV, summary",
         description="Run every nest of sec. 5 (and the absolute-area set) through the sweep runner "
         "(resumable: DIR/sweep.jsonl) and write the figures, nests.csv and summary.md.",
     )
-    s.add_argument("--trials", type=_trials(), default=100, help="trials per nest (default 100)")
-    _folder_run_arguments(s)
 
 
 def _add_online(sub):
-    s = sub.add_parser(
+    _folder_action(
+        sub,
         "online",
+        12,
         help="the online visit lengths: calibration, held-out coverage of the intervals, error vs steps",
         description="Run the online rule on its calibration family, on a held-out family of 42 nests (circles, "
         "squares, ellipses, barriers, concave and random polygons; 2,000-30,000 u^2) and on the size sweep's ends, "
         "and fixed lengths beside it on the standard circle; write online.csv, online_summary.md and figures.",
     )
-    s.add_argument("--trials", type=_trials(), default=12, help="trials per nest (default 12)")
+
+
+def _folder_action(sub, name: str, trials: int, **texts) -> None:
+    """An action that runs nests through the sweep runner into an output folder."""
+    s = sub.add_parser(name, **texts)
+    s.add_argument("--trials", type=_trials(), default=trials, help=f"trials per nest (default {trials})")
     _folder_run_arguments(s)
 
 
