@@ -455,11 +455,11 @@ class _TrialWorld:
     def __init__(self, nest: Nest, config: VisitConfig):
         rb = config.robot
         self.config = config
-        self.geo = StaticGeometry.from_arena(nest.arena, reach_m=rb.radius_m + config.ir.range_m + 0.005)
         cell = 0.5 * config.trail_width_m  # as sim_camera.layers.PheromoneLayer
         xmin, ymin = nest.arena.bounds_m[:2]
         self.trail = (xmin, ymin, cell)
-        self.grid_shape = _trail_grid_shape(nest, cell)
+        self.grid_shape = _trail_grid_shape(nest, cell)  # refused before the walls' grid is built
+        self.geo = StaticGeometry.from_arena(nest.arena, reach_m=rb.radius_m + config.ir.range_m + 0.005)
         self.raster_bytes = self.grid_shape[0] * self.grid_shape[1] * np.dtype(np.uint32).itemsize
         self.prm = config.kernel_params()
         self.sp = config.stop.array(config.trail_width_u)

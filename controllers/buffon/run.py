@@ -93,7 +93,7 @@ def measure(
 
 def format_text(r: dict) -> str:
     if "claims" in r:
-        return r["summary_text"]
+        return r["summary_text"] + ("\n" + r["online_summary_text"] if r.get("online_summary_text") else "")
     if "paths" in r:
         return "\n".join(f"{k}: {v}" for k, v in r.items() if k != "paths")
     if "area_correction_measured" in r:
@@ -157,8 +157,11 @@ REPRODUCE_FILES = (
 )
 
 
-def reproduce(out: str | Path, *, trials: int = 100, seed: int = 0, sweep=None, force: bool = False) -> dict:
-    """Every experiment set of sec. 5 plus the absolute-area set, through the sweep runner."""
+def reproduce(
+    out: str | Path, *, trials: int = 100, seed: int = 0, sweep=None, force: bool = False, online_trials: int = 6
+) -> dict:
+    """Every experiment set of sec. 5 plus the absolute-area set, through the sweep runner; then
+    (``online_trials`` > 0) the online rule's experiments (:func:`online`) into ``out/online``."""
     from controllers.buffon import report
     from stcvision.sweep import SweepOptions, Task
 
@@ -187,7 +190,16 @@ def reproduce(out: str | Path, *, trials: int = 100, seed: int = 0, sweep=None, 
         "sweep": rep.summary(),
         "claims": True,
         "summary_text": text,
-    }
+    } | _online_part(out, online_trials, seed, sweep)
+
+
+def _online_part(out: Path, trials: int, seed: int, sweep) -> dict:
+    """The online rule's experiments beside the paper's, in their own folder (and store)."""
+    if not trials:
+        return {}
+    r = online(out / "online", trials=trials, seed=seed, sweep=sweep)
+    return {"online": {k: r[k] for k in ("out", "nests", "trials", "coverage", "shape_pairs", "wall_s")},
+            "online_summary_text": r["summary_text"]}  # fmt: skip
 
 
 def _patterns(seed: int) -> dict:

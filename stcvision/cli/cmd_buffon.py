@@ -105,7 +105,16 @@ def _add_reproduce(sub):
         100,
         help="the paper's five experiment sets and trail thickness: figures, CSV, summary",
         description="Run every nest of sec. 5 (and the absolute-area set) through the sweep runner "
-        "(resumable: DIR/sweep.jsonl) and write the figures, nests.csv and summary.md.",
+        "(resumable: DIR/sweep.jsonl) and write the figures, nests.csv and summary.md; then the online rule's "
+        "experiments (as `buffon online`) into DIR/online.",
+    )
+    s = sub.choices["reproduce"]
+    s.add_argument(
+        "--online-trials",
+        type=lambda t: 0 if t == "0" else _trials()(t),
+        default=6,
+        metavar="N",
+        help="trials per nest of the online rule's experiments in DIR/online (default 6; 0 skips them)",
     )
 
 
@@ -188,7 +197,9 @@ def run(args):
         if args.action == "online":
             return buffon.online(args.out, trials=args.trials, seed=args.seed, sweep=opts, force=args.force)
         if args.action == "reproduce":
-            return buffon.reproduce(args.out, trials=args.trials, seed=args.seed, sweep=opts, force=args.force)
+            return buffon.reproduce(
+                args.out, trials=args.trials, seed=args.seed, sweep=opts, force=args.force, online_trials=args.online_trials
+            )
         return buffon.compare(
             args.nest,
             args.barrier,

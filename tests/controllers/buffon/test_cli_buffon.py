@@ -124,7 +124,9 @@ def test_reproduce_writes_figures_table_and_claims(cli, tmp_path, monkeypatch):
     monkeypatch.setattr(buffon_run, "experiment_cases", _mini_cases)
     monkeypatch.setattr(buffon_run, "_patterns", _stand_in_patterns)
     out = tmp_path / "rep"
-    code, stdout, err = cli("buffon", "reproduce", "--out", out, "--trials", 3, "--workers", 1, "--json")
+    code, stdout, err = cli(
+        "buffon", "reproduce", "--out", out, "--trials", 3, "--workers", 1, "--json", "--online-trials", 0
+    )
     assert code == 0, err
     r = json.loads(stdout)
     assert r["nests"] == len(_mini_cases())
@@ -134,8 +136,11 @@ def test_reproduce_writes_figures_table_and_claims(cli, tmp_path, monkeypatch):
     for claim in ("Circle ~ square", "log-linearly", "compactness", "barrier", "Thicker trails", "Absolute area"):
         assert claim in summary
     assert len((out / "nests.csv").read_text().splitlines()) == len(_mini_cases()) + 1
+    assert "online" not in r
     # a second run finds every nest done in its store
-    code, stdout, err = cli("buffon", "reproduce", "--out", out, "--trials", 3, "--workers", 1, "--json")
+    code, stdout, err = cli(
+        "buffon", "reproduce", "--out", out, "--trials", 3, "--workers", 1, "--json", "--online-trials", 0
+    )
     assert code == 0 and f"{len(_mini_cases())} skipped as done" in json.loads(stdout)["sweep"]
 
 
@@ -206,6 +211,13 @@ def test_online_experiment_writes_its_tables_and_figures(cli, tmp_path, monkeypa
     code, stdout, err = cli("buffon", "online", "--out", out, "--trials", 3, "--workers", 1, "--json")
     assert code == 0, err
     r = json.loads(stdout)
+    # reproduce runs the same experiments into DIR/online
+    monkeypatch.setattr(buffon_run, "experiment_cases", _mini_cases)
+    monkeypatch.setattr(buffon_run, "_patterns", _stand_in_patterns)
+    rep = tmp_path / "rep"
+    code, so, err = cli("buffon", "reproduce", "--out", rep, "--trials", 3, "--workers", 1, "--online-trials", 3)
+    assert code == 0, err
+    assert "Coverage on the held-out family" in so and (rep / "online" / "online_coverage.png").stat().st_size > 0
     for name in buffon_run.ONLINE_FILES:
         assert (out / name).stat().st_size > 0, name
     assert [t["family"] for t in r["coverage"]][-1] == "all" and r["coverage"][-1]["nests"] == 6
