@@ -225,3 +225,19 @@ def test_online_experiment_writes_its_tables_and_figures(cli, tmp_path, monkeypa
     summary = (out / "online_summary.md").read_text()
     for part in ("Calibration", "Coverage on the held-out family", "equal areas", "Trail-aware", "Every nest"):
         assert part in summary
+
+
+def test_measure_defaults_to_the_online_rule_with_per_trial_intervals(cli, tmp_path):
+    rrd = tmp_path / "auto.rrd"
+    code, out, err = cli("buffon", "--nest", "circle:26", "--trials", 3, "--json", "--rrd", rrd)
+    assert code == 0, err
+    r = json.loads(out)
+    assert r["visit_steps"] == "auto" and r["online"] and r["converged"] == 3
+    assert len(r["trial_area_ci95"]) == 3 and all(lo < hi for lo, hi in r["trial_area_ci95"])
+    holds = [lo <= r["area_true"] <= hi for lo, hi in r["trial_area_ci95"]]
+    assert r["trial_ci95_coverage"] == pytest.approx(sum(holds) / 3)
+    assert r["robot_steps"] < 2 * 3 * 300_000 and rrd.stat().st_size > 10_000
+    # a fixed length gives no per-trial interval (its shape bias was not measured)
+    code, out, err = cli("buffon", "--nest", "circle:26", "--trials", 3, "--visit-steps", 2000, "--json")
+    r = json.loads(out)
+    assert code == 0 and r["trial_area_ci95"] is None and r["trial_ci95_coverage"] is None and not r["online"]
