@@ -37,8 +37,9 @@ carries ``area_warning`` saying so, and the estimate must not be trusted.
 the first visit ends at a trail coverage of 0.13, the second when its crossing rate is known to
 5 %. The bias left is then nearly the same at every size (measured 1.06-1.12 of the truth from
 700 to 31,000 u^2, README), so one factor, :data:`ONLINE_CORRECTION`, is calibrated on a family of
-nests (:func:`calibrate_online`; circles, squares, ellipses and barriers of 1,300-20,000 u^2,
-none of them in the evaluation family), with what that calibration leaves:
+nests (:func:`controllers.buffon.online.calibrate_online`; circles, squares, ellipses, barriers and
+concave polygons of 1,300-20,000 u^2, none of them in the evaluation family), with what that
+calibration leaves:
 
 * ``ONLINE_CORRECTION_SE``: the standard error of log K (the calibration's own uncertainty);
 * ``SHAPE_SIGMA``: the spread of the nests' median log-bias about K beyond their sampling error
@@ -98,16 +99,19 @@ AREA_CORRECTION = 0.935  # measured 0.9346, 95 % CI 0.928-0.946
 CORRECTION_REFERENCE = "circle:100"
 
 
-# The online rule's calibration (controllers.buffon.online.CALIBRATION_NESTS, 13 nests x 12 trials,
-# `stcvision buffon online` recomputes it into its summary): measured, then held fixed.
-ONLINE_CORRECTION = 0.924  # measured 0.9239: exp(-mean of the nests' median log-bias)
-ONLINE_CORRECTION_SE = 0.0054  # measured: sd of the nests' median log-bias / sqrt(13)
-# measured 0.0196: the nests' median log-biases' whole spread. Their sampling error at 12 trials
-# (~0.024) is as large, so the shape bias proper could not be told from it (estimated 0); the
-# whole spread ships, an upper bound
-SHAPE_SIGMA = 0.0196
-TRIAL_EXTRA_SIGMA = 0.058  # measured 0.0585: single trials about their nest's median, beyond rate_rel_se
-CALIBRATION_DOF = 12
+# The online rule's calibration (controllers.buffon.online: CALIBRATION_NESTS and
+# CALIBRATION_POLYGONS, 16 nests x 12 trials; `stcvision buffon online` recomputes it into its
+# summary): measured, then held fixed.
+ONLINE_CORRECTION = 0.929  # measured 0.9285: exp(-mean of the nests' median log-bias)
+ONLINE_CORRECTION_SE = 0.0053  # measured: sd of the nests' median log-bias / sqrt(16)
+# the nests' median log-biases' whole spread, measured 0.0196-0.021. Their sampling error at 12
+# trials (~0.02) is as large, so the shape bias proper could not be told from it (estimated 0);
+# the whole spread ships, an upper bound
+SHAPE_SIGMA = 0.021
+# single trials about their nest's median, beyond their own rate_rel_se: measured 0.046, 0.055
+# and 0.058 in three runs of the family (seeds 0+, 0+ with the polygons, 1000+); the largest ships
+TRIAL_EXTRA_SIGMA = 0.058
+CALIBRATION_DOF = 15
 # the online rule's trials stay calibrated up to this blind fraction (measured: 0.43 in a 30 u
 # circle, 1.10 of the truth, as at 31,000 u^2); fixed lengths keep MAX_BLIND_FRACTION
 MAX_BLIND_FRACTION_ONLINE = 0.45

@@ -202,6 +202,7 @@ def test_online_experiment_writes_its_tables_and_figures(cli, tmp_path, monkeypa
     import controllers.buffon.online as exp
 
     monkeypatch.setattr(exp, "CALIBRATION_NESTS", (("circle:21", None), ("square:19", None)))
+    monkeypatch.setattr(exp, "CALIBRATION_POLYGONS", {"L": ((0, 0), (20, 0), (20, 10), (10, 10), (10, 20), (0, 20))})
     monkeypatch.setattr(exp, "evaluation_nests", _mini_evaluation)
     monkeypatch.setattr(buffon_run, "SIZE_ENDS", ("circle:12",))
     monkeypatch.setattr(buffon_run, "FIXED_STEPS", (2000, 4000))
@@ -221,7 +222,7 @@ def test_online_experiment_writes_its_tables_and_figures(cli, tmp_path, monkeypa
     for name in buffon_run.ONLINE_FILES:
         assert (out / name).stat().st_size > 0, name
     assert [t["family"] for t in r["coverage"]][-1] == "all" and r["coverage"][-1]["nests"] == 6
-    assert r["calibration"]["nests"] == 2 and r["shape_pairs"]["areas"][0]["area"] == 300
+    assert r["calibration"]["nests"] == 3 and r["shape_pairs"]["areas"][0]["area"] == 300
     summary = (out / "online_summary.md").read_text()
     for part in ("Calibration", "Coverage on the held-out family", "equal areas", "Trail-aware", "Every nest"):
         assert part in summary
