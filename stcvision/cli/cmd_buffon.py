@@ -177,9 +177,10 @@ def _add_calibrate(sub):
 
     s = sub.add_parser(
         "calibrate",
-        help=f"recompute the area correction on {CORRECTION_REFERENCE}",
-        description="Measure A_true / median(A_dt) on the standard circle at the default visit "
-        "length; the shipped factor is held fixed, this shows where it comes from.",
+        help=f"recompute the fixed lengths' area correction on {CORRECTION_REFERENCE}",
+        description="Measure A_true / median(A_dt) on the standard circle at 300,000-step visits: the factor of "
+        "fixed visit lengths (held fixed; this shows where it comes from). The online rule's factor, its "
+        "interval and spreads are recomputed by `buffon online` on its calibration family.",
     )
     s.add_argument("--trials", type=_trials(), default=100, help="trials (default 100)")
     s.add_argument("--seed", type=seed, default=0)
