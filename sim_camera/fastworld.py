@@ -47,6 +47,7 @@ __all__ = [
     "push_out",
     "ray_cast",
     "read_cell",
+    "stamp_segment",
 ]
 
 _MAX_GRID_CELLS = 4_000_000
@@ -254,6 +255,14 @@ def inside_polygon(poly, x, y):
 def deposit_segment(grid, ox, oy, cell, half, x0, y0, x1, y1):
     """Mark the cells of ``grid`` (uint8, row 0 = south) whose centre lies within ``half`` of the
     segment (x0, y0)-(x1, y1) (the rule of :class:`sim_camera.layers.PheromoneLayer`)."""
+    stamp_segment(grid, ox, oy, cell, half, x0, y0, x1, y1, 1)
+
+
+@_jit
+def stamp_segment(grid, ox, oy, cell, half, x0, y0, x1, y1, value):
+    """As :func:`deposit_segment`, but an empty cell (0) gets ``value`` and a marked one keeps
+    what it holds: a raster of when (how far along its path) the trail was first laid, which a
+    robot reading its own trail needs to tell an old strand from the stripe it is laying."""
     ny, nx = grid.shape
     j0 = max(0, int(math.floor((min(x0, x1) - half - ox) / cell - 0.5)))
     j1 = min(nx - 1, int(math.ceil((max(x0, x1) + half - ox) / cell - 0.5)))
@@ -265,8 +274,8 @@ def deposit_segment(grid, ox, oy, cell, half, x0, y0, x1, y1):
         for j in range(j0, j1 + 1):
             cx = ox + (j + 0.5) * cell
             qx, qy = _closest_on_segment(cx, cy, x0, y0, x1, y1)
-            if (cx - qx) ** 2 + (cy - qy) ** 2 <= h2:
-                grid[i, j] = 1
+            if (cx - qx) ** 2 + (cy - qy) ** 2 <= h2 and grid[i, j] == 0:
+                grid[i, j] = value
 
 
 @_jit

@@ -76,3 +76,57 @@ MAX_SEARCH_SEEDS = 1_000
 #: which at spacings far below the step runs for ever in floating point; 1 cm is 1/14 of
 #: TASTI 2's 141 mm step
 MIN_SEARCH_SPIRAL_SPACING_M = 0.01
+# --- Buffon's needle (`stcvision buffon`, controllers/buffon) ------------------------------------
+#: trials of one measurement: each keeps a few numbers and its own seed streams (~1 kB), and
+#: 100,000 trials of the standard nest are ~4 hours of one core
+MAX_BUFFON_TRIALS = 100_000
+#: steps of one visit, fixed or as the most the online rule may take: ~1 minute of one core at
+#: 1-2 million steps/s, ~3,000 body lengths of path; the online rule needs ~4 million in the
+#: largest nest it is documented for (400 u across)
+MAX_BUFFON_VISIT_STEPS = 100_000_000
+#: robot-steps of one measurement, all trials and both visits: ~3 hours of one core
+MAX_BUFFON_ROBOT_STEPS = 20_000_000_000
+#: trail rasters held at once (one per running thread, uint32 cells): beyond this a nest is too
+#: large for the trail's width on this toolkit's machines (24 GiB shared by several users)
+MAX_BUFFON_RASTER_BYTES = 2 * 1024**3
+#: threads of one measurement (each holds a trail raster; more than the cores only costs memory)
+MAX_BUFFON_THREADS = 256
+#: steps recorded for ``--rrd`` (24 bytes each, and rerun logs thinned frames of them)
+MAX_BUFFON_RECORD_STEPS = 20_000_000
+
+
+def check_buffon_work(
+    *, trials: int, visit_steps: int, raster_bytes: int, threads: int, record_steps: int, auto: bool
+) -> None:
+    """Refuse, in one line naming the cap, a Buffon measurement whose trials, steps or memory
+    are over the caps above (before any work; with ``auto`` the steps are the rule's ceiling,
+    and only the memory and the trials are checked)."""
+    from stcvision.errors import BadInputError
+
+    if threads > MAX_BUFFON_THREADS:
+        raise BadInputError(f"--threads {threads:,}: over the cap of {MAX_BUFFON_THREADS:,} (MAX_BUFFON_THREADS)")
+    if trials > MAX_BUFFON_TRIALS:
+        raise BadInputError(f"--trials {trials:,}: over the cap of {MAX_BUFFON_TRIALS:,} (MAX_BUFFON_TRIALS)")
+    if visit_steps > MAX_BUFFON_VISIT_STEPS:
+        raise BadInputError(
+            f"--visit-steps {visit_steps:,}: over the cap of {MAX_BUFFON_VISIT_STEPS:,} (MAX_BUFFON_VISIT_STEPS)"
+        )
+    if not auto and 2 * trials * visit_steps > MAX_BUFFON_ROBOT_STEPS:
+        raise BadInputError(
+            f"{trials:,} trials of 2 x {visit_steps:,} steps: {2 * trials * visit_steps:,} robot-steps, over the cap "
+            f"of {MAX_BUFFON_ROBOT_STEPS:,} (MAX_BUFFON_ROBOT_STEPS, ~3 hours of one core)"
+        )
+    if raster_bytes * threads > MAX_BUFFON_RASTER_BYTES:
+        raise BadInputError(
+            f"the trail rasters need {raster_bytes * threads / 2**20:,.0f} MiB ({threads} thread(s) x "
+            f"{raster_bytes / 2**20:,.0f} MiB), over the cap of {MAX_BUFFON_RASTER_BYTES / 2**20:,.0f} MiB "
+            "(MAX_BUFFON_RASTER_BYTES); use fewer threads, a wider trail or a smaller nest"
+        )
+    if record_steps > MAX_BUFFON_RECORD_STEPS:
+        raise BadInputError(
+            f"--rrd records up to {record_steps:,} steps a visit, over the cap of {MAX_BUFFON_RECORD_STEPS:,} "
+            "(MAX_BUFFON_RECORD_STEPS); record a run with shorter visits"
+        )
+#: steps of one visit on the pymunk path (``buffon compare``): ~1-3,000 steps/s, so 10^6 is ~10
+#: minutes a visit
+MAX_PYMUNK_VISIT_STEPS = 1_000_000

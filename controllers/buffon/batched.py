@@ -26,6 +26,7 @@ depend on how many trials run beside it or on the worker that runs it.
 from __future__ import annotations
 
 import math
+import threading
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -36,14 +37,16 @@ import numpy as np
 from controllers.buffon.behaviour import ExplorerParams, explorer_core_nb, wheel_speeds_nb
 from controllers.buffon.counter import CounterParams, integrate_nb
 from controllers.buffon.nests import BODY_LENGTH_M, Nest
+from controllers.buffon.stopping import StopParams, batch_add, batch_rel_se, first_visit_done, new_batch_state
+from controllers.buffon.stopping import first_visit_hopeless, second_visit_done
 from sim_camera.fastworld import (
     StaticGeometry,
     cell_span,
-    deposit_segment,
     inside_polygon,
     push_out,
     ray_cast,
     read_cell,
+    stamp_segment,
 )
 from sim_camera.robot import KHEPERA, DiffDriveParams
 from sim_camera.sensors import IrParams
@@ -62,19 +65,30 @@ __all__ = [
 PAPER_VISIT_STEPS = 50_000  # sec. 4: "the duration of the first visit is fixed to 50000 steps"
 PAPER_TRAIL_WIDTH_U = 0.1  # sec. 4: "the width of the pheromone is taken as 0.1"
 START_HEADING_SPREAD_RAD = math.radians(15)  # sec. 3.1: "varied within +-15 degrees of the wall"
-MAX_TRAIL_CELLS = 64_000_000
+#: the trail raster's unit of path length: a cell holds the path (in these units, + 1) at which
+#: the first visit first laid it; uint32 holds 2,100 km of path, over 20 times the longest visit
+STAMP_M = 0.0005
+#: steps the compiled loop runs before it returns to Python, which then looks at signals (Ctrl-C,
+#: SIGTERM) and at the other threads' failures: ~30-70 ms at 1-2 million steps/s
+CHUNK_STEPS = 1 << 16
+AUTO = "auto"
 
 
 @dataclass(frozen=True, kw_only=True, slots=True)
 class VisitConfig:
     """Everything a trial needs besides the nest and its seed.
 
-    visit_steps : steps of each visit (sec. 4: 50,000).
+    visit_steps : steps of each visit (sec. 4: 50,000), or ``"auto"``: each visit ends when the
+        robot's online rule (``stop``, :mod:`controllers.buffon.stopping`) says so, after at most
+        ``max_visit_steps``.
     trail_width_u : pheromone trail width in body lengths (sec. 4: 0.1).
     dt_s : world step (the pymunk world's default, 0.05 s).
     """
 
-    visit_steps: int = PAPER_VISIT_STEPS
+    visit_steps: int | str = PAPER_VISIT_STEPS
+    stop: StopParams = StopParams()
+    max_visit_steps: int = 0  # 0: the cap of stcvision.limits
+    trail_turn: float = 0.0  # trail-aware exploration (beta; 0: the paper's behaviour); see README
     trail_width_u: float = PAPER_TRAIL_WIDTH_U
     dt_s: float = 0.05
     robot: DiffDriveParams = KHEPERA
@@ -83,14 +97,38 @@ class VisitConfig:
     counter: CounterParams = CounterParams()
 
     def __post_init__(self):
-        if not (isinstance(self.visit_steps, int) and self.visit_steps > 0):
-            raise BadInputError(f"visit steps must be a positive integer; got {self.visit_steps!r}")
+        from stcvision.limits import MAX_BUFFON_VISIT_STEPS
+
+        if self.visit_steps != AUTO and not (
+            isinstance(self.visit_steps, int) and 0 < self.visit_steps <= MAX_BUFFON_VISIT_STEPS
+        ):
+            raise BadInputError(
+                f"visit steps must be 'auto' or a positive integer at most {MAX_BUFFON_VISIT_STEPS:,} "
+                f"(stcvision.limits.MAX_BUFFON_VISIT_STEPS); got {self.visit_steps!r}"
+            )
+        if not (isinstance(self.trail_turn, int | float) and 0 <= self.trail_turn <= 1):
+            raise BadInputError(f"trail turn must be a number in [0, 1]; got {self.trail_turn!r}")
+        if not (isinstance(self.max_visit_steps, int) and 0 <= self.max_visit_steps <= MAX_BUFFON_VISIT_STEPS):
+            raise BadInputError(f"max visit steps must be an integer in [0, {MAX_BUFFON_VISIT_STEPS:,}]")
         if not (math.isfinite(self.trail_width_u) and self.trail_width_u > 0):
             raise BadInputError(f"trail width must be a positive number of body lengths; got {self.trail_width_u!r}")
 
     @property
     def trail_width_m(self) -> float:
         return self.trail_width_u * BODY_LENGTH_M
+
+    @property
+    def auto(self) -> bool:
+        return self.visit_steps == AUTO
+
+    @property
+    def step_limit(self) -> int:
+        """The most steps one visit can take."""
+        from stcvision.limits import MAX_BUFFON_VISIT_STEPS
+
+        if not self.auto:
+            return self.visit_steps
+        return self.max_visit_steps or MAX_BUFFON_VISIT_STEPS
 
     def kernel_params(self) -> np.ndarray:
         """The constants the kernel reads, in :data:`_P` order."""
@@ -120,6 +158,8 @@ class VisitConfig:
             "thr": c.threshold,
             "hyst": c.hysteresis,
             "half_w": 0.5 * self.trail_width_m,
+            "recent_stamps": self.stop.recent_u * BODY_LENGTH_M / STAMP_M,
+            "avoid": self.trail_turn,
         }
         return np.array([vals[k] for k in _P], dtype=np.float64)
 
@@ -146,10 +186,12 @@ _P = (
     "thr",
     "hyst",
     "half_w",
+    "recent_stamps",
+    "avoid",
 )
 # state columns
-X, Y, TH, R, WL, WR, LEVEL, PLEN, ABOVE, GAIN, BLIND, ESC = range(12)
-N_STATE = 12
+X, Y, TH, R, WL, WR, LEVEL, PLEN, ABOVE, GAIN, BLIND, ESC, CROSS, STEPS, GAVE_UP = range(15)
+N_STATE = 15
 
 
 @numba.njit(cache=True, nogil=True)
@@ -161,19 +203,26 @@ def _ir_reading(d, sat, rng_m, noise):
 
 
 @numba.njit(cache=True, nogil=True)
-def _visit(st, beh, irg, slip, steps, grid, lay, geo, outer, trail, prm, ir_ang, rec):
-    """Advance one robot (state ``st``, (N_STATE,)) by ``steps`` steps, drawing from its own
-    generators (numba runs numpy's Generator algorithms, bit for bit): ``beh`` the behaviour's
-    n and nbar, ``irg`` the IR noise, ``slip`` the wheel slip. ``grid``: the trail raster; ``lay``:
-    visit 1 (lay) or 2 (sense); ``rec`` (steps or 0, 3): x, y, crossed per step. Returns
-    (crossings, containment failures)."""
+def _visit(st, beh, irg, slip, steps, grid, lay, geo, outer, trail, prm, ir_ang, rec, auto, sp, bst, l1_u):
+    """Advance one robot (state ``st``, (N_STATE,)) by at most ``steps`` steps, drawing from its
+    own generators (numba runs numpy's Generator algorithms, bit for bit): ``beh`` the
+    behaviour's n and nbar, ``irg`` the IR noise, ``slip`` the wheel slip. ``grid``: the trail
+    raster (uint32: 0 empty, else the path, in :data:`STAMP_M` units + 1, at which the first
+    visit first laid the cell); ``lay``: visit 1 (lay, and count encounters with its own older
+    trail) or 2 (sense and count crossings); ``rec`` (steps or 0, 3): x, y, crossed per step.
+    ``auto``: stop when the online rule (:mod:`controllers.buffon.stopping`, constants ``sp``,
+    batch-means state ``bst``, first-visit path ``l1_u``) says so. The loop returns after
+    ``steps`` steps at most, so that its caller can look at signals between chunks. Returns
+    (containment failures, stopped by the rule)."""
     caps, ox, oy, cell, ny, nx, offsets, index = geo
     gox, goy, gcell = trail
     dt, gamma, front_thr, side_thr, k = prm[0], prm[1], prm[2], prm[3], prm[4]
     noise, esc_min, esc_max, vmax, radius = prm[5], prm[6], prm[7], prm[8], prm[9]
     b_true, dl_ratio, dr_ratio, slip_k = prm[10], prm[11], prm[12], prm[13]
     ir_sat, ir_range, ir_sigma = prm[14], prm[15], prm[16]
-    rate, thr, hyst, half_w = prm[17], prm[18], prm[19], prm[20]
+    rate, thr, hyst, half_w, recent_stamps, avoid = prm[17], prm[18], prm[19], prm[20], prm[21], prm[22]
+    coverage, min_self, pi_w, second_ratio = sp[0], sp[1], sp[2], sp[3]
+    min_cross, rel_se, batches, max_ratio = sp[4], sp[5], int(sp[6]), sp[7]
     n_ir = ir_ang.shape[0]
     ir_cos, ir_sin = np.cos(ir_ang), np.sin(ir_ang)
     ir = np.empty(6)
@@ -181,8 +230,11 @@ def _visit(st, beh, irg, slip, steps, grid, lay, geo, outer, trail, prm, ir_ang,
     r, wl, wr, level, plen = st[R], st[WL], st[WR], st[LEVEL], st[PLEN]
     above = st[ABOVE] > 0.5
     gain, blind, esc = st[GAIN], st[BLIND], st[ESC]
-    crossings = 0
+    crossings = int(st[CROSS])
+    done = int(st[STEPS])
     escapes = 0
+    stopped = False
+    turn = 0.0  # trail-aware exploration: the turn away from the old trail under way (+1 left, -1 right)
     recording = rec.shape[0] > 0
     for s in range(steps):
         # 1. six IR rays from the rim (sim_camera.sensors.IrSensors), noise from their stream
@@ -205,6 +257,8 @@ def _visit(st, beh, irg, slip, steps, grid, lay, geo, outer, trail, prm, ir_ang,
         r, wl, wr, esc, rbar = explorer_core_nb(
             r, wl, wr, esc, ir[0], ir[1], ir[2], ir[3], ir[4], ir[5], n, nbar, gamma, front_thr, side_thr
         )
+        if lay and avoid > 0.0 and above and esc == 0.0:  # laying over its old trail, no wall escape: turn off it
+            rbar = min(1.0, max(-1.0, rbar + avoid * turn))
         ml, mr = wheel_speeds_nb(rbar, k)
         # 3. wheels -> body, as sim_camera.robot.DiffDriveRobot._pre_step
         dl = min(vmax, max(-vmax, ml)) * dt * gain * dl_ratio
@@ -221,33 +275,61 @@ def _visit(st, beh, irg, slip, steps, grid, lay, geo, outer, trail, prm, ir_ang,
             caps, ox, oy, cell, ny, nx, offsets, index, x + v * math.cos(mid), y + v * math.sin(mid), radius
         )
         th += dth
-        plen += math.hypot(nx_ - x, ny_ - y)
-        # 5. lay the trail, or read it and count
-        crossed = False
-        if lay:
-            deposit_segment(grid, gox, goy, gcell, half_w, x, y, nx_, ny_)
+        step_m = math.hypot(nx_ - x, ny_ - y)
+        plen += step_m
+        # 5. the detector reads the cell it reached; visit 1 then lays its trail there
+        stamp = read_cell(grid, gox, goy, gcell, nx_, ny_)
+        if lay:  # its own trail laid long enough ago (not the stripe being laid)
+            seen = 1.0 if stamp > 0 and plen / STAMP_M + 1.0 - stamp > recent_stamps else 0.0
+            stamp_segment(grid, gox, goy, gcell, half_w, x, y, nx_, ny_, np.uint32(plen / STAMP_M + 1.0))
+        else:
+            seen = 1.0 if stamp > 0 else 0.0
         x, y = nx_, ny_
-        if not lay:
-            level, above, crossed = integrate_nb(
-                level, above, float(read_cell(grid, gox, goy, gcell, x, y)), rate, thr, hyst
-            )
-            crossings += crossed
-            blind += above
+        level, above, crossed = integrate_nb(level, above, seen, rate, thr, hyst)
+        if crossed and avoid > 0.0:
+            turn = 1.0 if beh.random() < 0.5 else -1.0
+        crossings += crossed
+        blind += above
+        if not lay:  # the batch means of the crossing rate (its standard error), whatever the rule
+            batch_add(bst, 1.0 if crossed else 0.0, step_m / BODY_LENGTH_M, batches)
         if (s & 15) == 0 and not inside_polygon(outer, x, y):
             escapes += 1
         if recording:
             rec[s, 0], rec[s, 1], rec[s, 2] = x, y, 1.0 if crossed else 0.0
+        if auto and (s & 63) == 63:
+            if lay:
+                stopped = first_visit_done(plen / BODY_LENGTH_M, crossings, coverage, min_self, pi_w)
+                if not stopped and first_visit_hopeless(done + s + 1, blind, crossings, min_self):
+                    stopped = True
+                    st[GAVE_UP] = 1.0
+            else:
+                stopped = second_visit_done(
+                    bst, plen / BODY_LENGTH_M, crossings, l1_u, second_ratio, min_cross, rel_se, batches, max_ratio
+                )
+            if stopped:
+                done += s + 1
+                break
+    else:
+        done += steps
     st[X], st[Y], st[TH] = x, y, th
     st[R], st[WL], st[WR], st[LEVEL], st[PLEN] = r, wl, wr, level, plen
     st[ABOVE] = 1.0 if above else 0.0
     st[BLIND] = blind
     st[ESC] = esc
-    return crossings, escapes
+    st[CROSS] = crossings
+    st[STEPS] = done
+    return escapes, stopped
 
 
 @dataclass(frozen=True, slots=True)
 class TrialSet:
-    """Per-trial results (lengths in body lengths)."""
+    """Per-trial results (lengths in body lengths).
+
+    Beside what the estimate needs (L1, L2, N, the blind fraction): the first visit's
+    self-encounters ``n_self``, the second visit's batch-means relative standard error of its
+    crossing rate ``rate_rel_se`` (:mod:`controllers.buffon.stopping`), each trial's robot-steps
+    ``steps`` and whether the online rule ended both visits (``converged``; True for fixed
+    lengths)."""
 
     l1_u: np.ndarray
     l2_u: np.ndarray
@@ -258,6 +340,11 @@ class TrialSet:
     wall_s: float
     trails: dict = field(default_factory=dict)  # recorded trial: 'visit1', 'visit2' (S, 3) arrays
     cpu_s: float = float("nan")  # process CPU time (honest per-core speed on a shared machine)
+    n_self: np.ndarray | None = None
+    rate_rel_se: np.ndarray | None = None
+    steps: np.ndarray | None = None
+    converged: np.ndarray | None = None
+    online: bool = False  # both visits' lengths decided by the online rule
 
     @property
     def nbc(self) -> np.ndarray:
@@ -268,9 +355,12 @@ class TrialSet:
 def _trail_grid_shape(nest: Nest, cell_m: float) -> tuple[int, int]:
     xmin, ymin, xmax, ymax = nest.arena.bounds_m
     shape = (math.ceil((ymax - ymin) / cell_m) + 1, math.ceil((xmax - xmin) / cell_m) + 1)
-    if shape[0] * shape[1] > MAX_TRAIL_CELLS:
+    from stcvision.limits import MAX_BUFFON_RASTER_BYTES
+
+    if shape[0] * shape[1] * np.dtype(np.uint32).itemsize > MAX_BUFFON_RASTER_BYTES:
         raise BadInputError(
-            f"nest {nest.spec!r} with a {cell_m / BODY_LENGTH_M * 2:g} u trail needs a {shape[0]}x{shape[1]} raster; "
+            f"nest {nest.spec!r} with a {cell_m / BODY_LENGTH_M * 2:g} u trail needs a {shape[0]}x{shape[1]} raster, "
+            f"over the cap of {MAX_BUFFON_RASTER_BYTES / 2**20:,.0f} MiB (MAX_BUFFON_RASTER_BYTES); "
             "use a wider trail or a smaller nest"
         )
     return shape
@@ -301,35 +391,62 @@ def run_trials(
 ) -> TrialSet:
     """Run ``trials`` independent two-visit trials of Buffon's method in ``nest``.
 
-    ``progress(n)`` is called with the robot-steps done after each visit (for a progress bar).
-    ``record_trial`` keeps that trial's two paths (x, y, crossed per step) in ``TrialSet.trails``.
-    ``threads`` > 1 runs trials on that many threads (the compiled loop releases the GIL); the
-    results do not depend on it.
+    ``progress(n)`` is called with the robot-steps done after each chunk of a visit (for a
+    progress bar). ``record_trial`` keeps that trial's two paths (x, y, crossed per step) in
+    ``TrialSet.trails``. ``threads`` > 1 runs trials on that many threads (the compiled loop
+    releases the GIL); the results do not depend on it. A signal (KeyboardInterrupt, or the
+    CLI's SIGTERM exception) stops every thread within one chunk of steps.
     """
+    from stcvision.limits import check_buffon_work
+
     if not (isinstance(trials, int) and trials > 0):
         raise BadInputError(f"trials must be a positive integer; got {trials!r}")
     if not (isinstance(threads, int) and threads > 0):
         raise BadInputError(f"threads must be a positive integer; got {threads!r}")
-    t0, c0 = time.perf_counter(), time.process_time()
+    check_buffon_work(trials=trials, visit_steps=config.step_limit, raster_bytes=0, threads=threads,
+                      record_steps=0, auto=config.auto)  # fmt: skip
     world = _TrialWorld(nest, config)
+    threads = min(threads, trials)
+    check_buffon_work(
+        trials=trials,
+        visit_steps=config.step_limit,
+        raster_bytes=world.raster_bytes,
+        threads=threads,
+        record_steps=config.step_limit if record_trial is not None and not config.auto else 0,
+        auto=config.auto,
+    )
+    t0, c0 = time.perf_counter(), time.process_time()
     seeds = trial_seeds(seed, trials)
+    cancel = threading.Event()
 
     def one(i: int):
-        return world.trial(seeds[i], record=i == record_trial, progress=progress)
+        return world.trial(seeds[i], record=i == record_trial, progress=progress, cancel=cancel)
 
     if threads == 1:
         rows = [one(i) for i in range(trials)]
     else:
         from concurrent.futures import ThreadPoolExecutor
 
-        with ThreadPoolExecutor(max_workers=threads) as pool:
+        pool = ThreadPoolExecutor(max_workers=threads)
+        try:
             rows = list(pool.map(one, range(trials)))
-    l1, l2, n, blind, esc, trails = zip(*rows, strict=True)
+        except BaseException:
+            cancel.set()  # the other threads stop at their next chunk
+            pool.shutdown(wait=True, cancel_futures=True)
+            raise
+        pool.shutdown(wait=True)
+    cols = list(zip(*rows, strict=True))
+    l1, l2, n, blind, esc, trails, n_self, se, steps, conv = cols
     return TrialSet(
         np.array(l1), np.array(l2), np.array(n, dtype=np.int64), np.array(blind), int(sum(esc)),
-        2 * trials * config.visit_steps, time.perf_counter() - t0, next((t for t in trails if t), {}),
-        time.process_time() - c0,
+        int(sum(steps)), time.perf_counter() - t0, next((t for t in trails if t), {}),
+        time.process_time() - c0, np.array(n_self, dtype=np.int64), np.array(se), np.array(steps, dtype=np.int64),
+        np.array(conv, dtype=bool), config.auto,
     )  # fmt: skip
+
+
+class Cancelled(Exception):
+    """A trial stopped because another thread's trial failed or was interrupted."""
 
 
 class _TrialWorld:
@@ -338,38 +455,63 @@ class _TrialWorld:
     def __init__(self, nest: Nest, config: VisitConfig):
         rb = config.robot
         self.config = config
-        self.geo = StaticGeometry.from_arena(nest.arena, reach_m=rb.radius_m + config.ir.range_m + 0.005)
         cell = 0.5 * config.trail_width_m  # as sim_camera.layers.PheromoneLayer
         xmin, ymin = nest.arena.bounds_m[:2]
         self.trail = (xmin, ymin, cell)
-        self.grid_shape = _trail_grid_shape(nest, cell)
+        self.grid_shape = _trail_grid_shape(nest, cell)  # refused before the walls' grid is built
+        self.geo = StaticGeometry.from_arena(nest.arena, reach_m=rb.radius_m + config.ir.range_m + 0.005)
+        self.raster_bytes = self.grid_shape[0] * self.grid_shape[1] * np.dtype(np.uint32).itemsize
         self.prm = config.kernel_params()
+        self.sp = config.stop.array(config.trail_width_u)
         self.ir_ang = np.array(config.ir.angles_rad, dtype=np.float64)
         self.start = nest.start_xy
 
-    def trial(self, seeds, *, record: bool = False, progress=None):
-        """One trial's (L1 u, L2 u, crossings, blind fraction, escapes, recorded paths)."""
+    def trial(self, seeds, *, record: bool = False, progress=None, cancel: threading.Event | None = None):
+        """One trial: (L1 u, L2 u, crossings, blind fraction, escapes, recorded paths,
+        self-encounters, rate relative SE, robot-steps, converged)."""
+        from stcvision.limits import MAX_BUFFON_RECORD_STEPS
+
         c = self.config
         start, beh, irg, slip = (np.random.default_rng(s) for s in seeds)
         gain = _motor_gain(c.robot, start)
-        grid = np.zeros(self.grid_shape, dtype=np.uint8)
-        out, trails, escapes = [0.0, 0.0, 0, 0.0], {}, 0
+        grid = np.zeros(self.grid_shape, dtype=np.uint32)
+        out, trails, escapes, converged, steps = [0.0, 0.0, 0, 0.0], {}, 0, True, 0
+        n_self, rel_se = 0, float("nan")
+        limit = c.step_limit
         for visit, heading in enumerate(start_headings(start), 1):
             st = np.zeros(N_STATE)
             st[X], st[Y], st[TH], st[GAIN] = *self.start, heading, gain
-            rec = np.zeros((c.visit_steps if record else 0, 3))
+            bst = new_batch_state(c.stop.batches)
+            recs, stopped = [], False
             geo = self.geo
-            n, e = _visit(st, beh, irg, slip, c.visit_steps, grid, visit == 1, geo.arrays, geo.outer, self.trail,
-                          self.prm, self.ir_ang, rec)  # fmt: skip
-            escapes += e
+            while not stopped and st[STEPS] < limit:
+                if cancel is not None and cancel.is_set():
+                    raise Cancelled("another trial stopped")
+                chunk = int(min(CHUNK_STEPS, limit - st[STEPS]))
+                keep = record and st[STEPS] < MAX_BUFFON_RECORD_STEPS  # an online visit records its start
+                rec = np.zeros((chunk if keep else 0, 3))
+                before = int(st[STEPS])
+                e, stopped = _visit(st, beh, irg, slip, chunk, grid, visit == 1, geo.arrays, geo.outer, self.trail,
+                                    self.prm, self.ir_ang, rec, c.auto, self.sp, bst, out[0])  # fmt: skip
+                escapes += e
+                if keep:
+                    recs.append(rec[: int(st[STEPS]) - before])
+                if progress is not None:
+                    progress(int(st[STEPS]) - before)
+            converged &= (stopped and st[GAVE_UP] == 0.0) or not c.auto
+            done = int(st[STEPS])
+            steps += done
             out[visit - 1] = st[PLEN] / BODY_LENGTH_M
-            if visit == 2:
-                out[2], out[3] = n, st[BLIND] / c.visit_steps
+            if visit == 1:
+                n_self = int(st[CROSS])
+            else:
+                out[2], out[3] = int(st[CROSS]), st[BLIND] / done
+                rel_se = batch_rel_se(bst, c.stop.batches)
             if record:
-                trails[f"visit{visit}"] = rec
-            if progress is not None:
-                progress(c.visit_steps)
-        return (*out, escapes, trails)
+                trails[f"visit{visit}"] = np.concatenate(recs) if recs else np.zeros((0, 3))
+        return (*out, escapes, trails, n_self, rel_se, steps, converged)
+
+
 
 
 def _motor_gain(rb: DiffDriveParams, rng: np.random.Generator) -> float:

@@ -33,10 +33,32 @@ steps is blended beyond what the corrections hold (measured: the dead-time corre
 within ~10 % of the truth up to b ~ 0.3 and runs to 1.3-1.8x at b = 0.5-0.7): its summary
 carries ``area_warning`` saying so, and the estimate must not be trusted.
 
-**Interval**: the 95 % confidence interval of the median estimate over trials, by the
-percentile bootstrap (:func:`scipy.stats.bootstrap`, 2,000 resamples of the trials, seeded):
-how well a set of trials pins the nest's area down, not the spread of single trials (that is
-``area_rel_error_median``).
+**Online visit lengths** (``--visit-steps auto``, the default; :mod:`controllers.buffon.stopping`):
+the first visit ends at a trail coverage of 0.13, the second when its crossing rate is known to
+5 %. The bias left is then nearly the same at every size (measured 1.06-1.12 of the truth from
+700 to 31,000 u^2, README), so one factor, :data:`ONLINE_CORRECTION`, is calibrated on a family of
+nests (:func:`controllers.buffon.online.calibrate_online`; circles, squares, ellipses, barriers and
+concave polygons of 1,300-20,000 u^2, none of them in the evaluation family), with what that
+calibration leaves:
+
+* ``ONLINE_CORRECTION_SE``: the standard error of log K (the calibration's own uncertainty);
+* ``SHAPE_SIGMA``: the spread of the nests' median log-bias about K beyond their sampling error
+  (the residual bias of shape and size, which no factor removes);
+* ``TRIAL_EXTRA_SIGMA``: the spread of single trials about their nest's median beyond what the
+  trial's own batch-means error (the second visit's ``rate_rel_se``) says (the first visit's
+  trail is itself one random draw, which the second visit cannot see).
+
+**Intervals** (log scale, Student t with the calibration family's degrees of freedom, scipy.stats):
+
+* per trial (``trial_area_ci95``: what one robot can say about its one measurement):
+  log A +- t sqrt(se_rel^2 + TRIAL_EXTRA_SIGMA^2 + ONLINE_CORRECTION_SE^2 + SHAPE_SIGMA^2);
+* over trials (``area_ci95``): the percentile bootstrap of the median log estimate
+  (:func:`scipy.stats.bootstrap`, 2,000 resamples, seeded; the trial-to-trial spread), its
+  half-widths combined in quadrature with t sqrt(ONLINE_CORRECTION_SE^2 + SHAPE_SIGMA^2).
+
+With fixed visit lengths the factor is the one of the standard circle (:data:`AREA_CORRECTION`),
+``area_ci95`` is the plain bootstrap interval of the median, and no per-trial interval is given:
+neither carries the shape bias, which was measured for the online rule only.
 """
 
 from __future__ import annotations
@@ -77,6 +99,24 @@ AREA_CORRECTION = 0.935  # measured 0.9346, 95 % CI 0.928-0.946
 CORRECTION_REFERENCE = "circle:100"
 
 
+# The online rule's calibration (controllers.buffon.online: CALIBRATION_NESTS and
+# CALIBRATION_POLYGONS, 16 nests x 12 trials; `stcvision buffon online` recomputes it into its
+# summary): measured, then held fixed.
+ONLINE_CORRECTION = 0.929  # measured 0.9285: exp(-mean of the nests' median log-bias)
+ONLINE_CORRECTION_SE = 0.0053  # measured: sd of the nests' median log-bias / sqrt(16)
+# the nests' median log-biases' whole spread, measured 0.0196-0.021. Their sampling error at 12
+# trials (~0.02) is as large, so the shape bias proper could not be told from it (estimated 0);
+# the whole spread ships, an upper bound
+SHAPE_SIGMA = 0.021
+# single trials about their nest's median, beyond their own rate_rel_se: measured 0.046, 0.055
+# and 0.058 in three runs of the family (seeds 0+, 0+ with the polygons, 1000+); the largest ships
+TRIAL_EXTRA_SIGMA = 0.058
+CALIBRATION_DOF = 15
+# the online rule's trials stay calibrated up to this blind fraction (measured: 0.43 in a 30 u
+# circle, 1.10 of the truth, as at 31,000 u^2); fixed lengths keep MAX_BLIND_FRACTION
+MAX_BLIND_FRACTION_ONLINE = 0.45
+
+
 def buffon_area(l1, l2, n):
     """Buffon/Barbier: the area in which two random curves of lengths ``l1`` and ``l2`` cross
     ``n`` times on average, 2 l1 l2 / (pi n) (inf where n = 0). Arrays broadcast."""
@@ -85,13 +125,47 @@ def buffon_area(l1, l2, n):
         return 2.0 * np.asarray(l1) * np.asarray(l2) / (math.pi * n)
 
 
-def area_estimates(ts, *, dead_time: bool = True, correction: float = AREA_CORRECTION) -> np.ndarray:
+def default_correction(ts) -> float:
+    """The factor for a trial set: the online rule's, or the fixed default length's."""
+    return ONLINE_CORRECTION if getattr(ts, "online", False) else AREA_CORRECTION
+
+
+def area_estimates(ts, *, dead_time: bool = True, correction: float | None = None) -> np.ndarray:
     """Per-trial area estimates (u^2) from a :class:`~controllers.buffon.batched.TrialSet`;
-    inf where a trial counted no crossing."""
+    inf where a trial counted no crossing. ``correction`` None: :func:`default_correction`."""
     a = buffon_area(ts.l1_u, ts.l2_u, ts.crossings)
     if dead_time:
         a = a * (1.0 - ts.blind_fraction)
-    return a * correction
+    return a * (default_correction(ts) if correction is None else correction)
+
+
+def _t95() -> float:
+    return float(stats.t.ppf(0.975, CALIBRATION_DOF))
+
+
+def trial_intervals(est: np.ndarray, rate_rel_se: np.ndarray) -> np.ndarray:
+    """(n, 2) per-trial 95 % intervals of the online rule's estimates ``est`` (see module doc)."""
+    se = np.where(np.isfinite(rate_rel_se), rate_rel_se, np.inf)
+    sd = np.sqrt(se**2 + TRIAL_EXTRA_SIGMA**2 + ONLINE_CORRECTION_SE**2 + SHAPE_SIGMA**2)
+    h = _t95() * sd
+    with np.errstate(invalid="ignore", over="ignore"):
+        return np.column_stack([est * np.exp(-h), est * np.exp(h)])
+
+
+def area_interval(est: np.ndarray, *, online: bool, seed: int = 0) -> list[float] | None:
+    """The over-trials 95 % interval of the median estimate (see module doc)."""
+    if not online:
+        return median_ci95(est, seed)
+    est = np.asarray(est, float)
+    if len(est) < 3 or not np.all(np.isfinite(est)) or not np.all(est > 0):
+        return None
+    lg = np.log(est)
+    ci = median_ci95(lg, seed)
+    med = float(np.median(lg))
+    sys_h = _t95() * math.hypot(ONLINE_CORRECTION_SE, SHAPE_SIGMA)
+    lo = med - math.hypot(med - ci[0], sys_h)
+    hi = med + math.hypot(ci[1] - med, sys_h)
+    return [math.exp(lo), math.exp(hi)]
 
 
 def median_ci95(x: np.ndarray, seed: int = 0) -> list[float] | None:
@@ -118,11 +192,18 @@ def _finite(x: float) -> float | None:
     return float(x) if math.isfinite(x) else None
 
 
-def summarise(ts, area_true_u2: float, *, correction: float = AREA_CORRECTION) -> dict:
+def summarise(ts, area_true_u2: float, *, correction: float | None = None) -> dict:
     """The figures of one nest's trial set (the keys of ``stcvision buffon --json``); an area that
     is infinite (most trials counted no crossing) is None."""
     nbc = ts.nbc
+    correction = default_correction(ts) if correction is None else correction
     est = area_estimates(ts, correction=correction)
+    online = bool(getattr(ts, "online", False))
+    trial_ci = None
+    if online and ts.rate_rel_se is not None:
+        tci = trial_intervals(est, ts.rate_rel_se)
+        trial_ci = [[_finite(lo), _finite(hi)] for lo, hi in tci]
+        holds = (tci[:, 0] <= area_true_u2) & (area_true_u2 <= tci[:, 1])
     raw = area_estimates(ts, dead_time=False, correction=1.0)
     q1, med, q3 = np.percentile(nbc, [25, 50, 75])
     warning = _warning(ts)
@@ -139,7 +220,13 @@ def summarise(ts, area_true_u2: float, *, correction: float = AREA_CORRECTION) -
         "area_estimate_median": _finite(np.median(est)),
         "area_rel_error_median": _finite(np.median(np.abs(est - area_true_u2) / area_true_u2)),
         "area_bias": _finite(np.median(est) / area_true_u2 - 1.0),
-        "area_ci95": median_ci95(est),
+        "area_ci95": area_interval(est, online=online),
+        "trial_area_ci95": trial_ci,
+        "trial_ci95_coverage": float(np.mean(holds)) if trial_ci is not None else None,
+        "online": online,
+        "robot_steps_median": float(np.median(ts.steps)) if ts.steps is not None else None,
+        "rate_rel_se_median": float(np.median(ts.rate_rel_se)) if ts.rate_rel_se is not None else None,
+        "converged": int(np.sum(ts.converged)) if ts.converged is not None else None,
         "area_raw_median": _finite(np.median(raw)),
         "area_raw_rel_error_median": _finite(np.median(np.abs(raw - area_true_u2) / area_true_u2)),
         "area_raw_bias": _finite(np.median(raw) / area_true_u2 - 1.0),
@@ -152,16 +239,23 @@ def summarise(ts, area_true_u2: float, *, correction: float = AREA_CORRECTION) -
 
 def _warning(ts) -> str | None:
     b = float(np.median(ts.blind_fraction))
-    steps = ts.robot_steps / (2 * len(ts.crossings))
-    moved = float(np.median(np.r_[ts.l1_u, ts.l2_u])) / (steps * CRUISE_STEP_U)
+    online = bool(getattr(ts, "online", False))
+    limit = MAX_BLIND_FRACTION_ONLINE if online else MAX_BLIND_FRACTION
+    if online and ts.converged is not None and not np.all(ts.converged):
+        return (
+            f"{int(np.sum(~ts.converged))} trial(s) ended without the online rule's stop (the most steps a visit "
+            "may take, or a first visit on its own trail most of the time: a nest too small for the trail); "
+            "the area is not measured"
+        )
+    moved = float(np.sum(ts.l1_u) + np.sum(ts.l2_u)) / (ts.robot_steps * CRUISE_STEP_U)
     if moved < MIN_PATH_FRACTION:
         return (
-            f"robot stuck: its median visit covered {moved:.0%} of the path of its cruising speed "
+            f"robot stuck: its visits covered {moved:.0%} of the path of its cruising speed "
             f"(an open nest gives ~80 %); the area is not measured"
         )
-    if b > MAX_BLIND_FRACTION:
+    if b > limit:
         return (
-            f"trail blended: the counter was blind for {b:.0%} of the second visit (limit {MAX_BLIND_FRACTION:.0%}); "
+            f"trail blended: the counter was blind for {b:.0%} of the second visit (limit {limit:.0%}); "
             "the corrections do not hold there; use shorter visits or a thinner trail"
         )
     if np.median(ts.crossings) < 10:

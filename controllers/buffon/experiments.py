@@ -99,7 +99,12 @@ def nest_task(params: dict, seed: np.random.SeedSequence) -> dict:
     """One nest's trial set: the sweep runner's unit of work. ``params`` are a :class:`Case`'s
     fields plus ``trials``; returns the per-trial measurements (and the summary of the time)."""
     nest = parse_nest(params["spec"], params.get("barrier"))
-    config = VisitConfig(visit_steps=int(params["visit_steps"]), trail_width_u=float(params["trail_width_u"]))
+    steps = params["visit_steps"]
+    config = VisitConfig(
+        visit_steps=steps if steps == "auto" else int(steps),
+        trail_width_u=float(params["trail_width_u"]),
+        trail_turn=float(params.get("trail_turn", 0.0)),
+    )
     return result_of(run_trials(nest, config, trials=int(params["trials"]), seed=seed), nest.area_u2)
 
 
@@ -115,6 +120,10 @@ def result_of(ts: TrialSet, area_true_u2: float) -> dict:
         "robot_steps": ts.robot_steps,
         "wall_s": ts.wall_s,
         "cpu_s": ts.cpu_s,
+        "online": ts.online,
+        "rate_rel_se": ts.rate_rel_se.tolist(),
+        "steps": ts.steps.tolist(),
+        "converged": ts.converged.tolist(),
     }
     return refresh(out, area_true_u2)
 
@@ -126,13 +135,20 @@ def refresh(stored: dict, area_true_u2: float) -> dict:
         np.asarray(stored["l1_u"], float), np.asarray(stored["l2_u"], float),
         np.asarray(stored["crossings"], np.int64), np.asarray(stored["blind_fraction"], float),
         int(stored["escapes"]), int(stored["robot_steps"]), float(stored["wall_s"]),
+        rate_rel_se=_opt(stored, "rate_rel_se", float), steps=_opt(stored, "steps", np.int64),
+        converged=_opt(stored, "converged", bool), online=bool(stored.get("online", False)),
     )  # fmt: skip
-    keep = ("crossings", "l1_u", "l2_u", "blind_fraction", "escapes", "robot_steps", "wall_s", "cpu_s")
+    keep = ("crossings", "l1_u", "l2_u", "blind_fraction", "escapes", "robot_steps", "wall_s", "cpu_s", "online",
+            "rate_rel_se", "steps", "converged")  # fmt: skip
     out = {k: stored[k] for k in keep if k in stored}
     out.update(summarise(ts, area_true_u2))
     out["nbc"] = ts.nbc.tolist()
     out["area_estimates"] = [float(a) if np.isfinite(a) else None for a in area_estimates(ts)]
     return out
+
+
+def _opt(stored: dict, key: str, dtype):
+    return np.asarray(stored[key], dtype) if key in stored else None
 
 
 def pymunk_task(params: dict, seed: np.random.SeedSequence) -> dict:

@@ -384,3 +384,236 @@ def _fig_accuracy(cases, results):
     ax.set(yscale="log", ylabel="estimate / true area", title="Absolute area per trial (boxes: quartiles)")
     fig.tight_layout()
     return fig
+
+
+# ------------------------------------------------------------------------------ online rule
+ONLINE_COLUMNS = (
+    "family",
+    "spec",
+    "barrier",
+    "visit_steps",
+    "area_true",
+    "trials",
+    "area_estimate_median",
+    "area_bias",
+    "area_rel_error_median",
+    "ci_holds",
+    "trial_ci95_coverage",
+    "blind_fraction_median",
+    "robot_steps_median",
+    "rate_rel_se_median",
+    "area_trusted",
+    "area_warning",
+)
+
+
+def online_csv(rows: list[dict]) -> str:
+    """One row per nest of the online-rule experiment."""
+    import csv
+
+    buf = io.StringIO()
+    w = csv.DictWriter(buf, fieldnames=ONLINE_COLUMNS, extrasaction="ignore", lineterminator="\n")
+    w.writeheader()
+    for r in rows:
+        w.writerow({**r, "spec": _short_spec(r["spec"])})
+    return buf.getvalue()
+
+
+def _short_spec(spec: str) -> str:
+    """A polygon nest by its file's name, not its path (the table is read on other machines)."""
+    if spec.startswith("polygon:"):
+        from pathlib import Path
+
+        return "polygon:" + Path(spec[len("polygon:") :]).name
+    return spec
+
+
+def _errors(r: dict) -> np.ndarray:
+    est = np.array([np.inf if a is None else a for a in r["area_estimates"]], dtype=float)
+    return est / r["area_true"] - 1.0
+
+
+def online_figures(rows: list[dict]) -> dict:
+    """Error by size (every auto nest), interval coverage per family, error vs robot-steps."""
+    plt = _plt()
+    figs = {}
+    fig, ax = plt.subplots(figsize=(7, 4.5))
+    fams = sorted({r["family"] for r in rows if r["visit_steps"] == "auto" and r["family"] != "online"})
+    for i, f in enumerate(fams):
+        rs = [r for r in rows if r["family"] == f and r["visit_steps"] == "auto"]
+        x = np.array([r["area_true"] for r in rs])
+        e = [_errors(r) for r in rs]
+        med = np.array([np.median(v) for v in e])
+        lo = np.array([np.percentile(v, 25) for v in e])
+        hi = np.array([np.percentile(v, 75) for v in e])
+        ax.errorbar(x * (1 + 0.02 * i), 100 * med, yerr=100 * np.abs(np.c_[med - lo, hi - med].T), fmt="o", ms=4,
+                    capsize=2, label=f)  # fmt: skip
+    ax.axhspan(-5, 5, color="0.9", zorder=0)
+    ax.axhline(0, color="k", lw=0.8)
+    ax.set(xscale="log", xlabel="true area (u^2)", ylabel="single-trial error, median and IQR (%)",
+           title="online visit lengths: error by nest size")  # fmt: skip
+    ax.legend(fontsize=7, ncol=2)
+    figs["online_error_by_size.png"] = fig
+
+    from controllers.buffon.online import EVALUATION_FAMILIES, coverage_table
+
+    table = coverage_table([r for r in rows if r["family"] in EVALUATION_FAMILIES])
+    fig, ax = plt.subplots(figsize=(7, 4))
+    xs = np.arange(len(table))
+    for off, key, label in ((-0.18, "area_ci95_coverage", "area_ci95 (per nest)"),
+                            (0.18, "trial_ci95_coverage", "trial_area_ci95 (per trial)")):  # fmt: skip
+        v = np.array([t[key] for t in table])
+        ci = np.array([t[key + "_ci"] for t in table])
+        ax.errorbar(xs + off, 100 * v, yerr=100 * np.abs(np.c_[v - ci[:, 0], ci[:, 1] - v].T), fmt="s", capsize=3,
+                    label=label)  # fmt: skip
+    ax.axhline(95, color="k", ls="--", lw=0.8)
+    ax.set_xticks(xs, [t["family"] for t in table])
+    ax.set(ylabel="intervals holding the true area (%)", ylim=(40, 101),
+           title="coverage on the held-out family (Clopper-Pearson 95 %)")  # fmt: skip
+    ax.legend(fontsize=8)
+    figs["online_coverage.png"] = fig
+
+    fig, ax = plt.subplots(figsize=(6, 4))
+    for fam, mk in (("fixed", "o-"), ("online", "*")):
+        rs = [r for r in rows if r["family"] == fam]
+        steps = [r["robot_steps_median"] for r in rs]
+        err = [100 * r["area_rel_error_median"] for r in rs]
+        ax.plot(steps, err, mk, ms=10 if fam == "online" else 5,
+                label="fixed visit lengths (50k-300k a visit)" if fam == "fixed" else "online rule")  # fmt: skip
+    ax.set(xlabel="robot-steps per trial (both visits)", ylabel="single-trial median |error| (%)",
+           title="standard circle: error vs robot-steps")  # fmt: skip
+    ax.legend(fontsize=8)
+    figs["online_error_vs_steps.png"] = fig
+    return figs
+
+
+def shape_pairs(rows: list[dict]) -> dict:
+    """Circle against square at equal areas: per area the two median estimates against each
+    other and the truth, and a two-sided Mann-Whitney U test of their nBC; over all areas the
+    p values combined (Fisher, ``scipy.stats.combine_pvalues``) and the median nBC ratio."""
+    per = []
+    for area in sorted({r["pair_area"] for r in rows if "pair_area" in r}):
+        c = next(r for r in rows if r.get("pair_area") == area and r["family"] == "pair circle")
+        q = next(r for r in rows if r.get("pair_area") == area and r["family"] == "pair square")
+        mw = stats.mannwhitneyu(c["nbc"], q["nbc"], alternative="two-sided")
+        per.append(
+            {
+                "area": area,
+                "circle_over_true": c["area_estimate_median"] / c["area_true"],
+                "square_over_true": q["area_estimate_median"] / q["area_true"],
+                "circle_over_square": c["area_estimate_median"] / q["area_estimate_median"],
+                "nbc_circle_over_square": float(np.median(c["nbc"]) / np.median(q["nbc"])),
+                "mannwhitney_p": float(mw.pvalue),
+            }
+        )
+    if not per:
+        return {"areas": []}
+    comb = stats.combine_pvalues([p["mannwhitney_p"] for p in per], method="fisher")
+    return {
+        "areas": per,
+        "fisher_p": float(comb.pvalue),
+        "nbc_ratio_median": float(np.median([p["nbc_circle_over_square"] for p in per])),
+        "worst_pair_gap": float(max(abs(p["circle_over_square"] - 1) for p in per)),
+        "worst_truth_gap": float(max(max(abs(p["circle_over_true"] - 1), abs(p["square_over_true"] - 1)) for p in per)),
+    }
+
+
+def trail_aware(rows: list[dict]) -> list[dict]:
+    """Trail-aware exploration beside the paper's behaviour, per nest: the spread of single
+    trials' log estimates (IQR / 1.349, robust), the median robot-steps, and the work per unit
+    precision, spread^2 x steps (lower is better: the steps needed for a given error), with the
+    Brown-Forsythe test of equal spreads (``scipy.stats.levene``, median-centred)."""
+    out = []
+    for spec in sorted({r["spec"] for r in rows if r["family"].startswith("trail turn")}):
+        pair = {}
+        for r in rows:
+            if r["spec"] == spec and r["family"].startswith("trail turn"):
+                lg = np.log(1 + _errors(r))
+                q1, q3 = np.percentile(lg, [25, 75])
+                pair[r["family"]] = (lg, (q3 - q1) / 1.349, r["robot_steps_median"], r["area_bias"])
+        (fa, a), (fb, b) = sorted(pair.items())
+        lev = stats.levene(a[0], b[0], center="median")
+        out.append(
+            {
+                "nest": spec,
+                "paper_spread": a[1],
+                "aware_spread": b[1],
+                "paper_steps": a[2],
+                "aware_steps": b[2],
+                "paper_bias": a[3],
+                "aware_bias": b[3],
+                "work_ratio": (b[1] ** 2 * b[2]) / (a[1] ** 2 * a[2]) if a[1] > 0 else float("nan"),
+                "levene_p": float(lev.pvalue),
+            }
+        )
+    return out
+
+
+def online_summary(
+    rows: list[dict], table: list[dict], cal: dict, pairs: dict, aware: list[dict], *, trials: int, wall_s: float
+) -> str:
+    """The online-rule experiment's markdown summary."""
+    from controllers.buffon import estimate as e
+
+    md = [
+        "# Online visit lengths and intervals",
+        "",
+        f"{trials} trials per nest, one seed per nest; {wall_s:.0f} s wall.",
+        "",
+        "## Calibration (its own family, not the evaluation's)",
+        "",
+        f"{cal['nests']} nests, {cal['trials']} trials: factor {cal['correction']:.4f} (shipped {e.ONLINE_CORRECTION}), "
+        f"SE of log K {cal['correction_se_log']:.4f} (shipped {e.ONLINE_CORRECTION_SE}), shape sigma "
+        f"{cal['shape_sigma']:.4f} (shipped {e.SHAPE_SIGMA}), extra per-trial sigma {cal['trial_extra_sigma']:.4f} "
+        f"(shipped {e.TRIAL_EXTRA_SIGMA}).",
+        "",
+        "## Coverage on the held-out family",
+        "",
+        "| family | nests | area_ci95 holds | (95 % CI) | trials | trial interval holds | (95 % CI) "
+        "| median error, median / worst nest | untrusted |",
+        "|---|---:|---:|---|---:|---:|---|---|---:|",
+    ]
+    for t in table:
+        a, b = t["area_ci95_coverage_ci"], t["trial_ci95_coverage_ci"]
+        md.append(
+            f"| {t['family']} | {t['nests']} | {t['area_ci95_coverage']:.0%} | {a[0]:.0%}-{a[1]:.0%} | {t['trials']} | "
+            f"{t['trial_ci95_coverage']:.1%} | {b[0]:.0%}-{b[1]:.0%} | {t['median_error_median']:.1%} / "
+            f"{t['median_error_max']:.1%} | {t['untrusted']} |"
+        )
+    if pairs["areas"]:
+        md += ["", "## Circle and square at equal areas", "",
+               "| area | circle / true | square / true | circle / square | nBC circle / square | Mann-Whitney p |",
+               "|---:|---:|---:|---:|---:|---:|"]  # fmt: skip
+        for p in pairs["areas"]:
+            md.append(
+                f"| {p['area']:,} | {p['circle_over_true']:.3f} | {p['square_over_true']:.3f} | "
+                f"{p['circle_over_square']:.3f} | {p['nbc_circle_over_square']:.3f} | {p['mannwhitney_p']:.3g} |"
+            )
+        md += ["", f"Shape effect on nBC over all areas: median ratio circle / square {pairs['nbc_ratio_median']:.3f}, "
+               f"Fisher-combined p = {pairs['fisher_p']:.3g}; estimates within {pairs['worst_pair_gap']:.1%} of each "
+               f"other and {pairs['worst_truth_gap']:.1%} of the truth at worst."]  # fmt: skip
+    if aware:
+        md += ["", "## Trail-aware exploration (first visit turns off its old trail) beside the paper's", "",
+               "| nest | spread paper / aware | steps paper / aware | bias paper / aware (factor of the paper's) "
+               "| work ratio aware / paper | Brown-Forsythe p |",
+               "|---|---|---|---|---:|---:|"]  # fmt: skip
+        for a in aware:
+            md.append(
+                f"| {a['nest']} | {a['paper_spread']:.3f} / {a['aware_spread']:.3f} | {a['paper_steps']:,.0f} / "
+                f"{a['aware_steps']:,.0f} | {a['paper_bias']:+.3f} / {a['aware_bias']:+.3f} | {a['work_ratio']:.2f} | "
+                f"{a['levene_p']:.3g} |"
+            )
+    md += ["", "## Every nest", "", "| family | nest | area | median est / true | median error | steps | trusted |",
+           "|---|---|---:|---:|---:|---:|---|"]  # fmt: skip
+    for r in rows:
+        bias = r["area_bias"]
+        md.append(
+            f"| {r['family']} | {_short_spec(r['spec'])} {r['barrier'] or ''} | {r['area_true']:,.0f} | "
+            f"{'n/a' if bias is None else f'{1 + bias:.3f}'} | {_pct(r['area_rel_error_median'])} | "
+            f"{r['robot_steps_median']:,.0f} | {'yes' if r['area_trusted'] else 'no: ' + str(r['area_warning'])} |"
+        )
+    return "\n".join(md) + "\n"
+
+
+def _pct(x) -> str:
+    return "n/a" if x is None else f"{x:.1%}"

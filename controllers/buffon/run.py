@@ -7,6 +7,7 @@ simulation; nothing in the simulation prints, plots or logs.
 
 from __future__ import annotations
 
+import math
 import time
 from pathlib import Path
 
@@ -42,7 +43,7 @@ def measure(
     barrier: str | None = None,
     *,
     trials: int = 100,
-    visit_steps: int = AREA_VISIT_STEPS,
+    visit_steps: int | str = "auto",
     trail_width_u: float = PAPER_TRAIL_WIDTH_U,
     seed: int = 0,
     rrd: str | None = None,
@@ -58,7 +59,7 @@ def measure(
         from stcvision.rr import check_recording_path
 
         check_recording_path(rrd, overwrite=force)
-    with _bar(2 * trials * visit_steps, f"buffon {nest.label}") as bar:
+    with _bar(None if config.auto else 2 * trials * visit_steps, f"buffon {nest.label}") as bar:
         threads = threads or machine_workers()
         ts = run_trials(
             nest,
@@ -92,7 +93,7 @@ def measure(
 
 def format_text(r: dict) -> str:
     if "claims" in r:
-        return r["summary_text"]
+        return r["summary_text"] + ("\n" + r["online_summary_text"] if r.get("online_summary_text") else "")
     if "paths" in r:
         return "\n".join(f"{k}: {v}" for k, v in r.items() if k != "paths")
     if "area_correction_measured" in r:
@@ -108,8 +109,13 @@ def format_text(r: dict) -> str:
         f"crossings median {r['crossings_median']:.0f}",
         f"area estimate median {_num(r['area_estimate_median'])} u^2, 95 % CI {ci_text}; "
         f"median |error| {_pct(r['area_rel_error_median'])} (raw formula {_pct(r['area_raw_rel_error_median'])})",
-        f"{r['robot_steps']:,} robot-steps in {r['wall_s']:.1f} s ({r['robot_steps_per_s']:,.0f}/s)",
+        f"{r['robot_steps']:,} robot-steps in {r['wall_s']:.1f} s ({r['robot_steps_per_s']:,.0f}/s)"
+        + (f"; visits ended by the online rule, median {r['robot_steps_median']:,.0f} steps a trial" if r["online"] else ""),
     ]
+    if r.get("trial_ci95_coverage") is not None:
+        lo, hi = r["trial_area_ci95"][0]
+        lines.insert(3, f"trial 0 alone: 95 % interval {_num(lo)}-{_num(hi)}; {r['trial_ci95_coverage']:.0%} of the trials' "
+                     "own intervals hold the true area")
     if r.get("area_warning"):
         lines.append(f"WARNING: {r['area_warning']}")
     return "\n".join(lines)
@@ -151,8 +157,11 @@ REPRODUCE_FILES = (
 )
 
 
-def reproduce(out: str | Path, *, trials: int = 100, seed: int = 0, sweep=None, force: bool = False) -> dict:
-    """Every experiment set of sec. 5 plus the absolute-area set, through the sweep runner."""
+def reproduce(
+    out: str | Path, *, trials: int = 100, seed: int = 0, sweep=None, force: bool = False, online_trials: int = 6
+) -> dict:
+    """Every experiment set of sec. 5 plus the absolute-area set, through the sweep runner; then
+    (``online_trials`` > 0) the online rule's experiments (:func:`online`) into ``out/online``."""
     from controllers.buffon import report
     from stcvision.sweep import SweepOptions, Task
 
@@ -167,12 +176,10 @@ def reproduce(out: str | Path, *, trials: int = 100, seed: int = 0, sweep=None, 
     results = {c: refresh(rep.results[t.key], rep.results[t.key]["area_true"]) for c, t in tasks.items()}
     steps = sum(r["robot_steps"] for r in results.values())
     busy = sum(r["wall_s"] for r in results.values())
-    write_bytes_atomic(out / "nests.csv", report.table_csv(cases, results).encode(), overwrite=True)
-    for name, fig in report.figures(cases, results, _patterns(seed)).items():
-        write_figure(out / name, fig, overwrite=True)
+    _write_tables(out, {"nests.csv": report.table_csv(cases, results)}, report.figures(cases, results, _patterns(seed)))
     wall = time.perf_counter() - t0
     text = report.claims(cases, results, trials=trials, wall_s=wall, steps_per_s=steps / busy)
-    write_bytes_atomic(out / "summary.md", text.encode(), overwrite=True)
+    _write_tables(out, {"summary.md": text}, {})
     return {
         "out": str(out),
         "nests": len(cases),
@@ -183,7 +190,16 @@ def reproduce(out: str | Path, *, trials: int = 100, seed: int = 0, sweep=None, 
         "sweep": rep.summary(),
         "claims": True,
         "summary_text": text,
-    }
+    } | _online_part(out, online_trials, seed, sweep)
+
+
+def _online_part(out: Path, trials: int, seed: int, sweep) -> dict:
+    """The online rule's experiments beside the paper's, in their own folder (and store)."""
+    if not trials:
+        return {}
+    r = online(out / "online", trials=trials, seed=seed, sweep=sweep)
+    return {"online": {k: r[k] for k in ("out", "nests", "trials", "coverage", "shape_pairs", "wall_s")},
+            "online_summary_text": r["summary_text"]}  # fmt: skip
 
 
 def _patterns(seed: int) -> dict:
@@ -339,3 +355,91 @@ def bench(*, spec: str = "circle:30", seed: int = 0) -> dict:
         "buffon_robot_steps_per_cpu_s": ts.robot_steps / ts.cpu_s,
         "buffon_pymunk_robot_steps_per_cpu_s": tp.robot_steps / p_cpu,
     }
+
+
+# ------------------------------------------------------------------------------ online rule
+ONLINE_FILES = (
+    "online.csv",
+    "online_summary.md",
+    "online_error_by_size.png",
+    "online_coverage.png",
+    "online_error_vs_steps.png",
+)
+#: fixed visit lengths set beside the online rule on the standard circle (error vs robot-steps)
+FIXED_STEPS = (50_000, 100_000, 200_000, 300_000)
+#: nests outside the acceptance range of 2,000-30,000 u^2 (the size sweep's ends)
+SIZE_ENDS = ("circle:10", "circle:20", "circle:30", "circle:250", "circle:400")
+#: trail-aware exploration beside the paper's behaviour: nests and the turn (README)
+TRAIL_AWARE_NESTS = ("circle:100", "square:70", "ellipse:12000:3", "circle:150")
+TRAIL_TURN = 0.5
+#: equal areas (u^2) at which a circle and a square are measured side by side
+SHAPE_PAIR_AREAS = (2000, 5000, 10000, 20000, 30000)
+
+
+def online(out: str | Path, *, trials: int = 12, seed: int = 0, sweep=None, force: bool = False) -> dict:
+    """The online rule measured: its calibration family again, the held-out evaluation family
+    (coverage of both intervals per family), the size sweep's ends, and error vs robot-steps of
+    fixed lengths beside the rule on the standard circle; CSV, figures, summary."""
+    from controllers.buffon import online as exp
+    from controllers.buffon import report
+    from stcvision.sweep import SweepOptions, Task
+
+    out = _out_dir(out, force, ONLINE_FILES)
+    base = {"trail_width_u": PAPER_TRAIL_WIDTH_U, "trials": trials}
+    rows = [{"family": "calibration", "spec": s, "barrier": b} for s, b in exp.CALIBRATION_NESTS]
+    rows += exp.evaluation_nests(out / "nests")
+    rows += [{"family": "size ends", "spec": s, "barrier": None} for s in SIZE_ENDS]
+    for r in rows:
+        r["visit_steps"] = "auto"
+    for spec in TRAIL_AWARE_NESTS:
+        for beta in (0.0, TRAIL_TURN):
+            rows.append({"family": f"trail turn {beta:g}", "spec": spec, "barrier": None, "visit_steps": "auto",
+                         "trail_turn": beta})  # fmt: skip
+    for area in SHAPE_PAIR_AREAS:
+        rows.append({"family": "pair circle", "spec": f"circle:{2 * math.sqrt(area / math.pi):.6g}", "barrier": None,
+                     "visit_steps": "auto", "pair_area": area})  # fmt: skip
+        rows.append({"family": "pair square", "spec": f"square:{math.sqrt(area):.6g}", "barrier": None,
+                     "visit_steps": "auto", "pair_area": area})  # fmt: skip
+    rows += [
+        {"family": "fixed", "spec": CORRECTION_REFERENCE, "barrier": None, "visit_steps": n} for n in FIXED_STEPS
+    ]
+    rows += [{"family": "online", "spec": CORRECTION_REFERENCE, "barrier": None, "visit_steps": "auto"}]
+    # appended last: the seeds of the rows above (seed + position) stay those of earlier runs
+    rows += [{**r, "visit_steps": "auto"} for r in exp.calibration_polygons(out / "nests")]
+    tasks = [
+        Task(
+            experiment="controllers.buffon.experiments:nest_task",
+            params={**base, "spec": r["spec"], "barrier": r["barrier"], "visit_steps": r["visit_steps"]}
+            | ({"trail_turn": r["trail_turn"]} if r.get("trail_turn") else {}),
+            seed=seed + i,
+        )
+        for i, r in enumerate(rows)
+    ]
+    t0 = time.perf_counter()
+    rep = _run_tasks(tasks, out, sweep or SweepOptions(), "buffon online")
+    for r, t in zip(rows, tasks, strict=True):
+        res = refresh(rep.results[t.key], rep.results[t.key]["area_true"])  # this version's estimators
+        r.update({k: v for k, v in res.items() if k not in ("family", "spec", "barrier", "visit_steps", "trail_turn")})
+        ci = r["area_ci95"]
+        r["ci_holds"] = bool(ci is not None and ci[0] <= r["area_true"] <= ci[1])
+        cov = r.get("trial_ci95_coverage")
+        r["trial_holds"] = int(round(cov * r["trials"])) if cov is not None else 0
+    cal = exp.calibrate_online([r for r in rows if r["family"] == "calibration"])
+    evaluation = [r for r in rows if r["family"] in exp.EVALUATION_FAMILIES]
+    table = exp.coverage_table(evaluation)
+    _write_tables(out, {"online.csv": report.online_csv(rows)}, report.online_figures(rows))
+    pairs, aware = report.shape_pairs(rows), report.trail_aware(rows)
+    wall = time.perf_counter() - t0
+    text = report.online_summary(rows, table, cal, pairs, aware, trials=trials, wall_s=wall)
+    _write_tables(out, {"online_summary.md": text}, {})
+    result = {"calibration": cal, "coverage": table, "shape_pairs": pairs, "trail_aware": aware}
+    return {"out": str(out), "nests": len(rows), "trials": trials, **result, "wall_s": wall,
+            "sweep": rep.summary(), "claims": True, "summary_text": text}  # fmt: skip
+
+
+def _write_tables(out: Path, texts: dict, figures: dict) -> None:
+    """A folder run's text files and figures, each written atomically (its store says it is ours)."""
+    for name, text in texts.items():
+        write_bytes_atomic(out / name, text.encode(), overwrite=True)
+    for name, fig in figures.items():
+        write_figure(out / name, fig, overwrite=True)

@@ -64,6 +64,14 @@ def _bowtie(tmp_path):
         (["--nest", "circle:20", "--visit-steps", "-3"], "must be > 0"),
         (["--nest", "circle:20", "--trail-width", "0"], "must be > 0"),
         (["--nest", "circle:1e9"], "larger than"),
+        (["--nest", "circle:30", "--trials", "1000000000", "--visit-steps", "10"], "MAX_BUFFON_TRIALS"),
+        (["--nest", "circle:30", "--visit-steps", "1000000000000"], "MAX_BUFFON_VISIT_STEPS"),
+        (["--nest", "circle:30", "--visit-steps", "sometimes"], "'auto'"),
+        (["--nest", "circle:30", "--trials", "100000", "--visit-steps", "100000000"], "MAX_BUFFON_ROBOT_STEPS"),
+        (["--nest", "circle:30", "--threads", "100000"], "MAX_BUFFON_THREADS"),
+        (["--nest", "circle:1000", "--trail-width", "0.001"], "MAX_BUFFON_RASTER_BYTES"),
+        (["--nest", "circle:30", "--visit-steps", "100000000", "--rrd", "never.rrd"], "MAX_BUFFON_RECORD_STEPS"),
+        (["compare", "--nest", "circle:30", "--out", "never", "--visit-steps", "100000000"], "pymunk"),
         ([], "--nest is required"),
     ],
 )
@@ -116,7 +124,9 @@ def test_reproduce_writes_figures_table_and_claims(cli, tmp_path, monkeypatch):
     monkeypatch.setattr(buffon_run, "experiment_cases", _mini_cases)
     monkeypatch.setattr(buffon_run, "_patterns", _stand_in_patterns)
     out = tmp_path / "rep"
-    code, stdout, err = cli("buffon", "reproduce", "--out", out, "--trials", 3, "--workers", 1, "--json")
+    code, stdout, err = cli(
+        "buffon", "reproduce", "--out", out, "--trials", 3, "--workers", 1, "--json", "--online-trials", 0
+    )
     assert code == 0, err
     r = json.loads(stdout)
     assert r["nests"] == len(_mini_cases())
@@ -126,8 +136,11 @@ def test_reproduce_writes_figures_table_and_claims(cli, tmp_path, monkeypatch):
     for claim in ("Circle ~ square", "log-linearly", "compactness", "barrier", "Thicker trails", "Absolute area"):
         assert claim in summary
     assert len((out / "nests.csv").read_text().splitlines()) == len(_mini_cases()) + 1
+    assert "online" not in r
     # a second run finds every nest done in its store
-    code, stdout, err = cli("buffon", "reproduce", "--out", out, "--trials", 3, "--workers", 1, "--json")
+    code, stdout, err = cli(
+        "buffon", "reproduce", "--out", out, "--trials", 3, "--workers", 1, "--json", "--online-trials", 0
+    )
     assert code == 0 and f"{len(_mini_cases())} skipped as done" in json.loads(stdout)["sweep"]
 
 
@@ -167,3 +180,65 @@ def test_compare_runs_both_paths(cli, tmp_path):
     assert r["escapes_pymunk"] == 0 and r["escapes_batched"] == 0
     assert 0 <= r["mannwhitney_p"] <= 1 and r["speed_ratio"] > 1
     assert (tmp_path / "compare.png").exists() and (tmp_path / "compare.md").exists()
+
+
+def _mini_evaluation(folder):
+    import controllers.buffon.online as exp
+
+    fams = [("circles", "circle:22"), ("squares", "square:20"), ("ellipses", "ellipse:400:2"),
+            ("barriers", "circle:24"), ("concave", None), ("random", None)]  # fmt: skip
+    out = []
+    for fam, spec in fams:
+        if spec is None:
+            p = folder / f"{fam}.json"
+            folder.mkdir(parents=True, exist_ok=True)
+            p.write_text(json.dumps(exp._l_shape(22, 8) if fam == "concave" else [[0, 0], [24, 2], [20, 22], [2, 18]]))
+            spec = f"polygon:{p}"
+        out.append({"family": fam, "spec": spec, "barrier": "bar:0.4" if fam == "barriers" else None})
+    return out
+
+
+def test_online_experiment_writes_its_tables_and_figures(cli, tmp_path, monkeypatch):
+    import controllers.buffon.online as exp
+
+    monkeypatch.setattr(exp, "CALIBRATION_NESTS", (("circle:21", None), ("square:19", None)))
+    monkeypatch.setattr(exp, "CALIBRATION_POLYGONS", {"L": ((0, 0), (20, 0), (20, 10), (10, 10), (10, 20), (0, 20))})
+    monkeypatch.setattr(exp, "evaluation_nests", _mini_evaluation)
+    monkeypatch.setattr(buffon_run, "SIZE_ENDS", ("circle:12",))
+    monkeypatch.setattr(buffon_run, "FIXED_STEPS", (2000, 4000))
+    monkeypatch.setattr(buffon_run, "TRAIL_AWARE_NESTS", ("circle:20",))
+    monkeypatch.setattr(buffon_run, "SHAPE_PAIR_AREAS", (300,))
+    out = tmp_path / "on"
+    code, stdout, err = cli("buffon", "online", "--out", out, "--trials", 3, "--workers", 1, "--json")
+    assert code == 0, err
+    r = json.loads(stdout)
+    # reproduce runs the same experiments into DIR/online
+    monkeypatch.setattr(buffon_run, "experiment_cases", _mini_cases)
+    monkeypatch.setattr(buffon_run, "_patterns", _stand_in_patterns)
+    rep = tmp_path / "rep"
+    code, so, err = cli("buffon", "reproduce", "--out", rep, "--trials", 3, "--workers", 1, "--online-trials", 3)
+    assert code == 0, err
+    assert "Coverage on the held-out family" in so and (rep / "online" / "online_coverage.png").stat().st_size > 0
+    for name in buffon_run.ONLINE_FILES:
+        assert (out / name).stat().st_size > 0, name
+    assert [t["family"] for t in r["coverage"]][-1] == "all" and r["coverage"][-1]["nests"] == 6
+    assert r["calibration"]["nests"] == 3 and r["shape_pairs"]["areas"][0]["area"] == 300
+    summary = (out / "online_summary.md").read_text()
+    for part in ("Calibration", "Coverage on the held-out family", "equal areas", "Trail-aware", "Every nest"):
+        assert part in summary
+
+
+def test_measure_defaults_to_the_online_rule_with_per_trial_intervals(cli, tmp_path):
+    rrd = tmp_path / "auto.rrd"
+    code, out, err = cli("buffon", "--nest", "circle:26", "--trials", 3, "--json", "--rrd", rrd)
+    assert code == 0, err
+    r = json.loads(out)
+    assert r["visit_steps"] == "auto" and r["online"] and r["converged"] == 3
+    assert len(r["trial_area_ci95"]) == 3 and all(lo < hi for lo, hi in r["trial_area_ci95"])
+    holds = [lo <= r["area_true"] <= hi for lo, hi in r["trial_area_ci95"]]
+    assert r["trial_ci95_coverage"] == pytest.approx(sum(holds) / 3)
+    assert r["robot_steps"] < 2 * 3 * 300_000 and rrd.stat().st_size > 10_000
+    # a fixed length gives no per-trial interval (its shape bias was not measured)
+    code, out, err = cli("buffon", "--nest", "circle:26", "--trials", 3, "--visit-steps", 2000, "--json")
+    r = json.loads(out)
+    assert code == 0 and r["trial_area_ci95"] is None and r["trial_ci95_coverage"] is None and not r["online"]

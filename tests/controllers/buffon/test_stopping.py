@@ -1,0 +1,136 @@
+"""The online stopping rule on synthetic streams with a known rate, and the online path's
+estimates, intervals and determinism on a few small nests."""
+
+import math
+
+import numpy as np
+import pytest
+
+from controllers.buffon.batched import VisitConfig, run_trials
+from controllers.buffon.estimate import summarise, trial_intervals
+from controllers.buffon.nests import parse_nest
+from controllers.buffon.stopping import (
+    StopParams,
+    batch_add,
+    batch_rel_se,
+    first_visit_done,
+    new_batch_state,
+    second_visit_done,
+)
+
+P = StopParams()
+
+
+def _second_visit(rng, rate_per_u, dl_u=0.1, l1_u=1000.0, modulation=None, max_steps=400_000):
+    """Feed a crossing stream (Bernoulli per step, ``rate_per_u`` per body length, optionally
+    modulated by a slowly varying factor) through the rule until it stops: (N, L, rel_se)."""
+    st = new_batch_state(P.batches)
+    n, path = 0, 0.0
+    for s in range(max_steps):
+        lam = rate_per_u * (modulation(s) if modulation else 1.0)
+        crossed = float(rng.random() < lam * dl_u)
+        batch_add(st, crossed, dl_u, P.batches)
+        n += int(crossed)
+        path += dl_u
+        if (s & 63) == 63 and second_visit_done(
+            st, path, n, l1_u, P.second_ratio, P.min_crossings, P.rel_se, P.batches, P.max_ratio
+        ):
+            return n, path, batch_rel_se(st, P.batches)
+    raise AssertionError("the rule never stopped")
+
+
+def test_second_visit_stops_with_the_rate_known_to_its_stated_error():
+    rng = np.random.default_rng(1)
+    rate = 0.7
+    runs = [_second_visit(rng, rate) for _ in range(120)]
+    n = np.array([r[0] for r in runs])
+    est = np.array([r[0] / r[1] for r in runs])
+    se = np.array([r[2] for r in runs])
+    # a Poisson stream's relative error is 1/sqrt(N): the rule stops near N = 1/rel_se^2 = 400
+    assert 300 <= np.median(n) <= 600
+    assert np.all(se <= P.rel_se)
+    assert abs(np.median(est) / rate - 1) < 0.01
+    # the batch-means error is honest: +-1.96 se holds the true rate ~95 % of the time
+    holds = np.abs(est / rate - 1) <= 1.96 * se
+    assert holds.mean() >= 0.88
+    assert np.std(est / rate) == pytest.approx(np.median(se), rel=0.3)
+
+
+def test_a_correlated_stream_runs_longer_and_its_error_stays_honest():
+    rng = np.random.default_rng(2)
+    rate = 0.7
+    # the rate triples over stretches of 2,000 steps (a path lingering in dense trail)
+    mod = lambda s: 1.5 if (s // 2000) % 2 == 0 else 0.5  # noqa: E731
+    runs = [_second_visit(rng, rate, l1_u=1000.0, modulation=mod) for _ in range(60)]
+    n = np.array([r[0] for r in runs])
+    est = np.array([r[0] / r[1] for r in runs])
+    se = np.array([r[2] for r in runs])
+    assert np.median(n) > 600  # more crossings needed than a Poisson stream's 400
+    holds = np.abs(est / rate - 1) <= 1.96 * se + 0.25 / np.sqrt(n)  # the modulation's phase at the stop
+    assert holds.mean() >= 0.85
+
+
+def test_second_visit_needs_its_share_of_the_first_visit_and_stops_at_its_ceiling():
+    rng = np.random.default_rng(3)
+    n, path, _ = _second_visit(rng, 2.0, l1_u=2000.0)
+    assert path >= P.second_ratio * 2000.0 and n > 1000
+    # a stream too sparse to reach its error stops at max_ratio * L1
+    n, path, se = _second_visit(rng, 0.05, l1_u=300.0)
+    assert path == pytest.approx(P.max_ratio * 300.0, rel=0.05) and se > P.rel_se
+
+
+@pytest.mark.parametrize("area", [300.0, 8000.0, 120_000.0])
+def test_first_visit_stops_at_the_target_coverage(area):
+    """Self-encounters of a uniform curve come at rate 2 L / (pi A) per unit length: the rule
+    must stop where w L / A reaches the coverage."""
+    rng = np.random.default_rng(4)
+    w, dl = 0.1, 0.5
+    pi_w = math.pi * w
+    n, path = 0, 0.0
+    while not first_visit_done(path, n, P.coverage, P.min_self, pi_w):
+        n += rng.poisson(2 * path * dl / (math.pi * area))
+        path += dl
+    assert w * path / area == pytest.approx(P.coverage, rel=0.25 if area < 1000 else 0.08)
+
+
+def test_bad_stop_params():
+    from stcvision.errors import BadInputError
+
+    with pytest.raises(BadInputError):
+        StopParams(coverage=0)
+    with pytest.raises(BadInputError):
+        StopParams(batches=1)
+
+
+def test_online_trials_are_deterministic_whatever_the_threads():
+    nest = parse_nest("circle:25")
+    cfg = VisitConfig(visit_steps="auto")
+    a = run_trials(nest, cfg, trials=3, seed=5, threads=1)
+    b = run_trials(nest, cfg, trials=3, seed=5, threads=2)
+    for k in ("l1_u", "l2_u", "crossings", "blind_fraction", "rate_rel_se", "steps", "n_self"):
+        np.testing.assert_array_equal(getattr(a, k), getattr(b, k))
+    assert a.online and a.converged.all()
+
+
+def test_online_estimate_and_intervals_on_a_small_family():
+    """Three small nests of the acceptance range's low end (not in the calibration family), six
+    trials each: estimates near the truth, and the per-trial intervals hold it."""
+    held, n = 0, 0
+    for spec in ("circle:52", "square:46", "ellipse:2200:2.5"):
+        nest = parse_nest(spec)
+        ts = run_trials(nest, VisitConfig(visit_steps="auto"), trials=6, seed=11)
+        s = summarise(ts, nest.area_u2)
+        assert s["area_trusted"], s["area_warning"]
+        assert abs(s["area_bias"]) < 0.08
+        assert s["area_ci95"][0] <= nest.area_u2 <= s["area_ci95"][1]
+        held += round(s["trial_ci95_coverage"] * 6)
+        n += 6
+        ci = np.array(s["trial_area_ci95"])
+        assert np.all(ci[:, 0] < ci[:, 1])
+    assert held / n >= 0.8
+
+
+def test_trial_interval_widens_with_the_measured_error():
+    ci = trial_intervals(np.array([1000.0, 1000.0]), np.array([0.01, 0.2]))
+    assert ci[0, 0] > ci[1, 0] and ci[0, 1] < ci[1, 1]
+    assert ci[0, 0] < 1000 < ci[0, 1]
