@@ -188,7 +188,10 @@ def check_rim_matches(frame: np.ndarray, profile, *, frame_name: str, profile_na
         return None
     r0 = float(profile.rim_radius_px)
     off = float(np.hypot(rim.center_px[0] - profile.center_px[0], rim.center_px[1] - profile.center_px[1]))
-    if off > RIM_MATCH_FRAC * r0 or abs(rim.radius_px - r0) > RIM_MATCH_FRAC * r0:
+    # a profile imported from a lens model alone does not know where the mirror ends: its radius is
+    # the model's field of view, so only the centre can be checked
+    radius_off = abs(rim.radius_px - r0) if getattr(profile, "rim_measured", True) else 0.0
+    if off > RIM_MATCH_FRAC * r0 or radius_off > RIM_MATCH_FRAC * r0:
         raise BadInputError(
             f"{frame_name} shows the mirror's rim at ({rim.center_px[0]:.0f}, {rim.center_px[1]:.0f}) px, radius "
             f"{rim.radius_px:.0f} px, but {profile_name} has it at ({profile.center_px[0]:.0f}, "
