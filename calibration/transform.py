@@ -28,6 +28,7 @@ import cv2
 import numpy as np
 
 from calibration.fit import DEFAULT_VIEWPOINT_M, fit_profile
+from calibration.frames import geometry_frame
 from calibration.rim import RimFit, detect_rim
 from stcvision.errors import BadInputError
 from stcvision.profile import CORNER_ORDER, Profile, nominal_corners_px
@@ -188,8 +189,10 @@ def calibrate_transform(
     iterations: int = 3,
 ) -> tuple[Profile, TransformReport]:
     """Fit a profile to a lights-on frame of the board grid (see the module docstring)."""
-    if not isinstance(frame, np.ndarray) or frame.dtype != np.uint8 or frame.ndim != 3:
-        raise BadInputError("transformation calibration needs an (H, W, 3) uint8 lights-on frame")
+    if not isinstance(frame, np.ndarray) or frame.dtype not in (np.uint8, np.uint16) or frame.ndim != 3:
+        raise BadInputError("transformation calibration needs an (H, W, 3) uint8 or uint16 lights-on frame")
+    source_sha256 = hashlib.sha256(frame.tobytes()).hexdigest()  # of the frame as given
+    frame = geometry_frame(frame)
     h, w = frame.shape[:2]
     grey = cv2.cvtColor(frame, cv2.COLOR_BGR2GRAY)
     rim = detect_rim(frame)
@@ -273,7 +276,7 @@ def calibrate_transform(
     )
     prov = {
         "method": "transformation calibration: rim + grid crossings of a lights-on frame",
-        "frame_sha256": hashlib.sha256(frame.tobytes()).hexdigest(),
+        "frame_sha256": source_sha256,
         "subcell_m": subcell_m,
         "report": report.to_dict(),
     }
@@ -286,7 +289,7 @@ def calibrate_neighbors(frame: np.ndarray, profile: Profile) -> tuple[Profile, n
     from stcvision.pipeline import Pipeline
 
     profile.check_frame(frame.shape)
-    ground = Pipeline(profile).ground_view(frame)
+    ground = Pipeline(profile).ground_view(geometry_frame(frame))
     grey = cv2.cvtColor(ground, cv2.COLOR_BGR2GRAY)
     nominal = nominal_corners_px(profile.subcell_m, profile.ground_px_per_m, profile.ground_size_px)
     pts = nominal.astype(np.float32).reshape(-1, 1, 2).copy()
@@ -361,7 +364,7 @@ def draw_preview(frame: np.ndarray, profile: Profile) -> np.ndarray:
     drawn over it: a person checks that the drawn grid sits on the tape lines."""
     from stcvision.pipeline import Pipeline
 
-    ground = Pipeline(profile).ground_view(frame).copy()
+    ground = Pipeline(profile).ground_view(geometry_frame(frame)).copy()
     xs, ys = grid_lines_m(profile.subcell_m)
     for x in xs:
         a, b = profile.robot_to_ground(np.array([[x, -1.2], [x, 1.2]]))
