@@ -31,3 +31,11 @@ def check_board_cells(w: int, h: int) -> None:
         raise BadInputError(
             f"--board {w}x{h}: expected at least 1x1 and at most {MAX_BOARD_CELLS:,} cells in all (W x H)"
         )
+
+
+# --- video input (stcvision pipeline --video / --device) -----------------------------------
+#: frames one --video run reads (--frames, and --start's seek): a day at 30 frames/s; the results
+#: stream out as they come, so memory does not grow with it
+MAX_VIDEO_FRAMES = 2_600_000
+#: --every K: one frame in K (beyond an hour at 30 frames/s between frames, a video is not a run)
+MAX_VIDEO_EVERY = 100_000
