@@ -49,3 +49,27 @@ def test_sixteen_bit_frame_calibrates_through_the_cli(tmp_path, cli):
     code, out, err = cli("calibrate", "neighbors", path, "--profile", prof, "--yes", "--json", "--force")
     assert code == 0, err
     assert len(json.loads(out)["corners_px"]) == 12
+
+
+def test_dataset_lights_on_frames_at_the_cameras_depth(tmp_path, cli):
+    """A dataset's 12-bit camera is calibrated on its own 12-bit lights-on frame, and the
+    profile the dataset writes for it comes from that frame."""
+    from stcvision.datasets import open_dataset
+    from stcvision.fileio import read_image
+
+    recipe = {
+        "schema_version": 1,
+        "name": "deep-calib",
+        "dark_frames": 2,
+        "calibration": {"lights_on_frames": 1, "profiles": True},
+        "groups": [{"name": "webcam", "n": 1}, {"name": "low", "n": 1, "sensor_profile": "lowlight"}],
+    }
+    (tmp_path / "r.json").write_text(json.dumps(recipe))
+    code, _, err = cli("dataset", "generate", tmp_path / "r.json", "--out", tmp_path / "D", "--workers", "1")
+    assert code == 0, err
+    m = json.loads((tmp_path / "D" / "manifest.json").read_text())
+    assert m["counts"]["cameras"] == 2 and m["cameras"]["cam1"]["sensor_profile"] == "lowlight"
+    assert read_image(tmp_path / "D" / "calibration" / "cam0_0.png").dtype == np.uint8
+    deep = read_image(tmp_path / "D" / "calibration" / "cam1_0.png")
+    assert deep.dtype == np.uint16 and 255 < deep.max() < 4096
+    assert open_dataset(tmp_path / "D").profile_path("cam1").exists()
