@@ -8,7 +8,7 @@ versioned profile.
   stcvision calibrate transform FRAME --out PROFILE.json [--center U,V] [--yes] [--force]
   stcvision calibrate neighbors FRAME --profile PROFILE.json [--points POINTS.json] [--yes]
   stcvision calibrate import FILE --viewpoint-height-m H --out PROFILE.json [--format F] [--camera camN]
-                             [--forward-angle-deg A] [--mirrored] [--rim-px R] [--force]
+                             [--forward-angle-deg A] [--mirrored] [--rim-px R] [--lights-on FRAME] [--force]
   stcvision calibrate export PROFILE.json --format ocamcalib|omnidir|kalibr --out FILE [--force]
 
 For transform and neighbors the robot stands on the board with the room lights on, at the
@@ -126,6 +126,13 @@ def add_parser(p):
         help="image size, for an omnidir file that does not store it",
     )
     i.add_argument(
+        "--lights-on",
+        metavar="FRAME",
+        help="a lights-on frame of the grid at the calibration pose (as for transform): fit the forward angle, "
+        "mirror flip and height to it (--forward-angle-deg within 45 degrees tells forward from left), measure the "
+        "rim and find the 12 corners; the file's intrinsics are kept",
+    )
+    i.add_argument(
         "--subcell-m", type=positive(float), default=0.16, help="sub-cell side D of the board (default 0.16)"
     )
     i.add_argument("--force", action="store_true", help="overwrite --out")
@@ -204,6 +211,21 @@ def _import(args):
         },
     )
     prof = prof.replace(subcell_m=args.subcell_m)
+    mount = {}
+    if args.lights_on:
+        from calibration.transform import calibrate_mount
+        from stcvision.fileio import read_image
+
+        frame = read_image(args.lights_on, what="lights-on frame")
+        prof, rep = calibrate_mount(frame, prof, subcell_m=args.subcell_m)
+        prof = prof.replace(provenance={**prof.provenance, "lights_on_frame": str(args.lights_on)})
+        mount = {
+            "forward_angle_deg": math.degrees(prof.forward_angle_rad),
+            "viewpoint_height_m": prof.viewpoint_height_m,
+            "line_points": rep.line_points,
+            "line_err_mm_median": rep.line_err_mm_median,
+            "line_err_mm_max": rep.line_err_mm_max,
+        }
     prof.save(args.out, overwrite=args.force)
     return {
         "out": str(args.out),
@@ -216,6 +238,7 @@ def _import(args):
         "mirrored": prof.mirrored,
         "theta_degree": len(prof.theta_poly) - 1,
         **fid.to_dict(),
+        **({"lights_on_fit": mount} if mount else {}),
     }
 
 

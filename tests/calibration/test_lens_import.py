@@ -8,6 +8,7 @@ pixel's ray elevation within 0.05 degrees where rays meet the floor within 75 de
 """
 
 import json
+import math
 
 import cv2
 import numpy as np
@@ -333,3 +334,35 @@ def test_synthetic_camera_through_ocamcalib_matches_the_own_calibration():
         if key.endswith("mm"):
             assert abs(ocam[key][0] - own[key][0]) < 0.1 and abs(ocam[key][1] - own[key][1]) < 0.2, key
     assert own["0.3-0.5 m median/max mm"][0] < 1.0
+
+
+def test_import_with_a_lights_on_frame_fits_the_mount(cli, tmp_path):
+    """The toolkit's camera as an OCamCalib file, imported with a wrong height and no flip but its
+    lights-on frame: the fit finds the flip, forward angle and height, the rim and the corners,
+    and the floor is as accurate as the toolkit's own calibration."""
+    from calibration.defaults import calibration_frame
+    from calibration.profiles import default_profile_path
+    from calibration.transform import grid_corners_m
+    from sim_camera.camera import SyntheticCamera
+
+    code, _, err = cli(
+        "calibrate", "export", default_profile_path(), "--format", "ocamcalib", "--out", tmp_path / "c.txt"
+    )
+    assert code == 0, err
+    cam = SyntheticCamera()
+    cv2.imwrite(str(tmp_path / "lights.png"), calibration_frame(cam))
+    prof, rep = _import(
+        cli, tmp_path, tmp_path / "c.txt", "--lights-on", tmp_path / "lights.png", "--forward-angle-deg=-70"
+    )
+    own = Profile.load(default_profile_path())
+    assert prof.mirrored and abs(math.degrees(prof.forward_angle_rad) + 90) < 0.2
+    assert prof.viewpoint_height_m == pytest.approx(0.25, rel=0.01) and prof.rim_measured
+    assert np.abs(prof.corners_px() - own.corners_px()).max() < 0.5
+    assert rep["lights_on_fit"]["line_err_mm_median"] < 1.0
+    corners = grid_corners_m(0.16, rho_max_m=0.9)
+    uv, ok = cam.projector.project(corners)
+    err_own, err_imp = (1000 * np.hypot(*(p.image_to_robot(uv[ok]) - corners[ok]).T) for p in (own, prof))
+    print(
+        f"lights-on mount fit: floor error median {np.median(err_imp):.2f} mm (own calibration {np.median(err_own):.2f})"
+    )
+    assert np.median(err_imp) < np.median(err_own) + 0.1
