@@ -362,7 +362,5 @@ def test_import_with_a_lights_on_frame_fits_the_mount(cli, tmp_path):
     corners = grid_corners_m(0.16, rho_max_m=0.9)
     uv, ok = cam.projector.project(corners)
     err_own, err_imp = (1000 * np.hypot(*(p.image_to_robot(uv[ok]) - corners[ok]).T) for p in (own, prof))
-    print(
-        f"lights-on mount fit: floor error median {np.median(err_imp):.2f} mm (own calibration {np.median(err_own):.2f})"
-    )
+    print(f"lights-on mount fit: floor error median {np.median(err_imp):.2f} mm (own: {np.median(err_own):.2f})")
     assert np.median(err_imp) < np.median(err_own) + 0.1
