@@ -109,6 +109,24 @@ def _line_residuals_m(prof, uv, axis, off) -> np.ndarray:
     return np.where(axis == 0, xy[:, 0], xy[:, 1]) - off
 
 
+def _chamfer_residuals(prof, dist: np.ndarray, samples: np.ndarray) -> np.ndarray:
+    """Distance (px, capped at 6) from each floor sample's image point to the nearest line pixel."""
+    uv = prof.robot_to_image(samples)
+    ok = np.isfinite(uv).all(1)
+    out = np.full(len(samples), 6.0)
+    if ok.any():
+        d = cv2.remap(
+            dist,
+            uv[ok, 0].astype(np.float32).reshape(-1, 1),
+            uv[ok, 1].astype(np.float32).reshape(-1, 1),
+            cv2.INTER_LINEAR,
+            borderMode=cv2.BORDER_CONSTANT,
+            borderValue=6.0,
+        ).ravel()
+        out[ok] = np.minimum(d, 6.0)
+    return out
+
+
 def _chamfer_refine(prof, dist: np.ndarray, samples: np.ndarray):
     from scipy.optimize import least_squares
 
@@ -126,20 +144,7 @@ def _chamfer_refine(prof, dist: np.ndarray, samples: np.ndarray):
         )
 
     def res(x):
-        uv = make(x).robot_to_image(samples)
-        ok = np.isfinite(uv).all(1)
-        out = np.full(len(samples), 6.0)
-        if ok.any():
-            d = cv2.remap(
-                dist,
-                uv[ok, 0].astype(np.float32).reshape(-1, 1),
-                uv[ok, 1].astype(np.float32).reshape(-1, 1),
-                cv2.INTER_LINEAR,
-                borderMode=cv2.BORDER_CONSTANT,
-                borderValue=6.0,
-            ).ravel()
-            out[ok] = np.minimum(d, 6.0)
-        return out
+        return _chamfer_residuals(make(x), dist, samples)
 
     sol = least_squares(res, x0, loss="soft_l1", f_scale=2.0, diff_step=1e-4, max_nfev=200)
     return make(sol.x)
@@ -445,20 +450,7 @@ def calibrate_mount(
     def refine(prof):
         def res(x):
             p = prof.replace(forward_angle_rad=float(x[0]), viewpoint_height_m=float(np.exp(x[1])))
-            uv = p.robot_to_image(samples)
-            ok = np.isfinite(uv).all(1)
-            out = np.full(len(samples), 6.0)
-            if ok.any():
-                d = cv2.remap(
-                    dist,
-                    uv[ok, 0].astype(np.float32).reshape(-1, 1),
-                    uv[ok, 1].astype(np.float32).reshape(-1, 1),
-                    cv2.INTER_LINEAR,
-                    borderMode=cv2.BORDER_CONSTANT,
-                    borderValue=6.0,
-                ).ravel()
-                out[ok] = np.minimum(d, 6.0)
-            return out
+            return _chamfer_residuals(p, dist, samples)
 
         x0 = [prof.forward_angle_rad, math.log(prof.viewpoint_height_m)]
         sol = least_squares(res, x0, loss="soft_l1", f_scale=2.0, diff_step=1e-4, max_nfev=200)

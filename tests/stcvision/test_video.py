@@ -67,7 +67,9 @@ def test_lossless_video_gives_the_png_frames_results(rendered, tmp_path, cli, fo
     assert [_drop_times(x) for x in lines] == [_drop_times(x) for x in png]
     assert sum(len(x["dots"]) for x in lines) > 0
     # --start, --frames, --every pick frames 1 and 3
-    code, out, err = cli("pipeline", "--video", video, "--dark", d / "dark.png", "--json", "--start", "1", "--every", "2")
+    code, out, err = cli(
+        "pipeline", "--video", video, "--dark", d / "dark.png", "--json", "--start", "1", "--every", "2"
+    )
     assert code == 0, err
     lines = [json.loads(ln) for ln in out.splitlines()]
     assert [ln["frame"] for ln in lines] == [1, 3]
