@@ -66,6 +66,22 @@ class VideoSource:
         self.cap.release()
 
 
+def _capture(source, *args):
+    """cv2.VideoCapture without OpenCV's and FFmpeg's own log lines on stderr (a file it cannot
+    open is our one-line error, not theirs as well)."""
+    import os
+
+    os.environ.setdefault("OPENCV_FFMPEG_LOGLEVEL", "-8")  # AV_LOG_QUIET, read when FFmpeg loads
+    import cv2
+
+    level = cv2.utils.logging.getLogLevel()
+    cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_SILENT)
+    try:
+        return cv2.VideoCapture(source, *args)
+    finally:
+        cv2.utils.logging.setLogLevel(level)
+
+
 def _fourcc(cap) -> str:
     import cv2
 
@@ -84,7 +100,7 @@ def open_video(path) -> VideoSource:
         raise BadInputError(f"video {path} does not exist")
     if os.path.isdir(path):
         raise BadInputError(f"video {path} is a directory; expected a video file")
-    cap = cv2.VideoCapture(path, cv2.CAP_FFMPEG)
+    cap = _capture(path, cv2.CAP_FFMPEG)
     if not cap.isOpened():
         cap.release()
         raise BadInputError(
@@ -95,9 +111,8 @@ def open_video(path) -> VideoSource:
 
 
 def open_device(index: int) -> VideoSource:
-    import cv2
 
-    cap = cv2.VideoCapture(int(index))
+    cap = _capture(int(index))
     if not cap.isOpened():
         cap.release()
         raise BadInputError(f"camera device {index} cannot be opened (no such camera, or it is busy)")

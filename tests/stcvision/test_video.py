@@ -102,3 +102,9 @@ def test_lossy_video_is_warned_and_wrong_size_refused(rendered, tmp_path, cli):
     ):
         code, _, err = cli("pipeline", *argv, "--dark", d / "dark.png")
         assert code == 2 and words in err and err.count("\n") == 1, err
+
+
+def test_a_camera_that_is_not_there_is_one_line(rendered, cli):
+    d, _ = rendered
+    code, out, err = cli("pipeline", "--device", "97", "--dark", d / "dark.png")
+    assert code == 2 and out == "" and "camera device 97 cannot be opened" in err and err.count("\n") == 1
