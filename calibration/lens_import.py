@@ -97,9 +97,14 @@ def _ellipse_of(A: np.ndarray) -> tuple[float, float, np.ndarray]:
     ratio = float(S[1] / S[0])
     angle = float(math.atan2(U[1, 0], U[0, 0]))
     angle = (angle + math.pi / 2) % math.pi - math.pi / 2
+    return ratio, angle, _ellipse_matrix(ratio, angle)
+
+
+def _ellipse_matrix(ratio: float, angle: float) -> np.ndarray:
+    """R(angle) diag(1, ratio) R(angle)^T, as :class:`~stcvision.profile.Profile` builds it."""
     c, s = math.cos(angle), math.sin(angle)
     rot = np.array([[c, -s], [s, c]])
-    return ratio, angle, rot @ np.diag([1.0, ratio]) @ rot.T
+    return rot @ np.diag([1.0, ratio]) @ rot.T
 
 
 def _reach(model, basis, M, r_max: float):
@@ -363,17 +368,13 @@ def model_from_profile(prof: Profile, fmt: str, *, max_err_deg: float = MAX_ERR_
 
 def import_forward_angle(prof: Profile) -> float:
     """The raw image angle at which the profile has robot-forward (``--forward-angle-deg``)."""
-    c, s = math.cos(prof.ellipse_angle_rad), math.sin(prof.ellipse_angle_rad)
-    rot = np.array([[c, -s], [s, c]])
-    M = rot @ np.diag([1.0, prof.ellipse_ratio]) @ rot.T
-    v = M @ [math.cos(prof.forward_angle_rad), math.sin(prof.forward_angle_rad)]
+    v = _prof_M(prof) @ [math.cos(prof.forward_angle_rad), math.sin(prof.forward_angle_rad)]
     return float(math.atan2(v[1], v[0]))
 
 
 def _prof_M(prof: Profile) -> np.ndarray:
-    c, s = math.cos(prof.ellipse_angle_rad), math.sin(prof.ellipse_angle_rad)
-    rot = np.array([[c, -s], [s, c]])
-    return rot @ np.diag([1.0, prof.ellipse_ratio]) @ rot.T
+    """The profile's rim-ellipse matrix (image offsets = M times ellipse-corrected ones)."""
+    return _ellipse_matrix(prof.ellipse_ratio, prof.ellipse_angle_rad)
 
 
 def _fit_ocam(prof: Profile) -> OcamModel:
@@ -427,16 +428,17 @@ def _fit_mei(prof: Profile, *, skew: bool) -> CentralModel:
     skew for omnidir; diagonal for Kalibr), xi, k1, k2, p1, p2 by least squares on the rays."""
     from scipy.linalg import rq
 
-    M = _prof_M(prof)
-    U, Q = rq(M)
-    sgn = np.diag(np.sign(np.diag(U)))
-    U = U @ sgn
+    U, _ = rq(_prof_M(prof))  # M = U Q: U upper triangular, the camera matrix's shape
+    U = U @ np.diag(np.sign(np.diag(U)))
     shape = U / U[0, 0] if skew else np.diag([1.0, U[1, 1] / U[0, 0]])
     return _fit_central(prof, "omni", shape=shape)
 
 
 def _fit_central(prof: Profile, projection: str, *, shape: np.ndarray | None = None) -> CentralModel:
-    uv, r, th, rays = _profile_rays(prof)
+    """A Kalibr-style central model (``omni`` with radtan, ``ds``, ``eucm``) with the profile's
+    centre and the camera matrix's ``shape`` (the focal length fitted), its other parameters by
+    least squares on the reprojection of the profile's rays; starts at typical values."""
+    uv, _, th, rays = _profile_rays(prof)
     rng = np.random.default_rng(0)
     idx = rng.choice(len(uv), min(len(uv), 3000), replace=False)
     uv, th, rays = uv[idx], th[idx], rays[idx]
