@@ -106,14 +106,18 @@ def detect_rim(
     iterations: int = 3000,
     tol_px: float = 2.0,
 ) -> RimFit:
-    """Find the rim circle of a catadioptric image ((H, W, 3) or (H, W) uint8).
+    """Find the rim circle of a catadioptric image ((H, W, 3) or (H, W), uint8 or uint16: see
+    :func:`calibration.frames.geometry_frame`).
 
     Radii are searched between ``min_radius_frac`` and ``max_radius_frac`` of the image's
     smaller side times 1... of the larger side's half-diagonal; the centre must lie in the
     middle half of the image.
     """
-    if not isinstance(image, np.ndarray) or image.dtype != np.uint8 or image.ndim not in (2, 3):
-        raise BadInputError("rim detection needs an (H, W) or (H, W, 3) uint8 image")
+    from calibration.frames import geometry_frame
+
+    if not isinstance(image, np.ndarray) or image.dtype not in (np.uint8, np.uint16) or image.ndim not in (2, 3):
+        raise BadInputError("rim detection needs an (H, W) or (H, W, 3) uint8 or uint16 image")
+    image = geometry_frame(image, "rim frame")
     rng = rng or np.random.default_rng(0)
     grey = image if image.ndim == 2 else cv2.cvtColor(image, cv2.COLOR_BGR2GRAY)
     h, w = grey.shape
@@ -185,10 +189,16 @@ def check_rim_matches(frame: np.ndarray, profile, *, frame_name: str, profile_na
     try:
         rim = detect_rim(frame, iterations=1000)
     except BadInputError:
-        return None
+        try:  # a short RANSAC can miss a real rim (seen on a 16-bit frame): the full search decides
+            rim = detect_rim(frame)
+        except BadInputError:
+            return None
     r0 = float(profile.rim_radius_px)
     off = float(np.hypot(rim.center_px[0] - profile.center_px[0], rim.center_px[1] - profile.center_px[1]))
-    if off > RIM_MATCH_FRAC * r0 or abs(rim.radius_px - r0) > RIM_MATCH_FRAC * r0:
+    # a profile imported from a lens model alone does not know where the mirror ends: its radius is
+    # the model's field of view, so only the centre can be checked
+    radius_off = abs(rim.radius_px - r0) if getattr(profile, "rim_measured", True) else 0.0
+    if off > RIM_MATCH_FRAC * r0 or radius_off > RIM_MATCH_FRAC * r0:
         raise BadInputError(
             f"{frame_name} shows the mirror's rim at ({rim.center_px[0]:.0f}, {rim.center_px[1]:.0f}) px, radius "
             f"{rim.radius_px:.0f} px, but {profile_name} has it at ({profile.center_px[0]:.0f}, "

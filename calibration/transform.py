@@ -28,6 +28,7 @@ import cv2
 import numpy as np
 
 from calibration.fit import DEFAULT_VIEWPOINT_M, fit_profile
+from calibration.frames import geometry_frame
 from calibration.rim import RimFit, detect_rim
 from stcvision.errors import BadInputError
 from stcvision.profile import CORNER_ORDER, Profile, nominal_corners_px
@@ -108,6 +109,24 @@ def _line_residuals_m(prof, uv, axis, off) -> np.ndarray:
     return np.where(axis == 0, xy[:, 0], xy[:, 1]) - off
 
 
+def _chamfer_residuals(prof, dist: np.ndarray, samples: np.ndarray) -> np.ndarray:
+    """Distance (px, capped at 6) from each floor sample's image point to the nearest line pixel."""
+    uv = prof.robot_to_image(samples)
+    ok = np.isfinite(uv).all(1)
+    out = np.full(len(samples), 6.0)
+    if ok.any():
+        d = cv2.remap(
+            dist,
+            uv[ok, 0].astype(np.float32).reshape(-1, 1),
+            uv[ok, 1].astype(np.float32).reshape(-1, 1),
+            cv2.INTER_LINEAR,
+            borderMode=cv2.BORDER_CONSTANT,
+            borderValue=6.0,
+        ).ravel()
+        out[ok] = np.minimum(d, 6.0)
+    return out
+
+
 def _chamfer_refine(prof, dist: np.ndarray, samples: np.ndarray):
     from scipy.optimize import least_squares
 
@@ -125,20 +144,7 @@ def _chamfer_refine(prof, dist: np.ndarray, samples: np.ndarray):
         )
 
     def res(x):
-        uv = make(x).robot_to_image(samples)
-        ok = np.isfinite(uv).all(1)
-        out = np.full(len(samples), 6.0)
-        if ok.any():
-            d = cv2.remap(
-                dist,
-                uv[ok, 0].astype(np.float32).reshape(-1, 1),
-                uv[ok, 1].astype(np.float32).reshape(-1, 1),
-                cv2.INTER_LINEAR,
-                borderMode=cv2.BORDER_CONSTANT,
-                borderValue=6.0,
-            ).ravel()
-            out[ok] = np.minimum(d, 6.0)
-        return out
+        return _chamfer_residuals(make(x), dist, samples)
 
     sol = least_squares(res, x0, loss="soft_l1", f_scale=2.0, diff_step=1e-4, max_nfev=200)
     return make(sol.x)
@@ -188,8 +194,10 @@ def calibrate_transform(
     iterations: int = 3,
 ) -> tuple[Profile, TransformReport]:
     """Fit a profile to a lights-on frame of the board grid (see the module docstring)."""
-    if not isinstance(frame, np.ndarray) or frame.dtype != np.uint8 or frame.ndim != 3:
-        raise BadInputError("transformation calibration needs an (H, W, 3) uint8 lights-on frame")
+    if not isinstance(frame, np.ndarray) or frame.dtype not in (np.uint8, np.uint16) or frame.ndim != 3:
+        raise BadInputError("transformation calibration needs an (H, W, 3) uint8 or uint16 lights-on frame")
+    source_sha256 = hashlib.sha256(frame.tobytes()).hexdigest()  # of the frame as given
+    frame = geometry_frame(frame)
     h, w = frame.shape[:2]
     grey = cv2.cvtColor(frame, cv2.COLOR_BGR2GRAY)
     rim = detect_rim(frame)
@@ -273,7 +281,7 @@ def calibrate_transform(
     )
     prov = {
         "method": "transformation calibration: rim + grid crossings of a lights-on frame",
-        "frame_sha256": hashlib.sha256(frame.tobytes()).hexdigest(),
+        "frame_sha256": source_sha256,
         "subcell_m": subcell_m,
         "report": report.to_dict(),
     }
@@ -286,7 +294,7 @@ def calibrate_neighbors(frame: np.ndarray, profile: Profile) -> tuple[Profile, n
     from stcvision.pipeline import Pipeline
 
     profile.check_frame(frame.shape)
-    ground = Pipeline(profile).ground_view(frame)
+    ground = Pipeline(profile).ground_view(geometry_frame(frame))
     grey = cv2.cvtColor(ground, cv2.COLOR_BGR2GRAY)
     nominal = nominal_corners_px(profile.subcell_m, profile.ground_px_per_m, profile.ground_size_px)
     pts = nominal.astype(np.float32).reshape(-1, 1, 2).copy()
@@ -361,7 +369,7 @@ def draw_preview(frame: np.ndarray, profile: Profile) -> np.ndarray:
     drawn over it: a person checks that the drawn grid sits on the tape lines."""
     from stcvision.pipeline import Pipeline
 
-    ground = Pipeline(profile).ground_view(frame).copy()
+    ground = Pipeline(profile).ground_view(geometry_frame(frame)).copy()
     xs, ys = grid_lines_m(profile.subcell_m)
     for x in xs:
         a, b = profile.robot_to_ground(np.array([[x, -1.2], [x, 1.2]]))
@@ -374,3 +382,134 @@ def draw_preview(frame: np.ndarray, profile: Profile) -> np.ndarray:
         cv2.circle(ground, c, 4, (255, 80, 0), 1, cv2.LINE_AA)
         cv2.putText(ground, str(i), (c[0] + 4, c[1] - 4), cv2.FONT_HERSHEY_SIMPLEX, 0.35, (255, 80, 0), 1, cv2.LINE_AA)
     return ground
+
+
+#: the chamfer score's width in the mount's coarse search (px): wide enough that a step of 4
+#: degrees or 6 % of height still finds the basin
+COARSE_SIGMA_PX = 6.0
+
+
+def with_rim(profile: Profile, rim_radius_px: float) -> Profile:
+    """The same mapping with a measured rim radius: the theta polynomial and the decentering are in
+    units of the rim radius, so their coefficients are rescaled with it."""
+    k = rim_radius_px / profile.rim_radius_px
+    poly = tuple(c * k**i for i, c in enumerate(profile.theta_poly))
+    p1, p2, *g = profile.decentering
+    dec = (p1 * k, p2 * k, *(gi * k ** (2 * (i + 1)) for i, gi in enumerate(g)))
+    return profile.replace(rim_radius_px=rim_radius_px, rim_measured=True, theta_poly=poly, decentering=dec)
+
+
+def calibrate_mount(
+    frame: np.ndarray, profile: Profile, *, subcell_m: float = 0.16, forward_hint_rad: float | None = None
+) -> tuple[Profile, TransformReport]:
+    """Fit only what a lens model cannot know -- forward angle, mirror flip, viewpoint height --
+    to a lights-on frame of the grid (the robot at the calibration pose), keeping the profile's
+    intrinsics (centre, ellipse, theta polynomial, decentering). The rim is measured from the
+    frame when it shows one. The grid is symmetric about its diagonal through the robot (a flip
+    and a quarter turn give the same lines), so of the two fits the one whose forward lies nearer
+    ``forward_hint_rad`` (default: the profile's) is taken."""
+    from scipy.optimize import least_squares
+
+    if not isinstance(frame, np.ndarray) or frame.dtype not in (np.uint8, np.uint16) or frame.ndim != 3:
+        raise BadInputError("the lights-on frame must be an (H, W, 3) uint8 or uint16 image")
+    profile.check_frame(frame.shape, what="lights-on frame")
+    source_sha256 = hashlib.sha256(frame.tobytes()).hexdigest()
+    frame = geometry_frame(frame)
+    h, w = frame.shape[:2]
+    grey = cv2.cvtColor(frame, cv2.COLOR_BGR2GRAY)
+    try:
+        rim = detect_rim(frame)
+        if np.hypot(rim.center_px[0] - profile.center_px[0], rim.center_px[1] - profile.center_px[1]) > 0.04 * (
+            rim.radius_px
+        ):
+            raise BadInputError(
+                f"the frame's rim centre ({rim.center_px[0]:.0f}, {rim.center_px[1]:.0f}) px is not the model's "
+                f"({profile.center_px[0]:.0f}, {profile.center_px[1]:.0f}): a frame of another camera?"
+            )
+        profile = with_rim(profile, float(rim.radius_px)).replace(subcell_m=subcell_m)
+    except BadInputError as exc:
+        if "another camera" in str(exc):
+            raise
+        rim = RimFit(tuple(profile.center_px), profile.rim_radius_px, 0.0, 0.0, 0, tuple(profile.center_px), (0, 0), 0)
+        profile = profile.replace(subcell_m=subcell_m)
+    mask = _line_mask(grey, rim)
+    if mask.sum() < 200:
+        raise BadInputError("no grid lines found in the lights-on frame: expected the board's cell grid in view")
+    dist = cv2.distanceTransform((1 - mask).astype(np.uint8), cv2.DIST_L2, 3)
+    samples = _line_samples(subcell_m)
+    H0 = profile.viewpoint_height_m
+
+    def chamfer(prof, sigma_px: float = 2.0) -> float:
+        uv = prof.robot_to_image(samples)
+        ok = np.isfinite(uv).all(1) & (uv[:, 0] >= 0) & (uv[:, 0] < w) & (uv[:, 1] >= 0) & (uv[:, 1] < h)
+        if ok.sum() < 0.2 * len(samples):
+            return 0.0
+        iu, iv = np.rint(uv[ok, 0]).astype(int), np.rint(uv[ok, 1]).astype(int)
+        return float(np.exp(-0.5 * (dist[iv, iu] / sigma_px) ** 2).sum()) / len(samples)
+
+    def refine(prof):
+        def res(x):
+            p = prof.replace(forward_angle_rad=float(x[0]), viewpoint_height_m=float(np.exp(x[1])))
+            return _chamfer_residuals(p, dist, samples)
+
+        x0 = [prof.forward_angle_rad, math.log(prof.viewpoint_height_m)]
+        sol = least_squares(res, x0, loss="soft_l1", f_scale=2.0, diff_step=1e-4, max_nfev=200)
+        return prof.replace(forward_angle_rad=float(sol.x[0]), viewpoint_height_m=float(np.exp(sol.x[1])))
+
+    # coarse: flip x forward angle (4 degree steps) x height (0.5x..2x the given, 6 % steps: the
+    # chamfer peak is ~ +-8 % wide in height, +-3 degrees in angle)
+    fits = []
+    for mirrored in (True, False):
+        best = (0.0, None)
+        for fwd in np.radians(np.arange(-180.0, 180.0, 4.0)):
+            for H in H0 * np.geomspace(0.5, 2.0, 25):
+                p = profile.replace(mirrored=mirrored, forward_angle_rad=float(fwd), viewpoint_height_m=float(H))
+                s = chamfer(p, COARSE_SIGMA_PX)  # a wide basin for the coarse steps
+                if s > best[0]:
+                    best = (s, p)
+        if best[1] is not None:
+            p = refine(best[1])
+            fits.append((chamfer(p), p))
+    if not fits or max(f[0] for f in fits) < 0.2:
+        raise BadInputError("could not fit the grid: is the robot on the board, at a sub-cell centre, facing along it?")
+    top = max(f[0] for f in fits)
+    near = [p for s, p in fits if s >= 0.9 * top]  # the diagonal's twin scores alike
+    hint = profile.forward_angle_rad if forward_hint_rad is None else forward_hint_rad
+    prof = min(near, key=lambda p: abs(math.remainder(p.forward_angle_rad - hint, 2 * math.pi)))
+    # dense: the tape lines' centres, and forward angle and height fitted so they land on their lines
+    bh = cv2.morphologyEx(grey, cv2.MORPH_BLACKHAT, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (9, 9)))
+    bh = cv2.GaussianBlur(bh.astype(np.float32), (0, 0), 0.7)
+    lpts, laxis, loff = _line_points(subcell_m)
+    for _ in range(3):
+        l_uv, keep = _measure_line_centres(prof, bh, lpts, laxis, prof.center_px, prof.rim_radius_px)
+        if len(l_uv) < 100:
+            raise BadInputError(f"only {len(l_uv)} points on the grid lines found; expected hundreds")
+        ax, off = laxis[keep], loff[keep]
+
+        def lres(x, base=prof, l_uv=l_uv, ax=ax, off=off):
+            p = base.replace(forward_angle_rad=float(x[0]), viewpoint_height_m=float(np.exp(x[1])))
+            return _line_residuals_m(p, l_uv, ax, off)
+
+        sol = least_squares(
+            lres, [prof.forward_angle_rad, math.log(prof.viewpoint_height_m)], loss="soft_l1", f_scale=0.003
+        )
+        prof = prof.replace(forward_angle_rad=float(sol.x[0]), viewpoint_height_m=float(np.exp(sol.x[1])))
+    ferr = 1000 * np.abs(_line_residuals_m(prof, l_uv, ax, off))
+    report = TransformReport(
+        rim, math.degrees(prof.forward_angle_rad), int(len(l_uv)), float(np.median(ferr)), float(ferr.max())
+    )
+    prov = {
+        **profile.provenance,
+        "mount": {
+            "method": "forward angle, mirror flip and height fitted to a lights-on frame's grid lines",
+            "frame_sha256": source_sha256,
+            "report": report.to_dict(),
+        },
+    }
+    prof = prof.replace(
+        forward_angle_rad=math.remainder(prof.forward_angle_rad, 2 * math.pi),
+        neighbour_corners_px=None,
+        provenance=prov,
+    )
+    prof, _ = calibrate_neighbors(frame, prof)
+    return prof, report

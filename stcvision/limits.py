@@ -130,3 +130,9 @@ def check_buffon_work(
 #: steps of one visit on the pymunk path (``buffon compare``): ~1-3,000 steps/s, so 10^6 is ~10
 #: minutes a visit
 MAX_PYMUNK_VISIT_STEPS = 1_000_000
+# --- video input (stcvision pipeline --video / --device) -----------------------------------
+#: frames one --video run reads (--frames, and --start's seek): a day at 30 frames/s; the results
+#: stream out as they come, so memory does not grow with it
+MAX_VIDEO_FRAMES = 2_600_000
+#: --every K: one frame in K (beyond an hour at 30 frames/s between frames, a video is not a run)
+MAX_VIDEO_EVERY = 100_000

@@ -18,6 +18,16 @@ renderer's ray-traced spherical mirror -- and it says:
 * the mirror axis may lean against the floor's normal (a decentred or tilted mirror):
   ``axis_tilt_rad`` = (tilt about the robot's x axis, tilt about its y axis); the rays are
   built in the axis frame and rotated into the floor frame before meeting the floor;
+* a non-radial part for imported lens models (Brown's decentering distortion, as in the
+  radial-tangential models of Kalibr and OpenCV): ``decentering`` = (p1, p2[, g1, g2, g3]); the
+  image point of the radial model's point ``(x, y)`` (ellipse-corrected, in units of the rim
+  radius, r^2 = x^2 + y^2) is ``(x, y) + (1 + g1 r^2 + g2 r^4 + g3 r^6) (2 p1 x y + p2 (r^2 + 2
+  x^2), p1 (r^2 + 2 y^2) + 2 p2 x y)``; the radial factor carries the lens's radial distortion,
+  which such models apply after the tangential terms' point; zero for the toolkit's own
+  calibration;
+* ``rim_measured``: whether ``rim_radius_px`` is the mirror's rim as seen in a frame (false for
+  a profile imported from a lens model without a frame: the radius is then the model's field of
+  view, and a frame's rim is checked against the centre only);
 * the ground view: top-down, centred on the robot, forward up, ``ground_px_per_m``,
   ``ground_size_px`` square;
 * the board's sub-cell side ``subcell_m`` and the neighbours calibration: the 12 corners of the
@@ -39,6 +49,15 @@ __all__ = ["CORNER_ORDER", "SCHEMA_VERSION", "Profile", "nominal_corners_px"]
 
 SCHEMA_VERSION = 1
 MODEL = "radial_central"
+#: the decentering coefficients a profile may hold (|p1|, |p2|): real lenses have ~1e-3; at 0.02
+#: the image moves by up to 6 % of the radius, where the inverse's fixed point still contracts
+MAX_DECENTERING = 0.02
+#: ... and its radial factor's coefficients: a lens's radial distortion changes the factor by tens
+#: of per cent at the rim; beyond this the product could outgrow the bound above
+MAX_DECENTERING_RADIAL = 5.0
+#: fixed-point iterations of the decentering's inverse: the error shrinks by ~6 |p| each, to below
+#: 1e-12 px from |p| = 0.02 in 20
+DECENTER_ITERATIONS = 20
 
 #: The 12 corners of the plus-shaped union of the current cell and its four neighbours, in the
 #: entry frame, in units of the sub-cell side D relative to the current cell's centre
@@ -109,6 +128,8 @@ class Profile:
     ellipse_ratio: float = 1.0
     ellipse_angle_rad: float = 0.0
     axis_tilt_rad: tuple[float, float] = (0.0, 0.0)
+    decentering: tuple[float, ...] = (0.0, 0.0)
+    rim_measured: bool = True
     viewpoint_height_m: float
     theta_poly: tuple[float, ...]
     ground_px_per_m: float = 260.0
@@ -142,6 +163,8 @@ class Profile:
         sign = 1.0 if self.mirrored else -1.0
         a = self.forward_angle_rad + sign * psi
         d = np.column_stack([r * np.cos(a), r * np.sin(a)])
+        if any(self.decentering):
+            d = self._decenter(d)
         return self._ellipse(d) + self.center_px
 
     def _floor_to_angles(self, xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -171,6 +194,8 @@ class Profile:
         :meth:`robot_to_image`); NaN for rays at or above the horizon."""
         uv = np.asarray(uv_px, float).reshape(-1, 2)
         d2 = self._ellipse(uv - self.center_px, inverse=True)
+        if any(self.decentering):
+            d2 = self._undecenter(d2)
         r = np.hypot(d2[:, 0], d2[:, 1])
         a = np.arctan2(d2[:, 1], d2[:, 0])
         sign = 1.0 if self.mirrored else -1.0
@@ -182,6 +207,25 @@ class Profile:
         with np.errstate(divide="ignore", invalid="ignore"):
             t = np.where(d[:, 2] < -1e-9, self.viewpoint_height_m / -d[:, 2], np.nan)
         return d[:, :2] * t[:, None]
+
+    def _decenter(self, q: np.ndarray) -> np.ndarray:
+        """Radial-model points (ellipse-corrected px) -> where the decentering puts them (Brown
+        1966; the tangential terms of OpenCV's and Kalibr's radial-tangential model)."""
+        p1, p2, *g = self.decentering
+        s = self.rim_radius_px
+        x, y = q[:, 0] / s, q[:, 1] / s
+        r2 = x * x + y * y
+        k = s * (1.0 + np.polynomial.polynomial.polyval(r2, [0.0, *g])) if g else s
+        t = np.column_stack([2 * p1 * x * y + p2 * (r2 + 2 * x * x), p1 * (r2 + 2 * y * y) + 2 * p2 * x * y])
+        return q + t * (k[:, None] if g else k)
+
+    def _undecenter(self, d: np.ndarray) -> np.ndarray:
+        """Inverse of :meth:`_decenter` by fixed-point iteration (as OpenCV's undistortPoints);
+        the terms are under a few per cent of the radius (validated), so it converges to ~1e-12 px."""
+        q = d.copy()
+        for _ in range(DECENTER_ITERATIONS):
+            q = d - (self._decenter(q) - q)
+        return q
 
     def _ellipse(self, d: np.ndarray, inverse: bool = False) -> np.ndarray:
         if self.ellipse_ratio == 1.0:
@@ -239,6 +283,19 @@ class Profile:
         mirrored = d.get("mirrored", True)
         if not isinstance(mirrored, bool):
             raise ProfileError(f"{where} field 'mirrored' must be true or false, got {mirrored!r}")
+        rim_measured = d.get("rim_measured", True)
+        if not isinstance(rim_measured, bool):
+            raise ProfileError(f"{where} field 'rim_measured' must be true or false, got {rim_measured!r}")
+        dec = tuple(_vec(d, "decentering", None, where=where)) if "decentering" in d else (0.0, 0.0)
+        if not 2 <= len(dec) <= 5:
+            raise ProfileError(
+                f"{where} field 'decentering' must have 2..5 coefficients (p1, p2, g1..g3), got {len(dec)}"
+            )
+        if max(abs(dec[0]), abs(dec[1])) > MAX_DECENTERING or any(abs(g) > MAX_DECENTERING_RADIAL for g in dec[2:]):
+            raise ProfileError(
+                f"{where} field 'decentering' must have p1, p2 within +-{MAX_DECENTERING} and g1..g3 within "
+                f"+-{MAX_DECENTERING_RADIAL}, got {list(dec)}"
+            )
         corners = d.get("neighbour_corners_px")
         if corners is not None:
             if not isinstance(corners, list) or len(corners) != 12:
@@ -266,6 +323,8 @@ class Profile:
             ellipse_ratio=ratio,
             ellipse_angle_rad=_num(d, "ellipse_angle_rad", where=where) if "ellipse_angle_rad" in d else 0.0,
             axis_tilt_rad=tuple(_vec(d, "axis_tilt_rad", 2, where=where)) if "axis_tilt_rad" in d else (0.0, 0.0),
+            decentering=dec,
+            rim_measured=rim_measured,
             viewpoint_height_m=_num(d, "viewpoint_height_m", positive=True, where=where),
             theta_poly=tuple(theta),
             ground_px_per_m=_num(d, "ground_px_per_m", positive=True, where=where) if "ground_px_per_m" in d else 260.0,

@@ -7,6 +7,9 @@ versioned profile.
   stcvision calibrate rim FRAME
   stcvision calibrate transform FRAME --out PROFILE.json [--center U,V] [--yes] [--force]
   stcvision calibrate neighbors FRAME --profile PROFILE.json [--points POINTS.json] [--yes]
+  stcvision calibrate import FILE --viewpoint-height-m H --out PROFILE.json [--format F] [--camera camN]
+                             [--forward-angle-deg A] [--mirrored] [--rim-px R] [--lights-on FRAME] [--force]
+  stcvision calibrate export PROFILE.json --format ocamcalib|omnidir|kalibr --out FILE [--force]
 
 For transform and neighbors the robot stands on the board with the room lights on, at the
 centre of a sub-cell and facing along the grid (as when it enters a cell).
@@ -20,7 +23,7 @@ NESTED = True  # --json belongs to each step
 
 
 def add_parser(p):
-    from stcvision.cli._args import pair
+    from stcvision.cli._args import pair, positive
 
     sub = p.add_subparsers(dest="step", metavar="STEP", parser_class=type(p))
     d = sub.add_parser(
@@ -71,7 +74,85 @@ def add_parser(p):
     n.add_argument("--preview", metavar="PNG", help="preview image (default: PROFILE.neighbors.png)")
     n.add_argument("--yes", action="store_true", help="accept without asking")
     n.add_argument("--force", action="store_true", help="overwrite an existing --out or preview")
-    for q in (d, r, t, n):
+    i = sub.add_parser(
+        "import",
+        help="make a profile from an OCamCalib, Kalibr or OpenCV omnidir calibration",
+        description="Read another tool's calibration (format detected from the content) and write the profile "
+        "the pipeline uses. The floor is the plane perpendicular to the model's axis, H from its viewpoint, on the "
+        "side the centre pixel's ray points to. Checked against the model's own equations: refused if the profile's "
+        "floor differs by more than 0.05 degrees of elevation where rays meet the floor within 75 degrees of the axis.",
+    )
+    i.add_argument("file", metavar="FILE")
+    i.add_argument(
+        "--viewpoint-height-m",
+        type=positive(float),
+        required=True,
+        metavar="H",
+        help="height of the model's viewpoint above the floor (m)",
+    )
+    i.add_argument("--out", required=True, metavar="PROFILE.json")
+    i.add_argument("--format", choices=("ocamcalib", "kalibr", "omnidir"), help="the file's format (default: detected)")
+    i.add_argument("--camera", metavar="camN", help="the camera of a Kalibr chain holding several")
+    i.add_argument(
+        "--forward-angle-deg",
+        type=float,
+        default=-90.0,
+        metavar="A",
+        help="image angle atan2(v - cv, u - cu) at which robot-forward appears (default -90: up the image)",
+    )
+    i.add_argument(
+        "--mirrored",
+        action="store_true",
+        help="the model's frame is the mirror image of the world (a camera looking at a mirror, "
+        "calibrated on planar targets, which cannot tell): robot-left then turns the other way",
+    )
+    i.add_argument(
+        "--rim-px",
+        type=positive(float),
+        metavar="R",
+        help="the mirror rim's radius (px; `calibrate rim` measures it); default: the model's field of view",
+    )
+    i.add_argument(
+        "--axis-tilt-deg",
+        type=pair(float, fmt="X,Y", example="0.2,-0.1"),
+        default=(0.0, 0.0),
+        metavar="X,Y",
+        help="lean of the model's axis against the floor's normal (the mount; default 0,0)",
+    )
+    i.add_argument(
+        "--image-size",
+        type=pair(int, fmt="WxH", example="640x480"),
+        metavar="WxH",
+        help="image size, for an omnidir file that does not store it",
+    )
+    i.add_argument(
+        "--lights-on",
+        metavar="FRAME",
+        help="a lights-on frame of the grid at the calibration pose (as for transform): fit the forward angle, "
+        "mirror flip and height to it (--forward-angle-deg within 45 degrees tells forward from left), measure the "
+        "rim and find the 12 corners; the file's intrinsics are kept",
+    )
+    i.add_argument(
+        "--subcell-m", type=positive(float), default=0.16, help="sub-cell side D of the board (default 0.16)"
+    )
+    i.add_argument("--force", action="store_true", help="overwrite --out")
+    e = sub.add_parser(
+        "export",
+        help="write a profile as an OCamCalib, OpenCV omnidir or Kalibr calibration",
+        description="Fit the format's model to the profile's rays inside its rim and write it; refused if it "
+        "cannot follow the profile to --max-error-deg. Prints the import flags that give the profile back.",
+    )
+    e.add_argument("profile", metavar="PROFILE.json")
+    e.add_argument("--format", required=True, choices=("ocamcalib", "omnidir", "kalibr"))
+    e.add_argument("--out", required=True, metavar="FILE")
+    e.add_argument(
+        "--max-error-deg",
+        type=positive(float),
+        default=0.05,
+        help="worst elevation error accepted inside the rim (default 0.05)",
+    )
+    e.add_argument("--force", action="store_true", help="overwrite --out")
+    for q in (d, r, t, n, i, e):
         q.add_argument("--json", action="store_true", help="print the result as one JSON object")
 
 
@@ -97,8 +178,98 @@ def run(args):
     from stcvision.errors import BadInputError
 
     if args.step is None:
-        raise BadInputError("calibrate needs a step: dark, rim, transform or neighbors (see --help)")
-    return {"dark": _dark, "rim": _rim, "transform": _transform, "neighbors": _neighbors}[args.step](args)
+        raise BadInputError("calibrate needs a step: dark, rim, transform, neighbors, import or export (see --help)")
+    steps = {"dark": _dark, "rim": _rim, "transform": _transform, "neighbors": _neighbors}
+    return {**steps, "import": _import, "export": _export}[args.step](args)
+
+
+def _import(args):
+    import math
+
+    from calibration.lens_files import read_lens_file
+    from calibration.lens_import import profile_from_model
+    from stcvision.errors import OutputError
+    from stcvision.fileio import check_output_file
+
+    if not str(args.out).lower().endswith(".json"):
+        raise OutputError(f"profile {args.out} does not end in .json; expected a .json file name")
+    check_output_file(args.out, overwrite=args.force, what="profile")
+    model, fmt = read_lens_file(args.file, fmt=args.format, camera=args.camera, image_size=args.image_size)
+    prof, fid = profile_from_model(
+        model,
+        viewpoint_height_m=args.viewpoint_height_m,
+        forward_angle_rad=math.radians(args.forward_angle_deg),
+        mirrored=args.mirrored,
+        rim_radius_px=args.rim_px,
+        axis_tilt_rad=tuple(math.radians(t) for t in args.axis_tilt_deg),
+        provenance={
+            "method": f"imported from {fmt}",
+            "file": str(args.file),
+            "lens_model": _model_name(model),
+            "forward_angle_deg": args.forward_angle_deg,
+            "model_frame_mirrored": bool(args.mirrored),
+        },
+    )
+    prof = prof.replace(subcell_m=args.subcell_m)
+    mount = {}
+    if args.lights_on:
+        from calibration.transform import calibrate_mount
+        from stcvision.fileio import read_image
+
+        frame = read_image(args.lights_on, what="lights-on frame")
+        prof, rep = calibrate_mount(frame, prof, subcell_m=args.subcell_m)
+        prof = prof.replace(provenance={**prof.provenance, "lights_on_frame": str(args.lights_on)})
+        mount = {
+            "forward_angle_deg": math.degrees(prof.forward_angle_rad),
+            "viewpoint_height_m": prof.viewpoint_height_m,
+            "line_points": rep.line_points,
+            "line_err_mm_median": rep.line_err_mm_median,
+            "line_err_mm_max": rep.line_err_mm_max,
+        }
+    prof.save(args.out, overwrite=args.force)
+    return {
+        "out": str(args.out),
+        "format": fmt,
+        "lens_model": _model_name(model),
+        "image_size_px": list(prof.image_size_px),
+        "center_px": list(prof.center_px),
+        "rim_radius_px": prof.rim_radius_px,
+        "rim_measured": prof.rim_measured,
+        "mirrored": prof.mirrored,
+        "theta_degree": len(prof.theta_poly) - 1,
+        **fid.to_dict(),
+        **({"lights_on_fit": mount} if mount else {}),
+    }
+
+
+def _model_name(model) -> str:
+    if model.kind == "ocamcalib":
+        return f"ocamcalib ({len(model.ss)} ss terms)"
+    return f"{model.projection}-{model.distortion}"
+
+
+def _export(args):
+    from calibration.lens_files import write_lens_file
+    from calibration.lens_import import model_from_profile
+    from stcvision.fileio import check_output_file
+    from stcvision.profile import Profile
+
+    check_output_file(args.out, overwrite=args.force, what="calibration file")
+    prof = Profile.load(args.profile)
+    model, fid, flags = model_from_profile(prof, args.format, max_err_deg=args.max_error_deg)
+    write_lens_file(args.out, model, args.format, overwrite=args.force)
+    cmd = (
+        f"stcvision calibrate import {args.out} --viewpoint-height-m {flags['viewpoint_height_m']:.6g} "
+        f"--forward-angle-deg {flags['forward_angle_deg']:.6f} --rim-px {flags['rim_px']:.4f}"
+        + (" --mirrored" if flags["mirrored"] else "")
+        + (
+            f" --axis-tilt-deg={flags['axis_tilt_deg'][0]:.6f},{flags['axis_tilt_deg'][1]:.6f}"
+            if any(flags["axis_tilt_deg"])
+            else ""
+        )
+        + " --out PROFILE.json"
+    )
+    return {"out": str(args.out), "format": args.format, **fid.to_dict(), "import_flags": flags, "import_command": cmd}
 
 
 #: what a dark frame may be written as: lossless only (JPEG would blur the hot pixels away)

@@ -38,7 +38,9 @@ STORE = ".sweep.jsonl"
 
 
 def _plan(recipe: Recipe, seed: int) -> tuple[dict, list[dict]]:
-    """Cameras (by identical optics + pattern seed, in order of first use) and groups."""
+    """Cameras (by identical optics, pattern seed and sensor profile, in order of first use) and
+    groups. The sensor profile is part of a camera: its lights-on calibration frames are rendered
+    by that sensor, at its depth (a 12- or 16-bit camera is calibrated on its own frames)."""
     from sim_camera.hardware import CAMERAS
     from sim_camera.optics import MirrorCameraParams
     from sim_camera.sensor import SensorParams
@@ -58,11 +60,13 @@ def _plan(recipe: Recipe, seed: int) -> tuple[dict, list[dict]]:
             sensor = SensorParams.from_dict({**base, **g.sensor}).to_dict()
         except BadInputError as exc:
             raise BadInputError(f"recipe {recipe.name}, group {g.name}: {exc}") from None
-        k = _key([optics, g.pattern_seed])
+        k = _key([optics, g.pattern_seed] + ([g.sensor_profile] if g.sensor_profile else []))
         if k not in by_key:
             cid = f"cam{len(cameras)}"
             by_key[k] = cid
             cameras[cid] = {"optics": optics, "pattern_seed": g.pattern_seed}
+            if g.sensor_profile:
+                cameras[cid]["sensor_profile"] = g.sensor_profile
         groups.append(
             {
                 "name": g.name,
@@ -141,6 +145,11 @@ def calibrate_camera(params: dict, seed) -> dict:
     recipe, _, cameras, _, out = _task_plan(params)
     cid = params["camera"]
     c, cam = cameras[cid], _cam(cameras, cid)
+    if c.get("sensor_profile"):  # lights-on frames by the camera's own sensor, at its depth
+        from sim_camera.camera import SyntheticCamera
+        from sim_camera.hardware import CAMERAS
+
+        cam = SyntheticCamera(cam.optics, CAMERAS[c["sensor_profile"]].sensor, pattern_seed=c["pattern_seed"])
     for j, name in enumerate(c["calibration_frames"]):
         write_image(out / name, calibration_frame(cam, seed=c["calibration_seeds"][j]), overwrite=True)
     if c["profile"]:
