@@ -23,11 +23,47 @@ MAX_PICTURE_PX = 10_000
 MAX_CAMERA_SIDE_PX = 4096
 
 
-def check_board_cells(w: int, h: int) -> None:
-    """Refuse a ``--board WxH`` under 1x1 or over :data:`MAX_BOARD_CELLS` cells, in one line."""
+def check_board_cells(w: int, h: int, *, flag: str = "--board") -> None:
+    """Refuse a ``--board WxH`` under 1x1 or over :data:`MAX_BOARD_CELLS` cells, in one line
+    (``flag``: the option that gave the size, e.g. ``--sizes``)."""
     from stcvision.errors import BadInputError
 
     if w < 1 or h < 1 or w * h > MAX_BOARD_CELLS:
         raise BadInputError(
-            f"--board {w}x{h}: expected at least 1x1 and at most {MAX_BOARD_CELLS:,} cells in all (W x H)"
+            f"{flag} {w}x{h}: expected at least 1x1 and at most {MAX_BOARD_CELLS:,} cells in all (W x H)"
         )
+
+
+# ---- counts and sizes of the command lines' other flags (each refused over its cap in one line)
+#: runs per fault level of ``cover faults`` (a 6x6 run takes a few seconds; 13 levels x 1,000
+#: runs is about a day on two cores, and every task is held in memory until it is stored)
+MAX_FAULT_RUNS = 1_000
+#: ``cover sweep --decisions-per-subcell``: a complete tour makes 1-4 decisions per sub-cell, so
+#: beyond this a lost robot would only wander longer before the run is called incomplete
+MAX_DECISIONS_PER_SUBCELL = 1_000
+#: search steps of one ``stcvision search`` run (``--max-steps``, ``--petals`` x
+#: ``--steps-per-petal``): each is a sampling stop of the physics world (~200 steps/s), and the
+#: path and the readings are kept for the plot and the recording
+MAX_SEARCH_STEPS = 100_000
+#: round obstacles of one ``stcvision search`` run (``--obstacle``), each a body of the world
+MAX_SEARCH_OBSTACLES = 1_000
+#: ``search reproduce --seeds``: seeds per row of the paper's tables (8 take 10-20 minutes)
+MAX_REPRODUCE_SEEDS = 1_000
+#: worst frames ``eval --rrd`` logs (``--worst``): each is a frame with its stage images, ~2 MB
+#: in the recording
+MAX_EVAL_WORST_FRAMES = 1_000
+#: no-op tasks ``bench --sweep --tasks`` times per backend (~5 ms each through a pool)
+MAX_BENCH_SWEEP_TASKS = 100_000
+#: frames ``bench --labelled-frames`` renders into a temporary dataset (~1.5 MB each on disk)
+MAX_BENCH_LABELLED_FRAMES = 2_000
+
+
+def check_count(flag: str, value: int, cap: int, *, minimum: int = 1, why: str = "") -> int:
+    """Refuse ``flag value`` below ``minimum`` or over ``cap`` in one line naming the cap."""
+    from stcvision.errors import BadInputError
+
+    if value < minimum:
+        raise BadInputError(f"{flag} must be >= {minimum}, got {value}")
+    if value > cap:
+        raise BadInputError(f"{flag} {value:,} is over the cap of {cap:,}" + (f" ({why})" if why else ""))
+    return value

@@ -102,7 +102,26 @@ def _check_plot(path, force):
         raise OutputError(f"plot {path} does not end in .png; expected OUT.png")
 
 
+def _check_caps(args) -> None:
+    """The counts a search command line asks for, against the caps of :mod:`stcvision.limits`."""
+    from stcvision.limits import MAX_REPRODUCE_SEEDS, MAX_SEARCH_OBSTACLES, MAX_SEARCH_STEPS, check_count
+
+    check_count("--obstacle", len(args.obstacle), MAX_SEARCH_OBSTACLES, minimum=0, why="obstacles")
+    if args.action == "reproduce":
+        check_count("--seeds", args.seeds, MAX_REPRODUCE_SEEDS, why="seeds per row of the tables")
+        return
+    for flag, v in (("--petals", args.petals), ("--steps-per-petal", args.steps_per_petal)):
+        check_count(flag, v, MAX_SEARCH_STEPS, why="search steps")
+    if args.max_steps is not None:
+        check_count("--max-steps", args.max_steps, MAX_SEARCH_STEPS, why="search steps")
+    if args.pattern == "radial" and args.max_steps is None:  # the whole flower is run
+        check_count(
+            "--petals x --steps-per-petal", args.petals * args.steps_per_petal, MAX_SEARCH_STEPS, why="search steps"
+        )
+
+
 def run(args):
+    _check_caps(args)
     if args.action == "reproduce":
         return _reproduce(args)
     import numpy as np

@@ -83,8 +83,14 @@ def plan(faults, runs: int, *, cells: int, obstacle_fraction: float, exposure: s
     from controllers.stc.faults import FAULTS
     from stcvision.sweep import Task
 
-    if runs < 1 or cells < 1:
-        raise BadInputError(f"--runs and --cells must be >= 1, got {runs} and {cells}")
+    from stcvision.limits import MAX_FAULT_RUNS, check_board_cells, check_count
+
+    check_count("--runs", runs, MAX_FAULT_RUNS, why="runs per fault level")
+    check_board_cells(cells, cells, flag="--cells")
+    if not 0 <= obstacle_fraction < 1:
+        raise BadInputError(f"--obstacle-fraction must be in [0, 1), got {obstacle_fraction}")
+    if len(set(faults)) != len(faults):
+        raise BadInputError(f"--faults names a fault twice: {','.join(faults)}")
     for f in faults:
         if f not in LEVELS:
             raise BadInputError(f"fault {f!r} is not one of {', '.join(LEVELS)}")
@@ -202,9 +208,9 @@ def sweep_faults(args) -> dict:
     from stcvision.sweep import output_folder, run_sweep, sweep_options_from_args
 
     out = Path(args.out)
-    output_folder(out, OUTPUTS, store=STORE, force=args.force, what="cover faults sweep")
     tasks = plan(args.faults, args.runs, cells=args.cells, obstacle_fraction=args.obstacle_fraction,
                  exposure=args.exposure, camera=args.camera)  # fmt: skip
+    output_folder(out, OUTPUTS, store=STORE, force=args.force, what="cover faults sweep")  # a refused plan makes none
     report = run_sweep(tasks, out / STORE, sweep_options_from_args(args), desc="cover faults")
     runs = list(report.results.values())
     rows = summarise(runs)

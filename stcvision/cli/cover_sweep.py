@@ -97,6 +97,11 @@ def plan(
         raise BadInputError(f"--sizes must be board sizes >= 1 cell, got {list(sizes)}")
     if runs < 1:
         raise BadInputError(f"--runs must be >= 1, got {runs}")
+    from stcvision.limits import MAX_DECISIONS_PER_SUBCELL, check_board_cells, check_count
+
+    for n in sizes:
+        check_board_cells(n, n, flag="--sizes")
+    check_count("--decisions-per-subcell", decisions_per_subcell, MAX_DECISIONS_PER_SUBCELL)
     if not 0 <= obstacle_fraction < 1:
         raise BadInputError(f"--obstacle-fraction must be in [0, 1), got {obstacle_fraction}")
     for p in perceptions:
@@ -279,8 +284,7 @@ def sweep_cover(args) -> dict:
     from stcvision.sweep import output_folder, run_sweep, sweep_options_from_args
 
     out = Path(args.out)
-    output_folder(out, OUTPUTS, store=STORE, force=args.force, what="cover sweep")
-    tasks = plan(
+    tasks = plan(  # first: a refused plan makes no folder
         args.sizes,
         args.runs,
         args.exposures,
@@ -289,6 +293,7 @@ def sweep_cover(args) -> dict:
         obstacle_fraction=args.obstacle_fraction,
         decisions_per_subcell=args.decisions_per_subcell,
     )
+    output_folder(out, OUTPUTS, store=STORE, force=args.force, what="cover sweep")
     report = run_sweep(tasks, out / STORE, sweep_options_from_args(args), desc="cover sweep")
     runs = list(report.results.values())
     rows = summarise(runs)

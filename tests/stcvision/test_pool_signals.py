@@ -51,6 +51,16 @@ def start(argv, tmp_path):
     )
 
 
+def reap(proc) -> None:
+    """Kill whatever of the command's session is left (a failing test leaves no process)."""
+    for pid in session_pids(proc.pid):
+        try:
+            os.kill(pid, signal.SIGKILL)
+        except ProcessLookupError:
+            pass
+    proc.poll()
+
+
 def selftest(store: Path, tmp_path):
     # 2 quick tasks, then 4 that sleep a minute: the interrupt lands while both workers are busy
     argv = [sys.executable, "-m", "stcvision.sweep._selftest", str(store), "6", "--workers", "2"]
@@ -69,8 +79,7 @@ def test_a_signal_stops_a_pool_sweep_within_2_s_and_keeps_the_finished_tasks(tmp
         proc.wait(timeout=30)
         took = time.monotonic() - t0
     finally:
-        if proc.poll() is None:
-            os.killpg(proc.pid, signal.SIGKILL)
+        reap(proc)
     assert took < 2.0, f"took {took:.2f} s to stop"
     assert proc.returncode in (128 + sig, -sig)
     done = [r for r in read_store(store) if r["status"] == "ok"]
@@ -88,10 +97,7 @@ def test_pool_workers_die_with_a_sigkilled_parent(tmp_path):
         proc.wait()
         wait_for(lambda: not session_pids(proc.pid), 10, "the orphaned workers to end")
     finally:
-        try:
-            os.killpg(proc.pid, signal.SIGKILL)
-        except ProcessLookupError:
-            pass
+        reap(proc)
 
 
 def test_dataset_generate_workers_die_with_a_sigkilled_parent(tmp_path):
@@ -106,10 +112,7 @@ def test_dataset_generate_workers_die_with_a_sigkilled_parent(tmp_path):
         proc.wait()
         wait_for(lambda: not session_pids(proc.pid), 10, "the orphaned workers to end")
     finally:
-        try:
-            os.killpg(proc.pid, signal.SIGKILL)
-        except ProcessLookupError:
-            pass
+        reap(proc)
 
 
 def test_a_worker_whose_parent_is_already_gone_ends_itself():

@@ -1,0 +1,52 @@
+"""Every count and size flag has a cap (stcvision.limits): over it, or below its minimum, the
+command refuses in one line with exit code 2 before doing any work, and the line names the cap."""
+
+import pytest
+
+from stcvision import limits
+
+CASES = [
+    (["cover", "sweep", "--sizes", "3,101", "--runs", "1", "--out", "{d}/S"], "--sizes 101x101"),
+    (["cover", "sweep", "--sizes", "3", "--runs", "1", "--decisions-per-subcell", "1000000000", "--out", "{d}/S"],
+     f"over the cap of {limits.MAX_DECISIONS_PER_SUBCELL:,}"),
+    (["cover", "faults", "--runs", "1000000000", "--out", "{d}/F"], f"over the cap of {limits.MAX_FAULT_RUNS:,}"),
+    (["cover", "faults", "--cells", "100000", "--out", "{d}/F"], "--cells 100000x100000"),
+    (["cover", "faults", "--obstacle-fraction", "-1", "--out", "{d}/F"], "--obstacle-fraction must be in [0, 1)"),
+    (["cover", "faults", "--faults", "none,none", "--out", "{d}/F"], "names a fault twice"),
+    (["search", "--petals", "1000000000"], f"--petals 1,000,000,000 is over the cap of {limits.MAX_SEARCH_STEPS:,}"),
+    (["search", "--steps-per-petal", "1000000000"], "--steps-per-petal 1,000,000,000 is over the cap"),
+    (["search", "--petals", "1000", "--steps-per-petal", "1000"], "--petals x --steps-per-petal 1,000,000"),
+    (["search", "--petals", "0"], "--petals must be >= 1"),
+    (["search", "--max-steps", "100000000000"], "--max-steps 100,000,000,000 is over the cap"),
+    (["search", "reproduce", "--seeds", "1000000000", "--out", "{d}/R"], f"over the cap of {limits.MAX_REPRODUCE_SEEDS:,}"),
+    (["eval", "{d}", "--worst", "100000000000"], f"over the cap of {limits.MAX_EVAL_WORST_FRAMES:,}"),
+    (["bench", "--sweep", "--tasks", "1000000000"], f"over the cap of {limits.MAX_BENCH_SWEEP_TASKS:,}"),
+    (["bench", "--labelled-frames", "1000000000"], f"over the cap of {limits.MAX_BENCH_LABELLED_FRAMES:,}"),
+    (["world", "--board", "10x10", "--steps", "100000000", "--out", "{d}/w.png"], "over the cap"),
+    (["render", "--dark-frames", "100000", "--out", "{d}/r"], "over the cap"),
+]
+
+
+@pytest.mark.parametrize("argv, words", CASES, ids=[" ".join(c[0][:3]) for c in CASES])
+def test_a_flag_over_its_cap_is_one_line_and_exit_2_before_any_work(cli, capsys, tmp_path, argv, words):
+    try:
+        code, out, err = cli(*[a.replace("{d}", str(tmp_path)) for a in argv])
+    except SystemExit as e:  # an argparse type's refusal
+        code, err = e.code, capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1 and words in err, err
+    assert sorted(p.name for p in tmp_path.iterdir()) == []  # nothing made
+
+
+def test_search_obstacles_are_capped(cli):
+    code, _, err = cli("search", "--obstacle", *["1,1,0.1"] * (limits.MAX_SEARCH_OBSTACLES + 1))
+    assert code == 2 and f"over the cap of {limits.MAX_SEARCH_OBSTACLES:,}" in err
+
+
+def test_every_cap_says_why():
+    import inspect
+    import re
+
+    src = inspect.getsource(limits)
+    caps = [n for n in dir(limits) if n.startswith("MAX_")]
+    documented = set(re.findall(r"#: [^\n]+\n(?:#[^\n]*\n)*(MAX_\w+) =", src))
+    assert len(caps) >= 15 and set(caps) == documented
