@@ -20,8 +20,11 @@ NESTED = True  # --json belongs to each step
 
 
 def add_parser(p):
+    import argparse
+
     from stcvision.cli._args import pair
 
+    p.formatter_class = argparse.RawDescriptionHelpFormatter  # the examples one per line, as written
     sub = p.add_subparsers(dest="step", metavar="STEP", parser_class=type(p))
     d = sub.add_parser(
         "dark",
@@ -98,7 +101,8 @@ def run(args):
 
     if args.step is None:
         raise BadInputError("calibrate needs a step: dark, rim, transform or neighbors (see --help)")
-    return {"dark": _dark, "rim": _rim, "transform": _transform, "neighbors": _neighbors}[args.step](args)
+    r = {"dark": _dark, "rim": _rim, "transform": _transform, "neighbors": _neighbors}[args.step](args)
+    return {"step": args.step, **r}
 
 
 #: what a dark frame may be written as: lossless only (JPEG would blur the hot pixels away)
@@ -267,7 +271,32 @@ def _neighbors(args):
     return {"out": out, "preview": preview, "corners_px": [list(p) for p in prof.neighbour_corners_px]}
 
 
-def format_text(r):
-    from stcvision.fileio import dumps
+def _rim_text(rim: dict) -> str:
+    (u, v), (a, b) = rim["center_px"], rim["ellipse_axes_px"]
+    return (
+        f"mirror rim: centre ({u:.1f}, {v:.1f}) px, radius {rim['radius_px']:.1f} px, fit residual "
+        f"{rim['residual_px']:.2f} px over {100 * rim['coverage']:.0f} % of the circle ({rim['n_points']} edge "
+        f"points); as an ellipse {a:.1f} x {b:.1f} px at {rim['ellipse_angle_deg']:.1f} deg"
+    )
 
-    return dumps(r)
+
+def format_text(r):
+    """A person's summary of each step (--json gives every number)."""
+    step = r["step"]
+    if step == "dark":
+        return (
+            f"wrote {r['out']}: the median of {r['frames']} dark frame(s), {r['hot_pixels']} hot pixels, "
+            f"mean {r['mean_dn']:.1f} DN"
+        )
+    if step == "rim":
+        return _rim_text(r)
+    if step == "transform":
+        return "\n".join(
+            [
+                _rim_text(r["rim"]),
+                f"grid: forward at {r['forward_angle_deg']:.1f} deg in the image; {r['line_points']} grid-line points "
+                f"off the model by {r['line_err_mm_median']:.2f} mm (median), {r['line_err_mm_max']:.1f} mm (max)",
+                f"wrote {r['out']} (preview {r['preview']})",
+            ]
+        )
+    return f"wrote {r['out']}: {len(r['corners_px'])} neighbour corners (preview {r['preview']})"
