@@ -474,6 +474,9 @@ def write_set(folder: str | os.PathLike, files: dict[str, bytes], *, overwrite: 
     names = list(files)
     try:
         folder.parent.mkdir(parents=True, exist_ok=True)
+        _sweep_once(folder.parent)  # a killed write of this set, either way it was being written
+        if folder.is_dir():
+            _sweep_once(folder)
         if not folder.exists() or not any(folder.iterdir()):
             tmp = temp_sibling(folder, directory=True)
             try:
