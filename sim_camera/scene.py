@@ -153,6 +153,12 @@ class Scene:
         t_s = _num(d, "time_s", "scene", 0.0)
         law = _afterglow(d.get("afterglow", {}))
         layer = PhosphorLayer(law)
+        from stcvision.limits import MAX_MARKS_PER_SUBCELL, MAX_SCENE_DOTS, check_count
+
+        rows, cols = board.shape_subcells
+        cap = MAX_MARKS_PER_SUBCELL * rows * cols
+        check_count("scene marks", len(_list(d, "marks")), cap, minimum=0, why=f"4 per sub-cell of the {rows}x{cols} board")
+        check_count("scene dots", len(_list(d, "dots")), MAX_SCENE_DOTS, minimum=0)
         for k, m in enumerate(_list(d, "marks")):
             where = f"scene marks[{k}]"
             if not isinstance(m, dict):

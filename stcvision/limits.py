@@ -58,6 +58,13 @@ MAX_BENCH_SWEEP_TASKS = 100_000
 MAX_BENCH_LABELLED_FRAMES = 2_000
 
 
+#: single dots of one scene file (``dots``): each is a light source the renderer splats; a full
+#: ground view holds a few hundred, and a scene of a whole floor of marks is given as ``marks``
+MAX_SCENE_DOTS = 100_000
+#: marks of one scene file per sub-cell of its board: one row of dots along each of the four edges
+MAX_MARKS_PER_SUBCELL = 4
+
+
 def check_count(flag: str, value: int, cap: int, *, minimum: int = 1, why: str = "") -> int:
     """Refuse ``flag value`` below ``minimum`` or over ``cap`` in one line naming the cap."""
     from stcvision.errors import BadInputError

@@ -48,3 +48,14 @@ def test_render_refuses_a_robot_off_the_board_in_one_line(cli, tmp_path):
     code, out, err = cli("render", "--scene", path, "--out", tmp_path / "R")
     assert code == 2 and err.count("\n") == 1 and "outside the board" in err
     assert not (tmp_path / "R").exists()
+
+
+def test_a_scene_holds_at_most_four_marks_per_sub_cell_and_a_capped_number_of_dots():
+    from stcvision import limits
+
+    mark = {"subcell": [0, 0], "edge": "N", "age_s": 1.0}
+    with pytest.raises(BadInputError, match="scene marks 401 is over the cap of 400"):
+        Scene.from_dict(scene(marks=[mark] * 401))
+    dot = {"x_m": 0.5, "y_m": 0.5, "age_s": 1.0}
+    with pytest.raises(BadInputError, match="scene dots .* is over the cap"):
+        Scene.from_dict(scene(dots=[dot] * (limits.MAX_SCENE_DOTS + 1)))
