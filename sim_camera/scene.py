@@ -157,7 +157,8 @@ class Scene:
 
         rows, cols = board.shape_subcells
         cap = MAX_MARKS_PER_SUBCELL * rows * cols
-        check_count("scene marks", len(_list(d, "marks")), cap, minimum=0, why=f"4 per sub-cell of the {rows}x{cols} board")
+        why = f"4 per sub-cell of the {rows}x{cols} board"
+        check_count("scene marks", len(_list(d, "marks")), cap, minimum=0, why=why)
         check_count("scene dots", len(_list(d, "dots")), MAX_SCENE_DOTS, minimum=0)
         for k, m in enumerate(_list(d, "marks")):
             where = f"scene marks[{k}]"
@@ -200,7 +201,8 @@ def _subcell(v, where: str, board: Board) -> tuple[int, int]:
     rows, cols = board.shape_subcells
     if not (0 <= i < rows and 0 <= j < cols):
         raise BadInputError(
-            f"{where} [{i}, {j}] is outside the board of {rows}x{cols} sub-cells (rows 0..{rows - 1}, columns 0..{cols - 1})"
+            f"{where} [{i}, {j}] is outside the board of {rows}x{cols} sub-cells "
+            f"(rows 0..{rows - 1}, columns 0..{cols - 1})"
         )
     return i, j
 

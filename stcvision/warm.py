@@ -69,7 +69,9 @@ def warm(*, verbose: bool = True) -> dict:
         scene = Path(tmp) / "scene.json"
         scene.write_text(json.dumps(EXAMPLE_SCENE))
         for cam in ("cooled", "webcam"):
-            steps.append((f"render, {cam}", ["render", "--scene", str(scene), "--camera", cam, "--out", f"{tmp}/{cam}"]))
+            steps.append(
+                (f"render, {cam}", ["render", "--scene", str(scene), "--camera", cam, "--out", f"{tmp}/{cam}"])
+            )
             steps.append(
                 (
                     f"pipeline, {cam} frame",

@@ -63,11 +63,10 @@ def _bench_sweep(args) -> dict:
     import tempfile
     from pathlib import Path
 
-    from stcvision.errors import BadInputError, StcVisionError
+    from stcvision.errors import StcVisionError
+    from stcvision.limits import MAX_BENCH_SWEEP_TASKS, check_count
     from stcvision.sweep import SweepOptions, machine_workers
     from stcvision.sweep._selftest import measure_overhead
-
-    from stcvision.limits import MAX_BENCH_SWEEP_TASKS, check_count
 
     check_count("--tasks", args.tasks, MAX_BENCH_SWEEP_TASKS)
     rows = []

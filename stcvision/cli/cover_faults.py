@@ -81,9 +81,8 @@ def fault_run(params: dict, seed) -> dict:
 
 def plan(faults, runs: int, *, cells: int, obstacle_fraction: float, exposure: str, camera: str):
     from controllers.stc.faults import FAULTS
-    from stcvision.sweep import Task
-
     from stcvision.limits import MAX_FAULT_RUNS, check_board_cells, check_count
+    from stcvision.sweep import Task
 
     check_count("--runs", runs, MAX_FAULT_RUNS, why="runs per fault level")
     check_board_cells(cells, cells, flag="--cells")

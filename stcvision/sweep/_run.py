@@ -5,8 +5,8 @@ from __future__ import annotations
 import argparse
 import os
 import time
-from contextlib import closing
 from collections.abc import Iterable, Iterator
+from contextlib import closing
 from dataclasses import dataclass, field
 from pathlib import Path
 

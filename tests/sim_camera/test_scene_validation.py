@@ -25,7 +25,10 @@ def test_the_example_scene_is_accepted():
 @pytest.mark.parametrize(
     "changes, words",
     [
-        ({"robot": {"subcell": [99, 99], "heading_deg": 90}}, "scene robot.subcell [99, 99] is outside the board of 10x10"),
+        (
+            {"robot": {"subcell": [99, 99], "heading_deg": 90}},
+            "scene robot.subcell [99, 99] is outside the board of 10x10",
+        ),
         ({"robot": {"subcell": [-1, 0], "heading_deg": 90}}, "outside the board"),
         ({"robot": {"subcell": [9, 9], "offset_m": [5.0, 0.0]}}, "scene robot (subcell + offset_m) at"),
         ({"robot": {"x_m": 15.0, "y_m": 0.5, "heading_deg": 0}}, "scene robot at (15, 0.5) m is outside the board"),

@@ -7,8 +7,10 @@ from stcvision import limits
 
 CASES = [
     (["cover", "sweep", "--sizes", "3,101", "--runs", "1", "--out", "{d}/S"], "--sizes 101x101"),
-    (["cover", "sweep", "--sizes", "3", "--runs", "1", "--decisions-per-subcell", "1000000000", "--out", "{d}/S"],
-     f"over the cap of {limits.MAX_DECISIONS_PER_SUBCELL:,}"),
+    (
+        ["cover", "sweep", "--sizes", "3", "--runs", "1", "--decisions-per-subcell", "1000000000", "--out", "{d}/S"],
+        f"over the cap of {limits.MAX_DECISIONS_PER_SUBCELL:,}",
+    ),
     (["cover", "faults", "--runs", "1000000000", "--out", "{d}/F"], f"over the cap of {limits.MAX_FAULT_RUNS:,}"),
     (["cover", "faults", "--cells", "100000", "--out", "{d}/F"], "--cells 100000x100000"),
     (["cover", "faults", "--obstacle-fraction", "-1", "--out", "{d}/F"], "--obstacle-fraction must be in [0, 1)"),
@@ -18,7 +20,10 @@ CASES = [
     (["search", "--petals", "1000", "--steps-per-petal", "1000"], "--petals x --steps-per-petal 1,000,000"),
     (["search", "--petals", "0"], "--petals must be >= 1"),
     (["search", "--max-steps", "100000000000"], "--max-steps 100,000,000,000 is over the cap"),
-    (["search", "reproduce", "--seeds", "1000000000", "--out", "{d}/R"], f"over the cap of {limits.MAX_REPRODUCE_SEEDS:,}"),
+    (
+        ["search", "reproduce", "--seeds", "1000000000", "--out", "{d}/R"],
+        f"over the cap of {limits.MAX_REPRODUCE_SEEDS:,}",
+    ),
     (["eval", "{d}", "--worst", "100000000000"], f"over the cap of {limits.MAX_EVAL_WORST_FRAMES:,}"),
     (["bench", "--sweep", "--tasks", "1000000000"], f"over the cap of {limits.MAX_BENCH_SWEEP_TASKS:,}"),
     (["bench", "--labelled-frames", "1000000000"], f"over the cap of {limits.MAX_BENCH_LABELLED_FRAMES:,}"),

@@ -18,20 +18,6 @@ ROOT = Path(__file__).resolve().parents[2]
 STCVISION = str(Path(sys.executable).with_name("stcvision"))
 
 
-def session_pids(sid: int) -> set[int]:
-    """Processes of the session ``sid`` (the command started with start_new_session and the
-    workers it started), read from /proc."""
-    out = set()
-    for d in os.listdir("/proc"):
-        if d.isdigit():
-            try:
-                if os.getsid(int(d)) == sid:
-                    out.add(int(d))
-            except OSError:
-                pass
-    return out
-
-
 def wait_for(cond, timeout_s: float, what: str):
     deadline = time.monotonic() + timeout_s
     while time.monotonic() < deadline:
@@ -51,7 +37,7 @@ def start(argv, tmp_path):
     )
 
 
-def reap(proc) -> None:
+def reap(proc, session_pids) -> None:
     """Kill whatever of the command's session is left (a failing test leaves no process)."""
     for pid in session_pids(proc.pid):
         try:
@@ -68,7 +54,7 @@ def selftest(store: Path, tmp_path):
 
 
 @pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
-def test_a_signal_stops_a_pool_sweep_within_2_s_and_keeps_the_finished_tasks(tmp_path, sig):
+def test_a_signal_stops_a_pool_sweep_within_2_s_and_keeps_the_finished_tasks(tmp_path, sig, session_pids):
     store = tmp_path / "s.jsonl"
     proc = selftest(store, tmp_path)
     try:
@@ -79,7 +65,7 @@ def test_a_signal_stops_a_pool_sweep_within_2_s_and_keeps_the_finished_tasks(tmp
         proc.wait(timeout=30)
         took = time.monotonic() - t0
     finally:
-        reap(proc)
+        reap(proc, session_pids)
     assert took < 2.0, f"took {took:.2f} s to stop"
     assert proc.returncode in (128 + sig, -sig)
     done = [r for r in read_store(store) if r["status"] == "ok"]
@@ -87,7 +73,7 @@ def test_a_signal_stops_a_pool_sweep_within_2_s_and_keeps_the_finished_tasks(tmp
     wait_for(lambda: not session_pids(proc.pid), 10, "the workers to end")
 
 
-def test_pool_workers_die_with_a_sigkilled_parent(tmp_path):
+def test_pool_workers_die_with_a_sigkilled_parent(tmp_path, session_pids):
     store = tmp_path / "s.jsonl"
     proc = selftest(store, tmp_path)
     try:
@@ -97,10 +83,10 @@ def test_pool_workers_die_with_a_sigkilled_parent(tmp_path):
         proc.wait()
         wait_for(lambda: not session_pids(proc.pid), 10, "the orphaned workers to end")
     finally:
-        reap(proc)
+        reap(proc, session_pids)
 
 
-def test_dataset_generate_workers_die_with_a_sigkilled_parent(tmp_path):
+def test_dataset_generate_workers_die_with_a_sigkilled_parent(tmp_path, session_pids):
     out = tmp_path / "D"
     recipe = ROOT / "datasets" / "recipes" / "ages.json"
     proc = start([STCVISION, "dataset", "generate", str(recipe), "--out", str(out), "--workers", "2"], tmp_path)
@@ -112,12 +98,15 @@ def test_dataset_generate_workers_die_with_a_sigkilled_parent(tmp_path):
         proc.wait()
         wait_for(lambda: not session_pids(proc.pid), 10, "the orphaned workers to end")
     finally:
-        reap(proc)
+        reap(proc, session_pids)
 
 
 def test_a_worker_whose_parent_is_already_gone_ends_itself():
     # die_with_parent given a parent that is not this process's parent (it died before the
     # worker got to run) ends the process at once
-    code = "import os; from stcvision.sweep._worker import die_with_parent; die_with_parent(os.getppid() + 10**6); print('alive')"
+    code = (
+        "import os; from stcvision.sweep._worker import die_with_parent; "
+        "die_with_parent(os.getppid() + 10**6); print('alive')"
+    )
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
     assert r.returncode == 128 + signal.SIGKILL and "alive" not in r.stdout

@@ -73,23 +73,13 @@ def test_every_writer_removes_a_killed_writers_temporaries_of_its_file(cli, tmp_
     assert [p for p in left if p.exists()] == [] and temps(tmp_path) == []
 
 
-def session_pids(sid: int) -> set[int]:
-    out = set()
-    for d in os.listdir("/proc"):
-        if d.isdigit():
-            try:
-                if os.getsid(int(d)) == sid:
-                    out.add(int(d))
-            except OSError:
-                pass
-    return out
-
-
-def test_dataset_generate_with_a_pool_killed_leaves_nothing_after_the_next_run(cli, tmp_path):
+def test_dataset_generate_with_a_pool_killed_leaves_nothing_after_the_next_run(cli, tmp_path, session_pids):
     ds = tmp_path / "D"
     recipe = ROOT / "datasets" / "recipes" / "smoke.json"
     argv = ["dataset", "generate", str(recipe), "--out", str(ds), "--workers", "2"]
-    p = subprocess.Popen([STCVISION, *argv], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
+    p = subprocess.Popen(
+        [STCVISION, *argv], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True
+    )
     deadline = time.monotonic() + 180
     while not temps(tmp_path) and p.poll() is None and time.monotonic() < deadline:
         time.sleep(0.01)  # until the run is writing
