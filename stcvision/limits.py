@@ -65,6 +65,19 @@ MAX_SCENE_DOTS = 100_000
 MAX_MARKS_PER_SUBCELL = 4
 
 
+#: ``calibrate transform --subcell-m``: the fit reads the grid lines out to 1 m, and needs at
+#: least two of them on each side of the robot
+MAX_CALIBRATION_SUBCELL_M = 0.5
+#: and at least 4 cm: the fit samples the lines every centimetre and measures a profile across
+#: each; at 2 cm the lines' sampling windows overlap and the measurement fails
+MIN_CALIBRATION_SUBCELL_M = 0.04
+#: ``calibrate transform --viewpoint-m``: a rough mirror height; above 2 m it is not a robot's
+#: camera (the toolkit's robots carry theirs 0.1-0.3 m up), and below 0.1 m the fit's starting
+#: model sees no grid line at all (measured: 0 line points at 0.05 m, a good fit at 0.1 m)
+MAX_VIEWPOINT_M = 2.0
+MIN_VIEWPOINT_M = 0.1
+
+
 def check_count(flag: str, value: int, cap: int, *, minimum: int = 1, why: str = "") -> int:
     """Refuse ``flag value`` below ``minimum`` or over ``cap`` in one line naming the cap."""
     from stcvision.errors import BadInputError

@@ -222,16 +222,32 @@ def _transform(args):
 
     preview = args.preview or str(Path(args.out).with_suffix(".preview.png"))
     _check_outputs(args, args.out, preview, out_force=args.force)
-    if not args.subcell_m > 0:
-        raise BadInputError(f"--subcell-m must be > 0, got {args.subcell_m}")
+    from stcvision.limits import (
+        MAX_CALIBRATION_SUBCELL_M,
+        MAX_VIEWPOINT_M,
+        MIN_CALIBRATION_SUBCELL_M,
+        MIN_VIEWPOINT_M,
+    )
+
+    if not MIN_CALIBRATION_SUBCELL_M <= args.subcell_m <= MAX_CALIBRATION_SUBCELL_M:
+        raise BadInputError(
+            f"--subcell-m must be in [{MIN_CALIBRATION_SUBCELL_M:g}, {MAX_CALIBRATION_SUBCELL_M:g}] m (the fit "
+            f"samples grid lines every cm out to 1 m), got {args.subcell_m:g}"
+        )
+    if not MIN_VIEWPOINT_M <= args.viewpoint_m <= MAX_VIEWPOINT_M:
+        raise BadInputError(
+            f"--viewpoint-m must be in [{MIN_VIEWPOINT_M:g}, {MAX_VIEWPOINT_M:g}] m, got {args.viewpoint_m:g}"
+        )
     frame = read_image(args.frame, what="lights-on frame")
     prof, rep = calibrate_transform(
         frame, subcell_m=args.subcell_m, center_px=args.center, viewpoint_height_m=args.viewpoint_m
     )
     prof = prof.replace(provenance={**prof.provenance, "frame": str(args.frame)})
+    import cv2
+
     try:  # the corners too, when they are where the transformation puts them
         prof, _ = calibrate_neighbors(frame, prof)
-    except BadInputError:
+    except (BadInputError, cv2.error):  # optional: not found (or off the image), 'neighbors' asks again
         pass
     _write_preview(preview, draw_preview(frame, prof))
     _confirm(preview, args.yes)

@@ -55,3 +55,17 @@ def test_every_cap_says_why():
     caps = [n for n in dir(limits) if n.startswith("MAX_")]
     documented = set(re.findall(r"#: [^\n]+\n(?:#[^\n]*\n)*(MAX_\w+) =", src))
     assert len(caps) >= 15 and set(caps) == documented
+
+
+def test_calibrate_transform_refuses_sizes_it_cannot_fit(cli, tmp_path):
+    frame = tmp_path / "lit.png"  # never read: the flags are checked first
+    frame.write_bytes(b"not read")
+    for flag, value, words in (
+        ("--subcell-m", "1e9", "--subcell-m must be in [0.04, 0.5] m"),
+        ("--subcell-m", "0.02", "--subcell-m must be in [0.04, 0.5] m"),
+        ("--viewpoint-m", "-1", "--viewpoint-m must be in [0.1, 2] m"),
+        ("--viewpoint-m", "0.05", "--viewpoint-m must be in [0.1, 2] m"),
+    ):
+        code, _, err = cli("calibrate", "transform", frame, "--out", tmp_path / "p.json", flag, value, "--yes")
+        assert code == 2 and words in err and err.count("\n") == 1, err
+    assert not (tmp_path / "p.json").exists()
