@@ -12,6 +12,7 @@ venv: $(STAMP)
 $(STAMP): pyproject.toml
 	@test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --disable-pip-version-check -e '.[dev]'
+	$(BIN)/python -m stcvision.warm  # compile the demo's and the pipeline's numba kernels now, not on the first run
 	@touch $(STAMP)
 
 demo: $(STAMP)

@@ -135,6 +135,8 @@ class Board:
     def from_file(cls, path: str | Path, *, subcell_m: float = DEFAULT_SUBCELL_M, start_subcell=None) -> Board:
         """Load a ``.txt`` map or an image map (``.png``, ``.bmp``...)."""
         path = Path(path)
+        if path.is_dir():
+            raise MapError(f"map {path} is a folder; expected a .txt or image map file")
         if not path.is_file():
             raise MapError(f"map file {path} does not exist")
         if path.suffix.lower() in (".txt", ".map", ""):

@@ -153,21 +153,28 @@ class Scene:
         t_s = _num(d, "time_s", "scene", 0.0)
         law = _afterglow(d.get("afterglow", {}))
         layer = PhosphorLayer(law)
+        from stcvision.limits import MAX_MARKS_PER_SUBCELL, MAX_SCENE_DOTS, check_count
+
+        rows, cols = board.shape_subcells
+        cap = MAX_MARKS_PER_SUBCELL * rows * cols
+        why = f"4 per sub-cell of the {rows}x{cols} board"
+        check_count("scene marks", len(_list(d, "marks")), cap, minimum=0, why=why)
+        check_count("scene dots", len(_list(d, "dots")), MAX_SCENE_DOTS, minimum=0)
         for k, m in enumerate(_list(d, "marks")):
             where = f"scene marks[{k}]"
             if not isinstance(m, dict):
                 raise BadInputError(f"{where} must be an object")
-            ij = _pair(m.get("subcell"), f"{where}.subcell", int)
+            ij = _subcell(m.get("subcell"), f"{where}.subcell", board)
             edge = m.get("edge")
             if not isinstance(edge, str) or edge not in EDGES:
                 raise BadInputError(f"{where}.edge is {edge!r}; expected one of N, E, S, W")
-            age, charge = _num(m, "age_s", where), _num(m, "charge_s", where, 3.0)
+            age, charge = _age_charge(m, where)
             xy = mark_dots_m(board.subcell_center_m(*ij), EDGES[edge], board.subcell_m)
             layer.charge(xy, t_start_s=t_s - age - charge, duration_s=charge)
         for k, dot in enumerate(_list(d, "dots")):
             where = f"scene dots[{k}]"
-            xy = [_num(dot, "x_m", where), _num(dot, "y_m", where)]
-            age, charge = _num(dot, "age_s", where), _num(dot, "charge_s", where, 3.0)
+            xy = _on_board(_num(dot, "x_m", where), _num(dot, "y_m", where), where, board)
+            age, charge = _age_charge(dot, where)
             layer.charge([xy], t_start_s=t_s - age - charge, duration_s=charge)
         rl = d.get("red_lights", "board")
         if rl == "board":
@@ -185,6 +192,38 @@ class Scene:
         if not isinstance(seed, int) or isinstance(seed, bool) or seed < 0:
             raise BadInputError(f"scene pattern_seed must be a non-negative integer, got {seed!r}")
         return cls(board, pose, layer, lights, optics, sensor, seed, t_s)
+
+
+def _subcell(v, where: str, board: Board) -> tuple[int, int]:
+    """A sub-cell ``[row, col]`` of ``board``; one off the board is refused (it would be drawn
+    metres away from the floor, out of every view, and the frame would look merely empty)."""
+    i, j = _pair(v, where, int)
+    rows, cols = board.shape_subcells
+    if not (0 <= i < rows and 0 <= j < cols):
+        raise BadInputError(
+            f"{where} [{i}, {j}] is outside the board of {rows}x{cols} sub-cells "
+            f"(rows 0..{rows - 1}, columns 0..{cols - 1})"
+        )
+    return i, j
+
+
+def _on_board(x: float, y: float, where: str, board: Board) -> list[float]:
+    """A floor point ``(x, y)`` in metres, refused unless it lies on ``board``."""
+    w, h = board.size_m
+    if not (0.0 <= x <= w and 0.0 <= y <= h):
+        raise BadInputError(f"{where} at ({x:g}, {y:g}) m is outside the board, which spans 0..{w:g} x 0..{h:g} m")
+    return [x, y]
+
+
+def _age_charge(d: dict, where: str) -> tuple[float, float]:
+    """A mark's ``age_s`` (>= 0: a mark whose charge ends in the future does not glow yet) and
+    ``charge_s`` (> 0), as the recipes require."""
+    age, charge = _num(d, "age_s", where), _num(d, "charge_s", where, 3.0)
+    if age < 0:
+        raise BadInputError(f"{where}: age_s must be >= 0 seconds since the charge ended, got {age:g}")
+    if charge <= 0:
+        raise BadInputError(f"{where}: charge_s must be > 0 seconds, got {charge:g}")
+    return age, charge
 
 
 def _overrides(v, name: str) -> dict:
@@ -244,7 +283,9 @@ def _pose(r, board: Board) -> Pose:
         raise BadInputError("scene robot must be an object")
     heading = np.radians(_num(r, "heading_deg", "scene robot", 90.0) + _num(r, "heading_error_deg", "scene robot", 0.0))
     if "subcell" in r:
-        ij = _pair(r["subcell"], "scene robot.subcell", int)
+        ij = _subcell(r["subcell"], "scene robot.subcell", board)
         c = board.subcell_center_m(*ij) + np.asarray(_pair(r.get("offset_m", [0, 0]), "scene robot.offset_m"))
-        return Pose(float(c[0]), float(c[1]), float(heading))
-    return Pose(_num(r, "x_m", "scene robot"), _num(r, "y_m", "scene robot"), float(heading))
+        x, y = _on_board(float(c[0]), float(c[1]), "scene robot (subcell + offset_m)", board)
+        return Pose(x, y, float(heading))
+    x, y = _on_board(_num(r, "x_m", "scene robot"), _num(r, "y_m", "scene robot"), "scene robot", board)
+    return Pose(x, y, float(heading))

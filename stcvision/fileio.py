@@ -364,6 +364,41 @@ def write_figure(path: str | os.PathLike, fig, *, overwrite: bool = False, dpi: 
     return write_bytes_atomic(path, figure_png(fig, dpi=dpi, **savefig_kw), overwrite=overwrite)
 
 
+class quiet_opencv:
+    """``with quiet_opencv():`` OpenCV's own log (``[ WARN:0@...]``, ``[ERROR:...]`` lines) is
+    off and the C libraries' messages (libpng's ``libpng error: ...``, written straight to file
+    descriptor 2) go to /dev/null; both are back after. The caller reports a failure itself, in
+    one line. Only around one decode: stderr is away for about a millisecond."""
+
+    def __enter__(self):
+        import sys
+
+        import cv2
+
+        self._level = cv2.utils.logging.getLogLevel()
+        cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_SILENT)
+        self._saved = None
+        try:
+            sys.stderr.flush()
+            self._saved = os.dup(2)
+            devnull = os.open(os.devnull, os.O_WRONLY)
+            os.dup2(devnull, 2)
+            os.close(devnull)
+        except (OSError, ValueError, AttributeError):  # no file descriptor 2 (embedded): log only
+            if self._saved is not None:
+                os.close(self._saved)
+                self._saved = None
+        return self
+
+    def __exit__(self, *exc) -> None:
+        import cv2
+
+        if self._saved is not None:
+            os.dup2(self._saved, 2)
+            os.close(self._saved)
+        cv2.utils.logging.setLogLevel(self._level)
+
+
 def read_image(path: str | os.PathLike, *, color: bool = True, what: str = "image") -> np.ndarray:
     """Read an image file: with ``color`` a frame, (H, W, 3) BGR as stored -- uint8, or uint16
     for a 16-bit PNG (the sensor's ADC counts, never divided by 256); else (H, W) uint8 grey
@@ -384,7 +419,8 @@ def read_image(path: str | os.PathLike, *, color: bool = True, what: str = "imag
     if not data:
         raise BadInputError(f"{what} {path} is empty; expected a PNG or JPEG image")
     flag = cv2.IMREAD_UNCHANGED if color else cv2.IMREAD_GRAYSCALE
-    img = cv2.imdecode(np.frombuffer(data, np.uint8), flag)
+    with quiet_opencv():  # a damaged file is our one-line error, not OpenCV's WARN/ERROR lines first
+        img = cv2.imdecode(np.frombuffer(data, np.uint8), flag)
     if img is None:
         raise BadInputError(f"{what} {path} is not a readable image; expected a PNG or JPEG file")
     if color:
@@ -438,6 +474,9 @@ def write_set(folder: str | os.PathLike, files: dict[str, bytes], *, overwrite: 
     names = list(files)
     try:
         folder.parent.mkdir(parents=True, exist_ok=True)
+        _sweep_once(folder.parent)  # a killed write of this set, either way it was being written
+        if folder.is_dir():
+            _sweep_once(folder)
         if not folder.exists() or not any(folder.iterdir()):
             tmp = temp_sibling(folder, directory=True)
             try:

@@ -23,13 +23,14 @@ MAX_PICTURE_PX = 10_000
 MAX_CAMERA_SIDE_PX = 4096
 
 
-def check_board_cells(w: int, h: int) -> None:
-    """Refuse a ``--board WxH`` under 1x1 or over :data:`MAX_BOARD_CELLS` cells, in one line."""
+def check_board_cells(w: int, h: int, *, flag: str = "--board") -> None:
+    """Refuse a ``--board WxH`` under 1x1 or over :data:`MAX_BOARD_CELLS` cells, in one line
+    (``flag``: the option that gave the size, e.g. ``--sizes``)."""
     from stcvision.errors import BadInputError
 
     if w < 1 or h < 1 or w * h > MAX_BOARD_CELLS:
         raise BadInputError(
-            f"--board {w}x{h}: expected at least 1x1 and at most {MAX_BOARD_CELLS:,} cells in all (W x H)"
+            f"{flag} {w}x{h}: expected at least 1x1 and at most {MAX_BOARD_CELLS:,} cells in all (W x H)"
         )
 
 
@@ -52,12 +53,17 @@ MAX_DECISIONS_PER_SUBCELL = 1_000
 MAX_SWEEP_MAPS = 1_000
 
 
-def check_count(flag: str, n: int, cap: int, what: str) -> None:
-    """Refuse ``n`` over ``cap`` in one line that names the flag, the cap and what it counts."""
+def check_count(flag: str, value: int, cap: int, what: str = "", *, minimum: int = 1, why: str = "") -> int:
+    """Refuse ``value`` below ``minimum`` or over ``cap`` in one line that names the flag, what it
+    counts (``what``) and the cap (``why``: where the cap is, or its reason)."""
     from stcvision.errors import BadInputError
 
-    if n > cap:
-        raise BadInputError(f"{flag}: {n:,} {what} is over the cap of {cap:,}")
+    if value < minimum:
+        raise BadInputError(f"{flag} must be >= {minimum}, got {value}")
+    if value > cap:
+        said = f" {what}" if what else ""
+        raise BadInputError(f"{flag} {value:,}{said} is over the cap of {cap:,}" + (f" ({why})" if why else ""))
+    return value
 
 
 # ----------------------------------------------------------------------------- the TASTI 2 search
@@ -136,3 +142,36 @@ MAX_PYMUNK_VISIT_STEPS = 1_000_000
 MAX_VIDEO_FRAMES = 2_600_000
 #: --every K: one frame in K (beyond an hour at 30 frames/s between frames, a video is not a run)
 MAX_VIDEO_EVERY = 100_000
+
+# ---- counts and sizes of the command lines' other flags (each refused over its cap in one line)
+#: runs per fault level of ``cover faults`` (a 6x6 run takes a few seconds; 13 levels x 1,000
+#: runs is about a day on two cores, and every task is held in memory until it is stored)
+MAX_FAULT_RUNS = 1_000
+#: worst frames ``eval --rrd`` logs (``--worst``): each is a frame with its stage images, ~2 MB
+#: in the recording
+MAX_EVAL_WORST_FRAMES = 1_000
+#: no-op tasks ``bench --sweep --tasks`` times per backend (~5 ms each through a pool)
+MAX_BENCH_SWEEP_TASKS = 100_000
+#: frames ``bench --labelled-frames`` renders into a temporary dataset (~1.5 MB each on disk)
+MAX_BENCH_LABELLED_FRAMES = 2_000
+
+
+#: single dots of one scene file (``dots``): each is a light source the renderer splats; a full
+#: ground view holds a few hundred, and a scene of a whole floor of marks is given as ``marks``
+MAX_SCENE_DOTS = 100_000
+#: marks of one scene file per sub-cell of its board: one row of dots along each of the four edges
+MAX_MARKS_PER_SUBCELL = 4
+
+
+#: ``calibrate transform --subcell-m``: the fit reads the grid lines out to 1 m, and needs at
+#: least two of them on each side of the robot
+MAX_CALIBRATION_SUBCELL_M = 0.5
+#: and at least 4 cm: the fit samples the lines every centimetre and measures a profile across
+#: each; at 2 cm the lines' sampling windows overlap and the measurement fails
+MIN_CALIBRATION_SUBCELL_M = 0.04
+#: ``calibrate transform --viewpoint-m``: a rough mirror height; above 2 m it is not a robot's
+#: camera (the toolkit's robots carry theirs 0.1-0.3 m up), and below 0.1 m the fit's starting
+#: model sees no grid line at all (measured: 0 line points at 0.05 m, a good fit at 0.1 m)
+MAX_VIEWPOINT_M = 2.0
+MIN_VIEWPOINT_M = 0.1
+

@@ -37,8 +37,15 @@ import numpy as np
 from controllers.buffon.behaviour import ExplorerParams, explorer_core_nb, wheel_speeds_nb
 from controllers.buffon.counter import CounterParams, integrate_nb
 from controllers.buffon.nests import BODY_LENGTH_M, Nest
-from controllers.buffon.stopping import StopParams, batch_add, batch_rel_se, first_visit_done, new_batch_state
-from controllers.buffon.stopping import first_visit_hopeless, second_visit_done
+from controllers.buffon.stopping import (
+    StopParams,
+    batch_add,
+    batch_rel_se,
+    first_visit_done,
+    first_visit_hopeless,
+    new_batch_state,
+    second_visit_done,
+)
 from sim_camera.fastworld import (
     StaticGeometry,
     cell_span,

@@ -562,7 +562,8 @@ def online_summary(
         "",
         "## Calibration (its own family, not the evaluation's)",
         "",
-        f"{cal['nests']} nests, {cal['trials']} trials: factor {cal['correction']:.4f} (shipped {e.ONLINE_CORRECTION}), "
+        f"{cal['nests']} nests, {cal['trials']} trials: factor {cal['correction']:.4f} "
+        f"(shipped {e.ONLINE_CORRECTION}), "
         f"SE of log K {cal['correction_se_log']:.4f} (shipped {e.ONLINE_CORRECTION_SE}), shape sigma "
         f"{cal['shape_sigma']:.4f} (shipped {e.SHAPE_SIGMA}), extra per-trial sigma {cal['trial_extra_sigma']:.4f} "
         f"(shipped {e.TRIAL_EXTRA_SIGMA}).",

@@ -110,12 +110,19 @@ def format_text(r: dict) -> str:
         f"area estimate median {_num(r['area_estimate_median'])} u^2, 95 % CI {ci_text}; "
         f"median |error| {_pct(r['area_rel_error_median'])} (raw formula {_pct(r['area_raw_rel_error_median'])})",
         f"{r['robot_steps']:,} robot-steps in {r['wall_s']:.1f} s ({r['robot_steps_per_s']:,.0f}/s)"
-        + (f"; visits ended by the online rule, median {r['robot_steps_median']:,.0f} steps a trial" if r["online"] else ""),
+        + (
+            f"; visits ended by the online rule, median {r['robot_steps_median']:,.0f} steps a trial"
+            if r["online"]
+            else ""
+        ),
     ]
     if r.get("trial_ci95_coverage") is not None:
         lo, hi = r["trial_area_ci95"][0]
-        lines.insert(3, f"trial 0 alone: 95 % interval {_num(lo)}-{_num(hi)}; {r['trial_ci95_coverage']:.0%} of the trials' "
-                     "own intervals hold the true area")
+        lines.insert(
+            3,
+            f"trial 0 alone: 95 % interval {_num(lo)}-{_num(hi)}; {r['trial_ci95_coverage']:.0%} of the trials' "
+            "own intervals hold the true area",
+        )
     if r.get("area_warning"):
         lines.append(f"WARNING: {r['area_warning']}")
     return "\n".join(lines)

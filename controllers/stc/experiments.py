@@ -165,7 +165,7 @@ def parse_sizes(text: str) -> list[BoardFamily]:
         h = _span(h_text, int, "--sizes") if h_text else None
         if min(w[0], (h or w)[0]) < 1:
             raise BadInputError(f"--sizes {item!r}: a board is at least 1x1 cells")
-        check_board_cells(w[1], (h or w)[1])
+        check_board_cells(w[1], (h or w)[1], flag="--sizes")
         fam = BoardFamily("random", width=w, height=h)
         if fam in out:
             raise BadInputError(f"--sizes lists {item!r} twice")
@@ -260,7 +260,7 @@ def map_families(paths: Sequence[str]) -> list[BoardFamily]:
     as given where two share a name."""
     from stcvision.limits import MAX_SWEEP_MAPS, check_count
 
-    check_count("--maps", len(paths), MAX_SWEEP_MAPS, "maps in one sweep")
+    check_count("--maps", len(paths), MAX_SWEEP_MAPS, "maps in one sweep", minimum=0)
     if len({str(Path(p).resolve()) for p in paths}) != len(paths):
         raise BadInputError("--maps lists a map twice")
     stems = [Path(p).stem for p in paths]
@@ -381,7 +381,7 @@ def plan(
         hardware.load_camera(c)  # an unknown preset or a bad file: one line, exit 2
     n = len(families) * len(seeds) * len(exposures) * len(perceptions) * len(cameras)
     what = "runs in one sweep (boards x seeds x exposures x perceptions x cameras)"
-    check_count("the sweep", n, MAX_SWEEP_TASKS, what)
+    check_count("the sweep", n, MAX_SWEEP_TASKS, what, minimum=0)
     order = sorted(families, key=lambda f: -f.largest_cells())
     common = {"start": start, "decisions_per_subcell": decisions_per_subcell}
     grid = itertools.product(order, exposures, perceptions, cameras, seeds)

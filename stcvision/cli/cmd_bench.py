@@ -63,12 +63,12 @@ def _bench_sweep(args) -> dict:
     import tempfile
     from pathlib import Path
 
-    from stcvision.errors import BadInputError, StcVisionError
+    from stcvision.errors import StcVisionError
+    from stcvision.limits import MAX_BENCH_SWEEP_TASKS, check_count
     from stcvision.sweep import SweepOptions, machine_workers
     from stcvision.sweep._selftest import measure_overhead
 
-    if args.tasks < 1:
-        raise BadInputError(f"--tasks must be >= 1, got {args.tasks}")
+    check_count("--tasks", args.tasks, MAX_BENCH_SWEEP_TASKS)
     rows = []
     with tempfile.TemporaryDirectory(prefix="stcvision-bench-") as tmp:
         store = Path(tmp) / "sweep.jsonl"
@@ -226,8 +226,9 @@ def run(args):
 
     if args.frames < 1:
         raise BadInputError(f"--frames must be >= 1, got {args.frames}")
-    if args.labelled_frames < 0:
-        raise BadInputError(f"--labelled-frames must be >= 0, got {args.labelled_frames}")
+    from stcvision.limits import MAX_BENCH_LABELLED_FRAMES, check_count
+
+    check_count("--labelled-frames", args.labelled_frames, MAX_BENCH_LABELLED_FRAMES, minimum=0)
     if args.labelled_seed < 0:
         raise BadInputError(f"--labelled-seed must be >= 0, got {args.labelled_seed}")
     labelled = None

@@ -173,7 +173,6 @@ def _add_compare(sub):
 
 def _add_calibrate(sub):
     from controllers.buffon.estimate import CORRECTION_REFERENCE
-    from stcvision.cli._args import positive
 
     s = sub.add_parser(
         "calibrate",
@@ -199,7 +198,12 @@ def run(args):
             return buffon.online(args.out, trials=args.trials, seed=args.seed, sweep=opts, force=args.force)
         if args.action == "reproduce":
             return buffon.reproduce(
-                args.out, trials=args.trials, seed=args.seed, sweep=opts, force=args.force, online_trials=args.online_trials
+                args.out,
+                trials=args.trials,
+                seed=args.seed,
+                sweep=opts,
+                force=args.force,
+                online_trials=args.online_trials,
             )
         return buffon.compare(
             args.nest,

@@ -23,8 +23,11 @@ NESTED = True  # --json belongs to each step
 
 
 def add_parser(p):
+    import argparse
+
     from stcvision.cli._args import pair, positive
 
+    p.formatter_class = argparse.RawDescriptionHelpFormatter  # the examples one per line, as written
     sub = p.add_subparsers(dest="step", metavar="STEP", parser_class=type(p))
     d = sub.add_parser(
         "dark",
@@ -180,7 +183,8 @@ def run(args):
     if args.step is None:
         raise BadInputError("calibrate needs a step: dark, rim, transform, neighbors, import or export (see --help)")
     steps = {"dark": _dark, "rim": _rim, "transform": _transform, "neighbors": _neighbors}
-    return {**steps, "import": _import, "export": _export}[args.step](args)
+    r = {**steps, "import": _import, "export": _export}[args.step](args)
+    return {"step": args.step, **r}
 
 
 def _import(args):
@@ -389,16 +393,32 @@ def _transform(args):
 
     preview = args.preview or str(Path(args.out).with_suffix(".preview.png"))
     _check_outputs(args, args.out, preview, out_force=args.force)
-    if not args.subcell_m > 0:
-        raise BadInputError(f"--subcell-m must be > 0, got {args.subcell_m}")
+    from stcvision.limits import (
+        MAX_CALIBRATION_SUBCELL_M,
+        MAX_VIEWPOINT_M,
+        MIN_CALIBRATION_SUBCELL_M,
+        MIN_VIEWPOINT_M,
+    )
+
+    if not MIN_CALIBRATION_SUBCELL_M <= args.subcell_m <= MAX_CALIBRATION_SUBCELL_M:
+        raise BadInputError(
+            f"--subcell-m must be in [{MIN_CALIBRATION_SUBCELL_M:g}, {MAX_CALIBRATION_SUBCELL_M:g}] m (the fit "
+            f"samples grid lines every cm out to 1 m), got {args.subcell_m:g}"
+        )
+    if not MIN_VIEWPOINT_M <= args.viewpoint_m <= MAX_VIEWPOINT_M:
+        raise BadInputError(
+            f"--viewpoint-m must be in [{MIN_VIEWPOINT_M:g}, {MAX_VIEWPOINT_M:g}] m, got {args.viewpoint_m:g}"
+        )
     frame = read_image(args.frame, what="lights-on frame")
     prof, rep = calibrate_transform(
         frame, subcell_m=args.subcell_m, center_px=args.center, viewpoint_height_m=args.viewpoint_m
     )
     prof = prof.replace(provenance={**prof.provenance, "frame": str(args.frame)})
+    import cv2
+
     try:  # the corners too, when they are where the transformation puts them
         prof, _ = calibrate_neighbors(frame, prof)
-    except BadInputError:
+    except (BadInputError, cv2.error):  # optional: not found (or off the image), 'neighbors' asks again
         pass
     _write_preview(preview, draw_preview(frame, prof))
     _confirm(preview, args.yes)
@@ -438,7 +458,32 @@ def _neighbors(args):
     return {"out": out, "preview": preview, "corners_px": [list(p) for p in prof.neighbour_corners_px]}
 
 
-def format_text(r):
-    from stcvision.fileio import dumps
+def _rim_text(rim: dict) -> str:
+    (u, v), (a, b) = rim["center_px"], rim["ellipse_axes_px"]
+    return (
+        f"mirror rim: centre ({u:.1f}, {v:.1f}) px, radius {rim['radius_px']:.1f} px, fit residual "
+        f"{rim['residual_px']:.2f} px over {100 * rim['coverage']:.0f} % of the circle ({rim['n_points']} edge "
+        f"points); as an ellipse {a:.1f} x {b:.1f} px at {rim['ellipse_angle_deg']:.1f} deg"
+    )
 
-    return dumps(r)
+
+def format_text(r):
+    """A person's summary of each step (--json gives every number)."""
+    step = r["step"]
+    if step == "dark":
+        return (
+            f"wrote {r['out']}: the median of {r['frames']} dark frame(s), {r['hot_pixels']} hot pixels, "
+            f"mean {r['mean_dn']:.1f} DN"
+        )
+    if step == "rim":
+        return _rim_text(r)
+    if step == "transform":
+        return "\n".join(
+            [
+                _rim_text(r["rim"]),
+                f"grid: forward at {r['forward_angle_deg']:.1f} deg in the image; {r['line_points']} grid-line points "
+                f"off the model by {r['line_err_mm_median']:.2f} mm (median), {r['line_err_mm_max']:.1f} mm (max)",
+                f"wrote {r['out']} (preview {r['preview']})",
+            ]
+        )
+    return f"wrote {r['out']}: {len(r['corners_px'])} neighbour corners (preview {r['preview']})"

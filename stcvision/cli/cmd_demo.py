@@ -38,13 +38,35 @@ def run(args) -> dict:
 
     out = check_output_folder(args.out, OUTPUTS, overwrite=args.force)
     check_recording_path(out / OUTPUTS[0], overwrite=args.force)
+    made = _missing_folders(out)  # made by this run: an interrupted one takes them away again
     board = Board.random(DEFAULT_CELLS, obstacle_fraction=0.15, rng=np.random.default_rng(0))
     picture = FloorPicture(board)
     cfg = CoverConfig(perception="camera", exposure="auto", seed=args.seed)
-    result = run_recorded(board, cfg, out / OUTPUTS[0], observers=[picture])
-    write_image(out / OUTPUTS[1], picture.image, overwrite=args.force)
+    try:
+        result = run_recorded(board, cfg, out / OUTPUTS[0], observers=[picture])
+        write_image(out / OUTPUTS[1], picture.image, overwrite=args.force)
+    except BaseException:  # Ctrl-C, SIGTERM, an error: no empty folder left behind
+        from stcvision.fileio import remove_live_temps
+
+        remove_live_temps()
+        for folder in made:  # deepest first; one that holds anything is kept
+            try:
+                folder.rmdir()
+            except OSError:
+                break
+        raise
     result["files"] = [str(out / name) for name in OUTPUTS]
     return result
+
+
+def _missing_folders(out):
+    """``out`` and those of its parents that do not exist yet, deepest first."""
+    missing = []
+    for folder in (out, *out.parents):
+        if folder.exists():
+            break
+        missing.append(folder)
+    return missing
 
 
 def format_text(r: dict) -> str:

@@ -148,8 +148,9 @@ def run(args):
         return r
     if not args.dir:
         raise BadInputError("eval needs DIR (a dataset or a folder of frames) or --compare A.json B.json")
-    if args.worst < 1:
-        raise BadInputError(f"--worst must be >= 1, got {args.worst}")
+    from stcvision.limits import MAX_EVAL_WORST_FRAMES, check_count
+
+    check_count("--worst", args.worst, MAX_EVAL_WORST_FRAMES)
     root = Path(args.dir)
     if not root.is_dir():
         raise BadInputError(f"{root} is not a folder; expected a dataset or a folder of frames")
@@ -157,6 +158,11 @@ def run(args):
         from stcvision.rr import check_recording_path
 
         check_recording_path(args.rrd, overwrite=args.force)
+    if args.report:  # before any work: an evaluation is minutes lost to a folder it cannot write
+        from stcvision.evaluate import REPORT_FILES
+        from stcvision.fileio import check_output_folder
+
+        check_output_folder(args.report, REPORT_FILES, overwrite=args.force)
     if (root / "manifest.json").exists() or (root / "labels.jsonl").exists():
         return _run_dataset(args, root)
     return _run_images(args, root)
@@ -203,6 +209,11 @@ def _run_images(args, root):
     if args.report:
         raise BadInputError(f"{root} has no labels, so there is no accuracy to report; drop --report")
     paths = list_images(root)
+    excluded = []
+    if args.dark:  # the dark frame is not one of the frames, even when it sits among them
+        dark_file = Path(args.dark).resolve()
+        excluded = [str(p) for p in paths if Path(p).resolve() == dark_file]
+        paths = [p for p in paths if Path(p).resolve() != dark_file]
     profile = _load_profile(args.profile) or _default_profile()
     dark = None
     if args.dark:
@@ -211,8 +222,11 @@ def _run_images(args, root):
     out = Path(args.out) if args.out else root.resolve().parent / f"{root.resolve().name}-results.jsonl"
     if out.exists() and not args.force:
         raise FileExistsRefusedError(f"{out} exists; refusing to overwrite it (use --out or --force)")
+    from stcvision.fileio import check_output_file
+
+    check_output_file(out, overwrite=True, what="results file")
     logger = None
-    lines, ms, skipped, fits, ndots = [], [], [], 0, []
+    lines, ms, skipped, fits, ndots, untrusted = [], [], [], 0, [], []
     try:
         for i, (p, res, reason, pipe) in enumerate(
             evaluate_images(paths, profile=profile, dark=dark, dark_path=args.dark)
@@ -228,6 +242,8 @@ def _run_images(args, root):
             if logger is not None:
                 logger.log(res, frame=i)
             d = res.to_dict()
+            if res.untrusted:  # e.g. a lit (lights-on) frame, or no dark frame on a sensor that needs one
+                untrusted.append({"frame": str(p), "reason": res.untrusted})
             lines.append(dumps({"frame": str(p), **d}, indent=None))
             ms.append(res.total_ms)
             fits += bool(res.heading.ok)
@@ -245,6 +261,9 @@ def _run_images(args, root):
         "frames": len(ms),
         "frames_skipped": len(skipped),
         "skipped": skipped,
+        "frames_untrusted": len(untrusted),
+        "untrusted": untrusted,
+        "excluded": excluded,
         "results": str(out),
         "rrd": args.rrd,
         "profile": args.profile or "default",
@@ -274,6 +293,10 @@ def format_text(r):
             f"wrote {r['results']}" + (f" and {r['rrd']}" if r["rrd"] else ""),
             "No labels: without ground truth there is no accuracy to report.",
         ]
+        if r.get("excluded"):
+            out.insert(1, f"left out {', '.join(r['excluded'])}: it is the --dark frame")
+        for u in r.get("untrusted", []):  # their readings are in the results, marked; not to be used
+            out.insert(1, f"untrusted {u['frame']}: {u['reason']}")
         return "\n".join(out)
 
     def pct(v):

@@ -179,6 +179,7 @@ def _frame_line(f) -> str:
         f"{f['frame']}: {len(f['dots'])} dots, heading {head}, lit boxes {lit or 'none'}, "
         f"visited {[k for k, v in obs['visited'].items() if v] or 'none'}, neighbours {nb}, "
         f"{len(f['obstacles'])} red lights, {f['total_ms']:.2f} ms"
+        + (f"\n  UNTRUSTED: {f['untrusted']}" if f["untrusted"] else "")
     )
 
 

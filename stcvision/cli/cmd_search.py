@@ -23,7 +23,7 @@ def add_parser(p):
     import re
 
     from stcvision.cli._args import pair, positive
-    from stcvision.limits import MAX_SEARCH_SEEDS
+    from stcvision.limits import MAX_SEARCH_SEEDS, MAX_SEARCH_STEPS
 
     # "--patch -0.5,0.3,0.175": argparse takes a value starting with "-<digit>" for an option
     # unless it looks like a number; coordinates lists should read as values
@@ -44,7 +44,7 @@ def add_parser(p):
     p.add_argument("--spacing-m", type=float, default=None, help="spiral: distance between turns (default 0.25 m)")
     p.add_argument(
         "--max-steps",
-        type=int,
+        type=positive(int, maximum=MAX_SEARCH_STEPS, why="stcvision.limits.MAX_SEARCH_STEPS"),
         default=None,
         help="cap on search steps (spiral default 150; radial: one flower); reproduce: every run cut short",
     )

@@ -81,10 +81,15 @@ def fault_run(params: dict, seed) -> dict:
 
 def plan(faults, runs: int, *, cells: int, obstacle_fraction: float, exposure: str, camera: str):
     from controllers.stc.faults import FAULTS
+    from stcvision.limits import MAX_FAULT_RUNS, check_board_cells, check_count
     from stcvision.sweep import Task
 
-    if runs < 1 or cells < 1:
-        raise BadInputError(f"--runs and --cells must be >= 1, got {runs} and {cells}")
+    check_count("--runs", runs, MAX_FAULT_RUNS, why="runs per fault level")
+    check_board_cells(cells, cells, flag="--cells")
+    if not 0 <= obstacle_fraction < 1:
+        raise BadInputError(f"--obstacle-fraction must be in [0, 1), got {obstacle_fraction}")
+    if len(set(faults)) != len(faults):
+        raise BadInputError(f"--faults names a fault twice: {','.join(faults)}")
     for f in faults:
         if f not in LEVELS:
             raise BadInputError(f"fault {f!r} is not one of {', '.join(LEVELS)}")
@@ -197,9 +202,9 @@ def sweep_faults(args) -> dict:
     from stcvision.sweep import output_folder, run_sweep, sweep_options_from_args
 
     out = Path(args.out)
-    output_folder(out, OUTPUTS, store=STORE, force=args.force, what="cover faults sweep")
     tasks = plan(args.faults, args.runs, cells=args.cells, obstacle_fraction=args.obstacle_fraction,
                  exposure=args.exposure, camera=args.camera)  # fmt: skip
+    output_folder(out, OUTPUTS, store=STORE, force=args.force, what="cover faults sweep")  # a refused plan makes none
     report = run_sweep(tasks, out / STORE, sweep_options_from_args(args), desc="cover faults")
     runs = list(report.results.values())
     rows = summarise(runs)
@@ -232,9 +237,9 @@ def add_parser(sub) -> None:
     s.add_argument("--faults", type=lambda t: [w for w in t.split(",") if w], default=list(LEVELS),
                    metavar="F,...", help=f"faults to run (default all: {','.join(LEVELS)})")  # fmt: skip
     s.add_argument("--cells", type=positive(int), default=6, help="board size in cells per side (default 6)")
-    from stcvision.limits import MAX_SWEEP_SEEDS
+    from stcvision.limits import MAX_FAULT_RUNS
 
-    runs = positive(int, maximum=MAX_SWEEP_SEEDS, why="seeds per fault level")
+    runs = positive(int, maximum=MAX_FAULT_RUNS, why="runs per fault level")
     s.add_argument("--runs", type=runs, default=3, help="boards (seeds 0..runs-1) per level (default 3)")
     s.add_argument("--obstacle-fraction", type=float, default=0.15, help="obstacle cells (default 0.15)")
     s.add_argument("--exposure", choices=("webcam", "auto"), default="auto", help="default auto")

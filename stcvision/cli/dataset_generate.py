@@ -225,6 +225,10 @@ def _check_folder(out: Path, recipe: Recipe, seed: int) -> None:
     if out.exists() and not out.is_dir():
         raise BadInputError(f"{out} is a file; expected a dataset folder")
     mpath = out / "manifest.json"
+    if out.is_dir():  # a killed run's leftovers do not make the folder someone else's
+        from stcvision.fileio import remove_stale_temps
+
+        remove_stale_temps(out)
     if _is_empty(out):
         return
     if not mpath.exists():

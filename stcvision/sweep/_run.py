@@ -6,6 +6,7 @@ import argparse
 import os
 import time
 from collections.abc import Iterable, Iterator
+from contextlib import closing
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -189,9 +190,26 @@ ONE_THREAD_ENV = {
 }
 
 
-def _worker_init() -> None:
-    """Runs in each new pool worker before any task (so before numpy or OpenCV is imported)."""
-    os.environ.update(ONE_THREAD_ENV)
+#: how long a worker asked to stop (SIGTERM) gets before it is killed (SIGKILL)
+STOP_GRACE_S = 0.5
+
+
+def _stop_pool(ex) -> None:
+    """Stop a pool now: drop the tasks not started and end the workers running one (their tasks
+    are lost; every finished one is already in the store). Without this, an interrupted sweep
+    would wait for each running task to end (a closed-loop run: tens of seconds) before exiting.
+    """
+    procs = list((getattr(ex, "_processes", None) or {}).values())  # CPython's own table of workers
+    ex.shutdown(wait=False, cancel_futures=True)
+    for p in procs:
+        if p.is_alive():
+            p.terminate()
+    deadline = time.monotonic() + STOP_GRACE_S
+    for p in procs:
+        p.join(max(0.0, deadline - time.monotonic()))
+        if p.is_alive():
+            p.kill()
+            p.join(1.0)
 
 
 def _local_pool(tasks: list[Task], workers: int) -> Iterator[tuple[Task, dict]]:
@@ -199,9 +217,14 @@ def _local_pool(tasks: list[Task], workers: int) -> Iterator[tuple[Task, dict]]:
     from concurrent.futures import ProcessPoolExecutor, as_completed
     from concurrent.futures.process import BrokenProcessPool
 
+    from stcvision.sweep._worker import init_worker
+
     # spawn: a worker starts clean (no copy of this process's threads, locks or open files)
     ex = ProcessPoolExecutor(
-        max_workers=workers, mp_context=multiprocessing.get_context("spawn"), initializer=_worker_init
+        max_workers=workers,
+        mp_context=multiprocessing.get_context("spawn"),
+        initializer=init_worker,
+        initargs=(os.getpid(), ONE_THREAD_ENV),
     )
     try:
         futs = {ex.submit(run_task, t.experiment, t.params_json(), t.key): t for t in tasks}
@@ -210,8 +233,8 @@ def _local_pool(tasks: list[Task], workers: int) -> Iterator[tuple[Task, dict]]:
                 yield futs[fut], fut.result()
             except BrokenProcessPool as exc:
                 yield futs[fut], {"ok": False, "error": f"worker process died ({exc})", "traceback": ""}
-    except BaseException:  # interrupted (Ctrl-C, an error in the caller): drop what has not started
-        ex.shutdown(wait=False, cancel_futures=True)
+    except BaseException:  # interrupted (Ctrl-C, SIGTERM, an error in the caller, close()): stop now
+        _stop_pool(ex)
         raise
     ex.shutdown(wait=True)
 
@@ -277,14 +300,17 @@ def run_sweep(
         n = min(opts.workers or machine_workers(), max(len(todo), 1))  # no idle processes
         label = opts.backend if opts.scheduler else SweepOptions(workers=n).backend
         if not todo:
-            backend = iter(())
+            backend = _in_process([])
         elif opts.scheduler:
             backend = _dask(todo, opts.scheduler)
         elif n == 1:
             backend = _in_process(todo)
         else:
             backend = _local_pool(todo, n)
-        with tqdm(total=len(tasks), initial=skipped, desc=desc, unit="task", disable=None, dynamic_ncols=True) as bar:
+        with (
+            closing(backend),  # on any exception here the pool stops at once, not when collected
+            tqdm(total=len(tasks), initial=skipped, desc=desc, unit="task", disable=None, dynamic_ncols=True) as bar,
+        ):
             for task, outcome in backend:
                 store.append(task, outcome)
                 if outcome["ok"]:

@@ -43,8 +43,12 @@ def noop(params: dict, seed: np.random.SeedSequence) -> dict:
     return {}
 
 
-def draws_tasks(n: int, *, sleep_s: float = 0.0, seed: int = 0) -> list[Task]:
-    return [Task(experiment=f"{_MODULE}:draws", params={"x": i, "sleep_s": sleep_s}, seed=seed) for i in range(n)]
+def draws_tasks(n: int, *, sleep_s: float = 0.0, seed: int = 0, fast: int = 0) -> list[Task]:
+    """``n`` draws tasks sleeping ``sleep_s`` each, but for the first ``fast`` (no sleep)."""
+    return [
+        Task(experiment=f"{_MODULE}:draws", params={"x": i, "sleep_s": 0.0 if i < fast else sleep_s}, seed=seed)
+        for i in range(n)
+    ]
 
 
 def measure_overhead(opts: SweepOptions, store: Path, n: int = 400) -> dict:
@@ -61,15 +65,22 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("store")
     ap.add_argument("n", type=int)
     ap.add_argument("--sleep-s", type=float, default=0.0)
+    ap.add_argument("--fast", type=int, default=0, help="the first FAST tasks do not sleep")
     add_sweep_arguments(ap)
     args = ap.parse_args(argv)
     try:
         rep = run_sweep(
-            draws_tasks(args.n, sleep_s=args.sleep_s), args.store, sweep_options_from_args(args), desc="draws"
+            draws_tasks(args.n, sleep_s=args.sleep_s, fast=args.fast),
+            args.store,
+            sweep_options_from_args(args),
+            desc="draws",
         )
     except StcVisionError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
+    except KeyboardInterrupt:
+        print("interrupted", file=sys.stderr)
+        return 130
     print(rep.summary(), file=sys.stderr)
     return 0 if not rep.failed else 1
 

@@ -10,11 +10,11 @@ import json
 import numpy as np
 import pytest
 
+from controllers.stc.experiments import random_board
 from controllers.stc.faults import FAULTS, Faults, FaultyCamera, fault_stream, parse_fault
 from controllers.stc.health import FRAME_RETRIES, RobotStop, frame_fault
 from controllers.stc.loop import CoverConfig, run_cover, streams
 from stcvision.cli import main
-from controllers.stc.experiments import random_board
 from stcvision.cli.cover_faults import outcome
 from stcvision.errors import BadInputError
 

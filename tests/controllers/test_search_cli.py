@@ -53,7 +53,7 @@ def test_search_prints_the_issue_keys_and_finds_a_reachable_patch(capsys):
         (["--petals", "0"], "petals"),
         (["--steps-per-petal", "-3"], "steps per petal"),
         (["--step-m", "0"], "step length"),
-        (["--pattern", "spiral", "--max-steps", "0"], "max steps"),
+        (["--pattern", "spiral", "--max-steps", "0"], "--max-steps"),
         (["--obstacle", "1,2"], "3 comma-separated"),
         (["--obstacle", "nan,1,0.1"], "finite"),
         (["reproduce"], "--out"),
@@ -144,7 +144,7 @@ def test_reproduce_end_to_end_resumes_and_refuses_without_writing(tmp_path, caps
     assert [p.name for p in user.iterdir()] == ["summary.md"] and (user / "summary.md").read_text() == "my notes"
     bad = tmp_path / "bad"
     assert _exit(["search", "reproduce", "--out", str(bad), "--max-steps", "0"]) == 2
-    assert "max steps" in capsys.readouterr().err and not bad.exists()
+    assert "--max-steps" in capsys.readouterr().err and not bad.exists()
 
     def broken(*a, **k):
         raise KeyboardInterrupt
