@@ -486,4 +486,12 @@ def format_text(r):
                 f"wrote {r['out']} (preview {r['preview']})",
             ]
         )
+    if step in ("import", "export"):
+        fit = (
+            f"; the profile against the {r['format']} model over {r['n_pixels']:,} pixels: ray elevation "
+            f"{r['elevation_err_deg_max']:.4f} deg at worst, azimuth {r['azimuth_err_deg_max']:.4f} deg"
+        )
+        if step == "import":
+            return f"wrote {r['out']} ({r['lens_model']}){fit}"
+        return f"wrote {r['out']}{fit}\nimport it back with: {r['import_command']}"
     return f"wrote {r['out']}: {len(r['corners_px'])} neighbour corners (preview {r['preview']})"

@@ -12,6 +12,7 @@ from __future__ import annotations
 import functools
 
 import numpy as np
+import pytest
 from fuzzlib import examples, mutated, numbers, project_call
 from hypothesis import given
 from hypothesis import strategies as st
@@ -28,6 +29,16 @@ def pipeline():
     from stcvision.pipeline import Pipeline
 
     return Pipeline(default_profile())
+
+
+@pytest.fixture(scope="module", autouse=True)
+def _compiled():
+    """Compile the stages' kernels before the first example: numba's first compile (seconds, up to
+    tens of seconds on a loaded machine) is not the input's time, which the deadline bounds."""
+    from stcvision.stages import find_dots
+
+    find_dots(np.zeros((300, 300), np.float32), background_dn=0.0, noise_dn=1.0)
+    pipeline().process(np.zeros((H, W, 3), np.uint8))
 
 
 @st.composite
