@@ -49,10 +49,10 @@ ON_LINE = ROW_TOL
 def mark_lines() -> tuple[tuple[tuple[float, int], ...], tuple[tuple[float, int], ...]]:
     """Per axis (0: across the rows along 'up', the right coordinate; 1: across the rows along
     'right', the up coordinate) the (coordinate, half) of every line a mark of the cell may lie
-    on at a decision: the five boxes and the start marks of sub-cells 1-3 (sub-cell 0's is under
-    the robot); ``half`` is the sign of the row's other coordinate (the sub-cell's side)."""
+    on at a decision: the five boxes and the start marks (sub-cell 0's, under the robot at the
+    first decision and the last, where an edge of it may show); ``half`` is the sign of the row's other coordinate (the sub-cell's side)."""
     lines: tuple[list, list] = ([], [])
-    edges = list(BOX_EDGES.values()) + [(m, START_MARKS[m]) for m in (1, 2, 3)]
+    edges = list(BOX_EDGES.values()) + [(m, START_MARKS[m]) for m in range(4)]
     for k, d in edges:
         e = np.asarray(DIRECTIONS[d], float)
         centre = 0.5 * np.asarray(SUBCELLS[k], float)

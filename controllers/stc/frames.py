@@ -88,6 +88,18 @@ def _merge(a: StcObservation, b: StcObservation) -> StcObservation:
     )
 
 
+def _check_fresh(obs: StcObservation) -> StcObservation:
+    """A cell entered as a child the look found unmarked holds no mark: a box or a start mark
+    read in it means the look or this reading was wrong, and either way the cell's parent and
+    visited sub-cells cannot be taken from it: the robot stops before deciding
+    (``StcObservation.misread``), on every camera."""
+    lit = [b for b, on in enumerate(obs.boxes, 1) if on]
+    if not lit and obs.start_mark is None:
+        return obs
+    what = f"boxes {{{','.join(map(str, lit))}}}" if lit else f"a start mark in sub-cell {obs.start_mark}"
+    return dataclasses.replace(obs, misread=f"misread: {what} lit in a cell entered as new (its look found no mark)")
+
+
 #: a row of four dots is accepted at a mean dot SNR of 3 (the row search's 6 sigma on the sum of
 #: four, halved) where a lone dot needs Rose's 5; in the horizon that is as if (5/3)^2 frames
 #: were stacked
@@ -250,6 +262,8 @@ class Exposures:
 
         obs, dt, taken = self.sure(t_s, read, _merge, self.decision_claims(fresh, at_start))
         obs, dt = self._check_lines(t_s, read, obs, dt, taken)
+        if fresh and not obs.misread:
+            obs = _check_fresh(obs)
         if not self.controlled or obs.misread:
             return obs, dt
         if self.cfg.check_returns and not (fresh or at_start):
@@ -376,7 +390,9 @@ class IdealCamera(Exposures):
 
         def read(k, t):
             seen, dt = self._seen(xy, phosphor, marks, k, t, dot_mark)
-            return observe_oracle(seen, self.board, sub, hc, camera_view=True), dt
+            # it reads every mark in its box exactly (the start mark under the robot, which
+            # the oracle counts as at no box, included): no rows on no line
+            return dataclasses.replace(observe_oracle(seen, self.board, sub, hc, camera_view=True), other_marks=0), dt
 
         return self.decision(t_s, read, fresh, at_start)
 
