@@ -50,7 +50,8 @@ def mark_lines() -> tuple[tuple[tuple[float, int], ...], tuple[tuple[float, int]
     """Per axis (0: across the rows along 'up', the right coordinate; 1: across the rows along
     'right', the up coordinate) the (coordinate, half) of every line a mark of the cell may lie
     on at a decision: the five boxes and the start marks (sub-cell 0's, under the robot at the
-    first decision and the last, where an edge of it may show); ``half`` is the sign of the row's other coordinate (the sub-cell's side)."""
+    first decision and the last, where an edge of it may show); ``half`` is the sign of the
+    row's other coordinate (the sub-cell's side)."""
     lines: tuple[list, list] = ([], [])
     edges = list(BOX_EDGES.values()) + [(m, START_MARKS[m]) for m in range(4)]
     for k, d in edges:

@@ -57,7 +57,9 @@ class _Plant:
 def _long(heading_fit_rad, lean_rad):
     from types import SimpleNamespace
 
-    return SimpleNamespace(observation=SimpleNamespace(heading_error_rad=heading_fit_rad, pattern_rotation_rad=lean_rad))
+    return SimpleNamespace(
+        observation=SimpleNamespace(heading_error_rad=heading_fit_rad, pattern_rotation_rad=lean_rad)
+    )
 
 
 def test_a_small_lean_of_all_rows_trims_the_heading_without_reobserving():
@@ -74,7 +76,12 @@ def test_a_small_lean_of_all_rows_trims_the_heading_without_reobserving():
 
     see = CameraPerception.__new__(CameraPerception)
     see.cfg = CoverConfig()
-    for lean_deg, turned_deg, reobserve in ((0.3, 0.3, False), (-0.25, -0.25, False), (0.1, 0.0, False), (1.5, 1.5, True)):
+    for lean_deg, turned_deg, reobserve in (
+        (0.3, 0.3, False),
+        (-0.25, -0.25, False),
+        (0.1, 0.0, False),
+        (1.5, 1.5, True),
+    ):
         plant = _Plant()
         ret = see._correct_lean(_long(0.0, math.radians(lean_deg)), plant)
         assert math.degrees(plant.turned) == pytest.approx(turned_deg, abs=1e-9), lean_deg
@@ -136,17 +143,18 @@ def test_boxes_read_at_the_fitted_offset_are_the_truth():
 def test_rows_on_no_line_at_any_offset_are_not_decided_on_with_any_camera():
     """A reading whose cell rows no offset puts on the lines (here a row between the lines at
     every shift within reach: 0.5 sub-cell from each) is read once more with a longer frame and
-    then stops the robot before deciding, with the reason; on the webcam (no longer frame) at once."""
-    from controllers.stc.fsm import NeighbourObs, StcObservation
+    then stops the robot before deciding, with the reason; on the webcam (no longer frame) at
+    once."""
     from controllers.stc.frames import Exposures
+    from controllers.stc.fsm import NeighbourObs, StcObservation
 
     nb = (NeighbourObs(False, False),) * 4
     bad = StcObservation(boxes=(False,) * 5, neighbours=nb, start_mark=None, other_marks=4)
     for exposure, frames in (("auto", 1), ("webcam", 0)):
         cam = Exposures(CoverConfig(exposure=exposure))
-        reads = []
+        reads: list[int] = []
 
-        def read(k, t):
+        def read(k, t, reads=reads):
             reads.append(k)
             return bad, 1.0
 
@@ -155,3 +163,46 @@ def test_rows_on_no_line_at_any_offset_are_not_decided_on_with_any_camera():
         assert len(reads) == frames and (not reads or reads[0] == 1), exposure
     good = StcObservation(boxes=(False,) * 5, neighbours=nb, start_mark=None)
     assert Exposures(CoverConfig())._check_lines(0.0, None, good, 0.0, [(0, 0.0)])[0].misread == ""
+
+
+# ---------------------------------------------------------------------------------------------
+# cross-check of a first entry
+
+
+def test_a_first_entry_showing_marks_is_not_decided_on():
+    """A cell entered as new (its look found no mark) holds none: a box or a start mark read
+    there stops the robot before deciding, with the reason; an empty one passes."""
+    from controllers.stc.frames import _check_fresh
+    from controllers.stc.fsm import NeighbourObs, StcObservation
+
+    nb = (NeighbourObs(False, False),) * 4
+    empty = StcObservation(boxes=(False,) * 5, neighbours=nb, start_mark=None)
+    assert _check_fresh(empty).misread == ""
+    box = StcObservation(boxes=(False, True, False, True, False), neighbours=nb, start_mark=None)
+    assert _check_fresh(box).misread == "misread: boxes {2,4} lit in a cell entered as new (its look found no mark)"
+    start = StcObservation(boxes=(False,) * 5, neighbours=nb, start_mark=2)
+    assert "a start mark in sub-cell 2" in _check_fresh(start).misread
+
+
+# ---------------------------------------------------------------------------------------------
+# a small sweep: no run decides wrongly, on any camera
+
+
+@pytest.mark.parametrize(
+    ("cells", "fraction", "seed", "camera"),
+    [(4, 0.1, 1, "cooled"), (5, 0.2, 2, "lowlight"), (4, 0.15, 3, "webcam")],
+)
+def test_no_run_of_a_small_sweep_decides_wrongly(cells, fraction, seed, camera):
+    """Random boards, camera mode, the default exposure: the low-noise cameras complete; the
+    webcam completes or stops with a reason; none decides wrongly or covers a sub-cell twice."""
+    from sim_camera import hardware
+    from stcvision.cli.cmd_cover import random_board
+
+    r = run_cover(
+        random_board(cells, cells, fraction, seed), CoverConfig(seed=seed, camera=hardware.load_camera(camera))
+    )
+    assert r["decision_errors"] == 0 and r["subcells_covered_more_than_once"] == 0, r
+    if camera != "webcam":
+        assert r["complete"], r
+    else:
+        assert r["complete"] or r["abort_reason"], r
