@@ -276,6 +276,14 @@ class Exposures:
         )
         return dataclasses.replace(obs, landing_known=known), dt
 
+    def _longer(self, t_s: float, read, obs, dt: float, taken: list):
+        """A decision's reading once more with a frame one rung longer than any taken (the
+        longest again at the top), merged: (reading, seconds, the rung)."""
+        k = min(max(j for j, _ in taken) + 1, len(self.ladder) - 1)
+        more, dk = read(k, t_s + dt)
+        taken.append((k, t_s + dt))
+        return _merge(obs, more), dt + dk, k
+
     def _check_lines(self, t_s: float, read, obs, dt: float, taken: list):
         """At a decision the cell's marks lie on the box and start-mark lines only; a reading
         with lit rows of the cell on none (``StcObservation.other_marks``: no offset of the
@@ -289,10 +297,7 @@ class Exposures:
             return obs, dt
         label = self.frame_label(max(j for j, _ in taken))
         if self.controlled:
-            k = min(max(j for j, _ in taken) + 1, len(self.ladder) - 1)
-            more, dk = read(k, t_s + dt)
-            taken.append((k, t_s + dt))
-            obs, dt = _merge(obs, more), dt + dk
+            obs, dt, k = self._longer(t_s, read, obs, dt, taken)
             label = self.frame_label(k)
         if obs.other_marks:
             why = (
@@ -311,10 +316,7 @@ class Exposures:
 
         if return_misread(obs) is None:
             return obs, dt
-        k = min(max(j for j, _ in taken) + 1, len(self.ladder) - 1)
-        more, dk = read(k, t_s + dt)
-        taken.append((k, t_s + dt))
-        obs, dt = _merge(obs, more), dt + dk
+        obs, dt, k = self._longer(t_s, read, obs, dt, taken)
         why = return_misread(obs)
         if why is not None:
             obs = dataclasses.replace(obs, misread=f"{why}, also with a {self.frame_label(k)} frame")
