@@ -13,8 +13,7 @@ At a decision, though, the cell's marks can lie only on the box and start-mark l
 (:data:`stcvision.stcgrid.BOX_EDGES`, :data:`~stcvision.stcgrid.START_MARKS`; the oracle's
 ``box_table_violations`` is zero on every tour), and along each axis those lines stand 0.75 of a
 sub-cell apart within a half of the cell (a row's extent says which half). So the offset that
-puts the cell's rows on those lines is unambiguous far beyond the rows' inset (the search keeps
-to +-2.9 cm, :data:`SEARCH`, where no neighbour's row can be pulled onto a line), and it is
+puts the cell's rows on those lines is unambiguous over +-0.3 of a sub-cell (4.8 cm), and it is
 the offset that matters for reading the boxes: the robot relative to the marks it reads.
 :func:`fit_cell_offset` finds it; :class:`controllers.stc.frames.RobotCamera` reads a frame again
 with it when the pipeline's offset leaves rows of the cell on no line, and a reading whose rows
@@ -33,10 +32,9 @@ from stcvision.stcgrid import BOX_EDGES, DIRECTIONS, START_MARKS, SUBCELLS
 
 __all__ = ["CellFit", "fit_cell_offset", "mark_lines"]
 
-#: how far (sub-cell sides) the fit searches either side of the pipeline's offset: 2.9 cm,
-#: short of pulling a neighbour's row (0.125 beyond the cell's edge) onto the cell's outermost
-#: line (0.125 inside it) within :data:`ON_LINE` and across :data:`INSIDE`
-SEARCH = 0.18
+#: how far (sub-cell sides) the fit searches either side of the pipeline's offset: short of the
+#: 0.375 at which a row would meet the next line of its half (half the lines' 0.75 spacing)
+SEARCH = 0.3
 #: the search's step (sub-cell sides; 1.6 mm at 16 cm sub-cells)
 STEP = 0.01
 #: a dot counts as the cell's within this of the centre (sub-cell sides): the outermost lines
@@ -51,11 +49,10 @@ ON_LINE = ROW_TOL
 def mark_lines() -> tuple[tuple[tuple[float, int], ...], tuple[tuple[float, int], ...]]:
     """Per axis (0: across the rows along 'up', the right coordinate; 1: across the rows along
     'right', the up coordinate) the (coordinate, half) of every line a mark of the cell may lie
-    on at a decision: the five boxes and the start marks (sub-cell 0's, under the robot at the
-    first decision and the last, where an edge of it may show); ``half`` is the sign of the
-    row's other coordinate (the sub-cell's side)."""
+    on at a decision: the five boxes and the start marks of sub-cells 1-3 (sub-cell 0's is under
+    the robot); ``half`` is the sign of the row's other coordinate (the sub-cell's side)."""
     lines: tuple[list, list] = ([], [])
-    edges = list(BOX_EDGES.values()) + [(m, START_MARKS[m]) for m in range(4)]
+    edges = list(BOX_EDGES.values()) + [(m, START_MARKS[m]) for m in (1, 2, 3)]
     for k, d in edges:
         e = np.asarray(DIRECTIONS[d], float)
         centre = 0.5 * np.asarray(SUBCELLS[k], float)
@@ -73,38 +70,38 @@ class CellFit:
     ambiguous: bool  # another offset as good, far from this one, reads them otherwise
 
 
-def _line_distance(p: np.ndarray, along_axis: np.ndarray, lines) -> tuple[np.ndarray, np.ndarray]:
-    """For dots ``p`` (..., N, 2; shifted, cell units) whose rows are read on axis
-    ``along_axis`` (N: 0 or 1): which are the cell's (inside :data:`INSIDE`), and each one's
-    distance to the nearest line of its axis and its half (numpy: a frame's few hundred dots at
-    every step of the search at once)."""
-    inside = (np.abs(p[..., 0]) < INSIDE) & (np.abs(p[..., 1]) < INSIDE)
-    n = np.arange(p.shape[-2])
-    c = p[..., n, along_axis]
-    half = np.where(p[..., n, 1 - along_axis] >= 0, 1, -1)
-    d = np.full(c.shape, np.inf)
-    for a in (0, 1):
-        for x, h in lines[a]:
-            m = (along_axis == a) & (half == h)
-            d = np.where(m, np.minimum(d, np.abs(c - x)), d)
-    return inside, d
-
-
-def _score(p: np.ndarray, along_axis: np.ndarray, lines) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Per shift (``p``: S, N, 2): the cell's dots on no line, on one, and the mean squared
-    distance of those on one to their line (0 when none)."""
-    inside, d = _line_distance(p, along_axis, lines)
-    on = inside & (d < ON_LINE)
-    n_on = on.sum(-1)
-    msd = np.where(on, d * d, 0.0).sum(-1) / np.maximum(n_on, 1)
-    return (inside & ~on).sum(-1), n_on, msd
+def _score(p: np.ndarray, along_axis: np.ndarray, lines) -> tuple[int, float]:
+    """(dots on a line less the cell's dots on none, minus the squared distances of those on a
+    line) for dots ``p`` (shifted, cell units); ``along_axis``: per dot the axis (0 or 1) its
+    row is read on."""
+    on = off = 0
+    rss = 0.0
+    for (r, u), a in zip(p, along_axis, strict=True):
+        if not (abs(r) < INSIDE and abs(u) < INSIDE):
+            continue
+        c, other = (r, u) if a == 0 else (u, r)
+        half = 1 if other >= 0 else -1
+        d = min((abs(c - x) for x, h in lines[a] if h == half), default=1.0)
+        if d < ON_LINE:
+            on += 1
+            rss += d * d
+        else:
+            off += 1
+    return on - off, -rss
 
 
 def _counts(p: np.ndarray, along_axis: np.ndarray, lines) -> tuple[int, int]:
     """(the cell's row dots on a line, on none)."""
-    inside, d = _line_distance(p, along_axis, lines)
-    on = inside & (d < ON_LINE)
-    return int(on.sum()), int((inside & ~on).sum())
+    on = off = 0
+    for (r, u), a in zip(p, along_axis, strict=True):
+        if abs(r) < INSIDE and abs(u) < INSIDE:
+            c, other = (r, u) if a == 0 else (u, r)
+            half = 1 if other >= 0 else -1
+            if any(h == half and abs(c - x) < ON_LINE for x, h in lines[a]):
+                on += 1
+            else:
+                off += 1
+    return on, off
 
 
 def fit_cell_offset(
@@ -134,19 +131,18 @@ def fit_cell_offset(
         sel = axis_of == a
         if not sel.any():
             continue
-        shifts = np.repeat(off[None, :], len(steps), 0)
-        shifts[:, a] += steps
-        n_off, n_on, msd = _score(p0[sel][None, :, :] + shifts[:, None, :], axis_of[sel], lines)
-        if not (n_off + n_on).any():  # no row of the cell at any shift: the start stands
+        scored = []
+        for d in steps:
+            shift = off.copy()
+            shift[a] += d
+            scored.append((_score(p0[sel] + shift, axis_of[sel], lines), -abs(d), d))
+        (best, _), _, best_d = max(scored)
+        if best <= 0:  # no row of the cell on a line anywhere in reach: the start stands
             continue
-        # the fewest of the cell's dots on no line, then the best-centred on their lines, then
-        # the nearest to the start (more dots on lines is no merit: a shift that pulls a
-        # neighbour's row in over the cell's edge would win by it)
-        best = min(range(len(steps)), key=lambda i: (n_off[i], round(float(msd[i]), 6), abs(steps[i])))
-        # two separate runs of shifts that leave none on no line: two readings of the rows
-        fits = np.flatnonzero(n_off == n_off[best]) if n_off[best] == 0 else np.zeros(0, int)
-        ambiguous |= bool(len(fits) and np.diff(fits).max(initial=1) > 1)
-        off[a] += steps[best]
+        # another offset as good, beyond the band the best one's lines allow, reads the rows
+        # on other lines: the cell's rows cannot say where the robot stands
+        ambiguous |= any(sc[0] == best and abs(d - best_d) > 3 * ON_LINE for sc, _, d in scored)
+        off[a] += best_d
     on, bad = _counts(p0 + off, axis_of, lines)
     return CellFit((float(off[0]), float(off[1])), on, bad, ambiguous)
 

@@ -533,25 +533,29 @@ class RobotCamera(Exposures):
 
     def _on_cell_lines(self, res):
         """Localisation against the cell's own marks (:mod:`controllers.stc.cellfit`): where the
-        pipeline's offset leaves lit rows of the cell on no box or start-mark line, the frame is
-        read again with the offset that puts them on the lines. Returns (result, the cell's row
-        dots still on no line: 0 when the reading is consistent; an offset two ways as good
-        counts as one)."""
+        pipeline's offset leaves lit row dots of the cell on no box or start-mark line, as many
+        as make a mark (``ObservationParams.min_dots``: a lone dot of a row crossing the cell's
+        edge, or a noise peak beside a row, makes none), the frame is read again with the offset
+        that puts them on the lines. Returns (result, the cell's row dots still on no line: 0
+        when the reading is consistent; at least ``min_dots`` when it is not, or when two
+        offsets explain them)."""
         from controllers.stc.cellfit import fit_cell_offset, frame_dots
+        from stcvision.observation import ObservationParams
 
+        need = ObservationParams().min_dots
         ru, lit = frame_dots(res, self.pipe.geometry)
         start = res.observation.position_offset or (0.0, 0.0)
         base = fit_cell_offset(ru, lit, start, search=False)
-        if base is None or base.off_line == 0:
+        if base is None or base.off_line < need:
             return res, 0
         fit = fit_cell_offset(ru, lit, start)
-        if fit.off_line == 0 and not fit.ambiguous:
+        if fit.off_line < need and not fit.ambiguous:
             again = self.pipe.process(
                 self.last_image, heading_error_rad=res.observation.heading_error_rad, position_offset=fit.offset
             )
             self.refits += 1
             return again, 0
-        return res, max(fit.off_line, 1)
+        return res, max(fit.off_line, need)
 
     def look(self, pose, t_s, phosphor, *, landing: bool = False):
         """The look ahead: (marked, the short frame's result (for the pose), the last long
