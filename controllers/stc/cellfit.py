@@ -13,7 +13,9 @@ At a decision, though, the cell's marks can lie only on the box and start-mark l
 (:data:`stcvision.stcgrid.BOX_EDGES`, :data:`~stcvision.stcgrid.START_MARKS`; the oracle's
 ``box_table_violations`` is zero on every tour), and along each axis those lines stand 0.75 of a
 sub-cell apart within a half of the cell (a row's extent says which half). So the offset that
-puts the cell's rows on those lines is unambiguous over +-0.3 of a sub-cell (4.8 cm), and it is
+puts the cell's rows on those lines is found well beyond the rows' inset (the search keeps to
++-0.3 of a sub-cell, 4.8 cm; a neighbour's row just beyond the cell's edge lies 0.25 from its
+outermost lines, which is why an offset two ways as good is not taken), and it is
 the offset that matters for reading the boxes: the robot relative to the marks it reads.
 :func:`fit_cell_offset` finds it; :class:`controllers.stc.frames.RobotCamera` reads a frame again
 with it when the pipeline's offset leaves rows of the cell on no line, and a reading whose rows
