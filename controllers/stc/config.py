@@ -18,7 +18,10 @@ _SIZING_SNR = DotParams().k_sigma + 1.0
 @dataclass(frozen=True, kw_only=True)
 class CoverConfig:
     perception: str = "camera"  # "camera", "ideal" or "oracle"
-    exposure: str | float = "webcam"  # "webcam", "auto" or an exposure in seconds
+    #: "auto" (the short webcam frame, then longer ones while a reading relies on an absence no
+    #: frame so far could have seen), "webcam" (the seed's camera alone) or an exposure in
+    #: seconds. The one default: ``stcvision cover`` with no options takes it from here
+    exposure: str | float = "auto"
     gain: float | None = None
     n_stack: int = 1
     seed: int = 0

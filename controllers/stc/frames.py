@@ -26,6 +26,7 @@ import dataclasses
 
 import numpy as np
 
+from controllers.stc.cellfit import SEARCH as SEARCH_OFFSET
 from controllers.stc.config import CoverConfig
 from controllers.stc.fsm import NeighbourObs, StcObservation
 from controllers.stc.oracle import MarkFloor, landing_oracle, look_oracle, observe_oracle
@@ -82,7 +83,21 @@ def _merge(a: StcObservation, b: StcObservation) -> StcObservation:
         ),
         start_mark=a.start_mark if a.start_mark is not None else b.start_mark,
         landing_marked=tuple(x or y for x, y in zip(a.landing_marked, b.landing_marked, strict=True)),
+        # the longer frame's: it sees the cell's rows the shorter may not (each is checked alone)
+        other_marks=b.other_marks,
     )
+
+
+def _check_fresh(obs: StcObservation) -> StcObservation:
+    """A cell entered as a child the look found unmarked holds no mark: a box or a start mark
+    read in it means the look or this reading was wrong, and either way the cell's parent and
+    visited sub-cells cannot be taken from it: the robot stops before deciding
+    (``StcObservation.misread``), on every camera."""
+    lit = [b for b, on in enumerate(obs.boxes, 1) if on]
+    if not lit and obs.start_mark is None:
+        return obs
+    what = f"boxes {{{','.join(map(str, lit))}}}" if lit else f"a start mark in sub-cell {obs.start_mark}"
+    return dataclasses.replace(obs, misread=f"misread: {what} lit in a cell entered as new (its look found no mark)")
 
 
 #: a row of four dots is accepted at a mean dot SNR of 3 (the row search's 6 sigma on the sum of
@@ -246,7 +261,10 @@ class Exposures:
         from controllers.stc.claims import landing_claim
 
         obs, dt, taken = self.sure(t_s, read, _merge, self.decision_claims(fresh, at_start))
-        if not self.controlled:
+        obs, dt = self._check_lines(t_s, read, obs, dt, taken)
+        if fresh and not obs.misread:
+            obs = _check_fresh(obs)
+        if not self.controlled or obs.misread:
             return obs, dt
         if self.cfg.check_returns and not (fresh or at_start):
             obs, dt = self._check_return(t_s, read, obs, dt, taken)
@@ -258,6 +276,37 @@ class Exposures:
         )
         return dataclasses.replace(obs, landing_known=known), dt
 
+    def _longer(self, t_s: float, read, obs, dt: float, taken: list):
+        """A decision's reading once more with a frame one rung longer than any taken (the
+        longest again at the top), merged: (reading, seconds, the rung)."""
+        k = min(max(j for j, _ in taken) + 1, len(self.ladder) - 1)
+        more, dk = read(k, t_s + dt)
+        taken.append((k, t_s + dt))
+        return _merge(obs, more), dt + dk, k
+
+    def _check_lines(self, t_s: float, read, obs, dt: float, taken: list):
+        """At a decision the cell's marks lie on the box and start-mark lines only; a reading
+        with lit rows of the cell on none (``StcObservation.other_marks``: no offset of the
+        robot puts them there, :mod:`controllers.stc.cellfit`) reads the boxes from regions
+        the marks do not fill, so a box may be missed or taken from a neighbour. With exposure
+        control it is read once more with a frame one rung longer than any taken (more rows to
+        fit); still so, or on a camera without control, it says why
+        (``StcObservation.misread``) and the robot stops before deciding. Returns (reading,
+        seconds)."""
+        if not obs.other_marks:
+            return obs, dt
+        label = self.frame_label(max(j for j, _ in taken))
+        if self.controlled:
+            obs, dt, k = self._longer(t_s, read, obs, dt, taken)
+            label = self.frame_label(k)
+        if obs.other_marks:
+            why = (
+                f"misread: {obs.other_marks} lit dots of rows in the cell on no box or start-mark line at any offset "
+                f"of the robot within {100 * SEARCH_OFFSET * self.subcell_m:.1f} cm, also with a {label} frame"
+            )
+            obs = dataclasses.replace(obs, misread=why)
+        return obs, dt
+
     def _check_return(self, t_s: float, read, obs, dt: float, taken: list):
         """A return's reading that no STC tour shows (:func:`controllers.stc.claims.return_misread`)
         is read once more with a frame one rung longer than any taken (the longest again at the
@@ -267,10 +316,7 @@ class Exposures:
 
         if return_misread(obs) is None:
             return obs, dt
-        k = min(max(j for j, _ in taken) + 1, len(self.ladder) - 1)
-        more, dk = read(k, t_s + dt)
-        taken.append((k, t_s + dt))
-        obs, dt = _merge(obs, more), dt + dk
+        obs, dt, k = self._longer(t_s, read, obs, dt, taken)
         why = return_misread(obs)
         if why is not None:
             obs = dataclasses.replace(obs, misread=f"{why}, also with a {self.frame_label(k)} frame")
@@ -346,7 +392,9 @@ class IdealCamera(Exposures):
 
         def read(k, t):
             seen, dt = self._seen(xy, phosphor, marks, k, t, dot_mark)
-            return observe_oracle(seen, self.board, sub, hc, camera_view=True), dt
+            # it reads every mark in its box exactly (the start mark under the robot, which
+            # the oracle counts as at no box, included): no rows on no line
+            return dataclasses.replace(observe_oracle(seen, self.board, sub, hc, camera_view=True), other_marks=0), dt
 
         return self.decision(t_s, read, fresh, at_start)
 
@@ -377,6 +425,8 @@ class RobotCamera(Exposures):
         self.darks: dict = {}
         self.pipe = None  # the pipeline that read the last frame (for the recording)
         self.bad_frames = 0  # frames lost or black, taken again
+        self.refits = 0  # frames read again against the cell's own marks (:meth:`_on_cell_lines`)
+        self.last_image = None  # the last frame shot (read again by :meth:`_on_cell_lines`)
         from controllers.stc.health import NoiseCheck
 
         self.noise_check = NoiseCheck()
@@ -442,6 +492,7 @@ class RobotCamera(Exposures):
         else:
             raise RobotStop(f"camera: {FRAME_RETRIES + 1} frames in a row {why}")
         res = self.pipe.process(img, heading_error_rad=heading_error_rad, position_offset=position_offset)
+        self.last_image = img
         if res.observation.untrusted:  # the pipeline could not read this frame honestly (too many candidates)
             raise RobotStop(f"camera: a frame the pipeline cannot trust ({res.observation.untrusted})")
         self.noise_check.check(res.dots.noise_dn, self._noise_floor(k))
@@ -473,11 +524,38 @@ class RobotCamera(Exposures):
 
         def read(k, t):
             r, dt = self.shoot(pose, t, phosphor, k, **(self._as_short(res[0]) if res else {}))
+            r, off_line = self._on_cell_lines(r)
             res.append(r)
-            return _to_stc_obs(r.observation), dt
+            return dataclasses.replace(_to_stc_obs(r.observation), other_marks=off_line), dt
 
         obs, dt = self.decision(t_s, read, fresh, at_start)
         return obs, res[0], (res[-1] if len(res) > 1 else None), dt
+
+    def _on_cell_lines(self, res):
+        """Localisation against the cell's own marks (:mod:`controllers.stc.cellfit`): where the
+        pipeline's offset leaves lit row dots of the cell on no box or start-mark line, as many
+        as make a mark (``ObservationParams.min_dots``: a lone dot of a row crossing the cell's
+        edge, or a noise peak beside a row, makes none), the frame is read again with the offset
+        that puts them on the lines. Returns (result, the cell's row dots still on no line: 0
+        when the reading is consistent; at least ``min_dots`` when it is not, or when two
+        offsets explain them)."""
+        from controllers.stc.cellfit import fit_cell_offset, frame_dots
+        from stcvision.observation import ObservationParams
+
+        need = ObservationParams().min_dots
+        ru, lit = frame_dots(res, self.pipe.geometry)
+        start = res.observation.position_offset or (0.0, 0.0)
+        base = fit_cell_offset(ru, lit, start, search=False)
+        if base is None or base.off_line < need:
+            return res, 0
+        fit = fit_cell_offset(ru, lit, start)
+        if fit.off_line < need and not fit.ambiguous:
+            again = self.pipe.process(
+                self.last_image, heading_error_rad=res.observation.heading_error_rad, position_offset=fit.offset
+            )
+            self.refits += 1
+            return again, 0
+        return res, max(fit.off_line, need)
 
     def look(self, pose, t_s, phosphor, *, landing: bool = False):
         """The look ahead: (marked, the short frame's result (for the pose), the last long

@@ -40,6 +40,11 @@ from stcvision.stcgrid import entry_axes
 #: the newest row's lean at a decision or a look beyond which the robot turned on its own since
 #: it laid the row (a turn's recalibration leaves ~0.25 degrees): it is turned back
 HEADING_CHECK_RAD = math.radians(2.0)
+#: a long frame's lean of all rows beyond which the heading is trimmed by it: the lean of two
+#: or more rows agreeing within a degree (:func:`stcvision.observation.pattern_rotation`) is
+#: good to ~0.18 degrees (the newest row's 0.25 over the square root of two); a bias left
+#: below this drifts the robot sideways by under 0.5 mm a sub-cell
+LEAN_TRIM_RAD = math.radians(0.15)
 #: a white light this close (m) blinds the decision's reading: the cell and its neighbours'
 #: near halves lie within 0.45 m (frames.AUTO_REACH_M)
 WHITE_BLIND_M = 0.45
@@ -255,10 +260,13 @@ class CameraPerception(_TakesFrames):
         if lean is None:
             return 0.0
         e = long.observation.heading_error_rad - lean
-        if abs(e) <= REOBSERVE_RAD:
+        if abs(e) <= LEAN_TRIM_RAD:
             return 0.0
         plant.rotate_by(-e)
-        return -e
+        # a small lean is a heading bias the newest row shares (it was laid with it), which
+        # no turn's recalibration sees: taken out, the reading itself stands (0.3 degrees moves
+        # box 2 by 1.4 mm); only a large one means the frames were read askew
+        return -e if abs(e) > REOBSERVE_RAD else 0.0
 
     def _where(self, observation, plant) -> np.ndarray:
         """The robot's offset from its sub-cell centre (world, m): from the red lights in view

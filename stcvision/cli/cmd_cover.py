@@ -66,6 +66,8 @@ def add_parser(p):
         "--exposure",
         choices=("webcam", "auto"),
         default=None,
+        # (the default is CoverConfig's, not imported here to keep --help fast; a test holds
+        # this text to it)
         help="webcam: 1/30 s (the seed's camera); auto: plus a long frame (default: auto)",
     )
     _add_hardware_arguments(p)
@@ -160,7 +162,9 @@ def run(args):
         from controllers.stc.plan import plan
 
         return plan(board, CoverConfig(seed=args.seed, camera=camera, robot=robot))
-    exposure = args.exposure_s if args.exposure_s is not None else (args.exposure or "auto")
+    # no option given: the library's own default (CoverConfig), so that the command and
+    # run_cover(board) with no options are one run
+    exposure = args.exposure_s if args.exposure_s is not None else (args.exposure or CoverConfig.exposure)
     if args.exposure_s is not None and not 0 < args.exposure_s <= 60:
         from stcvision.errors import BadInputError
 
