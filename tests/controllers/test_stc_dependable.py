@@ -196,7 +196,7 @@ def test_no_run_of_a_small_sweep_decides_wrongly(cells, fraction, seed, camera):
     """Random boards, camera mode, the default exposure: the low-noise cameras complete; the
     webcam completes or stops with a reason; none decides wrongly or covers a sub-cell twice."""
     from sim_camera import hardware
-    from stcvision.cli.cmd_cover import random_board
+    from controllers.stc.experiments import random_board
 
     r = run_cover(
         random_board(cells, cells, fraction, seed), CoverConfig(seed=seed, camera=hardware.load_camera(camera))
