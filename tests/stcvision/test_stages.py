@@ -162,7 +162,6 @@ def test_unwarp_rejects_a_frame_of_the_wrong_size(default_profile):
     umap = UnwarpMap.from_profile(default_profile)
     with pytest.raises(BadInputError, match="640x480"):
         unwarp(np.zeros((100, 100, 3), np.uint8), umap)
-    assert cv2.remap is not None
 
 
 def test_tls_line_is_the_svd_fit():
@@ -190,7 +189,6 @@ def test_red_blobs_are_opencvs_moments():
     """find_red's compiled blob pass (kernels.blobs) against cv2.moments, cv2.boundingRect and
     numpy per contour, as find_red computed them before: random discs and lone pixels (thin
     blobs: zero area, the points' mean), bit for bit."""
-    import cv2
 
     from stcvision.stages import RedParams, find_red
 
