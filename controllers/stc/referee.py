@@ -29,6 +29,7 @@ class Referee:
         self.max_age_read = 0.0
         self.first_error: dict | None = None
         self._expected: tuple | None = None  # what the oracle decided at this cell's decision
+        self._decided = None  # what the robot decided there (its Decision)
         self._at: dict = {}
 
     def decision(self, plant: Plant, floor: Floor, obs: StcObservation, state: StcState, k: int) -> None:
@@ -39,6 +40,7 @@ class Referee:
         o_obs = observe_oracle(floor.record, self.board, plant.sub, plant.hc, camera_view=True)
         od = decide(o_obs, at_start=state.at_start)
         dc = decide(obs, at_start=state.at_start)
+        self._decided = dc
         if (dc.visited, dc.parent, dc.is_start, dc.done) != (od.visited, od.parent, od.is_start, od.done):
             # what the cell says of itself (visited sub-cells, parent, start, end) was misread:
             # no look can mend that
@@ -76,7 +78,12 @@ class Referee:
         committed when the robot leaves its cell or stops (the looks before entering a child may
         revise a first reading, as they are meant to)."""
         if action is Action.DONE and prev.phase is StcPhase.DECIDE and not prev.closing:
-            self._commit(("done",), plant, k)
+            # straight from the decision: the tour's end, or a final stop whose target is the
+            # sub-cell the robot already stands in (then the stop is scored as a stop, from the
+            # robot's own decision: the state after it no longer holds the parent)
+            dc = self._decided
+            final = dc is not None and dc.final and not dc.done
+            self._commit(("stop", dc.target, dc.parent) if final else ("done",), plant, k)
         elif action is Action.DONE and prev.phase is not StcPhase.DECIDE:
             self._commit(("stop", prev.target, prev.parent), plant, k)
         elif action is Action.FORWARD and state.phase is StcPhase.DECIDE:

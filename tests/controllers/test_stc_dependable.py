@@ -195,8 +195,8 @@ def test_a_first_entry_showing_marks_is_not_decided_on():
 def test_no_run_of_a_small_sweep_decides_wrongly(cells, fraction, seed, camera):
     """Random boards, camera mode, the default exposure: the low-noise cameras complete; the
     webcam completes or stops with a reason; none decides wrongly or covers a sub-cell twice."""
-    from sim_camera import hardware
     from controllers.stc.experiments import random_board
+    from sim_camera import hardware
 
     r = run_cover(
         random_board(cells, cells, fraction, seed), CoverConfig(seed=seed, camera=hardware.load_camera(camera))
@@ -206,3 +206,18 @@ def test_no_run_of_a_small_sweep_decides_wrongly(cells, fraction, seed, camera):
         assert r["complete"], r
     else:
         assert r["complete"] or r["abort_reason"], r
+
+
+def test_a_final_stop_in_the_sub_cell_the_robot_stands_in_is_not_scored_as_an_error(cli):
+    """The tour's last decision can be a final stop whose target is the robot's own sub-cell (here
+    the start cell's sub-cell 0 beside the start sub-cell 1): the controller is done straight from
+    its decision, and the referee must score that as the stop it is. On this board and start (a
+    held-out sweep's seed 108) the physics-limited camera decides exactly as the oracle, and the
+    referee once counted its last decision as a decision error."""
+    import json
+
+    code, out, _ = cli("cover", "--board", "11x11", "--obstacle-fraction", "0.23", "--seed", "108",
+                       "--start", "11,2", "--camera", "cooled", "--perception", "ideal", "--json")  # fmt: skip
+    r = json.loads(out)
+    assert code == 0 and r["complete"] and r["decision_errors"] == 0
+    assert r["subcells_covered"] == r["subcells_reachable"] == 376
