@@ -184,6 +184,54 @@ class TransformReport:
         return d
 
 
+def _grid_distance(grey: np.ndarray, rim, refusal: str) -> np.ndarray:
+    """Each pixel's distance (px) to the nearest grid-line pixel of the lights-on frame; refused
+    when the frame shows (almost) no line."""
+    mask = _line_mask(grey, rim)
+    if mask.sum() < 200:
+        raise BadInputError(refusal)
+    return cv2.distanceTransform((1 - mask).astype(np.uint8), cv2.DIST_L2, 3)
+
+
+def _line_image(grey: np.ndarray) -> np.ndarray:
+    """The dark tape lines as a bright, slightly smoothed image, where their centres are measured."""
+    bh = cv2.morphologyEx(grey, cv2.MORPH_BLACKHAT, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (9, 9)))
+    return cv2.GaussianBlur(bh.astype(np.float32), (0, 0), 0.7)
+
+
+def _chamfer_score(prof: Profile, dist: np.ndarray, samples: np.ndarray, sigma_px: float, *, inside: bool) -> float:
+    """How well the profile's projected grid-line samples land on the line mask (0..1). With
+    ``inside`` only samples that fall inside the image count (at least 20 % of them); otherwise
+    every finite one, clipped to the image (at least 30 %)."""
+    h, w = dist.shape
+    uv = prof.robot_to_image(samples)
+    ok = np.isfinite(uv).all(1)
+    if inside:
+        ok &= (uv[:, 0] >= 0) & (uv[:, 0] < w) & (uv[:, 1] >= 0) & (uv[:, 1] < h)
+    if ok.sum() < (0.2 if inside else 0.3) * len(samples):
+        return 0.0 if inside else -1.0
+    iu = np.clip(np.rint(uv[ok, 0]).astype(int), 0, w - 1)
+    iv = np.clip(np.rint(uv[ok, 1]).astype(int), 0, h - 1)
+    return float(np.exp(-0.5 * (dist[iv, iu] / sigma_px) ** 2).sum()) / len(samples)
+
+
+def _coarse_transform(base: Profile, dist: np.ndarray, samples: np.ndarray) -> Profile | None:
+    """The best of a grid of forward angles (quarter turns) and radial shapes, by chamfer score;
+    None when no candidate projects enough of the grid into the image."""
+    H = base.viewpoint_height_m
+    best = (-1.0, None)
+    for fwd in (-math.pi / 2, 0.0, math.pi / 2, math.pi):
+        for rho_mid in np.geomspace(0.08, 0.6, 14):
+            for rho_far in np.geomspace(0.3, 3.0, 16):
+                if rho_far < 1.3 * rho_mid:
+                    continue
+                prof = base.replace(forward_angle_rad=fwd, mirrored=True, theta_poly=_theta_poly(rho_mid, rho_far, H))
+                score = _chamfer_score(prof, dist, samples, 2.0, inside=False)
+                if score > best[0]:
+                    best = (score, prof)
+    return best[1]
+
+
 def calibrate_transform(
     frame: np.ndarray,
     *,
@@ -202,12 +250,11 @@ def calibrate_transform(
     grey = cv2.cvtColor(frame, cv2.COLOR_BGR2GRAY)
     rim = detect_rim(frame)
     centre = tuple(center_px) if center_px is not None else rim.center_px
-    mask = _line_mask(grey, rim)
-    if mask.sum() < 200:
-        raise BadInputError(
-            "no grid lines found in the frame: expected a lights-on frame of the board with its cell grid visible"
-        )
-    dist = cv2.distanceTransform((1 - mask).astype(np.uint8), cv2.DIST_L2, 3)
+    dist = _grid_distance(
+        grey,
+        rim,
+        "no grid lines found in the frame: expected a lights-on frame of the board with its cell grid visible",
+    )
     samples = _line_samples(subcell_m)
     H = viewpoint_height_m
     base = base or Profile(
@@ -220,29 +267,7 @@ def calibrate_transform(
     )
 
     # 1) coarse search over orientation and radial shape (chamfer score)
-    best = (-1.0, None)
-    for fwd in (-math.pi / 2, 0.0, math.pi / 2, math.pi):
-        for rho_mid in np.geomspace(0.08, 0.6, 14):
-            for rho_far in np.geomspace(0.3, 3.0, 16):
-                if rho_far < 1.3 * rho_mid:
-                    continue
-                prof = base.replace(
-                    center_px=tuple(centre),
-                    rim_radius_px=rim.radius_px,
-                    forward_angle_rad=fwd,
-                    mirrored=True,
-                    theta_poly=_theta_poly(rho_mid, rho_far, H),
-                )
-                uv = prof.robot_to_image(samples)
-                ok = np.isfinite(uv).all(1)
-                if ok.sum() < 0.3 * len(samples):
-                    continue
-                iu = np.clip(np.rint(uv[ok, 0]).astype(int), 0, w - 1)
-                iv = np.clip(np.rint(uv[ok, 1]).astype(int), 0, h - 1)
-                score = float(np.exp(-0.5 * (dist[iv, iu] / 2.0) ** 2).sum()) / len(samples)
-                if score > best[0]:
-                    best = (score, prof)
-    prof = best[1]
+    prof = _coarse_transform(base.replace(center_px=tuple(centre), rim_radius_px=rim.radius_px), dist, samples)
     if prof is None:
         raise BadInputError(
             "could not fit the grid: is the robot on the board, at a sub-cell centre, facing along the grid?"
@@ -255,8 +280,7 @@ def calibrate_transform(
     # 3) dense fit along the tape lines: every 5 mm of every line the dark line's centre is
     # measured across the predicted image line, and the profile is fitted so that each
     # measured point maps onto its known floor line; measure again with the new profile
-    bh = cv2.morphologyEx(grey, cv2.MORPH_BLACKHAT, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (9, 9)))
-    bh = cv2.GaussianBlur(bh.astype(np.float32), (0, 0), 0.7)
+    bh = _line_image(grey)
     lpts, laxis, loff = _line_points(subcell_m)
     empty = np.zeros((0, 2))
     for it in range(iterations):
@@ -399,6 +423,26 @@ def with_rim(profile: Profile, rim_radius_px: float) -> Profile:
     return profile.replace(rim_radius_px=rim_radius_px, rim_measured=True, theta_poly=poly, decentering=dec)
 
 
+def _mount_rim(frame: np.ndarray, profile: Profile, subcell_m: float):
+    """The rim of the lights-on frame (the profile's own when the frame shows none), refused when
+    it is not the model's camera's; and the profile with that rim and the board's sub-cell."""
+    try:
+        rim = detect_rim(frame)
+        if np.hypot(rim.center_px[0] - profile.center_px[0], rim.center_px[1] - profile.center_px[1]) > 0.04 * (
+            rim.radius_px
+        ):
+            raise BadInputError(
+                f"the frame's rim centre ({rim.center_px[0]:.0f}, {rim.center_px[1]:.0f}) px is not the model's "
+                f"({profile.center_px[0]:.0f}, {profile.center_px[1]:.0f}): a frame of another camera?"
+            )
+        profile = with_rim(profile, float(rim.radius_px)).replace(subcell_m=subcell_m)
+    except BadInputError as exc:
+        if "another camera" in str(exc):
+            raise
+        rim = RimFit(tuple(profile.center_px), profile.rim_radius_px, 0.0, 0.0, 0, tuple(profile.center_px), (0, 0), 0)
+    return rim, profile.replace(subcell_m=subcell_m)
+
+
 def calibrate_mount(
     frame: np.ndarray, profile: Profile, *, subcell_m: float = 0.16, forward_hint_rad: float | None = None
 ) -> tuple[Profile, TransformReport]:
@@ -415,37 +459,16 @@ def calibrate_mount(
     profile.check_frame(frame.shape, what="lights-on frame")
     source_sha256 = hashlib.sha256(frame.tobytes()).hexdigest()
     frame = geometry_frame(frame)
-    h, w = frame.shape[:2]
     grey = cv2.cvtColor(frame, cv2.COLOR_BGR2GRAY)
-    try:
-        rim = detect_rim(frame)
-        if np.hypot(rim.center_px[0] - profile.center_px[0], rim.center_px[1] - profile.center_px[1]) > 0.04 * (
-            rim.radius_px
-        ):
-            raise BadInputError(
-                f"the frame's rim centre ({rim.center_px[0]:.0f}, {rim.center_px[1]:.0f}) px is not the model's "
-                f"({profile.center_px[0]:.0f}, {profile.center_px[1]:.0f}): a frame of another camera?"
-            )
-        profile = with_rim(profile, float(rim.radius_px)).replace(subcell_m=subcell_m)
-    except BadInputError as exc:
-        if "another camera" in str(exc):
-            raise
-        rim = RimFit(tuple(profile.center_px), profile.rim_radius_px, 0.0, 0.0, 0, tuple(profile.center_px), (0, 0), 0)
-        profile = profile.replace(subcell_m=subcell_m)
-    mask = _line_mask(grey, rim)
-    if mask.sum() < 200:
-        raise BadInputError("no grid lines found in the lights-on frame: expected the board's cell grid in view")
-    dist = cv2.distanceTransform((1 - mask).astype(np.uint8), cv2.DIST_L2, 3)
+    rim, profile = _mount_rim(frame, profile, subcell_m)
+    dist = _grid_distance(
+        grey, rim, "no grid lines found in the lights-on frame: expected the board's cell grid in view"
+    )
     samples = _line_samples(subcell_m)
     H0 = profile.viewpoint_height_m
 
     def chamfer(prof, sigma_px: float = 2.0) -> float:
-        uv = prof.robot_to_image(samples)
-        ok = np.isfinite(uv).all(1) & (uv[:, 0] >= 0) & (uv[:, 0] < w) & (uv[:, 1] >= 0) & (uv[:, 1] < h)
-        if ok.sum() < 0.2 * len(samples):
-            return 0.0
-        iu, iv = np.rint(uv[ok, 0]).astype(int), np.rint(uv[ok, 1]).astype(int)
-        return float(np.exp(-0.5 * (dist[iv, iu] / sigma_px) ** 2).sum()) / len(samples)
+        return _chamfer_score(prof, dist, samples, sigma_px, inside=True)
 
     def refine(prof):
         def res(x):
@@ -477,8 +500,7 @@ def calibrate_mount(
     hint = profile.forward_angle_rad if forward_hint_rad is None else forward_hint_rad
     prof = min(near, key=lambda p: abs(math.remainder(p.forward_angle_rad - hint, 2 * math.pi)))
     # dense: the tape lines' centres, and forward angle and height fitted so they land on their lines
-    bh = cv2.morphologyEx(grey, cv2.MORPH_BLACKHAT, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (9, 9)))
-    bh = cv2.GaussianBlur(bh.astype(np.float32), (0, 0), 0.7)
+    bh = _line_image(grey)
     lpts, laxis, loff = _line_points(subcell_m)
     for _ in range(3):
         l_uv, keep = _measure_line_centres(prof, bh, lpts, laxis, prof.center_px, prof.rim_radius_px)

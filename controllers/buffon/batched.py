@@ -209,6 +209,42 @@ def _ir_reading(d, sat, rng_m, noise):
     return min(1.0, max(0.0, v + noise))
 
 
+@numba.njit(cache=True, nogil=True, inline="always")
+def _read_ir(ir, x, y, th, irg, geo, ir_cos, ir_sin, radius, ir_sat, ir_range, ir_sigma):
+    """The six IR rays from the rim (sim_camera.sensors.IrSensors) into ``ir``, their noise from
+    the IR stream ``irg`` (one draw per ray, in ray order)."""
+    caps, ox, oy, cell, ny, nx, offsets, index = geo
+    lo, hi = cell_span(x, y, ox, oy, cell, ny, nx, offsets)
+    if lo == hi:  # no solid within reach: the readings are noise around 0
+        for q in range(ir_cos.shape[0]):
+            ir[q] = _ir_reading(np.inf, ir_sat, ir_range, ir_sigma * irg.standard_normal())
+        return
+    ct, st_ = math.cos(th), math.sin(th)
+    for q in range(ir_cos.shape[0]):
+        c = ct * ir_cos[q] - st_ * ir_sin[q]
+        sn = st_ * ir_cos[q] + ct * ir_sin[q]
+        d = ray_cast(caps, ox, oy, cell, ny, nx, offsets, index, x, y, x + radius * c, y + radius * sn, c, sn, ir_range)
+        ir[q] = _ir_reading(d, ir_sat, ir_range, ir_sigma * irg.standard_normal())
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _rule_stops(st, lay, plen, crossings, steps_done, blind, sp, bst, l1_u):
+    """Whether the online rule (:mod:`controllers.buffon.stopping`) ends the visit now; a first
+    visit that cannot reach its coverage gives up (``st[GAVE_UP]``)."""
+    coverage, min_self, pi_w, second_ratio = sp[0], sp[1], sp[2], sp[3]
+    min_cross, rel_se, batches, max_ratio = sp[4], sp[5], int(sp[6]), sp[7]
+    if not lay:
+        return second_visit_done(
+            bst, plen / BODY_LENGTH_M, crossings, l1_u, second_ratio, min_cross, rel_se, batches, max_ratio
+        )
+    if first_visit_done(plen / BODY_LENGTH_M, crossings, coverage, min_self, pi_w):
+        return True
+    if first_visit_hopeless(steps_done, blind, crossings, min_self):
+        st[GAVE_UP] = 1.0
+        return True
+    return False
+
+
 @numba.njit(cache=True, nogil=True)
 def _visit(st, beh, irg, slip, steps, grid, lay, geo, outer, trail, prm, ir_ang, rec, auto, sp, bst, l1_u):
     """Advance one robot (state ``st``, (N_STATE,)) by at most ``steps`` steps, drawing from its
@@ -228,9 +264,7 @@ def _visit(st, beh, irg, slip, steps, grid, lay, geo, outer, trail, prm, ir_ang,
     b_true, dl_ratio, dr_ratio, slip_k = prm[10], prm[11], prm[12], prm[13]
     ir_sat, ir_range, ir_sigma = prm[14], prm[15], prm[16]
     rate, thr, hyst, half_w, recent_stamps, avoid = prm[17], prm[18], prm[19], prm[20], prm[21], prm[22]
-    coverage, min_self, pi_w, second_ratio = sp[0], sp[1], sp[2], sp[3]
-    min_cross, rel_se, batches, max_ratio = sp[4], sp[5], int(sp[6]), sp[7]
-    n_ir = ir_ang.shape[0]
+    batches = int(sp[6])
     ir_cos, ir_sin = np.cos(ir_ang), np.sin(ir_ang)
     ir = np.empty(6)
     x, y, th = st[X], st[Y], st[TH]
@@ -245,19 +279,7 @@ def _visit(st, beh, irg, slip, steps, grid, lay, geo, outer, trail, prm, ir_ang,
     recording = rec.shape[0] > 0
     for s in range(steps):
         # 1. six IR rays from the rim (sim_camera.sensors.IrSensors), noise from their stream
-        lo, hi = cell_span(x, y, ox, oy, cell, ny, nx, offsets)
-        if lo == hi:  # no solid within reach: the readings are noise around 0
-            for q in range(n_ir):
-                ir[q] = _ir_reading(np.inf, ir_sat, ir_range, ir_sigma * irg.standard_normal())
-        else:
-            ct, st_ = math.cos(th), math.sin(th)
-            for q in range(n_ir):
-                c = ct * ir_cos[q] - st_ * ir_sin[q]
-                sn = st_ * ir_cos[q] + ct * ir_sin[q]
-                d = ray_cast(
-                    caps, ox, oy, cell, ny, nx, offsets, index, x, y, x + radius * c, y + radius * sn, c, sn, ir_range
-                )
-                ir[q] = _ir_reading(d, ir_sat, ir_range, ir_sigma * irg.standard_normal())
+        _read_ir(ir, x, y, th, irg, geo, ir_cos, ir_sin, radius, ir_sat, ir_range, ir_sigma)
         # 2. the behaviour of sec. 3.2 (the scalar controller's own equations)
         n = -noise + 2.0 * noise * beh.random()
         nbar = esc_min + (esc_max - esc_min) * beh.random()
@@ -303,19 +325,10 @@ def _visit(st, beh, irg, slip, steps, grid, lay, geo, outer, trail, prm, ir_ang,
             escapes += 1
         if recording:
             rec[s, 0], rec[s, 1], rec[s, 2] = x, y, 1.0 if crossed else 0.0
-        if auto and (s & 63) == 63:
-            if lay:
-                stopped = first_visit_done(plen / BODY_LENGTH_M, crossings, coverage, min_self, pi_w)
-                if not stopped and first_visit_hopeless(done + s + 1, blind, crossings, min_self):
-                    stopped = True
-                    st[GAVE_UP] = 1.0
-            else:
-                stopped = second_visit_done(
-                    bst, plen / BODY_LENGTH_M, crossings, l1_u, second_ratio, min_cross, rel_se, batches, max_ratio
-                )
-            if stopped:
-                done += s + 1
-                break
+        if auto and (s & 63) == 63 and _rule_stops(st, lay, plen, crossings, done + s + 1, blind, sp, bst, l1_u):
+            stopped = True
+            done += s + 1
+            break
     else:
         done += steps
     st[X], st[Y], st[TH] = x, y, th

@@ -25,7 +25,7 @@ NESTED = True  # --json belongs to each step
 def add_parser(p):
     import argparse
 
-    from stcvision.cli._args import pair, positive
+    from stcvision.cli._args import pair
 
     p.formatter_class = argparse.RawDescriptionHelpFormatter  # the examples one per line, as written
     sub = p.add_subparsers(dest="step", metavar="STEP", parser_class=type(p))
@@ -77,6 +77,16 @@ def add_parser(p):
     n.add_argument("--preview", metavar="PNG", help="preview image (default: PROFILE.neighbors.png)")
     n.add_argument("--yes", action="store_true", help="accept without asking")
     n.add_argument("--force", action="store_true", help="overwrite an existing --out or preview")
+    i, e = _add_lens_file_parsers(sub)
+    for q in (d, r, t, n, i, e):
+        q.add_argument("--json", action="store_true", help="print the result as one JSON object")
+
+
+def _add_lens_file_parsers(sub):
+    """The ``import`` and ``export`` steps: profiles from and to other tools' calibration files."""
+    from sim_camera.board import DEFAULT_SUBCELL_M
+    from stcvision.cli._args import pair, positive
+
     i = sub.add_parser(
         "import",
         help="make a profile from an OCamCalib, Kalibr or OpenCV omnidir calibration",
@@ -136,7 +146,10 @@ def add_parser(p):
         "rim and find the 12 corners; the file's intrinsics are kept",
     )
     i.add_argument(
-        "--subcell-m", type=positive(float), default=0.16, help="sub-cell side D of the board (default 0.16)"
+        "--subcell-m",
+        type=positive(float),
+        default=DEFAULT_SUBCELL_M,
+        help=f"sub-cell side D of the board (default {DEFAULT_SUBCELL_M})",
     )
     i.add_argument("--force", action="store_true", help="overwrite --out")
     e = sub.add_parser(
@@ -155,8 +168,7 @@ def add_parser(p):
         help="worst elevation error accepted inside the rim (default 0.05)",
     )
     e.add_argument("--force", action="store_true", help="overwrite --out")
-    for q in (d, r, t, n, i, e):
-        q.add_argument("--json", action="store_true", help="print the result as one JSON object")
+    return i, e
 
 
 def _confirm(preview: str, yes: bool) -> None:
