@@ -17,17 +17,7 @@ import subprocess
 import sys
 import time
 
-
-def session(sid: int) -> list[int]:
-    out = []
-    for d in os.listdir("/proc"):
-        if d.isdigit():
-            try:
-                if os.getsid(int(d)) == sid:
-                    out.append(int(d))
-            except OSError:
-                pass
-    return out
+from stcvision.sweep._worker import session_processes as session
 
 
 def main() -> int:

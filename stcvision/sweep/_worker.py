@@ -66,3 +66,20 @@ def init_worker(parent_pid: int, env: dict[str, str]) -> None:
     os.environ.update(env)
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     die_with_parent(parent_pid)
+
+
+def session_processes(sid: int) -> set[int]:
+    """The live processes of the session ``sid`` (a command started with ``start_new_session``
+    and the pool workers it started), read from /proc: how a test or a measurement sees that no
+    worker outlived its parent. Empty where there is no /proc."""
+    out = set()
+    if not os.path.isdir("/proc"):
+        return out
+    for d in os.listdir("/proc"):
+        if d.isdigit():
+            try:
+                if os.getsid(int(d)) == sid:
+                    out.add(int(d))
+            except OSError:  # the process ended while being listed
+                pass
+    return out

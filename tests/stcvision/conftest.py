@@ -22,23 +22,9 @@ def smoke(tmp_path_factory):
     return d
 
 
-def _session_pids(sid: int) -> set[int]:
-    """Processes of the session ``sid`` (a command started with start_new_session, and the pool
-    workers it started), read from /proc."""
-    import os
-
-    out = set()
-    for d in os.listdir("/proc"):
-        if d.isdigit():
-            try:
-                if os.getsid(int(d)) == sid:
-                    out.add(int(d))
-            except OSError:
-                pass
-    return out
-
-
 @pytest.fixture
 def session_pids():
     """``session_pids(sid)``: the live processes of a session (to check none outlived a kill)."""
-    return _session_pids
+    from stcvision.sweep._worker import session_processes
+
+    return session_processes
