@@ -70,7 +70,7 @@ def run(args):
             "counts": m["counts"],
             "groups": {g["name"]: g["n"] for g in m["groups"]},
         }
-    from stcvision.cli.dataset_generate import generate
+    from calibration.dataset_render import generate
     from stcvision.datasets import load_recipe
     from stcvision.sweep import sweep_options_from_args
 
