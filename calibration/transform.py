@@ -32,6 +32,7 @@ from calibration.frames import geometry_frame
 from calibration.rim import RimFit, detect_rim
 from stcvision.errors import BadInputError
 from stcvision.profile import CORNER_ORDER, Profile, nominal_corners_px
+from stcvision.stcgrid import DEFAULT_SUBCELL_M
 
 __all__ = ["TransformReport", "calibrate_neighbors", "calibrate_transform", "draw_preview", "grid_corners_m"]
 
@@ -235,7 +236,7 @@ def _coarse_transform(base: Profile, dist: np.ndarray, samples: np.ndarray) -> P
 def calibrate_transform(
     frame: np.ndarray,
     *,
-    subcell_m: float = 0.16,
+    subcell_m: float = DEFAULT_SUBCELL_M,
     center_px: tuple[float, float] | None = None,
     viewpoint_height_m: float = DEFAULT_VIEWPOINT_M,
     base: Profile | None = None,
@@ -444,7 +445,7 @@ def _mount_rim(frame: np.ndarray, profile: Profile, subcell_m: float):
 
 
 def calibrate_mount(
-    frame: np.ndarray, profile: Profile, *, subcell_m: float = 0.16, forward_hint_rad: float | None = None
+    frame: np.ndarray, profile: Profile, *, subcell_m: float = DEFAULT_SUBCELL_M, forward_hint_rad: float | None = None
 ) -> tuple[Profile, TransformReport]:
     """Fit only what a lens model cannot know -- forward angle, mirror flip, viewpoint height --
     to a lights-on frame of the grid (the robot at the calibration pose), keeping the profile's

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from sim_camera.board import Board
+from sim_camera.board import DEFAULT_SUBCELL_M, Board
 from sim_camera.camera import Pose
 from sim_camera.phosphor import PhosphorLayer, mark_dots_m
 from sim_camera.truth import BOXES, NEIGHBOURS, SUBCELL_SIGNS, entry_frame
@@ -60,7 +60,7 @@ def cell_scene(
     age_range_s: tuple[float, float] = (0.0, 60.0),
     fresh_age_s: tuple[float, float] = (1.0, 5.0),
     charge_s: float = 3.0,
-    subcell_m: float = 0.16,
+    subcell_m: float = DEFAULT_SUBCELL_M,
 ) -> CellScene:
     """A random STC entry situation (see the module docstring)."""
     board = Board.random(cells, obstacle_fraction=obstacle_fraction, rng=rng, subcell_m=subcell_m)

@@ -21,7 +21,7 @@ import numpy as np
 
 from stcvision import kernels
 from stcvision.profile import CORNER_ORDER, ROBOT_IN_CELL
-from stcvision.stcgrid import BOXES, DIRECTIONS, NEIGHBOURS, START_MARKS, SUBCELLS, VISITED_BY
+from stcvision.stcgrid import BOXES, DEFAULT_SUBCELL_M, DIRECTIONS, NEIGHBOURS, START_MARKS, SUBCELLS, VISITED_BY
 
 __all__ = [
     "BOXES",
@@ -119,7 +119,7 @@ class CellGeometry:
 
 
 #: the sub-cell side (m) the light errors are converted with when the caller gives none
-_SUBCELL_M = 0.16
+_SUBCELL_M = DEFAULT_SUBCELL_M
 
 
 def light_sigma_m(d_m) -> tuple[np.ndarray, np.ndarray]:

@@ -34,6 +34,12 @@ import math
 
 import numpy as np
 
+#: Default sub-cell side D (m): the footprint of the default STC robot, a small Lego Mindstorms
+#: robot about 16 cm across (ant-like STC paper: "the robot divides the floor virtually into
+#: sub-cells of its size"; the footprint itself is this project's choice). The board, the
+#: calibration profile and the calibration fits all default to it.
+DEFAULT_SUBCELL_M = 0.16
+
 __all__ = [
     "BOXES",
     "BOX_EDGES",
