@@ -16,6 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import least_squares
 
+from stcvision.angles import wrap_angle
 from stcvision.errors import BadInputError
 from stcvision.profile import Profile
 
@@ -108,7 +109,7 @@ def fit_profile(
         for mirrored in (True, False):
             s = 1.0 if mirrored else -1.0
             fwd = np.angle(np.mean(np.exp(1j * (a - s * psi_t))))
-            spread = np.abs(np.angle(np.exp(1j * (a - s * psi_t - fwd)))).mean()
+            spread = np.abs(wrap_angle(a - s * psi_t - fwd)).mean()
             if best is None or spread < best[0]:
                 best = (spread, mirrored, fwd)
         _, mirrored, fwd0 = best
@@ -179,7 +180,7 @@ def fit_profile(
         th = np.polynomial.polynomial.polyval(r, poly)
         az = np.arctan2(dd[:, 1], dd[:, 0])
         psi = sign * (az - fwd)
-        dpsi = np.angle(np.exp(1j * (psi - psi_t)))
+        dpsi = wrap_angle(psi - psi_t)
         # azimuth error matters in proportion to how far the point is seen off the nadir
         res = [th - theta_t, dpsi * np.cos(theta_t)]
         if lines is not None:
@@ -202,7 +203,7 @@ def fit_profile(
         image_size_px=(int(w), int(h)),
         center_px=(float(c[0]), float(c[1])),
         rim_radius_px=float(rim_radius_px),
-        forward_angle_rad=float(np.angle(np.exp(1j * fwd))),
+        forward_angle_rad=wrap_angle(float(fwd)),
         mirrored=bool(mirrored),
         ellipse_ratio=float(k),
         ellipse_angle_rad=float(ang),

@@ -44,6 +44,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from stcvision.angles import wrap_angle
 from stcvision.errors import BadInputError
 
 __all__ = ["FAULTS", "FaultSpec", "Faults", "fault_stream", "fault_table", "parse_fault"]
@@ -211,7 +212,7 @@ class Faults:
                 dx, dy = plant.x - x0, plant.y - y0
                 c, s = math.cos(theta / 2), math.sin(theta / 2)
                 plant.x, plant.y = x0 + c * dx - s * dy, y0 + s * dx + c * dy
-                plant.hdg = (plant.hdg + theta + math.pi) % (2 * math.pi) - math.pi
+                plant.hdg = wrap_angle(plant.hdg + theta)
                 self.events["slip"] += 1
             if "bump" in f and rngs["bump"].random() < BUMP_PER_MOVE:
                 a = rngs["bump"].uniform(0, 2 * math.pi)

@@ -23,8 +23,9 @@ import math
 
 import numpy as np
 
-from controllers.stc.geometry import COMPASS_VEC, cell_of, compass_to_rad, start_heading, wrap_rad
+from controllers.stc.geometry import COMPASS_VEC, cell_of, compass_to_rad, start_heading
 from controllers.stc.oracle import MarkFloor
+from stcvision.angles import wrap_angle
 from stcvision.stcgrid import entry_axes
 
 __all__ = ["Floor", "Plant"]
@@ -101,7 +102,7 @@ class Plant:
 
     def heading_error(self) -> float:
         """True heading less the compass heading the robot believes it has (rad)."""
-        return wrap_rad(self.hdg - compass_to_rad(self.hc))
+        return wrap_angle(self.hdg - compass_to_rad(self.hc))
 
     def true_offset(self) -> np.ndarray:
         ideal = self.board.subcell_center_m(*self.sub)
@@ -115,13 +116,13 @@ class Plant:
         """A small correction turn at the robot's estimated rate (the true rate applies)."""
         est_rate = (math.pi / 2) / self.turn_s
         dur = abs(angle_rad) / est_rate
-        self.hdg = wrap_rad(self.hdg + math.copysign(1.0, angle_rad) * self.true_rate(self.t) * dur)
+        self.hdg = wrap_angle(self.hdg + math.copysign(1.0, angle_rad) * self.true_rate(self.t) * dur)
         self.t += dur
 
     def turn(self, left: bool) -> None:
         """A 90-degree timed turn (``turn_s`` at the true rate)."""
         sign = 1.0 if left else -1.0
-        self.hdg = wrap_rad(self.hdg + sign * self.true_rate(self.t) * self.turn_s)
+        self.hdg = wrap_angle(self.hdg + sign * self.true_rate(self.t) * self.turn_s)
         self.t += self.turn_s
         self.hc = (self.hc + (3 if left else 1)) % 4
         self.turns += 1
