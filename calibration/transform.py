@@ -27,7 +27,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from calibration.fit import DEFAULT_VIEWPOINT_M, fit_profile
+from calibration.fit import DEFAULT_VIEWPOINT_M, FitSetup, fit_profile
 from calibration.frames import geometry_frame
 from calibration.rim import RimFit, detect_rim
 from stcvision.errors import BadInputError
@@ -289,17 +289,8 @@ def calibrate_transform(
         if len(l_uv) < 100:
             raise BadInputError(f"only {len(l_uv)} points on the grid lines found; expected hundreds")
         degree = 3 if it == 0 else 6
-        prof, _ = fit_profile(
-            empty,
-            empty,
-            image_size_px=(w, h),
-            rim_radius_px=rim.radius_px,
-            viewpoint_height_m=H,
-            base=prof,
-            init=prof,
-            degree=degree,
-            lines=(l_uv, laxis[keep], loff[keep]),
-        )
+        setup = FitSetup(image_size_px=(w, h), rim_radius_px=rim.radius_px, viewpoint_height_m=H, degree=degree)
+        prof, _ = fit_profile(empty, empty, setup, base=prof, init=prof, lines=(l_uv, laxis[keep], loff[keep]))
     ferr = 1000 * np.abs(_line_residuals_m(prof, l_uv, laxis[keep], loff[keep]))
     report = TransformReport(
         rim, math.degrees(prof.forward_angle_rad), int(len(l_uv)), float(np.median(ferr)), float(ferr.max())
