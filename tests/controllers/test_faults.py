@@ -11,11 +11,11 @@ import numpy as np
 import pytest
 
 from controllers.stc.experiments import random_board
+from controllers.stc.fault_sweep import outcome
 from controllers.stc.faults import FAULTS, Faults, FaultyCamera, fault_stream, parse_fault
 from controllers.stc.health import FRAME_RETRIES, RobotStop, frame_fault
 from controllers.stc.loop import CoverConfig, run_cover, streams
 from stcvision.cli import main
-from controllers.stc.fault_sweep import outcome
 from stcvision.errors import BadInputError
 
 #: the abort reasons a fault may end a run with: each says what the robot found
