@@ -167,7 +167,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         parser.exit(EXIT_BAD_INPUT, f"stcvision {args.command}: error: {flag} is an empty string; expected a name\n")
     mod = args._module
     name = args.command
-    from stcvision.warm import announce_compiles
+    from stcvision.compiles import announce_compiles
 
     announce_compiles()  # a first run that compiles says so, once, on stderr
     previous = _install_signal_handlers()
