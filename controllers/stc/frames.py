@@ -416,8 +416,10 @@ class RobotCamera(Exposures):
 
     frame_noise = True
 
-    def __init__(self, board, cfg: CoverConfig, rng: np.random.Generator):
+    def __init__(self, board, cfg: CoverConfig, rng: np.random.Generator, *, camera_wrap=None):
         super().__init__(cfg, board.subcell_m)
+        if camera_wrap is not None:  # the camera's faults (its visibility horizons stay the healthy camera's)
+            self.cam = camera_wrap(self.cam)
         self.board = board
         self.lights = board.red_lights_m()
         self.rng = rng

@@ -66,15 +66,16 @@ def run_cover(board, cfg: CoverConfig | None = None, *, observers=(), perception
     """Cover ``board`` from its start sub-cell; returns the summary the CLI prints.
     ``observers``: :class:`controllers.stc.observers.Observer` s (None entries are skipped);
     ``perception_hook(perception)`` is handed the run's perception (e.g. to read its frames).
-    ``cfg.faults``: hardware faults wrapped around the parts (:mod:`controllers.stc.faults`)."""
+    ``cfg.faults``: hardware faults built into the parts (:mod:`controllers.stc.faults`)."""
     wall0 = time.perf_counter()
     cfg = cfg if cfg is not None else CoverConfig()
     rngs = streams(cfg.seed)
-    plant = Plant(board, cfg.robot, rngs["motion"])
-    floor = Floor(board)
-    see = make_perception(cfg, board, camera_rng=rngs["camera"], oracle_rng=rngs["oracle"])
     faults = Faults(cfg.faults, cfg.seed, cfg.perception)  # each fault draws from its own stream
-    faults.install(plant, floor, see)
+    plant = Plant(board, cfg.robot, rngs["motion"], rate_factor=faults.rate_factor(),
+                  disturbances=faults.disturbances())  # fmt: skip
+    floor = Floor(board, lay_filter=faults.lay_filter())
+    see = make_perception(cfg, board, camera_rng=rngs["camera"], oracle_rng=rngs["oracle"],
+                          camera_wrap=faults.camera_wrap(board))  # fmt: skip
     if perception_hook is not None:
         perception_hook(see)
     watch = Observers([*observers, *([Trace()] if cfg.trace else [])])

@@ -174,10 +174,10 @@ class CameraPerception(_TakesFrames):
 
     refereed = True
 
-    def __init__(self, cfg: CoverConfig, board, rng: np.random.Generator):
+    def __init__(self, cfg: CoverConfig, board, rng: np.random.Generator, *, camera_wrap=None):
         self.cfg = cfg
         self.board = board
-        self.cam = RobotCamera(board, cfg, rng)
+        self.cam = RobotCamera(board, cfg, rng, camera_wrap=camera_wrap)
         self.last_frame = None
         self.reobserved = 0
 
@@ -346,12 +346,13 @@ def entry_offset_to_world(off_ru, hc: int, subcell_m: float) -> np.ndarray:
 
 
 def make_perception(
-    cfg: CoverConfig, board, *, camera_rng: np.random.Generator, oracle_rng: np.random.Generator
+    cfg: CoverConfig, board, *, camera_rng: np.random.Generator, oracle_rng: np.random.Generator, camera_wrap=None
 ) -> Perception:
     """The perception ``cfg.perception`` names: the camera draws its noise from ``camera_rng``,
-    the oracle and the physics-limited camera their read-out noise from ``oracle_rng``."""
+    the oracle and the physics-limited camera their read-out noise from ``oracle_rng``;
+    ``camera_wrap`` (the camera's faults) puts the rendering camera inside another."""
     if cfg.perception == "camera":
-        return CameraPerception(cfg, board, camera_rng)
+        return CameraPerception(cfg, board, camera_rng, camera_wrap=camera_wrap)
     if cfg.perception == "ideal":
         return IdealPerception(cfg, board, oracle_rng)
     if cfg.perception == "oracle":

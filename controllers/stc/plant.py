@@ -34,8 +34,11 @@ __all__ = ["Floor", "Plant"]
 class Floor:
     """The marks on the board: the phosphor dots (what a camera sees) and their record."""
 
-    def __init__(self, board):
+    def __init__(self, board, *, lay_filter=None):
         from sim_camera.phosphor import PhosphorLayer
+
+        #: which of a mark's dots are laid (``xy -> xy``): all, unless an LED is dead (a fault)
+        self.lay_filter = lay_filter
 
         self.phosphor = PhosphorLayer()
         self.record = MarkFloor(board.shape_subcells)
@@ -46,6 +49,8 @@ class Floor:
         self.dot_mark = np.zeros(0, int)
 
     def lay(self, xy_m, sub: tuple[int, int], edge: int, t_s: float, duration_s: float) -> None:
+        if self.lay_filter is not None:
+            xy_m = self.lay_filter(xy_m)
         self.phosphor.charge(xy_m, t_start_s=t_s, duration_s=duration_s)
         self.dot_mark = np.concatenate([self.dot_mark, np.full(len(np.reshape(xy_m, (-1, 2))), len(self.laid))])
         self.record.mark(sub, edge)
@@ -67,8 +72,12 @@ class Plant:
     move's distance error. ``offset_est`` is the robot's own belief of where it stands off its
     sub-cell centre (world, m): the perception sets it, the next forward move takes it out."""
 
-    def __init__(self, board, robot, rng: np.random.Generator):
+    def __init__(self, board, robot, rng: np.random.Generator, *, rate_factor=None, disturbances=()):
         self.board = board
+        #: the turn rate's factor over time (a drifting motor, :mod:`controllers.stc.faults`), else 1
+        self.rate_factor = rate_factor
+        #: what may befall the robot after a forward move (``after_move(plant, start_xy)``): faults
+        self.disturbances = tuple(disturbances)
         self.robot = robot
         self.rng = rng
         self.sub = tuple(board.start_subcell)
@@ -98,7 +107,8 @@ class Plant:
         return self.x, self.y, self.hdg
 
     def true_rate(self, t_s: float) -> float:
-        return self.nominal_rate * self.rate_gain * max(0.5, 1.0 - self.robot.fade_per_h * t_s / 3600.0)
+        rate = self.nominal_rate * self.rate_gain * max(0.5, 1.0 - self.robot.fade_per_h * t_s / 3600.0)
+        return rate if self.rate_factor is None else rate * self.rate_factor(t_s)
 
     def heading_error(self) -> float:
         """True heading less the compass heading the robot believes it has (rad)."""
@@ -175,6 +185,7 @@ class Plant:
         beta_true = math.copysign(self.true_rate(self.t) * abs(beta) / est_rate, beta)
         self.last_move_error_m = self.rng.normal(0, self.robot.drive_sigma_m)
         dist = math.hypot(along, lateral) + self.last_move_error_m
+        start = (self.x, self.y)
         self.x += dist * math.cos(self.hdg + beta_true)
         self.y += dist * math.sin(self.hdg + beta_true)
         self.t += 2 * abs(beta) / est_rate + dist / self.robot.drive_speed_m_s
@@ -182,6 +193,11 @@ class Plant:
         self.sub = nxt
         self.visits[nxt] += 1
         self.moves += 1
+        why = self.check_lost(D)
+        if why is not None or not self.disturbances:
+            return why
+        for d in self.disturbances:
+            d.after_move(self, start)
         return self.check_lost(D)
 
     def check_lost(self, subcell_m: float) -> str | None:
