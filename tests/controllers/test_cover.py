@@ -297,7 +297,7 @@ class _MoveErrors(Observer):
     def __init__(self):
         self.by_move = {}
 
-    def on_step(self, plant, state, action):
+    def on_step(self, plant, belief, state, action):
         if plant.moves:
             self.by_move[plant.moves] = plant.last_move_error_m
 

@@ -6,6 +6,7 @@ import json
 
 import pytest
 
+from controllers.stc.belief import Belief
 from controllers.stc.config import CoverConfig
 from controllers.stc.loop import run_cover
 from sim_camera.board import Board
@@ -50,7 +51,7 @@ class _Plant:
     def __init__(self):
         self.turned = 0.0
 
-    def rotate_by(self, a):
+    def rotate_by(self, a, turn_s):
         self.turned += a
 
 
@@ -83,7 +84,8 @@ def test_a_small_lean_of_all_rows_trims_the_heading_without_reobserving():
         (1.5, 1.5, True),
     ):
         plant = _Plant()
-        ret = see._correct_lean(_long(0.0, math.radians(lean_deg)), plant)
+        belief = Belief((0, 0), 0, 1.5)
+        ret = see._correct_lean(_long(0.0, math.radians(lean_deg)), plant, belief)
         assert math.degrees(plant.turned) == pytest.approx(turned_deg, abs=1e-9), lean_deg
         assert (abs(ret) > REOBSERVE_RAD) is reobserve, lean_deg
     assert math.radians(0.1) < LEAN_TRIM_RAD < math.radians(0.3) < REOBSERVE_RAD
