@@ -88,6 +88,7 @@ class Plant:
         self.visits[self.sub] += 1
         self.moves = self.turns = 0
         self.recentred = 0  # moves back to the sub-cell centre before a mark (:meth:`recentre`)
+        self.aligned = 0  # moves along the heading to the centre before a row (:meth:`align_along`)
         self.last_move_error_m = 0.0  # the distance error of the last forward move (drawn)
         self.max_pos_err = 0.0
 
@@ -148,6 +149,18 @@ class Plant:
         self.t += 2 * self.turn_s + d / self.robot.drive_speed_m_s
         self.offset_est = np.zeros(2)
         self.recentred += 1
+
+    def align_along(self) -> None:
+        """Drive along the heading to the sub-cell centre as the robot believes it (the along-
+        heading part of ``-offset_est``, no turn), so that the row it lays next lies on its line;
+        the lateral part stays for :meth:`forward` to take out."""
+        ux, uy = entry_axes(self.hc)[1]
+        along = float(self.offset_est @ (ux, uy))
+        self.x -= along * math.cos(self.hdg)
+        self.y -= along * math.sin(self.hdg)
+        self.t += abs(along) / self.robot.drive_speed_m_s
+        self.offset_est = self.offset_est - along * np.array([ux, uy])
+        self.aligned += 1
 
     def lay_mark(self, floor: Floor) -> None:
         """Rear LEDs on for ``led_on_s``: a row of dots inside the sub-cell, on its rear edge."""
