@@ -18,8 +18,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from controllers.stc.geometry import COMPASS_VEC, start_heading
+from stcvision.stcgrid import entry_axes
 
-__all__ = ["Belief", "drive_forward", "finish_turn", "recentre", "turn"]
+__all__ = ["Belief", "align_along", "drive_forward", "finish_turn", "recentre", "turn"]
 
 
 @dataclass(slots=True)
@@ -67,6 +68,16 @@ def recentre(plant, belief: Belief) -> None:
     """Drive back to the sub-cell centre as the robot believes it; it then believes it is there."""
     plant.recentre(belief.offset_m, belief.turn_s)
     belief.offset_m = np.zeros(2)
+
+
+def align_along(plant, belief: Belief) -> None:
+    """Drive along the heading to the sub-cell centre as the robot believes it (the along-heading
+    part of the believed offset, no turn), so that the row it lays next lies on its line; the
+    lateral part stays for the forward move to take out."""
+    ux, uy = entry_axes(belief.hc)[1]
+    along = float(belief.offset_m @ (ux, uy))
+    plant.drive_along(-along)
+    belief.offset_m = belief.offset_m - along * np.array([ux, uy])
 
 
 def drive_forward(plant, belief: Belief) -> str | None:

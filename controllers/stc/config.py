@@ -9,7 +9,14 @@ from sim_camera.hardware import WEBCAM, CameraProfile
 from sim_camera.robot import LEGO_STC_ROBOT, MarkingRobot
 from stcvision.stages import DotParams
 
-__all__ = ["LANDMARK_OFFSET_SIGMA", "LANDMARK_TURN_SIGMA_RAD", "RECENTRE_M", "REOBSERVE_RAD", "CoverConfig"]
+__all__ = [
+    "ALIGN_MARK_M",
+    "LANDMARK_OFFSET_SIGMA",
+    "LANDMARK_TURN_SIGMA_RAD",
+    "RECENTRE_M",
+    "REOBSERVE_RAD",
+    "CoverConfig",
+]
 
 #: the frames' sizing SNR (``CoverConfig.sizing_snr``): one sigma above the dot threshold
 _SIZING_SNR = DotParams().k_sigma + 1.0
@@ -96,3 +103,9 @@ REOBSERVE_RAD = math.radians(1.0)
 #: (the boxes are read from where it should stand): healthy runs stay within 1.3 cm (6x6 board,
 #: seed 0); a mark 2.5 cm off lies half-way to the next box
 RECENTRE_M = 0.025
+#: a robot that measures itself this far (m) ahead of or behind its sub-cell centre, along its
+#: heading, drives to the centre along its heading before it lays a row: the row lies across the
+#: heading, so that offset is the row's own distance off its box line (a row laid 1-2 cm off
+#: by a robot 1-2 cm behind its centre was read in the neighbouring box region); 0.8 cm is the
+#: row search's half band (ROW_TOL, 1 cm) less the marks' read-out (~2 mm)
+ALIGN_MARK_M = 0.008

@@ -23,22 +23,24 @@ motion, and the camera, physics-limited and oracle runs of one seed drive the sa
 
 from __future__ import annotations
 
+import dataclasses
 import time
 
 import numpy as np
 
-from controllers.stc.belief import Belief, drive_forward, finish_turn, recentre, turn
+from controllers.stc.belief import Belief, align_along, drive_forward, finish_turn, recentre, turn
 from controllers.stc.claims import OutOfSight
-from controllers.stc.config import RECENTRE_M, CoverConfig
+from controllers.stc.config import ALIGN_MARK_M, RECENTRE_M, CoverConfig
 from controllers.stc.faults import Faults
 from controllers.stc.fsm import Action, LookObs, StcObservation, StcPhase, decide, initial_state, step
 from controllers.stc.geometry import COMPASS_VEC
-from controllers.stc.health import RobotStop, done_away_from_start
+from controllers.stc.health import RobotStop, done_away_from_start, landing_at_start
 from controllers.stc.observers import Observers, Reading, Trace
 from controllers.stc.oracle import coverage
 from controllers.stc.perception import make_perception
 from controllers.stc.plant import Floor, Plant
 from controllers.stc.referee import Referee
+from stcvision.stcgrid import entry_axes
 
 __all__ = ["CoverConfig", "is_complete", "run_cover", "streams"]
 
@@ -117,6 +119,7 @@ def _loop(run: _Run, cfg, plant, belief, floor, see, watch, referee) -> None:
         except OutOfSight as e:  # what the reading must rule out, no frame of its camera can
             run.abort = f"{e} (at sub-cell {belief.sub}, decision {run.decisions + (state.phase is StcPhase.DECIDE)})"
             return
+        obs = _landing_by_count(obs, plant.board, belief, run.moved)
         if isinstance(obs, StcObservation):
             run.decisions += 1
             if obs.misread:  # no STC tour shows this reading, not even with a longer frame
@@ -154,6 +157,17 @@ def _loop(run: _Run, cfg, plant, belief, floor, see, watch, referee) -> None:
     run.abort = f"gave up after {cfg.max_decisions} decisions"
 
 
+def _landing_by_count(obs, board, belief: Belief, moved: tuple[int, int]):
+    """A decision's ``landing_marked`` (does a return close the tour?) from the robot's count of
+    its moves (:func:`controllers.stc.health.landing_at_start`), not from a mark read 0.2-0.4 m
+    away: a row laid askew or a neighbour's row read there closed a tour away from its start.
+    The count is sure, so no look before a return is needed for it."""
+    if not isinstance(obs, StcObservation):
+        return obs
+    land = landing_at_start(tuple(board.start_subcell), moved, belief.hc)
+    return dataclasses.replace(obs, landing_marked=land, landing_known=(True,) * 4)
+
+
 def _read(state, plant: Plant, belief: Belief, floor: Floor, see) -> StcObservation | LookObs | None:
     """What the controller reads in ``state``: a decision's observation, a look's, or nothing."""
     if state.phase is StcPhase.DECIDE and not state.closing:
@@ -173,6 +187,10 @@ def _act(action: Action, plant: Plant, belief: Belief, floor: Floor, see, watch)
         # wrong place, where the boxes read it wrongly: back to the centre first
         if np.hypot(*belief.offset_m) > RECENTRE_M:
             recentre(plant, belief)
+        elif abs(belief.offset_m @ entry_axes(belief.hc)[1]) > ALIGN_MARK_M:
+            # a row lies across the heading: standing behind (or ahead of) the centre lays it
+            # off its box line by as much, so the robot drives along its heading to it first
+            align_along(plant, belief)
         plant.lay_mark(floor, belief.sub, belief.hc)
         return drive_forward(plant, belief)
     elif action in (Action.TURN_LEFT, Action.TURN_RIGHT):
@@ -210,6 +228,7 @@ def _summary(board, cfg, plant, belief, see, referee, *, decisions, looks, finis
         "max_mark_age_read_s": referee.max_age_read,
         "max_position_error_m": plant.max_pos_err,
         "recentred": plant.recentred,
+        "aligned": plant.aligned,
         "turn_time_s_final": belief.turn_s,
         "turn_rate_error_pct": 100 * (plant.rate_gain - 1),
         "frames": see.frames,

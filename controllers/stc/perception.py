@@ -192,7 +192,10 @@ class CameraPerception(_TakesFrames):
         return obs
 
     def look(self, plant, belief, floor, *, landing=False):
-        marked, res = self._read(plant, belief, partial(self.cam.look, phosphor=floor.phosphor, landing=landing))
+        # a look stands beside the exit, where the rows in view were laid at many other times
+        # (each where the robot then stood): only the red lights say where it stands there
+        look = partial(self.cam.look, phosphor=floor.phosphor, landing=landing)
+        marked, res = self._read(plant, belief, look, lights_only=True)
         self.last_frame = (res, self.cam.pipe)
         return marked
 
@@ -226,7 +229,7 @@ class CameraPerception(_TakesFrames):
         return self._heading(res, rows)
 
     # ------------------------------------------------------------------ localisation
-    def _read(self, plant, belief, take):
+    def _read(self, plant, belief, take, *, lights_only: bool = False):
         """A decision's or a look's frames: ``take(pose, t) -> (reading, short frame's result,
         long frame's result or None, seconds)``. The short frame says where the robot stands
         and, with the red lights, how far its heading has drifted; a drift over
@@ -241,7 +244,7 @@ class CameraPerception(_TakesFrames):
             reading, short, long, dt = take(plant.pose, plant.t)
             plant.wait(self.cfg.robot.settle_s + dt)
             self._check_lights(short, belief)
-            belief.offset_m = self._where(short.observation, belief)
+            belief.offset_m = self._where(short.observation, belief, lights_only=lights_only)
             turned = self._correct_heading(short, plant, belief)
             if turned == 0.0:
                 turned = self._check_heading(short, plant, belief)
@@ -271,14 +274,14 @@ class CameraPerception(_TakesFrames):
         # box 2 by 1.4 mm); only a large one means the frames were read askew
         return -e if abs(e) > REOBSERVE_RAD else 0.0
 
-    def _where(self, observation, belief) -> np.ndarray:
+    def _where(self, observation, belief, *, lights_only: bool = False) -> np.ndarray:
         """The robot's offset from its sub-cell centre (world, m): from the red lights in view
         when there are any (they stand at cell centres: an absolute reference), else from its
-        own marks; the belief so far when neither is believable."""
+        own marks (``lights_only``: not from them); the belief so far when neither is believable."""
         off = observation.landmark_offset if self.cfg.use_landmarks else None
         if off is not None and observation.landmark_offset_sigma > LANDMARK_OFFSET_SIGMA:
             off = None  # too unsure: the marks say it better
-        if off is None:
+        if off is None and not lights_only:
             off = observation.position_offset
         if off is None or max(abs(off[0]), abs(off[1])) > 0.3:  # 5 cm: not believable
             return belief.offset_m

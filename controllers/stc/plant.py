@@ -100,6 +100,7 @@ class Plant:
         self.visits[start] += 1
         self.moves = self.turns = 0
         self.recentred = 0  # moves back to the sub-cell centre before a mark (:meth:`recentre`)
+        self.aligned = 0  # moves along the heading to the centre before a row (belief.align_along)
         self.last_move_error_m = 0.0  # the distance error of the last forward move (drawn)
         self.max_pos_err = 0.0
 
@@ -147,6 +148,13 @@ class Plant:
         self.y -= float(offset_m[1])
         self.t += 2 * turn_s + d / self.robot.drive_speed_m_s
         self.recentred += 1
+
+    def drive_along(self, dist_m: float) -> None:
+        """Drive ``dist_m`` straight along the true heading, no turn (backwards when negative)."""
+        self.x += dist_m * math.cos(self.hdg)
+        self.y += dist_m * math.sin(self.hdg)
+        self.t += abs(dist_m) / self.robot.drive_speed_m_s
+        self.aligned += 1
 
     def lay_mark(self, floor: Floor, sub: tuple[int, int], hc: int) -> None:
         """Rear LEDs on for ``led_on_s``: a row of dots inside sub-cell ``sub``, on its rear edge
