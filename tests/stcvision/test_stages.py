@@ -165,10 +165,10 @@ def test_unwarp_rejects_a_frame_of_the_wrong_size(default_profile):
 
 
 def test_tls_line_is_the_svd_fit():
-    """The heading fit's closed-form line (kernels.tls_line) against numpy's SVD of the centred
+    """The heading fit's closed-form line (stcvision.stages.heading.tls_line) against numpy's SVD of the centred
     points: the direction (modulo pi: a line has no sign) and the RMS spreads along and across
     it, on rows of every orientation, noisy and exact (the residual of a thin row is not lost)."""
-    from stcvision import kernels
+    from stcvision.stages.heading import tls_line
 
     rng = np.random.default_rng(8)
     for k in range(400):
@@ -178,7 +178,7 @@ def test_tls_line_is_the_svd_fit():
         noise = 0.0 if k % 3 == 0 else 10 ** rng.uniform(-7, -3)
         pts = np.column_stack([0.3 + t * np.cos(ang), 0.1 + t * np.sin(ang)]) + rng.normal(0, noise, (n, 2))
         _, sv, vt = np.linalg.svd(pts - pts.mean(0))
-        got, span, resid = kernels.tls_line(pts)
+        got, span, resid = tls_line(pts)
         d = (np.arctan2(vt[0, 1], vt[0, 0]) - got + np.pi / 2) % np.pi - np.pi / 2
         assert abs(d) < 1e-9 or sv[0] < 1e-12
         assert span == pytest.approx(sv[0] / np.sqrt(n), rel=1e-12, abs=1e-15)
@@ -186,7 +186,7 @@ def test_tls_line_is_the_svd_fit():
 
 
 def test_red_blobs_are_opencvs_moments():
-    """find_red's compiled blob pass (kernels.blobs) against cv2.moments, cv2.boundingRect and
+    """find_red's compiled blob pass (stcvision.stages.red.blobs) against cv2.moments, cv2.boundingRect and
     numpy per contour, as find_red computed them before: random discs and lone pixels (thin
     blobs: zero area, the points' mean), bit for bit."""
 
