@@ -72,7 +72,12 @@ def back(st, ob, pipe, f: dict, times: dict | None = None):
         quantum=f["q"],
     )
     dots = st.mirror_centroids(
-        dots, f["g"], background_dn=f["bg"], umap=pipe.front.umap_crop, ground_to_robot=prof.ground_to_robot, params=p.dots
+        dots,
+        f["g"],
+        background_dn=f["bg"],
+        umap=pipe.front.umap_crop,
+        ground_to_robot=prof.ground_to_robot,
+        params=p.dots,
     )
     t.append(clock())
     all_dots = st.find_rows(

@@ -244,7 +244,16 @@ class Pipeline:
 
     @property
     def dark(self) -> np.ndarray | None:
+        """The dark frame every ``process`` call subtracts (None: none); setting it is
+        :meth:`set_dark`, or with None forgets it."""
         return self.front.dark.frame
+
+    @dark.setter
+    def dark(self, dark: np.ndarray | None) -> None:
+        if dark is None:
+            self.front = self.front.with_dark(None)
+        else:
+            self.set_dark(dark)
 
     @property
     def pedestal(self) -> int:

@@ -52,7 +52,7 @@ class DotParams:
     Caps (never silent: a frame over either is returned with ``Dots.untrusted`` saying why):
     ``max_candidates`` local maxima above the candidate level -- a frame of marks holds a few
     hundred (a 1.15 m ground view holds ~200 sub-cells of 4 dots), so tens of thousands mean the
-    noise estimate does not describe the frame (issue 16.5: a cooled sensor quantised to 8 bits
+    noise estimate does not describe the frame (a cooled sensor's frame quantised to 8 bits
     gave 61,145); only the strongest ``max_candidates`` are examined. ``max_dots`` accepted dots.
     """
 
@@ -186,7 +186,7 @@ def find_dots(
     # below does the suppression between peaks. Not a dilation over the whole black-out square:
     # that also dropped a dot whose brighter neighbour's flank reaches into the square -- the
     # end dots of two marks meeting at a corner, 1.5 cm (3.9 px) apart along each axis, whose
-    # peaks the black-out keeps (issue 18: 4 of 9 missed SNR >= 8 dots on ages frames, at SNR 12-20)
+    # peaks the black-out keeps (a dilation missed 4 of 9 SNR >= 8 dots on ages frames, at SNR 12-20)
     e = w // 2 + 1  # a window cut by the image border sees reflected pixels: no dot there
     mode, a, c = _candidate_level(sums.dtype, gain, params, area, background_dn, noise_dn, low)
     g = gain if (gain is not None and params.threshold_dn is None) else np.full((1, 1), 1.0 / w)
@@ -450,8 +450,8 @@ def mirror_centroids(
     The window sums and the unwarp each blur a dot (a 3x3 box in the mirror image, then bilinear
     interpolation onto ground pixels that are coarser than the mirror's near the robot), and a
     centroid over a few ground pixels of that is pulled toward its integer peak: median image
-    error 0.20 px on ages frames, where a SimpleBlobDetector on the raw image reaches 0.135
-    (issue 18). Here each dot's centroid is taken where its photons are: an iterated
+    error 0.20 px on ages frames, where a SimpleBlobDetector on the raw image reaches 0.135.
+    Here each dot's centroid is taken where its photons are: an iterated
     Gaussian-weighted centroid (the weight follows the estimate, which keeps the noise of the
     square's corners out) of the background-subtracted pixels around the dot's mirror position
     (the unwarp map ``umap`` at the dot), taken back to the ground view through the map's local

@@ -223,8 +223,14 @@ def window_sums(image, window_px: int, *, scratch: Scratch = new_arrays) -> np.n
     ``window_px**2`` pixels, wherever the dot lies (the unwarp would otherwise skip pixels near
     the robot, where the ground view is coarser than the mirror image).
     """
-    if isinstance(image, tuple | list):
+    if isinstance(image, tuple):
+        if len(image) != 2:
+            raise BadInputError(f"window_sums takes an image or a (green, red) pair, got a {len(image)}-tuple")
         g, r = image
+        for c, name in ((g, "green"), (r, "red")):
+            check_image(c, f"{name} image", (np.uint8, np.uint16), ndims=(2,))
+        if g.shape != r.shape or g.dtype != r.dtype:
+            raise BadInputError(f"green and red images differ: {g.shape} {g.dtype} and {r.shape} {r.dtype}")
         if window_px == 3 and g.dtype == np.uint8 and g.flags.c_contiguous and r.flags.c_contiguous:
             sums = scratch("sums", (*g.shape, 2), np.uint16)
             h, w = g.shape
@@ -425,7 +431,7 @@ class ChannelParams:
     #: ... and only where its red above the background is at least this fraction of its green
     #: (a dot's red is ~8 % of its green, a red LED's green ~6 % of its red, both ~1 where both
     #: saturate): on long webcam frames the tolerance (2 x the dark frame's spread, ~37 DN at
-    #: 30 s) took dots 20-40 DN above the background for red and blacked them out (issue 16.7)
+    #: 30 s) took dots 20-40 DN above the background for red and blacked them out (measured)
     red_min_fraction: float = 0.5
 
     def levels(self, background_dn: float, noise_dn: float) -> tuple[float, float]:

@@ -70,7 +70,7 @@ def test_channel_filter_separates_red_lights_from_green_dots():
 
 
 def test_a_dot_is_never_taken_for_red_under_a_wide_dominance_tolerance():
-    """A 30 s webcam frame (issue 16.7, measured): pedestal 107 DN, the dark frame's spread ~18
+    """A 30 s webcam frame (measured): pedestal 107 DN, the dark frame's spread ~18
     DN, so the dominance tolerance is ~37 DN; a dot 30 DN above the pedestal, its red crosstalk
     6 DN above it (over the leak level), was blacked out as a red light's halo. Its red is a
     fifth of its green: it stays in the marks; a red halo (red 40, green 3 DN up) and a pixel
@@ -159,9 +159,16 @@ def test_recalibration_follows_the_seed_and_is_bounded():
 
 
 def test_unwarp_rejects_a_frame_of_the_wrong_size(default_profile):
+    """A frame of another size is refused; one of the profile's size gives the ground view, its
+    pixels where the mirror sees the floor from the frame and zero beyond."""
     umap = UnwarpMap.from_profile(default_profile)
     with pytest.raises(BadInputError, match="640x480"):
         unwarp(np.zeros((100, 100, 3), np.uint8), umap)
+    w, h = default_profile.image_size_px
+    n = default_profile.ground_size_px
+    ground = unwarp(np.full((h, w, 3), 77, np.uint8), umap)
+    assert ground.shape == (n, n, 3) and ground.dtype == np.uint8
+    assert (ground[umap.valid] == 77).all() and (ground[~umap.valid] == 0).all()
 
 
 def test_tls_line_is_the_svd_fit():
