@@ -178,3 +178,48 @@ def test_map_at_is_remap_of_the_map(default_profile):
         axis=-1,
     ).reshape(len(pts), len(_JAC_STEPS), 2)
     assert np.array_equal(map_at(um.map_x, um.map_y, pts, _JAC_STEPS, -10.0), ref)
+
+
+def test_scratch_lends_the_same_array_per_purpose_shape_and_dtype():
+    from stcvision.stages import Scratch
+
+    s = Scratch()
+    a = s("sums", (4, 5, 2), np.uint16)
+    assert s("sums", (4, 5, 2), np.uint16) is a
+    assert s("sums", (4, 6, 2), np.uint16) is not a and s("sums", (4, 5, 2), np.float32) is not a
+    assert s("black", (4, 5, 2), np.uint16) is not a
+
+
+def test_front_end_is_built_once_and_takes_each_dark_frame_apart(default_profile):
+    """A dark frame changes only the front end's dark part: the unwarp tables and the sample
+    stay the ones built from the profile; forgetting the dark frame forgets its pedestal too."""
+    rng = np.random.default_rng(8)
+    w, h = default_profile.image_size_px
+    dark = rng.integers(0, 14, (h, w, 3)).astype(np.uint8)
+    pipe = Pipeline(default_profile)
+    built = pipe.front
+    assert pipe.dark is None and pipe.pedestal == 0
+    pipe.set_dark(dark)
+    assert pipe.front.tables is built.tables and pipe.front.sample3 is built.sample3
+    assert pipe.dark is dark and pipe.pedestal >= PipelineParams().pedestal_steps
+    x0, y0, x1, y1 = pipe.crop
+    assert pipe.front.dark.green.shape == pipe.front.dark.red.shape == (y1 - y0, x1 - x0)
+    pipe.dark = None
+    assert pipe.dark is None and pipe.pedestal == 0 and pipe.front.tables is built.tables
+
+
+@pytest.mark.parametrize(
+    "pair",
+    [
+        (np.zeros((4, 4), np.uint8),),
+        (np.zeros((4, 4), np.uint8), np.zeros((4, 5), np.uint8)),
+        (np.zeros((4, 4), np.uint8), np.zeros((4, 4), np.uint16)),
+        (np.zeros((4, 4, 3), np.uint8), np.zeros((4, 4, 3), np.uint8)),
+        (np.zeros((4, 4), np.uint8), None),
+    ],
+)
+def test_window_sums_refuse_a_malformed_pair(pair):
+    from stcvision.errors import BadInputError
+
+    with pytest.raises(BadInputError):
+        window_sums(pair, 3)
