@@ -34,7 +34,13 @@ def load_other(root: Path):
         spec = importlib.util.spec_from_file_location(f"other_{name}", root / "stcvision" / f"{name}.py")
         m = importlib.util.module_from_spec(spec)
         sys.modules[f"other_{name}"] = m
-        spec.loader.exec_module(m)
+        # its ``from stcvision import kernels`` finds the other checkout's kernels (this one has
+        # none: its loops live with their stages)
+        sys.modules["stcvision.kernels"] = mods.get("kernels", m)
+        try:
+            spec.loader.exec_module(m)
+        finally:
+            del sys.modules["stcvision.kernels"]
         if name != "kernels":
             m.kernels = mods["kernels"]
         mods[name] = m
