@@ -1,4 +1,4 @@
-"""Issue 16.7: a reading's absences are only worth what its frames could have seen. The claim
+"""A reading's absences are only worth what its frames could have seen. The claim
 distances come from the STC geometry; frames are added until each claim is covered, or the
 robot stops before deciding."""
 
