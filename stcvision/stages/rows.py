@@ -146,11 +146,11 @@ def _row_snr(
 @numba.njit(cache=True, error_model="numpy")
 def row_snr(marks, gain, area, background, noise, clip, out):
     """Per-pixel SNR of window sums, clipped (:func:`_row_snr`), in one pass:
-    ``min(fma(marks, 1 / area, -background) * (1 / noise) / gain, clip)`` in float32 (``_fma32``
-    below, with the front end's kernels), the
-    arithmetic of ``cv2.addWeighted(..., dtype=CV_32F)``, ``cv2.divide(..., scale)`` and
-    ``cv2.min`` it replaced (to the bit; numpy's error model: no zero-division check per pixel,
-    which would keep the loop from being vectorised). Into ``out`` ((h, w) float32), returned."""
+    ``min(fma(marks, 1 / area, -background) * (1 / noise) / gain, clip)`` in float32
+    (:func:`stcvision.stages.compiled._fma32`), the arithmetic of ``cv2.addWeighted(...,
+    dtype=CV_32F)``, ``cv2.divide(..., scale)`` and ``cv2.min`` it replaced (to the bit; numpy's
+    error model: no zero-division check per pixel, which would keep the loop from being
+    vectorised). Into ``out`` ((h, w) float32), returned."""
     h, w = marks.shape
     a = np.float32(1.0 / area)
     g = np.float32(-background)
