@@ -110,7 +110,7 @@ def _loop(run: _Run, cfg, plant, floor, see, watch, referee) -> None:
     state = initial_state()
     while run.decisions < cfg.max_decisions:
         try:
-            obs = _read(state, plant, floor, see)
+            obs = _read(state, plant, floor, see, run.moved)
         except OutOfSight as e:  # what the reading must rule out, no frame of its camera can
             run.abort = f"{e} (at sub-cell {plant.sub}, decision {run.decisions + (state.phase is StcPhase.DECIDE)})"
             return
@@ -161,10 +161,12 @@ def _landing_by_count(obs, plant: Plant, moved: tuple[int, int]):
     return dataclasses.replace(obs, landing_marked=land, landing_known=(True,) * 4)
 
 
-def _read(state, plant: Plant, floor: Floor, see) -> StcObservation | LookObs | None:
-    """What the controller reads in ``state``: a decision's observation, a look's, or nothing."""
+def _read(state, plant: Plant, floor: Floor, see, moved: tuple[int, int]) -> StcObservation | LookObs | None:
+    """What the controller reads in ``state``: a decision's observation, a look's, or nothing.
+    ``moved``: the robot's count of its moves, which says whether it is in its start cell."""
     if state.phase is StcPhase.DECIDE and not state.closing:
-        return see.observe(plant, floor, fresh=state.fresh, at_start=state.at_start)
+        start_cell = done_away_from_start(tuple(plant.board.start_subcell), moved) is None
+        return see.observe(plant, floor, fresh=state.fresh, at_start=state.at_start, start_cell=start_cell)
     if state.phase is StcPhase.LOOK:
         return LookObs(see.look(plant, floor, landing=not state.child))
     return None

@@ -375,3 +375,41 @@ def test_a_box_one_frame_alone_shows_is_settled_by_two_longer_frames_agreeing():
             assert obs.misread == "" and tuple(b for b in range(1, 6) if obs.boxes[b - 1]) == settled
         else:
             assert obs.misread.startswith("misread: boxes {"), obs
+
+
+# ---------------------------------------------------------------------------------------------
+# a start mark read where the count of moves says the robot is not in its start cell
+
+
+def test_a_start_mark_away_from_the_start_is_read_again_and_settled_or_stopped_on():
+    """spiral_stc_test_2 lowlight seed 209 (held out) stopped "start mark read away from the
+    start": the short and the 4 s frame, read at an offset 1 cm off, put a row on a start-mark
+    line; the 4 s frame read against the cell's own rows did not, but the merge kept the mark.
+    Now the robot, whose count of its moves puts it outside its start cell, reads the cell with
+    a longer frame: two at that rung agreeing on no start mark settle it; a longer frame still
+    showing the mark, or two that disagree, stop it before it decides. In its start cell the
+    start mark is read as it is."""
+    from controllers.stc.frames import Exposures
+    from controllers.stc.fsm import NeighbourObs, StcObservation
+
+    nb = (NeighbourObs(False, False),) * 4
+
+    def reading(start, *lit):
+        return StcObservation(boxes=tuple(b in lit for b in range(1, 6)), neighbours=nb, start_mark=start)
+
+    seen, cam = reading(3, 2, 4), Exposures(CoverConfig())
+    for longer, settled in (([reading(None, 2, 4)] * 2, True), ([reading(3, 2, 4)], False),
+                            ([reading(None, 2, 4), reading(None, 4)], False)):  # fmt: skip
+        frames = iter(longer)
+        reads: list[int] = []
+
+        def read(k, t, frames=frames, reads=reads):
+            reads.append(k)
+            return next(frames), 1.0
+
+        obs, _ = cam._check_start_away(0.0, read, seen, 0.0, [(0, 0.0), (2, 0.0)])
+        assert len(reads) == len(longer) and set(reads) == {3}, longer
+        if settled:
+            assert obs.misread == "" and obs.start_mark is None and obs.boxes == reading(None, 2, 4).boxes
+        else:
+            assert obs.misread.startswith("misread: a start mark in sub-cell 3 where the robot's count"), obs
