@@ -254,11 +254,13 @@ class Exposures:
             return reading, dt, [(0, t_s)]
         return read_until_sure(self, t_s, read, merge, claims, strict=self.cfg.stop_out_of_sight)
 
-    def decision(self, t_s: float, read, fresh: bool, at_start: bool):
+    def decision(self, t_s: float, read, fresh: bool, at_start: bool, start_cell: bool = True):
         """(StcObservation, seconds): a decision's frames (:meth:`sure`), and per direction
         whether its landing reading is sure (``StcObservation.landing_known``): a mark was seen,
         or a frame taken could have seen one as old as the clock was then. Without exposure
-        control the seed's robot takes what it sees for sure."""
+        control the seed's robot takes what it sees for sure. ``start_cell``: the robot's count of
+        its moves puts it in its start cell (elsewhere a start mark read is not its own:
+        :meth:`_check_start_away`)."""
         from controllers.stc.claims import landing_claim
 
         obs, dt, taken = self.sure(t_s, read, _merge, self.decision_claims(fresh, at_start))
@@ -267,6 +269,10 @@ class Exposures:
             obs = _check_fresh(obs)
         if not self.controlled or obs.misread:
             return obs, dt
+        if obs.start_mark is not None and not start_cell:
+            obs, dt = self._check_start_away(t_s, read, obs, dt, taken)
+            if obs.misread:
+                return obs, dt
         if self.cfg.check_returns and not (fresh or at_start):
             obs, dt = self._check_return(t_s, read, obs, dt, taken)
         kw = dict(subcell_m=self.subcell_m, margin_m=self.cfg.position_margin_m)
@@ -327,15 +333,48 @@ class Exposures:
         why = return_misread(merged)
         if why is None:
             return merged, dt
-        if return_misread(more) is None and not more.other_marks:
-            again, dk = read(k, t_s + dt)
-            taken.append((k, t_s + dt))
-            dt += dk
-            if again.boxes == more.boxes and not again.other_marks:
-                self.agreed += 1
-                return dataclasses.replace(merged, boxes=more.boxes), dt
+        if return_misread(more) is None:
+            settled, dt = self._agree(t_s, read, merged, more, dt, taken, k)
+            if settled is not None:
+                return settled, dt
             why += f"; two {self.frame_label(k)} frames disagree"
         return dataclasses.replace(merged, misread=f"{why}, also with a {self.frame_label(k)} frame"), dt
+
+    def _agree(self, t_s: float, read, merged, more, dt: float, taken: list, k: int):
+        """A second frame at rung ``k``: when it reads the boxes and start mark that frame's
+        ``more`` read, with every row of the cell on its lines, the reading takes them from
+        ``more`` instead of the merge (which keeps any one frame's mark). Returns (the settled
+        reading or None, seconds)."""
+        if more.other_marks:
+            return None, dt
+        again, dk = read(k, t_s + dt)
+        taken.append((k, t_s + dt))
+        dt += dk
+        if again.boxes != more.boxes or again.start_mark != more.start_mark or again.other_marks:
+            return None, dt
+        self.agreed += 1
+        return dataclasses.replace(merged, boxes=more.boxes, start_mark=more.start_mark), dt
+
+    def _check_start_away(self, t_s: float, read, obs, dt: float, taken: list):
+        """A start mark read where the robot's count of its moves says it is not in its start
+        cell is a row read at a start-mark line that is not its own (spiral_stc_test_2 lowlight
+        seed 209: the short and the 4 s frame, read at the pipeline's offset 1 cm off the truth,
+        put a row on sub-cell 3's start-mark line; the 4 s frame read again against the cell's
+        own rows did not, but the merge kept the start mark), and the boxes read with it are
+        suspect too. It is read once more with a frame
+        one rung longer than any taken: when that frame and a second at its rung agree on a
+        reading without the start mark, the robot decides on it; otherwise it says why
+        (``StcObservation.misread``) and stops before deciding. Returns (reading, seconds)."""
+        merged, dt, k, more = self._longer(t_s, read, obs, dt, taken)
+        if more.start_mark is None:
+            settled, dt = self._agree(t_s, read, merged, more, dt, taken, k)
+            if settled is not None:
+                return settled, dt
+        why = (
+            f"misread: a start mark in sub-cell {obs.start_mark} where the robot's count of its moves puts it "
+            f"outside its start cell, also with a {self.frame_label(k)} frame"
+        )
+        return dataclasses.replace(merged, misread=why), dt
 
     def frame_label(self, k: int) -> str:
         """Rung ``k`` in words: "2 s", "4 x 30 s"."""
@@ -402,7 +441,7 @@ class IdealCamera(Exposures):
         return self.floor_seen(xy, t_s, phosphor, marks, [k], dot_mark), self.frame_s(k)
 
     def observe(self, xy, t_s, phosphor, marks, sub, hc, *, fresh: bool = False, at_start: bool = False,
-                dot_mark=None):  # fmt: skip
+                dot_mark=None, start_cell: bool = True):  # fmt: skip
         """(StcObservation, seconds spent): the frames :meth:`RobotCamera.observe` takes."""
 
         def read(k, t):
@@ -411,7 +450,7 @@ class IdealCamera(Exposures):
             # the oracle counts as at no box, included): no rows on no line
             return dataclasses.replace(observe_oracle(seen, self.board, sub, hc, camera_view=True), other_marks=0), dt
 
-        return self.decision(t_s, read, fresh, at_start)
+        return self.decision(t_s, read, fresh, at_start, start_cell)
 
     def look(self, xy, t_s, phosphor, marks, sub, hc, *, landing: bool = False, dot_mark=None):
         """(marked, seconds spent): the frames :meth:`RobotCamera.look` takes; ``landing``: the
@@ -531,7 +570,7 @@ class RobotCamera(Exposures):
         )
         return {"heading_error_rad": _fit(short), "position_offset": o.landmark_offset if sure else None}
 
-    def observe(self, pose, t_s, phosphor, *, fresh: bool = False, at_start: bool = False):
+    def observe(self, pose, t_s, phosphor, *, fresh: bool = False, at_start: bool = False, start_cell: bool = True):
         """One observation: (StcObservation, the short frame's result, the last long frame's
         result or None, seconds spent): the short frame, and with exposure control the long
         frames its claims ask for (:meth:`sure`), what any of them sees of the marks merged. The
@@ -545,7 +584,7 @@ class RobotCamera(Exposures):
             res.append(r)
             return dataclasses.replace(_to_stc_obs(r.observation), other_marks=off_line), dt
 
-        obs, dt = self.decision(t_s, read, fresh, at_start)
+        obs, dt = self.decision(t_s, read, fresh, at_start, start_cell)
         return obs, res[0], (res[-1] if len(res) > 1 else None), dt
 
     def _on_cell_lines(self, res):

@@ -115,7 +115,7 @@ def _loop(run: _Run, cfg, plant, belief, floor, see, watch, referee) -> None:
     state = initial_state()
     while run.decisions < cfg.max_decisions:
         try:
-            obs = _read(state, plant, belief, floor, see)
+            obs = _read(state, plant, belief, floor, see, run.moved)
         except OutOfSight as e:  # what the reading must rule out, no frame of its camera can
             run.abort = f"{e} (at sub-cell {belief.sub}, decision {run.decisions + (state.phase is StcPhase.DECIDE)})"
             return
@@ -168,10 +168,14 @@ def _landing_by_count(obs, board, belief: Belief, moved: tuple[int, int]):
     return dataclasses.replace(obs, landing_marked=land, landing_known=(True,) * 4)
 
 
-def _read(state, plant: Plant, belief: Belief, floor: Floor, see) -> StcObservation | LookObs | None:
-    """What the controller reads in ``state``: a decision's observation, a look's, or nothing."""
+def _read(
+    state, plant: Plant, belief: Belief, floor: Floor, see, moved: tuple[int, int]
+) -> StcObservation | LookObs | None:
+    """What the controller reads in ``state``: a decision's observation, a look's, or nothing.
+    ``moved``: the robot's count of its moves, which says whether it is in its start cell."""
     if state.phase is StcPhase.DECIDE and not state.closing:
-        return see.observe(plant, belief, floor, fresh=state.fresh, at_start=state.at_start)
+        start_cell = done_away_from_start(tuple(plant.board.start_subcell), moved) is None
+        return see.observe(plant, belief, floor, fresh=state.fresh, at_start=state.at_start, start_cell=start_cell)
     if state.phase is StcPhase.LOOK:
         return LookObs(see.look(plant, belief, floor, landing=not state.child))
     return None

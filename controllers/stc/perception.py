@@ -68,8 +68,11 @@ class Perception(Protocol):
     #: decisions and looks observed again because their frames were read askew (camera only)
     reobserved: int
 
-    def observe(self, plant: Plant, belief: Belief, floor: Floor, *, fresh: bool, at_start: bool) -> StcObservation:
-        """The decision's reading; may raise :class:`controllers.stc.claims.OutOfSight`."""
+    def observe(
+        self, plant: Plant, belief: Belief, floor: Floor, *, fresh: bool, at_start: bool, start_cell: bool
+    ) -> StcObservation:
+        """The decision's reading; may raise :class:`controllers.stc.claims.OutOfSight`.
+        ``start_cell``: the robot's count of its moves puts it in its start cell."""
 
     def look(self, plant: Plant, belief: Belief, floor: Floor, *, landing: bool) -> bool:
         """The look ahead (``landing``: at the sub-cell ahead, before a return to the parent);
@@ -98,7 +101,7 @@ class OraclePerception:
         """The truth with the pipeline's measured heading noise."""
         return plant.heading_error(belief.hc) + self.rng.normal(0, self.cfg.heading_sigma_oracle_rad)
 
-    def observe(self, plant, belief, floor, *, fresh, at_start=False):
+    def observe(self, plant, belief, floor, *, fresh, at_start=False, start_cell=True):
         plant.wait(self.cfg.robot.settle_s)
         obs = observe_oracle(floor.record, self.board, belief.sub, belief.hc, camera_view=True)
         belief.offset_m = self._offset(plant, belief)
@@ -137,10 +140,10 @@ class IdealPerception(_TakesFrames, OraclePerception):
         super().__init__(cfg, board, rng)
         self.cam = IdealCamera(cfg, board)
 
-    def observe(self, plant, belief, floor, *, fresh, at_start=False):
+    def observe(self, plant, belief, floor, *, fresh, at_start=False, start_cell=True):
         obs, dt = self.cam.observe(
             (plant.x, plant.y), plant.t, floor.phosphor, floor.laid, belief.sub, belief.hc, fresh=fresh,
-            at_start=at_start, dot_mark=floor.dot_mark,
+            at_start=at_start, dot_mark=floor.dot_mark, start_cell=start_cell,
         )  # fmt: skip
         plant.wait(self.cfg.robot.settle_s + dt)
         belief.offset_m = self._offset(plant, belief)
@@ -185,8 +188,8 @@ class CameraPerception(_TakesFrames):
         self.reobserved = 0
 
     # ------------------------------------------------------------------ the loop's three readings
-    def observe(self, plant, belief, floor, *, fresh, at_start=False):
-        take = partial(self.cam.observe, phosphor=floor.phosphor, fresh=fresh, at_start=at_start)
+    def observe(self, plant, belief, floor, *, fresh, at_start=False, start_cell=True):
+        take = partial(self.cam.observe, phosphor=floor.phosphor, fresh=fresh, at_start=at_start, start_cell=start_cell)
         obs, res = self._read(plant, belief, take)
         self.last_frame = (res, self.cam.pipe)
         return obs

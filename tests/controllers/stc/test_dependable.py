@@ -347,6 +347,25 @@ def test_the_landing_by_the_count_of_moves_is_the_floors_truth(cells, fraction, 
 # a box one short frame alone shows
 
 
+def _reading(start, *lit):
+    """A decision's reading with boxes ``lit`` lit and the start mark in sub-cell ``start``."""
+    from controllers.stc.fsm import NeighbourObs, StcObservation
+
+    nb = (NeighbourObs(False, False),) * 4
+    return StcObservation(boxes=tuple(b in lit for b in range(1, 6)), neighbours=nb, start_mark=start)
+
+
+def _frames(longer):
+    """A ``read(k, t)`` that returns the readings ``longer`` in turn, and the rungs it was asked for."""
+    frames, reads = iter(longer), []
+
+    def read(k, t):
+        reads.append(k)
+        return next(frames), 1.0
+
+    return read, reads
+
+
 def test_a_box_one_frame_alone_shows_is_settled_by_two_longer_frames_agreeing():
     """Random boards 8-22 cooled, seed 128, decision 702: the 1/30 s frame read box 2 lit beside
     boxes 3 and 4 ({2,3,4}: no re-entry shows it), the longer frames read {3,4}, and the merge
@@ -355,26 +374,59 @@ def test_a_box_one_frame_alone_shows_is_settled_by_two_longer_frames_agreeing():
     same boxes; two that disagree, or a longer frame's reading no tour shows, still stop the
     robot before it decides."""
     from controllers.stc.frames import Exposures
-    from controllers.stc.fsm import NeighbourObs, StcObservation
 
-    nb = (NeighbourObs(False, False),) * 4
-
-    def boxes(*lit):
-        return StcObservation(boxes=tuple(b in lit for b in range(1, 6)), neighbours=nb, start_mark=None)
-
-    short, cam = boxes(2, 3, 4), Exposures(CoverConfig())
-    for longer, settled in (([boxes(3, 4), boxes(3, 4)], (3, 4)), ([boxes(3, 4), boxes(4)], None),
-                            ([boxes(2, 3, 4)], None), ([boxes(3)], None)):  # fmt: skip
-        frames = iter(longer)
-        reads: list[int] = []
-
-        def read(k, t, frames=frames, reads=reads):
-            reads.append(k)
-            return next(frames), 1.0
-
+    short, cam = _reading(None, 2, 3, 4), Exposures(CoverConfig())
+    for longer, settled in (([_reading(None, 3, 4)] * 2, (3, 4)), ([_reading(None, 3, 4), _reading(None, 4)], None),
+                            ([_reading(None, 2, 3, 4)], None), ([_reading(None, 3)], None)):  # fmt: skip
+        read, reads = _frames(longer)
         obs, _ = cam._check_return(0.0, read, short, 0.0, [(0, 0.0), (1, 0.0)])
         assert len(reads) == len(longer) and set(reads) == {2}, longer
         if settled:
             assert obs.misread == "" and tuple(b for b in range(1, 6) if obs.boxes[b - 1]) == settled
         else:
             assert obs.misread.startswith("misread: boxes {"), obs
+
+
+# ---------------------------------------------------------------------------------------------
+# a start mark read where the count of moves says the robot is not in its start cell
+
+
+def test_a_start_mark_away_from_the_start_is_read_again_and_settled_or_stopped_on():
+    """spiral_stc_test_2 lowlight seed 209 (held out) stopped "start mark read away from the
+    start": the short and the 4 s frame, read at an offset 1 cm off, put a row on a start-mark
+    line; the 4 s frame read against the cell's own rows did not, but the merge kept the mark.
+    Now the robot, whose count of its moves puts it outside its start cell, reads the cell with
+    a longer frame: two at that rung agreeing on no start mark settle it; a longer frame still
+    showing the mark, or two that disagree, stop it before it decides."""
+    from controllers.stc.frames import Exposures
+
+    seen, cam = _reading(3, 2, 4), Exposures(CoverConfig())
+    for longer, settled in (([_reading(None, 2, 4)] * 2, True), ([_reading(3, 2, 4)], False),
+                            ([_reading(None, 2, 4), _reading(None, 4)], False)):  # fmt: skip
+        read, reads = _frames(longer)
+        obs, _ = cam._check_start_away(0.0, read, seen, 0.0, [(0, 0.0), (2, 0.0)])
+        assert len(reads) == len(longer) and set(reads) == {3}, longer
+        if settled:
+            assert obs.misread == "" and obs.start_mark is None and obs.boxes == _reading(None, 2, 4).boxes
+        else:
+            assert obs.misread.startswith("misread: a start mark in sub-cell 3 where the robot's count"), obs
+
+
+def test_dots_with_no_line_within_reach_are_left_out_of_the_cell_fit():
+    """Dots half-way between two lines of their half (0.5 sub-cell from each, beyond NEAR_LINE
+    at the pipeline's offset) cannot be a row of the cell displaced by the robot's offset (the
+    fit reaches 0.3): they are left out, so decision 317's fit stands (the truth within 1.6 mm)
+    and they count as no row on no line; a row within reach of a line still counts."""
+    import numpy as np
+
+    from controllers.stc.cellfit import NEAR_LINE, fit_cell_offset
+
+    ru = np.array(_DECISION_317)
+    clean = fit_cell_offset(ru, np.ones(len(ru), bool), _PIPELINE_OFFSET_317)
+    for u, counted in ((0.375, False), (0.33, False), (0.75, True)):  # u 0.75: 0.125 below the 0.875 line
+        stray = [(-0.2, u), (-0.39, u), (-0.58, u), (-0.77, u)]  # a row along 'right', left half
+        p = np.vstack([ru, stray])
+        fit = fit_cell_offset(p, np.ones(len(p), bool), _PIPELINE_OFFSET_317)
+        assert fit.offset == clean.offset, u
+        assert (fit.on_line + fit.off_line > clean.on_line + clean.off_line) is counted, (u, fit)
+    assert NEAR_LINE == pytest.approx(0.375)
