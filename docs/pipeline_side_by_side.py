@@ -7,7 +7,7 @@ machine slows both alike and the ratios hold.
     python docs/pipeline_side_by_side.py --other /path/to/other/checkout [--frames 400]
 
 Prints the median ms per stage of each, the front end's sum (dark, window, unwarp, channels)
-and the CPU ms per frame of each (thread time). Used for issue 18's front end.
+and the CPU ms per frame of each (thread time). Used for the compiled front end (docs: Results, pipeline speed).
 """
 
 from __future__ import annotations
