@@ -52,8 +52,8 @@ SMALLER: list[tuple[str, str, str]] = [
         "Buffon reproduce: 1 trial per nest, no online-rule sets, in-process",
     ),
     ("--trials 100", "--trials 2", "Buffon: 2 trials per nest instead of the paper's 100"),
-    ("--seeds 8", "--seeds 1 --max-steps 20 --workers 1", "TASTI 2 reproduce: one seed, patterns cut at 20 steps"),
-    ("--board 8x8", "--board 4x4", "STC: a 4x4 board instead of 8x8"),
+    ("--seeds 8", "--seeds 1 --max-steps 5 --workers 1", "TASTI 2 reproduce: one seed, patterns cut at 5 steps"),
+    ("--board 8x8", "--board 2x2", "STC: a 2x2-cell board instead of 8x8"),
     ("--sizes 4,6 --runs 3", "--sizes 2 --runs 1 --workers 1", "STC sweep: one 2x2 board per camera, in-process"),
 ]
 
