@@ -1,4 +1,4 @@
-"""Time this checkout's camera render beside another checkout's, in one process.
+"""Time this checkout's camera render beside another checkout's, in one process (for the camera's speed-ups).
 
     python docs/render_side_by_side.py --reference /path/to/other/checkout [--frames 40] [--repeats 5] [--clock thread]
 

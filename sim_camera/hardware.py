@@ -134,13 +134,16 @@ COOLED = CameraProfile(
         adc_bits=16,
     ),
     sources=(
-        ("camera", "Srour & Abboud: 'try using a better camera'; a cooled astronomy sensor's figures"),
-        ("quantum_efficiency", "0.85 at 520 nm: a cooled sensor's figure (IMX571 peak QE ~0.9)"),
-        ("read_noise_e", "1.2 e-: a cooled sensor's figure (ZWO ASI2600MM Pro: 1.0-3.5 e- across gains, recalled)"),
-        ("dark_current_e_s", "0.01 e-/s: a cooled sensor's figure (at about -10 C)"),
+        (
+            "camera",
+            "Srour & Abboud: 'try using a better camera'; a cooled astronomy camera (ZWO ASI2600MM Pro class)",
+        ),
+        ("quantum_efficiency", "0.85 at 520 nm: a cooled back-illuminated sensor (Sony IMX571 peak QE ~0.9)"),
+        ("read_noise_e", "1.2 e-: ZWO ASI2600MM Pro (1.0-3.5 e- across gains), recalled"),
+        ("dark_current_e_s", "0.01 e-/s: a cooled sensor at about -10 C (ZWO ASI2600MM Pro class), recalled"),
         ("pixel_pitch_m", "3.76 um: Sony IMX571 (ZWO ASI2600MM Pro specifications)"),
         ("full_well_e", "50,000 e-: ZWO ASI2600MM Pro specifications (50 ke-), recalled"),
-        ("f_number", "f/1.2: a fast lens for a cooled astronomy camera (assumed)"),
+        ("f_number", "f/1.2: a fast C-mount lens (f/0.95-1.4 are sold), chosen for the faint marks"),
         ("adc_bits", "16: ZWO ASI2600MM Pro specifications (16-bit ADC), recalled"),
     ),
 )

@@ -10,13 +10,15 @@ The names a user reaches for first are importable from the package itself::
     from stcvision import Pipeline, Profile, read_image, run_cover, CoverConfig, Board
 
 They are loaded lazily, on first use (:pep:`562`), so ``import stcvision`` stays light: it
-imports neither OpenCV, numba nor the simulator until one of these names is asked for.
+imports neither OpenCV, numba nor the simulator until one of these names is asked for. This
+facade is the one place of the package that names the other packages (the robots' runs, the
+board, the shipped profile), and only as strings in :data:`_LAZY`: the pipeline's own modules
+never import the simulator, the robots or the calibration workflow (docs/architecture.md).
 """
 
 from __future__ import annotations
 
 import importlib
-from typing import TYPE_CHECKING
 
 from stcvision.errors import BadInputError, StcVisionError
 
@@ -85,25 +87,6 @@ __all__ = [
     "SearchScene",
     "SearchConfig",
 ]
-
-if TYPE_CHECKING:  # for type checkers and editors; at run time __getattr__ loads them
-    from calibration.profiles import default_profile
-    from controllers.buffon.run import measure as measure_nest
-    from controllers.search.controller import SearchConfig
-    from controllers.search.run import SearchScene, run_search
-    from controllers.stc.config import CoverConfig
-    from controllers.stc.loop import run_cover
-    from sim_camera.board import Board
-    from stcvision import stages
-    from stcvision.datasets import Dataset, load_recipe, open_dataset
-    from stcvision.evaluate import evaluate_dataset
-    from stcvision.fileio import read_image, write_image
-    from stcvision.observation import CellObservation
-    from stcvision.pipeline import Pipeline, PipelineParams, PipelineResult
-    from stcvision.profile import Profile
-    from stcvision.scoring import score_frame
-    from stcvision.sweep import SweepOptions, Task, run_sweep
-
 
 def __getattr__(name: str):
     """Import a public name's module on first use and keep the name here."""

@@ -452,7 +452,7 @@ def log_worst(ev: Evaluation, ds, rrd_path, *, default_profile, profile=None, n:
     """Re-run the pipeline on the ``n`` worst frames and log every stage to a rerun file."""
     from stcvision.fileio import read_image
     from stcvision.pipeline import Pipeline
-    from stcvision.rr import PipelineLogger, observation_markdown
+    from stcvision.rr import PipelineLogger, Recordings, observation_markdown
 
     worst = [r for r in sorted(ev.records, key=lambda r: (-r.badness, r.index)) if r.badness > 0][:n]
     if not worst:
@@ -460,13 +460,13 @@ def log_worst(ev: Evaluation, ds, rrd_path, *, default_profile, profile=None, n:
     frames = LabelledFrames(ds, default_profile=default_profile, profile=profile)
     logger = None
     logged = []
-    try:
+    with Recordings() as recs:
         for j, r in enumerate(worst):
             lab = ds.labels[r.index]
             pipe = frames.built("pipeline", lab, lambda prof, dark: Pipeline(prof, dark=dark))
             res = pipe.process(read_image(ds.root / lab["frame"], what="frame"))
             if logger is None:
-                logger = PipelineLogger.to_file(rrd_path, pipe)
+                logger = recs.add(PipelineLogger.to_file(rrd_path, pipe))
             else:
                 logger.pipeline = pipe
             errs = "\n".join(f"- {e}" for e in r.score.errors) or "- none"
@@ -478,12 +478,6 @@ def log_worst(ev: Evaluation, ds, rrd_path, *, default_profile, profile=None, n:
             )
             logger.log(res, frame=j, text=text)
             logged.append(lab["frame"])
-    except BaseException:
-        if logger is not None:
-            logger.abort()
-        raise
-    if logger is not None:
-        logger.close()
     return logged
 
 
@@ -605,9 +599,11 @@ def evaluate_image_folder(paths, *, profile, dark, dark_path=None, out, rrd=None
 
     out = Path(out)
     check_output_file(out, overwrite=True, what="results file")
+    from stcvision.rr import Recordings
+
     logger = None
     lines, ms, skipped, fits, ndots, untrusted = [], [], [], 0, [], []
-    try:
+    with Recordings() as recs:
         for i, (p, res, reason, pipe) in enumerate(
             evaluate_images(paths, profile=profile, dark=dark, dark_path=dark_path)
         ):
@@ -618,7 +614,7 @@ def evaluate_image_folder(paths, *, profile, dark, dark_path=None, out, rrd=None
             if rrd and logger is None:
                 from stcvision.rr import PipelineLogger
 
-                logger = PipelineLogger.to_file(rrd, pipe)
+                logger = recs.add(PipelineLogger.to_file(rrd, pipe))
             if logger is not None:
                 logger.log(res, frame=i)
             d = res.to_dict()
@@ -628,12 +624,6 @@ def evaluate_image_folder(paths, *, profile, dark, dark_path=None, out, rrd=None
             ms.append(res.total_ms)
             fits += bool(res.heading.ok)
             ndots.append(len(d["dots"]))
-    except BaseException:
-        if logger is not None:
-            logger.abort()
-        raise
-    if logger is not None:
-        logger.close()
     write_bytes_atomic(out, "".join(s + "\n" for s in lines).encode(), overwrite=True)
     return {
         "frames": len(ms),

@@ -45,6 +45,11 @@ INSIDE = 1.0 - ROW_TOL
 #: a row's dot lies on a line within this (sub-cell sides): the row search's band across a row
 #: (:data:`stcvision.observation.ROW_TOL`, 1 cm)
 ON_LINE = ROW_TOL
+#: a dot with no line of its half within this (sub-cell sides) at the pipeline's offset is no
+#: row of the cell's displaced by the robot's offset (the search reaches 0.3 either side) but a
+#: stray (a noise peak, a neighbour's row seen through the cell's edge, a bloom): half the lines'
+#: 0.75 spacing, it is left out of the fit rather than pull it
+NEAR_LINE = 0.375
 
 
 @cache
@@ -70,6 +75,17 @@ class CellFit:
     on_line: int  # the cell's row dots on a line at that offset
     off_line: int  # ... and on none
     ambiguous: bool  # another offset as good, far from this one, reads them otherwise
+
+
+def _line_distance(p: np.ndarray, along_axis: np.ndarray, lines) -> np.ndarray:
+    """Per dot (shifted, cell units) the distance to the nearest line of its half, on the axis
+    its row is read on."""
+    out = np.empty(len(p))
+    for i, ((r, u), a) in enumerate(zip(p, along_axis, strict=True)):
+        c, other = (r, u) if a == 0 else (u, r)
+        half = 1 if other >= 0 else -1
+        out[i] = min((abs(c - x) for x, h in lines[a] if h == half), default=1.0)
+    return out
 
 
 def _score(p: np.ndarray, along_axis: np.ndarray, lines) -> tuple[int, float]:
@@ -127,6 +143,10 @@ def fit_cell_offset(
         return None
     lines = mark_lines()
     off = np.asarray(start, float).copy()
+    near = _line_distance(p0 + off, axis_of, lines) <= NEAR_LINE
+    p0, axis_of = p0[near], axis_of[near]
+    if not len(p0):
+        return None
     ambiguous = False
     steps = np.round(np.arange(-SEARCH, SEARCH + STEP / 2, STEP), 4)
     for a in (0, 1) if search else ():

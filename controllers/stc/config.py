@@ -9,7 +9,14 @@ from sim_camera.hardware import WEBCAM, CameraProfile
 from sim_camera.robot import LEGO_STC_ROBOT, MarkingRobot
 from stcvision.stages import DotParams
 
-__all__ = ["LANDMARK_OFFSET_SIGMA", "LANDMARK_TURN_SIGMA_RAD", "RECENTRE_M", "REOBSERVE_RAD", "CoverConfig"]
+__all__ = [
+    "ALIGN_MARK_M",
+    "LANDMARK_OFFSET_SIGMA",
+    "LANDMARK_TURN_SIGMA_RAD",
+    "RECENTRE_M",
+    "REOBSERVE_RAD",
+    "CoverConfig",
+]
 
 #: the frames' sizing SNR (``CoverConfig.sizing_snr``): one sigma above the dot threshold
 _SIZING_SNR = DotParams().k_sigma + 1.0
@@ -60,7 +67,7 @@ class CoverConfig:
     #: rounding included (:meth:`controllers.stc.frames.Exposures.stack_equivalent`), not the
     #: idealised noise over the square root of the frames stacked: on the webcam's 8-bit frames a
     #: 32 x 30 s stack is worth 12 frames and the longest frame's reach halves. On by default
-    #: (issue 16.7: never decide on a frame sized for noise it will not have): measured (README
+    #: (never decide on a frame sized for noise it will not have): measured (the results page's
     #: "Coverage per camera preset") it turns webcam 12x12 seed 11's wrong decision into a safe
     #: stop, and half of the webcam's 10x10 tours into safe stops too; off, those tours complete
     #: on frames whose real reach is shorter than the robot assumed (a study of the risk)
@@ -96,3 +103,9 @@ REOBSERVE_RAD = math.radians(1.0)
 #: (the boxes are read from where it should stand): healthy runs stay within 1.3 cm (6x6 board,
 #: seed 0); a mark 2.5 cm off lies half-way to the next box
 RECENTRE_M = 0.025
+#: a robot that measures itself this far (m) ahead of or behind its sub-cell centre, along its
+#: heading, drives to the centre along its heading before it lays a row: the row lies across the
+#: heading, so that offset is the row's own distance off its box line (a row laid 1-2 cm off
+#: by a robot 1-2 cm behind its centre was read in the neighbouring box region); 0.8 cm is the
+#: row search's half band (ROW_TOL, 1 cm) less the marks' read-out (~2 mm)
+ALIGN_MARK_M = 0.008

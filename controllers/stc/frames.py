@@ -45,8 +45,8 @@ WEBCAM = (1 / 30, 16.0, 1)
 #: measured once per robot). The gains are the webcam's (4 keeps its 8-bit
 #: quantisation below the dark current's noise at every length); another sensor's come from
 #: :func:`sensor_gain`. 60 s frames were tried and read fewer boxes than 30 s ones
-#: (the fresh mark's bloom), so beyond 30 s the ladder stacks 30 s frames (issue 6: "frame
-#: stacking"): averaging n frames divides the noise variance by n.
+#: (the fresh mark's bloom), so beyond 30 s the ladder stacks 30 s frames (frame stacking):
+#: averaging n frames divides the noise variance by n.
 AUTO_LONG = (
     (2.0, 4.0, 1),
     (4.0, 4.0, 1),
@@ -121,7 +121,7 @@ def sensor_gain(sensor, exposure_s: float, n_avg: int, webcam_gain: float) -> fl
     noise, ``sqrt(read^2 + dark * t / n)`` electrons) spans :data:`NOISE_DN` DN, so that no faint
     mark is quantised away, and no higher, so that the ADC clips as late as it can (at gain g it
     saturates at ``full_well_e / g`` electrons). The seed's webcam (an 8-bit ADC, the default
-    sensor) keeps the ladder's own gains (``webcam_gain``: the seed's 16x and the issue-6 4x),
+    sensor) keeps the ladder's own gains (``webcam_gain``: the paper's 16x and the long frames' 4x),
     so its frames are exactly what they were. A robot setting from the sensor's figures, not
     the world."""
     from sim_camera.sensor import SensorParams
@@ -162,6 +162,7 @@ class Exposures:
         self.frames = 0
         self.long_frames = 0
         self.per_rung = [0] * len(self.ladder)  # frames taken at each rung
+        self.agreed = 0  # returns' boxes taken by two longer frames' agreement (:meth:`_check_return`)
 
     #: the distances (m) at which each rung's horizon is tabulated once (1 cm steps, read at
     #: the next step out: never longer than the truth)
@@ -278,11 +279,11 @@ class Exposures:
 
     def _longer(self, t_s: float, read, obs, dt: float, taken: list):
         """A decision's reading once more with a frame one rung longer than any taken (the
-        longest again at the top), merged: (reading, seconds, the rung)."""
+        longest again at the top), merged: (reading, seconds, the rung, that frame's own reading)."""
         k = min(max(j for j, _ in taken) + 1, len(self.ladder) - 1)
         more, dk = read(k, t_s + dt)
         taken.append((k, t_s + dt))
-        return _merge(obs, more), dt + dk, k
+        return _merge(obs, more), dt + dk, k, more
 
     def _check_lines(self, t_s: float, read, obs, dt: float, taken: list):
         """At a decision the cell's marks lie on the box and start-mark lines only; a reading
@@ -297,7 +298,7 @@ class Exposures:
             return obs, dt
         label = self.frame_label(max(j for j, _ in taken))
         if self.controlled:
-            obs, dt, k = self._longer(t_s, read, obs, dt, taken)
+            obs, dt, k, _ = self._longer(t_s, read, obs, dt, taken)
             label = self.frame_label(k)
         if obs.other_marks:
             why = (
@@ -310,17 +311,31 @@ class Exposures:
     def _check_return(self, t_s: float, read, obs, dt: float, taken: list):
         """A return's reading that no STC tour shows (:func:`controllers.stc.claims.return_misread`)
         is read once more with a frame one rung longer than any taken (the longest again at the
-        top), merged; still wrong, it says why (``StcObservation.misread``: the loop stops
-        rather than decide on it). Returns (reading, seconds)."""
+        top), merged. Still wrong merged, the frames disagree: a mark one frame alone shows (a
+        short frame's noise or a neighbour's fresh row read into a box) is kept by the merge
+        however many frames follow, so the boxes are taken by agreement instead: the longer
+        frame's own reading, when it is one an STC tour shows and a second frame at its rung
+        reads the same boxes (the longer frame sees every mark the shorter ones could, and
+        ``_check_lines`` has held each frame's rows to the cell's lines). Otherwise it says why
+        (``StcObservation.misread``: the loop stops rather than decide on it). Returns
+        (reading, seconds)."""
         from controllers.stc.claims import return_misread
 
         if return_misread(obs) is None:
             return obs, dt
-        obs, dt, k = self._longer(t_s, read, obs, dt, taken)
-        why = return_misread(obs)
-        if why is not None:
-            obs = dataclasses.replace(obs, misread=f"{why}, also with a {self.frame_label(k)} frame")
-        return obs, dt
+        merged, dt, k, more = self._longer(t_s, read, obs, dt, taken)
+        why = return_misread(merged)
+        if why is None:
+            return merged, dt
+        if return_misread(more) is None and not more.other_marks:
+            again, dk = read(k, t_s + dt)
+            taken.append((k, t_s + dt))
+            dt += dk
+            if again.boxes == more.boxes and not again.other_marks:
+                self.agreed += 1
+                return dataclasses.replace(merged, boxes=more.boxes), dt
+            why += f"; two {self.frame_label(k)} frames disagree"
+        return dataclasses.replace(merged, misread=f"{why}, also with a {self.frame_label(k)} frame"), dt
 
     def frame_label(self, k: int) -> str:
         """Rung ``k`` in words: "2 s", "4 x 30 s"."""

@@ -11,6 +11,11 @@ where it stands, rather than decide on garbage.
   the tour stays O(1) in memory) and refuses to report a finished tour anywhere but in its start
   cell: a start mark misread elsewhere (a mark laid askew after a slip) ends the run aborted,
   never as a success with the wrong coverage.
+* :func:`landing_at_start`: by the same count, whether a move lands on the start sub-cell. A
+  return to the parent lands on a fresh sub-cell, except the last one, which lands on the start
+  sub-cell: the tour closes there. The count says which return that is, where a mark read alone
+  (a row laid askew, a neighbour's row, an old row at the edge of a frame's reach) could close
+  the tour away from the start or walk past it.
 * :class:`RobotStop`: raised by a part of the loop that finds the robot cannot go on; the loop
   ends the run with its message as the ``abort_reason``.
 """
@@ -19,6 +24,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from controllers.stc.geometry import COMPASS_VEC, frame_compass, frame_subcells
+
 __all__ = [
     "FRAME_RETRIES",
     "NOISE_CHECK",
@@ -26,6 +33,7 @@ __all__ = [
     "RobotStop",
     "done_away_from_start",
     "frame_fault",
+    "landing_at_start",
     "noise_floor_dn",
 ]
 
@@ -101,3 +109,21 @@ def done_away_from_start(start_sub: tuple[int, int], moved: tuple[int, int]) -> 
         f"done away from the start: the robot has moved {moved[0]:+d}, {moved[1]:+d} sub-cells from its start "
         "sub-cell, so the start mark it read there was not its own"
     )
+
+
+def _here(start_sub: tuple[int, int], moved: tuple[int, int]) -> tuple[int, int]:
+    """The sub-cell the robot's count of its moves puts it in."""
+    return start_sub[0] + moved[0], start_sub[1] + moved[1]
+
+
+def landing_at_start(start_sub: tuple[int, int], moved: tuple[int, int], hc: int) -> tuple[bool, ...]:
+    """At a decision (the robot in its entry frame's sub-cell 0, heading ``hc``): per entry-frame
+    direction ``d``, the exit towards ``d`` (from sub-cell ``d``) lands on the start sub-cell, by
+    the robot's count ``moved``; the sub-cell such a move lands on is marked exactly then
+    (:attr:`controllers.stc.fsm.StcObservation.landing_marked`)."""
+    subs = frame_subcells(_here(start_sub, moved), hc)
+    out = []
+    for d in range(4):
+        di, dj = COMPASS_VEC[frame_compass(hc, d)]
+        out.append((subs[d][0] + di, subs[d][1] + dj) == tuple(start_sub))
+    return tuple(out)

@@ -186,26 +186,12 @@ def run(args):
 
 
 def run_recorded(board, cfg, rrd, observers=()) -> dict:
-    """``run_cover`` with a rerun recording to ``rrd`` (when given) that is renamed into place only
-    when the run ends (an error or a signal removes it), and the exit status: 0 when the robot
-    completed the board (every reachable sub-cell once, back at the start), else
-    :data:`~stcvision.cli.EXIT_INCOMPLETE` (3)."""
-    from controllers.stc.loop import run_cover
+    """:func:`controllers.stc.recorder.run_cover_recorded` and the command's exit status: 0 when
+    the robot completed the board, else :data:`~stcvision.cli.EXIT_INCOMPLETE` (3)."""
+    from controllers.stc.recorder import run_cover_recorded
     from stcvision.cli import EXIT_INCOMPLETE, EXIT_OK
 
-    recorder = None
-    if rrd:
-        from controllers.stc.recorder import CoverRecorder
-
-        recorder = CoverRecorder(rrd, board)
-    try:
-        result = run_cover(board, cfg, observers=[recorder, *observers])
-    except BaseException:
-        if recorder is not None:
-            recorder.abort()
-        raise
-    if recorder is not None:
-        recorder.close()
+    result = run_cover_recorded(board, cfg, rrd, observers)
     result["exit_code"] = EXIT_OK if result["complete"] else EXIT_INCOMPLETE
     return result
 

@@ -25,9 +25,10 @@ from unittest import mock
 import cv2
 import numpy as np
 import pytest
-from fuzzlib import examples
 from hypothesis import given
 from hypothesis import strategies as st
+
+from .fuzzlib import examples
 
 ROOT = Path(__file__).resolve().parents[2]
 
