@@ -28,11 +28,12 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parents[2]
-#: the pages whose code blocks must run: the README, every tutorial and every how-to guide
+#: the pages whose code blocks must run: the README, every tutorial and how-to guide, the API page
 PAGES = [
     ROOT / "README.md",
     *sorted((ROOT / "docs" / "tutorials").glob("*.md")),
     *sorted((ROOT / "docs" / "how-to").glob("*.md")),
+    ROOT / "docs" / "reference" / "api.md",
 ]
 SHELL = {"bash", "sh", "shell", "console"}
 #: what the scratch folder links to, so that documented paths such as datasets/peer_data/... work
