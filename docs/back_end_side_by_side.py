@@ -149,7 +149,7 @@ def main(argv=None) -> int:
     import stcvision.observation as this_ob
     import stcvision.stages as this_st
     from calibration.profiles import default_profile
-    from stcvision.cli.cmd_bench import benchmark_frames
+    from sim_camera.scenarios import benchmark_frames
     from stcvision.pipeline import Pipeline
 
     cv2.setNumThreads(1)

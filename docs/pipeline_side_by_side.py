@@ -55,7 +55,7 @@ def main(argv=None) -> int:
 
     from calibration.profiles import default_profile
     from sim_camera.camera import SyntheticCamera
-    from stcvision.cli.cmd_bench import benchmark_scene
+    from sim_camera.scenarios import benchmark_scene
     from stcvision.pipeline import Pipeline
 
     cv2.setNumThreads(1)

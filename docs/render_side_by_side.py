@@ -39,7 +39,7 @@ def main(argv=None) -> None:
     import numpy as np
 
     from sim_camera.camera import Pose, SyntheticCamera
-    from stcvision.cli.cmd_bench import benchmark_scene
+    from sim_camera.scenarios import benchmark_scene
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--reference", required=True, type=Path, help="a checkout to compare with (its sim_camera/)")

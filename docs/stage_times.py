@@ -23,7 +23,7 @@ def main(argv=None) -> int:
     import numpy as np
 
     from calibration.profiles import default_profile
-    from stcvision.cli.cmd_bench import benchmark_frames
+    from sim_camera.scenarios import benchmark_frames
     from stcvision.pipeline import STAGES, Pipeline
 
     cv2.setNumThreads(1)

@@ -60,7 +60,6 @@ def _guarded_cover(real):
 def _stubs():
     import controllers.buffon.run as buffon_run
     import controllers.stc.loop as loop
-    import stcvision.cli.cmd_bench as bench
     import stcvision.sweep as sweep
 
     with contextlib.ExitStack() as stack:
@@ -68,7 +67,7 @@ def _stubs():
         stack.enter_context(mock.patch("controllers.stc.plan.plan", _reached))
         stack.enter_context(mock.patch("controllers.stc.recorder.CoverRecorder", _reached))
         stack.enter_context(mock.patch.object(sweep, "run_sweep", _reached))
-        stack.enter_context(mock.patch.object(bench, "benchmark_scene", _reached))
+        stack.enter_context(mock.patch("sim_camera.scenarios.benchmark_scene", _reached))
         stack.enter_context(mock.patch("stcvision.sweep._selftest.measure_overhead", _reached))
         stack.enter_context(mock.patch("sim_camera.scene.Scene.camera", _reached))
         for name in ("reproduce", "compare", "calibrate"):
