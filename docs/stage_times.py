@@ -5,7 +5,7 @@ checkout with that checkout on the path, alternating with this one so a busy hos
     python docs/stage_times.py [--frames 1000] [--repeats 2] [--seed 0]
     PYTHONPATH=/path/to/other python /path/to/other/docs/stage_times.py   # or this file
 
-Used for the per-stage table of the README's "Speed"; ``stcvision bench`` is the benchmark.
+Used for the per-stage table (docs/results/pipeline.md, "Speed"); ``stcvision bench`` is the benchmark.
 """
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""The one STC geometry (``../shared/DESIGN.md``, "The ant-like STC geometry"), used by the
+"""The one STC geometry (docs/explanation/stc-geometry.md), used by the
 vision (:mod:`stcvision.observation`) and the controller (:mod:`controllers.stc`).
 
 **Entry frame** (the robot's heading rounded to a multiple of 90 degrees points "up"): the robot

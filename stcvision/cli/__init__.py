@@ -67,7 +67,7 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-#: exit statuses (README 'Command line'): 0 done; 2 bad input or an output that cannot be made;
+#: exit statuses (docs: What every command guarantees): 0 done; 2 bad input or an output that cannot be made;
 #: 3 the command ran but the robot did not complete (cover, demo); 128+N killed by signal N
 EXIT_OK, EXIT_BAD_INPUT, EXIT_INCOMPLETE = 0, 2, 3
 EXIT_STATUSES = """exit status:

@@ -12,7 +12,7 @@ by default frames rendered here from the ages recipe at a seed its tuning did no
 in this process, on the local pool and on a Dask cluster (--scheduler, or a LocalCluster of two
 single-threaded worker processes started for the purpose).
 
-This is the benchmark behind the performance goals (../shared/DESIGN.md): tests never time
+This is the benchmark behind the performance goals (docs: Results, pipeline speed): tests never time
 anything.
 """
 

@@ -24,7 +24,7 @@ def add_parser(sub) -> None:
 
     s = sub.add_parser(
         "faults",
-        help="outcome per hardware fault and level: a table and a plot (the README's fault table)",
+        help="outcome per hardware fault and level: a table and a plot (the fault table of the docs' STC robot page)",
         description="Run the STC robot (camera perception) with each fault of controllers.stc.faults at the "
         "levels of LEVELS, over seeds, through the sweep runner (resumable: OUT/sweep.jsonl); write summary.md, "
         "runs.csv and faults.png. Exit 1 if any run reported success with the wrong coverage.",
