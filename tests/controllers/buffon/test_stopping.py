@@ -102,6 +102,24 @@ def test_bad_stop_params():
         StopParams(batches=1)
 
 
+def test_online_trials_are_deterministic_whatever_the_sweep_workers(tmp_path):
+    """The same nests' tasks through the sweep runner in this process and on a pool of two
+    processes: every stored per-trial figure is the same."""
+    from stcvision.sweep import SweepOptions, Task, run_sweep
+
+    params = {"trail_width_u": 0.1, "trials": 2, "visit_steps": "auto", "barrier": None}
+    tasks = [
+        Task(experiment="controllers.buffon.experiments:nest_task", params={**params, "spec": s}, seed=21 + i)
+        for i, s in enumerate(("circle:25", "square:22"))
+    ]
+    one = run_sweep(tasks, tmp_path / "one.jsonl", SweepOptions(workers=1))
+    two = run_sweep(tasks, tmp_path / "two.jsonl", SweepOptions(workers=2))
+    keys = ("l1_u", "l2_u", "crossings", "blind_fraction", "n_self", "rate_rel_se", "steps", "area_estimates")
+    for t in tasks:
+        for k in keys:
+            assert one.results[t.key][k] == two.results[t.key][k], k
+
+
 def test_online_trials_are_deterministic_whatever_the_threads():
     nest = parse_nest("circle:25")
     cfg = VisitConfig(visit_steps="auto")
