@@ -137,12 +137,13 @@ def evaluation_nests(folder: str | Path) -> list[dict]:
 def calibrate_online(results: list[dict]) -> dict:
     """The factor and spreads of the online rule from the calibration family's stored results
     (each with ``area_true`` and per-trial ``l1_u``, ``l2_u``, ``crossings``, ``blind_fraction``,
-    ``n_self``, ``rate_rel_se``): see :mod:`controllers.buffon.estimate`."""
+    ``n_self``, ``self_blind``, ``rate_rel_se``): see :mod:`controllers.buffon.estimate`."""
     from controllers.buffon.estimate import ONLINE_SECOND_WEIGHT, online_area
 
     meds, samp, resid, se2 = [], [], [], []
     for r in results:
-        a = online_area(*(np.asarray(r[k], float) for k in ("l1_u", "l2_u", "crossings", "blind_fraction", "n_self")))
+        keys = ("l1_u", "l2_u", "crossings", "blind_fraction", "n_self", "self_blind")
+        a = online_area(*(np.asarray(r[k], float) for k in keys))
         d = np.log(a / r["area_true"])
         m = float(np.median(d))
         meds.append(m)

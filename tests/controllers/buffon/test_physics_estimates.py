@@ -185,11 +185,13 @@ def test_self_crossing_area_on_random_needles_in_a_torus():
 
 
 def test_online_estimate_is_the_weighted_geometric_mean_of_the_two_visits():
+    """Both visits' dead-time corrected estimates, in the stated weights."""
     from controllers.buffon.estimate import ONLINE_SECOND_WEIGHT, online_area, self_crossing_area
 
     l1, l2, n, b, ns = np.array([900.0]), np.array([500.0]), np.array([60]), np.array([0.25]), np.array([3000])
+    b1 = np.array([0.15])
     a2 = buffon_area(l1, l2, n) * (1 - b)
-    a1 = self_crossing_area(l1, ns)
+    a1 = self_crossing_area(l1, ns) * (1 - b1)
     expected = np.exp(ONLINE_SECOND_WEIGHT * np.log(a2) + (1 - ONLINE_SECOND_WEIGHT) * np.log(a1))
-    np.testing.assert_allclose(online_area(l1, l2, n, b, ns), expected)
+    np.testing.assert_allclose(online_area(l1, l2, n, b, ns, b1), expected)
     assert 0 < ONLINE_SECOND_WEIGHT < 1

@@ -114,7 +114,8 @@ def test_online_trials_are_deterministic_whatever_the_sweep_workers(tmp_path):
     ]
     one = run_sweep(tasks, tmp_path / "one.jsonl", SweepOptions(workers=1))
     two = run_sweep(tasks, tmp_path / "two.jsonl", SweepOptions(workers=2))
-    keys = ("l1_u", "l2_u", "crossings", "blind_fraction", "n_self", "rate_rel_se", "steps", "area_estimates")
+    keys = ("l1_u", "l2_u", "crossings", "blind_fraction", "n_self", "self_blind", "rate_rel_se", "steps",
+            "area_estimates")  # fmt: skip
     for t in tasks:
         for k in keys:
             assert one.results[t.key][k] == two.results[t.key][k], k
@@ -125,7 +126,7 @@ def test_online_trials_are_deterministic_whatever_the_threads():
     cfg = VisitConfig(visit_steps="auto")
     a = run_trials(nest, cfg, trials=3, seed=5, threads=1)
     b = run_trials(nest, cfg, trials=3, seed=5, threads=2)
-    for k in ("l1_u", "l2_u", "crossings", "blind_fraction", "rate_rel_se", "steps", "n_self"):
+    for k in ("l1_u", "l2_u", "crossings", "blind_fraction", "rate_rel_se", "steps", "n_self", "self_blind"):
         np.testing.assert_array_equal(getattr(a, k), getattr(b, k))
     assert a.online and a.converged.all()
 
