@@ -153,3 +153,21 @@ def test_trial_interval_widens_with_the_measured_error():
     ci = trial_intervals(np.array([1000.0, 1000.0]), np.array([0.01, 0.2]))
     assert ci[0, 0] > ci[1, 0] and ci[0, 1] < ci[1, 1]
     assert ci[0, 0] < 1000 < ci[0, 1]
+
+
+def test_heldout_family_script_runs_resumes_and_rescores(tmp_path, capsys):
+    """docs/buffon_heldout.py (the held-out measurement of the results page) on its first nest,
+    two trials: it stores the raw trials, and a rescore of the store prints the same table."""
+    import importlib.util
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parents[3] / "docs" / "buffon_heldout.py"
+    spec = importlib.util.spec_from_file_location("buffon_heldout", path)
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    assert len(mod.family(tmp_path / "n", 7100)) == 44
+    assert mod.main(["--out", str(tmp_path), "--trials", "2", "--nests", "1"]) == 0
+    first = capsys.readouterr().out
+    assert "| circles | 1 |" in first and "| all | 1 |" in first
+    assert mod.main(["--out", str(tmp_path), "--rescore"]) == 0
+    assert capsys.readouterr().out == first
