@@ -41,7 +41,8 @@ def family(folder: Path, shape_seed: int) -> list[dict]:
     rows += [{"family": "barriers", "spec": s, "barrier": b} for s, b in barriers]
     polys = {"L1": exp._l_shape(70, 30), "L2": exp._l_shape(150, 60), "U1": exp._u_shape(100, 80, 40, 45),
              "U2": exp._u_shape(140, 100, 40, 50), "T1": exp._t_shape(120, 100, 50, 40),
-             "T2": exp._t_shape(150, 120, 45, 45), "L3": exp._l_shape(115, 55), "U3": exp._u_shape(170, 90, 60, 40)}  # fmt: skip
+             "T2": exp._t_shape(150, 120, 45, 45), "L3": exp._l_shape(115, 55),
+             "U3": exp._u_shape(170, 90, 60, 40)}  # fmt: skip
     rng = np.random.default_rng(shape_seed)
     for i, area in enumerate(np.exp(rng.uniform(math.log(2000), math.log(30000), 10))):
         polys[f"random_{i}"] = exp._random_polygon(rng, float(area))
