@@ -171,3 +171,27 @@ def test_heldout_family_script_runs_resumes_and_rescores(tmp_path, capsys):
     assert "| circles | 1 |" in first and "| all | 1 |" in first
     assert mod.main(["--out", str(tmp_path), "--rescore"]) == 0
     assert capsys.readouterr().out == first
+
+
+def test_calibration_recovers_a_planted_factor_and_spread():
+    """Synthetic trials whose two estimates read c times the true area, the second visit's with a
+    log-normal error of 0.06 it does not report: the calibration gives K = 1/c and a per-trial
+    extra spread of w * 0.06."""
+    from controllers.buffon.estimate import ONLINE_SECOND_WEIGHT
+    from controllers.buffon.online import calibrate_online
+
+    rng = np.random.default_rng(8)
+    c, sigma, trials = 1.08, 0.06, 40
+    records = []
+    for area in (2000.0, 5000.0, 9000.0, 15000.0, 22000.0, 30000.0):
+        l1 = np.full(trials, 1.3 * area)
+        l2 = 0.5 * l1
+        b2, b1 = np.full(trials, 0.25), np.full(trials, 0.18)
+        n = 2 * l1 * l2 * (1 - b2) / (math.pi * c * area) * np.exp(-sigma * rng.standard_normal(trials))
+        n_self = l1**2 * (1 - b1) / (math.pi * c * area)
+        records.append({"area_true": area, "l1_u": l1, "l2_u": l2, "crossings": n, "blind_fraction": b2,
+                        "n_self": n_self, "self_blind": b1, "rate_rel_se": np.zeros(trials)})  # fmt: skip
+    cal = calibrate_online(records)
+    assert cal["correction"] == pytest.approx(1 / c, rel=0.01)
+    assert cal["trial_extra_sigma"] == pytest.approx(ONLINE_SECOND_WEIGHT * sigma, rel=0.15)
+    assert cal["shape_sigma"] < 0.01
