@@ -169,7 +169,7 @@ def test_self_crossing_area_on_random_needles_in_a_torus():
     from controllers.buffon.estimate import self_crossing_area
 
     rng = np.random.default_rng(1)
-    w, h, ell, n = 1.0, 2.0, 0.05, 4000
+    w, h, ell, n = 1.0, 2.0, 0.05, 2000
     p = rng.random((n, 2)) * (w, h)
     a = rng.uniform(0, np.pi, n)
     q = p + ell * np.c_[np.cos(a), np.sin(a)]
@@ -180,7 +180,7 @@ def test_self_crossing_area_on_random_needles_in_a_torus():
     pairs //= 2  # every pair counted from both of its needles
     expected = (n * ell) ** 2 / (math.pi * w * h)
     assert pairs == pytest.approx(expected, rel=4 / math.sqrt(expected))  # 4 sigma, Poisson
-    assert self_crossing_area(n * ell, pairs) == pytest.approx(w * h, rel=0.06)
+    assert self_crossing_area(n * ell, pairs) == pytest.approx(w * h, rel=0.1)  # 4 sigma of ~1,600 pairs
     assert self_crossing_area(1.0, 0) == np.inf
 
 
