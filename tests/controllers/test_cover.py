@@ -56,7 +56,10 @@ def test_red_light_landmarks_keep_the_robot_on_its_sub_cells():
     covers every board. With the dots centred on the mirror image (issue 18's localisation fix)
     and the faults' row-lean check, the blind robot strays less: 1.2-1.8 cm (mean 1.45 cm)
     against 0.54-0.66 cm (mean 0.62 cm) with the lights, so the test asks for twice the mean
-    error and 1.5x the worst one without the lights. (Before issue 16.7 turned out the rows'
+    error and 1.5x the worst one without the lights. With rows laid on their lines (the robot
+    drives to its sub-cell centre along its heading first) and a look's position from the red
+    lights only, the blind robot strays less again: 0.92-1.43 cm (mean 1.22 cm) against
+    0.58-0.86 cm (mean 0.70 cm), so the test asks for 1.5x both. (Before issue 16.7 turned out the rows'
     lean at readings the blind robot strayed 1.5-3.2 cm, and the test asked for over 3 cm;
     before the independent random streams of issue 16: 1.2-5.3 cm, mean 2.8, against within
     1 cm, mean 0.8.)"""
@@ -69,7 +72,7 @@ def test_red_light_landmarks_keep_the_robot_on_its_sub_cells():
         assert complete(r), r
         seeing.append(r["max_position_error_m"])
     assert max(seeing) < 0.012 and max(blind) > 1.5 * max(seeing), (blind, seeing)
-    assert np.mean(blind) > 2.0 * np.mean(seeing), (blind, seeing)
+    assert np.mean(blind) > 1.5 * np.mean(seeing), (blind, seeing)
 
 
 def test_oracle_mode_closed_loop_on_random_and_pythonrobotics_boards(peer_data):

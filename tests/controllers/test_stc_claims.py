@@ -140,14 +140,14 @@ def _blind_to_box_4(up_to_rung: int):
     def hook(see):
         decide_frames = see.cam.decision
 
-        def decision(t_s, read, fresh, at_start):
+        def decision(t_s, read, fresh, at_start, start_cell=True):
             def blind(k, t):
                 obs, dt = read(k, t)
                 if k <= up_to_rung:
                     obs = dataclasses.replace(obs, boxes=(*obs.boxes[:3], False, obs.boxes[4]))
                 return obs, dt
 
-            return decide_frames(t_s, blind, fresh, at_start)
+            return decide_frames(t_s, blind, fresh, at_start, start_cell)
 
         see.cam.decision = decision
 
