@@ -5,7 +5,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: demo test fuzz bench lint clean venv
+.PHONY: demo test fuzz bench lint clean venv docs serve-docs
 
 venv: $(STAMP)
 
@@ -28,8 +28,16 @@ fuzz: $(STAMP)
 bench: $(STAMP)
 	$(BIN)/stcvision bench
 
+# the documentation site, built into site/ (git-ignored); --strict: any warning is an error
+docs: $(STAMP)
+	NO_MKDOCS_2_WARNING=1 $(BIN)/mkdocs build --strict --site-dir site
+
+# the same site served with live reload on http://127.0.0.1:8000
+serve-docs: $(STAMP)
+	NO_MKDOCS_2_WARNING=1 $(BIN)/mkdocs serve
+
 lint: $(STAMP)
 	$(BIN)/ruff check .
 
 clean:
-	rm -rf out build *.egg-info .pytest_cache
+	rm -rf out build site *.egg-info .pytest_cache

@@ -32,6 +32,7 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from calibration.lens_models import CentralModel, OcamModel
+from stcvision.angles import wrap_angle
 from stcvision.errors import BadInputError
 from stcvision.profile import MAX_DECENTERING, MAX_DECENTERING_RADIAL, Profile
 
@@ -121,10 +122,6 @@ def _reach(model, basis, M, r_max: float):
     return rr, al_r, good, r_mono
 
 
-def _wrap(a):
-    return np.angle(np.exp(1j * np.asarray(a)))
-
-
 def fidelity(
     profile: Profile, model, *, domain_deg: float = DOMAIN_DEG, grid: int = GRID, inside_rim: bool = False
 ) -> Fidelity:
@@ -157,9 +154,9 @@ def fidelity(
     far = alpha > math.radians(2.0)
     a_err = np.zeros(0)
     for s in (1.0, -1.0):
-        d = _wrap(psi - s * beta)[far]
+        d = wrap_angle(psi - s * beta)[far]
         off = np.angle(np.mean(np.exp(1j * d))) if len(d) else 0.0
-        err = np.abs(_wrap(d - off)) * np.sin(alpha[far])  # as an angle between rays
+        err = np.abs(wrap_angle(d - off)) * np.sin(alpha[far])  # as an angle between rays
         if not len(a_err) or (len(err) and err.max() < a_err.max()):
             a_err = err
     return Fidelity(
@@ -222,7 +219,7 @@ def profile_from_model(
     best = None
     for sense in (1.0, -1.0):
         off = np.angle(np.mean(np.exp(1j * (a[far] - sense * beta[far]))))
-        spread = float(np.abs(_wrap(a[far] - sense * beta[far] - off)).max())
+        spread = float(np.abs(wrap_angle(a[far] - sense * beta[far] - off)).max())
         if best is None or spread < best[0]:
             best = (spread, sense, off)
     _, sense, _ = best
@@ -303,7 +300,7 @@ def _fit_decentering(prof: Profile, uv, theta_t, beta_s, a) -> Profile:
         qu = pr._undecenter(d)
         th = pr.theta_of_r(np.hypot(qu[:, 0], qu[:, 1]))
         az = np.arctan2(qu[:, 1], qu[:, 0])
-        return np.concatenate([th - theta_t, _wrap(az - beta_s - p[n + 5]) * np.cos(theta_t)])
+        return np.concatenate([th - theta_t, wrap_angle(az - beta_s - p[n + 5]) * np.cos(theta_t)])
 
     x0 = np.array([*prof.theta_poly[1:], 0.0, 0.0, 0.0, 0.0, 0.0, off0])
     hi = np.array([np.inf] * n + list(_DEC_BOUNDS) + [np.inf])

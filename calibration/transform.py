@@ -27,11 +27,12 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from calibration.fit import DEFAULT_VIEWPOINT_M, fit_profile
+from calibration.fit import DEFAULT_VIEWPOINT_M, FitSetup, fit_profile
 from calibration.frames import geometry_frame
 from calibration.rim import RimFit, detect_rim
 from stcvision.errors import BadInputError
 from stcvision.profile import CORNER_ORDER, Profile, nominal_corners_px
+from stcvision.stcgrid import DEFAULT_SUBCELL_M
 
 __all__ = ["TransformReport", "calibrate_neighbors", "calibrate_transform", "draw_preview", "grid_corners_m"]
 
@@ -235,7 +236,7 @@ def _coarse_transform(base: Profile, dist: np.ndarray, samples: np.ndarray) -> P
 def calibrate_transform(
     frame: np.ndarray,
     *,
-    subcell_m: float = 0.16,
+    subcell_m: float = DEFAULT_SUBCELL_M,
     center_px: tuple[float, float] | None = None,
     viewpoint_height_m: float = DEFAULT_VIEWPOINT_M,
     base: Profile | None = None,
@@ -288,17 +289,8 @@ def calibrate_transform(
         if len(l_uv) < 100:
             raise BadInputError(f"only {len(l_uv)} points on the grid lines found; expected hundreds")
         degree = 3 if it == 0 else 6
-        prof, _ = fit_profile(
-            empty,
-            empty,
-            image_size_px=(w, h),
-            rim_radius_px=rim.radius_px,
-            viewpoint_height_m=H,
-            base=prof,
-            init=prof,
-            degree=degree,
-            lines=(l_uv, laxis[keep], loff[keep]),
-        )
+        setup = FitSetup(image_size_px=(w, h), rim_radius_px=rim.radius_px, viewpoint_height_m=H, degree=degree)
+        prof, _ = fit_profile(empty, empty, setup, base=prof, init=prof, lines=(l_uv, laxis[keep], loff[keep]))
     ferr = 1000 * np.abs(_line_residuals_m(prof, l_uv, laxis[keep], loff[keep]))
     report = TransformReport(
         rim, math.degrees(prof.forward_angle_rad), int(len(l_uv)), float(np.median(ferr)), float(ferr.max())
@@ -444,7 +436,7 @@ def _mount_rim(frame: np.ndarray, profile: Profile, subcell_m: float):
 
 
 def calibrate_mount(
-    frame: np.ndarray, profile: Profile, *, subcell_m: float = 0.16, forward_hint_rad: float | None = None
+    frame: np.ndarray, profile: Profile, *, subcell_m: float = DEFAULT_SUBCELL_M, forward_hint_rad: float | None = None
 ) -> tuple[Profile, TransformReport]:
     """Fit only what a lens model cannot know -- forward angle, mirror flip, viewpoint height --
     to a lights-on frame of the grid (the robot at the calibration pose), keeping the profile's

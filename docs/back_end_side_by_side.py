@@ -1,7 +1,8 @@
 """The pipeline's back-end stages (dots, rows, red, heading, observe) of two checkouts side by
 side in one process, taking turns frame by frame on the same front-end output (this checkout's
 ``Pipeline`` front end on ``stcvision bench``'s scene, one thread): the other checkout's
-``stages.py``, ``observation.py`` and ``kernels.py`` are loaded beside this one's, so a busy
+``stages.py``, ``observation.py`` and ``kernels.py`` (a checkout from before the stages became
+the ``stcvision.stages`` package, one module per stage) are loaded beside this one's, so a busy
 machine slows both alike and the ratio holds. Checks first that both give the same dots, red
 lights, heading and observation on the scene's frames (bit for bit).
 
@@ -33,7 +34,13 @@ def load_other(root: Path):
         spec = importlib.util.spec_from_file_location(f"other_{name}", root / "stcvision" / f"{name}.py")
         m = importlib.util.module_from_spec(spec)
         sys.modules[f"other_{name}"] = m
-        spec.loader.exec_module(m)
+        # its ``from stcvision import kernels`` finds the other checkout's kernels (this one has
+        # none: its loops live with their stages)
+        sys.modules["stcvision.kernels"] = mods.get("kernels", m)
+        try:
+            spec.loader.exec_module(m)
+        finally:
+            del sys.modules["stcvision.kernels"]
         if name != "kernels":
             m.kernels = mods["kernels"]
         mods[name] = m
@@ -42,7 +49,7 @@ def load_other(root: Path):
 
 def front(pipe, frame) -> dict:
     """What the back end reads, copied (the front end reuses its scratch images)."""
-    f = pipe._front(frame, time.perf_counter_ns, [])
+    f = pipe.front.run(frame, pipe.scratch, time.perf_counter_ns, [])
     return dict(
         g=f.green.copy(),
         obstacle=f.obstacle.copy(),
@@ -71,7 +78,12 @@ def back(st, ob, pipe, f: dict, times: dict | None = None):
         quantum=f["q"],
     )
     dots = st.mirror_centroids(
-        dots, f["g"], background_dn=f["bg"], umap=pipe._umap_crop, ground_to_robot=prof.ground_to_robot, params=p.dots
+        dots,
+        f["g"],
+        background_dn=f["bg"],
+        umap=pipe.front.umap_crop,
+        ground_to_robot=prof.ground_to_robot,
+        params=p.dots,
     )
     t.append(clock())
     all_dots = st.find_rows(
@@ -137,7 +149,7 @@ def main(argv=None) -> int:
     import stcvision.observation as this_ob
     import stcvision.stages as this_st
     from calibration.profiles import default_profile
-    from stcvision.cli.cmd_bench import benchmark_frames
+    from sim_camera.scenarios import benchmark_frames
     from stcvision.pipeline import Pipeline
 
     cv2.setNumThreads(1)

@@ -40,7 +40,7 @@ def measure(camera_name: str, k: int, *, msb: bool = False) -> dict:
     prof, rep = calibrate_transform(frame)
     prof, _ = calibrate_neighbors(frame, prof)
     (ex, ey), _, _ = cv2.fitEllipse(rim_points_px(optics).astype(np.float32))
-    corners = grid_corners_m(0.16, rho_max_m=0.9)
+    corners = grid_corners_m(prof.subcell_m, rho_max_m=0.9)
     uv, ok = cam.projector.project(corners)
     err_mm = 1000 * np.hypot(*(prof.image_to_robot(uv[ok]) - corners[ok]).T)
     return {

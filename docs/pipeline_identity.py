@@ -5,11 +5,11 @@ candidate dot's position and SNR, the red blobs' areas and (with ``--pose``) the
 
     python docs/pipeline_identity.py --other /path/to/other/checkout DATASET [DATASET ...] [--pose]
 
-Prints how many frames differ and the first differences; exit code 1 if any differ. Used for
-issue 18's speed-ups, each bit-identical on the ages, rotation and obstacles sets, except the
-heading fit's closed form (``--rtol 1e-9``: every decision, count, flag and string the same,
-every number within that relative difference; the largest one found is printed).
-"""
+Prints how many frames differ and the first differences; exit code 1 if any differ. Used for the
+pipeline's speed-ups and for splitting it into one module per stage, each bit-identical on the
+ages, rotation and obstacles sets, except the heading fit's closed form (``--rtol 1e-9``: every
+decision, count, flag and string the same, every number within that relative difference; the
+largest one found is printed)."""
 
 from __future__ import annotations
 

@@ -2,12 +2,13 @@
 checkout's ``Pipeline`` and another checkout's ``stcvision/pipeline.py`` loaded beside it (its
 stages come from this checkout's ``stcvision.stages``, so use it for front-end changes that keep
 the stages' functions). On ``stcvision bench``'s scene and frames (one thread), so a busy
-machine slows both alike and the ratios hold.
+machine slows both alike and the ratios hold. Run it with its own ``NUMBA_CACHE_DIR`` when the
+other checkout has a ``kernels.py``: numba caches its loops under this script's module names.
 
     python docs/pipeline_side_by_side.py --other /path/to/other/checkout [--frames 400]
 
 Prints the median ms per stage of each, the front end's sum (dark, window, unwarp, channels)
-and the CPU ms per frame of each (thread time). Used for issue 18's front end.
+and the CPU ms per frame of each (thread time). Used for the front end's speed-ups.
 """
 
 from __future__ import annotations
@@ -21,12 +22,26 @@ from pathlib import Path
 FRONT = ("dark", "window", "unwarp", "channels")
 
 
-def _load(path: Path):
-    spec = importlib.util.spec_from_file_location("other_pipeline", path)
+def _module(name: str, path: Path):
+    spec = importlib.util.spec_from_file_location(name, path)
     mod = importlib.util.module_from_spec(spec)
-    sys.modules["other_pipeline"] = mod  # dataclasses look their module up
+    sys.modules[name] = mod  # dataclasses look their module up
     spec.loader.exec_module(mod)
     return mod
+
+
+def _load(root: Path):
+    """The other checkout's ``stcvision/pipeline.py``; from a checkout before the stages became
+    a package (one module per stage), with its own ``kernels.py`` for its front end's loops
+    (this checkout has none: its loops live with their stages)."""
+    kernels = root / "stcvision" / "kernels.py"
+    if not kernels.exists():
+        return _module("other_pipeline", root / "stcvision" / "pipeline.py")
+    sys.modules["stcvision.kernels"] = _module("other_kernels", kernels)
+    try:
+        return _module("other_pipeline", root / "stcvision" / "pipeline.py")
+    finally:
+        del sys.modules["stcvision.kernels"]
 
 
 def main(argv=None) -> int:
@@ -40,11 +55,11 @@ def main(argv=None) -> int:
 
     from calibration.profiles import default_profile
     from sim_camera.camera import SyntheticCamera
-    from stcvision.cli.cmd_bench import benchmark_scene
+    from sim_camera.scenarios import benchmark_scene
     from stcvision.pipeline import Pipeline
 
     cv2.setNumThreads(1)
-    other = _load(Path(a.other).resolve() / "stcvision" / "pipeline.py")
+    other = _load(Path(a.other).resolve())
     board, layer, pose = benchmark_scene(a.seed)
     cam = SyntheticCamera()
     rng = np.random.default_rng(a.seed)

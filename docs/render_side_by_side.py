@@ -1,6 +1,6 @@
-"""Time this checkout's camera render beside another checkout's, in one process (issue 18).
+"""Time this checkout's camera render beside another checkout's, in one process (for the camera's speed-ups).
 
-    python docs/render_side_by_side.py --reference /work/main [--frames 40] [--repeats 5] [--clock thread]
+    python docs/render_side_by_side.py --reference /path/to/other/checkout [--frames 40] [--repeats 5] [--clock thread]
 
 The reference's ``sim_camera/optics.py``, ``sensor.py`` and ``camera.py`` are loaded under other
 module names (the phosphor layer and bench scene are this checkout's), both cameras render the
@@ -39,7 +39,7 @@ def main(argv=None) -> None:
     import numpy as np
 
     from sim_camera.camera import Pose, SyntheticCamera
-    from stcvision.cli.cmd_bench import benchmark_scene
+    from sim_camera.scenarios import benchmark_scene
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--reference", required=True, type=Path, help="a checkout to compare with (its sim_camera/)")

@@ -5,7 +5,7 @@ checkout with that checkout on the path, alternating with this one so a busy hos
     python docs/stage_times.py [--frames 1000] [--repeats 2] [--seed 0]
     PYTHONPATH=/path/to/other python /path/to/other/docs/stage_times.py   # or this file
 
-Used for issue 18's per-stage table (README, "Speed"); ``stcvision bench`` is the benchmark.
+Used for the per-stage table (docs/results/pipeline.md, "Speed"); ``stcvision bench`` is the benchmark.
 """
 
 from __future__ import annotations
@@ -23,7 +23,7 @@ def main(argv=None) -> int:
     import numpy as np
 
     from calibration.profiles import default_profile
-    from stcvision.cli.cmd_bench import benchmark_frames
+    from sim_camera.scenarios import benchmark_frames
     from stcvision.pipeline import STAGES, Pipeline
 
     cv2.setNumThreads(1)

@@ -42,6 +42,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from stcvision.errors import BadInputError
+from stcvision.stcgrid import DEFAULT_SUBCELL_M
 
 __all__ = [
     "Arena",
@@ -755,7 +756,7 @@ class BoardArena(Arena):
     """
 
     blocked: np.ndarray = field(default_factory=lambda: np.zeros((2, 2), bool), compare=False)
-    subcell_m: float = 0.16
+    subcell_m: float = DEFAULT_SUBCELL_M
     red_lights: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)), compare=False)
     start_xy_m: tuple[float, float] | None = None  # centre of the board's start sub-cell
     kind: ClassVar[str] = "board"

@@ -28,13 +28,13 @@ from pathlib import Path
 import numpy as np
 
 from stcvision.errors import MapError
+from stcvision.stcgrid import DEFAULT_SUBCELL_M
 
 __all__ = ["DEFAULT_SUBCELL_M", "Board"]
 
-#: Default sub-cell side D (m): the footprint of the default STC robot, a small Lego Mindstorms
-#: robot about 16 cm across (seed 003: "the robot divides the floor virtually into sub-cells of
-#: its size"; the footprint itself is this project's choice, documented in the README).
-DEFAULT_SUBCELL_M = 0.16
+# DEFAULT_SUBCELL_M (re-exported here, the board's default sub-cell side) is defined once, in
+# stcvision.stcgrid, because the calibration profile's default needs it too and stcvision may not
+# import the simulator.
 
 _TEXT_CHARS = {".": False, "#": True, "S": False}
 #: the most cells a random board may have (1000 x 1000): bounds its memory (a scene asking for

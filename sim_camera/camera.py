@@ -35,7 +35,7 @@ from llvmlite import ir
 from numba.extending import intrinsic
 
 from sim_camera.optics import FloorProjector, MirrorCameraParams, RayTable, trace_pixels
-from sim_camera.sensor import FixedPattern, SensorParams, expose
+from sim_camera.sensor import ROSE_SNR, FixedPattern, SensorParams, detection_snr, expose
 
 __all__ = [
     "Frame",
@@ -52,8 +52,6 @@ PSF_SIGMA_PX = 0.6
 #: indicator LED: tens to hundreds of mcd over a ~10 mm dome).
 RED_LIGHT_DIAMETER_M = 0.010
 RED_LIGHT_CD_M2 = 3000.0
-#: Rose criterion: an object is detectable when its SNR is at least 5 (A. Rose, 1948).
-ROSE_SNR = 5.0
 _PATCH = 4  # splat patch half-size (px): 9x9
 _GLARE_HALF = 24  # glare/bloom patch half-size (px): 49x49
 
@@ -515,28 +513,6 @@ class SyntheticCamera:
             gt = build_truth(self, pose, s, {}, t_s=0.0, board=board)
             gt["lights_on"] = True
         return Frame(image, gt)
-
-
-def detection_snr(total_e: np.ndarray, cov_px: np.ndarray, s: SensorParams, *, window: int = 3) -> np.ndarray:
-    """Expected SNR of a dot in a ``window`` x ``window`` square (the seed's square search
-    window) after an ideal dark-frame subtraction.
-
-    ``SNR = S / sigma_bg`` (Rose's definition: the signal against the noise of the background it
-    must be told from), with ``S`` the dot's electrons inside the window (Gaussian
-    approximation, window centred on the dot) and ``sigma_bg^2 = window^2 (dark + read^2 +
-    q^2)``, ``q^2 = 1 / (12 dn_per_e^2)`` the quantisation noise. Detectable iff
-    ``SNR >= ROSE_SNR``.
-    """
-    from scipy.special import erf
-
-    total_e = np.asarray(total_e, float)
-    half = window / 2
-    sx = np.sqrt(np.maximum(cov_px[..., 0, 0], 1e-12))
-    sy = np.sqrt(np.maximum(cov_px[..., 1, 1], 1e-12))
-    frac = erf(half / (np.sqrt(2) * sx)) * erf(half / (np.sqrt(2) * sy))
-    S = total_e * frac
-    per_px = s.dark_current_e_s * s.exposure_s + s.read_noise_e**2 + 1.0 / (12 * s.dn_per_e**2)
-    return S / np.sqrt(window * window * per_px)
 
 
 def visibility_horizon_s(

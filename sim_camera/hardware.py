@@ -73,10 +73,10 @@ class CameraProfile:
 _WEBCAM_SRC = "sim_camera/sensor.py defaults: typical of small-pixel consumer CMOS, not one datasheet"
 WEBCAM = CameraProfile(
     name="webcam",
-    description="the seed's cheap wireless webcam in the dark (OmniVision OV7725 class VGA CMOS, 4.7 mm f/2.0)",
+    description="the STC paper's cheap wireless webcam in the dark (OmniVision OV7725 class VGA CMOS, 4.7 mm f/2.0)",
     sensor=SensorParams(),
     sources=(
-        ("camera", "seed 003: 'The camera we used, was not intended to work with low-light conditions'"),
+        ("camera", "Srour & Abboud: 'The camera we used, was not intended to work with low-light conditions'"),
         ("quantum_efficiency", f"0.5 at 520 nm; {_WEBCAM_SRC}"),
         ("read_noise_e", f"6 e-; {_WEBCAM_SRC}"),
         ("dark_current_e_s", f"40 e-/s at room temperature; {_WEBCAM_SRC}"),
@@ -102,7 +102,10 @@ LOWLIGHT = CameraProfile(
         adc_bits=12,
     ),
     sources=(
-        ("camera", "seed 003: 'try using a better camera, preferably camera with a fully controlled integration time'"),
+        (
+            "camera",
+            "Srour & Abboud: 'try using a better camera, preferably camera with a fully controlled integration time'",
+        ),
         ("quantum_efficiency", "~0.8 at 520 nm: ZWO ASI462MC relative QE curve (peak ~80 %), recalled, not re-checked"),
         ("read_noise_e", "1.0 e-: ZWO ASI462MC read-noise curve (2.5 e- at gain 0 to 0.47 e- at high gain), recalled"),
         (
@@ -131,13 +134,16 @@ COOLED = CameraProfile(
         adc_bits=16,
     ),
     sources=(
-        ("camera", "seed 003: 'try using a better camera'; issue 16's cooled-sensor figures"),
-        ("quantum_efficiency", "0.85 at 520 nm: issue 16 (a cooled sensor's figures; IMX571 peak QE ~0.9)"),
-        ("read_noise_e", "1.2 e-: issue 16 (ZWO ASI2600MM Pro: 1.0-3.5 e- across gains, recalled)"),
-        ("dark_current_e_s", "0.01 e-/s: issue 16 (a cooled sensor at about -10 C)"),
+        (
+            "camera",
+            "Srour & Abboud: 'try using a better camera'; a cooled astronomy camera (ZWO ASI2600MM Pro class)",
+        ),
+        ("quantum_efficiency", "0.85 at 520 nm: a cooled back-illuminated sensor (Sony IMX571 peak QE ~0.9)"),
+        ("read_noise_e", "1.2 e-: ZWO ASI2600MM Pro (1.0-3.5 e- across gains), recalled"),
+        ("dark_current_e_s", "0.01 e-/s: a cooled sensor at about -10 C (ZWO ASI2600MM Pro class), recalled"),
         ("pixel_pitch_m", "3.76 um: Sony IMX571 (ZWO ASI2600MM Pro specifications)"),
         ("full_well_e", "50,000 e-: ZWO ASI2600MM Pro specifications (50 ke-), recalled"),
-        ("f_number", "f/1.2: issue 16"),
+        ("f_number", "f/1.2: a fast C-mount lens (f/0.95-1.4 are sold), chosen for the faint marks"),
         ("adc_bits", "16: ZWO ASI2600MM Pro specifications (16-bit ADC), recalled"),
     ),
 )

@@ -26,7 +26,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-import numpy as np
+from stcvision.angles import wrap_angle
 
 __all__ = [
     "Odometry",
@@ -145,10 +145,6 @@ class Odometry:
     def error_to(self, true_pose: tuple[float, float, float]) -> tuple[float, float]:
         """(position error m, heading error rad wrapped to [-pi, pi)) of the estimate vs truth."""
         dpos = math.hypot(self.x - true_pose[0], self.y - true_pose[1])
-        dth = (true_pose[2] - self.theta + math.pi) % (2 * math.pi) - math.pi
+        dth = wrap_angle(true_pose[2] - self.theta)
         return dpos, dth
 
-
-def wrap_angle(a: np.ndarray | float) -> np.ndarray | float:
-    """Wrap angles to [-pi, pi)."""
-    return (np.asarray(a) + np.pi) % (2 * np.pi) - np.pi

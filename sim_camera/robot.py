@@ -491,14 +491,14 @@ LEGO_STC_ROBOT = MarkingRobot.from_body(
         ("turn_90_s", "LEGO_STC: 1.5 s (assumed), its turn wheel speed over its 0.12 m wheelbase"),
         (
             "rate_spread",
-            "LEGO_STC.speed_gain_spread (assumed; seed 003: 'a 90 degree turn, wasn't actually 90 degree')",
+            "LEGO_STC.speed_gain_spread (assumed; Srour & Abboud: 'a 90 degree turn, wasn't actually 90 degree')",
         ),
-        ("fade_per_h", "LEGO_STC.battery_fade_per_h (assumed; seed 003: 'Because of the battery decay')"),
-        ("led_on_s", "seed 003: the rear UV LEDs are switched on 'for a few seconds'"),
+        ("fade_per_h", "LEGO_STC.battery_fade_per_h (assumed; Srour & Abboud: 'Because of the battery decay')"),
+        ("led_on_s", "Srour & Abboud: the rear UV LEDs are switched on 'for a few seconds'"),
         ("drive_sigma_m", "assumed: 2 mm per 16 cm move (a Lego frame on wheels, no encoder feedback)"),
         (
             "initial_turn_error",
-            "seed 003: 'We initially set T to a time that let's the robot do the first rotation accurate "
+            "Srour & Abboud: 'We initially set T to a time that let's the robot do the first rotation accurate "
             "enough' -- 1 % assumed",
         ),
         ("settle_s", "assumed: stop, one webcam frame (1/30 s) and the pipeline"),

@@ -11,12 +11,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from sim_camera.board import Board
+from sim_camera.board import DEFAULT_SUBCELL_M, Board
 from sim_camera.camera import Pose
 from sim_camera.phosphor import PhosphorLayer, mark_dots_m
 from sim_camera.truth import BOXES, NEIGHBOURS, SUBCELL_SIGNS, entry_frame
 
-__all__ = ["CellScene", "cell_scene"]
+__all__ = ["CellScene", "benchmark_frames", "benchmark_scene", "cell_scene"]
 
 
 class CellScene:
@@ -60,7 +60,7 @@ def cell_scene(
     age_range_s: tuple[float, float] = (0.0, 60.0),
     fresh_age_s: tuple[float, float] = (1.0, 5.0),
     charge_s: float = 3.0,
-    subcell_m: float = 0.16,
+    subcell_m: float = DEFAULT_SUBCELL_M,
 ) -> CellScene:
     """A random STC entry situation (see the module docstring)."""
     board = Board.random(cells, obstacle_fraction=obstacle_fraction, rng=rng, subcell_m=subcell_m)
@@ -104,3 +104,47 @@ def cell_scene(
             edge = list(NEIGHBOURS.values())[rng.integers(4)]  # any of the four edges
             lay(nc + D / 2 * (sr * right + su * up), edge, rng.uniform(*age_range_s), name)
     return CellScene(board, pose, layer, marks)
+
+
+# ------------------------------------------------------------------ the bench's scene
+def benchmark_scene(seed: int = 0):
+    """A representative closed-loop scene: a 22x22-cell board with 10 % obstacle cells, every
+    sub-cell marked at a random age up to 3 minutes, the robot inside the board."""
+    import numpy as np
+
+    from sim_camera.board import Board
+    from sim_camera.scene import EDGES
+
+    rng = np.random.default_rng(seed)
+    board = Board.random((22, 22), obstacle_fraction=0.1, rng=rng)
+    layer = PhosphorLayer()
+    edges = list(EDGES.values())
+    rows, cols = board.shape_subcells
+    for i in range(rows):
+        for j in range(cols):
+            if not board.blocked[i, j]:
+                e = edges[rng.integers(4)]
+                layer.charge(
+                    mark_dots_m(board.subcell_center_m(i, j), e, board.subcell_m),
+                    t_start_s=-rng.uniform(0, 180),
+                    duration_s=3.0,
+                )
+    free = np.argwhere(board.cell_free)
+    ci, cj = free[len(free) // 2]
+    c = board.subcell_center_m(2 * ci + 1, 2 * cj + 1)
+    return board, layer, Pose(float(c[0]), float(c[1]), np.pi / 2 + 0.03)
+
+
+def benchmark_frames(seed: int = 0, n: int = 8):
+    """(dark frame, ``n`` frames) of :func:`benchmark_scene` as ``stcvision bench`` renders them:
+    a median dark of 8, then the frames, from one stream seeded ``seed``."""
+    import numpy as np
+
+    from sim_camera.camera import SyntheticCamera
+
+    board, layer, pose = benchmark_scene(seed)
+    cam = SyntheticCamera()
+    rng = np.random.default_rng(seed)
+    dark = cam.median_dark(8, rng=rng)
+    lights = board.red_lights_m()
+    return dark, [cam.render(pose, rng=rng, phosphor=layer, red_lights_m=lights).image for _ in range(n)]

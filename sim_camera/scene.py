@@ -54,7 +54,7 @@ EXAMPLE_SCENE = {
             "..........",
         ]
     },
-    "subcell_m": 0.16,
+    "subcell_m": DEFAULT_SUBCELL_M,
     "robot": {"subcell": [7, 7], "heading_deg": 90, "heading_error_deg": 3.0},
     "marks": [
         {"subcell": [8, 7], "edge": "S", "age_s": 2.0, "charge_s": 3.0},

@@ -24,6 +24,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from sim_camera.sensor import ROSE_SNR, detection_snr
+
 __all__ = ["BOXES", "NEIGHBOURS", "build_truth", "entry_frame"]
 
 # sub-cell index -> (right, up) sign of its centre relative to the cell centre, entry frame
@@ -76,8 +78,6 @@ def _dot_box(xy_w, cell_centre, right, up, D):
 
 def build_truth(camera, pose, sensor, info, *, t_s, phosphor=None, red_lights_m=None, board=None) -> dict:
     """Everything a test or an evaluation needs to score a frame (JSON-serialisable)."""
-    from sim_camera.camera import ROSE_SNR, detection_snr
-
     truth: dict = {
         "t_s": float(t_s),
         "pose": pose.to_dict(),

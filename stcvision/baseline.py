@@ -1,7 +1,7 @@
 """A plain-OpenCV dot detector: what a careful user would build instead of the pipeline.
 
-The yardstick the pipeline is measured against (``stcvision bench``, issue 18's "never behind
-the baseline"). It works in the raw mirror image, where the dots are, with textbook steps:
+The yardstick the pipeline is measured against (``stcvision bench``: the pipeline must never be
+behind the baseline). It works in the raw mirror image, where the dots are, with textbook steps:
 
 1. dark subtraction (float, so nothing saturates or wraps);
 2. green minus the *full* red channel: a red light leaks a few per cent of its red into green

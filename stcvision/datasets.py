@@ -3,7 +3,7 @@
 A *recipe* (``datasets/recipes/*.json``, format in ``datasets/README.md``) lists groups of
 frames; each group names how many frames, the scene parameters of
 :func:`sim_camera.scenarios.cell_scene`, and camera and sensor overrides.
-:func:`stcvision.cli.dataset_generate.generate` renders it into a dataset folder::
+:func:`calibration.dataset_render.generate` renders it into a dataset folder::
 
     manifest.json          schema_version, recipe, seed, cameras (optics, pattern seed, profile),
                            groups, dark frames, counts, complete
@@ -21,9 +21,9 @@ byte-identical files however the work is split, and a re-run skips every finishe
 frames (each file is written atomically; the chunks' labels are kept in the sweep store
 ``.sweep.jsonl`` until ``labels.jsonl`` is written at the end).
 
-Generation needs the simulator (``sim_camera``) and the calibration workflow, so it lives with
-the CLI (:mod:`stcvision.cli.dataset_generate`), the one place allowed to reach across packages
-(DESIGN.md); this module reads and checks datasets and recipes.
+Generation needs the simulator (``sim_camera``) and the calibration workflow, so it lives in
+:mod:`calibration.dataset_render`, beside the workflow that fits each camera's profile; this
+module reads and checks datasets and recipes and needs neither.
 """
 
 from __future__ import annotations

@@ -32,8 +32,11 @@ __all__ = [
     "compare",
     "evaluate_dataset",
     "evaluate_frames",
+    "evaluate_image_folder",
     "evaluate_images",
+    "eval_chunk",
     "summarize_evaluation",
+    "sweep_evaluation",
     "write_report",
 ]
 
@@ -449,7 +452,7 @@ def log_worst(ev: Evaluation, ds, rrd_path, *, default_profile, profile=None, n:
     """Re-run the pipeline on the ``n`` worst frames and log every stage to a rerun file."""
     from stcvision.fileio import read_image
     from stcvision.pipeline import Pipeline
-    from stcvision.rr import PipelineLogger, observation_markdown
+    from stcvision.rr import PipelineLogger, Recordings, observation_markdown
 
     worst = [r for r in sorted(ev.records, key=lambda r: (-r.badness, r.index)) if r.badness > 0][:n]
     if not worst:
@@ -457,13 +460,13 @@ def log_worst(ev: Evaluation, ds, rrd_path, *, default_profile, profile=None, n:
     frames = LabelledFrames(ds, default_profile=default_profile, profile=profile)
     logger = None
     logged = []
-    try:
+    with Recordings() as recs:
         for j, r in enumerate(worst):
             lab = ds.labels[r.index]
             pipe = frames.built("pipeline", lab, lambda prof, dark: Pipeline(prof, dark=dark))
             res = pipe.process(read_image(ds.root / lab["frame"], what="frame"))
             if logger is None:
-                logger = PipelineLogger.to_file(rrd_path, pipe)
+                logger = recs.add(PipelineLogger.to_file(rrd_path, pipe))
             else:
                 logger.pipeline = pipe
             errs = "\n".join(f"- {e}" for e in r.score.errors) or "- none"
@@ -475,12 +478,6 @@ def log_worst(ev: Evaluation, ds, rrd_path, *, default_profile, profile=None, n:
             )
             logger.log(res, frame=j, text=text)
             logged.append(lab["frame"])
-    except BaseException:
-        if logger is not None:
-            logger.abort()
-        raise
-    if logger is not None:
-        logger.close()
     return logged
 
 
@@ -514,6 +511,137 @@ def evaluate_images(paths: list[Path], *, profile, dark, dark_path=None, progres
 
 
 # ---------------------------------------------------------------------------------------- compare
+#: frames per sweep task (a frame takes ~10-40 ms: a task is ~1 s, far above the sweep's cost)
+FRAMES_PER_TASK = 50
+
+
+def _sha256(path) -> str:
+    import hashlib
+
+    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+
+
+def eval_chunk(params: dict, seed) -> dict:
+    """Sweep task: run and score frames ``first`` to ``stop - 1`` of the dataset; their records
+    and the frames skipped as unreadable. ``seed`` is not used (the pipeline draws nothing)."""
+    from stcvision.datasets import open_dataset
+    from stcvision.profile import Profile
+
+    ds = open_dataset(params["dataset"])
+    if _sha256(ds.root / "labels.jsonl") != params["labels_sha256"]:
+        raise BadInputError(f"dataset {ds.root} changed while it was being evaluated")
+    profile = Profile.load(params["profile"]) if params["profile"] else None
+    default = Profile.load(params["default_profile"]) if profile is None else None
+    records, skipped = evaluate_frames(
+        ds, range(params["first"], params["stop"]), default_profile=default, profile=profile
+    )
+    return {"records": [r.to_record() for r in records], "skipped": skipped}
+
+
+def sweep_evaluation(ds, *, profile_path=None, default_profile_path=None, options=None, store=None):
+    """Every frame of dataset ``ds`` through :func:`eval_chunk` tasks of the sweep runner.
+
+    ``profile_path`` is used for every frame; without it each camera's own profile from the
+    dataset, else ``default_profile_path``. ``options`` is a
+    :class:`stcvision.sweep.SweepOptions` (workers or a Dask scheduler); with ``store`` (a
+    ``.jsonl`` path) an interrupted evaluation resumes. Returns ``(Evaluation, SweepReport)``;
+    frames skipped as unreadable are named on stderr.
+    """
+    import tempfile
+
+    from stcvision.profile import Profile
+    from stcvision.sweep import SweepOptions, Task, run_sweep
+
+    if profile_path is None and default_profile_path is None:
+        raise BadInputError("sweep_evaluation needs profile_path or default_profile_path")
+    base = {
+        "dataset": str(ds.root.resolve()),
+        "labels_sha256": _sha256(ds.root / "labels.jsonl"),
+        "profile": str(Path(profile_path).resolve()) if profile_path else None,
+        "profile_sha256": _sha256(profile_path) if profile_path else None,
+        "default_profile": None if profile_path else str(default_profile_path),
+    }
+    n = len(ds.labels)
+    tasks = [
+        Task(
+            experiment=f"{__name__}:eval_chunk",
+            params={**base, "first": a, "stop": min(a + FRAMES_PER_TASK, n)},
+            seed=0,
+        )
+        for a in range(0, n, FRAMES_PER_TASK)
+    ]
+    options = options or SweepOptions()
+    if store:
+        report = run_sweep(tasks, store, options, desc=f"eval {ds.root.name}")
+    else:
+        with tempfile.TemporaryDirectory(prefix="stcvision-eval-") as tmp:
+            report = run_sweep(tasks, Path(tmp) / "sweep.jsonl", options, desc=f"eval {ds.root.name}")
+    report.raise_if_failed(f"chunks of {ds.root}")
+    records, skipped = [], []
+    for r in report.results.values():
+        records += [FrameRecord.from_record(d) for d in r["records"]]
+        skipped += r["skipped"]
+    for sk in skipped:
+        print(f"stcvision eval: skipped {ds.root / sk['frame']}: {sk['reason']}", file=sys.stderr)
+    profile = Profile.load(profile_path) if profile_path else None
+    return summarize_evaluation(ds, records, skipped, profile=profile), report
+
+
+def evaluate_image_folder(paths, *, profile, dark, dark_path=None, out, rrd=None) -> dict:
+    """Run the pipeline on a user's own frames (no labels) and write one JSON line per frame to
+    ``out`` (atomically, when all are done); with ``rrd`` every frame goes to a rerun recording.
+
+    Returns counts and medians (dots per frame, ms per frame, heading fits), the frames skipped
+    as unreadable and those whose result is untrusted (a lights-on frame, say). Without ground
+    truth there is no accuracy: ``accuracy`` is None.
+    """
+    from stcvision.fileio import check_output_file, dumps, write_bytes_atomic
+
+    out = Path(out)
+    check_output_file(out, overwrite=True, what="results file")
+    from stcvision.rr import Recordings
+
+    logger = None
+    lines, ms, skipped, fits, ndots, untrusted = [], [], [], 0, [], []
+    with Recordings() as recs:
+        for i, (p, res, reason, pipe) in enumerate(
+            evaluate_images(paths, profile=profile, dark=dark, dark_path=dark_path)
+        ):
+            if res is None:
+                skipped.append({"frame": str(p), "reason": reason})
+                lines.append(dumps({"frame": str(p), "skipped": reason}, indent=None))
+                continue
+            if rrd and logger is None:
+                from stcvision.rr import PipelineLogger
+
+                logger = recs.add(PipelineLogger.to_file(rrd, pipe))
+            if logger is not None:
+                logger.log(res, frame=i)
+            d = res.to_dict()
+            if res.untrusted:  # e.g. a lit (lights-on) frame, or no dark frame on a sensor that needs one
+                untrusted.append({"frame": str(p), "reason": res.untrusted})
+            lines.append(dumps({"frame": str(p), **d}, indent=None))
+            ms.append(res.total_ms)
+            fits += bool(res.heading.ok)
+            ndots.append(len(d["dots"]))
+    write_bytes_atomic(out, "".join(s + "\n" for s in lines).encode(), overwrite=True)
+    return {
+        "frames": len(ms),
+        "frames_skipped": len(skipped),
+        "skipped": skipped,
+        "frames_untrusted": len(untrusted),
+        "untrusted": untrusted,
+        "results": str(out),
+        "rrd": rrd,
+        "dark": dark_path,
+        "dots_per_frame_median": _median(ndots),
+        "heading_fits": fits,
+        "ms_per_frame_median": _median(ms),
+        "accuracy": None,
+        "note": "no labels: the pipeline ran, but without ground truth there is no accuracy to report",
+    }
+
+
 def compare(a: dict, b: dict, *, names=("A", "B")) -> dict:
     """Per metric: B better, worse or the same as A (within the metric's tolerance)."""
     for d, nm in zip((a, b), names, strict=True):

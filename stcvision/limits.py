@@ -133,6 +133,8 @@ def check_buffon_work(
             f"--rrd records up to {record_steps:,} steps a visit, over the cap of {MAX_BUFFON_RECORD_STEPS:,} "
             "(MAX_BUFFON_RECORD_STEPS); record a run with shorter visits"
         )
+
+
 #: steps of one visit on the pymunk path (``buffon compare``): ~1-3,000 steps/s, so 10^6 is ~10
 #: minutes a visit
 MAX_PYMUNK_VISIT_STEPS = 1_000_000
@@ -174,4 +176,3 @@ MIN_CALIBRATION_SUBCELL_M = 0.04
 #: model sees no grid line at all (measured: 0 line points at 0.05 m, a good fit at 0.1 m)
 MAX_VIEWPOINT_M = 2.0
 MIN_VIEWPOINT_M = 0.1
-

@@ -17,11 +17,12 @@ import math
 from dataclasses import dataclass
 
 import cv2
+import numba
 import numpy as np
 
-from stcvision import kernels
 from stcvision.profile import CORNER_ORDER, ROBOT_IN_CELL
-from stcvision.stcgrid import BOXES, DIRECTIONS, NEIGHBOURS, START_MARKS, SUBCELLS, VISITED_BY
+from stcvision.stages.compiled import _fma64
+from stcvision.stcgrid import BOXES, DEFAULT_SUBCELL_M, DIRECTIONS, NEIGHBOURS, START_MARKS, SUBCELLS, VISITED_BY
 
 __all__ = [
     "BOXES",
@@ -65,8 +66,8 @@ def _apply(H: np.ndarray, xy) -> np.ndarray:
     """(N, 2) points through the homography ``H``: homogeneous coordinates (the points and a
     column of ones) times ``H.T``, then divided."""
     p = np.asarray(xy, float).reshape(-1, 2)
-    if len(p) >= 2:  # compiled, bit for bit numpy's product (kernels.homography)
-        return kernels.homography(H, np.ascontiguousarray(p))
+    if len(p) >= 2:  # compiled, bit for bit numpy's product (homography)
+        return homography(H, np.ascontiguousarray(p))
     q = np.empty((len(p), 3))
     q[:, :2] = p
     q[:, 2] = 1.0
@@ -119,7 +120,7 @@ class CellGeometry:
 
 
 #: the sub-cell side (m) the light errors are converted with when the caller gives none
-_SUBCELL_M = 0.16
+_SUBCELL_M = DEFAULT_SUBCELL_M
 
 
 def light_sigma_m(d_m) -> tuple[np.ndarray, np.ndarray]:
@@ -175,7 +176,7 @@ def _rotate(ru: np.ndarray, angle_rad: float) -> np.ndarray:
     if angle_rad == 0.0:
         return ru
     c, s = math.cos(angle_rad), math.sin(angle_rad)
-    return kernels.rotate_about(np.ascontiguousarray(ru, np.float64), c, s, *ROBOT_IN_CELL)
+    return rotate_about(np.ascontiguousarray(ru, np.float64), c, s, *ROBOT_IN_CELL)
 
 
 #: Half-width (cell units, i.e. fractions of D) of the band a row's dots share across the row
@@ -194,7 +195,7 @@ def row_orientation(ru: np.ndarray) -> np.ndarray:
     """
     if len(ru) == 0:
         return np.zeros(0, int)
-    return kernels.row_orientation(np.ascontiguousarray(ru, np.float64), ROW_TOL, ROW_SPAN)
+    return row_orientation_loop(np.ascontiguousarray(ru, np.float64), ROW_TOL, ROW_SPAN)
 
 
 def assign_boxes(ru: np.ndarray, orient: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -208,7 +209,7 @@ def assign_boxes(ru: np.ndarray, orient: np.ndarray | None = None) -> tuple[np.n
         orient = row_orientation(ru)
     # the box of the sub-cell's edge; the start mark, sub-cell m along its exterior edge in
     # direction m, is coded as box -m (m = 1, 2, 3; sub-cell 0's is under the robot)
-    return kernels.assign_boxes(
+    return assign_boxes_loop(
         np.ascontiguousarray(ru, np.float64), np.asarray(orient, np.int64), _SUB_OF_QUADRANT, _BOX_OF, _NEIGHBOUR_DIRS
     )
 
@@ -228,14 +229,14 @@ def mark_offset(ru: np.ndarray, orient: np.ndarray, *, inset: float = MARK_INSET
     if not len(ru):
         return None
     lit = np.ones(len(ru), np.bool_)
-    have, off = kernels.mark_offset(
+    have, off = mark_offset_loop(
         np.ascontiguousarray(ru, np.float64), np.asarray(orient, np.int64), lit, inset, min_dots
     )
     return _offset_of(have, off)
 
 
 def _offset_of(have: np.ndarray, off: np.ndarray):
-    """(right, up) from :func:`kernels.mark_offset`'s answer; None where neither axis had rows."""
+    """(right, up) from :func:`mark_offset`'s answer; None where neither axis had rows."""
     if not have.any():
         return None
     return (float(off[0]) or 0.0, float(off[1]) or 0.0)
@@ -296,7 +297,7 @@ def _row_angles(band: list[tuple[float, float]], along: int) -> list[float]:
 def _group_stats(code: np.ndarray, n: int, lit: np.ndarray, value: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """For codes 0..n-1 (one per dot): how many of the lit dots have each code, and the largest
     ``value`` among all dots of each code (0.0 where none has it)."""
-    return kernels.group_stats(np.asarray(code, np.int64), n, np.asarray(lit, np.bool_), np.asarray(value, float))
+    return group_stats(np.asarray(code, np.int64), n, np.asarray(lit, np.bool_), np.asarray(value, float))
 
 
 def _confidence(value: float, threshold: float, noise: float) -> float:
@@ -443,7 +444,7 @@ def observe_cell(
     boxes, visited, stray, start_mark, nb_stats = _read_boxes(dots, sub, box, nb, params)
     # neighbour d's sub-cell next to our sub-cell d holds a whole row (LANDING_DOTS of its 4
     # dots, clear of the borders)
-    inside = kernels.landing_counts(ru, np.asarray(dots.lit, np.bool_), _LANDING, _LANDING_HALF)
+    inside = landing_counts(ru, np.asarray(dots.lit, np.bool_), _LANDING, _LANDING_HALF)
     landing = tuple(bool(c >= max(params.min_dots, LANDING_DOTS)) for c in inside)
     rru = _rotate(geometry.to_cell(red_px), heading_error_rad) if len(red_px) else np.zeros((0, 2))
     landmark = (None,) * 4
@@ -475,7 +476,7 @@ def _cell_dots(dots, geometry: CellGeometry, heading_error_rad: float, params: O
         return np.zeros((0, 2)), np.zeros(0, np.int64), None
     ru = _rotate(geometry.to_cell(dots.xy_px), heading_error_rad)
     lit = np.asarray(dots.lit, np.bool_)
-    orient, have, off = kernels.cell_dots(ru, lit, ROW_TOL, ROW_SPAN, MARK_INSET, MARK_MIN_DOTS)
+    orient, have, off = cell_dots(ru, lit, ROW_TOL, ROW_SPAN, MARK_INSET, MARK_MIN_DOTS)
     # where the robot really stands, from the marks: read the boxes relative to that
     offset = _offset_of(have, off) if position_offset is None else tuple(position_offset)
     if offset is not None and params.use_offset:
@@ -487,10 +488,10 @@ def _read_boxes(dots, sub: np.ndarray, box: np.ndarray, nb: np.ndarray, params: 
     """The five boxes (lit with ``params.min_dots`` lit dots; confidence from the best
     candidate's SNR), the visited sub-cells, the stray lit dots (in the cell, in no box), the
     start mark's sub-cell (or None), and per neighbour code (``nb + 1``) the lit dots and the
-    best SNR (:func:`kernels.box_counts`)."""
+    best SNR (:func:`box_counts`)."""
     thr = dots.threshold_snr
     # per box code (-3..5, offset by 3): lit dots and the best candidate's SNR
-    n_box, best_box, n_nb, best_nb, stray = kernels.box_counts(
+    n_box, best_box, n_nb, best_nb, stray = box_counts(
         box, nb, sub, np.asarray(dots.lit, np.bool_), np.asarray(dots.snr, float)
     )
     n_lit_box, best_box = n_box.tolist(), best_box.tolist()
@@ -588,3 +589,171 @@ def marks_landing_ahead(
     if offset is not None:
         ru = ru + np.asarray(offset)
     return int(((np.abs(ru[:, 0] - 0.5) < _LANDING_HALF) & (np.abs(ru[:, 1] - 0.5) < _LANDING_HALF)).sum())
+
+
+# --------------------------------------------------------------------------- compiled loops
+@numba.njit(cache=True)
+def rotate_about(ru, c, s, cx, cy):
+    """Points rotated about (cx, cy) by the angle of cosine ``c`` and sine ``s``
+    (:func:`stcvision.observation._rotate`), element by element as the numpy version."""
+    out = np.empty_like(ru)
+    for i in range(len(ru)):
+        dx, dy = ru[i, 0] - cx, ru[i, 1] - cy
+        out[i, 0] = (c * dx - s * dy) + cx
+        out[i, 1] = (s * dx + c * dy) + cy
+    return out
+
+
+@numba.njit(cache=True)
+def row_orientation_loop(ru, tol, span):
+    """Per dot (cell units): 1 if it has more row-mates along 'up' than along 'right', 0 if
+    fewer, -1 if as many (:func:`stcvision.observation.row_orientation`)."""
+    n = len(ru)
+    out = np.empty(n, np.int64)
+    for i in range(n):
+        vertical = 0
+        horizontal = 0
+        for j in range(n):
+            if j == i:
+                continue
+            dr = abs(ru[i, 0] - ru[j, 0])
+            du = abs(ru[i, 1] - ru[j, 1])
+            if dr < tol and du < span:
+                vertical += 1
+            if du < tol and dr < span:
+                horizontal += 1
+        out[i] = 1 if vertical > horizontal else (0 if horizontal > vertical else -1)
+    return out
+
+
+@numba.njit(cache=True)
+def assign_boxes_loop(ru, orient, sub_of_quadrant, box_of, neighbours):
+    """Sub-cell, box and neighbour of each dot (:func:`stcvision.observation.assign_boxes`)."""
+    n = len(ru)
+    sub = np.full(n, -1, np.int64)
+    box = np.zeros(n, np.int64)
+    nb = np.full(n, -1, np.int64)
+    for i in range(n):
+        r, u = ru[i, 0], ru[i, 1]
+        right, up = r >= 0, u >= 0
+        if abs(r) < 1 and abs(u) < 1:
+            sub[i] = sub_of_quadrant[int(right), int(up)]
+        lr = r - (0.5 if right else -0.5)
+        lu = u - (0.5 if up else -0.5)
+        horiz = True if orient[i] == 1 else (False if orient[i] == 0 else abs(lr) > abs(lu))
+        er = int(np.sign(lr)) if horiz else 0
+        eu = 0 if horiz else int(np.sign(lu))
+        if sub[i] >= 0:
+            box[i] = box_of[sub[i], er + 1, eu + 1]
+        for k in range(len(neighbours)):
+            if abs(r - 2 * neighbours[k, 0]) < 1 and abs(u - 2 * neighbours[k, 1]) < 1:
+                nb[i] = k
+    return sub, box, nb
+
+
+@numba.njit(cache=True)
+def mark_offset_loop(ru, orient, lit, inset, min_dots):
+    """The median residuals of :func:`stcvision.observation.mark_offset` over the lit dots:
+    per axis (0: right, from the rows along 'up'; 1: up, from those along 'right'), whether
+    ``min_dots`` rows' dots were there, and minus the median of each dot's coordinate less its
+    nominal one (the nearest integer, half to even, +- ``inset``)."""
+    have = np.zeros(2, np.bool_)
+    out = np.zeros(2)
+    for axis in range(2):
+        along = 1 - axis
+        r = np.empty(len(ru))
+        k = 0
+        for i in range(len(ru)):
+            if lit[i] and orient[i] == along:
+                p = ru[i, axis]
+                q = np.round(p)
+                r[k] = p - (q + (inset if p >= q else -inset))
+                k += 1
+        if k >= min_dots:
+            have[axis] = True
+            out[axis] = -np.median(r[:k])
+    return have, out
+
+
+@numba.njit(cache=True)
+def group_stats(code, n, lit, value):
+    """Per code 0..n-1: lit dots with it, and the largest ``value`` of any dot with it (0.0
+    where none has it) (:func:`stcvision.observation._group_stats`)."""
+    counts = np.zeros(n, np.int64)
+    best = np.full(n, -np.inf)
+    seen = np.zeros(n, np.bool_)
+    for i in range(len(code)):
+        c = code[i]
+        seen[c] = True
+        if lit[i]:
+            counts[c] += 1
+        if value[i] > best[c]:
+            best[c] = value[i]
+    for c in range(n):
+        if not seen[c]:
+            best[c] = 0.0
+    return counts, best
+
+
+@numba.njit(cache=True)
+def cell_dots(ru, lit, tol, span, inset, min_dots):
+    """Row orientation and mark offset of the dots ``ru`` (cell units, already rotated), in
+    one call (:func:`stcvision.observation._cell_dots`): per dot, :func:`row_orientation` among
+    the lit dots (-1 for the rest), then :func:`mark_offset` over the lit dots. Returns
+    (orient, have, offset)."""
+    idx = np.flatnonzero(lit)
+    sub = np.empty((len(idx), 2))
+    for k in range(len(idx)):
+        sub[k, 0] = ru[idx[k], 0]
+        sub[k, 1] = ru[idx[k], 1]
+    orient = np.full(len(ru), -1, np.int64)
+    o = row_orientation_loop(sub, tol, span)
+    for k in range(len(idx)):
+        orient[idx[k]] = o[k]
+    have, off = mark_offset_loop(ru, orient, lit, inset, min_dots)
+    return orient, have, off
+
+
+@numba.njit(cache=True)
+def box_counts(box, nb, sub, lit, snr):
+    """Per box code (box + 3: -3..5) and neighbour code (nb + 1: -1..3): the lit dots and the
+    best SNR of any dot (:func:`group_stats`), and the stray lit dots (in a sub-cell, in no
+    box) (:func:`stcvision.observation._read_boxes`)."""
+    n_box, best_box = group_stats(box + 3, 9, lit, snr)
+    n_nb, best_nb = group_stats(nb + 1, 5, lit, snr)
+    stray = 0
+    for i in range(len(box)):
+        if sub[i] >= 0 and box[i] == 0 and lit[i]:
+            stray += 1
+    return n_box, best_box, n_nb, best_nb, stray
+
+
+@numba.njit(cache=True)
+def landing_counts(ru, lit, centres, half):
+    """Per landing centre, the lit dots within ``half`` of it along both axes."""
+    out = np.zeros(len(centres), np.int64)
+    for i in range(len(ru)):
+        if not lit[i]:
+            continue
+        for k in range(len(centres)):
+            if abs(ru[i, 0] - centres[k, 0]) < half and abs(ru[i, 1] - centres[k, 1]) < half:
+                out[k] += 1
+    return out
+
+
+@numba.njit(cache=True)
+def homography(H, p):
+    """(N, 2) points ``p`` through the homography ``H`` ((3, 3)): ``[p, 1] @ H.T`` then divided
+    by the third coordinate, each row of the product as OpenBLAS's dgemm computes it on this
+    machine for N >= 2 (``fma(y, h1, x * h0) + h2``: bit for bit on 100,000 points; numpy takes
+    another path for N = 1, which :func:`stcvision.observation._apply` keeps)."""
+    n = len(p)
+    out = np.empty((n, 2))
+    for i in range(n):
+        x, y = p[i, 0], p[i, 1]
+        a = _fma64(y, H[0, 1], x * H[0, 0]) + H[0, 2]
+        b = _fma64(y, H[1, 1], x * H[1, 0]) + H[1, 2]
+        c = _fma64(y, H[2, 1], x * H[2, 0]) + H[2, 2]
+        out[i, 0] = a / c
+        out[i, 1] = b / c
+    return out

@@ -13,39 +13,36 @@ Stages (``stcvision.stages``), in the order they run::
     heading   line fit through the newest mark row
     observe   five boxes, visited sub-cells, four neighbours
 
-The runner is built once per profile (remap table, cell homography); ``process`` allocates only
-the images it returns, besides a few scratch images it keeps (so one ``Pipeline`` per thread). The
-unwarp with the channel separation, and the background sample, are compiled passes
-(``stcvision.kernels``), bit-identical to the OpenCV stages they stand for; the window sums of
-green and red are one two-channel image, which the unwarp gathers both channels of at once. Logging
-(``stcvision.rr``) observes the result afterwards.
+The runner is built once per profile: its front end (:class:`stcvision.stages.front.FrontEnd`:
+the remap tables, the background sample; rebuilt for each dark frame) and the cell homography;
+``process`` allocates only the images it returns, besides the scratch images it lends the stages
+(:class:`stcvision.stages.Scratch`, so one ``Pipeline`` per thread). Each stage's module chooses
+its compiled path itself; the window sums of green and red are one two-channel image, which the
+unwarp gathers both channels of at once. Logging (``stcvision.rr``) observes the result
+afterwards.
 """
 
 from __future__ import annotations
 
 import dataclasses
-import math
-import sys
 import time
 from dataclasses import dataclass, field
-from typing import NamedTuple
 
 import cv2
 import numpy as np
 
-from stcvision import kernels
 from stcvision.observation import CellGeometry, CellObservation, ObservationParams, observe_cell
 from stcvision.profile import Profile
 from stcvision.stages import (
     ChannelParams,
     DotParams,
     Dots,
-    GatherTables,
     HeadingFit,
     HeadingParams,
     RedLights,
     RedParams,
     RowParams,
+    Scratch,
     UnwarpMap,
     check_dark_dtype,
     check_frame,
@@ -53,24 +50,15 @@ from stcvision.stages import (
     find_red,
     find_rows,
     fit_heading,
-    hot_pixels,
     mirror_centroids,
-    noise_floor,
     noise_gain,
-    quantum_dn,
-    robust_sigma,
     subtract_dark,
     unwarp,
     window_sums,
 )
+from stcvision.stages.front import FrontEnd, FrontOutput
 
 __all__ = ["Pipeline", "PipelineParams", "PipelineResult", "STAGES", "display_scale"]
-
-#: the byte order the unwarp's gathers read pairs of channels in (green first in memory)
-_LITTLE = sys.byteorder == "little"
-#: uint16 window sums gathered as uint32 pairs (little-endian machines); else converted to
-#: float32 and gathered as those are (tests switch it off to check that path)
-_U32_GATHERS = True
 
 STAGES = ("dark", "window", "unwarp", "channels", "dots", "rows", "red", "heading", "observe")
 
@@ -205,21 +193,6 @@ class PipelineResult:
         return out
 
 
-class _Front(NamedTuple):
-    """What the front end (:meth:`Pipeline._front`) gives the later stages."""
-
-    green: np.ndarray
-    red: np.ndarray
-    sums: np.ndarray
-    obstacle: np.ndarray
-    marks: np.ndarray
-    bg: float
-    noise: float
-    quantum: int
-    red_levels: tuple[float, float]
-    leak: float
-
-
 class Pipeline:
     """Build once per profile, then ``process`` frames.
 
@@ -236,226 +209,70 @@ class Pipeline:
     ) -> None:
         self.profile = profile
         self.params = params or PipelineParams()
-        self.umap = UnwarpMap.from_profile(profile)
-        self.geometry = CellGeometry.from_profile(profile)
-        self.gain = noise_gain(self.umap, self.params.dots.window_px)
-        # raw pixels inside the mirror rim, sparsely, for the per-frame background/noise estimate
-        w, h = profile.image_size_px
-        vv, uu = np.mgrid[0:h:5, 0:w:5]
-        inside = np.hypot(uu - profile.center_px[0], vv - profile.center_px[1]) < 0.95 * profile.rim_radius_px
-        self._sample = (vv[inside] * w + uu[inside]).ravel()
-        self._sample3 = {ch: self._sample * 3 + ch for ch in (1, 2)}  # into a flat BGR frame
+        p = self.params
         # the wide, coarse ground view for far red-light landmarks (pose estimates only)
-        self.wide = None
-        if self.params.observation.pose_estimates and self.params.observation.landmark_range_m > 0:
-            reach = self.params.observation.landmark_range_m + 0.1
-            n = 160
-            self._wide_profile = profile.replace(ground_size_px=n, ground_px_per_m=(n - 1) / (2 * reach))
-            self.wide = UnwarpMap.from_profile(self._wide_profile)
-        # the part of the mirror image the main view reads: the mirror-image stages run on that
-        # crop only (about half the frame); the wide view reads nearly the whole mirror
-        self._crop = (0, 0, w, h) if self.wide is not None else self.umap.reach_px()
-        x0, y0, x1, y1 = self._crop
-        self._umap_crop = self.umap.cropped(x0, y0, x1, y1)
-        self._tables = GatherTables.from_map(self._umap_crop)
-        self._wide_tables = GatherTables.from_map(self.wide) if self.wide is not None else None
-        # the front end's scratch images, made once (the images a result holds are new per frame)
-        self._scratch = {}  # (purpose, shape, dtype) -> scratch arrays, made on first use
-        k = 2 * self.params.channels.red_margin_px + 1
-        self._margin = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (k, k)) if k > 1 else None
-        self._no_dark()
+        wide = p.observation.pose_estimates and p.observation.landmark_range_m > 0
+        self.front = FrontEnd.from_profile(
+            profile,
+            channels=p.channels,
+            window_px=p.dots.window_px,
+            pedestal_steps=p.pedestal_steps,
+            pedestal_k_sigma=p.pedestal_k_sigma,
+            wide_reach_m=p.observation.landmark_range_m + 0.1 if wide else None,
+        )
+        self.geometry = CellGeometry.from_profile(profile)
+        self.gain = noise_gain(self.umap, p.dots.window_px)
+        #: the stages' scratch arrays, reused from frame to frame (never one a result holds)
+        self.scratch = Scratch()
         if dark is not None:
             self.set_dark(dark)
 
     @property
+    def umap(self) -> UnwarpMap:
+        """The main ground view's unwarp map (of the whole mirror image)."""
+        return self.front.umap
+
+    @property
+    def wide(self) -> UnwarpMap | None:
+        """The wide view's unwarp map (None without the pose estimates)."""
+        return self.front.wide
+
+    @property
     def crop(self) -> tuple[int, int, int, int]:
         """(x0, y0, x1, y1): the part of the mirror image the stages read."""
-        return self._crop
+        return self.front.crop
 
-    def _crop_view(self, image: np.ndarray) -> np.ndarray:
-        x0, y0, x1, y1 = self._crop
-        return image[y0:y1, x0:x1]
+    @property
+    def dark(self) -> np.ndarray | None:
+        """The dark frame every ``process`` call subtracts (None: none); setting it is
+        :meth:`set_dark`, or with None forgets it."""
+        return self.front.dark.frame
 
-    def _no_dark(self) -> None:
-        """No dark frame: the background sample is then read as it is, without pedestal."""
-        self.dark = None
-        self.pedestal = 0
-        self.quantum = 1
-        self.dark_sigma = 0.0
-        self._hot_g = self._hot_r = np.zeros(0, np.int64)
-        self._dark_sample = None
-        self._hot_sample = [np.zeros(len(self._sample), bool)] * 2
+    @dark.setter
+    def dark(self, dark: np.ndarray | None) -> None:
+        if dark is None:
+            self.front = self.front.with_dark(None)
+        else:
+            self.set_dark(dark)
 
-    def _buffer(self, purpose: str, shape, dtype) -> np.ndarray:
-        """A scratch array of the front end, reused from frame to frame (never one a result
-        holds: the next ``process`` call overwrites it)."""
-        key = (purpose, tuple(shape), np.dtype(dtype))
-        if key not in self._scratch:
-            self._scratch[key] = np.empty(shape, dtype)
-        return self._scratch[key]
+    @property
+    def pedestal(self) -> int:
+        return self.front.dark.pedestal
+
+    @property
+    def quantum(self) -> int:
+        return self.front.dark.quantum
+
+    @property
+    def dark_sigma(self) -> float:
+        return self.front.dark.sigma
 
     def set_dark(self, dark: np.ndarray) -> None:
         """Use ``dark`` (H, W, 3) uint8 or uint16 from now on: split it once, map its hot pixels
         once, and take from it the quantisation step and the pedestal."""
         check_frame(dark, "dark frame")
         self.profile.check_frame(dark.shape, what="dark frame")
-        p = self.params
-        gr = np.concatenate([cv2.extractChannel(dark, c).reshape(-1)[self._sample] for c in (1, 2)])
-        q = quantum_dn(gr)
-        _, spread = robust_sigma(gr)
-        self.quantum = q
-        self.dark_sigma = spread
-        self.pedestal = int(max(p.pedestal_steps, math.ceil(p.pedestal_k_sigma * spread / q - 1e-9)) * q)
-        self.dark = dark
-        crop = self._crop_view(dark)
-        self._dark_g, self._dark_r = cv2.extractChannel(crop, 1), cv2.extractChannel(crop, 2)
-        hot = hot_pixels(dark, quantum=q)
-        x0, y0, x1, y1 = self._crop
-        w = dark.shape[1]
-        hot_in = []
-        for ch in (1, 2):
-            px = hot[hot % 3 == ch] // 3  # flat indices into one full channel
-            yy, xx = px // w, px % w
-            keep = (xx >= x0) & (xx < x1) & (yy >= y0) & (yy < y1)
-            hot_in.append((yy[keep] - y0) * (x1 - x0) + (xx[keep] - x0))  # into the crop
-        self._hot_g, self._hot_r = hot_in
-        self._dark_sample = [np.ascontiguousarray(dark.reshape(-1)[self._sample3[ch]]) for ch in (1, 2)]
-        self._hot_sample = [np.isin(self._sample3[ch], hot) for ch in (1, 2)]
-
-    def _channels(self, frame: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Green and red of the crop of ``frame`` the view reads, dark-subtracted: two new
-        (h, w) images. One ``cv2.split`` of the crop's rows (a contiguous block: OpenCV's
-        vectorised path, ~2x faster here than extracting or mixing channels out of the crop),
-        then per channel the pedestal added and the dark frame subtracted, both saturating,
-        and the hot pixels set to the pedestal."""
-        x0, y0, x1, y1 = self._crop
-        rows = frame[y0:y1]
-        # into the pipeline's own planes, reused frame to frame (the results hold the
-        # dark-subtracted copies below, never these): writing fresh memory each frame made the
-        # split 3x slower alone here (64 against 20 us; ~10 us of the pipeline's frame)
-        planes = cv2.split(rows, [self._buffer(f"plane {c}", rows.shape[:2], rows.dtype) for c in range(3)])
-        g, r = planes[1][:, x0:x1], planes[2][:, x0:x1]
-        if self.dark is None:
-            return g.copy(), r.copy()  # new images: the planes are scratch
-        ped = self.pedestal
-        g = cv2.subtract(cv2.add(g, ped), self._dark_g)
-        r = cv2.subtract(cv2.add(r, ped), self._dark_r)
-        g.reshape(-1)[self._hot_g] = ped  # defect-pixel map
-        r.reshape(-1)[self._hot_r] = ped
-        return g, r
-
-    def _background(self, frame: np.ndarray) -> tuple[float, float, float, float, int]:
-        """(green background, green noise, red background, red noise, quantisation step) of
-        ``frame``: :func:`~stcvision.stages.estimate_background` of raw pixels inside the rim
-        (:attr:`_sample`), dark-subtracted as :meth:`_channel` does it (one compiled pass over
-        both channels); the noise never below the rounding noise of one step."""
-        flat = frame.reshape(-1)
-        n = len(self._sample)
-        vals = self._buffer("sample g", (n,), frame.dtype), self._buffer("sample r", (n,), frame.dtype)
-        if self.dark is None:
-            dark = [self._buffer("no dark", (n,), frame.dtype)] * 2
-            dark[0][:] = 0
-            q = quantum_dn(flat[self._sample3[1]])
-        else:
-            dark, q = self._dark_sample, self.quantum
-        top, whole = np.iinfo(frame.dtype).max, frame.dtype == np.uint8 and q == 1
-        quart = kernels.sample_quartiles(
-            flat, self._sample3[1], *dark, *self._hot_sample, self.pedestal, top, q, whole, *vals
-        )
-        (gq1, g_med, gq3), (rq1, r_med, rq3) = quart
-        floor = noise_floor(q)
-        g_noise, r_noise = max(float((gq3 - gq1) / 1.349), floor), max(float((rq3 - rq1) / 1.349), floor)
-        return float(g_med), g_noise, float(r_med), r_noise, q
-
-    def _window_sums(self, g: np.ndarray, r: np.ndarray) -> np.ndarray:
-        """:func:`~stcvision.stages.window_sums` of the green and red images ``g``, ``r`` as one
-        (h, w, 2) image, green first (the pipeline's scratch for 8-bit frames: the next frame
-        overwrites it): 3 x 3 windows of 8-bit pixels by a compiled pass
-        (:func:`stcvision.kernels.box3_pair`, bit for bit OpenCV's box filter, faster here),
-        others by OpenCV."""
-        w = self.params.dots.window_px
-        if w != 3 or g.dtype != np.uint8:
-            return window_sums(cv2.merge([g, r]), w)
-        sums = self._buffer("sums", (*g.shape, 2), np.uint16)  # scratch: no result holds it
-        h, wd = g.shape
-        kernels.box3_pair(
-            g.reshape(-1), r.reshape(-1), h, wd, sums.reshape(-1), self._buffer("rows", (6 * wd,), np.uint16)
-        )
-        return sums
-
-    def _unwarp_separate(
-        self, tables: GatherTables, sums: np.ndarray, shape, leak: float, red_levels: tuple[float, float]
-    ) -> tuple[np.ndarray, np.ndarray, int]:
-        """(obstacle, marks, n): the ground views of the (h, w, 2) green/red window sums
-        ``sums`` through ``tables`` and their red/green separation, the rule and the arithmetic
-        of ``cv2.remap`` then :func:`~stcvision.stages.separate_channels`, in one compiled pass
-        (:func:`stcvision.kernels.unwarp_separate_u16`; new arrays); ``n`` ground pixels of the
-        marks are to be blacked out (:meth:`_black_out`)."""
-        area = self.params.dots.window_px**2
-        cp = self.params.channels
-        thr, tol = cp.levels(*red_levels)
-        thr_a, tol_a = float(thr * area), float(tol * area)
-        # the red-fraction test as cv2.addWeighted(r, 1, g, -f, -(1 - f) bg) >= 0 takes it
-        frac = np.float32(-cp.red_min_fraction if cp.red_min_fraction > 0 else 0.0)
-        gamma = np.float32(-(1.0 - cp.red_min_fraction) * (red_levels[0] * area))
-        if sums.dtype == np.uint16:  # OpenCV: the added scalar rounded, comparisons exact
-            tol32, bottom, top = np.float32(np.rint(tol_a)), np.float32(0), np.float32(65535)
-            # v > t for whole v <= 65535 is v > floor(t), exact in float32 once clipped
-            thr32, leak32 = (np.float32(min(max(math.floor(x), -1), 65536)) for x in (thr_a, leak))
-            # both channels in one uint32 load, green in the low half (little-endian machines)
-            src32 = sums.reshape(-1).view(np.uint32) if (_LITTLE and _U32_GATHERS) else None
-        else:  # float images: the scalars rounded to float32, no saturation
-            tol32, thr32, leak32 = np.float32(tol_a), np.float32(thr_a), np.float32(leak)
-            bottom, top = np.float32(-np.inf), np.float32(np.inf)
-            src32 = None
-        h, w = sums.shape[:2]
-        scratch = self._buffer("gather", (2, 256) if src32 is not None else (4, 256), np.uint64)
-        obstacle = np.empty(shape, sums.dtype)
-        marks = np.empty(shape, sums.dtype)
-        black = self._buffer("black", shape, np.uint8)
-        flat = obstacle.reshape(-1), marks.reshape(-1), black.reshape(-1)
-        sep = (thr32, tol32, bottom, top, frac, gamma, leak32, *flat)
-        base, alpha, beta, border, border_xy = tables
-        src, rnd = sums.reshape(-1), sums.dtype == np.uint16
-        if src32 is not None:
-            n = kernels.unwarp_separate_u16(src32, w, base, alpha, beta, *sep, scratch)
-        else:  # float32 pairs, one uint64 per pixel (uint16 sums converted: exact)
-            src64 = np.ascontiguousarray(sums, np.float32).reshape(-1).view(np.uint64)
-            n = kernels.unwarp_separate_f32(src64, _LITTLE, w, base, alpha, beta, rnd, *sep, scratch)
-        if len(border):
-            n += kernels.unwarp_border(src, w, h, border, border_xy, rnd, *sep)
-        return obstacle, marks, n
-
-    def _black_out(self, marks: np.ndarray, n: int) -> None:
-        """Zero in ``marks`` the ``n`` pixels :meth:`_unwarp_separate` marked, grown by the
-        red-light margin (``ChannelParams.red_margin_px``), in place."""
-        if not n:
-            return
-        black = self._buffer("black", marks.shape, np.uint8)
-        if self._margin is not None:
-            black = cv2.dilate(black, self._margin, dst=self._buffer("grown", marks.shape, np.uint8))
-        kernels.zero_where(marks.reshape(-1), black.reshape(-1))
-
-    def _front(self, frame: np.ndarray, clock, t: list) -> _Front:
-        """The mirror-image stages and the channel separation (dark, window, unwarp, channels;
-        their end times appended to ``t``)."""
-        p = self.params
-        w = p.dots.window_px
-        g, r = self._channels(frame)  # only green and red carry marks and lights
-        # background and noise, measured on raw pixels inside the rim
-        bg, noise, bg_r, noise_r, q = self._background(frame)
-        t.append(clock())
-        sums = self._window_sums(g, r)
-        t.append(clock())
-        # a red light's level: above the pedestal by the dark frame's spread (a fixed rule per
-        # dark frame), or without one above the frame's own red background by its noise
-        red_levels = (self.pedestal, max(self.dark_sigma, noise_floor(q))) if self.dark is not None else (bg_r, noise_r)
-        leak = w * w * bg_r + p.channels.leak_k_sigma * noise_r * w
-        obstacle, marks, n = self._unwarp_separate(self._tables, sums, self._umap_crop.map_x.shape, leak, red_levels)
-        t.append(clock())
-        self._black_out(marks, n)
-        t.append(clock())
-        return _Front(g, r, sums, obstacle, marks, bg, noise, q, red_levels, leak)
+        self.front = self.front.with_dark(dark)
 
     def _lit_frame(self, bg: float, noise: float) -> str:
         """Why a frame is not a dark-room frame this pipeline can read ("" when it is): its
@@ -507,7 +324,7 @@ class Pipeline:
         area = w * w
         clock = time.perf_counter_ns
         t = [clock()]
-        f = self._front(frame, clock, t)
+        f = self.front.run(frame, self.scratch, clock, t)
         g, r, obstacle, marks, bg, noise, q = f.green, f.red, f.obstacle, f.marks, f.bg, f.noise, f.quantum
         g2r = self.profile.ground_to_robot
         dots = find_dots(  # robot-frame positions from the mirror-image centroids when they run
@@ -520,7 +337,12 @@ class Pipeline:
             quantum=q,
         )
         dots = mirror_centroids(  # g is the crop the view reads: its own map
-            dots, g, background_dn=bg, umap=self._umap_crop, ground_to_robot=self.profile.ground_to_robot, params=p.dots
+            dots,
+            g,
+            background_dn=bg,
+            umap=self.front.umap_crop,
+            ground_to_robot=self.profile.ground_to_robot,
+            params=p.dots,
         )
         t.append(clock())
         all_dots = find_rows(
@@ -535,7 +357,7 @@ class Pipeline:
             dot_params=p.dots,
             ground_to_robot=self.profile.ground_to_robot,
             quantum=q,
-            buffers=self._buffer,
+            buffers=self.scratch,
         )
         lit = self._lit_frame(bg, noise)
         if lit and not all_dots.untrusted:
@@ -590,17 +412,15 @@ class Pipeline:
             out[i] = r > 0 and b >= self.params.white_blue_ratio * r
         return out
 
-    def _far_lights(self, f: _Front, frame: np.ndarray) -> np.ndarray:
+    def _far_lights(self, f: FrontOutput, frame: np.ndarray) -> np.ndarray:
         """Red lights out to ``landmark_range_m`` for the landmark fit, as ground-view pixels of
         the main view (beyond its edges too): found in the wide, coarse view of the window sums
         of the front end ``f`` and refined on its dark-subtracted red channel."""
         p = self.params
         area = p.dots.window_px**2
-        obst, _, _ = self._unwarp_separate(self._wide_tables, f.sums, self.wide.map_x.shape, f.leak, f.red_levels)
-        far = find_red(obst, p.red, window_area=area)
-        xy_m = (
-            self._refine_lights(f.red, self._wide_profile.ground_to_robot(far.xy_px)) if len(far) else np.zeros((0, 2))
-        )
+        far = find_red(self.front.wide_obstacle(f, self.scratch), p.red, window_area=area)
+        wide_to_robot = self.front.wide_profile.ground_to_robot
+        xy_m = self._refine_lights(f.red, wide_to_robot(far.xy_px)) if len(far) else np.zeros((0, 2))
         if p.white_blue_ratio is not None and len(xy_m):
             xy_m = xy_m[~self._white(frame, xy_m)]
         return self.profile.robot_to_ground(xy_m)

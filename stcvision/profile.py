@@ -44,6 +44,7 @@ from typing import Any
 import numpy as np
 
 from stcvision.errors import ProfileError
+from stcvision.stcgrid import DEFAULT_SUBCELL_M
 
 __all__ = ["CORNER_ORDER", "SCHEMA_VERSION", "Profile", "nominal_corners_px"]
 
@@ -134,7 +135,7 @@ class Profile:
     theta_poly: tuple[float, ...]
     ground_px_per_m: float = 260.0
     ground_size_px: int = 300
-    subcell_m: float = 0.16
+    subcell_m: float = DEFAULT_SUBCELL_M
     neighbour_corners_px: tuple[tuple[float, float], ...] | None = None
     provenance: dict = field(default_factory=dict)
 
@@ -329,7 +330,7 @@ class Profile:
             theta_poly=tuple(theta),
             ground_px_per_m=_num(d, "ground_px_per_m", positive=True, where=where) if "ground_px_per_m" in d else 260.0,
             ground_size_px=int(gsize),
-            subcell_m=_num(d, "subcell_m", positive=True, where=where) if "subcell_m" in d else 0.16,
+            subcell_m=_num(d, "subcell_m", positive=True, where=where) if "subcell_m" in d else DEFAULT_SUBCELL_M,
             neighbour_corners_px=corners,
             provenance=prov,
         )

@@ -31,6 +31,7 @@ import rerun.blueprint as rrb
 __all__ = [
     "ENTITY_PATHS",
     "PipelineLogger",
+    "Recordings",
     "abort_recording",
     "blueprint",
     "check_recording_path",
@@ -150,6 +151,36 @@ def abort_recording(rec: rr.RecordingStream, tmp: Path | None) -> None:
         rec.disconnect()
     finally:
         discard_temp(tmp)
+
+
+class Recordings:
+    """The recordings a block writes (anything with ``close()`` and ``abort()``: a
+    :class:`PipelineLogger`, the STC robot's recorder): each is committed (renamed into place)
+    when the block ends normally and removed when it raises (an error, Ctrl-C, SIGTERM), so no
+    half-written recording is left behind::
+
+        with Recordings() as recs:
+            logger = recs.add(PipelineLogger.to_file(path, pipeline))
+            ...
+    """
+
+    def __init__(self):
+        self._open: list = []
+
+    def add(self, recording):
+        self._open.append(recording)
+        return recording
+
+    def __enter__(self) -> Recordings:
+        return self
+
+    def __exit__(self, exc_type, exc, tb) -> bool:
+        for r in self._open:
+            if exc_type is None:
+                r.close()
+            else:
+                r.abort()
+        return False
 
 
 class PipelineLogger:

@@ -1,4 +1,4 @@
-"""The one STC geometry (``../shared/DESIGN.md``, "The ant-like STC geometry"), used by the
+"""The one STC geometry (docs/explanation/stc-geometry.md), used by the
 vision (:mod:`stcvision.observation`) and the controller (:mod:`controllers.stc`).
 
 **Entry frame** (the robot's heading rounded to a multiple of 90 degrees points "up"): the robot
@@ -33,6 +33,12 @@ from __future__ import annotations
 import math
 
 import numpy as np
+
+#: Default sub-cell side D (m): the footprint of the default STC robot, a small Lego Mindstorms
+#: robot about 16 cm across (ant-like STC paper: "the robot divides the floor virtually into
+#: sub-cells of its size"; the footprint itself is this project's choice). The board, the
+#: calibration profile and the calibration fits all default to it.
+DEFAULT_SUBCELL_M = 0.16
 
 __all__ = [
     "BOXES",

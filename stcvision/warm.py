@@ -9,45 +9,15 @@ closed loop itself (render, 8-bit pipeline, world, recording) into a temporary f
 compiled with the argument types they will meet. Buffon's and the other rooms' kernels compile
 on their first use instead (only what runs).
 
-:func:`announce_compiles` (the CLI installs it) says on stderr, once per process, when a kernel
-is compiled rather than loaded from the cache, so a slow first run is never a silent one.
+:func:`stcvision.compiles.announce_compiles` (the CLI installs it) says on stderr, once per
+process, when a kernel is compiled rather than loaded from the cache, so a slow first run is
+never a silent one.
 """
 
 from __future__ import annotations
 
 import sys
 import time
-
-_ANNOUNCED = False
-_LISTENING = False
-
-NOTICE = (
-    "stcvision: compiling numba kernels on first use (once: ~30 s in all, then cached in __pycache__; "
-    "'make' or 'python -m stcvision.warm' does it ahead)"
-)
-
-
-def announce_compiles(stream=None) -> None:
-    """Print :data:`NOTICE` on stderr the first time this process compiles a numba kernel (a
-    cache miss; a kernel loaded from the cache says nothing). Idempotent."""
-    global _LISTENING
-    if _LISTENING:
-        return
-    from numba.core import event
-
-    class _Notice(event.Listener):
-        def on_start(self, ev) -> None:
-            global _ANNOUNCED
-            if not _ANNOUNCED:
-                _ANNOUNCED = True
-                out = stream or sys.stderr
-                print(NOTICE, file=out, flush=True)
-
-        def on_end(self, ev) -> None:
-            pass
-
-    event.register("numba:compile", _Notice())
-    _LISTENING = True
 
 
 def warm(*, verbose: bool = True) -> dict:

@@ -365,6 +365,7 @@ class TrialSet:
     steps: np.ndarray | None = None
     converged: np.ndarray | None = None
     online: bool = False  # both visits' lengths decided by the online rule
+    self_blind: np.ndarray | None = None  # share of the first visit's steps its counter was blind on its old trail
 
     @property
     def nbc(self) -> np.ndarray:
@@ -456,12 +457,12 @@ def run_trials(
             raise
         pool.shutdown(wait=True)
     cols = list(zip(*rows, strict=True))
-    l1, l2, n, blind, esc, trails, n_self, se, steps, conv = cols
+    l1, l2, n, blind, esc, trails, n_self, se, steps, conv, self_blind = cols
     return TrialSet(
         np.array(l1), np.array(l2), np.array(n, dtype=np.int64), np.array(blind), int(sum(esc)),
         int(sum(steps)), time.perf_counter() - t0, next((t for t in trails if t), {}),
         time.process_time() - c0, np.array(n_self, dtype=np.int64), np.array(se), np.array(steps, dtype=np.int64),
-        np.array(conv, dtype=bool), config.auto,
+        np.array(conv, dtype=bool), config.auto, np.array(self_blind),
     )  # fmt: skip
 
 
@@ -488,7 +489,7 @@ class _TrialWorld:
 
     def trial(self, seeds, *, record: bool = False, progress=None, cancel: threading.Event | None = None):
         """One trial: (L1 u, L2 u, crossings, blind fraction, escapes, recorded paths,
-        self-encounters, rate relative SE, robot-steps, converged)."""
+        self-encounters, rate relative SE, robot-steps, converged, first visit's blind fraction)."""
         from stcvision.limits import MAX_BUFFON_RECORD_STEPS
 
         c = self.config
@@ -496,7 +497,7 @@ class _TrialWorld:
         gain = _motor_gain(c.robot, start)
         grid = np.zeros(self.grid_shape, dtype=np.uint32)
         out, trails, escapes, converged, steps = [0.0, 0.0, 0, 0.0], {}, 0, True, 0
-        n_self, rel_se = 0, float("nan")
+        n_self, self_blind, rel_se = 0, float("nan"), float("nan")
         limit = c.step_limit
         for visit, heading in enumerate(start_headings(start), 1):
             st = np.zeros(N_STATE)
@@ -523,13 +524,13 @@ class _TrialWorld:
             steps += done
             out[visit - 1] = st[PLEN] / BODY_LENGTH_M
             if visit == 1:
-                n_self = int(st[CROSS])
+                n_self, self_blind = int(st[CROSS]), st[BLIND] / max(done, 1)
             else:
                 out[2], out[3] = int(st[CROSS]), st[BLIND] / done
                 rel_se = batch_rel_se(bst, c.stop.batches)
             if record:
                 trails[f"visit{visit}"] = np.concatenate(recs) if recs else np.zeros((0, 3))
-        return (*out, escapes, trails, n_self, rel_se, steps, converged)
+        return (*out, escapes, trails, n_self, rel_se, steps, converged, self_blind)
 
 
 

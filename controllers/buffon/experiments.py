@@ -122,6 +122,8 @@ def result_of(ts: TrialSet, area_true_u2: float) -> dict:
         "cpu_s": ts.cpu_s,
         "online": ts.online,
         "rate_rel_se": ts.rate_rel_se.tolist(),
+        "n_self": ts.n_self.tolist(),
+        "self_blind": ts.self_blind.tolist(),
         "steps": ts.steps.tolist(),
         "converged": ts.converged.tolist(),
     }
@@ -137,9 +139,10 @@ def refresh(stored: dict, area_true_u2: float) -> dict:
         int(stored["escapes"]), int(stored["robot_steps"]), float(stored["wall_s"]),
         rate_rel_se=_opt(stored, "rate_rel_se", float), steps=_opt(stored, "steps", np.int64),
         converged=_opt(stored, "converged", bool), online=bool(stored.get("online", False)),
+        n_self=_opt(stored, "n_self", np.int64), self_blind=_opt(stored, "self_blind", float),
     )  # fmt: skip
     keep = ("crossings", "l1_u", "l2_u", "blind_fraction", "escapes", "robot_steps", "wall_s", "cpu_s", "online",
-            "rate_rel_se", "steps", "converged")  # fmt: skip
+            "rate_rel_se", "n_self", "self_blind", "steps", "converged")  # fmt: skip
     out = {k: stored[k] for k in keep if k in stored}
     out.update(summarise(ts, area_true_u2))
     out["nbc"] = ts.nbc.tolist()

@@ -42,7 +42,9 @@ se_rel <= ``rel_se``, with at least ``batches`` full bins; or at L2 = ``max_rati
 (more crossings than uniform curves), an effect of perimeter / area that still grows in small
 nests, while the dead-time correction over-restores a denser trail. The coverage 0.13 is where
 the two cancel across 700-31,000 u^2 (measured: 0.07 and 0.15 leave opposite trends; README
-'Online visit lengths'): a tuned constant of the robot, balanced rather than removed. In a nest
+'Online visit lengths', measured with the second visit's estimate alone): a tuned constant of
+the robot, balanced rather than removed (the estimate of both visits,
+:func:`controllers.buffon.estimate.online_area`, leaves less to balance: its factor is 0.963). In a nest
 a few body lengths across the first visit is on its own trail most of the time and rule (1)
 cannot be met; it gives up (:func:`first_visit_hopeless`) and the trial is untrusted.
 

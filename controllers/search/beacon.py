@@ -26,6 +26,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from stcvision.angles import wrap_angle
+
 __all__ = ["Beacon", "BeaconFix", "BeaconFixer", "pose_from_two_lights"]
 
 
@@ -70,12 +72,12 @@ def pose_from_two_lights(seen_robot_m: np.ndarray, lights_m: np.ndarray, heading
     for o in (seen_robot_m, seen_robot_m[::-1]):
         dw, do = lights_m[1] - lights_m[0], o[1] - o[0]
         th = math.atan2(dw[1], dw[0]) - math.atan2(do[1], do[0])
-        off = abs((th - heading_hint_rad + math.pi) % (2 * math.pi) - math.pi)
+        off = abs(wrap_angle(th - heading_hint_rad))
         if best is None or off < best[0]:
             c, s = math.cos(th), math.sin(th)
             mo = o.mean(axis=0)
             pos = lights_m.mean(axis=0) - np.array([c * mo[0] - s * mo[1], s * mo[0] + c * mo[1]])
-            th_w = heading_hint_rad + ((th - heading_hint_rad + math.pi) % (2 * math.pi) - math.pi)
+            th_w = heading_hint_rad + wrap_angle(th - heading_hint_rad)
             best = (off, (float(pos[0]), float(pos[1]), th_w))
     return best[1]
 

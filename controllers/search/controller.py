@@ -74,6 +74,7 @@ import enum
 import math
 from dataclasses import dataclass
 
+from stcvision.angles import wrap_angle
 from stcvision.errors import BadInputError
 
 __all__ = [
@@ -184,10 +185,6 @@ def initial_state(config: SearchConfig) -> SearchState:
     return SearchState(config=config)
 
 
-def _wrap(a: float) -> float:
-    return (a + math.pi) % (2.0 * math.pi) - math.pi
-
-
 def _search_move(s: SearchState, phase: Phase) -> Move:
     p = s.config.pattern
     return Move(p.headings_rad[s.i], p.step_m, MoveKind.SEARCH, phase)
@@ -197,12 +194,12 @@ def _avoid_heading(s: SearchState) -> tuple[SearchState, int]:
     """Which avoid heading the next avoid move takes (and the state with ``a2`` chosen)."""
     if s.config.policy is Policy.IMPROVED:
         th = s.config.pattern.headings_rad[s.i]
-        off = abs(_wrap(th - s.a1))
+        off = abs(wrap_angle(th - s.a1))
         if min(off, math.pi - off) <= ALIGN_RAD:  # search heading along the avoid axis
             if s.a2 is None:
                 cands = (s.a1 + 0.5 * math.pi, s.a1 - 0.5 * math.pi)
-                a2 = min(cands, key=lambda a: abs(_wrap(a - (th + s.side * 0.5 * math.pi))))
-                s = dataclasses.replace(s, a2=_wrap(a2))
+                a2 = min(cands, key=lambda a: abs(wrap_angle(a - (th + s.side * 0.5 * math.pi))))
+                s = dataclasses.replace(s, a2=wrap_angle(a2))
             return s, 2
     return s, 1
 
@@ -213,7 +210,7 @@ def _unavoid(s: SearchState, j: int) -> Move | None:
     a, k = (s.a2, s.k2) if j == 2 else (s.a1, s.k1)
     if k <= 0:
         return None
-    return Move(_wrap(a + math.pi), s.config.pattern.step_m, MoveKind.UNAVOID, Phase.UNAVOID, j)
+    return Move(wrap_angle(a + math.pi), s.config.pattern.step_m, MoveKind.UNAVOID, Phase.UNAVOID, j)
 
 
 def _avoid(s: SearchState, j: int) -> Move | None:
@@ -305,7 +302,7 @@ def step(state: SearchState, obs: SearchObs) -> tuple[SearchState, Move | Stop]:
             if side is None:
                 return _stop(s, f"trapped: the detours both ways round the obstacle came back to search step {s.i}")
             th = cfg.pattern.headings_rad[s.i]
-            s = dataclasses.replace(s, a1=_wrap(th + side * 0.5 * math.pi), a2=None, side=side, origin_i=s.i)
+            s = dataclasses.replace(s, a1=wrap_angle(th + side * 0.5 * math.pi), a2=None, side=side, origin_i=s.i)
         s, j = _avoid_heading(s)
         return _try(s, [_avoid(s, j), _avoid(s, 3 - j), _unavoid(s, 2), _unavoid(s, 1)])
     if last.kind is MoveKind.AVOID and not done:
@@ -318,7 +315,7 @@ def step(state: SearchState, obs: SearchObs) -> tuple[SearchState, Move | Stop]:
         s = _failed(s)
         side = _untried_side(s)
         if side is not None:  # the obstacle is to the front right: go round it the other way
-            s = dataclasses.replace(s, a1=_wrap(s.a1 + math.pi), a2=None, side=side, tried=0)
+            s = dataclasses.replace(s, a1=wrap_angle(s.a1 + math.pi), a2=None, side=side, tried=0)
             return _go(s, Move(s.a1, cfg.pattern.step_m, MoveKind.AVOID, Phase.AVOID, 1))
         return _stop(s, "trapped: search step and avoid move both blocked")
     if last.kind is MoveKind.UNAVOID and not done:  # the other heading's unavoid, then the search step

@@ -31,6 +31,7 @@ from sim_camera.arenas import CircleObstacle, SquareArena
 from sim_camera.layers import ChemicalLayer, ChemicalPatch
 from sim_camera.robot import TASTI2
 from sim_camera.world import World
+from stcvision.angles import wrap_angle
 from stcvision.errors import BadInputError
 
 __all__ = ["MoveRecord", "SearchRun", "SearchScene", "check_reach", "execute_move", "run_search", "robot_params"]
@@ -143,7 +144,7 @@ class SearchRun:
 def execute_move(world: World, robot, move: Move, *, back_off: bool = True) -> str:
     """Turn to ``move.heading_rad`` by the odometry, drive ``move.distance_m`` while the ring
     watches; "done", or "blocked" (and, with ``back_off``, back at the move's start point)."""
-    turn = (move.heading_rad - robot.odometry.theta + math.pi) % (2 * math.pi) - math.pi
+    turn = wrap_angle(move.heading_rad - robot.odometry.theta)
     if abs(turn) > 1e-4:
         robot.rotate_by(turn)
         world.run_until_done(robot, timeout_s=MOVE_TIMEOUT_S)

@@ -1,5 +1,5 @@
 """What a reading rules out, and how far away: the robot never decides on a frame that could not
-have shown what it takes for absent (issue 16.7).
+have shown what it takes for absent.
 
 A decision or a look reads marks as present or absent. *Present* is what a frame saw; *absent*
 is only worth what the frame could have seen: a mark older than the frame's visibility horizon

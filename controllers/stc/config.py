@@ -67,7 +67,7 @@ class CoverConfig:
     #: rounding included (:meth:`controllers.stc.frames.Exposures.stack_equivalent`), not the
     #: idealised noise over the square root of the frames stacked: on the webcam's 8-bit frames a
     #: 32 x 30 s stack is worth 12 frames and the longest frame's reach halves. On by default
-    #: (issue 16.7: never decide on a frame sized for noise it will not have): measured (README
+    #: (never decide on a frame sized for noise it will not have): measured (the results page's
     #: "Coverage per camera preset") it turns webcam 12x12 seed 11's wrong decision into a safe
     #: stop, and half of the webcam's 10x10 tours into safe stops too; off, those tours complete
     #: on frames whose real reach is shorter than the robot assumed (a study of the risk)

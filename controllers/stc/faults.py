@@ -1,8 +1,8 @@
 """Faults of the robot's hardware injected into the coverage loop (``stcvision cover --fault
 NAME[:LEVEL]``, repeatable): they break the robot, never the world. The afterglow law, the
-sensor model and the board stay as they are; a fault wraps one of the loop's seams -- the plant
-(its motors and wheels), the floor's marking (its UV LEDs) or the camera (its frames) -- and
-leaves the maths alone.
+sensor model and the board stay as they are; a fault is a part the loop builds the robot with --
+the plant's turn rate and what befalls its moves (its motors and wheels), the floor's marking
+(its UV LEDs) or the camera around the renderer (its frames) -- and leaves the maths alone.
 
 =======  ==========================================================================
 name     what breaks (LEVEL: what :data:`FAULTS` says, with its default and range)
@@ -44,9 +44,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from stcvision.angles import wrap_angle
 from stcvision.errors import BadInputError
 
-__all__ = ["FAULTS", "FaultSpec", "Faults", "fault_stream", "fault_table", "parse_fault"]
+__all__ = ["FAULTS", "Bump", "FaultSpec", "Faults", "Slip", "fault_stream", "fault_table", "parse_fault"]
 
 
 @dataclass(frozen=True, kw_only=True, slots=True)
@@ -154,7 +155,8 @@ def fault_stream(seed: int, name: str) -> np.random.Generator:
 
 class Faults:
     """The faults of one run (``cfg.faults``: (name, level) pairs), each with its own stream.
-    :meth:`install` wraps the loop's parts; :attr:`events` counts what each fault did."""
+    The loop builds its parts with what they give (:meth:`rate_factor`, :meth:`disturbances`,
+    :meth:`lay_filter`, :meth:`camera_wrap`); :attr:`events` counts what each fault did."""
 
     def __init__(self, faults, seed: int, perception: str):
         self.faults: dict[str, float] = {}
@@ -176,72 +178,97 @@ class Faults:
     def labels(self) -> list[str]:
         return [f"{n}:{v:g}" for n, v in self.faults.items()]
 
-    def install(self, plant, floor, perception) -> None:
-        """Wrap ``plant`` (its turn rate and its forward moves), ``floor`` (the marks laid) and
-        the camera of ``perception`` (when it renders frames) with the run's faults."""
+    # ------------------------------------------------------------------ the parts they give
+    # Each fault is a part the loop builds the robot with (the plant's turn rate and the moves'
+    # disturbances, the floor's LEDs, the camera around the renderer), never a method swapped
+    # on a built object: reading Plant.forward or Floor.lay tells what runs.
+    def rate_factor(self):
+        """``rate``: the turn rate's factor over time (:func:`_drifting_rate`), else None."""
+        if "rate" not in self.faults:
+            return None
+        return _drifting_rate(self.faults["rate"], self.rngs["rate"])
+
+    def disturbances(self) -> tuple:
+        """``slip`` then ``bump``: what may befall the robot after each forward move."""
         f = self.faults
-        if "rate" in f:
-            plant.true_rate = _drifting_rate(plant.true_rate, f["rate"], self.rngs["rate"])
-        if "bump" in f or "slip" in f:
-            plant.forward = self._forward(plant, plant.forward)
-        if "led" in f:
-            floor.lay = self._dead_led(floor.lay, int(f["led"]) - 1)
-        cam = getattr(perception, "cam", None)
-        if any(n in f for n in ("drop", "stray", "noise")) and hasattr(cam, "cam"):
-            lamp = None
-            if "stray" in f:
-                w, h = plant.board.size_m
-                lamp = self.rngs["stray"].uniform((0.0, 0.0), (w, h)).reshape(1, 2)
-            cam.cam = FaultyCamera(cam.cam, self, lamp_m=lamp)
+        out = []
+        if "slip" in f:
+            out.append(Slip(math.radians(f["slip"]), self.rngs["slip"], self.events))
+        if "bump" in f:
+            out.append(Bump(f["bump"] / 100, self.rngs["bump"], self.events))
+        return tuple(out)
 
-    # ------------------------------------------------------------------ the plant
-    def _forward(self, plant, forward):
-        """A forward move, then a bump and/or a wheel's slip (each on its share of moves)."""
-        f, rngs = self.faults, self.rngs
-        d_sub = plant.board.subcell_m
+    def lay_filter(self):
+        """``led``: the dots a mark keeps when one LED is dead (counting the marks), else None."""
+        if "led" not in self.faults:
+            return None
+        dead = int(self.faults["led"]) - 1
 
-        def faulty_forward() -> str | None:
-            x0, y0 = plant.x, plant.y
-            why = forward()
-            if why is not None:
-                return why
-            if "slip" in f and rngs["slip"].random() < SLIP_PER_MOVE:
-                # one wheel slips: the move is an arc turning by theta; its chord leans by theta/2
-                theta = math.radians(f["slip"]) * (1.0 if rngs["slip"].random() < 0.5 else -1.0)
-                dx, dy = plant.x - x0, plant.y - y0
-                c, s = math.cos(theta / 2), math.sin(theta / 2)
-                plant.x, plant.y = x0 + c * dx - s * dy, y0 + s * dx + c * dy
-                plant.hdg = (plant.hdg + theta + math.pi) % (2 * math.pi) - math.pi
-                self.events["slip"] += 1
-            if "bump" in f and rngs["bump"].random() < BUMP_PER_MOVE:
-                a = rngs["bump"].uniform(0, 2 * math.pi)
-                plant.x += f["bump"] / 100 * math.cos(a)
-                plant.y += f["bump"] / 100 * math.sin(a)
-                self.events["bump"] += 1
-            return plant.check_lost(d_sub)
-
-        return faulty_forward
-
-    # ------------------------------------------------------------------ the floor
-    def _dead_led(self, lay, dead: int):
-        def lay_without(xy_m, *args, **kw):
+        def without_dead_led(xy_m):
             self.events["led"] += 1
-            return lay(np.delete(np.asarray(xy_m, float).reshape(-1, 2), dead, axis=0), *args, **kw)
+            return np.delete(np.asarray(xy_m, float).reshape(-1, 2), dead, axis=0)
 
-        return lay_without
+        return without_dead_led
+
+    def camera_wrap(self, board):
+        """``drop``, ``stray``, ``noise``: the function that puts the robot's camera inside a
+        :class:`FaultyCamera` (the stray lamp placed on ``board`` now), else None."""
+        f = self.faults
+        if not any(n in f for n in ("drop", "stray", "noise")):
+            return None
+        lamp = None
+        if "stray" in f:
+            w, h = board.size_m
+            lamp = self.rngs["stray"].uniform((0.0, 0.0), (w, h)).reshape(1, 2)
+        return lambda cam: FaultyCamera(cam, self, lamp_m=lamp)
 
 
-def _drifting_rate(true_rate, amplitude: float, rng: np.random.Generator):
-    """The turn rate times ``1 +- amplitude * sin(2 pi t / P)``: right at the start (the turn
-    time is set before the run to what the first rotation needs: seed 003), then drifting off
-    nominal by up to ``amplitude`` and back over a period ``P`` of 10-30 minutes."""
+class Slip:
+    """One wheel slips on a share :data:`SLIP_PER_MOVE` of forward moves: the move is an arc
+    turning the robot by +-``theta_rad``; its chord leans by half of it."""
+
+    def __init__(self, theta_rad: float, rng: np.random.Generator, events: dict):
+        self.theta, self.rng, self.events = theta_rad, rng, events
+
+    def after_move(self, plant, start_xy) -> None:
+        if self.rng.random() >= SLIP_PER_MOVE:
+            return
+        theta = self.theta * (1.0 if self.rng.random() < 0.5 else -1.0)
+        x0, y0 = start_xy
+        dx, dy = plant.x - x0, plant.y - y0
+        c, s = math.cos(theta / 2), math.sin(theta / 2)
+        plant.x, plant.y = x0 + c * dx - s * dy, y0 + s * dx + c * dy
+        plant.hdg = wrap_angle(plant.hdg + theta)
+        self.events["slip"] += 1
+
+
+class Bump:
+    """On a share :data:`BUMP_PER_MOVE` of forward moves the robot ends pushed ``push_m`` in a
+    random direction."""
+
+    def __init__(self, push_m: float, rng: np.random.Generator, events: dict):
+        self.push, self.rng, self.events = push_m, rng, events
+
+    def after_move(self, plant, start_xy) -> None:
+        if self.rng.random() >= BUMP_PER_MOVE:
+            return
+        a = self.rng.uniform(0, 2 * math.pi)
+        plant.x += self.push * math.cos(a)
+        plant.y += self.push * math.sin(a)
+        self.events["bump"] += 1
+
+
+def _drifting_rate(amplitude: float, rng: np.random.Generator):
+    """The turn rate's factor ``1 +- amplitude * sin(2 pi t / P)``: right at the start (the turn
+    time is set before the run to what the first rotation needs: the ant-like STC paper), then
+    drifting off nominal by up to ``amplitude`` and back over a period ``P`` of 10-30 minutes."""
     period_s = rng.uniform(600.0, 1800.0)
     sign = 1.0 if rng.random() < 0.5 else -1.0
 
-    def rate(t_s: float) -> float:
-        return true_rate(t_s) * (1.0 + sign * amplitude * math.sin(2 * math.pi * t_s / period_s))
+    def factor(t_s: float) -> float:
+        return 1.0 + sign * amplitude * math.sin(2 * math.pi * t_s / period_s)
 
-    return rate
+    return factor
 
 
 class FaultyCamera:

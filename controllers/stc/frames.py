@@ -45,8 +45,8 @@ WEBCAM = (1 / 30, 16.0, 1)
 #: measured once per robot). The gains are the webcam's (4 keeps its 8-bit
 #: quantisation below the dark current's noise at every length); another sensor's come from
 #: :func:`sensor_gain`. 60 s frames were tried and read fewer boxes than 30 s ones
-#: (the fresh mark's bloom), so beyond 30 s the ladder stacks 30 s frames (issue 6: "frame
-#: stacking"): averaging n frames divides the noise variance by n.
+#: (the fresh mark's bloom), so beyond 30 s the ladder stacks 30 s frames (frame stacking):
+#: averaging n frames divides the noise variance by n.
 AUTO_LONG = (
     (2.0, 4.0, 1),
     (4.0, 4.0, 1),
@@ -121,7 +121,7 @@ def sensor_gain(sensor, exposure_s: float, n_avg: int, webcam_gain: float) -> fl
     noise, ``sqrt(read^2 + dark * t / n)`` electrons) spans :data:`NOISE_DN` DN, so that no faint
     mark is quantised away, and no higher, so that the ADC clips as late as it can (at gain g it
     saturates at ``full_well_e / g`` electrons). The seed's webcam (an 8-bit ADC, the default
-    sensor) keeps the ladder's own gains (``webcam_gain``: the seed's 16x and the issue-6 4x),
+    sensor) keeps the ladder's own gains (``webcam_gain``: the paper's 16x and the long frames' 4x),
     so its frames are exactly what they were. A robot setting from the sensor's figures, not
     the world."""
     from sim_camera.sensor import SensorParams
@@ -484,8 +484,10 @@ class RobotCamera(Exposures):
 
     frame_noise = True
 
-    def __init__(self, board, cfg: CoverConfig, rng: np.random.Generator):
+    def __init__(self, board, cfg: CoverConfig, rng: np.random.Generator, *, camera_wrap=None):
         super().__init__(cfg, board.subcell_m)
+        if camera_wrap is not None:  # the camera's faults (its visibility horizons stay the healthy camera's)
+            self.cam = camera_wrap(self.cam)
         self.board = board
         self.lights = board.red_lights_m()
         self.rng = rng

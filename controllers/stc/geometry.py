@@ -22,8 +22,6 @@ them onto board indices.
 
 from __future__ import annotations
 
-import math
-
 from stcvision.stcgrid import BOX_EDGES, COMPASS_VEC, SUBCELLS, compass_to_rad
 
 __all__ = [
@@ -36,17 +34,11 @@ __all__ = [
     "frame_step",
     "frame_subcells",
     "start_heading",
-    "wrap_rad",
 ]
 
 COMPASS_NAMES = "NESW"
 #: The five boxes in order as (sub-cell, entry-frame edge direction)
 BOXES = tuple(BOX_EDGES[b] for b in sorted(BOX_EDGES))
-
-
-def wrap_rad(a: float) -> float:
-    """An angle wrapped to [-pi, pi)."""
-    return (a + math.pi) % (2 * math.pi) - math.pi
 
 
 def frame_compass(h: int, d: int) -> int:

@@ -4,8 +4,10 @@ referee and observers watching.
 The controller (:mod:`controllers.stc.fsm`) decides from one observation per cell entry; the
 loop runs it on a board with honest time and honest marks, from its parts:
 
-* the **plant** (:mod:`controllers.stc.plant`): the robot's true motion, clock, turn time and the
-  floor it marks;
+* the **plant** (:mod:`controllers.stc.plant`): the physical robot (true motion, clock, motors)
+  and the floor it marks;
+* the **belief** (:mod:`controllers.stc.belief`): what the robot believes of itself (sub-cell,
+  compass heading, turn time, offset), updated by its acts and by perception's results;
 * **perception** (:mod:`controllers.stc.perception`): camera, physics-limited camera or oracle;
 * the **referee** (:mod:`controllers.stc.referee`): what the oracle would have decided;
 * **observers** (:mod:`controllers.stc.observers`, :mod:`controllers.stc.recorder`): trace,
@@ -26,6 +28,7 @@ import time
 
 import numpy as np
 
+from controllers.stc.belief import Belief, align_along, drive_forward, finish_turn, recentre, turn
 from controllers.stc.claims import OutOfSight
 from controllers.stc.config import ALIGN_MARK_M, RECENTRE_M, CoverConfig
 from controllers.stc.faults import Faults
@@ -68,27 +71,29 @@ def run_cover(board, cfg: CoverConfig | None = None, *, observers=(), perception
     """Cover ``board`` from its start sub-cell; returns the summary the CLI prints.
     ``observers``: :class:`controllers.stc.observers.Observer` s (None entries are skipped);
     ``perception_hook(perception)`` is handed the run's perception (e.g. to read its frames).
-    ``cfg.faults``: hardware faults wrapped around the parts (:mod:`controllers.stc.faults`)."""
+    ``cfg.faults``: hardware faults built into the parts (:mod:`controllers.stc.faults`)."""
     wall0 = time.perf_counter()
     cfg = cfg if cfg is not None else CoverConfig()
     rngs = streams(cfg.seed)
-    plant = Plant(board, cfg.robot, rngs["motion"])
-    floor = Floor(board)
-    see = make_perception(cfg, board, camera_rng=rngs["camera"], oracle_rng=rngs["oracle"])
     faults = Faults(cfg.faults, cfg.seed, cfg.perception)  # each fault draws from its own stream
-    faults.install(plant, floor, see)
+    plant = Plant(board, cfg.robot, rngs["motion"], rate_factor=faults.rate_factor(),
+                  disturbances=faults.disturbances())  # fmt: skip
+    floor = Floor(board, lay_filter=faults.lay_filter())
+    belief = Belief.at_start(board, plant.calibrated_turn_s)
+    see = make_perception(cfg, board, camera_rng=rngs["camera"], oracle_rng=rngs["oracle"],
+                          camera_wrap=faults.camera_wrap(board))  # fmt: skip
     if perception_hook is not None:
         perception_hook(see)
     watch = Observers([*observers, *([Trace()] if cfg.trace else [])])
     referee = Referee(board, active=see.refereed, report=watch.on_referee)
     run = _Run()
     try:
-        _loop(run, cfg, plant, floor, see, watch, referee)
+        _loop(run, cfg, plant, belief, floor, see, watch, referee)
     except RobotStop as stop:  # a part found that the robot cannot go on (controllers.stc.health)
         run.abort = f"{stop} (decision {run.decisions})"
     watch.on_end(plant, floor)
-    out = _summary(board, cfg, plant, see, referee, decisions=run.decisions, looks=run.looks, finished=run.finished,
-                   abort=run.abort, wall_s=time.perf_counter() - wall0)  # fmt: skip
+    out = _summary(board, cfg, plant, belief, see, referee, decisions=run.decisions, looks=run.looks,
+                   finished=run.finished, abort=run.abort, wall_s=time.perf_counter() - wall0)  # fmt: skip
     if faults:
         out["faults"] = faults.labels()
         out["fault_events"] = dict(faults.events)
@@ -104,101 +109,107 @@ class _Run:
     moved = (0, 0)  # sub-cells moved from the start, by the robot's own compass (rows, columns)
 
 
-def _loop(run: _Run, cfg, plant, floor, see, watch, referee) -> None:
+def _loop(run: _Run, cfg, plant, belief, floor, see, watch, referee) -> None:
     """Perception -> controller -> plant until the controller is done, the robot stops or
     ``cfg.max_decisions`` is reached; the outcome goes into ``run``."""
     state = initial_state()
     while run.decisions < cfg.max_decisions:
         try:
-            obs = _read(state, plant, floor, see, run.moved)
+            obs = _read(state, plant, belief, floor, see, run.moved)
         except OutOfSight as e:  # what the reading must rule out, no frame of its camera can
-            run.abort = f"{e} (at sub-cell {plant.sub}, decision {run.decisions + (state.phase is StcPhase.DECIDE)})"
+            run.abort = f"{e} (at sub-cell {belief.sub}, decision {run.decisions + (state.phase is StcPhase.DECIDE)})"
             return
-        obs = _landing_by_count(obs, plant, run.moved)
+        obs = _landing_by_count(obs, plant.board, belief, run.moved)
         if isinstance(obs, StcObservation):
             run.decisions += 1
             if obs.misread:  # no STC tour shows this reading, not even with a longer frame
-                run.abort = f"{obs.misread} (at sub-cell {plant.sub}, decision {run.decisions})"
+                run.abort = f"{obs.misread} (at sub-cell {belief.sub}, decision {run.decisions})"
                 return
             if obs.start_mark is not None and not state.at_start:  # the start mark lies in the start cell only
                 away = done_away_from_start(tuple(plant.board.start_subcell), run.moved)
                 if away is not None:
                     run.abort = f"start mark read away from the start ({away.split(': ', 1)[1]})"
                     return
-            watch.on_reading(Reading("decision", run.decisions, plant, floor, obs=obs,
+            watch.on_reading(Reading("decision", run.decisions, plant, belief, floor, obs=obs,
                                      decision=decide(obs, at_start=state.at_start), frame=see.last_frame))  # fmt: skip
-            referee.decision(plant, floor, obs, state, run.decisions)
+            referee.decision(plant, belief, floor, obs, state, run.decisions)
         elif obs is not None:
             run.looks += 1
-            referee.look(plant, floor, obs.marked, landing=not state.child)
-            watch.on_reading(Reading("look", run.decisions, plant, floor, marked=obs.marked, frame=see.last_frame))
+            referee.look(plant, belief, floor, obs.marked, landing=not state.child)
+            watch.on_reading(
+                Reading("look", run.decisions, plant, belief, floor, marked=obs.marked, frame=see.last_frame)
+            )
         prev = state
         state, action = step(state, obs)
-        referee.step(prev, state, action, plant, run.decisions)
-        watch.on_step(plant, state, action)
+        referee.step(prev, state, action, plant, belief, run.decisions)
+        watch.on_step(plant, belief, state, action)
         if action is Action.DONE:
             run.abort = done_away_from_start(tuple(plant.board.start_subcell), run.moved)
             run.finished = run.abort is None
             return
         if action is Action.FORWARD:  # the robot's own count of its moves on the grid
-            di, dj = COMPASS_VEC[plant.hc]
+            di, dj = COMPASS_VEC[belief.hc]
             run.moved = (run.moved[0] + di, run.moved[1] + dj)
-        abort = _act(action, plant, floor, see, watch)
+        abort = _act(action, plant, belief, floor, see, watch)
         if abort is not None:
             run.abort = f"{abort} (decision {run.decisions})" if abort.startswith("drove") else abort
             return
     run.abort = f"gave up after {cfg.max_decisions} decisions"
 
 
-def _landing_by_count(obs, plant: Plant, moved: tuple[int, int]):
+def _landing_by_count(obs, board, belief: Belief, moved: tuple[int, int]):
     """A decision's ``landing_marked`` (does a return close the tour?) from the robot's count of
     its moves (:func:`controllers.stc.health.landing_at_start`), not from a mark read 0.2-0.4 m
     away: a row laid askew or a neighbour's row read there closed a tour away from its start.
     The count is sure, so no look before a return is needed for it."""
     if not isinstance(obs, StcObservation):
         return obs
-    land = landing_at_start(tuple(plant.board.start_subcell), moved, plant.hc)
+    land = landing_at_start(tuple(board.start_subcell), moved, belief.hc)
     return dataclasses.replace(obs, landing_marked=land, landing_known=(True,) * 4)
 
 
-def _read(state, plant: Plant, floor: Floor, see, moved: tuple[int, int]) -> StcObservation | LookObs | None:
+def _read(
+    state, plant: Plant, belief: Belief, floor: Floor, see, moved: tuple[int, int]
+) -> StcObservation | LookObs | None:
     """What the controller reads in ``state``: a decision's observation, a look's, or nothing.
     ``moved``: the robot's count of its moves, which says whether it is in its start cell."""
     if state.phase is StcPhase.DECIDE and not state.closing:
         start_cell = done_away_from_start(tuple(plant.board.start_subcell), moved) is None
-        return see.observe(plant, floor, fresh=state.fresh, at_start=state.at_start, start_cell=start_cell)
+        return see.observe(plant, belief, floor, fresh=state.fresh, at_start=state.at_start, start_cell=start_cell)
     if state.phase is StcPhase.LOOK:
-        return LookObs(see.look(plant, floor, landing=not state.child))
+        return LookObs(see.look(plant, belief, floor, landing=not state.child))
     return None
 
 
-def _act(action: Action, plant: Plant, floor: Floor, see, watch) -> str | None:
-    """The plant carries out ``action``; after a turn the perception measures the heading for
-    the recalibration. Returns why the run must stop, or None."""
+def _act(action: Action, plant: Plant, belief: Belief, floor: Floor, see, watch) -> str | None:
+    """The robot carries out ``action`` with what it believes; after a turn the perception
+    measures the heading for the recalibration. Returns why the run must stop, or None."""
     if action is Action.MARK:
-        plant.lay_mark(floor)
+        plant.lay_mark(floor, belief.sub, belief.hc)
     elif action is Action.FORWARD:
         # a robot this far off its sub-cell centre (pushed, slipped) would lay its mark in the
         # wrong place, where the boxes read it wrongly: back to the centre first
-        if np.hypot(*plant.offset_est) > RECENTRE_M:
-            plant.recentre()
-        elif abs(plant.offset_est @ entry_axes(plant.hc)[1]) > ALIGN_MARK_M:
+        if np.hypot(*belief.offset_m) > RECENTRE_M:
+            recentre(plant, belief)
+        elif abs(belief.offset_m @ entry_axes(belief.hc)[1]) > ALIGN_MARK_M:
             # a row lies across the heading: standing behind (or ahead of) the centre lays it
             # off its box line by as much, so the robot drives along its heading to it first
-            plant.align_along()
-        plant.lay_mark(floor)
-        return plant.forward()
+            align_along(plant, belief)
+        plant.lay_mark(floor, belief.sub, belief.hc)
+        return drive_forward(plant, belief)
     elif action in (Action.TURN_LEFT, Action.TURN_RIGHT):
         left = action is Action.TURN_LEFT
-        plant.turn(left)
-        err = see.heading_after_turn(plant, floor)  # (takes frames, does not turn)
-        watch.on_turn(plant, err)
-        plant.finish_turn(left, err)
+        turn(plant, belief, left)
+        err = see.heading_after_turn(plant, belief, floor)  # (takes frames, does not turn)
+        watch.on_turn(plant, belief, err)
+        finish_turn(plant, belief, left, err)
     return None
 
 
-def _summary(board, cfg, plant, see, referee, *, decisions, looks, finished, abort, wall_s) -> dict:
-    cov = coverage(board, plant.visits, plant.sub, finished=finished, moves=plant.moves)
+def _summary(board, cfg, plant, belief, see, referee, *, decisions, looks, finished, abort, wall_s) -> dict:
+    # the sub-cell the robot ended in: the one it believes, checked within 0.45 sub-cell of the
+    # truth after every move (Plant.check_lost), so the two agree
+    cov = coverage(board, plant.visits, belief.sub, finished=finished, moves=plant.moves)
     out = {
         "perception": cfg.perception,
         "exposure": cfg.exposure,
@@ -222,7 +233,7 @@ def _summary(board, cfg, plant, see, referee, *, decisions, looks, finished, abo
         "max_position_error_m": plant.max_pos_err,
         "recentred": plant.recentred,
         "aligned": plant.aligned,
-        "turn_time_s_final": plant.turn_s,
+        "turn_time_s_final": belief.turn_s,
         "turn_rate_error_pct": 100 * (plant.rate_gain - 1),
         "frames": see.frames,
         "long_exposures": see.long_frames,

@@ -3,8 +3,8 @@ turn's measurement, the referee's findings, the end) and never change it. The re
 (:class:`controllers.stc.recorder.CoverRecorder`), a text trace (:class:`Trace`) and a top view of
 the floor (:class:`FloorPicture`, :func:`draw_floor`) are observers.
 
-Events hand over the live plant and floor: an observer reads them at once and keeps copies of
-whatever it wants to keep.
+Events hand over the live plant (the physical robot), the robot's belief and the floor: an
+observer reads them at once and keeps copies of whatever it wants to keep.
 """
 
 from __future__ import annotations
@@ -28,6 +28,7 @@ class Reading:
     kind: str
     k: int  # decisions so far
     plant: object
+    belief: object
     floor: object
     obs: object = None
     decision: object = None
@@ -40,9 +41,9 @@ class Observer:
 
     def on_reading(self, ev: Reading) -> None: ...
 
-    def on_step(self, plant, state, action) -> None: ...
+    def on_step(self, plant, belief, state, action) -> None: ...
 
-    def on_turn(self, plant, measured_rad: float | None) -> None: ...
+    def on_turn(self, plant, belief, measured_rad: float | None) -> None: ...
 
     def on_referee(self, kind: str, text: str) -> None: ...
 
@@ -59,13 +60,13 @@ class Observers(Observer):
         for o in self.all:
             o.on_reading(ev)
 
-    def on_step(self, plant, state, action):
+    def on_step(self, plant, belief, state, action):
         for o in self.all:
-            o.on_step(plant, state, action)
+            o.on_step(plant, belief, state, action)
 
-    def on_turn(self, plant, measured_rad):
+    def on_turn(self, plant, belief, measured_rad):
         for o in self.all:
-            o.on_turn(plant, measured_rad)
+            o.on_turn(plant, belief, measured_rad)
 
     def on_referee(self, kind, text):
         for o in self.all:
@@ -82,19 +83,20 @@ class Trace(Observer):
     def __init__(self, out: TextIO | None = None):
         self.out = out or sys.stdout
 
-    def on_step(self, plant, state, action):
+    def on_step(self, plant, belief, state, action):
+        herr = math.degrees(plant.heading_error(belief.hc))
         print(
-            f"t={plant.t:7.1f} {action.name:10s} sub={plant.sub} hc={plant.hc} {state.phase.name} "
+            f"t={plant.t:7.1f} {action.name:10s} sub={belief.sub} hc={belief.hc} {state.phase.name} "
             f"tgt={state.target} par={state.parent} free={state.free:04b} "
-            f"herr={math.degrees(plant.heading_error()):+.2f} pos={100 * math.hypot(*plant.true_offset()):.2f}cm "
-            f"est={100 * math.hypot(*plant.offset_est):.2f}cm",
+            f"herr={herr:+.2f} pos={100 * math.hypot(*plant.true_offset(belief.sub)):.2f}cm "
+            f"est={100 * math.hypot(*belief.offset_m):.2f}cm",
             file=self.out,
         )
 
-    def on_turn(self, plant, measured_rad):
+    def on_turn(self, plant, belief, measured_rad):
         if measured_rad is not None:
             print(
-                f"   turn: heading error {math.degrees(plant.heading_error()):+.3f}, "
+                f"   turn: heading error {math.degrees(plant.heading_error(belief.hc)):+.3f}, "
                 f"measured {math.degrees(measured_rad):+.3f}",
                 file=self.out,
             )

@@ -11,8 +11,10 @@ interface (:class:`Perception`), three ways:
   the red lights show them askew.
 
 A perception may spend the robot's time (``plant.wait``) and, with the red lights, correct a
-drift it sees (``plant.rotate_by``); it sets the robot's belief of its offset
-(``plant.offset_est``). It never moves the robot to another sub-cell and never decides.
+drift it sees (``plant.rotate_by``) or drive back to the sub-cell centre
+(:func:`controllers.stc.belief.recentre`); what it measures of where the robot stands updates
+the robot's belief (``belief.offset_m``), never the plant. It never moves the robot to another
+sub-cell and never decides.
 """
 
 from __future__ import annotations
@@ -23,6 +25,7 @@ from typing import Protocol
 
 import numpy as np
 
+from controllers.stc.belief import Belief, recentre
 from controllers.stc.config import (
     LANDMARK_OFFSET_SIGMA,
     LANDMARK_TURN_SIGMA_RAD,
@@ -65,15 +68,17 @@ class Perception(Protocol):
     #: decisions and looks observed again because their frames were read askew (camera only)
     reobserved: int
 
-    def observe(self, plant: Plant, floor: Floor, *, fresh: bool, at_start: bool, start_cell: bool) -> StcObservation:
+    def observe(
+        self, plant: Plant, belief: Belief, floor: Floor, *, fresh: bool, at_start: bool, start_cell: bool
+    ) -> StcObservation:
         """The decision's reading; may raise :class:`controllers.stc.claims.OutOfSight`.
         ``start_cell``: the robot's count of its moves puts it in its start cell."""
 
-    def look(self, plant: Plant, floor: Floor, *, landing: bool) -> bool:
+    def look(self, plant: Plant, belief: Belief, floor: Floor, *, landing: bool) -> bool:
         """The look ahead (``landing``: at the sub-cell ahead, before a return to the parent);
         may raise :class:`controllers.stc.claims.OutOfSight`."""
 
-    def heading_after_turn(self, plant: Plant, floor: Floor) -> float | None: ...
+    def heading_after_turn(self, plant: Plant, belief: Belief, floor: Floor) -> float | None: ...
 
 
 class OraclePerception:
@@ -88,28 +93,28 @@ class OraclePerception:
         self.board = board
         self.rng = rng  # the read-out noise of the pose
 
-    def _offset(self, plant: Plant) -> np.ndarray:
+    def _offset(self, plant: Plant, belief: Belief) -> np.ndarray:
         """The truth with the marks' read-out noise."""
-        return plant.true_offset() + self.rng.normal(0, self.cfg.position_sigma_oracle_m, 2)
+        return plant.true_offset(belief.sub) + self.rng.normal(0, self.cfg.position_sigma_oracle_m, 2)
 
-    def _heading(self, plant: Plant) -> float:
+    def _heading(self, plant: Plant, belief: Belief) -> float:
         """The truth with the pipeline's measured heading noise."""
-        return plant.heading_error() + self.rng.normal(0, self.cfg.heading_sigma_oracle_rad)
+        return plant.heading_error(belief.hc) + self.rng.normal(0, self.cfg.heading_sigma_oracle_rad)
 
-    def observe(self, plant, floor, *, fresh, at_start=False, start_cell=True):
+    def observe(self, plant, belief, floor, *, fresh, at_start=False, start_cell=True):
         plant.wait(self.cfg.robot.settle_s)
-        obs = observe_oracle(floor.record, self.board, plant.sub, plant.hc, camera_view=True)
-        plant.offset_est = self._offset(plant)
+        obs = observe_oracle(floor.record, self.board, belief.sub, belief.hc, camera_view=True)
+        belief.offset_m = self._offset(plant, belief)
         return obs
 
-    def look(self, plant, floor, *, landing=False):
+    def look(self, plant, belief, floor, *, landing=False):
         plant.wait(self.cfg.robot.settle_s)
-        return (landing_oracle if landing else look_oracle)(floor.record, plant.sub, plant.hc).marked
+        return (landing_oracle if landing else look_oracle)(floor.record, belief.sub, belief.hc).marked
 
-    def heading_after_turn(self, plant, floor):
+    def heading_after_turn(self, plant, belief, floor):
         plant.wait(self.cfg.robot.settle_s)
-        plant.offset_est = self._offset(plant)
-        return self._heading(plant)
+        belief.offset_m = self._offset(plant, belief)
+        return self._heading(plant, belief)
 
 
 class _TakesFrames:
@@ -135,33 +140,33 @@ class IdealPerception(_TakesFrames, OraclePerception):
         super().__init__(cfg, board, rng)
         self.cam = IdealCamera(cfg, board)
 
-    def observe(self, plant, floor, *, fresh, at_start=False, start_cell=True):
+    def observe(self, plant, belief, floor, *, fresh, at_start=False, start_cell=True):
         obs, dt = self.cam.observe(
-            (plant.x, plant.y), plant.t, floor.phosphor, floor.laid, plant.sub, plant.hc, fresh=fresh,
+            (plant.x, plant.y), plant.t, floor.phosphor, floor.laid, belief.sub, belief.hc, fresh=fresh,
             at_start=at_start, dot_mark=floor.dot_mark, start_cell=start_cell,
         )  # fmt: skip
         plant.wait(self.cfg.robot.settle_s + dt)
-        plant.offset_est = self._offset(plant)
+        belief.offset_m = self._offset(plant, belief)
         return obs
 
-    def look(self, plant, floor, *, landing=False):
+    def look(self, plant, belief, floor, *, landing=False):
         xy = (plant.x, plant.y)
         marked, dt = self.cam.look(
-            xy, plant.t, floor.phosphor, floor.laid, plant.sub, plant.hc, landing=landing, dot_mark=floor.dot_mark
+            xy, plant.t, floor.phosphor, floor.laid, belief.sub, belief.hc, landing=landing, dot_mark=floor.dot_mark
         )
         plant.wait(self.cfg.robot.settle_s + dt)
-        plant.offset_est = self._offset(plant)
+        belief.offset_m = self._offset(plant, belief)
         return marked
 
-    def heading_after_turn(self, plant, floor):
+    def heading_after_turn(self, plant, belief, floor):
         # the frames' time: the newest row and the consensus frame
         cam = self.cam
         plant.wait(self.cfg.robot.settle_s)
         plant.wait(cam.frame_s(0))
         if self.cfg.consensus_frame and cam.controlled and self._short_rows(plant, floor) < self.cfg.consensus_rows:
             plant.wait(cam.frame_s(1))
-        plant.offset_est = self._offset(plant)
-        return self._heading(plant)
+        belief.offset_m = self._offset(plant, belief)
+        return self._heading(plant, belief)
 
     def _short_rows(self, plant, floor) -> int:
         """The marks a short frame sees from here (the camera counts the lit dots in its ground
@@ -175,34 +180,34 @@ class CameraPerception(_TakesFrames):
 
     refereed = True
 
-    def __init__(self, cfg: CoverConfig, board, rng: np.random.Generator):
+    def __init__(self, cfg: CoverConfig, board, rng: np.random.Generator, *, camera_wrap=None):
         self.cfg = cfg
         self.board = board
-        self.cam = RobotCamera(board, cfg, rng)
+        self.cam = RobotCamera(board, cfg, rng, camera_wrap=camera_wrap)
         self.last_frame = None
         self.reobserved = 0
 
     # ------------------------------------------------------------------ the loop's three readings
-    def observe(self, plant, floor, *, fresh, at_start=False, start_cell=True):
+    def observe(self, plant, belief, floor, *, fresh, at_start=False, start_cell=True):
         take = partial(self.cam.observe, phosphor=floor.phosphor, fresh=fresh, at_start=at_start, start_cell=start_cell)
-        obs, res = self._read(plant, take)
+        obs, res = self._read(plant, belief, take)
         self.last_frame = (res, self.cam.pipe)
         return obs
 
-    def look(self, plant, floor, *, landing=False):
+    def look(self, plant, belief, floor, *, landing=False):
         # a look stands beside the exit, where the rows in view were laid at many other times
         # (each where the robot then stood): only the red lights say where it stands there
         look = partial(self.cam.look, phosphor=floor.phosphor, landing=landing)
-        marked, res = self._read(plant, look, lights_only=True)
+        marked, res = self._read(plant, belief, look, lights_only=True)
         self.last_frame = (res, self.cam.pipe)
         return marked
 
-    def heading_after_turn(self, plant, floor):
+    def heading_after_turn(self, plant, belief, floor):
         """The heading fit on the newest row; the marks in view also say where the robot stands."""
         cam, cfg = self.cam, self.cfg
         res, dt = cam.shoot(plant.pose, plant.t, floor.phosphor)
         plant.wait(cfg.robot.settle_s + dt)
-        plant.offset_est = self._where(res.observation, plant)
+        belief.offset_m = self._where(res.observation, belief)
         if not res.heading.ok:
             # no newest row to fit: the red lights, when they are sure enough, else the newest
             # row of a 2 s frame (a turn left uncorrected leaves the next cell read askew)
@@ -227,7 +232,7 @@ class CameraPerception(_TakesFrames):
         return self._heading(res, rows)
 
     # ------------------------------------------------------------------ localisation
-    def _read(self, plant, take, *, lights_only: bool = False):
+    def _read(self, plant, belief, take, *, lights_only: bool = False):
         """A decision's or a look's frames: ``take(pose, t) -> (reading, short frame's result,
         long frame's result or None, seconds)``. The short frame says where the robot stands
         and, with the red lights, how far its heading has drifted; a drift over
@@ -241,22 +246,22 @@ class CameraPerception(_TakesFrames):
         for attempt in range(2):
             reading, short, long, dt = take(plant.pose, plant.t)
             plant.wait(self.cfg.robot.settle_s + dt)
-            self._check_lights(short, plant)
-            plant.offset_est = self._where(short.observation, plant, lights_only=lights_only)
-            turned = self._correct_heading(short, plant)
+            self._check_lights(short, belief)
+            belief.offset_m = self._where(short.observation, belief, lights_only=lights_only)
+            turned = self._correct_heading(short, plant, belief)
             if turned == 0.0:
-                turned = self._check_heading(short, plant)
+                turned = self._check_heading(short, plant, belief)
             if abs(turned) < REOBSERVE_RAD and long is not None:
-                turned = self._correct_lean(long, plant)
-            moved = np.hypot(*plant.offset_est) > RECENTRE_M
+                turned = self._correct_lean(long, plant, belief)
+            moved = np.hypot(*belief.offset_m) > RECENTRE_M
             if moved:  # read the cell from where the robot should stand
-                plant.recentre()
+                recentre(plant, belief)
             if abs(turned) < REOBSERVE_RAD and not moved:
                 break
             self.reobserved += attempt == 0  # (a second askew reading is kept)
         return reading, long or short
 
-    def _correct_lean(self, long, plant) -> float:
+    def _correct_lean(self, long, plant, belief) -> float:
         """A long frame's rows, read with the short frame's heading, still lean by more than
         :data:`REOBSERVE_RAD`: the heading has drifted that far; take it out. Returns the
         rotation made (rad)."""
@@ -266,13 +271,13 @@ class CameraPerception(_TakesFrames):
         e = long.observation.heading_error_rad - lean
         if abs(e) <= LEAN_TRIM_RAD:
             return 0.0
-        plant.rotate_by(-e)
+        plant.rotate_by(-e, belief.turn_s)
         # a small lean is a heading bias the newest row shares (it was laid with it), which
         # no turn's recalibration sees: taken out, the reading itself stands (0.3 degrees moves
         # box 2 by 1.4 mm); only a large one means the frames were read askew
         return -e if abs(e) > REOBSERVE_RAD else 0.0
 
-    def _where(self, observation, plant, *, lights_only: bool = False) -> np.ndarray:
+    def _where(self, observation, belief, *, lights_only: bool = False) -> np.ndarray:
         """The robot's offset from its sub-cell centre (world, m): from the red lights in view
         when there are any (they stand at cell centres: an absolute reference), else from its
         own marks (``lights_only``: not from them); the belief so far when neither is believable."""
@@ -282,8 +287,8 @@ class CameraPerception(_TakesFrames):
         if off is None and not lights_only:
             off = observation.position_offset
         if off is None or max(abs(off[0]), abs(off[1])) > 0.3:  # 5 cm: not believable
-            return plant.offset_est
-        return entry_offset_to_world(off, plant.hc, self.board.subcell_m)
+            return belief.offset_m
+        return entry_offset_to_world(off, belief.hc, self.board.subcell_m)
 
     def _heading(self, res, rows=None) -> float | None:
         """The heading error: the newest row's, less what the red lights (absolute, when in view)
@@ -299,17 +304,17 @@ class CameraPerception(_TakesFrames):
                 left = rows.observation.pattern_rotation_rad
         return res.heading.heading_error_rad - (left if left is not None else 0.0)
 
-    def _check_heading(self, res, plant) -> float:
+    def _check_heading(self, res, plant, belief) -> float:
         """Without the red lights: a heading error over :data:`HEADING_CHECK_RAD` (the newest
         row's lean less the lean of all rows in view, :meth:`_heading`) means the robot turned
         during a move (a wheel slipped): turn back by it. Returns the rotation made (rad)."""
         e = self._heading(res)
         if e is not None and abs(e) > HEADING_CHECK_RAD:
-            plant.rotate_by(-e)
+            plant.rotate_by(-e, belief.turn_s)
             return -e
         return 0.0
 
-    def _check_lights(self, short, plant) -> None:
+    def _check_lights(self, short, belief) -> None:
         """A white light (a lamp, not a red obstacle light) in the short frame ``short`` within
         :data:`WHITE_BLIND_M` of the robot: its glare hides the marks around it, so the cell
         cannot be read: stop rather than decide on it."""
@@ -319,7 +324,7 @@ class CameraPerception(_TakesFrames):
             if d < WHITE_BLIND_M:
                 raise RobotStop(
                     f"a white light (not a red obstacle light) {d:.2f} m from the robot at sub-cell "
-                    f"{tuple(int(v) for v in plant.sub)}: its glare hides the marks there"
+                    f"{tuple(int(v) for v in belief.sub)}: its glare hides the marks there"
                 )
 
     def _lights_rotation(self, o) -> float | None:
@@ -330,7 +335,7 @@ class CameraPerception(_TakesFrames):
             return None
         return o.landmark_rotation_rad if o.landmark_rotation_sigma_rad <= LANDMARK_TURN_SIGMA_RAD else None
 
-    def _correct_heading(self, res, plant) -> float:
+    def _correct_heading(self, res, plant, belief) -> float:
         """Two or more red lights in view say how far the heading has drifted: take it out.
         Returns the rotation made (rad)."""
         if self.cfg.use_landmarks and res.observation.landmark_rotation_rad is not None:
@@ -338,7 +343,7 @@ class CameraPerception(_TakesFrames):
             sig = res.observation.landmark_rotation_sigma_rad
             # only a drift the lights show clearly (2.5 sigma), and never by a hair
             if e is not None and abs(e) > max(math.radians(0.5), 2.5 * sig):
-                plant.rotate_by(-e)
+                plant.rotate_by(-e, belief.turn_s)
                 return -e
         return 0.0
 
@@ -350,12 +355,13 @@ def entry_offset_to_world(off_ru, hc: int, subcell_m: float) -> np.ndarray:
 
 
 def make_perception(
-    cfg: CoverConfig, board, *, camera_rng: np.random.Generator, oracle_rng: np.random.Generator
+    cfg: CoverConfig, board, *, camera_rng: np.random.Generator, oracle_rng: np.random.Generator, camera_wrap=None
 ) -> Perception:
     """The perception ``cfg.perception`` names: the camera draws its noise from ``camera_rng``,
-    the oracle and the physics-limited camera their read-out noise from ``oracle_rng``."""
+    the oracle and the physics-limited camera their read-out noise from ``oracle_rng``;
+    ``camera_wrap`` (the camera's faults) puts the rendering camera inside another."""
     if cfg.perception == "camera":
-        return CameraPerception(cfg, board, camera_rng)
+        return CameraPerception(cfg, board, camera_rng, camera_wrap=camera_wrap)
     if cfg.perception == "ideal":
         return IdealPerception(cfg, board, oracle_rng)
     if cfg.perception == "oracle":

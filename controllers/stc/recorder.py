@@ -12,9 +12,9 @@ import rerun as rr
 import rerun.blueprint as rrb
 
 from controllers.stc.observers import Observer, Reading
-from stcvision.rr import PipelineLogger, abort_recording, finish_recording, open_recording
+from stcvision.rr import PipelineLogger, Recordings, abort_recording, finish_recording, open_recording
 
-__all__ = ["READINGS_BUDGET", "WORLD_BUDGET", "CoverRecorder", "readings_every"]
+__all__ = ["READINGS_BUDGET", "WORLD_BUDGET", "CoverRecorder", "readings_every", "run_cover_recorded"]
 
 
 def _blueprint() -> rrb.Blueprint:
@@ -116,13 +116,13 @@ class CoverRecorder(Observer):
         self._world(plant.t, floor.phosphor, plant.visits)
 
     def _log_reading(self, ev: Reading, *, full: bool, world: bool | None = None) -> None:
-        p = ev.plant
+        p, sub = ev.plant, ev.belief.sub
         if ev.kind == "look":
-            text = f"**look** from sub-cell {p.sub}: the cell ahead is {'marked' if ev.marked else 'unmarked'}"
+            text = f"**look** from sub-cell {sub}: the cell ahead is {'marked' if ev.marked else 'unmarked'}"
         else:
             d, o = ev.decision, ev.obs
             text = (
-                f"**decision {ev.k}** at sub-cell {p.sub}, t = {p.t:.0f} s\n\n"
+                f"**decision {ev.k}** at sub-cell {sub}, t = {p.t:.0f} s\n\n"
                 f"visited 1-3: {d.visited}, parent {d.parent}, child {d.child}, "
                 f"target {d.target}{' (stop there)' if d.final else ''}\n\n"
                 f"boxes {o.boxes}, start mark {o.start_mark}"
@@ -175,3 +175,13 @@ class CoverRecorder(Observer):
     def abort(self) -> None:
         """Stop without keeping the recording (the run failed or was interrupted)."""
         abort_recording(self.rec, self.tmp)
+
+
+def run_cover_recorded(board, cfg, rrd=None, observers=()) -> dict:
+    """:func:`controllers.stc.loop.run_cover` with a rerun recording to ``rrd`` (when given),
+    renamed into place only when the run ends: an error or a signal removes it."""
+    from controllers.stc.loop import run_cover
+
+    with Recordings() as recs:
+        recorder = recs.add(CoverRecorder(rrd, board)) if rrd else None
+        return run_cover(board, cfg, observers=[recorder, *observers])

@@ -8,6 +8,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 
+from controllers.stc.belief import Belief
 from controllers.stc.fsm import Action, StcObservation, StcPhase, StcState, decide
 from controllers.stc.geometry import COMPASS_VEC, cell_of
 from controllers.stc.oracle import landing_oracle, look_oracle, observe_oracle
@@ -32,12 +33,14 @@ class Referee:
         self._decided = None  # what the robot decided there (its Decision)
         self._at: dict = {}
 
-    def decision(self, plant: Plant, floor: Floor, obs: StcObservation, state: StcState, k: int) -> None:
+    def decision(
+        self, plant: Plant, belief: Belief, floor: Floor, obs: StcObservation, state: StcState, k: int
+    ) -> None:
         """The robot decided from ``obs`` at its ``k``-th decision (state ``state``)."""
-        self.max_age_read = max(self.max_age_read, floor.oldest_near(plant.sub, plant.t))
+        self.max_age_read = max(self.max_age_read, floor.oldest_near(belief.sub, plant.t))
         if not self.active:
             return
-        o_obs = observe_oracle(floor.record, self.board, plant.sub, plant.hc, camera_view=True)
+        o_obs = observe_oracle(floor.record, self.board, belief.sub, belief.hc, camera_view=True)
         od = decide(o_obs, at_start=state.at_start)
         dc = decide(obs, at_start=state.at_start)
         self._decided = dc
@@ -45,23 +48,23 @@ class Referee:
             # what the cell says of itself (visited sub-cells, parent, start, end) was misread:
             # no look can mend that
             self._expected = ("misread",)
-            self.report("misread", f"misread at {plant.sub}: camera {obs}, oracle {o_obs}, fresh {state.fresh}")
+            self.report("misread", f"misread at {belief.sub}: camera {obs}, oracle {o_obs}, fresh {state.fresh}")
         elif od.done:
             self._expected = ("done",)
         elif od.final:
             self._expected = ("stop", od.target, od.parent)
         else:
             self._expected = ("leave", od.target, od.parent, od.child is None and o_obs.landing_marked[od.target])
-        self._at = {"decision": k, "subcell": plant.sub, "camera": obs, "oracle": o_obs}
+        self._at = {"decision": k, "subcell": belief.sub, "camera": obs, "oracle": o_obs}
 
-    def look(self, plant: Plant, floor: Floor, marked: bool, *, landing: bool = False) -> None:
+    def look(self, plant: Plant, belief: Belief, floor: Floor, marked: bool, *, landing: bool = False) -> None:
         """A look read ``marked`` (``landing``: the sub-cell ahead, else the cell ahead)."""
-        truth = (landing_oracle if landing else look_oracle)(floor.record, plant.sub, plant.hc).marked
+        truth = (landing_oracle if landing else look_oracle)(floor.record, belief.sub, belief.hc).marked
         if not self.active or marked == truth:
             return
         self.look_errors += 1
-        di, dj = COMPASS_VEC[plant.hc]
-        ahead = cell_of((plant.sub[0] + di, plant.sub[1] + dj))
+        di, dj = COMPASS_VEC[belief.hc]
+        ahead = cell_of((belief.sub[0] + di, belief.sub[1] + dj))
         seen = [
             (s, e, round(plant.t - t), round(math.dist(self.board.subcell_center_m(*s), (plant.x, plant.y)), 2))
             for (s, e), t in floor.laid_at.items()
@@ -69,11 +72,11 @@ class Referee:
         ]
         self.report(
             "look error",
-            f"{'landing ' if landing else ''}look error at {plant.sub} heading {plant.hc}: camera {marked}, "
+            f"{'landing ' if landing else ''}look error at {belief.sub} heading {belief.hc}: camera {marked}, "
             f"t={plant.t:.0f}, marks ahead {seen}",
         )
 
-    def step(self, prev: StcState, state: StcState, action: Action, plant: Plant, k: int) -> None:
+    def step(self, prev: StcState, state: StcState, action: Action, plant: Plant, belief: Belief, k: int) -> None:
         """The controller went from ``prev`` to ``state`` with ``action``: a decision is
         committed when the robot leaves its cell or stops (the looks before entering a child may
         revise a first reading, as they are meant to)."""
@@ -83,26 +86,26 @@ class Referee:
             # robot's own decision: the state after it no longer holds the parent)
             dc = self._decided
             final = dc is not None and dc.final and not dc.done
-            self._commit(("stop", dc.target, dc.parent) if final else ("done",), plant, k)
+            self._commit(("stop", dc.target, dc.parent) if final else ("done",), plant, belief, k)
         elif action is Action.DONE and prev.phase is not StcPhase.DECIDE:
-            self._commit(("stop", prev.target, prev.parent), plant, k)
+            self._commit(("stop", prev.target, prev.parent), plant, belief, k)
         elif action is Action.FORWARD and state.phase is StcPhase.DECIDE:
-            self._commit(("leave", prev.target, prev.parent, state.closing), plant, k)
+            self._commit(("leave", prev.target, prev.parent, state.closing), plant, belief, k)
 
-    def _commit(self, outcome: tuple, plant: Plant, k: int) -> None:
+    def _commit(self, outcome: tuple, plant: Plant, belief: Belief, k: int) -> None:
         expected, self._expected = self._expected, None
         if expected is None or expected == outcome:
             return
         self.decision_errors += 1
-        self.report("decision error", f"decision error at {plant.sub}: the oracle would {expected}, did {outcome}")
+        self.report("decision error", f"decision error at {belief.sub}: the oracle would {expected}, did {outcome}")
         if self.first_error is None:
             at = self._at
             self.first_error = {
                 "decision": k,
                 "t_s": round(plant.t, 1),
                 "subcell": list(at["subcell"]),
-                "position_error_m": round(math.hypot(*plant.true_offset()), 4),
-                "heading_error_deg": round(math.degrees(plant.heading_error()), 2),
+                "position_error_m": round(math.hypot(*plant.true_offset(belief.sub)), 4),
+                "heading_error_deg": round(math.degrees(plant.heading_error(belief.hc)), 2),
                 **_compare(at["camera"], at["oracle"]),
             }
 

@@ -67,7 +67,7 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-#: exit statuses (README 'Command line'): 0 done; 2 bad input or an output that cannot be made;
+#: exit statuses (docs: What every command guarantees): 0 done; 2 bad input or an output that cannot be made;
 #: 3 the command ran but the robot did not complete (cover, demo); 128+N killed by signal N
 EXIT_OK, EXIT_BAD_INPUT, EXIT_INCOMPLETE = 0, 2, 3
 EXIT_STATUSES = """exit status:
@@ -167,7 +167,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         parser.exit(EXIT_BAD_INPUT, f"stcvision {args.command}: error: {flag} is an empty string; expected a name\n")
     mod = args._module
     name = args.command
-    from stcvision.warm import announce_compiles
+    from stcvision.compiles import announce_compiles
 
     announce_compiles()  # a first run that compiles says so, once, on stderr
     previous = _install_signal_handlers()

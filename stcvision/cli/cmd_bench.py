@@ -12,7 +12,7 @@ by default frames rendered here from the ages recipe at a seed its tuning did no
 in this process, on the local pool and on a Dask cluster (--scheduler, or a LocalCluster of two
 single-threaded worker processes started for the purpose).
 
-This is the benchmark behind the performance goals (../shared/DESIGN.md): tests never time
+This is the benchmark behind the performance goals (docs: Results, pipeline speed): tests never time
 anything.
 """
 
@@ -124,7 +124,7 @@ def _labelled(args, ds=None) -> dict:
         out = compare_detectors(ds, default_profile=default_profile())
         out["source"] = args.labelled
         return out
-    from stcvision.cli.dataset_generate import generate
+    from calibration.dataset_render import generate
     from stcvision.sweep import SweepOptions
 
     recipe = _ages_recipe(args.labelled_frames)
@@ -170,51 +170,6 @@ def _median_ms(fn, n: int) -> float:
     return float(np.median(times)) / 1e6
 
 
-def benchmark_scene(seed: int = 0):
-    """A representative closed-loop scene: a 22x22-cell board with 10 % obstacle cells, every
-    sub-cell marked at a random age up to 3 minutes, the robot inside the board."""
-    import numpy as np
-
-    from sim_camera.board import Board
-    from sim_camera.camera import Pose
-    from sim_camera.phosphor import PhosphorLayer, mark_dots_m
-    from sim_camera.scene import EDGES
-
-    rng = np.random.default_rng(seed)
-    board = Board.random((22, 22), obstacle_fraction=0.1, rng=rng)
-    layer = PhosphorLayer()
-    edges = list(EDGES.values())
-    rows, cols = board.shape_subcells
-    for i in range(rows):
-        for j in range(cols):
-            if not board.blocked[i, j]:
-                e = edges[rng.integers(4)]
-                layer.charge(
-                    mark_dots_m(board.subcell_center_m(i, j), e, board.subcell_m),
-                    t_start_s=-rng.uniform(0, 180),
-                    duration_s=3.0,
-                )
-    free = np.argwhere(board.cell_free)
-    ci, cj = free[len(free) // 2]
-    c = board.subcell_center_m(2 * ci + 1, 2 * cj + 1)
-    return board, layer, Pose(float(c[0]), float(c[1]), np.pi / 2 + 0.03)
-
-
-def benchmark_frames(seed: int = 0, n: int = 8):
-    """(dark frame, ``n`` frames) of :func:`benchmark_scene` as the bench renders them: a
-    median dark of 8, then the frames, from one stream seeded ``seed``."""
-    import numpy as np
-
-    from sim_camera.camera import SyntheticCamera
-
-    board, layer, pose = benchmark_scene(seed)
-    cam = SyntheticCamera()
-    rng = np.random.default_rng(seed)
-    dark = cam.median_dark(8, rng=rng)
-    lights = board.red_lights_m()
-    return dark, [cam.render(pose, rng=rng, phosphor=layer, red_lights_m=lights).image for _ in range(n)]
-
-
 def run(args):
     if args.sweep:
         return _bench_sweep(args)
@@ -237,7 +192,9 @@ def run(args):
 
         labelled = open_dataset(args.labelled)
     cv2.setNumThreads(1)
-    board, layer, pose = benchmark_scene(args.seed)
+    from sim_camera import scenarios
+
+    board, layer, pose = scenarios.benchmark_scene(args.seed)
     cam = SyntheticCamera()
     rng = np.random.default_rng(args.seed)
     lights = board.red_lights_m()

@@ -1,8 +1,9 @@
-"""Measure a nest's area blind, with Buffon's needle (seed 000, Girgin & Sahin): a Khepera-sized
+"""Measure a nest's area blind, with Buffon's needle (Girgin & Sahin's method): a Khepera-sized
 explorer makes two visits from the nest's central bottom, lays a pheromone trail on the first,
 counts its crossings on the second; nBC = crossings / second-visit length, and the area is
-A = 2 L1 L2 / (pi N) (with a dead-time and a calibrated correction; see README). By default the robot
-ends each visit itself (--visit-steps auto). Lengths are in body lengths (u = 55 mm).
+A = 2 L1 L2 / (pi N) (with a dead-time and a calibrated correction; see the docs' page on the
+Buffon's-needle explorer). By default the robot ends each visit itself (--visit-steps auto).
+Lengths are in body lengths (u = 55 mm).
 
   stcvision buffon --nest circle:100 [--barrier plus:0.5] [--trials 100] [--json] [--rrd R.rrd]
   stcvision buffon reproduce --out DIR [--trials 100] [--workers N | --scheduler tcp://H:P]

@@ -54,7 +54,14 @@ def add_parser(p):
     t.add_argument(
         "--center", type=pair(float, fmt="U,V", example="320,240"), metavar="U,V", help="mirror centre by hand (pixels)"
     )
-    t.add_argument("--subcell-m", type=float, default=0.16, help="sub-cell side D of the board (default 0.16)")
+    from stcvision.stcgrid import DEFAULT_SUBCELL_M
+
+    t.add_argument(
+        "--subcell-m",
+        type=float,
+        default=DEFAULT_SUBCELL_M,
+        help=f"sub-cell side D of the board (default {DEFAULT_SUBCELL_M})",
+    )
     t.add_argument(
         "--viewpoint-m",
         type=float,

@@ -4,7 +4,7 @@ pipeline -> finite-state controller -> robot), with honest time and fading marks
 The board comes from --map (text or PNG, one pixel = one sub-cell) or --board WxH (random, with
 --obstacle-fraction). --perception camera renders every observation and reads it with the
 vision pipeline; oracle reads the floor's ground truth; ideal sees exactly the marks the frames
-could show (the physics-limited camera, no pipeline). --exposure webcam is the seed's camera
+could show (the physics-limited camera, no pipeline). --exposure webcam is the STC paper's camera
 (1/30 s); auto adds long frames sized by the robot's clock (2-30 s, then stacked 30 s frames) for
 the dim old marks; or give --exposure-s X.
 
@@ -21,7 +21,7 @@ abort_reason), 2 for bad input.
 plan says what the tour needs of the camera, from the physics-limited camera (exposure auto):
 does it converge, how long, the oldest mark it reads, the frame lengths it uses. sweep runs the
 robot over map files and random boards x seeds x exposure modes x perceptions x cameras through
-the sweep runner (resumable; see README 'Scaling out') and writes the dependability table
+the sweep runner (resumable; see the docs, Scaling out) and writes the dependability table
 (summary.md, table.csv, runs.csv) and its plot (dependability.png).
 """
 
@@ -68,7 +68,7 @@ def add_parser(p):
         default=None,
         # (the default is CoverConfig's, not imported here to keep --help fast; a test holds
         # this text to it)
-        help="webcam: 1/30 s (the seed's camera); auto: plus a long frame (default: auto)",
+        help="webcam: 1/30 s (the STC paper's camera); auto: plus a long frame (default: auto)",
     )
     _add_hardware_arguments(p)
     p.add_argument(
@@ -186,26 +186,12 @@ def run(args):
 
 
 def run_recorded(board, cfg, rrd, observers=()) -> dict:
-    """``run_cover`` with a rerun recording to ``rrd`` (when given) that is renamed into place only
-    when the run ends (an error or a signal removes it), and the exit status: 0 when the robot
-    completed the board (every reachable sub-cell once, back at the start), else
-    :data:`~stcvision.cli.EXIT_INCOMPLETE` (3)."""
-    from controllers.stc.loop import run_cover
+    """:func:`controllers.stc.recorder.run_cover_recorded` and the command's exit status: 0 when
+    the robot completed the board, else :data:`~stcvision.cli.EXIT_INCOMPLETE` (3)."""
+    from controllers.stc.recorder import run_cover_recorded
     from stcvision.cli import EXIT_INCOMPLETE, EXIT_OK
 
-    recorder = None
-    if rrd:
-        from controllers.stc.recorder import CoverRecorder
-
-        recorder = CoverRecorder(rrd, board)
-    try:
-        result = run_cover(board, cfg, observers=[recorder, *observers])
-    except BaseException:
-        if recorder is not None:
-            recorder.abort()
-        raise
-    if recorder is not None:
-        recorder.close()
+    result = run_cover_recorded(board, cfg, rrd, observers)
     result["exit_code"] = EXIT_OK if result["complete"] else EXIT_INCOMPLETE
     return result
 

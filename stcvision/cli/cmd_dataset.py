@@ -6,8 +6,8 @@
 generate renders a recipe (datasets/recipes/*.json) into DIR: frames/*.png, dark/*.png,
 labels.jsonl (ground truth per frame), manifest.json, and the calibration lights-on frames and
 profiles where the recipe asks. Same recipe and seed give byte-identical files, whatever the
-number of workers or the backend (chunks of frames are tasks of the sweep runner; README
-'Scaling out'); re-running skips finished chunks (resume after an interruption), --fresh renders
+number of workers or the backend (chunks of frames are tasks of the sweep runner; the
+docs' Scaling out); re-running skips finished chunks (resume after an interruption), --fresh renders
 everything again; a folder holding another recipe or seed is refused. Generated sets belong in
 the git-ignored datasets/generated/.
 """
@@ -70,7 +70,7 @@ def run(args):
             "counts": m["counts"],
             "groups": {g["name"]: g["n"] for g in m["groups"]},
         }
-    from stcvision.cli.dataset_generate import generate
+    from calibration.dataset_render import generate
     from stcvision.datasets import load_recipe
     from stcvision.sweep import sweep_options_from_args
 

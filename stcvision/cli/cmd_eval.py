@@ -49,74 +49,6 @@ def add_parser(p):
     add_sweep_arguments(p)
 
 
-#: frames per sweep task (a frame takes ~10-40 ms: a task is ~1 s, far above the sweep's cost)
-FRAMES_PER_TASK = 50
-
-
-def eval_chunk(params: dict, seed) -> dict:
-    """Sweep task: run and score frames ``first`` to ``stop - 1`` of the dataset; their records
-    and the frames skipped as unreadable. ``seed`` is not used (the pipeline draws nothing)."""
-    import hashlib
-
-    from stcvision.datasets import open_dataset
-    from stcvision.errors import BadInputError
-    from stcvision.evaluate import evaluate_frames
-
-    ds = open_dataset(params["dataset"])
-    if hashlib.sha256((ds.root / "labels.jsonl").read_bytes()).hexdigest() != params["labels_sha256"]:
-        raise BadInputError(f"dataset {ds.root} changed while it was being evaluated")
-    profile = _load_profile(params["profile"])
-    default = None if profile is not None else _default_profile()
-    records, skipped = evaluate_frames(
-        ds, range(params["first"], params["stop"]), default_profile=default, profile=profile
-    )
-    return {"records": [r.to_record() for r in records], "skipped": skipped}
-
-
-def _sweep_dataset(args, ds, profile):
-    """Every frame through :func:`eval_chunk` tasks; the summary's Evaluation."""
-    import hashlib
-    import sys
-    import tempfile
-    from pathlib import Path
-
-    from stcvision.evaluate import FrameRecord, summarize_evaluation
-    from stcvision.sweep import Task, run_sweep, sweep_options_from_args
-
-    def sha(path):
-        return hashlib.sha256(Path(path).read_bytes()).hexdigest()
-
-    base = {
-        "dataset": str(ds.root.resolve()),
-        "labels_sha256": sha(ds.root / "labels.jsonl"),
-        "profile": str(Path(args.profile).resolve()) if args.profile else None,
-        "profile_sha256": sha(args.profile) if args.profile else None,
-    }
-    n = len(ds.labels)
-    tasks = [
-        Task(
-            experiment=f"{__name__}:eval_chunk",
-            params={**base, "first": a, "stop": min(a + FRAMES_PER_TASK, n)},
-            seed=0,
-        )
-        for a in range(0, n, FRAMES_PER_TASK)
-    ]
-    opts = sweep_options_from_args(args)
-    if args.store:
-        report = run_sweep(tasks, args.store, opts, desc=f"eval {ds.root.name}")
-    else:
-        with tempfile.TemporaryDirectory(prefix="stcvision-eval-") as tmp:
-            report = run_sweep(tasks, Path(tmp) / "sweep.jsonl", opts, desc=f"eval {ds.root.name}")
-    report.raise_if_failed(f"chunks of {ds.root}")
-    records, skipped = [], []
-    for r in report.results.values():
-        records += [FrameRecord.from_record(d) for d in r["records"]]
-        skipped += r["skipped"]
-    for sk in skipped:
-        print(f"stcvision eval: skipped {ds.root / sk['frame']}: {sk['reason']}", file=sys.stderr)
-    return summarize_evaluation(ds, records, skipped, profile=profile), report
-
-
 def _load_profile(path):
     if path:
         from stcvision.profile import Profile
@@ -129,6 +61,12 @@ def _default_profile():
     from calibration.profiles import default_profile
 
     return default_profile()
+
+
+def _default_profile_path() -> str:
+    from calibration.profiles import default_profile_path
+
+    return str(default_profile_path())
 
 
 def run(args):
@@ -171,13 +109,21 @@ def run(args):
 def _run_dataset(args, root):
     from stcvision.datasets import open_dataset
     from stcvision.errors import BadInputError
-    from stcvision.evaluate import log_worst, write_report
+    from stcvision.evaluate import log_worst, sweep_evaluation, write_report
 
     if args.dark or args.no_dark or args.out:
         raise BadInputError(f"{root} is a dataset: its dark frames are in the dataset; drop --dark/--no-dark/--out")
     ds = open_dataset(root)
     profile = _load_profile(args.profile)
-    ev, report = _sweep_dataset(args, ds, profile)
+    from stcvision.sweep import sweep_options_from_args
+
+    ev, report = sweep_evaluation(
+        ds,
+        profile_path=args.profile,
+        default_profile_path=None if args.profile else _default_profile_path(),
+        options=sweep_options_from_args(args),
+        store=args.store,
+    )
     r = dict(ev.summary)
     r["mode"] = "dataset"
     r["sweep"] = report.summary()
@@ -194,12 +140,10 @@ def _run_dataset(args, root):
 def _run_images(args, root):
     from pathlib import Path
 
-    import numpy as np
-
     from stcvision.datasets import list_images
     from stcvision.errors import BadInputError, FileExistsRefusedError
-    from stcvision.evaluate import evaluate_images
-    from stcvision.fileio import dumps, read_image, write_bytes_atomic
+    from stcvision.evaluate import evaluate_image_folder
+    from stcvision.fileio import read_image
 
     if args.dark is None and not args.no_dark:
         raise BadInputError(
@@ -222,58 +166,8 @@ def _run_images(args, root):
     out = Path(args.out) if args.out else root.resolve().parent / f"{root.resolve().name}-results.jsonl"
     if out.exists() and not args.force:
         raise FileExistsRefusedError(f"{out} exists; refusing to overwrite it (use --out or --force)")
-    from stcvision.fileio import check_output_file
-
-    check_output_file(out, overwrite=True, what="results file")
-    logger = None
-    lines, ms, skipped, fits, ndots, untrusted = [], [], [], 0, [], []
-    try:
-        for i, (p, res, reason, pipe) in enumerate(
-            evaluate_images(paths, profile=profile, dark=dark, dark_path=args.dark)
-        ):
-            if res is None:
-                skipped.append({"frame": str(p), "reason": reason})
-                lines.append(dumps({"frame": str(p), "skipped": reason}, indent=None))
-                continue
-            if args.rrd and logger is None:
-                from stcvision.rr import PipelineLogger
-
-                logger = PipelineLogger.to_file(args.rrd, pipe)
-            if logger is not None:
-                logger.log(res, frame=i)
-            d = res.to_dict()
-            if res.untrusted:  # e.g. a lit (lights-on) frame, or no dark frame on a sensor that needs one
-                untrusted.append({"frame": str(p), "reason": res.untrusted})
-            lines.append(dumps({"frame": str(p), **d}, indent=None))
-            ms.append(res.total_ms)
-            fits += bool(res.heading.ok)
-            ndots.append(len(d["dots"]))
-    except BaseException:
-        if logger is not None:
-            logger.abort()
-        raise
-    if logger is not None:
-        logger.close()
-    write_bytes_atomic(out, "".join(s + "\n" for s in lines).encode(), overwrite=True)
-    return {
-        "mode": "frames",
-        "dir": str(root),
-        "frames": len(ms),
-        "frames_skipped": len(skipped),
-        "skipped": skipped,
-        "frames_untrusted": len(untrusted),
-        "untrusted": untrusted,
-        "excluded": excluded,
-        "results": str(out),
-        "rrd": args.rrd,
-        "profile": args.profile or "default",
-        "dark": args.dark,
-        "dots_per_frame_median": float(np.median(ndots)) if ndots else None,
-        "heading_fits": fits,
-        "ms_per_frame_median": float(np.median(ms)) if ms else None,
-        "accuracy": None,
-        "note": "no labels: the pipeline ran, but without ground truth there is no accuracy to report",
-    }
+    r = evaluate_image_folder(paths, profile=profile, dark=dark, dark_path=args.dark, out=out, rrd=args.rrd)
+    return {"mode": "frames", "dir": str(root), **r, "excluded": excluded, "profile": args.profile or "default"}
 
 
 def _f(v, fmt=".4g"):

@@ -106,7 +106,11 @@ def run(args):
         return res.to_dict()
 
     results = []
-    try:
+    from stcvision.rr import Recordings
+
+    with Recordings() as recs:
+        if logger is not None:
+            recs.add(logger)
         if streaming:
             _stream(args, process)
         else:
@@ -114,12 +118,6 @@ def run(args):
                 d = process(read_image(path, what="frame"), i, f"frame {path}")
                 d["frame"] = str(path)
                 results.append(d)
-    except BaseException:
-        if logger is not None:
-            logger.abort()
-        raise
-    if logger is not None:
-        logger.close()
     if streaming:
         if args.rrd and not args.json:
             print(f"wrote {args.rrd}")

@@ -1,4 +1,4 @@
-"""Run the TASTI 2 chemical-search robot (seed 001): a radial "flower" or an Archimedes spiral of
+"""Run the TASTI 2 chemical-search robot (Russell's paper): a radial "flower" or an Archimedes spiral of
 straight steps, on-the-spot turns and tongue readings, detouring round obstacles by avoid/unavoid
 moves (--policy simple, improved, or none), navigating by dead reckoning; --beacon drops a
 two-light red beacon at the start and corrects the odometry from the catadioptric camera

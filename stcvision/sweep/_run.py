@@ -160,7 +160,7 @@ def add_sweep_arguments(parser: argparse.ArgumentParser) -> None:
         "--scheduler",
         type=address,
         metavar="tcp://HOST:PORT",
-        help="run the tasks on an existing Dask cluster (needs the dask extra; see README 'Scaling out')",
+        help="run the tasks on an existing Dask cluster (needs the dask extra; see the docs, Scale out on Dask)",
     )
     g.add_argument("--fresh", action="store_true", help="forget finished tasks in the store and run everything again")
 

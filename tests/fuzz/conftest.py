@@ -17,13 +17,10 @@ from __future__ import annotations
 import collections
 import functools
 import os
-import sys
 from pathlib import Path
 
 import pytest
 from hypothesis import HealthCheck, settings
-
-sys.path.insert(0, str(Path(__file__).resolve().parent))  # the shared strategies: fuzzlib.py
 
 #: a test's example count is ``weight`` x the profile's (``fuzzlib.examples``): cheap tests get more.
 #: The deadline (10 s per input) is far above the measured per-input times (milliseconds to a few

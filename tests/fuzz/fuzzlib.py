@@ -1,11 +1,10 @@
-"""Strategies and checks shared by the fuzz tests (imported by name: conftest.py puts this
-folder on sys.path).
+"""Strategies and checks shared by the fuzz tests (``tests/fuzz`` is a package: they import
+it as ``.fuzzlib``).
 
-The contract every fuzz test checks (issue 17): for every input a function returns a result or
-raises a project error (:class:`stcvision.errors.StcVisionError`) whose message is one
-non-empty line; any other exception fails the test, and hypothesis' deadline bounds the time of
-each input.
-"""
+The contract every fuzz test checks (bad input is refused in one line, never a traceback):
+for every input a function returns a result or raises a project error
+(:class:`stcvision.errors.StcVisionError`) whose message is one non-empty line; any other
+exception fails the test, and hypothesis' deadline bounds the time of each input."""
 
 from __future__ import annotations
 

@@ -25,9 +25,10 @@ from unittest import mock
 import cv2
 import numpy as np
 import pytest
-from fuzzlib import examples
 from hypothesis import given
 from hypothesis import strategies as st
+
+from .fuzzlib import examples
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -59,7 +60,6 @@ def _guarded_cover(real):
 def _stubs():
     import controllers.buffon.run as buffon_run
     import controllers.stc.loop as loop
-    import stcvision.cli.cmd_bench as bench
     import stcvision.sweep as sweep
 
     with contextlib.ExitStack() as stack:
@@ -67,7 +67,7 @@ def _stubs():
         stack.enter_context(mock.patch("controllers.stc.plan.plan", _reached))
         stack.enter_context(mock.patch("controllers.stc.recorder.CoverRecorder", _reached))
         stack.enter_context(mock.patch.object(sweep, "run_sweep", _reached))
-        stack.enter_context(mock.patch.object(bench, "benchmark_scene", _reached))
+        stack.enter_context(mock.patch("sim_camera.scenarios.benchmark_scene", _reached))
         stack.enter_context(mock.patch("stcvision.sweep._selftest.measure_overhead", _reached))
         stack.enter_context(mock.patch("sim_camera.scene.Scene.camera", _reached))
         for name in ("reproduce", "compare", "calibrate"):

@@ -15,11 +15,12 @@ from pathlib import Path
 
 import cv2
 import numpy as np
-from fuzzlib import examples, json_file_bytes, mutated, numbers, project_call, scalars, weird
 from hypothesis import given
 from hypothesis import strategies as st
 
 from stcvision.errors import StcVisionError
+
+from .fuzzlib import examples, json_file_bytes, mutated, numbers, project_call, scalars, weird
 
 ROOT = Path(__file__).resolve().parents[2]
 

@@ -13,12 +13,13 @@ import functools
 
 import numpy as np
 import pytest
-from fuzzlib import examples, mutated, numbers, project_call
 from hypothesis import given
 from hypothesis import strategies as st
-from test_fuzz_loaders import _profile_dict, small_arrays
 
 from stcvision.errors import StcVisionError
+
+from .fuzzlib import examples, mutated, numbers, project_call
+from .test_fuzz_loaders import _profile_dict, small_arrays
 
 H, W = 480, 640  # the default profile's frame
 

@@ -1,4 +1,4 @@
-"""Sensor-true frames (issue 16.5): the ADC's depth from the camera profile to the frame's dtype,
+"""Sensor-true frames: the ADC's depth from the camera profile to the frame's dtype,
 the conversion gain and black level at 12 and 16 bits, and the coverage loop's gain rule."""
 
 import json

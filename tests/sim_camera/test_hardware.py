@@ -96,7 +96,7 @@ def test_cover_runs_with_profiles_from_files(capsys, tmp_path):
     assert main([*argv, "--camera", str(tmp_path / "cam.json"), "--robot", str(tmp_path / "robot.json")]) == 0
     slow = json.loads(capsys.readouterr().out)
     # the same camera with the default robot: which frames a reading needs depends on the camera
-    # (issue 16.7's claims), so only the robot may differ between the two
+    # (the long-frame claims measured on it), so only the robot may differ between the two
     assert main([*argv, "--camera", str(tmp_path / "cam.json")]) == 0
     lego = json.loads(capsys.readouterr().out)
     assert main(argv) == 0

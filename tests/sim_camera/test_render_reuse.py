@@ -1,4 +1,4 @@
-"""Camera speed (issue 18) without changing a frame: a camera that reuses the last frame's
+"""Camera speed without changing a frame: a camera that reuses the last frame's
 projection gives exactly the frames and ground truth a fresh camera gives and notices when the
 sources move; the fast noise draw is numpy's own."""
 

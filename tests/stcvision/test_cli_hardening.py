@@ -1,4 +1,4 @@
-"""Bad input through the command line, tried as a new user would (issue 17): one line on stderr
+"""Bad input through the command line, tried as a new user would: one line on stderr
 naming what was wrong and what was expected, exit code 2, never a traceback; nothing of the
 user's overwritten without --force; files made with the umask's mode; no temporary file left;
 the exit status 3 for 'ran, but the robot did not complete'."""

@@ -67,7 +67,7 @@ def test_resume_renders_only_what_is_missing(smoke, tmp_path, cli):
 
 
 def test_a_failed_chunk_leaves_an_incomplete_dataset_that_the_next_run_finishes(smoke, tmp_path, cli, monkeypatch):
-    import stcvision.cli.dataset_generate as dg
+    import calibration.dataset_render as dg
 
     real = dg.render_frames
 
@@ -97,7 +97,7 @@ def test_frame_k_does_not_depend_on_earlier_frames(tmp_path):
     base = {"schema_version": 1, "name": "indep", "dark_frames": 1, "seed": 9}
     a = parse_recipe({**base, "groups": [{"name": "g", "n": 3}]})
     b = parse_recipe({**base, "groups": [{"name": "first", "n": 1}, {"name": "g", "n": 3}]})
-    from stcvision.cli.dataset_generate import generate
+    from calibration.dataset_render import generate
     from stcvision.sweep import SweepOptions
 
     generate(a, tmp_path / "a", options=SweepOptions(workers=1))

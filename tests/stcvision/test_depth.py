@@ -1,5 +1,5 @@
 """16-bit frames through the pipeline, thresholds from measured noise, and bounded work per frame
-(issue 16.5).
+(sensor-true frames of any ADC depth).
 
 The 16-bit frames are made here from the camera's own electrons (its noise, fixed pattern and
 full well), digitised to ``bits`` bits instead of 8: the contract with the sensor model is a
@@ -122,7 +122,7 @@ def test_hot_pixels_of_a_sixteen_bit_dark_frame(frames12):
 
 
 def test_sixty_thousand_candidates_are_reported_in_bounded_memory():
-    """Issue 16.5: a frame whose noise estimate does not describe it (a flat frame brighter than
+    """A frame whose noise estimate does not describe it (a flat frame brighter than
     the background it was given: every pixel of the plateau a local maximum) gave 61,145
     candidates and a 27.9 GiB pairwise matrix. Now it is read within a small memory budget and
     reported as untrusted, never silently truncated."""

@@ -224,7 +224,7 @@ def _untimed(d):
 
 
 def test_eval_in_chunks_on_a_pool_equals_one_in_process_pass_and_resumes(smoke, tmp_path, cli, monkeypatch):
-    import stcvision.cli.cmd_eval as ce
+    import stcvision.evaluate as ce
 
     code, out, _ = cli("eval", smoke, "--json", "--workers", "1")
     one = json.loads(out)

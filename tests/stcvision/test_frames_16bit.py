@@ -1,4 +1,4 @@
-"""16-bit frames end to end on disk (issue 16.5): PNG round trips that keep the ADC counts,
+"""16-bit frames end to end on disk (sensor-true ADC counts): PNG round trips that keep the ADC counts,
 `stcvision render` of a 12/16-bit camera, datasets (generate, check, the evaluation's loader),
 and the one-line refusals (greyscale frames, a dark of another depth, JPEG for 16 bits)."""
 

@@ -1,5 +1,5 @@
-"""The pipeline's compiled front end (issue 18) against the OpenCV stages it replaced, bit for
-bit: the unwarp and channel separation against ``cv2.remap`` and ``separate_channels``, the
+"""The pipeline's compiled front end (``stcvision.stages.front``) against the OpenCV stages it
+stands for, bit for bit: the unwarp and channel separation against ``cv2.remap`` and ``separate_channels``, the
 two-channel dark subtraction against each channel's, the background sample against
 ``estimate_background``; and a result's images are its own (the next frame does not overwrite
 them)."""
@@ -10,10 +10,17 @@ import cv2
 import numpy as np
 import pytest
 
-from stcvision import pipeline as pipeline_module
 from stcvision.observation import ObservationParams
 from stcvision.pipeline import Pipeline, PipelineParams
 from stcvision.stages import ChannelParams, estimate_background, noise_floor, separate_channels, window_sums
+from stcvision.stages import front as front_module
+from stcvision.stages.front import (
+    black_out,
+    dark_channels,
+    frame_background,
+    separation_rule,
+    unwarp_separate,
+)
 
 
 @pytest.mark.parametrize("view", ["main", "wide"])
@@ -31,12 +38,13 @@ from stcvision.stages import ChannelParams, estimate_background, noise_floor, se
 def test_unwarp_and_separation_are_remap_and_separate_channels(
     default_profile, view, dtype, channels, leak, monkeypatch
 ):
-    """The compiled unwarp + separation (kernels.unwarp_separate_u16, _f32 and unwarp_border) against two ``cv2.remap``s
-    and ``separate_channels``; the wide view's map reads the whole frame, and its ground pixels
-    beyond the mirror or at the frame's edge are the border pixels, redone with zeros outside."""
+    """The compiled unwarp + separation (``unwarp_separate``: its uint16, float32 and border
+    loops) against two ``cv2.remap``s and ``separate_channels``; the wide view's map reads the
+    whole frame, and its ground pixels beyond the mirror or at the frame's edge are the border
+    pixels, redone with zeros outside."""
     obs = ObservationParams(pose_estimates=True) if view == "wide" else ObservationParams()
     pipe = Pipeline(default_profile, PipelineParams(channels=channels, observation=obs))
-    umap, tables = (pipe.wide, pipe._wide_tables) if view == "wide" else (pipe._umap_crop, pipe._tables)
+    umap, tables = (pipe.wide, pipe.front.wide_tables) if view == "wide" else (pipe.front.umap_crop, pipe.front.tables)
     if view == "wide":
         assert len(tables.border) > 0
     rng = np.random.default_rng(11)
@@ -51,8 +59,9 @@ def test_unwarp_and_separation_are_remap_and_separate_channels(
     sums = np.dstack([g, r]).round().astype(dtype)
     levels = (10.0, 1.48)
     shape = umap.map_x.shape
-    obst, marks, n = pipe._unwarp_separate(tables, sums, shape, leak, levels)
-    pipe._black_out(marks, n)
+    rule = separation_rule(channels, 9, levels, leak, sums.dtype)
+    obst, marks, black, n = unwarp_separate(tables, sums, shape, rule, pipe.scratch)
+    black_out(marks, black, n, pipe.front.margin, pipe.scratch)
     gg, rr = (
         cv2.remap(
             np.ascontiguousarray(sums[..., c]),
@@ -72,19 +81,19 @@ def test_unwarp_and_separation_are_remap_and_separate_channels(
     assert np.array_equal(marks, ref_m)
     assert (marks == 0).sum() > (gg == 0).sum()  # something was blacked out
     if dtype == np.uint16:  # the float32 gathers uint16 sums take where the uint32 ones cannot
-        monkeypatch.setattr(pipeline_module, "_U32_GATHERS", False)
-        obst2, marks2, n2 = pipe._unwarp_separate(tables, sums, shape, leak, levels)
-        pipe._black_out(marks2, n2)
+        monkeypatch.setattr(front_module, "_U32_GATHERS", False)
+        obst2, marks2, black2, n2 = unwarp_separate(tables, sums, shape, rule, pipe.scratch)
+        black_out(marks2, black2, n2, pipe.front.margin, pipe.scratch)
         assert n2 == n and np.array_equal(obst2, ref_o) and np.array_equal(marks2, ref_m)
 
 
 @pytest.mark.parametrize("shape", [(389, 390), (1, 5), (4, 1), (2, 2)])
 def test_window_sums_are_box_filter(default_profile, shape):
-    """The compiled 3 x 3 window sums of a two-channel image (kernels.box3_pair) against
-    ``window_sums`` (cv2.boxFilter), edges included, on bright and saturated pixels."""
-    pipe = Pipeline(default_profile)
+    """The compiled 3 x 3 window sums of a pair of 8-bit images (``window_sums`` of the pair, its
+    fast path) against ``window_sums`` of the two-channel image (cv2.boxFilter), edges included,
+    on bright and saturated pixels."""
     gr = np.random.default_rng(4).integers(0, 256, (*shape, 2)).astype(np.uint8)
-    got = pipe._window_sums(np.ascontiguousarray(gr[..., 0]), np.ascontiguousarray(gr[..., 1]))
+    got = window_sums((np.ascontiguousarray(gr[..., 0]), np.ascontiguousarray(gr[..., 1])), 3)
     ref = window_sums(gr, 3)
     assert got.dtype == ref.dtype == np.uint16
     assert np.array_equal(got, ref)
@@ -99,10 +108,10 @@ def test_channels_are_extract_and_subtract(default_profile):
     dark.reshape(-1)[rng.choice(dark.size, 300, replace=False)] = 200  # hot pixels
     frame = rng.integers(0, 256, (h, w, 3)).astype(np.uint8)  # saturating both ways
     pipe = Pipeline(default_profile, dark=dark)
-    gr = pipe._channels(frame)
+    gr = dark_channels(frame, pipe.crop, pipe.front.dark, pipe.scratch)
     assert all(c.flags.c_contiguous for c in gr)
     x0, y0, x1, y1 = pipe.crop
-    for k, (ch, hot) in enumerate(((1, pipe._hot_g), (2, pipe._hot_r))):
+    for k, (ch, hot) in enumerate(((1, pipe.front.dark.hot_green), (2, pipe.front.dark.hot_red))):
         c = cv2.extractChannel(frame[y0:y1, x0:x1], ch)
         ref = cv2.subtract(cv2.add(c, pipe.pedestal), cv2.extractChannel(dark[y0:y1, x0:x1], ch))
         ref.reshape(-1)[hot] = pipe.pedestal
@@ -120,15 +129,15 @@ def test_background_is_estimate_background(default_profile, dtype):
     frame = (rng.normal(30, 4, (h, w, 3)).clip(0, hi)).astype(dtype)
     for d in (None, dark):
         pipe = Pipeline(default_profile, dark=d)
-        got = pipe._background(frame)
+        got = frame_background(frame, pipe.front.sample3, pipe.front.dark)
         q = pipe.quantum
         ref = []
         for k, ch in enumerate((1, 2)):
-            v = frame.reshape(-1)[pipe._sample3[ch]]
+            v = frame.reshape(-1)[pipe.front.sample3[ch]]
             if d is not None:
-                v = cv2.subtract(cv2.add(v, pipe.pedestal), d.reshape(-1)[pipe._sample3[ch]]).reshape(-1)
-                v[pipe._hot_sample[k]] = pipe.pedestal
-                assert pipe._hot_sample[k].any()
+                v = cv2.subtract(cv2.add(v, pipe.pedestal), d.reshape(-1)[pipe.front.sample3[ch]]).reshape(-1)
+                v[pipe.front.dark.hot_sample[k]] = pipe.pedestal
+                assert pipe.front.dark.hot_sample[k].any()
             else:
                 q = 1
             bg, noise = estimate_background(v, slice(None), q)
@@ -154,12 +163,11 @@ def test_result_images_are_its_own(default_profile, pose, with_dark):
 
 
 def test_map_at_is_remap_of_the_map(default_profile):
-    """kernels.map_at (the unwarp map read at the dots and +-0.5 px, for the mirror-image
+    """map_at (the unwarp map read at the dots and +-0.5 px, for the mirror-image
     centroids) against cv2.remap of each map at those points, beyond the map's edges too."""
-    from stcvision import kernels
-    from stcvision.stages import _JAC_STEPS
+    from stcvision.stages.dots import _JAC_STEPS, map_at
 
-    um = Pipeline(default_profile)._umap_crop
+    um = Pipeline(default_profile).front.umap_crop
     pts = np.random.default_rng(0).uniform(-2, um.map_x.shape[0] + 2, (3000, 2))
     q = (pts[:, None, :] + _JAC_STEPS[None]).reshape(1, -1, 2).astype(np.float32)
     ref = np.stack(
@@ -169,4 +177,49 @@ def test_map_at_is_remap_of_the_map(default_profile):
         ],
         axis=-1,
     ).reshape(len(pts), len(_JAC_STEPS), 2)
-    assert np.array_equal(kernels.map_at(um.map_x, um.map_y, pts, _JAC_STEPS, -10.0), ref)
+    assert np.array_equal(map_at(um.map_x, um.map_y, pts, _JAC_STEPS, -10.0), ref)
+
+
+def test_scratch_lends_the_same_array_per_purpose_shape_and_dtype():
+    from stcvision.stages import Scratch
+
+    s = Scratch()
+    a = s("sums", (4, 5, 2), np.uint16)
+    assert s("sums", (4, 5, 2), np.uint16) is a
+    assert s("sums", (4, 6, 2), np.uint16) is not a and s("sums", (4, 5, 2), np.float32) is not a
+    assert s("black", (4, 5, 2), np.uint16) is not a
+
+
+def test_front_end_is_built_once_and_takes_each_dark_frame_apart(default_profile):
+    """A dark frame changes only the front end's dark part: the unwarp tables and the sample
+    stay the ones built from the profile; forgetting the dark frame forgets its pedestal too."""
+    rng = np.random.default_rng(8)
+    w, h = default_profile.image_size_px
+    dark = rng.integers(0, 14, (h, w, 3)).astype(np.uint8)
+    pipe = Pipeline(default_profile)
+    built = pipe.front
+    assert pipe.dark is None and pipe.pedestal == 0
+    pipe.set_dark(dark)
+    assert pipe.front.tables is built.tables and pipe.front.sample3 is built.sample3
+    assert pipe.dark is dark and pipe.pedestal >= PipelineParams().pedestal_steps
+    x0, y0, x1, y1 = pipe.crop
+    assert pipe.front.dark.green.shape == pipe.front.dark.red.shape == (y1 - y0, x1 - x0)
+    pipe.dark = None
+    assert pipe.dark is None and pipe.pedestal == 0 and pipe.front.tables is built.tables
+
+
+@pytest.mark.parametrize(
+    "pair",
+    [
+        (np.zeros((4, 4), np.uint8),),
+        (np.zeros((4, 4), np.uint8), np.zeros((4, 5), np.uint8)),
+        (np.zeros((4, 4), np.uint8), np.zeros((4, 4), np.uint16)),
+        (np.zeros((4, 4, 3), np.uint8), np.zeros((4, 4, 3), np.uint8)),
+        (np.zeros((4, 4), np.uint8), None),
+    ],
+)
+def test_window_sums_refuse_a_malformed_pair(pair):
+    from stcvision.errors import BadInputError
+
+    with pytest.raises(BadInputError):
+        window_sums(pair, 3)

@@ -1,8 +1,9 @@
-"""Interrupted writes (issue 17): SIGKILL the process at random points while it writes a profile,
-a dataset, a sweep store and a rerun recording. Afterwards each file is the old complete version
-or the new complete one; a re-run completes the work and leaves no temporary file behind (a
-SIGKILL cannot be caught: the hidden ``.NAME.PID.*.tmp`` of a killed writer is removed by the
-next write of NAME, whose process sees that PID is gone).
+"""Interrupted writes leave the old file or the new one, never half of one: SIGKILL the process
+at random points while it writes a profile, a dataset, a sweep store and a rerun recording.
+Afterwards each file is the old complete version or the new complete one; a re-run completes the
+work and leaves no temporary file behind (a SIGKILL cannot be caught: the hidden
+``.NAME.PID.*.tmp`` of a killed writer is removed by the next write of NAME, whose process sees
+that PID is gone).
 
 The kill points are drawn from a fixed seed: after the writer's first temporary file (or output)
 appears, a random extra delay. Nothing is timed: the waits only poll for events.

@@ -137,10 +137,9 @@ def test_far_red_lights_pin_the_robot_down_in_open_floor(default_profile):
 
 
 def test_homography_kernel_is_numpy_product(default_profile):
-    """CellGeometry.to_cell's compiled product (kernels.homography, N >= 2) against numpy's
+    """CellGeometry.to_cell's compiled product (homography, N >= 2) against numpy's
     ``[p, 1] @ H.T`` then division, bit for bit on this machine; N = 1 keeps numpy's own path."""
-    from stcvision import kernels
-    from stcvision.observation import CellGeometry
+    from stcvision.observation import CellGeometry, homography
 
     g = CellGeometry.from_profile(default_profile)
     rng = np.random.default_rng(6)
@@ -150,4 +149,4 @@ def test_homography_kernel_is_numpy_product(default_profile):
         ref = q[:, :2] / q[:, 2:3]
         assert np.array_equal(g.to_cell(p), ref)
         if n >= 2:
-            assert np.array_equal(kernels.homography(g.H, p), ref)
+            assert np.array_equal(homography(g.H, p), ref)

@@ -123,7 +123,7 @@ def test_free_row_search_prunes_only_pixels_that_cannot_pass():
     """The free-row search evaluates row sums only where every dot passes the bound its tests
     imply; on random SNR images with planted rows and taken pixels it finds exactly what the
     tests evaluated at every pixel find."""
-    from stcvision.stages import RowParams, _free_rows
+    from stcvision.stages.rows import RowParams, _free_rows
 
     p = RowParams()
     offs, ends = np.array([-12, -4, 4, 12]), np.array([-20, 20])
@@ -147,11 +147,11 @@ def test_free_row_search_prunes_only_pixels_that_cannot_pass():
 
 
 def test_zero_ring_is_a_square_dilation():
-    """kernels.zero_ring against cv2.dilate of the zeros by a (2b+1)^2 square (beyond the
+    """zero_ring against cv2.dilate of the zeros by a (2b+1)^2 square (beyond the
     border not counted), on sparse and dense zeros, at the edges and for every b up to 4."""
     import cv2
 
-    from stcvision import kernels
+    from stcvision.stages.rows import zero_ring
 
     rng = np.random.default_rng(0)
     for t in range(150):
@@ -161,4 +161,4 @@ def test_zero_ring_is_a_square_dilation():
             m[rng.random((h, w)) < 0.95] = 5
         b = int(rng.integers(0, 5))
         ref = cv2.dilate((m == 0).astype(np.uint8), np.ones((2 * b + 1, 2 * b + 1), np.uint8))
-        assert np.array_equal(kernels.zero_ring(m, b, np.full((h, w), 7, np.uint8)), ref)
+        assert np.array_equal(zero_ring(m, b, np.full((h, w), 7, np.uint8)), ref)

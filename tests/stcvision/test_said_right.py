@@ -64,12 +64,12 @@ def test_eval_of_own_frames_leaves_out_the_dark_file_and_lists_untrusted_frames(
 
 
 def test_eval_report_that_cannot_be_written_fails_before_any_work(cli, smoke, tmp_path, monkeypatch):
-    import stcvision.cli.cmd_eval as cmd_eval
+    import stcvision.evaluate as evaluate
 
     def no_work(*a, **k):
         raise AssertionError("the evaluation ran before its report folder was checked")
 
-    monkeypatch.setattr(cmd_eval, "_sweep_dataset", no_work)
+    monkeypatch.setattr(evaluate, "sweep_evaluation", no_work)
     (tmp_path / "file").write_text("x")
     code, _, err = cli("eval", smoke, "--report", tmp_path / "file" / "rep")
     assert code == 2 and err.count("\n") == 1 and "not a folder" in err

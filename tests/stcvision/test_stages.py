@@ -70,7 +70,7 @@ def test_channel_filter_separates_red_lights_from_green_dots():
 
 
 def test_a_dot_is_never_taken_for_red_under_a_wide_dominance_tolerance():
-    """A 30 s webcam frame (issue 16.7, measured): pedestal 107 DN, the dark frame's spread ~18
+    """A 30 s webcam frame (measured): pedestal 107 DN, the dark frame's spread ~18
     DN, so the dominance tolerance is ~37 DN; a dot 30 DN above the pedestal, its red crosstalk
     6 DN above it (over the leak level), was blacked out as a red light's halo. Its red is a
     fifth of its green: it stays in the marks; a red halo (red 40, green 3 DN up) and a pixel
@@ -159,16 +159,23 @@ def test_recalibration_follows_the_seed_and_is_bounded():
 
 
 def test_unwarp_rejects_a_frame_of_the_wrong_size(default_profile):
+    """A frame of another size is refused; one of the profile's size gives the ground view, its
+    pixels where the mirror sees the floor from the frame and zero beyond."""
     umap = UnwarpMap.from_profile(default_profile)
     with pytest.raises(BadInputError, match="640x480"):
         unwarp(np.zeros((100, 100, 3), np.uint8), umap)
+    w, h = default_profile.image_size_px
+    n = default_profile.ground_size_px
+    ground = unwarp(np.full((h, w, 3), 77, np.uint8), umap)
+    assert ground.shape == (n, n, 3) and ground.dtype == np.uint8
+    assert (ground[umap.valid] == 77).all() and (ground[~umap.valid] == 0).all()
 
 
 def test_tls_line_is_the_svd_fit():
-    """The heading fit's closed-form line (kernels.tls_line) against numpy's SVD of the centred
+    """The heading fit's closed-form line (stcvision.stages.heading.tls_line) against numpy's SVD of the centred
     points: the direction (modulo pi: a line has no sign) and the RMS spreads along and across
     it, on rows of every orientation, noisy and exact (the residual of a thin row is not lost)."""
-    from stcvision import kernels
+    from stcvision.stages.heading import tls_line
 
     rng = np.random.default_rng(8)
     for k in range(400):
@@ -178,7 +185,7 @@ def test_tls_line_is_the_svd_fit():
         noise = 0.0 if k % 3 == 0 else 10 ** rng.uniform(-7, -3)
         pts = np.column_stack([0.3 + t * np.cos(ang), 0.1 + t * np.sin(ang)]) + rng.normal(0, noise, (n, 2))
         _, sv, vt = np.linalg.svd(pts - pts.mean(0))
-        got, span, resid = kernels.tls_line(pts)
+        got, span, resid = tls_line(pts)
         d = (np.arctan2(vt[0, 1], vt[0, 0]) - got + np.pi / 2) % np.pi - np.pi / 2
         assert abs(d) < 1e-9 or sv[0] < 1e-12
         assert span == pytest.approx(sv[0] / np.sqrt(n), rel=1e-12, abs=1e-15)
@@ -186,7 +193,7 @@ def test_tls_line_is_the_svd_fit():
 
 
 def test_red_blobs_are_opencvs_moments():
-    """find_red's compiled blob pass (kernels.blobs) against cv2.moments, cv2.boundingRect and
+    """find_red's compiled blob pass (stcvision.stages.red.blobs) against cv2.moments, cv2.boundingRect and
     numpy per contour, as find_red computed them before: random discs and lone pixels (thin
     blobs: zero area, the points' mean), bit for bit."""
 

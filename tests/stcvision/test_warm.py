@@ -6,12 +6,12 @@ import subprocess
 import sys
 from pathlib import Path
 
-from stcvision.warm import NOTICE
+from stcvision.compiles import NOTICE
 
 ROOT = Path(__file__).resolve().parents[2]
 
 TWO_COMPILES = """
-from stcvision.warm import announce_compiles
+from stcvision.compiles import announce_compiles
 announce_compiles(); announce_compiles()  # idempotent
 import numba
 f = numba.njit(lambda x: x + 1)

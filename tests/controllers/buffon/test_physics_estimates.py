@@ -160,3 +160,38 @@ def test_batched_path_is_a_model_of_the_pymunk_path():
     assert stats.mannwhitneyu(p.nbc, b.nbc).pvalue > 0.01
     assert np.median(p.l1_u) == pytest.approx(np.median(b.l1_u), rel=0.05)
     assert BODY_LENGTH_M == 0.055
+
+
+def test_self_crossing_area_on_random_needles_in_a_torus():
+    """Poincare's formula for one curve: n random needles of total length L in a torus of area A
+    meet each other L^2 / (pi A) times on average (each pair once), so the self-crossing estimate
+    hits A."""
+    from controllers.buffon.estimate import self_crossing_area
+
+    rng = np.random.default_rng(1)
+    w, h, ell, n = 1.0, 2.0, 0.05, 2000
+    p = rng.random((n, 2)) * (w, h)
+    a = rng.uniform(0, np.pi, n)
+    q = p + ell * np.c_[np.cos(a), np.sin(a)]
+    pairs = 0
+    for dx in (-w, 0, w):
+        for dy in (-h, 0, h):
+            pairs += _count_intersections(p + (dx, dy), q + (dx, dy), p, q)
+    pairs //= 2  # every pair counted from both of its needles
+    expected = (n * ell) ** 2 / (math.pi * w * h)
+    assert pairs == pytest.approx(expected, rel=4 / math.sqrt(expected))  # 4 sigma, Poisson
+    assert self_crossing_area(n * ell, pairs) == pytest.approx(w * h, rel=0.1)  # 4 sigma of ~1,600 pairs
+    assert self_crossing_area(1.0, 0) == np.inf
+
+
+def test_online_estimate_is_the_weighted_geometric_mean_of_the_two_visits():
+    """Both visits' dead-time corrected estimates, in the stated weights."""
+    from controllers.buffon.estimate import ONLINE_SECOND_WEIGHT, online_area, self_crossing_area
+
+    l1, l2, n, b, ns = np.array([900.0]), np.array([500.0]), np.array([60]), np.array([0.25]), np.array([3000])
+    b1 = np.array([0.15])
+    a2 = buffon_area(l1, l2, n) * (1 - b)
+    a1 = self_crossing_area(l1, ns) * (1 - b1)
+    expected = np.exp(ONLINE_SECOND_WEIGHT * np.log(a2) + (1 - ONLINE_SECOND_WEIGHT) * np.log(a1))
+    np.testing.assert_allclose(online_area(l1, l2, n, b, ns, b1), expected)
+    assert 0 < ONLINE_SECOND_WEIGHT < 1

@@ -102,12 +102,31 @@ def test_bad_stop_params():
         StopParams(batches=1)
 
 
+def test_online_trials_are_deterministic_whatever_the_sweep_workers(tmp_path):
+    """The same nests' tasks through the sweep runner in this process and on a pool of two
+    processes: every stored per-trial figure is the same."""
+    from stcvision.sweep import SweepOptions, Task, run_sweep
+
+    params = {"trail_width_u": 0.1, "trials": 2, "visit_steps": "auto", "barrier": None}
+    tasks = [
+        Task(experiment="controllers.buffon.experiments:nest_task", params={**params, "spec": s}, seed=21 + i)
+        for i, s in enumerate(("circle:25", "square:22"))
+    ]
+    one = run_sweep(tasks, tmp_path / "one.jsonl", SweepOptions(workers=1))
+    two = run_sweep(tasks, tmp_path / "two.jsonl", SweepOptions(workers=2))
+    keys = ("l1_u", "l2_u", "crossings", "blind_fraction", "n_self", "self_blind", "rate_rel_se", "steps",
+            "area_estimates")  # fmt: skip
+    for t in tasks:
+        for k in keys:
+            assert one.results[t.key][k] == two.results[t.key][k], k
+
+
 def test_online_trials_are_deterministic_whatever_the_threads():
     nest = parse_nest("circle:25")
     cfg = VisitConfig(visit_steps="auto")
     a = run_trials(nest, cfg, trials=3, seed=5, threads=1)
     b = run_trials(nest, cfg, trials=3, seed=5, threads=2)
-    for k in ("l1_u", "l2_u", "crossings", "blind_fraction", "rate_rel_se", "steps", "n_self"):
+    for k in ("l1_u", "l2_u", "crossings", "blind_fraction", "rate_rel_se", "steps", "n_self", "self_blind"):
         np.testing.assert_array_equal(getattr(a, k), getattr(b, k))
     assert a.online and a.converged.all()
 
@@ -134,3 +153,45 @@ def test_trial_interval_widens_with_the_measured_error():
     ci = trial_intervals(np.array([1000.0, 1000.0]), np.array([0.01, 0.2]))
     assert ci[0, 0] > ci[1, 0] and ci[0, 1] < ci[1, 1]
     assert ci[0, 0] < 1000 < ci[0, 1]
+
+
+def test_heldout_family_script_runs_resumes_and_rescores(tmp_path, capsys):
+    """docs/buffon_heldout.py (the held-out measurement of the results page) on its first nest,
+    two trials: it stores the raw trials, and a rescore of the store prints the same table."""
+    import importlib.util
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parents[3] / "docs" / "buffon_heldout.py"
+    spec = importlib.util.spec_from_file_location("buffon_heldout", path)
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    assert len(mod.family(tmp_path / "n", 7100)) == 44
+    assert mod.main(["--out", str(tmp_path), "--trials", "2", "--nests", "1"]) == 0
+    first = capsys.readouterr().out
+    assert "| circles | 1 |" in first and "| all | 1 |" in first
+    assert mod.main(["--out", str(tmp_path), "--rescore"]) == 0
+    assert capsys.readouterr().out == first
+
+
+def test_calibration_recovers_a_planted_factor_and_spread():
+    """Synthetic trials whose two estimates read c times the true area, the second visit's with a
+    log-normal error of 0.06 it does not report: the calibration gives K = 1/c and a per-trial
+    extra spread of w * 0.06."""
+    from controllers.buffon.estimate import ONLINE_SECOND_WEIGHT
+    from controllers.buffon.online import calibrate_online
+
+    rng = np.random.default_rng(8)
+    c, sigma, trials = 1.08, 0.06, 40
+    records = []
+    for area in (2000.0, 5000.0, 9000.0, 15000.0, 22000.0, 30000.0):
+        l1 = np.full(trials, 1.3 * area)
+        l2 = 0.5 * l1
+        b2, b1 = np.full(trials, 0.25), np.full(trials, 0.18)
+        n = 2 * l1 * l2 * (1 - b2) / (math.pi * c * area) * np.exp(-sigma * rng.standard_normal(trials))
+        n_self = l1**2 * (1 - b1) / (math.pi * c * area)
+        records.append({"area_true": area, "l1_u": l1, "l2_u": l2, "crossings": n, "blind_fraction": b2,
+                        "n_self": n_self, "self_blind": b1, "rate_rel_se": np.zeros(trials)})  # fmt: skip
+    cal = calibrate_online(records)
+    assert cal["correction"] == pytest.approx(1 / c, rel=0.01)
+    assert cal["trial_extra_sigma"] == pytest.approx(ONLINE_SECOND_WEIGHT * sigma, rel=0.15)
+    assert cal["shape_sigma"] < 0.01

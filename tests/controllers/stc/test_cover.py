@@ -53,16 +53,11 @@ def test_red_light_landmarks_keep_the_robot_on_its_sub_cells():
     """On 5x5 boards the robot's own marks show its heading drift only as the lean of old
     rows; the red lights show it absolutely. Without them it strays 1.6-2.8 cm from its
     sub-cells on four boards (mean 2.1 cm); with them it stays within 1.1 cm (mean 0.8 cm) and
-    covers every board. With the dots centred on the mirror image (issue 18's localisation fix)
-    and the faults' row-lean check, the blind robot strays less: 1.2-1.8 cm (mean 1.45 cm)
-    against 0.54-0.66 cm (mean 0.62 cm) with the lights, so the test asks for twice the mean
-    error and 1.5x the worst one without the lights. With rows laid on their lines (the robot
-    drives to its sub-cell centre along its heading first) and a look's position from the red
-    lights only, the blind robot strays less again: 0.92-1.43 cm (mean 1.22 cm) against
-    0.58-0.86 cm (mean 0.70 cm), so the test asks for 1.5x both. (Before issue 16.7 turned out the rows'
-    lean at readings the blind robot strayed 1.5-3.2 cm, and the test asked for over 3 cm;
-    before the independent random streams of issue 16: 1.2-5.3 cm, mean 2.8, against within
-    1 cm, mean 0.8.)"""
+    covers every board. With the dots centred on the mirror image, the row-lean check, and rows
+    aligned on their line before they are laid (which keeps the blind robot on its own marks'
+    lines), the blind robot strays 0.92-1.43 cm (mean 1.22 cm) against 0.58-0.86 cm (mean
+    0.70 cm) with the lights, so the test asks for 1.5x the mean error and the worst one
+    without the lights."""
     blind, seeing = [], []
     for seed in range(1, 5):
         board = Board.random((5, 5), obstacle_fraction=0.15, rng=np.random.default_rng(seed))
@@ -208,8 +203,7 @@ def test_far_red_lights_keep_the_robot_on_its_sub_cells_on_open_floor():
     robot even where none is near. On a 10x10 board, first 110 decisions (~1,900-2,300 s):
     without the lights the robot strays 2.8 cm from its sub-cells (over the whole tour 4.1 cm,
     and one wrong decision); with them it stays within 1.2 cm (0.9 cm with the 2 s frame's
-    lean of all rows after each turn, 1.15 cm without). (Before the independent random streams
-    of issue 16 the blind robot was lost, 7.5 cm off, after 30 sub-cells.)"""
+    lean of all rows after each turn, 1.15 cm without)."""
     board = Board.random((10, 10), obstacle_fraction=0.15, rng=np.random.default_rng(3))
     cfg = dict(perception="camera", exposure="auto", seed=3, max_decisions=110)
     blind = run_cover(board, CoverConfig(use_landmarks=False, **cfg))
@@ -282,8 +276,8 @@ def test_on_a_map_the_webcam_tour_outruns_its_marks_and_stops_before_deciding(pe
 def test_camera_mode_covers_a_12x12_board_with_the_cooled_camera():
     """A 12x12 board from rendered 16-bit frames of the cooled camera: every sub-cell once, back
     at the start, 0 wrong decisions, in ~3,700 s of robot time (the webcam, exposure control
-    on, stops "out of sight" before deciding on its 12x12 boards: issue 16.7's claims; before
-    them it covered 4 of 6 of these boards, reading absences its frames could not show)."""
+    on, stops "out of sight" before deciding on its 12x12 boards: it never takes for absent a
+    mark its frames could not have shown)."""
     from sim_camera import hardware
 
     board = Board.random((12, 12), obstacle_fraction=0.15, rng=np.random.default_rng(0))
@@ -300,13 +294,13 @@ class _MoveErrors(Observer):
     def __init__(self):
         self.by_move = {}
 
-    def on_step(self, plant, state, action):
+    def on_step(self, plant, belief, state, action):
         if plant.moves:
             self.by_move[plant.moves] = plant.last_move_error_m
 
 
 def test_closed_loop_is_deterministic_and_perceptions_share_the_motion_noise():
-    """Issue 16.3: same seed, same run (camera mode: every frame's noise included); camera,
+    """Same seed, same run (camera mode: every frame's noise included); camera,
     physics-limited and oracle runs of one seed drive the same robot (motors, first turn time,
     each move's error), although the camera draws thousands of noise values the others do not."""
     board = Board.random((3, 3), obstacle_fraction=0.1, rng=np.random.default_rng(11))
@@ -329,7 +323,7 @@ def test_closed_loop_is_deterministic_and_perceptions_share_the_motion_noise():
 
 
 def test_cover_plan_says_which_camera_a_map_needs(peer_data, capsys):
-    """`stcvision cover plan` (the physics-limited camera, issue 16.8): on spiral_stc_test.png at
+    """`stcvision cover plan` (the physics-limited camera): on spiral_stc_test.png at
     the Lego defaults the webcam's tour runs past its longest frame (64 x 30 s), the low-light
     camera's converges with frames of at most 30 s."""
     spiral = str(peer_data / "pythonrobotics_maps" / "spiral_stc_test.png")

@@ -1,4 +1,4 @@
-"""Issue 16.7: a reading's absences are only worth what its frames could have seen. The claim
+"""A reading's absences are only worth what its frames could have seen. The claim
 distances come from the STC geometry; frames are added until each claim is covered, or the
 robot stops before deciding."""
 
@@ -123,7 +123,7 @@ def test_a_robot_past_its_camera_stops_before_deciding(perception):
 
 def test_a_return_reads_box_4_and_one_of_the_reentry_sets():
     """Of the 32 lit-box sets, a return from a child accepts exactly the seven the oracle shows
-    on re-entry (tests/controllers/test_stc_oracle.py); any other says which boxes it read."""
+    on re-entry (tests/controllers/stc/test_oracle.py); any other says which boxes it read."""
     for bits in range(32):
         lit = tuple(b for b in range(1, 6) if bits >> (b - 1) & 1)
         why = return_misread(_obs([b in lit for b in range(1, 6)]))

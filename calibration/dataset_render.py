@@ -7,8 +7,9 @@ result (the labels of its frames) goes to the folder's ``.sweep.jsonl`` as it fi
 interrupted run resumes where it stopped; the store is removed when the dataset is complete.
 With ``--scheduler`` the folder must be on a filesystem every worker sees.
 
-Here, under the CLI, because it needs the simulator (``sim_camera``) and the calibration
-workflow (``calibration``): DESIGN.md lets only ``stcvision/cli/`` reach across packages.
+It lives in ``calibration`` because a dataset joins the simulator's frames to the profiles the
+calibration workflow fits on the simulated cameras, the one package allowed to combine the two
+(``stcvision`` reads and scores datasets without importing the simulator).
 """
 
 from __future__ import annotations

@@ -22,7 +22,7 @@ from controllers.stc.geometry import COMPASS_VEC, start_heading
 from controllers.stc.oracle import MarkFloor, look_oracle, observe_oracle, run_oracle
 from sim_camera.board import Board
 
-MAPS = Path(__file__).resolve().parents[2] / "datasets" / "peer_data" / "pythonrobotics_maps"
+MAPS = Path(__file__).resolve().parents[3] / "datasets" / "peer_data" / "pythonrobotics_maps"
 
 
 def _assert_full_cover(r, board):

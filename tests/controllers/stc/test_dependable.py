@@ -6,6 +6,7 @@ import json
 
 import pytest
 
+from controllers.stc.belief import Belief
 from controllers.stc.config import CoverConfig
 from controllers.stc.loop import run_cover
 from sim_camera.board import Board
@@ -50,7 +51,7 @@ class _Plant:
     def __init__(self):
         self.turned = 0.0
 
-    def rotate_by(self, a):
+    def rotate_by(self, a, turn_s):
         self.turned += a
 
 
@@ -83,7 +84,8 @@ def test_a_small_lean_of_all_rows_trims_the_heading_without_reobserving():
         (1.5, 1.5, True),
     ):
         plant = _Plant()
-        ret = see._correct_lean(_long(0.0, math.radians(lean_deg)), plant)
+        belief = Belief((0, 0), 0, 1.5)
+        ret = see._correct_lean(_long(0.0, math.radians(lean_deg)), plant, belief)
         assert math.degrees(plant.turned) == pytest.approx(turned_deg, abs=1e-9), lean_deg
         assert (abs(ret) > REOBSERVE_RAD) is reobserve, lean_deg
     assert math.radians(0.1) < LEAN_TRIM_RAD < math.radians(0.3) < REOBSERVE_RAD
@@ -227,13 +229,13 @@ def test_a_final_stop_in_the_sub_cell_the_robot_stands_in_is_not_scored_as_an_er
 # a row laid by a robot standing behind its sub-cell centre
 
 
-def _row_along(board, plant, floor, k):
+def _row_along(board, belief, floor, k):
     """How far (m) mark ``k``'s dots lie along the heading from its sub-cell centre (their mean)."""
     from stcvision.stcgrid import entry_axes
 
     xy = floor.phosphor.xy_m[floor.dot_mark == k]
     sub = floor.laid[k][0]
-    return float(((xy - board.subcell_center_m(*sub)) @ entry_axes(plant.hc)[1]).mean())
+    return float(((xy - board.subcell_center_m(*sub)) @ entry_axes(belief.hc)[1]).mean())
 
 
 def test_a_row_is_laid_on_its_line_by_a_robot_behind_its_sub_cell_centre():
@@ -255,13 +257,14 @@ def test_a_row_is_laid_on_its_line_by_a_robot_behind_its_sub_cell_centre():
     laid = []
     for behind, side in ((0.0, 0.0), (0.015, 0.005), (0.005, 0.0)):
         plant, floor = Plant(board, LEGO_STC_ROBOT, np.random.default_rng(0)), Floor(board)
-        right, up = entry_axes(plant.hc)
+        belief = Belief.at_start(board, plant.calibrated_turn_s)
+        right, up = entry_axes(belief.hc)
         off = -behind * up + side * right
         plant.x, plant.y = plant.x + off[0], plant.y + off[1]
-        plant.offset_est = off.copy()
+        belief.offset_m = off.copy()
         assert np.hypot(*off) < RECENTRE_M
-        assert _act(Action.FORWARD, plant, floor, None, None) is None
-        laid.append(_row_along(board, plant, floor, 0))
+        assert _act(Action.FORWARD, plant, belief, floor, None, None) is None
+        laid.append(_row_along(board, belief, floor, 0))
         assert plant.aligned == (behind > ALIGN_MARK_M)
     assert laid[1] == pytest.approx(laid[0], abs=1e-3)  # aligned first
     assert laid[2] == pytest.approx(laid[0] - 0.005, abs=1e-3)  # within the tolerance: laid where it stands
@@ -284,12 +287,12 @@ def test_a_look_takes_its_position_from_the_red_lights_only():
 
     see = CameraPerception.__new__(CameraPerception)
     see.cfg, see.board = CoverConfig(), Board(np.zeros((4, 4), bool), (3, 1))
-    plant = SimpleNamespace(offset_est=np.array([0.001, -0.002]), hc=0)
+    belief = Belief((0, 0), 0, 1.5, np.array([0.001, -0.002]))
     marks_only = SimpleNamespace(landmark_offset=None, landmark_offset_sigma=None, position_offset=(0.05, 0.0))
-    assert see._where(marks_only, plant, lights_only=True) is plant.offset_est
-    assert see._where(marks_only, plant)[0] == pytest.approx(0.05 * see.board.subcell_m)
+    assert see._where(marks_only, belief, lights_only=True) is belief.offset_m
+    assert see._where(marks_only, belief)[0] == pytest.approx(0.05 * see.board.subcell_m)
     lights = SimpleNamespace(landmark_offset=(0.0, 0.02), landmark_offset_sigma=0.01, position_offset=(0.05, 0.0))
-    assert np.allclose(see._where(lights, plant, lights_only=True), [0.0, 0.02 * see.board.subcell_m])
+    assert np.allclose(see._where(lights, belief, lights_only=True), [0.0, 0.02 * see.board.subcell_m])
 
 
 # ---------------------------------------------------------------------------------------------
@@ -307,7 +310,7 @@ class _LandingTruth:
 
         if ev.kind != "decision" or ev.decision.child is not None or ev.decision.final:
             return  # only a return to the parent lands where the tour may close
-        truth = observe_oracle(ev.floor.record, self.board, ev.plant.sub, ev.plant.hc, camera_view=True)
+        truth = observe_oracle(ev.floor.record, self.board, ev.belief.sub, ev.belief.hc, camera_view=True)
         self.checked += 1
         d = ev.decision.parent  # the return: the only exit whose landing the controller reads
         if truth.landing_marked[d] != ev.obs.landing_marked[d]:

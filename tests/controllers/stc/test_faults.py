@@ -11,11 +11,11 @@ import numpy as np
 import pytest
 
 from controllers.stc.experiments import random_board
+from controllers.stc.fault_sweep import outcome
 from controllers.stc.faults import FAULTS, Faults, FaultyCamera, fault_stream, parse_fault
 from controllers.stc.health import FRAME_RETRIES, RobotStop, frame_fault
 from controllers.stc.loop import CoverConfig, run_cover, streams
 from stcvision.cli import main
-from stcvision.cli.cover_faults import outcome
 from stcvision.errors import BadInputError
 
 #: the abort reasons a fault may end a run with: each says what the robot found
@@ -101,8 +101,9 @@ def test_a_dead_camera_stops_the_robot():
     from sim_camera.phosphor import PhosphorLayer
 
     board = random_board(2, 2, 0.0, 0)
-    cam = RobotCamera(board, CoverConfig(exposure="auto"), np.random.default_rng(0))
-    cam.cam = FaultyCamera(cam.cam, Faults((("drop", 0.5),), 0, "camera"))
+    wrap = Faults((("drop", 0.5),), 0, "camera").camera_wrap(board)
+    cam = RobotCamera(board, CoverConfig(exposure="auto"), np.random.default_rng(0), camera_wrap=wrap)
+    assert isinstance(cam.cam, FaultyCamera)
     cam.cam.render = lambda *a, **k: None
     with pytest.raises(RobotStop, match=f"{FRAME_RETRIES + 1} frames in a row dropped"):
         cam.shoot((0.2, 0.2, 0.0), 0.0, PhosphorLayer())

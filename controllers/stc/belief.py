@@ -1,0 +1,91 @@
+"""What the STC robot believes of itself, apart from the world: the sub-cell it stands in, its
+compass heading, the time its motors take for 90 degrees, and its offset from the sub-cell
+centre (:class:`Belief`); and the robot's acts, which command the plant
+(:class:`controllers.stc.plant.Plant`) with what the robot believes and update the belief with
+what it did or measured.
+
+The plant is the physical robot (true pose, clock, motors); perception reads frames taken at
+the true pose and its results (the offset it measured, the heading error after a turn) update
+the belief, never the plant. Reading the belief against the plant is what the referee and the
+observers do (the position error, the heading error).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from controllers.stc.geometry import COMPASS_VEC, start_heading
+from stcvision.stcgrid import entry_axes
+
+__all__ = ["Belief", "align_along", "drive_forward", "finish_turn", "recentre", "turn"]
+
+
+@dataclass(slots=True)
+class Belief:
+    """The robot's own state of itself (mutable: it is updated as the robot acts and sees).
+
+    ``sub`` (row, column) the sub-cell it believes it stands in; ``hc`` its compass heading
+    (0 N, clockwise); ``turn_s`` its rotation time for 90 degrees; ``offset_m`` where it believes
+    it stands off the sub-cell's centre (world, m), from its last localisation."""
+
+    sub: tuple[int, int]
+    hc: int
+    turn_s: float
+    offset_m: np.ndarray = field(default_factory=lambda: np.zeros(2))
+
+    @classmethod
+    def at_start(cls, board, turn_s: float) -> Belief:
+        """On the start sub-cell, facing the board's start heading, turn time ``turn_s`` (set
+        before the run: :attr:`controllers.stc.plant.Plant.calibrated_turn_s`)."""
+        return cls(tuple(board.start_subcell), start_heading(board), float(turn_s))
+
+
+def turn(plant, belief: Belief, left: bool) -> None:
+    """A 90-degree timed turn; the robot now believes it faces the next compass heading."""
+    plant.turn(left, belief.turn_s)
+    belief.hc = (belief.hc + (3 if left else 1)) % 4
+
+
+def finish_turn(plant, belief: Belief, left: bool, heading_err_rad: float | None) -> None:
+    """The ant-like STC paper's recalibration after a turn, from the heading error measured after
+    it: what the turn really did updates the turn time the robot believes, then the robot turns
+    back by the error."""
+    from stcvision.stages import recalibrate_turn
+
+    if heading_err_rad is None:
+        return
+    turned = math.pi / 2 + (1.0 if left else -1.0) * heading_err_rad
+    rec = recalibrate_turn(belief.turn_s, turned)
+    if rec.accepted:
+        belief.turn_s = rec.turn_time_s
+    plant.rotate_by(-heading_err_rad, belief.turn_s)
+
+
+def recentre(plant, belief: Belief) -> None:
+    """Drive back to the sub-cell centre as the robot believes it; it then believes it is there."""
+    plant.recentre(belief.offset_m, belief.turn_s)
+    belief.offset_m = np.zeros(2)
+
+
+def align_along(plant, belief: Belief) -> None:
+    """Drive along the heading to the sub-cell centre as the robot believes it (the along-heading
+    part of the believed offset, no turn), so that the row it lays next lies on its line; the
+    lateral part stays for the forward move to take out."""
+    ux, uy = entry_axes(belief.hc)[1]
+    along = float(belief.offset_m @ (ux, uy))
+    plant.drive_along(-along)
+    belief.offset_m = belief.offset_m - along * np.array([ux, uy])
+
+
+def drive_forward(plant, belief: Belief) -> str | None:
+    """The drive to the next sub-cell along the believed heading; the robot then believes
+    it stands at that sub-cell's centre. Returns why the run must stop, or None."""
+    moved, why = plant.forward(belief.sub, belief.hc, belief.offset_m, belief.turn_s)
+    if moved:
+        di, dj = COMPASS_VEC[belief.hc]
+        belief.sub = (belief.sub[0] + di, belief.sub[1] + dj)
+        belief.offset_m = np.zeros(2)
+    return why

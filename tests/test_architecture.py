@@ -1,0 +1,169 @@
+"""The house's import rules (docs/architecture.md), read from the source: no import circle
+between the project's modules, the pipeline imports no simulator, robot or calibration code, the
+simulator takes from the pipeline only what cannot let their errors cancel, and the robots'
+rooms do not import each other. Function-level (lazy) imports count like top-level ones."""
+
+import ast
+from collections import defaultdict
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+PACKAGES = ("stcvision", "sim_camera", "controllers", "calibration")
+#: what the simulator may take from stcvision: errors, file helpers, caps, angle wrapping, and
+#: the default sub-cell side; never the mirror model, the stages or the STC geometry's rules
+SIM_MAY_IMPORT = {
+    "stcvision.errors": None,
+    "stcvision.fileio": None,
+    "stcvision.limits": None,
+    "stcvision.angles": None,
+    "stcvision.stcgrid": {"DEFAULT_SUBCELL_M"},
+}
+
+
+def _module_name(path: Path) -> str:
+    return ".".join(path.relative_to(ROOT).with_suffix("").parts).removesuffix(".__init__")
+
+
+def _imports() -> dict[str, set[tuple[str, tuple[str, ...]]]]:
+    """module -> {(imported module, names imported from it)} for the project's own modules."""
+    out: dict[str, set] = defaultdict(set)
+    for pkg in PACKAGES:
+        for path in (ROOT / pkg).rglob("*.py"):
+            name = _module_name(path)
+            for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+                if isinstance(node, ast.Import):
+                    targets = [(a.name, ()) for a in node.names]
+                elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
+                    targets = [(node.module, tuple(a.name for a in node.names))]
+                else:
+                    continue
+                out[name] |= {t for t in targets if t[0].split(".")[0] in PACKAGES}
+    return out
+
+
+IMPORTS = _imports()
+
+
+def _graph() -> dict[str, set[str]]:
+    """Module-level edges; ``from pkg import mod`` counts as importing ``pkg.mod``."""
+    mods = set(IMPORTS) | {m for ts in IMPORTS.values() for m, _ in ts}
+    g: dict[str, set[str]] = defaultdict(set)
+    for m, ts in IMPORTS.items():
+        for t, names in ts:
+            subs = {f"{t}.{n}" for n in names if f"{t}.{n}" in mods}
+            g[m] |= subs or {t}
+    return g
+
+
+def _cycles(g: dict[str, set[str]]) -> list[list[str]]:
+    """Strongly connected components of more than one module (Tarjan, iterative)."""
+    index, low, on, stack, comps, counter = {}, {}, set(), [], [], [0]
+    for root in list(g):
+        if root in index:
+            continue
+        work = [(root, iter(sorted(g[root])))]
+        index[root] = low[root] = counter[0]
+        counter[0] += 1
+        stack.append(root)
+        on.add(root)
+        while work:
+            v, it = work[-1]
+            w = next(it, None)
+            if w is None:
+                work.pop()
+                if work:
+                    low[work[-1][0]] = min(low[work[-1][0]], low[v])
+                if low[v] == index[v]:
+                    comp = []
+                    while True:
+                        x = stack.pop()
+                        on.discard(x)
+                        comp.append(x)
+                        if x == v:
+                            break
+                    if len(comp) > 1:
+                        comps.append(sorted(comp))
+            elif w not in index:
+                index[w] = low[w] = counter[0]
+                counter[0] += 1
+                stack.append(w)
+                on.add(w)
+                work.append((w, iter(sorted(g.get(w, ())))))
+            elif w in on:
+                low[v] = min(low[v], index[w])
+    return comps
+
+
+def test_the_rules_see_the_modules():
+    """The reader finds the packages' modules and their imports (a broken reader passes all)."""
+    assert len(IMPORTS) > 50
+    assert ("stcvision.errors", ("BadInputError",)) in IMPORTS["sim_camera.arenas"]
+
+
+def test_cycle_finder_finds_a_circle():
+    assert _cycles({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}) == [["a", "b", "c"]]
+
+
+def test_no_import_circle():
+    assert _cycles(_graph()) == []
+
+
+def test_the_pipeline_imports_no_simulator_robot_or_calibration():
+    """stcvision is the bottom layer; only its CLI (and the warm-up that drives it) reach up."""
+    bad = [
+        (m, t)
+        for m, ts in IMPORTS.items()
+        if m.split(".")[0] == "stcvision" and not m.startswith(("stcvision.cli", "stcvision.warm"))
+        for t, _ in ts
+        if t.split(".")[0] != "stcvision"
+    ]
+    assert bad == []
+
+
+def test_the_simulator_does_not_share_the_pipelines_model():
+    bad = []
+    for m, ts in IMPORTS.items():
+        if m.split(".")[0] != "sim_camera":
+            continue
+        for t, names in ts:
+            top = t.split(".")[0]
+            if top in ("controllers", "calibration"):
+                bad.append((m, t))
+            elif top == "stcvision":
+                allowed = SIM_MAY_IMPORT.get(t, set())
+                if t not in SIM_MAY_IMPORT or (allowed is not None and not set(names) <= allowed):
+                    bad.append((m, t, names))
+    assert bad == []
+
+
+@pytest.mark.parametrize("room", ["stc", "buffon", "search"])
+def test_a_robots_room_imports_no_other_room(room):
+    bad = [
+        (m, t)
+        for m, ts in IMPORTS.items()
+        if m.startswith(f"controllers.{room}")
+        for t, _ in ts
+        if t.startswith("controllers.") and not t.startswith(f"controllers.{room}")
+    ]
+    assert bad == []
+
+
+def test_the_packages_facade_is_the_one_place_the_pipeline_names_other_packages():
+    """``stcvision/__init__.py`` re-exports the robots' runs, the board and the shipped profile
+    lazily, by name (``_LAZY``), so that users write ``from stcvision import run_cover``; no other
+    module of the pipeline loads a module by name, except the sweep runner, which loads the task
+    a caller names (``Task.experiment``)."""
+    by_name = []
+    for path in (ROOT / "stcvision").rglob("*.py"):
+        name = _module_name(path)
+        if name.startswith("stcvision.cli") or name in ("stcvision", "stcvision.sweep._task"):
+            continue
+        if "import_module(" in path.read_text(encoding="utf-8"):
+            by_name.append(name)
+    assert by_name == []
+    import stcvision
+
+    outside = {m.split(".")[0] for m, _ in stcvision._LAZY.values()} - {"stcvision"}
+    assert outside <= {"sim_camera", "controllers", "calibration"}
