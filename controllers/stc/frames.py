@@ -267,6 +267,8 @@ class Exposures:
         obs, dt = self._check_lines(t_s, read, obs, dt, taken)
         if fresh and not obs.misread:
             obs = _check_fresh(obs)
+            if obs.misread and self.controlled:
+                obs, dt = self._settle_fresh(t_s, read, obs, dt, taken)
         if not self.controlled or obs.misread:
             return obs, dt
         if obs.start_mark is not None and not start_cell:
@@ -354,6 +356,18 @@ class Exposures:
             return None, dt
         self.agreed += 1
         return dataclasses.replace(merged, boxes=more.boxes, start_mark=more.start_mark), dt
+
+    def _settle_fresh(self, t_s: float, read, obs, dt: float, taken: list):
+        """A cell entered as new (its look found no mark) read with a box or a start mark
+        (spiral_stc_test lowlight seed 222: box 5 in the short frame, a neighbour's row; the
+        look was right): read once more with a frame one rung longer; two frames at that rung
+        agreeing on no mark settle it, otherwise the misread stands. Returns (reading, seconds)."""
+        merged, dt, k, more = self._longer(t_s, read, dataclasses.replace(obs, misread=""), dt, taken)
+        if not any(more.boxes) and more.start_mark is None:
+            settled, dt = self._agree(t_s, read, merged, more, dt, taken, k)
+            if settled is not None:
+                return settled, dt
+        return dataclasses.replace(obs, misread=f"{obs.misread}, also with a {self.frame_label(k)} frame"), dt
 
     def _check_start_away(self, t_s: float, read, obs, dt: float, taken: list):
         """A start mark read where the robot's count of its moves says it is not in its start

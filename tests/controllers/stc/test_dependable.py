@@ -430,3 +430,25 @@ def test_dots_with_no_line_within_reach_are_left_out_of_the_cell_fit():
         assert fit.offset == clean.offset, u
         assert (fit.on_line + fit.off_line > clean.on_line + clean.off_line) is counted, (u, fit)
     assert NEAR_LINE == pytest.approx(0.375)
+
+
+def test_a_first_entry_read_with_a_box_is_read_again_and_settled_or_stopped_on():
+    """spiral_stc_test lowlight seed 222 stopped "misread: boxes {5} lit in a cell entered as
+    new" although its look was right (a neighbour's row read in box 5). With a longer frame:
+    two at that rung agreeing on no mark settle it; a longer frame showing the box, or two that
+    disagree, keep the stop, before any decision."""
+    from controllers.stc.frames import Exposures, _check_fresh
+
+    seen, cam = _check_fresh(_reading(None, 5)), Exposures(CoverConfig())
+    assert seen.misread
+    for longer, settled in (([_reading(None)] * 2, True), ([_reading(None, 5)], False),
+                            ([_reading(None), _reading(None, 5)], False)):  # fmt: skip
+        read, reads = _frames(longer)
+        obs, _ = cam._settle_fresh(0.0, read, seen, 0.0, [(0, 0.0)])
+        assert len(reads) == len(longer) and set(reads) == {1}, longer
+        if settled:
+            assert obs.misread == "" and not any(obs.boxes) and obs.start_mark is None
+        else:
+            assert (
+                obs.misread.startswith("misread: boxes {5} lit in a cell entered as new") and "also with" in obs.misread
+            )
