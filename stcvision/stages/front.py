@@ -490,28 +490,50 @@ def separate_channels(
     background_dn: float,
     noise_dn: float,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`filter_channels` on a green and a red image already split apart."""
-    thr, tol = params.levels(background_dn, noise_dn)
-    # red-dominated: R >= G up to a tolerance (where both saturate, the dark frame decides which
-    # reads higher); saturating add. A green dot has R ~ G / 12 even when its green saturates.
-    dominated = cv2.compare(cv2.add(r, float(tol * window_area)), g, cv2.CMP_GE)
-    if params.red_min_fraction > 0:  # R - bg >= f (G - bg), in float (no unsigned wrap)
-        f, bg = params.red_min_fraction, background_dn * window_area
-        redder = cv2.addWeighted(r, 1.0, g, -f, -(1.0 - f) * bg, dtype=cv2.CV_32F)
-        dominated = cv2.bitwise_and(dominated, cv2.compare(redder, 0.0, cv2.CMP_GE))
-    red = cv2.bitwise_and(cv2.compare(r, float(thr * window_area), cv2.CMP_GT), dominated)
-    obstacle = cv2.bitwise_and(r, r, mask=red)
-    if leak_threshold is not None:
-        leak = cv2.bitwise_and(cv2.compare(r, float(leak_threshold), cv2.CMP_GT), dominated)
-        # a leak level at or below the light's own holds every light pixel already
-        red = leak if leak_threshold <= thr * window_area else cv2.bitwise_or(red, leak)
-    if not cv2.countNonZero(red):
-        return obstacle, g  # nothing to black out (the marks image is the green one)
-    if params.red_margin_px > 0:
-        k = 2 * params.red_margin_px + 1
-        red = cv2.dilate(red, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (k, k)))
-    marks = cv2.bitwise_and(g, g, mask=cv2.bitwise_not(red))
-    return obstacle, marks
+    """:func:`filter_channels` on a green and a red image already split apart: the rule the
+    pipeline runs (:func:`separation_rule`, the compiled loops of :func:`unwarp_separate` over the
+    identity map, :func:`black_out`), so what it shows is what the pipeline computes.
+
+    Red-dominated where ``r + tol >= g`` (saturating as the images' dtype does) and, with
+    ``params.red_min_fraction``, ``r - bg >= f (g - bg)``; a red light where also ``r > thr``:
+    ``obstacle`` keeps its red, ``marks`` the green with the lights (and, with
+    ``leak_threshold``, the red-dominated pixels above it) blacked out, grown by
+    ``params.red_margin_px``.
+    """
+    check_image(g, "g", (np.uint8, *SUM_DTYPES), ndims=(2,))
+    check_image(r, "r", (np.uint8, *SUM_DTYPES), ndims=(2,))
+    if g.shape != r.shape or g.dtype != r.dtype:
+        raise BadInputError(f"g and r must match, got {g.shape} {g.dtype} and {r.shape} {r.dtype}")
+    dtype = g.dtype
+    # uint8 runs as uint16: its values are exact there, and the dominance test's saturation at
+    # 255 or 65535 decides alike (both sides of the comparison are at most 255)
+    work = np.uint16 if dtype == np.uint8 else dtype
+    sums = np.stack([g, r], axis=-1).astype(work, copy=False)
+    h, w = g.shape
+    leak = float(leak_threshold) if leak_threshold is not None else _NO_LEAK
+    rule = separation_rule(params, window_area, (background_dn, noise_dn), leak, work)
+    scratch = Scratch()
+    obstacle, marks, black, n = unwarp_separate(_identity_tables(w, h), sums, (h, w), rule, scratch)
+    black_out(marks, black, n, _margin(params.red_margin_px), scratch)
+    return obstacle.astype(dtype, copy=False), marks.astype(dtype, copy=False)
+
+
+#: the leak level that blacks out nothing beyond the lights (above any sum)
+_NO_LEAK = 2.0**40
+
+
+def _identity_tables(w: int, h: int) -> GatherTables:
+    """The gather tables of the map that reads every pixel where it stands."""
+    my, mx = np.mgrid[0:h, 0:w].astype(np.float32)
+    return GatherTables.from_map(UnwarpMap(mx, my, np.ones((h, w), bool), (w, h)))
+
+
+def _margin(red_margin_px: int) -> np.ndarray | None:
+    """The structuring element the black-out grows by (None: not grown)."""
+    if red_margin_px <= 0:
+        return None
+    k = 2 * red_margin_px + 1
+    return cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (k, k))
 
 
 @numba.njit(inline="always")
@@ -950,8 +972,7 @@ class FrontEnd:
         # half the frame); the wide view reads nearly the whole mirror
         crop = (0, 0, w, h) if wide is not None else umap.reach_px()
         umap_crop = umap.cropped(*crop)
-        k = 2 * channels.red_margin_px + 1
-        margin = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (k, k)) if k > 1 else None
+        margin = _margin(channels.red_margin_px)
         return cls(
             umap,
             crop,

@@ -1,5 +1,6 @@
 """The pipeline's compiled front end (``stcvision.stages.front``) against the OpenCV stages it
-stands for, bit for bit: the unwarp and channel separation against ``cv2.remap`` and ``separate_channels``, the
+stands for, bit for bit: the unwarp and channel separation against ``cv2.remap`` and the
+separation written with OpenCV calls (:func:`opencv_separation`, kept here as the reference), the
 two-channel dark subtraction against each channel's, the background sample against
 ``estimate_background``; and a result's images are its own (the next frame does not overwrite
 them)."""
@@ -21,6 +22,66 @@ from stcvision.stages.front import (
     separation_rule,
     unwarp_separate,
 )
+
+
+def opencv_separation(
+    g: np.ndarray,
+    r: np.ndarray,
+    params: ChannelParams,
+    *,
+    window_area: int = 1,
+    leak_threshold: float | None = None,
+    background_dn: float,
+    noise_dn: float,
+) -> tuple[np.ndarray, np.ndarray]:
+    """The red/green separation written with OpenCV calls (saturating adds, comparisons,
+    ``cv2.addWeighted``, a dilated mask): the independent reference the compiled rule
+    (``separate_channels``, ``unwarp_separate``) must equal bit for bit."""
+    thr, tol = params.levels(background_dn, noise_dn)
+    # red-dominated: R >= G up to a tolerance (where both saturate, the dark frame decides which
+    # reads higher); saturating add. A green dot has R ~ G / 12 even when its green saturates.
+    dominated = cv2.compare(cv2.add(r, float(tol * window_area)), g, cv2.CMP_GE)
+    if params.red_min_fraction > 0:  # R - bg >= f (G - bg), in float (no unsigned wrap)
+        f, bg = params.red_min_fraction, background_dn * window_area
+        redder = cv2.addWeighted(r, 1.0, g, -f, -(1.0 - f) * bg, dtype=cv2.CV_32F)
+        dominated = cv2.bitwise_and(dominated, cv2.compare(redder, 0.0, cv2.CMP_GE))
+    red = cv2.bitwise_and(cv2.compare(r, float(thr * window_area), cv2.CMP_GT), dominated)
+    obstacle = cv2.bitwise_and(r, r, mask=red)
+    if leak_threshold is not None:
+        leak = cv2.bitwise_and(cv2.compare(r, float(leak_threshold), cv2.CMP_GT), dominated)
+        # a leak level at or below the light's own holds every light pixel already
+        red = leak if leak_threshold <= thr * window_area else cv2.bitwise_or(red, leak)
+    if not cv2.countNonZero(red):
+        return obstacle, g  # nothing to black out (the marks image is the green one)
+    if params.red_margin_px > 0:
+        k = 2 * params.red_margin_px + 1
+        red = cv2.dilate(red, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (k, k)))
+    marks = cv2.bitwise_and(g, g, mask=cv2.bitwise_not(red))
+    return obstacle, marks
+
+
+@pytest.mark.parametrize("dtype", [np.uint8, np.uint16, np.float32])
+def test_separate_channels_is_the_opencv_separation(dtype):
+    """``separate_channels`` (the pipeline's compiled rule over the identity map) equals the
+    OpenCV separation on random images of every input type, with and without the red fraction,
+    a leak level and a margin: 60 cases each."""
+    rng = np.random.default_rng({np.uint8: 1, np.uint16: 2, np.float32: 3}[dtype])
+    hi = 255 if dtype == np.uint8 else 9 * 255
+    for _ in range(60):
+        h, w = (int(v) for v in rng.integers(1, 40, 2))
+        g, r = (rng.integers(0, hi + 1, (h, w)).astype(dtype) for _ in range(2))
+        if dtype == np.float32:
+            g, r = ((v + rng.random((h, w))).astype(np.float32) for v in (g, r))
+        params = ChannelParams(red_min_fraction=float(rng.choice([0.0, 0.3])), red_margin_px=int(rng.integers(0, 3)))
+        kw = dict(
+            window_area=1 if dtype == np.uint8 else 9,
+            leak_threshold=None if rng.random() < 0.5 else float(rng.uniform(0, hi)),
+            background_dn=float(rng.uniform(0, 30)),
+            noise_dn=float(rng.uniform(0.5, 5)),
+        )
+        got, ref = separate_channels(g, r, params, **kw), opencv_separation(g, r, params, **kw)
+        assert got[0].dtype == ref[0].dtype == dtype
+        assert np.array_equal(got[0], ref[0]) and np.array_equal(got[1], ref[1]), (params, kw)
 
 
 @pytest.mark.parametrize("view", ["main", "wide"])
@@ -73,7 +134,7 @@ def test_unwarp_and_separation_are_remap_and_separate_channels(
         )
         for c in (0, 1)
     )
-    ref_o, ref_m = separate_channels(
+    ref_o, ref_m = opencv_separation(
         gg, rr, channels, window_area=9, leak_threshold=leak, background_dn=levels[0], noise_dn=levels[1]
     )
     assert obst.dtype == ref_o.dtype and marks.dtype == ref_m.dtype
