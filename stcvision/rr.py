@@ -116,7 +116,11 @@ def open_recording(
             tmp = temp_sibling(path)
         except OSError as exc:
             raise output_error(path, exc) from None
-        rec.save(tmp, default_blueprint=bp)
+        try:
+            rec.save(tmp, default_blueprint=bp)
+        except BaseException:  # a signal while the file sink starts: stop it, then remove its file
+            abort_recording(rec, tmp)
+            raise
     if spawn:
         try:
             rec.spawn(default_blueprint=bp)

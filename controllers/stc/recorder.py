@@ -72,7 +72,11 @@ class CoverRecorder(Observer):
         self.readings = self.full = 0  # readings seen, and logged in full
         self._last: Reading | None = None  # the last reading, when it was not logged in full
         self._pipe_logger = None
-        self._static()
+        try:
+            self._static()
+        except BaseException:  # interrupted before the caller holds it: no half-made recording left
+            self.abort()
+            raise
 
     @staticmethod
     def _xy(p) -> np.ndarray:
