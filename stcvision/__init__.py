@@ -57,36 +57,9 @@ _LAZY: dict[str, tuple[str, str | None]] = {
     "SearchConfig": ("controllers.search.controller", "SearchConfig"),
 }
 
-#: the public names (the lazy ones are the keys of _LAZY; a test checks the two agree)
-__all__ = [
-    "BadInputError",
-    "StcVisionError",
-    "__version__",
-    "Pipeline",
-    "PipelineParams",
-    "PipelineResult",
-    "Profile",
-    "default_profile",
-    "stages",
-    "CellObservation",
-    "read_image",
-    "write_image",
-    "score_frame",
-    "Dataset",
-    "open_dataset",
-    "load_recipe",
-    "evaluate_dataset",
-    "Task",
-    "SweepOptions",
-    "run_sweep",
-    "Board",
-    "run_cover",
-    "CoverConfig",
-    "measure_nest",
-    "run_search",
-    "SearchScene",
-    "SearchConfig",
-]
+#: the public names: the error classes, the version and the lazy names (the keys of _LAZY)
+__all__ = ["BadInputError", "StcVisionError", "__version__", *_LAZY]
+
 
 def __getattr__(name: str):
     """Import a public name's module on first use and keep the name here."""

@@ -180,7 +180,6 @@ def area_estimates(ts, *, dead_time: bool = True, correction: float | None = Non
     inf where a trial counted no crossing. ``correction`` None: :func:`default_correction`.
     An online trial set's corrected estimate (``dead_time``) is :func:`online_area`;
     ``dead_time=False`` is the raw Buffon formula for every set."""
-    a = buffon_area(ts.l1_u, ts.l2_u, ts.crossings)
     if dead_time and getattr(ts, "online", False):
         if ts.n_self is None or ts.self_blind is None:
             raise BadInputError(
@@ -189,8 +188,10 @@ def area_estimates(ts, *, dead_time: bool = True, correction: float | None = Non
                 "run it again (--fresh)"
             )
         a = online_area(ts.l1_u, ts.l2_u, ts.crossings, ts.blind_fraction, ts.n_self, ts.self_blind)
-    elif dead_time:
-        a = a * (1.0 - ts.blind_fraction)
+    else:
+        a = buffon_area(ts.l1_u, ts.l2_u, ts.crossings)
+        if dead_time:
+            a = a * (1.0 - ts.blind_fraction)
     return a * (default_correction(ts) if correction is None else correction)
 
 

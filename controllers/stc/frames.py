@@ -357,16 +357,28 @@ class Exposures:
         self.agreed += 1
         return dataclasses.replace(merged, boxes=more.boxes, start_mark=more.start_mark), dt
 
+    def _longer_agreed(self, t_s: float, read, obs, dt: float, taken: list, wanted):
+        """:meth:`_longer`, then, when that frame's own reading is ``wanted``, :meth:`_agree` with
+        a second frame at its rung: (the settled reading or None, the merged reading, seconds,
+        the rung)."""
+        merged, dt, k, more = self._longer(t_s, read, obs, dt, taken)
+        if wanted(more):
+            settled, dt = self._agree(t_s, read, merged, more, dt, taken, k)
+            if settled is not None:
+                return settled, merged, dt, k
+        return None, merged, dt, k
+
     def _settle_fresh(self, t_s: float, read, obs, dt: float, taken: list):
         """A cell entered as new (its look found no mark) read with a box or a start mark
         (spiral_stc_test lowlight seed 222: box 5 in the short frame, a neighbour's row; the
         look was right): read once more with a frame one rung longer; two frames at that rung
         agreeing on no mark settle it, otherwise the misread stands. Returns (reading, seconds)."""
-        merged, dt, k, more = self._longer(t_s, read, dataclasses.replace(obs, misread=""), dt, taken)
-        if not any(more.boxes) and more.start_mark is None:
-            settled, dt = self._agree(t_s, read, merged, more, dt, taken, k)
-            if settled is not None:
-                return settled, dt
+        clean = dataclasses.replace(obs, misread="")
+        settled, _, dt, k = self._longer_agreed(
+            t_s, read, clean, dt, taken, lambda m: not any(m.boxes) and m.start_mark is None
+        )
+        if settled is not None:
+            return settled, dt
         return dataclasses.replace(obs, misread=f"{obs.misread}, also with a {self.frame_label(k)} frame"), dt
 
     def _check_start_away(self, t_s: float, read, obs, dt: float, taken: list):
@@ -379,11 +391,9 @@ class Exposures:
         one rung longer than any taken: when that frame and a second at its rung agree on a
         reading without the start mark, the robot decides on it; otherwise it says why
         (``StcObservation.misread``) and stops before deciding. Returns (reading, seconds)."""
-        merged, dt, k, more = self._longer(t_s, read, obs, dt, taken)
-        if more.start_mark is None:
-            settled, dt = self._agree(t_s, read, merged, more, dt, taken, k)
-            if settled is not None:
-                return settled, dt
+        settled, merged, dt, k = self._longer_agreed(t_s, read, obs, dt, taken, lambda m: m.start_mark is None)
+        if settled is not None:
+            return settled, dt
         why = (
             f"misread: a start mark in sub-cell {obs.start_mark} where the robot's count of its moves puts it "
             f"outside its start cell, also with a {self.frame_label(k)} frame"
