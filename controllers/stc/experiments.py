@@ -88,6 +88,8 @@ RUN_FIELDS = (
     "sim_time_s",
     "wall_s",
     "frames",
+    "neighbours_recounted",
+    "relooked",
 )
 
 

@@ -16,6 +16,12 @@ where it stands, rather than decide on garbage.
   sub-cell: the tour closes there. The count says which return that is, where a mark read alone
   (a row laid askew, a neighbour's row, an old row at the edge of a frame's reach) could close
   the tour away from the start or walk past it.
+* :class:`CellsEntered`: by the same count, the cells the robot has stood in. A cell it never
+  entered holds no mark of its own (a robot marks only the sub-cells it leaves), so a neighbour
+  read marked that the count never entered is a misreading (a row of the robot's own cell or of
+  another neighbour read into it, a noise peak, a stain): the look from next to it reads it
+  again before the robot passes it by. The log is a cross-check of what the camera reads; the
+  controller itself keeps deciding from the floor alone (:mod:`controllers.stc.fsm`).
 * :class:`RobotStop`: raised by a part of the loop that finds the robot cannot go on; the loop
   ends the run with its message as the ``abort_reason``.
 """
@@ -24,9 +30,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from controllers.stc.geometry import COMPASS_VEC, frame_compass, frame_subcells
+from controllers.stc.geometry import COMPASS_VEC, cell_of, frame_compass, frame_subcells
 
 __all__ = [
+    "CellsEntered",
     "FRAME_RETRIES",
     "NOISE_CHECK",
     "NoiseCheck",
@@ -127,3 +134,36 @@ def landing_at_start(start_sub: tuple[int, int], moved: tuple[int, int], hc: int
         di, dj = COMPASS_VEC[frame_compass(hc, d)]
         out.append((subs[d][0] + di, subs[d][1] + dj) == tuple(start_sub))
     return tuple(out)
+
+
+class CellsEntered:
+    """The cells the robot's count of its moves has put it in: the start cell, then the cell of
+    every sub-cell a forward move lands on (a bit per cell of the board at most). A cell outside
+    this log holds no mark the robot laid, so a reading of marks there is checked before the
+    robot passes the cell by (:meth:`never_entered`, :meth:`suspect_neighbours`)."""
+
+    def __init__(self, start_sub: tuple[int, int]):
+        self.start_sub = tuple(start_sub)
+        self.cells: set[tuple[int, int]] = {cell_of(self.start_sub)}
+
+    def moved_to(self, moved: tuple[int, int]) -> None:
+        """The robot's count after a forward move: it now stands in that sub-cell's cell."""
+        self.cells.add(cell_of(_here(self.start_sub, moved)))
+
+    def never_entered(self, moved: tuple[int, int], hc: int) -> bool:
+        """At a look (the robot facing compass ``hc``): the cell just ahead was never entered."""
+        i, j = _here(self.start_sub, moved)
+        di, dj = COMPASS_VEC[hc]
+        return cell_of((i + di, j + dj)) not in self.cells
+
+    def suspect_neighbours(self, neighbours, moved: tuple[int, int], hc: int) -> tuple[int, ...]:
+        """At a decision (the robot in its entry frame's sub-cell 0, heading ``hc``): the
+        entry-frame directions whose neighbour reads marked without a red light, though the
+        count never entered it."""
+        ci, cj = cell_of(_here(self.start_sub, moved))
+        out = []
+        for d, n in enumerate(neighbours):
+            di, dj = COMPASS_VEC[frame_compass(hc, d)]
+            if n.has_marks and not n.has_red and (ci + di, cj + dj) not in self.cells:
+                out.append(d)
+        return tuple(out)

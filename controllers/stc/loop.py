@@ -32,9 +32,9 @@ from controllers.stc.belief import Belief, align_along, drive_forward, finish_tu
 from controllers.stc.claims import OutOfSight
 from controllers.stc.config import ALIGN_MARK_M, RECENTRE_M, CoverConfig
 from controllers.stc.faults import Faults
-from controllers.stc.fsm import Action, LookObs, StcObservation, StcPhase, decide, initial_state, step
+from controllers.stc.fsm import Action, LookObs, NeighbourObs, StcObservation, StcPhase, decide, initial_state, step
 from controllers.stc.geometry import COMPASS_VEC
-from controllers.stc.health import RobotStop, done_away_from_start, landing_at_start
+from controllers.stc.health import CellsEntered, RobotStop, done_away_from_start, landing_at_start
 from controllers.stc.observers import Observers, Reading, Trace
 from controllers.stc.oracle import coverage
 from controllers.stc.perception import make_perception
@@ -87,13 +87,15 @@ def run_cover(board, cfg: CoverConfig | None = None, *, observers=(), perception
     watch = Observers([*observers, *([Trace()] if cfg.trace else [])])
     referee = Referee(board, active=see.refereed, report=watch.on_referee)
     run = _Run()
+    run.entered = CellsEntered(board.start_subcell)
     try:
         _loop(run, cfg, plant, belief, floor, see, watch, referee)
     except RobotStop as stop:  # a part found that the robot cannot go on (controllers.stc.health)
         run.abort = f"{stop} (decision {run.decisions})"
     watch.on_end(plant, floor)
     out = _summary(board, cfg, plant, belief, see, referee, decisions=run.decisions, looks=run.looks,
-                   finished=run.finished, abort=run.abort, wall_s=time.perf_counter() - wall0)  # fmt: skip
+                   finished=run.finished, abort=run.abort, wall_s=time.perf_counter() - wall0,
+                   recounted=run.recounted, relooked=run.relooked)  # fmt: skip
     if faults:
         out["faults"] = faults.labels()
         out["fault_events"] = dict(faults.events)
@@ -107,6 +109,9 @@ class _Run:
     finished = False
     abort: str | None = None
     moved = (0, 0)  # sub-cells moved from the start, by the robot's own compass (rows, columns)
+    entered: CellsEntered  # the cells that count has put the robot in (a cross-check of readings)
+    recounted = 0  # neighbours read marked that the count never entered, left to the look to read again
+    relooked = 0  # looks that read a never-entered cell marked, taken again
 
 
 def _loop(run: _Run, cfg, plant, belief, floor, see, watch, referee) -> None:
@@ -115,12 +120,13 @@ def _loop(run: _Run, cfg, plant, belief, floor, see, watch, referee) -> None:
     state = initial_state()
     while run.decisions < cfg.max_decisions:
         try:
-            obs = _read(state, plant, belief, floor, see, run.moved)
+            obs = _read(state, plant, belief, floor, see, run)
         except OutOfSight as e:  # what the reading must rule out, no frame of its camera can
             run.abort = f"{e} (at sub-cell {belief.sub}, decision {run.decisions + (state.phase is StcPhase.DECIDE)})"
             return
         obs = _landing_by_count(obs, plant.board, belief, run.moved)
         if isinstance(obs, StcObservation):
+            obs = _neighbours_by_count(obs, run, belief)
             run.decisions += 1
             if obs.misread:  # no STC tour shows this reading, not even with a longer frame
                 run.abort = f"{obs.misread} (at sub-cell {belief.sub}, decision {run.decisions})"
@@ -150,6 +156,7 @@ def _loop(run: _Run, cfg, plant, belief, floor, see, watch, referee) -> None:
         if action is Action.FORWARD:  # the robot's own count of its moves on the grid
             di, dj = COMPASS_VEC[belief.hc]
             run.moved = (run.moved[0] + di, run.moved[1] + dj)
+            run.entered.moved_to(run.moved)
         abort = _act(action, plant, belief, floor, see, watch)
         if abort is not None:
             run.abort = f"{abort} (decision {run.decisions})" if abort.startswith("drove") else abort
@@ -168,17 +175,46 @@ def _landing_by_count(obs, board, belief: Belief, moved: tuple[int, int]):
     return dataclasses.replace(obs, landing_marked=land, landing_known=(True,) * 4)
 
 
-def _read(
-    state, plant: Plant, belief: Belief, floor: Floor, see, moved: tuple[int, int]
-) -> StcObservation | LookObs | None:
+def _neighbours_by_count(obs: StcObservation, run: _Run, belief: Belief) -> StcObservation:
+    """A decision's neighbours read marked (no red light) that the robot's count of its moves
+    never entered hold no mark it laid: the reading is wrong (a row of this cell or of another
+    neighbour read into it, a noise peak). Passing such a neighbour by would leave it uncovered,
+    so it stays a candidate child and the look from next to it, 2-3x closer, reads it again
+    before the robot enters it or moves on (:func:`_look`)."""
+    suspect = run.entered.suspect_neighbours(obs.neighbours, run.moved, belief.hc)
+    if not suspect:
+        return obs
+    run.recounted += len(suspect)
+    neigh = tuple(NeighbourObs(False, n.has_red) if d in suspect else n for d, n in enumerate(obs.neighbours))
+    return dataclasses.replace(obs, neighbours=neigh)
+
+
+def _read(state, plant: Plant, belief: Belief, floor: Floor, see, run: _Run) -> StcObservation | LookObs | None:
     """What the controller reads in ``state``: a decision's observation, a look's, or nothing.
-    ``moved``: the robot's count of its moves, which says whether it is in its start cell."""
+    ``run.moved``: the robot's count of its moves, which says whether it is in its start cell."""
     if state.phase is StcPhase.DECIDE and not state.closing:
-        start_cell = done_away_from_start(tuple(plant.board.start_subcell), moved) is None
+        start_cell = done_away_from_start(tuple(plant.board.start_subcell), run.moved) is None
         return see.observe(plant, belief, floor, fresh=state.fresh, at_start=state.at_start, start_cell=start_cell)
     if state.phase is StcPhase.LOOK:
-        return LookObs(see.look(plant, belief, floor, landing=not state.child))
+        return LookObs(_look(state, plant, belief, floor, see, run))
     return None
+
+
+def _look(state, plant: Plant, belief: Belief, floor: Floor, see, run: _Run) -> bool:
+    """The look before leaving a cell: marked or not. A child read marked that the count of
+    moves never entered is looked at once more: read unmarked, the robot enters it (where the
+    first-entry check reads its floor with longer frames: ``Exposures._settle_fresh``); read
+    marked again, no reading explains both the count and the frames, and the robot stops."""
+    marked = see.look(plant, belief, floor, landing=not state.child)
+    if not (marked and state.child and run.entered.never_entered(run.moved, belief.hc)):
+        return marked
+    run.relooked += 1
+    if see.look(plant, belief, floor, landing=False):
+        raise RobotStop(
+            f"misread: the cell ahead read marked by two looks at sub-cell {belief.sub}, though the robot's count "
+            "of its moves never entered it"
+        )
+    return False
 
 
 def _act(action: Action, plant: Plant, belief: Belief, floor: Floor, see, watch) -> str | None:
@@ -206,7 +242,8 @@ def _act(action: Action, plant: Plant, belief: Belief, floor: Floor, see, watch)
     return None
 
 
-def _summary(board, cfg, plant, belief, see, referee, *, decisions, looks, finished, abort, wall_s) -> dict:
+def _summary(board, cfg, plant, belief, see, referee, *, decisions, looks, finished, abort, wall_s,
+             recounted=0, relooked=0) -> dict:  # fmt: skip
     # the sub-cell the robot ended in: the one it believes, checked within 0.45 sub-cell of the
     # truth after every move (Plant.check_lost), so the two agree
     cov = coverage(board, plant.visits, belief.sub, finished=finished, moves=plant.moves)
@@ -237,6 +274,8 @@ def _summary(board, cfg, plant, belief, see, referee, *, decisions, looks, finis
         "turn_rate_error_pct": 100 * (plant.rate_gain - 1),
         "frames": see.frames,
         "long_exposures": see.long_frames,
+        "neighbours_recounted": recounted,
+        "relooked": relooked,
     }
     # the referee's verdict: the robot's "finished" says only that it believes it is done
     out["complete"] = is_complete(out)

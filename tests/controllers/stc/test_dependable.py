@@ -4,6 +4,7 @@ that must have no wrong decision; and the library's defaults are the command's."
 
 import json
 
+import numpy as np
 import pytest
 
 from controllers.stc.belief import Belief
@@ -452,3 +453,101 @@ def test_a_first_entry_read_with_a_box_is_read_again_and_settled_or_stopped_on()
             assert (
                 obs.misread.startswith("misread: boxes {5} lit in a cell entered as new") and "also with" in obs.misread
             )
+
+
+# ---------------------------------------------------------------------------------------------
+# a neighbour read marked that the robot never entered
+
+
+def test_the_cells_entered_are_the_count_of_moves():
+    """The log of cells the count of moves entered: the start cell, then each cell a move lands
+    in; at a decision the neighbours read marked outside it are suspect, at a look the cell ahead."""
+    from controllers.stc.fsm import NeighbourObs
+    from controllers.stc.health import CellsEntered
+
+    log = CellsEntered((3, 2))  # cell (1, 1)
+    assert log.cells == {(1, 1)}
+    assert not log.never_entered((0, 0), 0)  # north of (3, 2) is (2, 2): the start cell
+    assert log.never_entered((0, 0), 2)  # south: (4, 2), cell (2, 1)
+    log.moved_to((-1, 0))  # now in sub-cell (2, 2): the same cell
+    assert log.cells == {(1, 1)}
+    assert log.never_entered((-1, 0), 0)  # north of (2, 2) is (1, 2): cell (0, 1)
+    assert not log.never_entered((-1, 0), 2)  # south: (3, 2), cell (1, 1)
+    log.moved_to((-2, 0))
+    assert log.cells == {(1, 1), (0, 1)}
+    marked = NeighbourObs(True, False)
+    # a decision at sub-cell (3, 2) heading north (entry frame: 0 right = E, 1 forward = N, 2 left = W, 3 back = S)
+    neighbours = (marked, marked, NeighbourObs(True, True), NeighbourObs(False, False))
+    assert log.suspect_neighbours(neighbours, (0, 0), 0) == (0,)  # east never entered; north was; west is red
+
+
+class _Looks:
+    """A perception whose looks read what it is told, in order."""
+
+    def __init__(self, *marked):
+        self.marked = list(marked)
+
+    def look(self, plant, belief, floor, *, landing=False):
+        return self.marked.pop(0)
+
+
+def _look_run(start_sub):
+    from controllers.stc.health import CellsEntered
+    from controllers.stc.loop import _Run
+
+    run = _Run()
+    run.entered = CellsEntered(start_sub)
+    return run
+
+
+def test_a_child_the_count_never_entered_read_marked_is_looked_at_again():
+    """A look that reads a never-entered child marked is taken once more: read unmarked the
+    robot enters it (the first-entry check reads it again there); read marked twice it stops
+    before deciding, with the reason. A child the count entered, read marked, is passed by as
+    before, and a look at the parent's landing is never taken again."""
+    from controllers.stc.fsm import StcPhase, StcState
+    from controllers.stc.health import RobotStop
+    from controllers.stc.loop import _look
+
+    board = Board(np.zeros((8, 8), bool), (3, 2))
+    belief = Belief.at_start(board, 2.7)
+    belief.hc = 3  # facing west from (3, 2): the cell ahead, (1, 0), never entered
+    child = StcState(phase=StcPhase.LOOK, child=True)
+    run = _look_run(board.start_subcell)
+    assert _look(child, None, belief, None, _Looks(True, False), run) is False and run.relooked == 1
+    with pytest.raises(RobotStop, match="read marked by two looks .* never entered it"):
+        _look(child, None, belief, None, _Looks(True, True), run)
+    run = _look_run(board.start_subcell)
+    run.entered.cells.add((1, 0))  # entered: its marks are its own
+    assert _look(child, None, belief, None, _Looks(True), run) is True and run.relooked == 0
+    parent = StcState(phase=StcPhase.LOOK, child=False)
+    assert _look(parent, None, belief, None, _Looks(True), _look_run(board.start_subcell)) is True
+
+
+class _Stain:
+    """Puts a mark the robot did not lay on the floor, in a cell it has not entered yet, at the
+    first decision: a stain, another robot's row."""
+
+    def __init__(self, sub):
+        self.sub, self.done = sub, False
+
+    def on_reading(self, ev):
+        if not self.done:
+            ev.floor.record.mark(self.sub, 0)
+            self.done = True
+
+    def __getattr__(self, name):  # the other hooks: nothing to watch
+        return lambda *a, **k: None
+
+
+def test_a_mark_in_a_cell_the_robot_never_entered_stops_it_before_passing_the_cell_by():
+    """With a mark in a cell next to the start cell that the robot never entered, the STC robot
+    used to read that neighbour visited and leave it uncovered, a tour 'finished' short. The
+    count of its moves says the mark is not its own: the look from next to it reads it again,
+    and two looks reading it marked stop the robot with the reason, before it decides."""
+    board = Board(np.zeros((6, 6), bool), (3, 2))  # start cell (1, 1): cell (1, 2) east of it
+    clean = run_cover(board, CoverConfig(perception="oracle", seed=0))
+    assert clean["complete"] and clean["neighbours_recounted"] == clean["relooked"] == 0
+    r = run_cover(board, CoverConfig(perception="oracle", seed=0), observers=[_Stain((2, 5))])
+    assert not r["complete"] and r["relooked"] >= 1, r
+    assert "read marked by two looks" in r["abort_reason"] and "never entered it" in r["abort_reason"], r
