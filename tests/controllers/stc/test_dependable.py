@@ -551,3 +551,34 @@ def test_a_mark_in_a_cell_the_robot_never_entered_stops_it_before_passing_the_ce
     r = run_cover(board, CoverConfig(perception="oracle", seed=0), observers=[_Stain((2, 5))])
     assert not r["complete"] and r["relooked"] >= 1, r
     assert "read marked by two looks" in r["abort_reason"] and "never entered it" in r["abort_reason"], r
+
+
+# ---------------------------------------------------------------------------------------------
+# the offset along an axis only from the cell's own rows across it
+
+
+def _row(along_up: bool, at: float, lo: float = 0.3, n: int = 4):
+    """A row of ``n`` dots (cell units): along 'up' at right = ``at``, or along 'right' at up = ``at``."""
+    s = lo + 0.15 * np.arange(n)
+    return np.column_stack([np.full(n, at), s] if along_up else [s, np.full(n, at)])
+
+
+def test_the_offset_is_said_only_along_the_axes_the_cells_own_rows_cross():
+    """spiral_stc_test_2 cooled seed 314: on open floor, with no red light in view, the median
+    offset of every row in view (other cells' rows, each laid where the robot then stood) moved
+    a robot standing 0.2 cm off its centre 2.3 cm sideways; its cell's outer row (box 1) then lay
+    beyond the cell's edge, read as a neighbour's, and box 1 was missed: a wrong decision. A
+    cell's rows on a line say the robot's offset across them only: a row along 'right' says
+    'up', one along 'up' says 'right'; a row beyond the cell's edge says neither."""
+    from controllers.stc.cellfit import own_row_axes
+
+    across = _row(False, 0.125)  # along 'right', on the line up = 0.125 of the right half
+    assert own_row_axes(across, np.ones(4, bool), (0.0, 0.0), 3) == (False, True)
+    box1 = _row(True, 0.875)  # along 'up' on the cell's outermost right line
+    both = np.vstack([across, box1])
+    assert own_row_axes(both, np.ones(8, bool), (0.0, 0.0), 3) == (True, True)
+    assert own_row_axes(both, np.r_[np.ones(4, bool), np.zeros(4, bool)], (0.0, 0.0), 3) == (False, True)
+    out = np.vstack([across, _row(True, 0.875 + 0.14)])  # the robot 2.3 cm off: box 1 beyond the edge
+    assert own_row_axes(out, np.ones(8, bool), (0.0, 0.0), 3) == (False, True)
+    assert own_row_axes(out, np.ones(8, bool), (-0.14, 0.0), 3) == (True, True)
+    assert own_row_axes(np.zeros((0, 2)), np.zeros(0, bool), (0.0, 0.0), 3) == (False, False)
