@@ -302,7 +302,8 @@ class CameraPerception(_TakesFrames):
         return entry_offset_to_world(ru, belief.hc, self.board.subcell_m)
 
     def _own_axes(self, frame, offset) -> tuple[bool, bool]:
-        """Which axes of ``offset`` the cell's own rows in ``frame`` say (:func:`controllers.stc.cellfit.own_row_axes`)."""
+        """Which axes of ``offset`` the cell's own rows in ``frame`` say
+        (:func:`controllers.stc.cellfit.own_row_axes`)."""
         from controllers.stc.cellfit import frame_dots, own_row_axes
         from stcvision.observation import ObservationParams
 
