@@ -296,6 +296,32 @@ def test_a_look_takes_its_position_from_the_red_lights_only():
     assert np.allclose(see._where(lights, belief, lights_only=True), [0.0, 0.02 * see.board.subcell_m])
 
 
+def test_a_turn_takes_its_position_from_the_red_lights_only():
+    """A turn stands in a sub-cell of the cell, where the rows in view are read against no
+    cell's lines: their median offset flipped sides and moved the belief 2.5 cm from a robot that
+    had not moved (spiral_stc_test_2 cooled seed 320), and the next rows were laid that far off
+    their lines. After a turn the belief comes from the red lights, or stays."""
+    from types import SimpleNamespace
+
+    from controllers.stc.perception import CameraPerception
+
+    see = CameraPerception.__new__(CameraPerception)
+    see.cfg, see.board = CoverConfig(), Board(np.zeros((4, 4), bool), (3, 1))
+    held = np.array([0.001, -0.002])
+    marks_only = SimpleNamespace(landmark_offset=None, landmark_offset_sigma=None, position_offset=(0.15, 0.0),
+                                 landmark_rotation_rad=None)  # fmt: skip
+    frame = SimpleNamespace(observation=marks_only, heading=SimpleNamespace(ok=False))
+    see.cam = SimpleNamespace(shoot=lambda *a, **k: (frame, 0.0), controlled=False)
+    plant = SimpleNamespace(pose=(0.0, 0.0, 0.0), t=0.0, wait=lambda s: None)
+    belief = Belief((0, 0), 0, 1.5, held.copy())
+    assert see.heading_after_turn(plant, belief, SimpleNamespace(phosphor=None)) is None
+    assert np.array_equal(belief.offset_m, held)
+    frame.observation = SimpleNamespace(**{**vars(marks_only), "landmark_offset": (0.0, 0.02), "landmark_offset_sigma": 0.01})
+    see.heading_after_turn(plant, belief, SimpleNamespace(phosphor=None))
+    assert np.allclose(belief.offset_m, see._where(frame.observation, belief, lights_only=True))
+    assert np.allclose(np.abs(belief.offset_m).max(), 0.02 * see.board.subcell_m)
+
+
 # ---------------------------------------------------------------------------------------------
 # the tour closes where the robot's count of its moves says
 
