@@ -316,7 +316,8 @@ def test_a_turn_takes_its_position_from_the_red_lights_only():
     belief = Belief((0, 0), 0, 1.5, held.copy())
     assert see.heading_after_turn(plant, belief, SimpleNamespace(phosphor=None)) is None
     assert np.array_equal(belief.offset_m, held)
-    frame.observation = SimpleNamespace(**{**vars(marks_only), "landmark_offset": (0.0, 0.02), "landmark_offset_sigma": 0.01})
+    lights = {"landmark_offset": (0.0, 0.02), "landmark_offset_sigma": 0.01}
+    frame.observation = SimpleNamespace(**{**vars(marks_only), **lights})
     see.heading_after_turn(plant, belief, SimpleNamespace(phosphor=None))
     assert np.allclose(belief.offset_m, see._where(frame.observation, belief, lights_only=True))
     assert np.allclose(np.abs(belief.offset_m).max(), 0.02 * see.board.subcell_m)
