@@ -57,12 +57,18 @@ def test_transformation_calibration_on_perturbed_cameras(k):
 def test_shipped_default_profile_is_what_the_workflow_makes():
     """The shipped profile is the workflow's output: the same rim and angles, and the same image ->
     floor mapping to within a micrometre over the whole mirror (the theta polynomial's
-    coefficients themselves move by ~1e-4 between scipy/OpenCV releases while the mapping does not)."""
+    coefficients themselves move by ~1e-4 between scipy/OpenCV releases while the mapping does not).
+    The neighbour corners are OpenCV's sub-pixel refinement (``cv2.cornerSubPix``) on float32
+    images: from OpenCV 5.0 to 5.1 a corner moved by 0.0018 px and the rim centre fitted to
+    them by 2.6e-6 px, so they are held to 0.01 px and 1e-4 px, far below what any stage reads
+    (a dot is ~3 px across); the angles stay at 1e-6."""
     fresh_p = build_default_profile()
     shipped_p = default_profile()
     fresh, shipped = fresh_p.to_dict(), shipped_p.to_dict()
-    for key in ("center_px", "rim_radius_px", "forward_angle_rad", "axis_tilt_rad", "neighbour_corners_px"):
-        assert np.allclose(np.asarray(fresh[key], float), np.asarray(shipped[key], float), atol=1e-6), key
+    tolerance = {"center_px": 1e-4, "rim_radius_px": 1e-4, "forward_angle_rad": 1e-6, "axis_tilt_rad": 1e-6,
+                 "neighbour_corners_px": 0.01}  # fmt: skip
+    for key, atol in tolerance.items():
+        assert np.allclose(np.asarray(fresh[key], float), np.asarray(shipped[key], float), atol=atol), key
     rng = np.random.default_rng(0)
     ang = rng.uniform(0, 2 * np.pi, 2000)
     rad = np.sqrt(rng.uniform(0.05, 0.95, 2000)) * shipped["rim_radius_px"]
