@@ -32,7 +32,7 @@ import numpy as np
 from stcvision.observation import MARK_INSET, ROW_TOL, _rotate, row_orientation
 from stcvision.stcgrid import BOX_EDGES, DIRECTIONS, START_MARKS, SUBCELLS
 
-__all__ = ["CellFit", "fit_cell_offset", "mark_lines", "own_row_axes"]
+__all__ = ["CellFit", "fit_cell_offset", "mark_lines"]
 
 #: how far (sub-cell sides) the fit searches either side of the pipeline's offset: short of the
 #: 0.375 at which a row would meet the next line of its half (half the lines' 0.75 spacing)
@@ -167,24 +167,6 @@ def fit_cell_offset(
         off[a] += best_d
     on, bad = _counts(p0 + off, axis_of, lines)
     return CellFit((float(off[0]), float(off[1])), on, bad, ambiguous)
-
-
-def own_row_axes(ru_raw: np.ndarray, lit: np.ndarray, offset: tuple[float, float], need: int) -> tuple[bool, bool]:
-    """Per axis (0: right, 1: up) whether the cell's own rows say where the robot stands along
-    it: at ``offset`` (sub-cell sides, the pipeline's sense) at least ``need`` lit row dots of the
-    cell lie on a line read on that axis (a row along 'up' is read on the right coordinate, one
-    along 'right' on up). Rows across only one axis say nothing of the other; what else is in
-    view was laid by other cells' visits, each where the robot then stood."""
-    lit = np.asarray(lit, bool)
-    p = np.asarray(ru_raw, float)[lit]
-    if not len(p):
-        return False, False
-    orient = row_orientation(p)
-    rows = orient >= 0
-    p, axis_of = p[rows] + np.asarray(offset, float), np.where(orient[rows] == 1, 0, 1)
-    inside = (np.abs(p[:, 0]) < INSIDE) & (np.abs(p[:, 1]) < INSIDE)
-    on = _line_distance(p, axis_of, mark_lines()) < ON_LINE
-    return tuple(bool(np.sum(inside & on & (axis_of == a)) >= need) for a in (0, 1))
 
 
 def frame_dots(res, geometry) -> tuple[np.ndarray, np.ndarray]:

@@ -203,17 +203,11 @@ class CameraPerception(_TakesFrames):
         return marked
 
     def heading_after_turn(self, plant, belief, floor):
-        """The heading fit on the newest row; the red lights in view also say where the robot
-        stands. Its own marks do not: it turns in a sub-cell of the cell, not at a decision, so
-        the rows in view are not read against a cell's lines, and their median offset (rows of
-        two sub-cells either side of an edge, 2 x 2 cm apart) flipped sides: a turn on open floor
-        moved the belief 2.5 cm from a robot that had not moved, and the next rows were laid that
-        far off their lines (spiral_stc_test_2 cooled seed 320, a start mark read away from the
-        start 700 s later). Without lights the belief stands, as at a look."""
+        """The heading fit on the newest row; the marks in view also say where the robot stands."""
         cam, cfg = self.cam, self.cfg
         res, dt = cam.shoot(plant.pose, plant.t, floor.phosphor)
         plant.wait(cfg.robot.settle_s + dt)
-        belief.offset_m = self._where(res.observation, belief, lights_only=True)
+        belief.offset_m = self._where(res.observation, belief)
         if not res.heading.ok:
             # no newest row to fit: the red lights, when they are sure enough, else the newest
             # row of a 2 s frame (a turn left uncorrected leaves the next cell read askew)
@@ -253,7 +247,7 @@ class CameraPerception(_TakesFrames):
             reading, short, long, dt = take(plant.pose, plant.t)
             plant.wait(self.cfg.robot.settle_s + dt)
             self._check_lights(short, belief)
-            belief.offset_m = self._where(short.observation, belief, lights_only=lights_only, frame=short)
+            belief.offset_m = self._where(short.observation, belief, lights_only=lights_only)
             turned = self._correct_heading(short, plant, belief)
             if turned == 0.0:
                 turned = self._check_heading(short, plant, belief)
@@ -283,38 +277,18 @@ class CameraPerception(_TakesFrames):
         # box 2 by 1.4 mm); only a large one means the frames were read askew
         return -e if abs(e) > REOBSERVE_RAD else 0.0
 
-    def _where(self, observation, belief, *, lights_only: bool = False, frame=None) -> np.ndarray:
+    def _where(self, observation, belief, *, lights_only: bool = False) -> np.ndarray:
         """The robot's offset from its sub-cell centre (world, m): from the red lights in view
-        when there are any (they stand at cell centres: an absolute reference), else from the
-        cell's own marks along each axis they say it (``frame``: the short frame's result;
-        ``lights_only``: not from marks at all); the belief so far where neither is believable.
-        Rows of other cells were laid at other times, each where the robot then stood: on open
-        floor their median offset moved a robot that stood 0.2 cm off its centre 2.3 cm away
-        (spiral_stc_test_2 cooled seed 314), where its cell's outer row then read as a
-        neighbour's and a box was missed."""
+        when there are any (they stand at cell centres: an absolute reference), else from its
+        own marks (``lights_only``: not from them); the belief so far when neither is believable."""
         off = observation.landmark_offset if self.cfg.use_landmarks else None
         if off is not None and observation.landmark_offset_sigma > LANDMARK_OFFSET_SIGMA:
             off = None  # too unsure: the marks say it better
-        own = (True, True)
         if off is None and not lights_only:
             off = observation.position_offset
-            if off is not None and frame is not None:
-                own = self._own_axes(frame, off)
-        if off is None or max(abs(off[0]), abs(off[1])) > 0.3 or not any(own):  # 5 cm: not believable
+        if off is None or max(abs(off[0]), abs(off[1])) > 0.3:  # 5 cm: not believable
             return belief.offset_m
-        right, up = entry_axes(belief.hc)
-        held = belief.offset_m / self.board.subcell_m
-        ru = [off[0] if own[0] else float(held @ right), off[1] if own[1] else float(held @ up)]
-        return entry_offset_to_world(ru, belief.hc, self.board.subcell_m)
-
-    def _own_axes(self, frame, offset) -> tuple[bool, bool]:
-        """Which axes of ``offset`` the cell's own rows in ``frame`` say
-        (:func:`controllers.stc.cellfit.own_row_axes`)."""
-        from controllers.stc.cellfit import frame_dots, own_row_axes
-        from stcvision.observation import ObservationParams
-
-        ru, lit = frame_dots(frame, self.cam.pipe.geometry)
-        return own_row_axes(ru, lit, offset, ObservationParams().min_dots)
+        return entry_offset_to_world(off, belief.hc, self.board.subcell_m)
 
     def _heading(self, res, rows=None) -> float | None:
         """The heading error: the newest row's, less what the red lights (absolute, when in view)

@@ -296,33 +296,6 @@ def test_a_look_takes_its_position_from_the_red_lights_only():
     assert np.allclose(see._where(lights, belief, lights_only=True), [0.0, 0.02 * see.board.subcell_m])
 
 
-def test_a_turn_takes_its_position_from_the_red_lights_only():
-    """A turn stands in a sub-cell of the cell, where the rows in view are read against no
-    cell's lines: their median offset flipped sides and moved the belief 2.5 cm from a robot that
-    had not moved (spiral_stc_test_2 cooled seed 320), and the next rows were laid that far off
-    their lines. After a turn the belief comes from the red lights, or stays."""
-    from types import SimpleNamespace
-
-    from controllers.stc.perception import CameraPerception
-
-    see = CameraPerception.__new__(CameraPerception)
-    see.cfg, see.board = CoverConfig(), Board(np.zeros((4, 4), bool), (3, 1))
-    held = np.array([0.001, -0.002])
-    marks_only = SimpleNamespace(landmark_offset=None, landmark_offset_sigma=None, position_offset=(0.15, 0.0),
-                                 landmark_rotation_rad=None)  # fmt: skip
-    frame = SimpleNamespace(observation=marks_only, heading=SimpleNamespace(ok=False))
-    see.cam = SimpleNamespace(shoot=lambda *a, **k: (frame, 0.0), controlled=False)
-    plant = SimpleNamespace(pose=(0.0, 0.0, 0.0), t=0.0, wait=lambda s: None)
-    belief = Belief((0, 0), 0, 1.5, held.copy())
-    assert see.heading_after_turn(plant, belief, SimpleNamespace(phosphor=None)) is None
-    assert np.array_equal(belief.offset_m, held)
-    lights = {"landmark_offset": (0.0, 0.02), "landmark_offset_sigma": 0.01}
-    frame.observation = SimpleNamespace(**{**vars(marks_only), **lights})
-    see.heading_after_turn(plant, belief, SimpleNamespace(phosphor=None))
-    assert np.allclose(belief.offset_m, see._where(frame.observation, belief, lights_only=True))
-    assert np.allclose(np.abs(belief.offset_m).max(), 0.02 * see.board.subcell_m)
-
-
 # ---------------------------------------------------------------------------------------------
 # the tour closes where the robot's count of its moves says
 
@@ -578,34 +551,3 @@ def test_a_mark_in_a_cell_the_robot_never_entered_stops_it_before_passing_the_ce
     r = run_cover(board, CoverConfig(perception="oracle", seed=0), observers=[_Stain((2, 5))])
     assert not r["complete"] and r["relooked"] >= 1, r
     assert "read marked by two looks" in r["abort_reason"] and "never entered it" in r["abort_reason"], r
-
-
-# ---------------------------------------------------------------------------------------------
-# the offset along an axis only from the cell's own rows across it
-
-
-def _row(along_up: bool, at: float, lo: float = 0.3, n: int = 4):
-    """A row of ``n`` dots (cell units): along 'up' at right = ``at``, or along 'right' at up = ``at``."""
-    s = lo + 0.15 * np.arange(n)
-    return np.column_stack([np.full(n, at), s] if along_up else [s, np.full(n, at)])
-
-
-def test_the_offset_is_said_only_along_the_axes_the_cells_own_rows_cross():
-    """spiral_stc_test_2 cooled seed 314: on open floor, with no red light in view, the median
-    offset of every row in view (other cells' rows, each laid where the robot then stood) moved
-    a robot standing 0.2 cm off its centre 2.3 cm sideways; its cell's outer row (box 1) then lay
-    beyond the cell's edge, read as a neighbour's, and box 1 was missed: a wrong decision. A
-    cell's rows on a line say the robot's offset across them only: a row along 'right' says
-    'up', one along 'up' says 'right'; a row beyond the cell's edge says neither."""
-    from controllers.stc.cellfit import own_row_axes
-
-    across = _row(False, 0.125)  # along 'right', on the line up = 0.125 of the right half
-    assert own_row_axes(across, np.ones(4, bool), (0.0, 0.0), 3) == (False, True)
-    box1 = _row(True, 0.875)  # along 'up' on the cell's outermost right line
-    both = np.vstack([across, box1])
-    assert own_row_axes(both, np.ones(8, bool), (0.0, 0.0), 3) == (True, True)
-    assert own_row_axes(both, np.r_[np.ones(4, bool), np.zeros(4, bool)], (0.0, 0.0), 3) == (False, True)
-    out = np.vstack([across, _row(True, 0.875 + 0.14)])  # the robot 2.3 cm off: box 1 beyond the edge
-    assert own_row_axes(out, np.ones(8, bool), (0.0, 0.0), 3) == (False, True)
-    assert own_row_axes(out, np.ones(8, bool), (-0.14, 0.0), 3) == (True, True)
-    assert own_row_axes(np.zeros((0, 2)), np.zeros(0, bool), (0.0, 0.0), 3) == (False, False)
