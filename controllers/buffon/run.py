@@ -413,6 +413,8 @@ def online(out: str | Path, *, trials: int = 12, seed: int = 0, sweep=None, forc
     rows += [{"family": "online", "spec": CORRECTION_REFERENCE, "barrier": None, "visit_steps": "auto"}]
     # appended last: the seeds of the rows above (seed + position) stay those of earlier runs
     rows += [{**r, "visit_steps": "auto"} for r in exp.calibration_polygons(out / "nests")]
+    rows += [{"family": "calibration", "spec": s, "barrier": b, "visit_steps": "auto"}
+             for s, b in exp.CALIBRATION_COMPARTMENTS]  # fmt: skip
     tasks = [
         Task(
             experiment="controllers.buffon.experiments:nest_task",

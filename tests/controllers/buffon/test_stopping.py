@@ -195,3 +195,22 @@ def test_calibration_recovers_a_planted_factor_and_spread():
     assert cal["correction"] == pytest.approx(1 / c, rel=0.01)
     assert cal["trial_extra_sigma"] == pytest.approx(ONLINE_SECOND_WEIGHT * sigma, rel=0.15)
     assert cal["shape_sigma"] < 0.01
+
+
+def test_heldout_script_calibration_mode_prints_the_factor(tmp_path, capsys, monkeypatch):
+    """docs/buffon_heldout.py --calibration on a shrunk calibration family (two small nests, three
+    trials): it stores the trials and prints calibrate_online's factor and spreads."""
+    import importlib.util
+    import json
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parents[3] / "docs" / "buffon_heldout.py"
+    spec = importlib.util.spec_from_file_location("buffon_heldout", path)
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    small = [{"family": "calibration", "spec": s, "barrier": b} for s, b in (("circle:24", None), ("square:22", "bar:0.4"))]
+    monkeypatch.setattr(mod.exp, "calibration_family", lambda folder: small)
+    assert mod.main(["--calibration", "--out", str(tmp_path), "--trials", "3", "--seed", "9100"]) == 0
+    cal = json.loads(capsys.readouterr().out)
+    assert cal["nests"] == 2 and cal["trials"] == 6 and cal["correction"] > 0
+    assert len((tmp_path / "calibration.jsonl").read_text().splitlines()) == 2
