@@ -221,9 +221,9 @@ def claims(cases, results, *, trials: int, wall_s: float | None = None, steps_pe
     out = [
         "# Buffon's needle: the paper's experiments reproduced",
         "",
-        f"Seed 000 (Girgin & Sahin, CMU-RI-TR-03-42). {len(cases)} nests, {trials} trials each (the absolute-area set "
-        "fewer, below), two visits per trial; lengths in body lengths u (55 mm). Figures: `fig3_patterns.png` ... `fig7_thickness.png`, "
-        "`area_accuracy.png`; every nest in `nests.csv`.",
+        f"Seed 000 (Girgin & Sahin, CMU-RI-TR-03-42). {len(cases)} nests, {trials} trials each (the "
+        "absolute-area set fewer, below), two visits per trial; lengths in body lengths u (55 mm). Figures: "
+        "`fig3_patterns.png` ... `fig7_thickness.png`, `area_accuracy.png`; every nest in `nests.csv`.",
         "",
     ]
     if wall_s is not None:

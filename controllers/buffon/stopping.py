@@ -215,5 +215,3 @@ def second_visit_done(st, path_u, n, l1_u, second_ratio, min_crossings, rel_se, 
     if path_u < second_ratio * l1_u or n < min_crossings or st[_FULL] < batches:
         return False
     return batch_rel_se(st, batches) <= rel_se
-
-

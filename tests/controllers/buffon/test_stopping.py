@@ -208,7 +208,9 @@ def test_heldout_script_calibration_mode_prints_the_factor(tmp_path, capsys, mon
     spec = importlib.util.spec_from_file_location("buffon_heldout", path)
     mod = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(mod)
-    small = [{"family": "calibration", "spec": s, "barrier": b} for s, b in (("circle:24", None), ("square:22", "bar:0.4"))]
+    small = [
+        {"family": "calibration", "spec": s, "barrier": b} for s, b in (("circle:24", None), ("square:22", "bar:0.4"))
+    ]
     monkeypatch.setattr(mod.exp, "calibration_family", lambda folder: small)
     assert mod.main(["--calibration", "--out", str(tmp_path), "--trials", "3", "--seed", "9100"]) == 0
     cal = json.loads(capsys.readouterr().out)
