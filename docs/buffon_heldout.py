@@ -11,6 +11,13 @@ come from ``--shape-seed``. Nest i runs its trials with seed ``--seed + i``, on 
 
 writes DIR/heldout.jsonl (every trial's raw measurements, so that a changed estimator can be
 scored again without running the robots: ``--rescore``) and prints the markdown table.
+
+    python docs/buffon_heldout.py --calibration --out DIR [--trials 12] [--seed 9100]
+
+runs the calibration family instead (``controllers.buffon.online.calibration_family``, nest i
+with seed ``--seed + i``) into DIR/calibration.jsonl and prints what
+``controllers.buffon.online.calibrate_online`` makes of it (the factor and the spreads that
+``controllers/buffon/estimate.py`` ships).
 """
 
 from __future__ import annotations
@@ -54,11 +61,10 @@ def family(folder: Path, shape_seed: int) -> list[dict]:
     return rows
 
 
-def run(out: Path, trials: int, seed: int, shape_seed: int, nests: int | None) -> list[dict]:
-    """Run (or resume) every nest's trials into ``out/heldout.jsonl``; the stored records."""
-    store = out / "heldout.jsonl"
+def run(out: Path, trials: int, seed: int, rows: list[dict], name: str = "heldout") -> list[dict]:
+    """Run (or resume) every nest's trials into ``out/NAME.jsonl``; the stored records."""
+    store = out / f"{name}.jsonl"
     done = {json.loads(line)["i"]: json.loads(line) for line in store.open()} if store.exists() else {}
-    rows = family(out / "nests", shape_seed)[:nests]
     for i, r in enumerate(rows):
         if i in done:
             continue
@@ -103,12 +109,17 @@ def main(argv=None) -> int:
     ap.add_argument("--shape-seed", type=int, default=7100)
     ap.add_argument("--nests", type=int, default=None, help="only the first N nests")
     ap.add_argument("--rescore", action="store_true", help="score the stored trials again, run nothing")
+    ap.add_argument("--calibration", action="store_true", help="run the calibration family and print its factor")
     a = ap.parse_args(argv)
     a.out.mkdir(parents=True, exist_ok=True)
+    if a.calibration:
+        cal = exp.calibrate_online(run(a.out, a.trials, a.seed, exp.calibration_family(a.out / "nests"), "calibration"))
+        print(json.dumps({k: v for k, v in cal.items() if k != "nest_median_bias"}, indent=1))
+        return 0
     if a.rescore:
         records = [json.loads(line) for line in (a.out / "heldout.jsonl").open()]
     else:
-        records = run(a.out, a.trials, a.seed, a.shape_seed, a.nests)
+        records = run(a.out, a.trials, a.seed, family(a.out / "nests", a.shape_seed)[: a.nests])
     print(table(records))
     return 0
 

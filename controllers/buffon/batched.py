@@ -533,8 +533,6 @@ class _TrialWorld:
         return (*out, escapes, trails, n_self, rel_se, steps, converged, self_blind)
 
 
-
-
 def _motor_gain(rb: DiffDriveParams, rng: np.random.Generator) -> float:
     s = rb.speed_gain_spread
     return float(rng.uniform(1 - s, 1 + s)) if s > 0 else 1.0

@@ -3,8 +3,9 @@ coverage of its intervals (``stcvision buffon calibrate --online`` and ``buffon 
 
 Two families that share no nest:
 
-* :data:`CALIBRATION_NESTS` and :data:`CALIBRATION_POLYGONS`: circles, squares, ellipses, two
-  barriers and three concave polygons (L, U, T), 1,300-20,000 u^2;
+* :data:`CALIBRATION_NESTS`, :data:`CALIBRATION_POLYGONS` and :data:`CALIBRATION_COMPARTMENTS`:
+  circles, squares, ellipses, six barriers (four of them long enough to split the nest into
+  compartments) and three concave polygons (L, U, T), 1,300-20,000 u^2;
   :func:`calibrate_online` turns their trials into the factor and the three spreads of
   :mod:`controllers.buffon.estimate`;
 * :func:`evaluation_nests`: 42 nests of 2,000-30,000 u^2 in six families (circles, squares,
@@ -23,7 +24,7 @@ from pathlib import Path
 import numpy as np
 from scipy import stats
 
-__all__ = ["CALIBRATION_NESTS", "calibrate_online", "coverage_table", "evaluation_nests"]
+__all__ = ["CALIBRATION_COMPARTMENTS", "CALIBRATION_NESTS", "calibrate_online", "coverage_table", "evaluation_nests"]
 
 CALIBRATION_NESTS = (
     ("circle:40", None),
@@ -48,6 +49,18 @@ CALIBRATION_POLYGONS = {
     "U": ((0, 0), (110, 0), (110, 90), (75, 90), (75, 40), (35, 40), (35, 90), (0, 90)),
     "T": ((40, 0), (90, 0), (90, 70), (130, 70), (130, 110), (0, 110), (0, 70), (40, 70)),
 }
+#: nests split into compartments by long barriers, added to the calibration family after the
+#: held-out barrier family's per-trial intervals held 91.7 % (below 95 %): the first visit's
+#: self-crossing estimate reads 0.87-0.97 of the truth in them against 0.96-1.04 in open nests
+#: (its trail has not spread evenly over the compartments when it stops: an uneven trail meets
+#: itself more, while the second visit's independent path does not), so the calibration's shape
+#: spread left them out. Other sizes and barrier lengths than both evaluation families'.
+CALIBRATION_COMPARTMENTS = (
+    ("circle:110", "plus:0.8"),
+    ("square:75", "plus:0.6"),
+    ("circle:150", "plus:0.9"),
+    ("square:120", "bar:0.8"),
+)
 EVALUATION_SEED = 2000  # the random polygons' shapes
 EVALUATION_FAMILIES = ("circles", "squares", "ellipses", "barriers", "concave", "random")
 
@@ -89,6 +102,14 @@ def calibration_polygons(folder: str | Path) -> list[dict]:
         p.write_text(json.dumps([list(q) for q in v]))
         out.append({"family": "calibration", "spec": f"polygon:{p}", "barrier": None})
     return out
+
+
+def calibration_family(folder: str | Path) -> list[dict]:
+    """The whole calibration family in its order (:data:`CALIBRATION_NESTS`, the polygons of
+    :func:`calibration_polygons`, :data:`CALIBRATION_COMPARTMENTS`): dicts with family, spec, barrier."""
+    rows = [{"family": "calibration", "spec": s, "barrier": b} for s, b in CALIBRATION_NESTS]
+    rows += calibration_polygons(folder)
+    return rows + [{"family": "calibration", "spec": s, "barrier": b} for s, b in CALIBRATION_COMPARTMENTS]
 
 
 def evaluation_nests(folder: str | Path) -> list[dict]:

@@ -221,9 +221,9 @@ def claims(cases, results, *, trials: int, wall_s: float | None = None, steps_pe
     out = [
         "# Buffon's needle: the paper's experiments reproduced",
         "",
-        f"Seed 000 (Girgin & Sahin, CMU-RI-TR-03-42). {len(cases)} nests, {trials} trials each, two visits per "
-        "trial; lengths in body lengths u (55 mm). Figures: `fig3_patterns.png` ... `fig7_thickness.png`, "
-        "`area_accuracy.png`; every nest in `nests.csv`.",
+        f"Seed 000 (Girgin & Sahin, CMU-RI-TR-03-42). {len(cases)} nests, {trials} trials each (the "
+        "absolute-area set fewer, below), two visits per trial; lengths in body lengths u (55 mm). Figures: "
+        "`fig3_patterns.png` ... `fig7_thickness.png`, `area_accuracy.png`; every nest in `nests.csv`.",
         "",
     ]
     if wall_s is not None:
@@ -252,7 +252,8 @@ def claims(cases, results, *, trials: int, wall_s: float | None = None, steps_pe
         "(the counter's blind fraction, measured by the robot) and the one correction factor calibrated on the "
         "standard circle (see the README) at the default visit length of a measurement, which is why the "
         "paper-length families (50,000 steps) read low with it. `accuracy` repeats the standard-area nests with "
-        "visits of that length, long enough for the paths to mix.",
+        "visits of that length, long enough for the paths to mix "
+        f"({min(results[c]['trials'] for c in cases if c.family == 'accuracy')} trials a nest).",
         "",
         *_accuracy_lines(cases, results),
         "",

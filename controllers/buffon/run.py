@@ -407,12 +407,12 @@ def online(out: str | Path, *, trials: int = 12, seed: int = 0, sweep=None, forc
                      "visit_steps": "auto", "pair_area": area})  # fmt: skip
         rows.append({"family": "pair square", "spec": f"square:{math.sqrt(area):.6g}", "barrier": None,
                      "visit_steps": "auto", "pair_area": area})  # fmt: skip
-    rows += [
-        {"family": "fixed", "spec": CORRECTION_REFERENCE, "barrier": None, "visit_steps": n} for n in FIXED_STEPS
-    ]
+    rows += [{"family": "fixed", "spec": CORRECTION_REFERENCE, "barrier": None, "visit_steps": n} for n in FIXED_STEPS]
     rows += [{"family": "online", "spec": CORRECTION_REFERENCE, "barrier": None, "visit_steps": "auto"}]
     # appended last: the seeds of the rows above (seed + position) stay those of earlier runs
     rows += [{**r, "visit_steps": "auto"} for r in exp.calibration_polygons(out / "nests")]
+    rows += [{"family": "calibration", "spec": s, "barrier": b, "visit_steps": "auto"}
+             for s, b in exp.CALIBRATION_COMPARTMENTS]  # fmt: skip
     tasks = [
         Task(
             experiment="controllers.buffon.experiments:nest_task",

@@ -44,7 +44,7 @@ nests, while the dead-time correction over-restores a denser trail. The coverage
 the two cancel across 700-31,000 u^2 (measured: 0.07 and 0.15 leave opposite trends; README
 'Online visit lengths', measured with the second visit's estimate alone): a tuned constant of
 the robot, balanced rather than removed (the estimate of both visits,
-:func:`controllers.buffon.estimate.online_area`, leaves less to balance: its factor is 0.963). In a nest
+:func:`controllers.buffon.estimate.online_area`, leaves less to balance: its factor is 0.961). In a nest
 a few body lengths across the first visit is on its own trail most of the time and rule (1)
 cannot be met; it gives up (:func:`first_visit_hopeless`) and the trial is untrusted.
 
@@ -215,5 +215,3 @@ def second_visit_done(st, path_u, n, l1_u, second_ratio, min_crossings, rel_se, 
     if path_u < second_ratio * l1_u or n < min_crossings or st[_FULL] < batches:
         return False
     return batch_rel_se(st, batches) <= rel_se
-
-

@@ -203,6 +203,7 @@ def test_online_experiment_writes_its_tables_and_figures(cli, tmp_path, monkeypa
 
     monkeypatch.setattr(exp, "CALIBRATION_NESTS", (("circle:21", None), ("square:19", None)))
     monkeypatch.setattr(exp, "CALIBRATION_POLYGONS", {"L": ((0, 0), (20, 0), (20, 10), (10, 10), (10, 20), (0, 20))})
+    monkeypatch.setattr(exp, "CALIBRATION_COMPARTMENTS", (("circle:22", "plus:0.5"),))
     monkeypatch.setattr(exp, "evaluation_nests", _mini_evaluation)
     monkeypatch.setattr(buffon_run, "SIZE_ENDS", ("circle:12",))
     monkeypatch.setattr(buffon_run, "FIXED_STEPS", (2000, 4000))
@@ -222,7 +223,7 @@ def test_online_experiment_writes_its_tables_and_figures(cli, tmp_path, monkeypa
     for name in buffon_run.ONLINE_FILES:
         assert (out / name).stat().st_size > 0, name
     assert [t["family"] for t in r["coverage"]][-1] == "all" and r["coverage"][-1]["nests"] == 6
-    assert r["calibration"]["nests"] == 3 and r["shape_pairs"]["areas"][0]["area"] == 300
+    assert r["calibration"]["nests"] == 4 and r["shape_pairs"]["areas"][0]["area"] == 300
     summary = (out / "online_summary.md").read_text()
     for part in ("Calibration", "Coverage on the held-out family", "equal areas", "Trail-aware", "Every nest"):
         assert part in summary
@@ -242,3 +243,15 @@ def test_measure_defaults_to_the_online_rule_with_per_trial_intervals(cli, tmp_p
     code, out, err = cli("buffon", "--nest", "circle:26", "--trials", 3, "--visit-steps", 2000, "--json")
     r = json.loads(out)
     assert code == 0 and r["trial_area_ci95"] is None and r["trial_ci95_coverage"] is None and not r["online"]
+
+
+def test_reproduce_runs_the_absolute_area_set_at_most_its_trials():
+    """The absolute-area set (visits 6x the paper's) runs at most ACCURACY_TRIALS trials a nest,
+    the paper's sets the trials asked for."""
+    from controllers.buffon.experiments import ACCURACY_TRIALS, experiment_cases
+
+    cases = experiment_cases()
+    acc = [c for c in cases if c.family == "accuracy"]
+    assert len(acc) == 9 and all(c.params(100)["trials"] == ACCURACY_TRIALS for c in acc)
+    assert all(c.params(100)["trials"] == 100 for c in cases if c.family != "accuracy")
+    assert acc[0].params(3)["trials"] == 3

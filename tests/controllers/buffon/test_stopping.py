@@ -155,9 +155,8 @@ def test_trial_interval_widens_with_the_measured_error():
     assert ci[0, 0] < 1000 < ci[0, 1]
 
 
-def test_heldout_family_script_runs_resumes_and_rescores(tmp_path, capsys):
-    """docs/buffon_heldout.py (the held-out measurement of the results page) on its first nest,
-    two trials: it stores the raw trials, and a rescore of the store prints the same table."""
+def _heldout_script():
+    """docs/buffon_heldout.py, loaded as a module."""
     import importlib.util
     from pathlib import Path
 
@@ -165,6 +164,13 @@ def test_heldout_family_script_runs_resumes_and_rescores(tmp_path, capsys):
     spec = importlib.util.spec_from_file_location("buffon_heldout", path)
     mod = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(mod)
+    return mod
+
+
+def test_heldout_family_script_runs_resumes_and_rescores(tmp_path, capsys):
+    """docs/buffon_heldout.py (the held-out measurement of the results page) on its first nest,
+    two trials: it stores the raw trials, and a rescore of the store prints the same table."""
+    mod = _heldout_script()
     assert len(mod.family(tmp_path / "n", 7100)) == 44
     assert mod.main(["--out", str(tmp_path), "--trials", "2", "--nests", "1"]) == 0
     first = capsys.readouterr().out
@@ -195,3 +201,19 @@ def test_calibration_recovers_a_planted_factor_and_spread():
     assert cal["correction"] == pytest.approx(1 / c, rel=0.01)
     assert cal["trial_extra_sigma"] == pytest.approx(ONLINE_SECOND_WEIGHT * sigma, rel=0.15)
     assert cal["shape_sigma"] < 0.01
+
+
+def test_heldout_script_calibration_mode_prints_the_factor(tmp_path, capsys, monkeypatch):
+    """docs/buffon_heldout.py --calibration on a shrunk calibration family (two small nests, three
+    trials): it stores the trials and prints calibrate_online's factor and spreads."""
+    import json
+
+    mod = _heldout_script()
+    small = [
+        {"family": "calibration", "spec": s, "barrier": b} for s, b in (("circle:24", None), ("square:22", "bar:0.4"))
+    ]
+    monkeypatch.setattr(mod.exp, "calibration_family", lambda folder: small)
+    assert mod.main(["--calibration", "--out", str(tmp_path), "--trials", "3", "--seed", "9100"]) == 0
+    cal = json.loads(capsys.readouterr().out)
+    assert cal["nests"] == 2 and cal["trials"] == 6 and cal["correction"] > 0
+    assert len((tmp_path / "calibration.jsonl").read_text().splitlines()) == 2
