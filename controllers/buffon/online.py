@@ -24,7 +24,15 @@ from pathlib import Path
 import numpy as np
 from scipy import stats
 
-__all__ = ["CALIBRATION_COMPARTMENTS", "CALIBRATION_NESTS", "calibrate_online", "coverage_table", "evaluation_nests"]
+__all__ = [
+    "CALIBRATION_COMPARTMENTS",
+    "CALIBRATION_NESTS",
+    "calibrate_online",
+    "calibration_family",
+    "calibration_rows",
+    "coverage_table",
+    "evaluation_nests",
+]
 
 CALIBRATION_NESTS = (
     ("circle:40", None),
@@ -104,12 +112,17 @@ def calibration_polygons(folder: str | Path) -> list[dict]:
     return out
 
 
+def calibration_rows(nests) -> list[dict]:
+    """(spec, barrier) pairs of the calibration family (:data:`CALIBRATION_NESTS`,
+    :data:`CALIBRATION_COMPARTMENTS`) as dicts with family, spec, barrier."""
+    return [{"family": "calibration", "spec": s, "barrier": b} for s, b in nests]
+
+
 def calibration_family(folder: str | Path) -> list[dict]:
     """The whole calibration family in its order (:data:`CALIBRATION_NESTS`, the polygons of
     :func:`calibration_polygons`, :data:`CALIBRATION_COMPARTMENTS`): dicts with family, spec, barrier."""
-    rows = [{"family": "calibration", "spec": s, "barrier": b} for s, b in CALIBRATION_NESTS]
-    rows += calibration_polygons(folder)
-    return rows + [{"family": "calibration", "spec": s, "barrier": b} for s, b in CALIBRATION_COMPARTMENTS]
+    compartments = calibration_rows(CALIBRATION_COMPARTMENTS)
+    return calibration_rows(CALIBRATION_NESTS) + calibration_polygons(folder) + compartments
 
 
 def evaluation_nests(folder: str | Path) -> list[dict]:

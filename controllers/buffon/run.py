@@ -393,7 +393,7 @@ def online(out: str | Path, *, trials: int = 12, seed: int = 0, sweep=None, forc
 
     out = _out_dir(out, force, ONLINE_FILES)
     base = {"trail_width_u": PAPER_TRAIL_WIDTH_U, "trials": trials}
-    rows = [{"family": "calibration", "spec": s, "barrier": b} for s, b in exp.CALIBRATION_NESTS]
+    rows = exp.calibration_rows(exp.CALIBRATION_NESTS)
     rows += exp.evaluation_nests(out / "nests")
     rows += [{"family": "size ends", "spec": s, "barrier": None} for s in SIZE_ENDS]
     for r in rows:
@@ -410,9 +410,8 @@ def online(out: str | Path, *, trials: int = 12, seed: int = 0, sweep=None, forc
     rows += [{"family": "fixed", "spec": CORRECTION_REFERENCE, "barrier": None, "visit_steps": n} for n in FIXED_STEPS]
     rows += [{"family": "online", "spec": CORRECTION_REFERENCE, "barrier": None, "visit_steps": "auto"}]
     # appended last: the seeds of the rows above (seed + position) stay those of earlier runs
-    rows += [{**r, "visit_steps": "auto"} for r in exp.calibration_polygons(out / "nests")]
-    rows += [{"family": "calibration", "spec": s, "barrier": b, "visit_steps": "auto"}
-             for s, b in exp.CALIBRATION_COMPARTMENTS]  # fmt: skip
+    late = exp.calibration_polygons(out / "nests") + exp.calibration_rows(exp.CALIBRATION_COMPARTMENTS)
+    rows += [{**r, "visit_steps": "auto"} for r in late]
     tasks = [
         Task(
             experiment="controllers.buffon.experiments:nest_task",

@@ -138,7 +138,7 @@ def landing_at_start(start_sub: tuple[int, int], moved: tuple[int, int], hc: int
 
 class CellsEntered:
     """The cells the robot's count of its moves has put it in: the start cell, then the cell of
-    every sub-cell a forward move lands on (a bit per cell of the board at most). A cell outside
+    every sub-cell a forward move lands on (one entry per cell, at most the board's). A cell outside
     this log holds no mark the robot laid, so a reading of marks there is checked before the
     robot passes the cell by (:meth:`never_entered`, :meth:`suspect_neighbours`)."""
 

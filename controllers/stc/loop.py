@@ -86,16 +86,13 @@ def run_cover(board, cfg: CoverConfig | None = None, *, observers=(), perception
         perception_hook(see)
     watch = Observers([*observers, *([Trace()] if cfg.trace else [])])
     referee = Referee(board, active=see.refereed, report=watch.on_referee)
-    run = _Run()
-    run.entered = CellsEntered(board.start_subcell)
+    run = _Run(board.start_subcell)
     try:
         _loop(run, cfg, plant, belief, floor, see, watch, referee)
     except RobotStop as stop:  # a part found that the robot cannot go on (controllers.stc.health)
         run.abort = f"{stop} (decision {run.decisions})"
     watch.on_end(plant, floor)
-    out = _summary(board, cfg, plant, belief, see, referee, decisions=run.decisions, looks=run.looks,
-                   finished=run.finished, abort=run.abort, wall_s=time.perf_counter() - wall0,
-                   recounted=run.recounted, relooked=run.relooked)  # fmt: skip
+    out = _summary(board, cfg, plant, belief, see, referee, run, wall_s=time.perf_counter() - wall0)
     if faults:
         out["faults"] = faults.labels()
         out["fault_events"] = dict(faults.events)
@@ -103,15 +100,18 @@ def run_cover(board, cfg: CoverConfig | None = None, *, observers=(), perception
 
 
 class _Run:
-    """The loop's counters and its outcome."""
+    """The loop's counters and its outcome, and the robot's count of its moves from its start
+    sub-cell ``start_sub``."""
 
     decisions = looks = 0
     finished = False
     abort: str | None = None
     moved = (0, 0)  # sub-cells moved from the start, by the robot's own compass (rows, columns)
-    entered: CellsEntered  # the cells that count has put the robot in (a cross-check of readings)
     recounted = 0  # neighbours read marked that the count never entered, left to the look to read again
     relooked = 0  # looks that read a never-entered cell marked, taken again
+
+    def __init__(self, start_sub: tuple[int, int]):
+        self.entered = CellsEntered(start_sub)  # the cells that count has put the robot in
 
 
 def _loop(run: _Run, cfg, plant, belief, floor, see, watch, referee) -> None:
@@ -242,11 +242,10 @@ def _act(action: Action, plant: Plant, belief: Belief, floor: Floor, see, watch)
     return None
 
 
-def _summary(board, cfg, plant, belief, see, referee, *, decisions, looks, finished, abort, wall_s,
-             recounted=0, relooked=0) -> dict:  # fmt: skip
+def _summary(board, cfg, plant, belief, see, referee, run: _Run, *, wall_s: float) -> dict:
     # the sub-cell the robot ended in: the one it believes, checked within 0.45 sub-cell of the
     # truth after every move (Plant.check_lost), so the two agree
-    cov = coverage(board, plant.visits, belief.sub, finished=finished, moves=plant.moves)
+    cov = coverage(board, plant.visits, belief.sub, finished=run.finished, moves=plant.moves)
     out = {
         "perception": cfg.perception,
         "exposure": cfg.exposure,
@@ -255,12 +254,12 @@ def _summary(board, cfg, plant, belief, see, referee, *, decisions, looks, finis
         "board_cells": list(board.shape_cells),
         **{k: cov[k] for k in ("subcells_reachable", "subcells_covered", "subcells_covered_more_than_once")},
         "returned_to_start": cov["returned_to_start"],
-        "finished": finished,
-        "abort_reason": abort,
+        "finished": run.finished,
+        "abort_reason": run.abort,
         "moves": plant.moves,
         "turns": plant.turns,
-        "decisions": decisions,
-        "looks": looks,
+        "decisions": run.decisions,
+        "looks": run.looks,
         "look_errors": referee.look_errors,
         "reobserved": see.reobserved,
         "sim_time_s": plant.t,
@@ -274,8 +273,8 @@ def _summary(board, cfg, plant, belief, see, referee, *, decisions, looks, finis
         "turn_rate_error_pct": 100 * (plant.rate_gain - 1),
         "frames": see.frames,
         "long_exposures": see.long_frames,
-        "neighbours_recounted": recounted,
-        "relooked": relooked,
+        "neighbours_recounted": run.recounted,
+        "relooked": run.relooked,
     }
     # the referee's verdict: the robot's "finished" says only that it believes it is done
     out["complete"] = is_complete(out)

@@ -491,15 +491,6 @@ class _Looks:
         return self.marked.pop(0)
 
 
-def _look_run(start_sub):
-    from controllers.stc.health import CellsEntered
-    from controllers.stc.loop import _Run
-
-    run = _Run()
-    run.entered = CellsEntered(start_sub)
-    return run
-
-
 def test_a_child_the_count_never_entered_read_marked_is_looked_at_again():
     """A look that reads a never-entered child marked is taken once more: read unmarked the
     robot enters it (the first-entry check reads it again there); read marked twice it stops
@@ -507,21 +498,21 @@ def test_a_child_the_count_never_entered_read_marked_is_looked_at_again():
     before, and a look at the parent's landing is never taken again."""
     from controllers.stc.fsm import StcPhase, StcState
     from controllers.stc.health import RobotStop
-    from controllers.stc.loop import _look
+    from controllers.stc.loop import _look, _Run
 
     board = Board(np.zeros((8, 8), bool), (3, 2))
     belief = Belief.at_start(board, 2.7)
     belief.hc = 3  # facing west from (3, 2): the cell ahead, (1, 0), never entered
     child = StcState(phase=StcPhase.LOOK, child=True)
-    run = _look_run(board.start_subcell)
+    run = _Run(board.start_subcell)
     assert _look(child, None, belief, None, _Looks(True, False), run) is False and run.relooked == 1
     with pytest.raises(RobotStop, match="read marked by two looks .* never entered it"):
         _look(child, None, belief, None, _Looks(True, True), run)
-    run = _look_run(board.start_subcell)
+    run = _Run(board.start_subcell)
     run.entered.cells.add((1, 0))  # entered: its marks are its own
     assert _look(child, None, belief, None, _Looks(True), run) is True and run.relooked == 0
     parent = StcState(phase=StcPhase.LOOK, child=False)
-    assert _look(parent, None, belief, None, _Looks(True), _look_run(board.start_subcell)) is True
+    assert _look(parent, None, belief, None, _Looks(True), _Run(board.start_subcell)) is True
 
 
 class _Stain:
