@@ -18,6 +18,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from controllers.stc.geometry import COMPASS_VEC, start_heading
+from controllers.stc.localise import Fix
 from stcvision.stcgrid import entry_axes
 
 __all__ = ["Belief", "align_along", "drive_forward", "finish_turn", "recentre", "turn"]
@@ -29,18 +30,24 @@ class Belief:
 
     ``sub`` (row, column) the sub-cell it believes it stands in; ``hc`` its compass heading
     (0 N, clockwise); ``turn_s`` its rotation time for 90 degrees; ``offset_m`` where it believes
-    it stands off the sub-cell's centre (world, m), from its last localisation."""
+    it stands off the sub-cell's centre (world, m), from its localisation; ``step_sigma_m`` a
+    forward move's own distance error (1 sigma, the robot's ``MarkingRobot.drive_sigma_m``) and
+    ``fix`` how sure it is of ``offset_m`` (:mod:`controllers.stc.localise`)."""
 
     sub: tuple[int, int]
     hc: int
     turn_s: float
     offset_m: np.ndarray = field(default_factory=lambda: np.zeros(2))
+    step_sigma_m: float = 0.0
+    fix: Fix = field(default_factory=lambda: Fix.placed(0.0))
 
     @classmethod
-    def at_start(cls, board, turn_s: float) -> Belief:
+    def at_start(cls, board, turn_s: float, step_sigma_m: float = 0.0) -> Belief:
         """On the start sub-cell, facing the board's start heading, turn time ``turn_s`` (set
-        before the run: :attr:`controllers.stc.plant.Plant.calibrated_turn_s`)."""
-        return cls(tuple(board.start_subcell), start_heading(board), float(turn_s))
+        before the run: :attr:`controllers.stc.plant.Plant.calibrated_turn_s`); placed on its
+        centre as well as one move ends there (``step_sigma_m``)."""
+        return cls(tuple(board.start_subcell), start_heading(board), float(turn_s),
+                   step_sigma_m=float(step_sigma_m), fix=Fix.placed(step_sigma_m))  # fmt: skip
 
 
 def turn(plant, belief: Belief, left: bool) -> None:
@@ -88,4 +95,5 @@ def drive_forward(plant, belief: Belief) -> str | None:
         di, dj = COMPASS_VEC[belief.hc]
         belief.sub = (belief.sub[0] + di, belief.sub[1] + dj)
         belief.offset_m = np.zeros(2)
+        belief.fix.moved(belief.step_sigma_m)
     return why

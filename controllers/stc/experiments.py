@@ -90,6 +90,7 @@ RUN_FIELDS = (
     "frames",
     "neighbours_recounted",
     "relooked",
+    "offsets_left_out",
 )
 
 

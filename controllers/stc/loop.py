@@ -79,7 +79,7 @@ def run_cover(board, cfg: CoverConfig | None = None, *, observers=(), perception
     plant = Plant(board, cfg.robot, rngs["motion"], rate_factor=faults.rate_factor(),
                   disturbances=faults.disturbances())  # fmt: skip
     floor = Floor(board, lay_filter=faults.lay_filter())
-    belief = Belief.at_start(board, plant.calibrated_turn_s)
+    belief = Belief.at_start(board, plant.calibrated_turn_s, cfg.robot.drive_sigma_m)
     see = make_perception(cfg, board, camera_rng=rngs["camera"], oracle_rng=rngs["oracle"],
                           camera_wrap=faults.camera_wrap(board))  # fmt: skip
     if perception_hook is not None:
@@ -275,6 +275,7 @@ def _summary(board, cfg, plant, belief, see, referee, run: _Run, *, wall_s: floa
         "long_exposures": see.long_frames,
         "neighbours_recounted": run.recounted,
         "relooked": run.relooked,
+        "offsets_left_out": belief.fix.rejected,
     }
     # the referee's verdict: the robot's "finished" says only that it believes it is done
     out["complete"] = is_complete(out)

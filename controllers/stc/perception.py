@@ -36,6 +36,7 @@ from controllers.stc.config import (
 from controllers.stc.frames import IdealCamera, RobotCamera
 from controllers.stc.fsm import StcObservation
 from controllers.stc.health import RobotStop
+from controllers.stc.localise import LIGHTS_WIDE_SIGMA_M, LIGHTS_WIDE_SPREAD, MARKS_SIGMA_M
 from controllers.stc.oracle import landing_oracle, look_oracle, observe_oracle
 from controllers.stc.plant import Floor, Plant
 from stcvision.stcgrid import entry_axes
@@ -278,17 +279,24 @@ class CameraPerception(_TakesFrames):
         return -e if abs(e) > REOBSERVE_RAD else 0.0
 
     def _where(self, observation, belief, *, lights_only: bool = False) -> np.ndarray:
-        """The robot's offset from its sub-cell centre (world, m): from the red lights in view
-        when there are any (they stand at cell centres: an absolute reference), else from its
-        own marks (``lights_only``: not from them); the belief so far when neither is believable."""
-        off = observation.landmark_offset if self.cfg.use_landmarks else None
-        if off is not None and observation.landmark_offset_sigma > LANDMARK_OFFSET_SIGMA:
-            off = None  # too unsure: the marks say it better
-        if off is None and not lights_only:
-            off = observation.position_offset
-        if off is None or max(abs(off[0]), abs(off[1])) > 0.3:  # 5 cm: not believable
-            return belief.offset_m
-        return entry_offset_to_world(off, belief.hc, self.board.subcell_m)
+        """The robot's offset from its sub-cell centre (world, m), from the red lights in view
+        and its own marks (``lights_only``: not from them), each weighted by its uncertainty
+        against the belief so far (:class:`controllers.stc.localise.Fix`): sure red lights
+        (absolute: they stand at cell centres) replace it; less sure ones, and the marks, are
+        fused into it unless they disagree with it beyond what either could be off by."""
+        fix, sm = belief.fix, self.board.subcell_m
+        off = belief.offset_m
+        lights = observation.landmark_offset if self.cfg.use_landmarks else None
+        if _believable(lights):
+            spread = observation.landmark_offset_sigma
+            if spread <= LANDMARK_OFFSET_SIGMA:
+                return fix.lights(entry_offset_to_world(lights, belief.hc, sm))
+            if spread <= LIGHTS_WIDE_SPREAD:
+                off = fix.fuse(off, entry_offset_to_world(lights, belief.hc, sm), LIGHTS_WIDE_SIGMA_M)
+        marks = observation.position_offset
+        if not lights_only and _believable(marks):
+            off = fix.fuse(off, entry_offset_to_world(marks, belief.hc, sm), MARKS_SIGMA_M)
+        return off
 
     def _heading(self, res, rows=None) -> float | None:
         """The heading error: the newest row's, less what the red lights (absolute, when in view)
@@ -346,6 +354,12 @@ class CameraPerception(_TakesFrames):
                 plant.rotate_by(-e, belief.turn_s)
                 return -e
         return 0.0
+
+
+def _believable(off) -> bool:
+    """An offset reading (entry frame, sub-cell sides) that is there and within 0.3 of a
+    sub-cell (5 cm): further, the robot would stand in another sub-cell's marks."""
+    return off is not None and max(abs(off[0]), abs(off[1])) <= 0.3
 
 
 def entry_offset_to_world(off_ru, hc: int, subcell_m: float) -> np.ndarray:

@@ -9,6 +9,7 @@ import pytest
 
 from controllers.stc.belief import Belief
 from controllers.stc.config import CoverConfig
+from controllers.stc.localise import Fix
 from controllers.stc.loop import run_cover
 from sim_camera.board import Board
 from stcvision.cli import main
@@ -279,7 +280,8 @@ def test_a_look_takes_its_position_from_the_red_lights_only():
     """At a look the robot stands beside the exit, where the rows in view were laid at many
     other times, each where the robot then stood: their offset moved the robot's belief by a
     centimetre and its next row with it. A look's offset comes from the red lights, or stays
-    what the robot believed; a decision's still reads the cell's own rows."""
+    what the robot believed; a decision's still reads the cell's own rows, weighted against the
+    belief (:mod:`controllers.stc.localise`)."""
     from types import SimpleNamespace
 
     import numpy as np
@@ -288,10 +290,11 @@ def test_a_look_takes_its_position_from_the_red_lights_only():
 
     see = CameraPerception.__new__(CameraPerception)
     see.cfg, see.board = CoverConfig(), Board(np.zeros((4, 4), bool), (3, 1))
-    belief = Belief((0, 0), 0, 1.5, np.array([0.001, -0.002]))
+    belief = Belief((0, 0), 0, 1.5, np.array([0.001, -0.002]), fix=Fix.placed(0.004))
     marks_only = SimpleNamespace(landmark_offset=None, landmark_offset_sigma=None, position_offset=(0.05, 0.0))
     assert see._where(marks_only, belief, lights_only=True) is belief.offset_m
-    assert see._where(marks_only, belief)[0] == pytest.approx(0.05 * see.board.subcell_m)
+    # as unsure of itself as the marks are (4 mm), the robot goes half-way to what they say
+    assert see._where(marks_only, belief)[0] == pytest.approx(0.5 * (0.001 + 0.05 * see.board.subcell_m))
     lights = SimpleNamespace(landmark_offset=(0.0, 0.02), landmark_offset_sigma=0.01, position_offset=(0.05, 0.0))
     assert np.allclose(see._where(lights, belief, lights_only=True), [0.0, 0.02 * see.board.subcell_m])
 
