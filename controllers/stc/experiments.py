@@ -91,6 +91,7 @@ RUN_FIELDS = (
     "neighbours_recounted",
     "relooked",
     "offsets_left_out",
+    "boxes_reread",
 )
 
 

@@ -22,6 +22,12 @@ where it stands, rather than decide on garbage.
   another neighbour read into it, a noise peak, a stain): the look from next to it reads it
   again before the robot passes it by. The log is a cross-check of what the camera reads; the
   controller itself keeps deciding from the floor alone (:mod:`controllers.stc.fsm`).
+* :class:`RowsLaid`: by the same count, every row the robot laid with a forward move (the
+  sub-cell it left, the edge behind it). At a decision in a cell it has been in, a box read unlit
+  whose row the count laid is a mark the frames missed (an old row at the edge of a frame's reach:
+  a low-light tour of 28 hours read {4} for {2,4} at a return, a set a tour can show, so no other
+  check saw it): the cell is read once more, and a second reading that still misses it stops the
+  robot before it decides.
 * :class:`RobotStop`: raised by a part of the loop that finds the robot cannot go on; the loop
   ends the run with its message as the ``abort_reason``.
 """
@@ -38,6 +44,7 @@ __all__ = [
     "NOISE_CHECK",
     "NoiseCheck",
     "RobotStop",
+    "RowsLaid",
     "done_away_from_start",
     "frame_fault",
     "landing_at_start",
@@ -167,3 +174,28 @@ class CellsEntered:
             if n.has_marks and not n.has_red and (ci + di, cj + dj) not in self.cells:
                 out.append(d)
         return tuple(out)
+
+
+class RowsLaid:
+    """The rows the robot's count of its moves says it laid: per forward move, the sub-cell it
+    left and that sub-cell's edge behind it (compass), as :meth:`controllers.stc.plant.Plant.lay_mark`
+    lays them. The start mark is not logged (it lies on a start-mark line, never in a box). At
+    most four a sub-cell, so bounded by the board."""
+
+    def __init__(self, start_sub: tuple[int, int]):
+        self.start_sub = tuple(start_sub)
+        self.rows: set[tuple[tuple[int, int], int]] = set()
+
+    def laid(self, moved: tuple[int, int], hc: int) -> None:
+        """A forward move heading compass ``hc`` from where the count ``moved`` puts the robot."""
+        self.rows.add((_here(self.start_sub, moved), (hc + 2) % 4))
+
+    def missed_boxes(self, boxes, moved: tuple[int, int], hc: int) -> tuple[int, ...]:
+        """At a decision (the robot in its entry frame's sub-cell 0, heading ``hc``): the boxes
+        (1-5) read unlit in ``boxes`` whose row the count laid."""
+        from stcvision.stcgrid import BOX_EDGES
+
+        subs = frame_subcells(_here(self.start_sub, moved), hc)
+        return tuple(
+            b for b, (k, d) in BOX_EDGES.items() if not boxes[b - 1] and (subs[k], frame_compass(hc, d)) in self.rows
+        )

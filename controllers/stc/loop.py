@@ -34,7 +34,7 @@ from controllers.stc.config import ALIGN_MARK_M, RECENTRE_M, CoverConfig
 from controllers.stc.faults import Faults
 from controllers.stc.fsm import Action, LookObs, NeighbourObs, StcObservation, StcPhase, decide, initial_state, step
 from controllers.stc.geometry import COMPASS_VEC
-from controllers.stc.health import CellsEntered, RobotStop, done_away_from_start, landing_at_start
+from controllers.stc.health import CellsEntered, RobotStop, RowsLaid, done_away_from_start, landing_at_start
 from controllers.stc.observers import Observers, Reading, Trace
 from controllers.stc.oracle import coverage
 from controllers.stc.perception import make_perception
@@ -109,9 +109,11 @@ class _Run:
     moved = (0, 0)  # sub-cells moved from the start, by the robot's own compass (rows, columns)
     recounted = 0  # neighbours read marked that the count never entered, left to the look to read again
     relooked = 0  # looks that read a never-entered cell marked, taken again
+    reread = 0  # decisions read again because a box read unlit holds a row the count laid
 
     def __init__(self, start_sub: tuple[int, int]):
         self.entered = CellsEntered(start_sub)  # the cells that count has put the robot in
+        self.rows = RowsLaid(start_sub)  # the rows that count says it laid
 
 
 def _loop(run: _Run, cfg, plant, belief, floor, see, watch, referee) -> None:
@@ -154,6 +156,7 @@ def _loop(run: _Run, cfg, plant, belief, floor, see, watch, referee) -> None:
             run.finished = run.abort is None
             return
         if action is Action.FORWARD:  # the robot's own count of its moves on the grid
+            run.rows.laid(run.moved, belief.hc)  # (the row behind it, laid before the move)
             di, dj = COMPASS_VEC[belief.hc]
             run.moved = (run.moved[0] + di, run.moved[1] + dj)
             run.entered.moved_to(run.moved)
@@ -189,12 +192,34 @@ def _neighbours_by_count(obs: StcObservation, run: _Run, belief: Belief) -> StcO
     return dataclasses.replace(obs, neighbours=neigh)
 
 
+def _boxes_by_count(obs: StcObservation, observe, run: _Run, belief: Belief) -> StcObservation:
+    """A decision's boxes against the rows the robot's count of its moves says it laid
+    (:class:`controllers.stc.health.RowsLaid`): a box read unlit that holds such a row is a mark
+    the frames missed, so the cell is read once more (``observe()``); a second reading that
+    still misses one is not decided on (``StcObservation.misread``). A reading the count agrees
+    with is returned as it is."""
+    if obs.misread or not run.rows.missed_boxes(obs.boxes, run.moved, belief.hc):
+        return obs
+    run.reread += 1
+    again = observe()
+    still = () if again.misread else run.rows.missed_boxes(again.boxes, run.moved, belief.hc)
+    if not still:
+        return again
+    boxes = ", ".join(map(str, still))
+    why = f"misread: box {boxes} read unlit by two readings, though the robot's count of its moves laid its row"
+    return dataclasses.replace(again, misread=why)
+
+
 def _read(state, plant: Plant, belief: Belief, floor: Floor, see, run: _Run) -> StcObservation | LookObs | None:
     """What the controller reads in ``state``: a decision's observation, a look's, or nothing.
     ``run.moved``: the robot's count of its moves, which says whether it is in its start cell."""
     if state.phase is StcPhase.DECIDE and not state.closing:
         start_cell = done_away_from_start(tuple(plant.board.start_subcell), run.moved) is None
-        return see.observe(plant, belief, floor, fresh=state.fresh, at_start=state.at_start, start_cell=start_cell)
+
+        def observe() -> StcObservation:
+            return see.observe(plant, belief, floor, fresh=state.fresh, at_start=state.at_start, start_cell=start_cell)
+
+        return _boxes_by_count(observe(), observe, run, belief)
     if state.phase is StcPhase.LOOK:
         return LookObs(_look(state, plant, belief, floor, see, run))
     return None
@@ -276,6 +301,7 @@ def _summary(board, cfg, plant, belief, see, referee, run: _Run, *, wall_s: floa
         "neighbours_recounted": run.recounted,
         "relooked": run.relooked,
         "offsets_left_out": belief.fix.rejected,
+        "boxes_reread": run.reread,
     }
     # the referee's verdict: the robot's "finished" says only that it believes it is done
     out["complete"] = is_complete(out)

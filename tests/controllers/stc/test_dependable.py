@@ -545,3 +545,73 @@ def test_a_mark_in_a_cell_the_robot_never_entered_stops_it_before_passing_the_ce
     r = run_cover(board, CoverConfig(perception="oracle", seed=0), observers=[_Stain((2, 5))])
     assert not r["complete"] and r["relooked"] >= 1, r
     assert "read marked by two looks" in r["abort_reason"] and "never entered it" in r["abort_reason"], r
+
+
+# ---------------------------------------------------------------------------------------------
+# a box read unlit whose row the count of moves laid
+
+
+def _oracle_boxes_against_the_rows_laid(board_wh: str, seed: int):
+    """Per decision of an oracle run: (the boxes the floor shows lit, those whose row the robot's
+    count of its moves laid), from :class:`controllers.stc.health.RowsLaid` kept by an observer."""
+    from controllers.stc.experiments import random_board
+    from controllers.stc.fsm import Action
+    from controllers.stc.health import RowsLaid
+    from controllers.stc.observers import Observer
+    from stcvision.stcgrid import BOX_EDGES
+
+    w, h = map(int, board_wh.split("x"))
+    board = random_board(w, h, 0.15, seed)
+
+    class Watch(Observer):
+        def __init__(self):
+            self.rows, self.pairs = RowsLaid((0, 0)), []
+
+        def on_step(self, plant, belief, state, action):
+            if action is Action.FORWARD:  # (the count is the believed sub-cell: the oracle is exact)
+                self.rows.laid(tuple(belief.sub), belief.hc)
+
+        def on_reading(self, ev):
+            if ev.kind == "decision":
+                none = (False,) * 5
+                missed = self.rows.missed_boxes(none, tuple(ev.belief.sub), ev.belief.hc)
+                self.pairs.append(({b for b in BOX_EDGES if ev.obs.boxes[b - 1]}, set(missed)))
+
+    watch = Watch()
+    out = run_cover(board, CoverConfig(perception="oracle", seed=seed), observers=[watch])
+    return out, watch.pairs
+
+
+def test_the_rows_the_count_laid_are_the_boxes_the_floor_shows():
+    """At every decision of oracle tours, the boxes lit on the floor are exactly those whose row
+    the count of moves says the robot laid: the log predicts every box, and no other (so a box
+    read unlit that the log holds is a miss, never a row that is not there)."""
+    for wh, seed in (("6x6", 1), ("7x5", 2)):
+        out, pairs = _oracle_boxes_against_the_rows_laid(wh, seed)
+        assert out["complete"] and out["boxes_reread"] == 0
+        assert pairs and any(lit for lit, _ in pairs)
+        assert all(lit == laid for lit, laid in pairs), [p for p in pairs if p[0] != p[1]][:3]
+
+
+def test_a_box_missed_twice_is_not_decided_on():
+    """A reading that misses a box whose row the count laid is taken again; read right the
+    second time, the robot decides on it; missed again, it stops with the reason."""
+    import dataclasses
+
+    from controllers.stc.fsm import StcObservation
+    from controllers.stc.geometry import frame_subcells
+    from controllers.stc.loop import _boxes_by_count, _Run
+
+    run = _Run((5, 5))
+    belief = Belief((5, 5), 0, 1.5)  # back in its entry sub-cell, heading north
+    # earlier the robot left entry-frame sub-cell 2 heading south: a row on its north edge, box 2
+    sub2 = frame_subcells((5, 5), 0)[2]
+    run.rows.laid((sub2[0] - 5, sub2[1] - 5), 2)
+    base = StcObservation(boxes=(False,) * 5, neighbours=(), start_mark=None)
+    missed = run.rows.missed_boxes(base.boxes, run.moved, belief.hc)
+    assert missed == (2,)
+    right = dataclasses.replace(base, boxes=tuple(b in missed for b in range(1, 6)))
+    assert _boxes_by_count(base, lambda: right, run, belief) is right and run.reread == 1
+    stopped = _boxes_by_count(base, lambda: base, run, belief)
+    assert "count of its moves laid its row" in stopped.misread and run.reread == 2
+    assert _boxes_by_count(right, lambda: base, run, belief) is right and run.reread == 2
