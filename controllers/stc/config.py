@@ -85,6 +85,10 @@ class CoverConfig:
     #: ("misread: ...") rather than decide on a mark missed within its frames' reach; off, it
     #: decides on what it read (a study of what the misread costs)
     check_returns: bool = True
+    #: at a decision, a box read unlit whose row the robot's count of its moves laid is read
+    #: again, and a second miss stops the robot (:class:`controllers.stc.health.RowsLaid`); off,
+    #: it decides on the reading (a study of what the check guards)
+    check_rows: bool = True
     trace: bool = False  # heading from the lean of all rows in view, not the newest only
     #: hardware faults injected into the run: (name, level) pairs (:mod:`controllers.stc.faults`)
     faults: tuple[tuple[str, float], ...] = ()

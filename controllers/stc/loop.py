@@ -86,7 +86,7 @@ def run_cover(board, cfg: CoverConfig | None = None, *, observers=(), perception
         perception_hook(see)
     watch = Observers([*observers, *([Trace()] if cfg.trace else [])])
     referee = Referee(board, active=see.refereed, report=watch.on_referee)
-    run = _Run(board.start_subcell)
+    run = _Run(board.start_subcell, check_rows=cfg.check_rows)
     try:
         _loop(run, cfg, plant, belief, floor, see, watch, referee)
     except RobotStop as stop:  # a part found that the robot cannot go on (controllers.stc.health)
@@ -111,9 +111,10 @@ class _Run:
     relooked = 0  # looks that read a never-entered cell marked, taken again
     reread = 0  # decisions read again because a box read unlit holds a row the count laid
 
-    def __init__(self, start_sub: tuple[int, int]):
+    def __init__(self, start_sub: tuple[int, int], *, check_rows: bool = True):
         self.entered = CellsEntered(start_sub)  # the cells that count has put the robot in
         self.rows = RowsLaid(start_sub)  # the rows that count says it laid
+        self.check_rows = check_rows  # (CoverConfig.check_rows)
 
 
 def _loop(run: _Run, cfg, plant, belief, floor, see, watch, referee) -> None:
@@ -198,7 +199,7 @@ def _boxes_by_count(obs: StcObservation, observe, run: _Run, belief: Belief) -> 
     the frames missed, so the cell is read once more (``observe()``); a second reading that
     still misses one is not decided on (``StcObservation.misread``). A reading the count agrees
     with is returned as it is."""
-    if obs.misread or not run.rows.missed_boxes(obs.boxes, run.moved, belief.hc):
+    if not run.check_rows or obs.misread or not run.rows.missed_boxes(obs.boxes, run.moved, belief.hc):
         return obs
     run.reread += 1
     again = observe()

@@ -157,8 +157,9 @@ def _blind_to_box_4(up_to_rung: int):
 def test_a_return_missing_box_4_is_read_again_then_stops_before_deciding():
     """The physics-limited camera made blind to box 4: with the return check the robot reads a
     return again with a longer frame and, blind there too, stops ("misread") at its first
-    return with nothing covered twice and no wrong decision; without the check it decides on
-    the misreading. Blind only in the short and the 2 s frame, the longer frame mends the
+    return with nothing covered twice and no wrong decision; without the check the rows the count
+    laid stop it too (read again, then "misread"); without either it decides on the misreading.
+    Blind only in the short and the 2 s frame, the longer frame mends the
     reading and the tour completes."""
     board = Board.random((4, 4), obstacle_fraction=0.1, rng=np.random.default_rng(2))
     cfg = CoverConfig(perception="ideal", exposure="auto", seed=1)
@@ -166,8 +167,13 @@ def test_a_return_missing_box_4_is_read_again_then_stops_before_deciding():
     assert r["abort_reason"].startswith("misread: boxes {"), r["abort_reason"]
     assert "also with a" in r["abort_reason"] and "(at sub-cell" in r["abort_reason"]
     assert r["subcells_covered_more_than_once"] == 0 and r["decision_errors"] == 0
-    unchecked = run_cover(board, dataclasses.replace(cfg, check_returns=False), perception_hook=_blind_to_box_4(99))
+    unchecked = dataclasses.replace(cfg, check_returns=False, check_rows=False)
+    unchecked = run_cover(board, unchecked, perception_hook=_blind_to_box_4(99))
     assert unchecked["decision_errors"] > 0 and not unchecked["complete"]
+    # the rows the count laid guard the same miss without the return's check: read again, then a stop
+    rows = run_cover(board, dataclasses.replace(cfg, check_returns=False), perception_hook=_blind_to_box_4(99))
+    assert "count of its moves laid its row" in rows["abort_reason"], rows["abort_reason"]
+    assert rows["boxes_reread"] >= 1 and rows["decision_errors"] == 0 and rows["subcells_covered_more_than_once"] == 0
     mended = run_cover(board, cfg, perception_hook=_blind_to_box_4(1))
     assert mended["complete"], mended["abort_reason"]
     assert mended["long_exposures"] > run_cover(board, cfg)["long_exposures"]  # the re-reads
