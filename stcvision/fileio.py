@@ -201,6 +201,20 @@ def remove_live_temps() -> None:
         _LIVE_TEMPS.discard(tmp)
 
 
+def remove_own_temps(folder: Path) -> None:
+    """Remove this process's temporaries in ``folder`` by their name (``.NAME.PID.RANDOM.tmp``),
+    registered or not: a signal that lands between a temporary's creation and its registration
+    (:func:`temp_sibling`) leaves it unregistered, and a folder the run made would then stay."""
+    import shutil
+
+    for tmp in folder.glob(f".*.{os.getpid()}.*{_TEMP_SUFFIX}"):
+        try:
+            shutil.rmtree(tmp) if tmp.is_dir() and not tmp.is_symlink() else tmp.unlink(missing_ok=True)
+        except OSError:
+            pass
+        _LIVE_TEMPS.discard(tmp)
+
+
 def commit_temp(tmp: Path, path: Path) -> None:
     """Rename the temporary ``tmp`` over ``path`` (atomic on one file system) and forget it; never
     after a termination signal (:func:`raise_if_signalled`: the temporary is then removed)."""

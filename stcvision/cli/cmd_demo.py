@@ -46,10 +46,11 @@ def run(args) -> dict:
         result = run_recorded(board, cfg, out / OUTPUTS[0], observers=[picture])
         write_image(out / OUTPUTS[1], picture.image, overwrite=args.force)
     except BaseException:  # Ctrl-C, SIGTERM, an error: no empty folder left behind
-        from stcvision.fileio import remove_live_temps
+        from stcvision.fileio import remove_live_temps, remove_own_temps
 
         remove_live_temps()
         for folder in made:  # deepest first; one that holds anything is kept
+            remove_own_temps(folder)  # (a signal between a temporary's creation and its registration)
             try:
                 folder.rmdir()
             except OSError:
