@@ -191,28 +191,16 @@ def remove_stale_temps(folder: str | os.PathLike) -> list[Path]:
 def remove_live_temps() -> None:
     """Remove this process's temporary files and folders not yet renamed into place (on exit, on
     an error, on SIGTERM/SIGINT): a run that stops leaves no hidden leftovers."""
-    import shutil
-
     for tmp in list(_LIVE_TEMPS):
-        try:
-            shutil.rmtree(tmp) if tmp.is_dir() and not tmp.is_symlink() else tmp.unlink(missing_ok=True)
-        except OSError:
-            pass
-        _LIVE_TEMPS.discard(tmp)
+        discard_temp(tmp)
 
 
 def remove_own_temps(folder: Path) -> None:
     """Remove this process's temporaries in ``folder`` by their name (``.NAME.PID.RANDOM.tmp``),
     registered or not: a signal that lands between a temporary's creation and its registration
     (:func:`temp_sibling`) leaves it unregistered, and a folder the run made would then stay."""
-    import shutil
-
     for tmp in folder.glob(f".*.{os.getpid()}.*{_TEMP_SUFFIX}"):
-        try:
-            shutil.rmtree(tmp) if tmp.is_dir() and not tmp.is_symlink() else tmp.unlink(missing_ok=True)
-        except OSError:
-            pass
-        _LIVE_TEMPS.discard(tmp)
+        discard_temp(tmp)
 
 
 def commit_temp(tmp: Path, path: Path) -> None:

@@ -30,24 +30,21 @@ class Belief:
 
     ``sub`` (row, column) the sub-cell it believes it stands in; ``hc`` its compass heading
     (0 N, clockwise); ``turn_s`` its rotation time for 90 degrees; ``offset_m`` where it believes
-    it stands off the sub-cell's centre (world, m), from its localisation; ``step_sigma_m`` a
-    forward move's own distance error (1 sigma, the robot's ``MarkingRobot.drive_sigma_m``) and
-    ``fix`` how sure it is of ``offset_m`` (:mod:`controllers.stc.localise`)."""
+    it stands off the sub-cell's centre (world, m), from its localisation, and ``fix`` how sure
+    it is of it (:mod:`controllers.stc.localise`)."""
 
     sub: tuple[int, int]
     hc: int
     turn_s: float
     offset_m: np.ndarray = field(default_factory=lambda: np.zeros(2))
-    step_sigma_m: float = 0.0
     fix: Fix = field(default_factory=lambda: Fix.placed(0.0))
 
     @classmethod
     def at_start(cls, board, turn_s: float, step_sigma_m: float = 0.0) -> Belief:
         """On the start sub-cell, facing the board's start heading, turn time ``turn_s`` (set
         before the run: :attr:`controllers.stc.plant.Plant.calibrated_turn_s`); placed on its
-        centre as well as one move ends there (``step_sigma_m``)."""
-        return cls(tuple(board.start_subcell), start_heading(board), float(turn_s),
-                   step_sigma_m=float(step_sigma_m), fix=Fix.placed(step_sigma_m))  # fmt: skip
+        centre as well as one move of error ``step_sigma_m`` ends there."""
+        return cls(tuple(board.start_subcell), start_heading(board), float(turn_s), fix=Fix.placed(step_sigma_m))
 
 
 def turn(plant, belief: Belief, left: bool) -> None:
@@ -95,5 +92,5 @@ def drive_forward(plant, belief: Belief) -> str | None:
         di, dj = COMPASS_VEC[belief.hc]
         belief.sub = (belief.sub[0] + di, belief.sub[1] + dj)
         belief.offset_m = np.zeros(2)
-        belief.fix.moved(belief.step_sigma_m)
+        belief.fix.moved()
     return why

@@ -95,7 +95,8 @@ class CoverConfig:
 
 
 #: the red lights' estimates are used as long as they are this sure (1 sigma): the offset within
-#: 0.03 sub-cell sides (5 mm), the heading within 0.3 degrees for the turn-time recalibration
+#: 0.03 sub-cell sides (5 mm) replaces the robot's belief (less sure, it is weighed against it:
+#: :mod:`controllers.stc.localise`), the heading within 0.3 degrees for the turn-time recalibration
 #: (the newest row's fit is 0.25 deg); a drift correction needs 2.5 sigma whatever the spread
 LANDMARK_OFFSET_SIGMA = 0.03
 LANDMARK_TURN_SIGMA_RAD = math.radians(0.3)

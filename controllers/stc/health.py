@@ -37,6 +37,7 @@ from __future__ import annotations
 import numpy as np
 
 from controllers.stc.geometry import COMPASS_VEC, cell_of, frame_compass, frame_subcells
+from stcvision.stcgrid import BOX_EDGES
 
 __all__ = [
     "CellsEntered",
@@ -193,8 +194,6 @@ class RowsLaid:
     def missed_boxes(self, boxes, moved: tuple[int, int], hc: int) -> tuple[int, ...]:
         """At a decision (the robot in its entry frame's sub-cell 0, heading ``hc``): the boxes
         (1-5) read unlit in ``boxes`` whose row the count laid."""
-        from stcvision.stcgrid import BOX_EDGES
-
         subs = frame_subcells(_here(self.start_sub, moved), hc)
         return tuple(
             b for b, (k, d) in BOX_EDGES.items() if not boxes[b - 1] and (subs[k], frame_compass(hc, d)) in self.rows

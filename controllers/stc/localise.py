@@ -60,20 +60,23 @@ GATE = 3.0
 
 @dataclass(slots=True)
 class Fix:
-    """The belief's offset uncertainty: a variance per world axis (m^2), and the marks readings
-    the gate left out (counted for the run's summary)."""
+    """The belief's offset uncertainty: a variance per world axis (m^2); ``step_sigma_m`` a
+    forward move's own distance error (1 sigma, m: the robot's ``MarkingRobot.drive_sigma_m``);
+    and the readings, per axis, the gate left out (counted for the run's summary)."""
 
     var_m2: np.ndarray
+    step_sigma_m: float = 0.0
     rejected: int = 0
 
     @classmethod
     def placed(cls, sigma_m: float) -> Fix:
-        """At the start: placed on the start sub-cell's centre to within ``sigma_m``."""
-        return cls(np.full(2, sigma_m**2))
+        """At the start: placed on the start sub-cell's centre as well as a move of error
+        ``sigma_m`` (1 sigma, m) ends on one, which each move adds."""
+        return cls(np.full(2, sigma_m**2), sigma_m)
 
-    def moved(self, step_sigma_m: float) -> None:
-        """A forward move's own error (1 sigma, m) adds to the uncertainty."""
-        self.var_m2 = self.var_m2 + step_sigma_m**2
+    def moved(self) -> None:
+        """A forward move's own error adds to the uncertainty."""
+        self.var_m2 = self.var_m2 + self.step_sigma_m**2
 
     def lights(self, z: np.ndarray) -> np.ndarray:
         """The red lights' offset ``z`` (world, m): the new belief."""

@@ -6,7 +6,8 @@ interface (:class:`Perception`), three ways:
 * :class:`IdealPerception` -- the physics-limited camera (:class:`controllers.stc.frames.IdealCamera`):
   the camera's frames and time, exactly the marks within their visibility horizon;
 * :class:`CameraPerception` -- rendered frames read by the vision pipeline, and the robot's
-  localisation from them: where it stands (red lights, else its own marks), its heading error
+  localisation from them: where it stands (red lights and its own marks, each weighed against
+  what it believes: :mod:`controllers.stc.localise`), its heading error
   (the newest row's fit less the lean the red lights or all rows show), frames taken again when
   the red lights show them askew.
 

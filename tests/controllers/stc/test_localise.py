@@ -46,9 +46,9 @@ def test_sure_red_lights_replace_the_belief():
 
 
 def test_moves_add_their_own_error():
-    fix = Fix.placed(0.0)
+    fix = Fix(np.zeros(2), step_sigma_m=0.002)
     for _ in range(4):
-        fix.moved(0.002)
+        fix.moved()
     assert fix.var_m2 == pytest.approx(np.full(2, 4 * 0.002**2))
 
 
@@ -63,11 +63,11 @@ def test_a_fused_belief_lies_between_belief_and_reading(var, b, z, sigma):
     assert np.all(fix.var_m2 > 0)
 
 
-#: spiral_stc_test_2, cooled, seed 314, decisions 262-273 with no red light in view: per
-#: decision the lateral offset (world x, cm) the robot truly had and the marks' reading of its
-#: short frame. Taken whole, the reading 1.52 (truth -0.90) and later 2.15 (truth -0.16) moved the
-#: robot 2.3 cm off its centre; the next cell's exterior row then fell beyond the cell's edge and
-#: the robot read box 1 unmarked (a wrong decision)
+#: spiral_stc_test_2, cooled, seed 314, decisions 262-272 with no red light in view: per
+#: decision the marks' reading of the lateral offset (world x, cm) in its short frame. Taken
+#: whole, the reading 1.52 (truth -0.90) and later 2.15 (truth -0.16) moved the robot 2.3 cm off
+#: its centre; the next cell's exterior row then fell beyond the cell's edge and the robot read
+#: box 1 unmarked (a wrong decision)
 SEED_314_READINGS_CM = [-0.0, 1.524, -0.061, 0.0, -2.124, 0.004, 0.09, 0.017, 0.013, -0.0, 2.15]
 
 
@@ -81,6 +81,6 @@ def test_the_readings_that_led_to_a_wrong_decision_no_longer_move_the_robot_far(
     for z in SEED_314_READINGS_CM:
         belief = fix.fuse(np.zeros(2), np.array([z / 100, 0.0]), MARKS_SIGMA_M)
         worst = max(worst, abs(belief[0]))
-        fix.moved(0.002)
+        fix.moved()
     assert worst < 0.012, worst
     assert max(abs(z) for z in SEED_314_READINGS_CM) / 100 > 0.02
