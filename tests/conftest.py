@@ -3,12 +3,23 @@
 The peer files are vendored in ``datasets/peer_data/`` (sources and licences in its README), so a
 clone anywhere runs every test: a missing file is a failure, never a skip."""
 
+import signal
 from pathlib import Path
 
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 PEER = ROOT / "datasets" / "peer_data"
+
+
+def pytest_configure(config):
+    """A test session started in the background of a non-interactive shell (a CI script's
+    ``make test &``, ``nohup``) inherits SIGINT ignored, and so would every command the tests
+    start: Python then leaves Ctrl-C ignored too, and the tests that check a command stops on
+    Ctrl-C would fail for the shell's reason, not the command's. A handler here (it becomes the
+    default action across ``exec``) gives the commands the Ctrl-C a user's terminal gives them."""
+    if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
+        signal.signal(signal.SIGINT, signal.default_int_handler)
 
 
 @pytest.fixture(scope="session")
