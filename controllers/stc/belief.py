@@ -18,10 +18,10 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from controllers.stc.geometry import COMPASS_VEC, start_heading
-from controllers.stc.localise import Fix
+from controllers.stc.localise import Bearing, Fix
 from stcvision.stcgrid import entry_axes
 
-__all__ = ["Belief", "align_along", "drive_forward", "finish_turn", "recentre", "turn"]
+__all__ = ["Belief", "align_along", "drive_forward", "finish_turn", "lay_row", "recentre", "realign", "turn"]
 
 
 @dataclass(slots=True)
@@ -30,27 +30,42 @@ class Belief:
 
     ``sub`` (row, column) the sub-cell it believes it stands in; ``hc`` its compass heading
     (0 N, clockwise); ``turn_s`` its rotation time for 90 degrees; ``offset_m`` where it believes
-    it stands off the sub-cell's centre (world, m), from its localisation, and ``fix`` how sure
-    it is of it (:mod:`controllers.stc.localise`)."""
+    it stands off the sub-cell's centre (world, m), from its localisation, ``fix`` how sure
+    it is of it and ``bearing`` how sure of its heading (:mod:`controllers.stc.localise`);
+    ``realigned_rad`` how far it turned towards the grid (:func:`realign`) since it laid its
+    newest row, which was laid that much askew of the heading it now has."""
 
     sub: tuple[int, int]
     hc: int
     turn_s: float
     offset_m: np.ndarray = field(default_factory=lambda: np.zeros(2))
     fix: Fix = field(default_factory=lambda: Fix.placed(0.0))
+    bearing: Bearing = field(default_factory=Bearing.unknown)
+    realigned_rad: float = 0.0
 
     @classmethod
-    def at_start(cls, board, turn_s: float, step_sigma_m: float = 0.0) -> Belief:
-        """On the start sub-cell, facing the board's start heading, turn time ``turn_s`` (set
-        before the run: :attr:`controllers.stc.plant.Plant.calibrated_turn_s`); placed on its
-        centre as well as one move of error ``step_sigma_m`` ends there."""
-        return cls(tuple(board.start_subcell), start_heading(board), float(turn_s), fix=Fix.placed(step_sigma_m))
+    def at_start(
+        cls, board, turn_s: float, step_sigma_m: float = 0.0, heading_sigma_rad: float | None = None
+    ) -> Belief:
+        """On the start sub-cell, facing the board's start heading to within
+        ``heading_sigma_rad`` (None: :meth:`~controllers.stc.localise.Bearing.unknown`), turn time ``turn_s`` (set before the run:
+        :attr:`controllers.stc.plant.Plant.calibrated_turn_s`); placed on its centre as well as
+        one move of error ``step_sigma_m`` ends there."""
+        return cls(
+            tuple(board.start_subcell),
+            start_heading(board),
+            float(turn_s),
+            fix=Fix.placed(step_sigma_m),
+            bearing=Bearing.unknown() if heading_sigma_rad is None else Bearing.placed(heading_sigma_rad),
+        )
 
 
 def turn(plant, belief: Belief, left: bool) -> None:
-    """A 90-degree timed turn; the robot now believes it faces the next compass heading."""
+    """A 90-degree timed turn; the robot now believes it faces the next compass heading, as
+    surely as the recalibration on its newest row will set it (:func:`finish_turn`)."""
     plant.turn(left, belief.turn_s)
     belief.hc = (belief.hc + (3 if left else 1)) % 4
+    belief.bearing.turned()
 
 
 def finish_turn(plant, belief: Belief, left: bool, heading_err_rad: float | None) -> None:
@@ -66,6 +81,20 @@ def finish_turn(plant, belief: Belief, left: bool, heading_err_rad: float | None
     if rec.accepted:
         belief.turn_s = rec.turn_time_s
     plant.rotate_by(-heading_err_rad, belief.turn_s)
+
+
+def realign(plant, belief: Belief, rad: float) -> None:
+    """Turn by ``rad`` towards the grid as a reference other than the newest row shows it (the
+    red lights, the lean of all rows): the newest row is now that much askew of the heading,
+    which the next turn's recalibration on it must not undo."""
+    plant.rotate_by(rad, belief.turn_s)
+    belief.realigned_rad += rad
+
+
+def lay_row(plant, belief: Belief, floor) -> None:
+    """The rear LEDs' row on the sub-cell's rear edge, laid with the heading the robot now has."""
+    plant.lay_mark(floor, belief.sub, belief.hc)
+    belief.realigned_rad = 0.0
 
 
 def recentre(plant, belief: Belief) -> None:

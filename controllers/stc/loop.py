@@ -24,11 +24,12 @@ motion, and the camera, physics-limited and oracle runs of one seed drive the sa
 from __future__ import annotations
 
 import dataclasses
+import math
 import time
 
 import numpy as np
 
-from controllers.stc.belief import Belief, align_along, drive_forward, finish_turn, recentre, turn
+from controllers.stc.belief import Belief, align_along, drive_forward, finish_turn, lay_row, recentre, turn
 from controllers.stc.claims import OutOfSight
 from controllers.stc.config import ALIGN_MARK_M, RECENTRE_M, CoverConfig
 from controllers.stc.faults import Faults
@@ -79,7 +80,9 @@ def run_cover(board, cfg: CoverConfig | None = None, *, observers=(), perception
     plant = Plant(board, cfg.robot, rngs["motion"], rate_factor=faults.rate_factor(),
                   disturbances=faults.disturbances())  # fmt: skip
     floor = Floor(board, lay_filter=faults.lay_filter())
-    belief = Belief.at_start(board, plant.calibrated_turn_s, cfg.robot.drive_sigma_m)
+    # facing the start heading as well as the turn time set before the run turns a quarter turn
+    start_sigma_rad = cfg.robot.initial_turn_error * math.pi / 2
+    belief = Belief.at_start(board, plant.calibrated_turn_s, cfg.robot.drive_sigma_m, start_sigma_rad)
     see = make_perception(cfg, board, camera_rng=rngs["camera"], oracle_rng=rngs["oracle"],
                           camera_wrap=faults.camera_wrap(board))  # fmt: skip
     if perception_hook is not None:
@@ -247,7 +250,7 @@ def _act(action: Action, plant: Plant, belief: Belief, floor: Floor, see, watch)
     """The robot carries out ``action`` with what it believes; after a turn the perception
     measures the heading for the recalibration. Returns why the run must stop, or None."""
     if action is Action.MARK:
-        plant.lay_mark(floor, belief.sub, belief.hc)
+        lay_row(plant, belief, floor)
     elif action is Action.FORWARD:
         # a robot this far off its sub-cell centre (pushed, slipped) would lay its mark in the
         # wrong place, where the boxes read it wrongly: back to the centre first
@@ -257,7 +260,7 @@ def _act(action: Action, plant: Plant, belief: Belief, floor: Floor, see, watch)
             # a row lies across the heading: standing behind (or ahead of) the centre lays it
             # off its box line by as much, so the robot drives along its heading to it first
             align_along(plant, belief)
-        plant.lay_mark(floor, belief.sub, belief.hc)
+        lay_row(plant, belief, floor)
         return drive_forward(plant, belief)
     elif action in (Action.TURN_LEFT, Action.TURN_RIGHT):
         left = action is Action.TURN_LEFT

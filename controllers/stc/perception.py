@@ -26,7 +26,7 @@ from typing import Protocol
 
 import numpy as np
 
-from controllers.stc.belief import Belief, recentre
+from controllers.stc.belief import Belief, realign, recentre
 from controllers.stc.config import (
     LANDMARK_OFFSET_SIGMA,
     LANDMARK_TURN_SIGMA_RAD,
@@ -210,28 +210,30 @@ class CameraPerception(_TakesFrames):
         res, dt = cam.shoot(plant.pose, plant.t, floor.phosphor)
         plant.wait(cfg.robot.settle_s + dt)
         belief.offset_m = self._where(res.observation, belief)
+        lights = self._lights_rotation(res.observation)
+        if lights is not None:  # the heading's absolute reference, as sure as their spread
+            belief.bearing.lights(res.observation.landmark_rotation_sigma_rad)
         if not res.heading.ok:
             # no newest row to fit: the red lights, when they are sure enough, else the newest
             # row of a 2 s frame (a turn left uncorrected leaves the next cell read askew)
-            lights = self._lights_rotation(res.observation)
             if lights is not None:
                 return -lights
             if not cam.controlled:
                 return None
             res, dt = cam.shoot(plant.pose, plant.t, floor.phosphor, 1)
             plant.wait(dt)
-            return res.heading.heading_error_rad if res.heading.ok else None
+            return res.heading.heading_error_rad - belief.realigned_rad if res.heading.ok else None
         rows = None
         # the lean of all rows is wanted only where the red lights do not say it (_heading)
         few_rows = int(res.dots.lit.sum()) < 4 * cfg.consensus_rows  # (four dots a row)
-        if cfg.consensus_frame and cam.controlled and few_rows and self._lights_rotation(res.observation) is None:
+        if cfg.consensus_frame and cam.controlled and few_rows and lights is None:
             rows, dt = cam.shoot(
                 plant.pose, plant.t, floor.phosphor, 1, heading_error_rad=res.heading.heading_error_rad
             )
             plant.wait(dt)
         # the newest row carries the heading error the robot had when laying it; the lean of
-        # all the rows in view (the consensus of older marks) takes that out
-        return self._heading(res, rows)
+        # all the rows in view (the consensus of older marks) or the red lights take that out
+        return self._heading(res, belief, rows, taken=True)
 
     # ------------------------------------------------------------------ localisation
     def _read(self, plant, belief, take, *, lights_only: bool = False):
@@ -253,7 +255,7 @@ class CameraPerception(_TakesFrames):
             turned = self._correct_heading(short, plant, belief)
             if turned == 0.0:
                 turned = self._check_heading(short, plant, belief)
-            if abs(turned) < REOBSERVE_RAD and long is not None:
+            if turned == 0.0 and long is not None:  # (the lights, absolute, outrank the rows)
                 turned = self._correct_lean(long, plant, belief)
             moved = np.hypot(*belief.offset_m) > RECENTRE_M
             if moved:  # read the cell from where the robot should stand
@@ -265,15 +267,19 @@ class CameraPerception(_TakesFrames):
 
     def _correct_lean(self, long, plant, belief) -> float:
         """A long frame's rows, read with the short frame's heading, still lean by more than
-        :data:`REOBSERVE_RAD`: the heading has drifted that far; take it out. Returns the
-        rotation made (rad)."""
+        :data:`LEAN_TRIM_RAD`: the heading has drifted that far; take it out, unless the red
+        lights have set the heading more surely than the rows can say it
+        (:class:`controllers.stc.localise.Bearing`). Returns the rotation made (rad)."""
         lean = long.observation.pattern_rotation_rad if self.cfg.use_mark_consensus else None
         if lean is None:
             return 0.0
-        e = long.observation.heading_error_rad - lean
+        newest = long.observation.heading_error_rad
+        k = belief.bearing.rows_gain(newest - lean, HEADING_CHECK_RAD)
+        e = (1 - k) * (newest - belief.realigned_rad) + k * (newest - lean)
         if abs(e) <= LEAN_TRIM_RAD:
             return 0.0
-        plant.rotate_by(-e, belief.turn_s)
+        realign(plant, belief, -e)
+        belief.bearing.took_rows(k)
         # a small lean is a heading bias the newest row shares (it was laid with it), which
         # no turn's recalibration sees: taken out, the reading itself stands (0.3 degrees moves
         # box 2 by 1.4 mm); only a large one means the frames were read askew
@@ -299,25 +305,37 @@ class CameraPerception(_TakesFrames):
             off = fix.fuse(off, entry_offset_to_world(marks, belief.hc, sm), MARKS_SIGMA_M)
         return off
 
-    def _heading(self, res, rows=None) -> float | None:
+    def _heading(self, res, belief, rows=None, *, taken: bool = False) -> float | None:
         """The heading error: the newest row's, less what the red lights (absolute, when in view)
         or the lean of all rows (the consensus of older marks; from ``rows``, a long frame read
-        with the same heading, when given: it sees many more of them) say is left over."""
+        with the same heading, when given: it sees many more of them) say is left over -- the
+        rows' lean only while the robot's heading is less sure than the rows are, or where it
+        shows the robot turned on its own (:class:`controllers.stc.localise.Bearing`)."""
         if not res.heading.ok:
             return None
         cfg, o = self.cfg, res.observation
-        left = self._lights_rotation(o)
-        if left is None and cfg.use_mark_consensus:
-            left = o.pattern_rotation_rad
-            if rows is not None and rows.observation.pattern_rotation_rad is not None:
-                left = rows.observation.pattern_rotation_rad
-        return res.heading.heading_error_rad - (left if left is not None else 0.0)
+        newest = res.heading.heading_error_rad
+        lights = self._lights_rotation(o)
+        if lights is not None:
+            return newest - lights
+        lean = o.pattern_rotation_rad if cfg.use_mark_consensus else None
+        if lean is not None and rows is not None and rows.observation.pattern_rotation_rad is not None:
+            lean = rows.observation.pattern_rotation_rad
+        # against the newest row alone: less the turns towards the grid made since it was laid
+        # (it lies that much askew of the heading they gave)
+        own = newest - belief.realigned_rad
+        if lean is None:
+            return own
+        k = belief.bearing.rows_gain(newest - lean, HEADING_CHECK_RAD)
+        if taken:  # the caller turns by it
+            belief.bearing.took_rows(k)
+        return (1 - k) * own + k * (newest - lean)
 
     def _check_heading(self, res, plant, belief) -> float:
         """Without the red lights: a heading error over :data:`HEADING_CHECK_RAD` (the newest
         row's lean less the lean of all rows in view, :meth:`_heading`) means the robot turned
         during a move (a wheel slipped): turn back by it. Returns the rotation made (rad)."""
-        e = self._heading(res)
+        e = self._heading(res, belief)
         if e is not None and abs(e) > HEADING_CHECK_RAD:
             plant.rotate_by(-e, belief.turn_s)
             return -e
@@ -348,12 +366,16 @@ class CameraPerception(_TakesFrames):
         """Two or more red lights in view say how far the heading has drifted: take it out.
         Returns the rotation made (rad)."""
         if self.cfg.use_landmarks and res.observation.landmark_rotation_rad is not None:
-            e = self._heading(res)
+            e = self._heading(res, belief)
             sig = res.observation.landmark_rotation_sigma_rad
             # only a drift the lights show clearly (2.5 sigma), and never by a hair
             if e is not None and abs(e) > max(math.radians(0.5), 2.5 * sig):
-                plant.rotate_by(-e, belief.turn_s)
+                realign(plant, belief, -e)
+                if self._lights_rotation(res.observation) is not None:
+                    belief.bearing.lights(sig)
                 return -e
+            if e is not None and self._lights_rotation(res.observation) is not None:
+                belief.bearing.lights(sig, e)  # sure lights, a drift too small to turn out
         return 0.0
 
 

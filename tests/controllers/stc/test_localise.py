@@ -1,13 +1,24 @@
 """The robot's offset belief weighted against each reading (:mod:`controllers.stc.localise`):
 the Kalman weights, the gate that leaves a centimetres-off marks reading out, and the recorded
-readings of the run in which one such reading, taken whole, led to a wrong decision."""
+readings of the run in which one such reading, taken whole, led to a wrong decision; and the
+heading's uncertainty, which decides when the rows' lean may turn the robot."""
+
+import math
 
 import numpy as np
 import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from controllers.stc.localise import GATE, LIGHTS_SIGMA_M, MARKS_SIGMA_M, Fix
+from controllers.stc.localise import (
+    GATE,
+    LIGHTS_SIGMA_M,
+    MARKS_SIGMA_M,
+    ROWS_LEAN_SIGMA_RAD,
+    TURN_SIGMA_RAD,
+    Bearing,
+    Fix,
+)
 
 
 def test_equal_uncertainties_meet_half_way():
@@ -52,9 +63,7 @@ def test_moves_add_their_own_error():
     assert fix.var_m2 == pytest.approx(np.full(2, 4 * 0.002**2))
 
 
-@given(
-    var=st.floats(1e-8, 1e-3), b=st.floats(-0.05, 0.05), z=st.floats(-0.05, 0.05), sigma=st.floats(1e-4, 0.02)
-)
+@given(var=st.floats(1e-8, 1e-3), b=st.floats(-0.05, 0.05), z=st.floats(-0.05, 0.05), sigma=st.floats(1e-4, 0.02))
 def test_a_fused_belief_lies_between_belief_and_reading(var, b, z, sigma):
     fix = Fix(np.full(2, var))
     out = fix.fuse(np.full(2, b), np.full(2, z), sigma)
@@ -84,3 +93,51 @@ def test_the_readings_that_led_to_a_wrong_decision_no_longer_move_the_robot_far(
         fix.moved()
     assert worst < 0.012, worst
     assert max(abs(z) for z in SEED_314_READINGS_CM) / 100 > 0.02
+
+
+# ---------------------------------------------------------------------------------------------
+# the heading's uncertainty: when the rows' lean is the better reference
+
+
+def test_turns_add_their_residual_and_the_lights_set_the_heading():
+    b = Bearing.placed(math.radians(0.9))
+    for _ in range(4):
+        b.turned()
+    assert b.var_rad2 == pytest.approx(math.radians(0.9) ** 2 + 4 * TURN_SIGMA_RAD**2)
+    b.lights(math.radians(0.1))
+    assert b.var_rad2 == pytest.approx(math.radians(0.1) ** 2)
+    # a drift the lights showed but that was too small to turn out stays in the variance
+    b.lights(math.radians(0.1), math.radians(0.3))
+    assert b.var_rad2 == pytest.approx(math.radians(0.1) ** 2)  # (already surer: kept)
+    b = Bearing.placed(math.radians(0.9))
+    b.lights(math.radians(0.1), math.radians(0.3))
+    assert b.var_rad2 == pytest.approx(math.radians(0.1) ** 2 + math.radians(0.3) ** 2)
+
+
+def test_the_rows_lean_weighs_by_how_sure_the_heading_is():
+    turned = math.radians(2.0)
+    r2 = ROWS_LEAN_SIGMA_RAD**2
+    sure = Bearing.placed(math.radians(0.1))  # the lights just set it
+    k = sure.rows_gain(math.radians(1.2), turned)
+    assert k == pytest.approx(math.radians(0.1) ** 2 / (math.radians(0.1) ** 2 + r2)) and k < 0.1
+    unsure = Bearing.placed(3 * ROWS_LEAN_SIGMA_RAD)  # no light seen yet: the rows count most
+    assert unsure.rows_gain(math.radians(1.2), turned) == pytest.approx(0.9)
+    # a lean beyond what any reference is off by: the robot turned on its own (a slip)
+    assert sure.rows_gain(math.radians(-2.5), turned) == 1.0
+    # taken at the Kalman gain, the variance is the fused one; taken whole, the rows'
+    var = sure.var_rad2
+    sure.took_rows(k)
+    assert sure.var_rad2 == pytest.approx(var * r2 / (var + r2))
+    sure.took_rows(1.0)
+    assert sure.var_rad2 == pytest.approx(r2)
+
+
+@given(
+    st.floats(1e-8, 1e-3),  # the heading's variance, rad^2
+    st.floats(0.0, 1.0),  # any gain
+)
+def test_a_correction_by_the_kalman_gain_leaves_the_least_variance(var, gain):
+    best, other = Bearing(var), Bearing(var)
+    best.took_rows(best.rows_gain(0.0, math.radians(2.0)))
+    other.took_rows(gain)
+    assert best.var_rad2 <= other.var_rad2 * (1 + 1e-12)
