@@ -119,7 +119,7 @@ def test_the_rows_lean_weighs_by_how_sure_the_heading_is():
     r2 = ROWS_LEAN_SIGMA_RAD**2
     sure = Bearing.placed(math.radians(0.1))  # the lights just set it
     k = sure.rows_gain(math.radians(1.2), turned)
-    assert k == pytest.approx(math.radians(0.1) ** 2 / (math.radians(0.1) ** 2 + r2)) and k < 0.1
+    assert k == pytest.approx(math.radians(0.1) ** 2 / (math.radians(0.1) ** 2 + r2)) and k < 0.25
     unsure = Bearing.placed(3 * ROWS_LEAN_SIGMA_RAD)  # no light seen yet: the rows count most
     assert unsure.rows_gain(math.radians(1.2), turned) == pytest.approx(0.9)
     # a lean beyond what any reference is off by: the robot turned on its own (a slip)
