@@ -48,9 +48,9 @@ class Belief:
         cls, board, turn_s: float, step_sigma_m: float = 0.0, heading_sigma_rad: float | None = None
     ) -> Belief:
         """On the start sub-cell, facing the board's start heading to within
-        ``heading_sigma_rad`` (None: :meth:`~controllers.stc.localise.Bearing.unknown`), turn time ``turn_s`` (set before the run:
-        :attr:`controllers.stc.plant.Plant.calibrated_turn_s`); placed on its centre as well as
-        one move of error ``step_sigma_m`` ends there."""
+        ``heading_sigma_rad`` (None: :meth:`~controllers.stc.localise.Bearing.unknown`), turn
+        time ``turn_s`` (set before the run: :attr:`controllers.stc.plant.Plant.calibrated_turn_s`);
+        placed on its centre as well as one move of error ``step_sigma_m`` ends there."""
         return cls(
             tuple(board.start_subcell),
             start_heading(board),

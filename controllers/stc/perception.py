@@ -267,15 +267,12 @@ class CameraPerception(_TakesFrames):
 
     def _correct_lean(self, long, plant, belief) -> float:
         """A long frame's rows, read with the short frame's heading, still lean by more than
-        :data:`LEAN_TRIM_RAD`: the heading has drifted that far; take it out, unless the red
-        lights have set the heading more surely than the rows can say it
-        (:class:`controllers.stc.localise.Bearing`). Returns the rotation made (rad)."""
+        :data:`LEAN_TRIM_RAD` once weighed against how sure the heading is (:func:`_weigh_lean`):
+        the heading has drifted that far; take it out. Returns the rotation made (rad)."""
         lean = long.observation.pattern_rotation_rad if self.cfg.use_mark_consensus else None
         if lean is None:
             return 0.0
-        newest = long.observation.heading_error_rad
-        k = belief.bearing.rows_gain(newest - lean, HEADING_CHECK_RAD)
-        e = (1 - k) * (newest - belief.realigned_rad) + k * (newest - lean)
+        e, k = _weigh_lean(long.observation.heading_error_rad, lean, belief)
         if abs(e) <= LEAN_TRIM_RAD:
             return 0.0
         realign(plant, belief, -e)
@@ -309,8 +306,8 @@ class CameraPerception(_TakesFrames):
         """The heading error: the newest row's, less what the red lights (absolute, when in view)
         or the lean of all rows (the consensus of older marks; from ``rows``, a long frame read
         with the same heading, when given: it sees many more of them) say is left over -- the
-        rows' lean only while the robot's heading is less sure than the rows are, or where it
-        shows the robot turned on its own (:class:`controllers.stc.localise.Bearing`)."""
+        rows' lean weighed against how sure the heading is (:func:`_weigh_lean`); ``taken``:
+        the caller turns by the result, so the heading's variance becomes the fused one."""
         if not res.heading.ok:
             return None
         cfg, o = self.cfg, res.observation
@@ -321,15 +318,12 @@ class CameraPerception(_TakesFrames):
         lean = o.pattern_rotation_rad if cfg.use_mark_consensus else None
         if lean is not None and rows is not None and rows.observation.pattern_rotation_rad is not None:
             lean = rows.observation.pattern_rotation_rad
-        # against the newest row alone: less the turns towards the grid made since it was laid
-        # (it lies that much askew of the heading they gave)
-        own = newest - belief.realigned_rad
         if lean is None:
-            return own
-        k = belief.bearing.rows_gain(newest - lean, HEADING_CHECK_RAD)
-        if taken:  # the caller turns by it
+            return newest - belief.realigned_rad
+        e, k = _weigh_lean(newest, lean, belief)
+        if taken:
             belief.bearing.took_rows(k)
-        return (1 - k) * own + k * (newest - lean)
+        return e
 
     def _check_heading(self, res, plant, belief) -> float:
         """Without the red lights: a heading error over :data:`HEADING_CHECK_RAD` (the newest
@@ -368,15 +362,26 @@ class CameraPerception(_TakesFrames):
         if self.cfg.use_landmarks and res.observation.landmark_rotation_rad is not None:
             e = self._heading(res, belief)
             sig = res.observation.landmark_rotation_sigma_rad
+            sure = self._lights_rotation(res.observation) is not None
             # only a drift the lights show clearly (2.5 sigma), and never by a hair
             if e is not None and abs(e) > max(math.radians(0.5), 2.5 * sig):
                 realign(plant, belief, -e)
-                if self._lights_rotation(res.observation) is not None:
+                if sure:
                     belief.bearing.lights(sig)
                 return -e
-            if e is not None and self._lights_rotation(res.observation) is not None:
-                belief.bearing.lights(sig, e)  # sure lights, a drift too small to turn out
+            if e is not None and sure:
+                belief.bearing.lights(sig, e)  # a drift too small to turn out
         return 0.0
+
+
+def _weigh_lean(newest: float, lean: float, belief) -> tuple[float, float]:
+    """The heading error (rad) from the newest row's fit ``newest`` and the lean of all rows
+    ``lean``, weighed by the robot's heading variance
+    (:meth:`controllers.stc.localise.Bearing.rows_gain`), and the gain used. Against the newest
+    row alone, the turns towards the grid made since it was laid come off (it lies that much
+    askew of the heading they gave)."""
+    k = belief.bearing.rows_gain(newest - lean, HEADING_CHECK_RAD)
+    return (1 - k) * (newest - belief.realigned_rad) + k * (newest - lean), k
 
 
 def _believable(off) -> bool:

@@ -12,8 +12,7 @@ import pytest
 
 
 def _cli(tmp_path, *argv):
-    # SIGINT at its default, so that Python turns it into KeyboardInterrupt (a background job
-    # of a non-interactive shell inherits it ignored)
+    # (SIGINT reaches the command at its default whatever the session inherited: tests/conftest.py)
     env = dict(os.environ, PYTHONUNBUFFERED="1")
     return subprocess.Popen(
         [sys.executable, "-m", "stcvision", *argv],
@@ -22,7 +21,6 @@ def _cli(tmp_path, *argv):
         text=True,
         cwd=tmp_path,
         env=env,
-        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
     )
 
 
