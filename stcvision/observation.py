@@ -343,7 +343,9 @@ class CellObservation:
     start_mark: int | None = None
     landing_marked: tuple[bool, bool, bool, bool] = (False, False, False, False)
     #: where the marks say the robot stands, off its sub-cell centre, in the entry frame
-    #: (right, up; cell units = sub-cell sides); None with too few rows in view
+    #: (right, up; cell units = sub-cell sides); None with too few rows in view. An axis with
+    #: no rows across it reads 0 here (the boxes are read unshifted along it): which axes the
+    #: marks did measure is :attr:`position_offset_axes`
     position_offset: tuple[float, float] | None = None
     #: how far all the rows in view still lean (counter-clockwise, rad) after the rotation by
     #: ``heading_error_rad``: the consensus of every mark, not just the newest row
@@ -362,6 +364,9 @@ class CellObservation:
     #: why this reading cannot be trusted ("" when it can): the dot search hit a cap
     #: (:attr:`stcvision.stages.Dots.untrusted`); a controller must not decide on it
     untrusted: str = ""
+    #: which axes of ``position_offset`` (right, up) this frame's marks measured; both False
+    #: when the caller gave the offset (it is then no reading of the marks)
+    position_offset_axes: tuple[bool, bool] = (False, False)
 
     def lit(self, box: int) -> bool:
         return self.boxes[box - 1].lit
@@ -438,7 +443,7 @@ def observe_cell(
         (right, up; cell units) instead of where this frame's marks say (e.g. the red lights'
         offset from a short frame at the same pose: a long frame's marks may mislead it).
     """
-    ru, orient, offset = _cell_dots(dots, geometry, heading_error_rad, params, position_offset)
+    ru, orient, offset, axes = _cell_dots(dots, geometry, heading_error_rad, params, position_offset)
     sub, box, nb = assign_boxes(ru, orient) if len(ru) else (np.zeros(0, np.int64),) * 3
     thr = dots.threshold_snr
     boxes, visited, stray, start_mark, nb_stats = _read_boxes(dots, sub, box, nb, params)
@@ -464,6 +469,7 @@ def observe_cell(
         lean,
         *landmark,
         getattr(dots, "untrusted", ""),
+        axes,
     )
 
 
@@ -471,17 +477,18 @@ def _cell_dots(dots, geometry: CellGeometry, heading_error_rad: float, params: O
     """The dots in cell units, rotated back by the heading error and shifted by the robot's
     offset (``position_offset``, else where the marks say it stands); their row orientation
     (:func:`row_orientation`, lit dots only: rows are made of lit dots; -1 for the rest); and
-    that offset (None: too few rows)."""
+    that offset (None: too few rows); and which of its axes the marks measured."""
     if not len(dots):
-        return np.zeros((0, 2)), np.zeros(0, np.int64), None
+        return np.zeros((0, 2)), np.zeros(0, np.int64), None, (False, False)
     ru = _rotate(geometry.to_cell(dots.xy_px), heading_error_rad)
     lit = np.asarray(dots.lit, np.bool_)
     orient, have, off = cell_dots(ru, lit, ROW_TOL, ROW_SPAN, MARK_INSET, MARK_MIN_DOTS)
     # where the robot really stands, from the marks: read the boxes relative to that
     offset = _offset_of(have, off) if position_offset is None else tuple(position_offset)
+    axes = (bool(have[0]), bool(have[1])) if position_offset is None else (False, False)
     if offset is not None and params.use_offset:
         ru = ru + np.asarray(offset)
-    return ru, orient, offset
+    return ru, orient, offset, axes
 
 
 def _read_boxes(dots, sub: np.ndarray, box: np.ndarray, nb: np.ndarray, params: ObservationParams):

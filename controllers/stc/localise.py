@@ -121,19 +121,21 @@ class Fix:
         self.var_m2 = np.full(2, LIGHTS_SIGMA_M**2)
         return np.asarray(z, float).copy()
 
-    def fuse(self, belief: np.ndarray, z: np.ndarray, sigma_m: float) -> np.ndarray:
+    def fuse(self, belief: np.ndarray, z: np.ndarray, sigma_m: float, axes=(True, True)) -> np.ndarray:
         """A reading ``z`` (world, m) of error ``sigma_m`` (1 sigma) fused into ``belief`` per
         axis; an axis whose reading lies beyond :data:`GATE` standard deviations keeps the
-        belief. Returns the new belief."""
+        belief, and so does one the reading did not measure (``axes``, per world axis: a
+        reading of 0 there says nothing). Returns the new belief."""
         r = sigma_m**2
         belief, z = np.asarray(belief, float), np.asarray(z, float)
+        measured = np.asarray(axes, bool)
         s = self.var_m2 + r
         inside = np.abs(z - belief) <= GATE * np.sqrt(s)
-        k = np.where(inside, self.var_m2 / s, 0.0)
+        k = np.where(inside & measured, self.var_m2 / s, 0.0)
         out = belief + k * (z - belief)
         unsure = np.maximum(self.var_m2 + r, ((z - belief) / GATE) ** 2)
-        self.var_m2 = np.where(inside, (1 - k) * self.var_m2, unsure)
-        self.rejected += int((~inside).sum())
+        self.var_m2 = np.where(~measured, self.var_m2, np.where(inside, (1 - k) * self.var_m2, unsure))
+        self.rejected += int((measured & ~inside).sum())
         return out
 
 

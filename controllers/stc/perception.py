@@ -209,7 +209,7 @@ class CameraPerception(_TakesFrames):
         cam, cfg = self.cam, self.cfg
         res, dt = cam.shoot(plant.pose, plant.t, floor.phosphor)
         plant.wait(cfg.robot.settle_s + dt)
-        belief.offset_m = self._where(res.observation, belief)
+        belief.offset_m, _ = self._where(res.observation, belief)
         lights = self._lights_rotation(res.observation)
         if lights is not None:  # the heading's absolute reference, as sure as their spread
             belief.bearing.lights(res.observation.landmark_rotation_sigma_rad)
@@ -242,7 +242,9 @@ class CameraPerception(_TakesFrames):
         and, with the red lights, how far its heading has drifted; a drift over
         :data:`REOBSERVE_RAD` means the frames were read askew, so they are taken once more; so
         are they when the robot finds itself over :data:`RECENTRE_M` off its sub-cell centre
-        (it drives back first) or its newest row leaning (:meth:`_check_heading`).
+        (it drives back first) or its newest row leaning (:meth:`_check_heading`), and when the
+        red lights disagreed with the belief beyond what either could be off by
+        (:meth:`_where`): the second frame says which of them to believe.
         Where no lights are in view, a long frame's rows say it: they were laid square to the
         grid, so their lean is the heading's drift (a robot 7.7 degrees askew read the rows of
         the cell behind as a start mark and stopped a 12x12 tour half-way). Returns (reading,
@@ -251,7 +253,7 @@ class CameraPerception(_TakesFrames):
             reading, short, long, dt = take(plant.pose, plant.t)
             plant.wait(self.cfg.robot.settle_s + dt)
             self._check_lights(short, belief)
-            belief.offset_m = self._where(short.observation, belief, lights_only=lights_only)
+            belief.offset_m, doubted = self._where(short.observation, belief, lights_only=lights_only)
             turned = self._correct_heading(short, plant, belief)
             if turned == 0.0:
                 turned = self._check_heading(short, plant, belief)
@@ -260,7 +262,7 @@ class CameraPerception(_TakesFrames):
             moved = np.hypot(*belief.offset_m) > RECENTRE_M
             if moved:  # read the cell from where the robot should stand
                 recentre(plant, belief)
-            if abs(turned) < REOBSERVE_RAD and not moved:
+            if abs(turned) < REOBSERVE_RAD and not moved and not doubted:
                 break
             self.reobserved += attempt == 0  # (a second askew reading is kept)
         return reading, long or short
@@ -282,25 +284,40 @@ class CameraPerception(_TakesFrames):
         # box 2 by 1.4 mm); only a large one means the frames were read askew
         return -e if abs(e) > REOBSERVE_RAD else 0.0
 
-    def _where(self, observation, belief, *, lights_only: bool = False) -> np.ndarray:
+    def _where(self, observation, belief, *, lights_only: bool = False) -> tuple[np.ndarray, bool]:
         """The robot's offset from its sub-cell centre (world, m), from the red lights in view
         and its own marks (``lights_only``: not from them), each weighted by its uncertainty
         against the belief so far (:class:`controllers.stc.localise.Fix`): sure red lights
         (absolute: they stand at cell centres) replace it; less sure ones, and the marks, are
-        fused into it unless they disagree with it beyond what either could be off by."""
+        fused into it unless they disagree with it beyond what either could be off by.
+        Returns (the offset, whether the gate left the red lights out).
+
+        Why the second: along its track the robot's marks say only where its own newest rows
+        lie, and those were laid where it then stood, so the belief they keep can walk away
+        from the truth by a move's error at a time (2 mm, 1 sigma) while its variance stays
+        small; the red lights are the only absolute reference and may be in view for one
+        reading only. Left out once, the gate has made the belief as unsure as that reading
+        needs, and a second frame's lights that agree are taken (spiral_stc_test_3, lowlight,
+        seed 821: lights 2.1 cm from a belief of 0, right to 0.8 mm, left out; the robot, 2 cm
+        off, later read an old row as a start mark and stopped)."""
         fix, sm = belief.fix, self.board.subcell_m
         off = belief.offset_m
         lights = observation.landmark_offset if self.cfg.use_landmarks else None
+        doubted = False
         if _believable(lights):
             spread = observation.landmark_offset_sigma
             if spread <= LANDMARK_OFFSET_SIGMA:
-                return fix.lights(entry_offset_to_world(lights, belief.hc, sm))
+                return fix.lights(entry_offset_to_world(lights, belief.hc, sm)), False
             if spread <= LIGHTS_WIDE_SPREAD:
+                left_out = fix.rejected
                 off = fix.fuse(off, entry_offset_to_world(lights, belief.hc, sm), LIGHTS_WIDE_SIGMA_M)
+                doubted = fix.rejected > left_out
         marks = observation.position_offset
-        if not lights_only and _believable(marks):
-            off = fix.fuse(off, entry_offset_to_world(marks, belief.hc, sm), MARKS_SIGMA_M)
-        return off
+        if not lights_only and not doubted and _believable(marks):  # (doubted: the re-look says)
+            # only the axes the marks measured: rows across one axis say nothing of the other
+            axes = np.abs(entry_offset_to_world(observation.position_offset_axes, belief.hc, 1.0)) > 0.5
+            off = fix.fuse(off, entry_offset_to_world(marks, belief.hc, sm), MARKS_SIGMA_M, axes)
+        return off, doubted
 
     def _heading(self, res, belief, rows=None, *, taken: bool = False) -> float | None:
         """The heading error: the newest row's, less what the red lights (absolute, when in view)

@@ -277,27 +277,86 @@ def test_a_row_is_laid_on_its_line_by_a_robot_behind_its_sub_cell_centre():
 # a look's position from rows laid at other times
 
 
+def _perception():
+    """The camera perception's localisation alone, on a 4x4 open board (no camera)."""
+    from controllers.stc.perception import CameraPerception
+
+    see = CameraPerception.__new__(CameraPerception)
+    see.cfg, see.board = CoverConfig(), Board(np.zeros((4, 4), bool), (3, 1))
+    return see
+
+
+def _fix_reading(lights=None, spread=None, *, marks=(0.0, 0.0), axes=(True, True)):
+    """A cell observation's localisation fields: the red lights' offset and spread, the marks'
+    offset and which of its axes they measured (entry frame, sub-cell sides)."""
+    from types import SimpleNamespace
+
+    return SimpleNamespace(
+        landmark_offset=lights, landmark_offset_sigma=spread, position_offset=marks, position_offset_axes=axes
+    )
+
+
 def test_a_look_takes_its_position_from_the_red_lights_only():
     """At a look the robot stands beside the exit, where the rows in view were laid at many
     other times, each where the robot then stood: their offset moved the robot's belief by a
     centimetre and its next row with it. A look's offset comes from the red lights, or stays
     what the robot believed; a decision's still reads the cell's own rows, weighted against the
     belief (:mod:`controllers.stc.localise`)."""
-    from types import SimpleNamespace
-
-    import numpy as np
-
-    from controllers.stc.perception import CameraPerception
-
-    see = CameraPerception.__new__(CameraPerception)
-    see.cfg, see.board = CoverConfig(), Board(np.zeros((4, 4), bool), (3, 1))
+    see = _perception()
     belief = Belief((0, 0), 0, 1.5, np.array([0.001, -0.002]), fix=Fix.placed(0.004))
-    marks_only = SimpleNamespace(landmark_offset=None, landmark_offset_sigma=None, position_offset=(0.05, 0.0))
-    assert see._where(marks_only, belief, lights_only=True) is belief.offset_m
+    marks_only = _fix_reading(marks=(0.05, 0.0))
+    off, doubted = see._where(marks_only, belief, lights_only=True)
+    assert off is belief.offset_m and not doubted
     # as unsure of itself as the marks are (4 mm), the robot goes half-way to what they say
-    assert see._where(marks_only, belief)[0] == pytest.approx(0.5 * (0.001 + 0.05 * see.board.subcell_m))
-    lights = SimpleNamespace(landmark_offset=(0.0, 0.02), landmark_offset_sigma=0.01, position_offset=(0.05, 0.0))
-    assert np.allclose(see._where(lights, belief, lights_only=True), [0.0, 0.02 * see.board.subcell_m])
+    assert see._where(marks_only, belief)[0][0] == pytest.approx(0.5 * (0.001 + 0.05 * see.board.subcell_m))
+    lights = _fix_reading((0.0, 0.02), 0.01, marks=(0.05, 0.0))
+    assert np.allclose(see._where(lights, belief, lights_only=True)[0], [0.0, 0.02 * see.board.subcell_m])
+
+
+def test_an_axis_the_marks_did_not_measure_keeps_the_belief():
+    """Rows across one axis say nothing of the other, where the observation reads 0: fused as a
+    reading, that 0 held a robot 2.3 cm off its centre at 'centred' on open floor and shrank its
+    variance until the red lights that showed the offset were left out as outliers
+    (spiral_stc_test_3, lowlight, seed 821, a safe stop). The measured axis is fused, the other
+    keeps its value and its variance."""
+
+    from controllers.stc.perception import entry_offset_to_world
+
+    see = _perception()
+    sm = see.board.subcell_m
+    for hc in range(4):
+        belief = Belief((0, 0), hc, 1.5, np.array([0.003, -0.003]), fix=Fix.placed(0.004))
+        var0 = belief.fix.var_m2.copy()
+        # the marks measured 'right' only: 0.01 sub-cells off, nothing along 'up'
+        o = _fix_reading(marks=(0.01, 0.0), axes=(True, False))
+        off, _ = see._where(o, belief)
+        right, up = (np.abs(entry_offset_to_world(e, hc, 1.0)) > 0.5 for e in ((1, 0), (0, 1)))
+        assert off[up] == pytest.approx(belief.offset_m[up]), hc  # untouched
+        assert belief.fix.var_m2[up] == pytest.approx(var0[up])
+        assert belief.fix.var_m2[right] < var0[right]  # the measured axis is surer
+        z = entry_offset_to_world((0.01, 0.0), hc, sm)[right]
+        assert off[right] == pytest.approx(0.5 * (belief.offset_m[right] + z)), hc
+
+
+def test_red_lights_the_gate_left_out_are_looked_at_again():
+    """The red lights, the only absolute reference, disagreeing with the belief beyond the gate:
+    the reading says so (the caller takes the frames again), the marks of that reading are not
+    fused (they are the suspects: laid where the robot stood), and the same lights read again
+    are taken."""
+
+    from controllers.stc.perception import entry_offset_to_world
+
+    see = _perception()
+    sm = see.board.subcell_m
+    belief = Belief((0, 0), 0, 1.5, np.zeros(2), fix=Fix.placed(0.002))
+    lights = (0.0, -0.14)  # 2.2 cm along 'up', wide spread: fused, not replacing
+    o = _fix_reading(lights, 0.05)
+    off, doubted = see._where(o, belief)
+    assert doubted and np.allclose(off, 0.0)  # neither the lights nor the marks moved it
+    belief.offset_m = off
+    off, doubted = see._where(o, belief)
+    z = entry_offset_to_world(lights, 0, sm)
+    assert not doubted and np.allclose(off, z, atol=0.003)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -361,10 +420,7 @@ def test_a_turn_after_the_lights_set_the_heading_keeps_their_correction():
     import math
     from types import SimpleNamespace
 
-    import numpy as np
-
     from controllers.stc.belief import lay_row, realign
-    from controllers.stc.perception import CameraPerception
 
     class _Plant:
         hdg = 0.0
@@ -375,8 +431,7 @@ def test_a_turn_after_the_lights_set_the_heading_keeps_their_correction():
         def lay_mark(self, floor, sub, hc):
             pass
 
-    see = CameraPerception.__new__(CameraPerception)
-    see.cfg, see.board = CoverConfig(), Board(np.zeros((4, 4), bool), (3, 1))
+    see = _perception()
     belief, plant = Belief((0, 0), 0, 1.5), _Plant()
     realign(plant, belief, math.radians(0.94))  # the lights
     turn_error = math.radians(0.3)  # what the turn did wrong
