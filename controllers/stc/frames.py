@@ -634,7 +634,11 @@ class RobotCamera(Exposures):
                 self.last_image, heading_error_rad=res.observation.heading_error_rad, position_offset=fit.offset
             )
             self.refits += 1
-            return again, 0
+            # the fit moved only the axes the cell's rows measured: the robot's localisation
+            # takes those (an offset given to the pipeline counts as no reading of the marks)
+            axes = res.observation.position_offset_axes
+            o = dataclasses.replace(again.observation, position_offset_axes=axes)
+            return dataclasses.replace(again, observation=o), 0
         return res, max(fit.off_line, need)
 
     def look(self, pose, t_s, phosphor, *, landing: bool = False):
