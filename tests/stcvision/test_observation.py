@@ -150,3 +150,28 @@ def test_homography_kernel_is_numpy_product(default_profile):
         assert np.array_equal(g.to_cell(p), ref)
         if n >= 2:
             assert np.array_equal(homography(g.H, p), ref)
+
+
+def test_the_marks_offset_says_which_axes_its_rows_measured():
+    """Rows along 'up' only (varying in u) measure the offset to the right and nothing up: the
+    observation reads 0 up (the boxes are read unshifted there) and says that axis was not
+    measured, so a localisation does not take that 0 for a reading. An offset the caller gives
+    is no reading of the marks at all."""
+    from types import SimpleNamespace
+
+    from stcvision.observation import MARK_INSET, ObservationParams, _cell_dots
+
+    class Dots(SimpleNamespace):
+        def __len__(self):
+            return len(self.xy_px)
+
+    flat = SimpleNamespace(to_cell=lambda xy: np.asarray(xy, float))
+    d = 0.02  # the robot 0.02 sub-cell left of its centre: the rows lie that much right
+    pts = [(1 - MARK_INSET + d, u) for u in (0.2, 0.4, 0.6, 0.8)]
+    pts += [(-1 + MARK_INSET + d, -u) for u in (0.2, 0.4, 0.6, 0.8)]
+    dots = Dots(xy_px=np.array(pts), lit=np.ones(len(pts), bool))
+    _, orient, offset, axes = _cell_dots(dots, flat, 0.0, ObservationParams(), None)
+    assert (orient == 1).all() and axes == (True, False)
+    assert offset == pytest.approx((-d, 0.0))
+    _, _, offset, axes = _cell_dots(dots, flat, 0.0, ObservationParams(), (0.01, 0.02))
+    assert offset == (0.01, 0.02) and axes == (False, False)
