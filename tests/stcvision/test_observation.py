@@ -175,3 +175,42 @@ def test_the_marks_offset_says_which_axes_its_rows_measured():
     assert offset == pytest.approx((-d, 0.0))
     _, _, offset, axes = _cell_dots(dots, flat, 0.0, ObservationParams(), (0.01, 0.02))
     assert offset == (0.01, 0.02) and axes == (False, False)
+
+
+#: the seven red lights of a short frame (cell units, rotated by the heading fit; the robot at
+#: ROBOT_IN_CELL) and the cell centres they were assigned, at spiral_stc_test_2, cooled, seed
+#: 918, t = 5,289 s: the light at (6.525, 0.091) lies 8.4 cm (5.7 sigma) off its centre along
+#: its ray; fitted with it, the robot's offset came out 0.9 cm from the truth
+_LIGHTS_918 = [(5.906, -5.837), (5.944, -3.878), (6.005, -1.909), (7.898, -1.894), (6.525, 0.091), (6.002, 2.085),
+               (5.956, 4.05)]  # fmt: skip
+_CENTRES_918 = [(6, -6), (6, -4), (6, -2), (8, -2), (6, 0), (6, 2), (6, 4)]
+
+
+def test_a_red_light_far_off_its_cell_centre_is_left_out_of_the_fit():
+    """Synthetic lights at their cell centres, seen from a robot turned 0.3 degrees and 0.05 of a
+    sub-cell off, one of them moved as the recorded one (0.5 sub-cells along its ray, 0.09
+    across): the fit leaves that one out and recovers the pose (0.005 sub-cells, 0.8 mm; 0.05
+    degrees); with it, it would be over 0.03 off. On the recorded frame the fit equals the one
+    without the far-off light."""
+    from scipy import stats
+
+    from stcvision.observation import LIGHT_OUTLIER_CHI2, _landmark_fit, _landmark_wls, _rotate
+    from stcvision.profile import ROBOT_IN_CELL
+
+    assert LIGHT_OUTLIER_CHI2 == pytest.approx(stats.chi2.ppf(0.999, 2))
+    exp = np.array(_CENTRES_918, float)
+    th, off = np.radians(0.3), np.array([0.05, -0.03])
+    obs = _rotate(exp - off, th)  # exp = R(-th) (obs - robot) + robot + off
+    rng = np.random.default_rng(5)
+    obs = obs + rng.normal(0, 0.003, obs.shape)
+    ray = (obs[4] - ROBOT_IN_CELL) / np.hypot(*(obs[4] - ROBOT_IN_CELL))
+    bad = obs.copy()
+    bad[4] = obs[4] + 0.5 * ray + 0.09 * np.array([-ray[1], ray[0]])  # as recorded: 0.5 along, 0.09 across
+    got_th, got_off, _, _ = _landmark_fit(bad, exp, 0.16)
+    assert np.allclose(got_off, off, atol=0.005) and got_th == pytest.approx(th, abs=np.radians(0.05))
+    naive = _landmark_wls(bad, exp, 0.16)
+    assert np.hypot(*(naive[1] - off)) > 0.03  # what the fit would have been
+    # the recorded frame: the same as the fit without the light at (6.525, 0.091)
+    rec, cen = np.array(_LIGHTS_918), np.array(_CENTRES_918, float)
+    kept = np.arange(len(rec)) != 4
+    assert np.allclose(_landmark_fit(rec, cen, 0.16)[1], _landmark_fit(rec[kept], cen[kept], 0.16)[1])
