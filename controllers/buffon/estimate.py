@@ -34,8 +34,9 @@ within ~10 % of the truth up to b ~ 0.3 and runs to 1.3-1.8x at b = 0.5-0.7): it
 carries ``area_warning`` saying so, and the estimate must not be trusted.
 
 **Online visit lengths** (``--visit-steps auto``, the default; :mod:`controllers.buffon.stopping`):
-the first visit ends at a trail coverage of 0.13, the second when its crossing rate is known to
-5 %. Each visit then measures the area on its own:
+the first visit ends at a fixed trail coverage once its self-encounters come at a steady rate
+(its trail has mixed), the second when its crossing rate is known to a set relative error. Each
+visit then measures the area on its own:
 
 * the second visit, by Buffon/Barbier as above: A2 = 2 L1 L2 (1 - b2) / (pi N);
 * the first visit, by its own self-encounters n1 (which its stopping rule counts): a uniform curve
