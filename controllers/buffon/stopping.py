@@ -49,25 +49,25 @@ reaches 0.2), so waiting for ever would trade one bias for another.
 
 Why not a test of significance, and why the term a: the robot's encounters are not Poisson about
 any smooth rate even in an open nest (the path lingers along its own trail and comes back to its
-recent loops): measured on the calibration family at rho = 0.13 (8 trials a nest), the Poisson
-dispersion X^2 / (m - 1) about a rate proportional to l alone (b only, all bins) had medians of
-3-42 over the open nests, so
-a chi-square test rejects mixing in every nest at any level, and more often the larger the nest
+recent loops). Measured on the calibration family at rho = 0.13 (8 trials a nest,
+``docs/buffon_mixing_choice.py``): the Poisson dispersion X^2 / (m - 1) about a rate proportional
+to l alone (b only, all bins) had medians of 2.9-42 over the 16 nests without compartments, so a
+chi-square test rejects mixing in every nest at any level, and more often the larger the nest
 (more encounters). The spread s is the size of the swings, not their significance. The rate is
-not proportional to l alone either: in the first tenth of the path it is 1.6-3 times that (the
-start's neighbourhood and the path's own recent loops: a term per unit path, a), and late in the
-visit blending lowers it (0.8 times); hence the term a, and only the later half of the bins.
-What it cannot see: a robot shut in one compartment for the whole later half meets its trail
-at a rate that grows smoothly too (as in a smaller nest), and passes.
+not proportional to l alone either: in the first tenth of the path it is 1.3-3.5 times that (the
+start's neighbourhood and the path's own recent loops: a term per unit path, a), and in the last
+tenth 0.76-0.90 times (blending); hence the term a, and only the later half of the bins. What it
+cannot see: a robot shut in one compartment for the whole later half meets its trail at a rate
+that grows smoothly too (as in a smaller nest), and passes.
 
-The two constants were chosen on the calibration family (first visits of 8 trials a nest, seeds
-9100 + i): the spread of the nests' median A1 (log) was 0.053 at the coverage alone, 0.023 with
-``mix_tol`` 0.10 and ``max_coverage`` 0.18 (0.027 with 0.12 and 0.18, 0.037 with 0.10 and 0.16),
-the single trials' spread about their nest's A1 0.063 and 0.050; the first visits ran a median
-1.05 times longer (1.9 in the nest hardest split, a circle with a ``plus:0.9`` barrier), and
-1.06 in the standard circle (12 trials, seed 64). Within a nest, trials whose spread (1b) was
-larger at the coverage read A1 lower (Spearman -0.48 over the 160 trials, about their nests'
-medians).
+The two constants were chosen on the calibration family (8 trials a nest, seeds 9100 + i, the same
+script): the spread (log) of the nests' median A1 was 0.053 at the coverage alone, 0.023 with
+``mix_tol`` 0.10 and ``max_coverage`` 0.18 (0.027 with 0.12, 0.014 with 0.08, 0.037 with a cap of
+0.16), the single trials' A1 spread about their nest's median 0.063 and 0.050; the first visits'
+paths were a median 1.08 times longer (1.04 with 0.12, 1.18 with 0.08, which also reads the
+compartment nests 1-7 % high). Within a nest, trials whose spread
+(1b) was larger at the coverage read A1 lower (rank correlation -0.48 over the 160 trials, about
+their nests' medians).
 
 **Second visit: stop when the crossing rate is pinned down and the path has mixed.** The second
 visit counts crossings N over path L2. The rate N / L2 is an average of a correlated series (the
