@@ -309,3 +309,30 @@ def test_heldout_script_calibration_mode_prints_the_factor(tmp_path, capsys, mon
     cal = json.loads(capsys.readouterr().out)
     assert cal["nests"] == 2 and cal["trials"] == 6 and cal["correction"] > 0
     assert len((tmp_path / "calibration.jsonl").read_text().splitlines()) == 2
+
+
+def test_mixing_choice_script_measures_the_rule_on_a_shrunk_family(tmp_path, capsys, monkeypatch):
+    """docs/buffon_mixing_choice.py (the results page's measurements behind the mixing test) on
+    two small nests, two trials, one setting: it prints the per-nest table and writes every
+    figure, the coverage-alone row first."""
+    import importlib.util
+    import json
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parents[3] / "docs" / "buffon_mixing_choice.py"
+    spec = importlib.util.spec_from_file_location("buffon_mixing_choice", path)
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    small = [
+        {"family": "calibration", "spec": s, "barrier": b} for s, b in (("circle:30", None), ("square:30", "plus:0.6"))
+    ]
+    monkeypatch.setattr(mod, "calibration_family", lambda folder: small)
+    monkeypatch.setattr(mod, "SETTINGS", ((P.mix_tol, P.max_coverage),))
+    assert mod.main(["--out", str(tmp_path), "--trials", "2", "--seed", "3"]) == 0
+    out = capsys.readouterr().out
+    assert "circle:30 |" in out and "rank correlation" in out
+    saved = json.loads((tmp_path / "mixing_choice.json").read_text())
+    assert len(saved["streams"]) == 2 and all(len(r["trials"]) == 2 for r in saved["streams"])
+    first, second = saved["settings"]
+    assert first["mix_tol"] is None and first["first_visit_length_ratio"] == 1.0
+    assert second["first_visit_length_ratio"] >= 1.0
