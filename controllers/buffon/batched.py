@@ -233,11 +233,12 @@ def _rule_stops(st, lay, plen, crossings, steps_done, blind, sp, bst, l1_u):
     visit that cannot reach its coverage gives up (``st[GAVE_UP]``)."""
     coverage, min_self, pi_w, second_ratio = sp[0], sp[1], sp[2], sp[3]
     min_cross, rel_se, batches, max_ratio = sp[4], sp[5], int(sp[6]), sp[7]
+    mix_tol, max_coverage = sp[8], sp[9]
     if not lay:
         return second_visit_done(
             bst, plen / BODY_LENGTH_M, crossings, l1_u, second_ratio, min_cross, rel_se, batches, max_ratio
         )
-    if first_visit_done(plen / BODY_LENGTH_M, crossings, coverage, min_self, pi_w):
+    if first_visit_done(plen / BODY_LENGTH_M, crossings, coverage, min_self, pi_w, bst, batches, mix_tol, max_coverage):
         return True
     if first_visit_hopeless(steps_done, blind, crossings, min_self):
         st[GAVE_UP] = 1.0
@@ -254,7 +255,7 @@ def _visit(st, beh, irg, slip, steps, grid, lay, geo, outer, trail, prm, ir_ang,
     visit first laid the cell); ``lay``: visit 1 (lay, and count encounters with its own older
     trail) or 2 (sense and count crossings); ``rec`` (steps or 0, 3): x, y, crossed per step.
     ``auto``: stop when the online rule (:mod:`controllers.buffon.stopping`, constants ``sp``,
-    batch-means state ``bst``, first-visit path ``l1_u``) says so. The loop returns after
+    batch-means state ``bst`` of the visit's encounters, first-visit path ``l1_u``) says so. The loop returns after
     ``steps`` steps at most, so that its caller can look at signals between chunks. Returns
     (containment failures, stopped by the rule)."""
     caps, ox, oy, cell, ny, nx, offsets, index = geo
@@ -319,8 +320,9 @@ def _visit(st, beh, irg, slip, steps, grid, lay, geo, outer, trail, prm, ir_ang,
             turn = 1.0 if beh.random() < 0.5 else -1.0
         crossings += crossed
         blind += above
-        if not lay:  # the batch means of the crossing rate (its standard error), whatever the rule
-            batch_add(bst, 1.0 if crossed else 0.0, step_m / BODY_LENGTH_M, batches)
+        # the batch means of the encounter rate, whatever the rule: the second visit's crossings
+        # (their standard error), the first visit's self-encounters (its mixing test)
+        batch_add(bst, 1.0 if crossed else 0.0, step_m / BODY_LENGTH_M, batches)
         if (s & 15) == 0 and not inside_polygon(outer, x, y):
             escapes += 1
         if recording:

@@ -7,6 +7,7 @@ simulation; nothing in the simulation prints, plots or logs.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import time
 from pathlib import Path
@@ -23,6 +24,7 @@ from controllers.buffon.estimate import (
 )
 from controllers.buffon.experiments import experiment_cases, refresh
 from controllers.buffon.nests import BODY_LENGTH_M, parse_nest
+from controllers.buffon.stopping import StopParams
 from stcvision.errors import BadInputError
 from stcvision.fileio import write_bytes_atomic, write_figure
 from stcvision.sweep import machine_workers
@@ -412,11 +414,15 @@ def online(out: str | Path, *, trials: int = 12, seed: int = 0, sweep=None, forc
     # appended last: the seeds of the rows above (seed + position) stay those of earlier runs
     late = exp.calibration_polygons(out / "nests") + exp.calibration_rows(exp.CALIBRATION_COMPARTMENTS)
     rows += [{**r, "visit_steps": "auto"} for r in late]
+    # an online task's key carries the stopping rule's constants: a store written under another
+    # rule is not resumed as if its trials were this rule's
+    rule = {"stop": dataclasses.asdict(StopParams())}
     tasks = [
         Task(
             experiment="controllers.buffon.experiments:nest_task",
             params={**base, "spec": r["spec"], "barrier": r["barrier"], "visit_steps": r["visit_steps"]}
-            | ({"trail_turn": r["trail_turn"]} if r.get("trail_turn") else {}),
+            | ({"trail_turn": r["trail_turn"]} if r.get("trail_turn") else {})
+            | (rule if r["visit_steps"] == "auto" else {}),
             seed=seed + i,
         )
         for i, r in enumerate(rows)

@@ -14,6 +14,7 @@ from controllers.buffon.stopping import (
     batch_add,
     batch_rel_se,
     first_visit_done,
+    mixing_spread,
     new_batch_state,
     second_visit_done,
 )
@@ -79,18 +80,105 @@ def test_second_visit_needs_its_share_of_the_first_visit_and_stops_at_its_ceilin
     assert path == pytest.approx(P.max_ratio * 300.0, rel=0.05) and se > P.rel_se
 
 
+W_U = 0.1  # the trail width of the synthetic first visits
+
+
+def _first_visit(rng, area, *, compartments=1, dwell_u=0.0, dl=0.5, local=0.0, rule=P):
+    """Feed a first visit's self-encounter stream through the rule until it stops: (path, n,
+    spread (1b) at the stop). A uniform curve meets its trail laid so far, T, at 2 T / (pi A)
+    per unit path, plus ``local`` per unit path (its own recent loops). With ``compartments``
+    > 1 the nest is that many equal parts and the robot stays in one for a path drawn from an
+    exponential of mean ``dwell_u`` before it moves to another: it meets only the trail of the
+    part it is in, 2 T_c / (pi A / compartments)."""
+    st = new_batch_state(rule.batches)
+    laid = np.zeros(compartments)
+    part, left = 0, rng.exponential(dwell_u) if compartments > 1 else math.inf
+    n, path = 0, 0.0
+    pi_w = math.pi * W_U
+    while True:
+        rate = 2 * laid[part] * compartments / (math.pi * area) + local
+        hit = int(rng.poisson(rate * dl))
+        batch_add(st, float(hit), dl, rule.batches)
+        n += hit
+        path += dl
+        laid[part] += dl
+        left -= dl
+        if left <= 0:
+            part = (part + 1 + int(rng.integers(compartments - 1))) % compartments
+            left = rng.exponential(dwell_u)
+        if first_visit_done(path, n, rule.coverage, rule.min_self, pi_w, st, rule.batches, rule.mix_tol,
+                            rule.max_coverage):  # fmt: skip
+            return path, n, mixing_spread(st, rule.batches)
+
+
 @pytest.mark.parametrize("area", [300.0, 8000.0, 120_000.0])
 def test_first_visit_stops_at_the_target_coverage(area):
     """Self-encounters of a uniform curve come at rate 2 L / (pi A) per unit length: the rule
-    must stop where w L / A reaches the coverage."""
+    must stop where w L / A reaches the coverage (a mixed stream passes the test (1b))."""
     rng = np.random.default_rng(4)
-    w, dl = 0.1, 0.5
-    pi_w = math.pi * w
-    n, path = 0, 0.0
-    while not first_visit_done(path, n, P.coverage, P.min_self, pi_w):
-        n += rng.poisson(2 * path * dl / (math.pi * area))
-        path += dl
-    assert w * path / area == pytest.approx(P.coverage, rel=0.25 if area < 1000 else 0.08)
+    # steps of a tenth of the target path / 1,000 at most: the test (1b) needs ``batches`` full
+    # bins of 64 steps (a real first visit, ~0.04 u a step, has them after ~40 u of path)
+    dl = min(2.0, P.coverage * area / W_U / 1000)
+    path, n, _ = _first_visit(rng, area, dl=dl)
+    assert W_U * path / area == pytest.approx(P.coverage, rel=0.25 if area < 1000 else 0.08)
+
+
+def test_mixing_spread_of_a_steady_stream_is_counting_noise_as_scipy_says():
+    """A mixed stream (Poisson about a rate a + b l, the local loops included) is called
+    unmixed only when its X^2 beats chi-square(m - 2) by tol^2 N: the rate at which that
+    happens is scipy's chi-square tail, and small."""
+    from scipy import stats
+
+    rng = np.random.default_rng(6)
+    area, dl, local = 2000.0, 0.5, 0.05
+    path_stop = P.coverage * area / W_U
+    spreads, tails = [], []
+    for _ in range(200):
+        st = new_batch_state(P.batches)
+        path = 0.0
+        while path < path_stop:
+            batch_add(st, float(rng.poisson((2 * path / (math.pi * area) + local) * dl)), dl, P.batches)
+            path += dl
+        k = int(st[2])
+        m = k - k // 2
+        count = float(st[3 + k // 2 : 3 + k].sum())
+        spreads.append(mixing_spread(st, P.batches))
+        tails.append(stats.chi2.sf(m - 2 + P.mix_tol**2 * count, m - 2))
+    rejected = np.mean(np.array(spreads) > P.mix_tol)
+    assert np.mean(tails) < 0.05
+    # the share rejected is the chi-square tail's, within the binomial noise of 200 streams
+    assert rejected <= np.mean(tails) + 3 * math.sqrt(np.mean(tails) / 200) + 0.01
+    assert np.median(spreads) < 0.5 * P.mix_tol
+
+
+def test_a_two_compartment_stream_waits_and_reads_nearer_the_area():
+    """A robot that moves between two halves of the nest only every ~1/4 of its target path
+    meets its trail at a swinging rate: the test (1b) holds it beyond the target coverage (to
+    the largest coverage at most), and its self-crossing area, L^2 / (pi n), reads nearer the
+    truth than the same stream (same draws) stopped at the target; a mixed stream stops at the
+    target."""
+    area = 4000.0
+    dwell = P.coverage * area / W_U / 4
+    at_target = StopParams(max_coverage=P.coverage)
+    split = [_first_visit(np.random.default_rng([7, i]), area, compartments=2, dwell_u=dwell) for i in range(24)]
+    short = [_first_visit(np.random.default_rng([7, i]), area, compartments=2, dwell_u=dwell, rule=at_target)
+             for i in range(24)]  # fmt: skip
+    mixed = [_first_visit(np.random.default_rng([8, i]), area) for i in range(24)]
+    cov = lambda runs: np.array([W_U * p / area for p, _, _ in runs])  # noqa: E731
+    a1 = lambda runs: np.array([p**2 / (math.pi * n) / area for p, n, _ in runs])  # noqa: E731
+    assert np.all(cov(mixed) < 1.1 * P.coverage)
+    assert abs(np.median(a1(mixed)) - 1) < 0.05
+    waited = cov(split) > 1.02 * cov(short)
+    assert waited.mean() >= 0.3
+    assert np.all(cov(split) < 1.1 * P.max_coverage)
+    # a stream that stopped below the largest coverage passed the test
+    for p, n, spread in split:
+        assert spread <= P.mix_tol or math.pi * W_U * n / p >= P.max_coverage
+    # where it waited, the trail evened out: the area read low by less (mostly: a stream may
+    # also wait into a long stay in one half)
+    err_waited = np.abs(np.log(a1(split)[waited]))
+    err_short = np.abs(np.log(a1(short)[waited]))
+    assert np.median(err_waited) < 0.6 * np.median(err_short)
 
 
 def test_bad_stop_params():
@@ -100,6 +188,10 @@ def test_bad_stop_params():
         StopParams(coverage=0)
     with pytest.raises(BadInputError):
         StopParams(batches=1)
+    with pytest.raises(BadInputError):
+        StopParams(max_coverage=0.1)  # below the target coverage
+    with pytest.raises(BadInputError):
+        StopParams(mix_tol=0)
 
 
 def test_online_trials_are_deterministic_whatever_the_sweep_workers(tmp_path):
@@ -217,3 +309,30 @@ def test_heldout_script_calibration_mode_prints_the_factor(tmp_path, capsys, mon
     cal = json.loads(capsys.readouterr().out)
     assert cal["nests"] == 2 and cal["trials"] == 6 and cal["correction"] > 0
     assert len((tmp_path / "calibration.jsonl").read_text().splitlines()) == 2
+
+
+def test_mixing_choice_script_measures_the_rule_on_a_shrunk_family(tmp_path, capsys, monkeypatch):
+    """docs/buffon_mixing_choice.py (the results page's measurements behind the mixing test) on
+    two small nests, two trials, one setting: it prints the per-nest table and writes every
+    figure, the coverage-alone row first."""
+    import importlib.util
+    import json
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parents[3] / "docs" / "buffon_mixing_choice.py"
+    spec = importlib.util.spec_from_file_location("buffon_mixing_choice", path)
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    small = [
+        {"family": "calibration", "spec": s, "barrier": b} for s, b in (("circle:30", None), ("square:30", "plus:0.6"))
+    ]
+    monkeypatch.setattr(mod, "calibration_family", lambda folder: small)
+    monkeypatch.setattr(mod, "SETTINGS", ((P.mix_tol, P.max_coverage),))
+    assert mod.main(["--out", str(tmp_path), "--trials", "2", "--seed", "3"]) == 0
+    out = capsys.readouterr().out
+    assert "circle:30 |" in out and "rank correlation" in out
+    saved = json.loads((tmp_path / "mixing_choice.json").read_text())
+    assert len(saved["streams"]) == 2 and all(len(r["trials"]) == 2 for r in saved["streams"])
+    first, second = saved["settings"]
+    assert first["mix_tol"] is None and first["first_visit_length_ratio"] == 1.0
+    assert second["first_visit_length_ratio"] >= 1.0
