@@ -147,4 +147,3 @@ class Odometry:
         dpos = math.hypot(self.x - true_pose[0], self.y - true_pose[1])
         dth = wrap_angle(true_pose[2] - self.theta)
         return dpos, dth
-

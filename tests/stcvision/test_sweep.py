@@ -75,6 +75,7 @@ def test_seed_comes_from_the_key_so_workers_and_order_do_not_matter(tmp_path):
 @pytest.fixture(scope="module")
 def dask_cluster():
     import distributed  # a dev dependency: its absence is a broken install, not a skip
+
     with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cluster:
         yield cluster.scheduler_address
 
