@@ -15,7 +15,8 @@ if none is eligible the shipped weight stays. Candidates 0.3, 0.4 and 0.5 unless
 
     python docs/buffon_weight_check.py CAL_DIR/calibration.jsonl ONLINE_DIR/sweep.jsonl [W ...]
 
-prints two markdown tables (accuracy; per-trial coverage by group) and the rule's choice.
+prints two markdown tables (accuracy; per-trial coverage by group), the single trials' spread
+about their nest's median by group, and the rule's choice.
 """
 
 from __future__ import annotations
@@ -69,7 +70,7 @@ def score(w: float, cal: list[dict], other: list[dict]) -> dict:
         c, c2 = calibrate_online(cal), calibrate_online(other)
         t = stats.t.ppf(0.975, c["dof"])
         spread2 = c["trial_extra_sigma"] ** 2 + c["correction_se_log"] ** 2 + c["shape_sigma_upper"] ** 2
-        out = {"w": w, "cal": c, "other": c2, "holds": {}, "log_err": {}, "worst": {}}
+        out = {"w": w, "cal": c, "other": c2, "holds": {}, "resid": {}, "log_err": {}, "worst": {}}
         for label, recs in (("9100+", cal), ("0+", other)):
             errs, worst = [], 0.0
             for r in recs:
@@ -77,6 +78,7 @@ def score(w: float, cal: list[dict], other: list[dict]) -> dict:
                 log_a = np.log(a / r["area_true"])
                 half = t * np.sqrt((w * np.asarray(r["rate_rel_se"])) ** 2 + spread2)
                 out["holds"].setdefault((label, _group(r)), []).extend((np.abs(log_a) <= half).tolist())
+                out["resid"].setdefault(_group(r), []).extend((log_a - np.median(log_a)).tolist())
                 errs.extend(log_a.tolist())
                 worst = max(worst, float(np.median(np.abs(np.expm1(log_a)))))
             out["log_err"][label], out["worst"][label] = errs, worst
@@ -84,6 +86,7 @@ def score(w: float, cal: list[dict], other: list[dict]) -> dict:
         est.ONLINE_SECOND_WEIGHT = shipped
     pooled = {g: out["holds"][("9100+", g)] + out["holds"][("0+", g)] for g in GROUPS}
     out["coverage"] = {g: float(np.mean(v)) for g, v in pooled.items()}
+    out["spread"] = {g: float(np.sqrt(np.mean(np.square(out["resid"][g])))) for g in GROUPS}
     out["eligible"] = all(v >= MIN_COVERAGE for v in out["coverage"].values())
     out["rms"] = {k: float(np.sqrt(np.mean(np.square(v)))) for k, v in out["log_err"].items()}
     out["rms"]["both"] = float(np.sqrt(np.mean(np.square(out["log_err"]["9100+"] + out["log_err"]["0+"]))))
@@ -113,6 +116,9 @@ def tables(scores: list[dict]) -> str:
             a, b = s["holds"][("9100+", g)], s["holds"][("0+", g)]
             cells.append(f"{s['coverage'][g]:.1%} ({sum(a)}/{len(a)}, {sum(b)}/{len(b)})")
         md.append(f"| {s['w']:.1f} | " + " | ".join(cells) + f" | {'yes' if s['eligible'] else 'no'} |")
+    md += ["", "single trials' RMS log spread about their nest's median, both seed sets, by group:"]
+    for s in scores:
+        md.append(f"w {s['w']:.1f}: " + ", ".join(f"{g} {s['spread'][g]:.4f}" for g in GROUPS))
     return "\n".join(md)
 
 
