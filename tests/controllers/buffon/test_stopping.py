@@ -336,3 +336,64 @@ def test_mixing_choice_script_measures_the_rule_on_a_shrunk_family(tmp_path, cap
     first, second = saved["settings"]
     assert first["mix_tol"] is None and first["first_visit_length_ratio"] == 1.0
     assert second["first_visit_length_ratio"] >= 1.0
+
+
+def _weight_check_script():
+    """docs/buffon_weight_check.py, loaded as a module."""
+    import importlib.util
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parents[3] / "docs" / "buffon_weight_check.py"
+    spec = importlib.util.spec_from_file_location("buffon_weight_check", path)
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+def test_weight_check_rule_keeps_the_shipped_weight_when_a_group_undercovers(tmp_path, capsys):
+    """docs/buffon_weight_check.py on synthetic stores (ten round nests and one of each other group,
+    at each seed set): two of the ellipse's twelve first visits read 1.8 times the truth, so no
+    weight covers that group and the rule keeps the shipped weight (which it leaves set); with the
+    ellipse as steady as the others every weight is eligible and the lowest RMS error wins."""
+    import json
+
+    from controllers.buffon import estimate as est
+
+    mod = _weight_check_script()
+    nests = [(f"circle:{40 + d}", None) for d in range(10)]
+    nests += [("ellipse:5000:2", None), ("square:75", "plus:0.6"), ("polygon:/x/calibration_L.json", None)]
+
+    def stores(bad: bool, tag: str):
+        rng = np.random.default_rng(5)
+        cal, sweep = tmp_path / f"cal_{tag}.jsonl", tmp_path / f"sweep_{tag}.jsonl"
+        lines, rows = [], [json.dumps({"kind": "stcvision-sweep-store"})]
+        for store in ("cal", "sweep"):
+            for spec, barrier in nests:
+                area, n = 4000.0, 12
+                l1 = np.full(n, 1.3 * area)
+                l2 = 0.5 * l1
+                e1, e2 = 0.03 * rng.standard_normal(n), 0.03 * rng.standard_normal(n)
+                if bad and "ellipse" in spec:
+                    e1[:2] = 0.6
+                rec = {"area_true": area, "l1_u": l1.tolist(), "l2_u": l2.tolist(),
+                       "crossings": (2 * l1 * l2 / (math.pi * area) * np.exp(-e2)).tolist(),
+                       "blind_fraction": [0.0] * n, "n_self": (l1**2 / (math.pi * area) * np.exp(-e1)).tolist(),
+                       "self_blind": [0.0] * n, "rate_rel_se": [0.03] * n}  # fmt: skip
+                if store == "cal":
+                    lines.append(json.dumps({"spec": spec, "barrier": barrier, **rec}))
+                else:
+                    params = {"spec": spec, "barrier": barrier, "visit_steps": "auto"}
+                    rows.append(json.dumps({"params": params, "result": rec}))
+        cal.write_text("\n".join(lines) + "\n")
+        sweep.write_text("\n".join(rows) + "\n")
+        return str(cal), str(sweep)
+
+    shipped = est.ONLINE_SECOND_WEIGHT
+    assert mod.main([*stores(True, "bad")]) == 0
+    out = capsys.readouterr().out
+    assert f"chosen by the rule: w = {shipped:.1f}" in out and "| no |" in out and "| yes |" not in out
+    assert est.ONLINE_SECOND_WEIGHT == shipped
+    cal, other = mod.load(*stores(False, "good"))
+    scores = [mod.score(w, cal, other) for w in (0.3, 0.4, 0.5)]
+    assert all(s["eligible"] for s in scores)
+    assert mod.choose(scores) == min(scores, key=lambda s: s["rms"]["both"])["w"]
