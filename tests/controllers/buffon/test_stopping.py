@@ -247,13 +247,13 @@ def test_trial_interval_widens_with_the_measured_error():
     assert ci[0, 0] < 1000 < ci[0, 1]
 
 
-def _heldout_script():
-    """docs/buffon_heldout.py, loaded as a module."""
+def _docs_script(name: str):
+    """docs/NAME.py (a results page's measurement script), loaded as a module."""
     import importlib.util
     from pathlib import Path
 
-    path = Path(__file__).resolve().parents[3] / "docs" / "buffon_heldout.py"
-    spec = importlib.util.spec_from_file_location("buffon_heldout", path)
+    path = Path(__file__).resolve().parents[3] / "docs" / f"{name}.py"
+    spec = importlib.util.spec_from_file_location(name, path)
     mod = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(mod)
     return mod
@@ -262,7 +262,7 @@ def _heldout_script():
 def test_heldout_family_script_runs_resumes_and_rescores(tmp_path, capsys):
     """docs/buffon_heldout.py (the held-out measurement of the results page) on its first nest,
     two trials: it stores the raw trials, and a rescore of the store prints the same table."""
-    mod = _heldout_script()
+    mod = _docs_script("buffon_heldout")
     assert len(mod.family(tmp_path / "n", 7100)) == 44
     assert mod.main(["--out", str(tmp_path), "--trials", "2", "--nests", "1"]) == 0
     first = capsys.readouterr().out
@@ -300,7 +300,7 @@ def test_heldout_script_calibration_mode_prints_the_factor(tmp_path, capsys, mon
     trials): it stores the trials and prints calibrate_online's factor and spreads."""
     import json
 
-    mod = _heldout_script()
+    mod = _docs_script("buffon_heldout")
     small = [
         {"family": "calibration", "spec": s, "barrier": b} for s, b in (("circle:24", None), ("square:22", "bar:0.4"))
     ]
@@ -315,14 +315,9 @@ def test_mixing_choice_script_measures_the_rule_on_a_shrunk_family(tmp_path, cap
     """docs/buffon_mixing_choice.py (the results page's measurements behind the mixing test) on
     two small nests, two trials, one setting: it prints the per-nest table and writes every
     figure, the coverage-alone row first."""
-    import importlib.util
     import json
-    from pathlib import Path
 
-    path = Path(__file__).resolve().parents[3] / "docs" / "buffon_mixing_choice.py"
-    spec = importlib.util.spec_from_file_location("buffon_mixing_choice", path)
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
+    mod = _docs_script("buffon_mixing_choice")
     small = [
         {"family": "calibration", "spec": s, "barrier": b} for s, b in (("circle:30", None), ("square:30", "plus:0.6"))
     ]
@@ -338,18 +333,6 @@ def test_mixing_choice_script_measures_the_rule_on_a_shrunk_family(tmp_path, cap
     assert second["first_visit_length_ratio"] >= 1.0
 
 
-def _weight_check_script():
-    """docs/buffon_weight_check.py, loaded as a module."""
-    import importlib.util
-    from pathlib import Path
-
-    path = Path(__file__).resolve().parents[3] / "docs" / "buffon_weight_check.py"
-    spec = importlib.util.spec_from_file_location("buffon_weight_check", path)
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
-
-
 def test_weight_check_rule_keeps_the_shipped_weight_when_a_group_undercovers(tmp_path, capsys):
     """docs/buffon_weight_check.py on synthetic stores (ten round nests and one of each other group,
     at each seed set): two of the ellipse's twelve first visits read 1.8 times the truth, so no
@@ -359,7 +342,7 @@ def test_weight_check_rule_keeps_the_shipped_weight_when_a_group_undercovers(tmp
 
     from controllers.buffon import estimate as est
 
-    mod = _weight_check_script()
+    mod = _docs_script("buffon_weight_check")
     nests = [(f"circle:{40 + d}", None) for d in range(10)]
     nests += [("ellipse:5000:2", None), ("square:75", "plus:0.6"), ("polygon:/x/calibration_L.json", None)]
 
