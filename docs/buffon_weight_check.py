@@ -25,7 +25,6 @@ import json
 import sys
 
 import numpy as np
-from scipy import stats
 
 from controllers.buffon import estimate as est
 from controllers.buffon.online import CALIBRATION_COMPARTMENTS, calibrate_online
@@ -64,26 +63,26 @@ def load(cal_path: str, sweep_path: str) -> tuple[list[dict], list[dict]]:
 
 def score(w: float, cal: list[dict], other: list[dict]) -> dict:
     """Weight w: the calibration of ``cal`` at w, and its per-trial intervals and errors on both sets."""
-    shipped = est.ONLINE_SECOND_WEIGHT
-    est.ONLINE_SECOND_WEIGHT = w
-    try:
-        c, c2 = calibrate_online(cal), calibrate_online(other)
-        t = stats.t.ppf(0.975, c["dof"])
-        spread2 = c["trial_extra_sigma"] ** 2 + c["correction_se_log"] ** 2 + c["shape_sigma_upper"] ** 2
-        out = {"w": w, "cal": c, "other": c2, "holds": {}, "resid": {}, "log_err": {}, "worst": {}}
-        for label, recs in (("9100+", cal), ("0+", other)):
-            errs, worst = [], 0.0
-            for r in recs:
-                a = c["correction"] * est.online_area(*(np.asarray(r[k], float) for k in KEYS))
-                log_a = np.log(a / r["area_true"])
-                half = t * np.sqrt((w * np.asarray(r["rate_rel_se"])) ** 2 + spread2)
-                out["holds"].setdefault((label, _group(r)), []).extend((np.abs(log_a) <= half).tolist())
-                out["resid"].setdefault(_group(r), []).extend((log_a - np.median(log_a)).tolist())
-                errs.extend(log_a.tolist())
-                worst = max(worst, float(np.median(np.abs(np.expm1(log_a)))))
-            out["log_err"][label], out["worst"][label] = errs, worst
-    finally:
-        est.ONLINE_SECOND_WEIGHT = shipped
+    c, c2 = calibrate_online(cal, w=w), calibrate_online(other, w=w)
+    widths = {
+        "w": w,
+        "extra": c["trial_extra_sigma"],
+        "correction_se": c["correction_se_log"],
+        "shape": c["shape_sigma_upper"],
+        "dof": c["dof"],
+    }
+    out = {"w": w, "cal": c, "other": c2, "holds": {}, "resid": {}, "log_err": {}, "worst": {}}
+    for label, recs in (("9100+", cal), ("0+", other)):
+        errs, worst = [], 0.0
+        for r in recs:
+            a = c["correction"] * est.online_area(*(np.asarray(r[k], float) for k in KEYS), w=w)
+            log_a = np.log(a / r["area_true"])
+            half = est.trial_half_width(np.asarray(r["rate_rel_se"], float), **widths)
+            out["holds"].setdefault((label, _group(r)), []).extend((np.abs(log_a) <= half).tolist())
+            out["resid"].setdefault(_group(r), []).extend((log_a - np.median(log_a)).tolist())
+            errs.extend(log_a.tolist())
+            worst = max(worst, float(np.median(np.abs(np.expm1(log_a)))))
+        out["log_err"][label], out["worst"][label] = errs, worst
     pooled = {g: out["holds"][("9100+", g)] + out["holds"][("0+", g)] for g in GROUPS}
     out["coverage"] = {g: float(np.mean(v)) for g, v in pooled.items()}
     out["spread"] = {g: float(np.sqrt(np.mean(np.square(out["resid"][g])))) for g in GROUPS}

@@ -149,10 +149,11 @@ def _landmark_fit(obs_p: np.ndarray, exp_p: np.ndarray, subcell_m: float):
     Returns (th, offset, sigma of th, sigma of the offset: the larger axis of its ellipse) or
     None if the lights left do not fix all three (fewer than two cell centres).
 
-    Why the outliers: a light seen 8.6 cm (5.7 sigma) off its cell centre along its ray, at
-    0.97 m, pulled a fit of seven lights 1.2 cm and 0.5 degrees off, its reported spread 4.6 mm
-    (spiral_stc_test_2, cooled, seed 918); the robot moved by it, laid its rows 2 cm off, and
-    later read one of them as a start mark (a safe stop)."""
+    Why the outliers: a light seen 8.6 cm off its cell centre at 0.97 m (5.7 sigma along its
+    ray; a squared residual of 40 after the fit) pulled a fit of six lights 1.2 cm and 0.5
+    degrees off, its reported spread 4.6 mm (spiral_stc_test_2, cooled, seed 918); the robot
+    moved by it, laid its rows 2 cm off, and later read one of them as a start mark (a safe
+    stop)."""
     keep = np.ones(len(obs_p), bool)
     while len(np.unique(np.round(exp_p[keep] / 2.0), axis=0)) >= 2:
         fit = _landmark_wls(obs_p[keep], exp_p[keep], subcell_m)
@@ -580,20 +581,19 @@ def _landmarks(
         near = (np.abs(resid) < 0.6).all(axis=1) & (np.hypot(*(lru - ROBOT_IN_CELL).T) < reach)
         obs_p = lru[near]
         exp_p = obs_p - resid[near]
-        # two lights or more at distinct cell centres: with one, a sideways offset and a rotation
-        # look alike (1 cm at 40 cm is 1.4 degrees), so fit both at once: where the lights are
-        # against where they should be, ``exp = R(-th) (obs - rob) + rob + offset``, linearised
-        # in the small rotation ``th`` and weighted by each light's error ellipse (its bearing is
-        # much surer than its range: :func:`light_sigma_m`)
-        if len(np.unique(np.round(exp_p / 2.0), axis=0)) >= 2:  # (and after any outlier left out)
-            fit = _landmark_fit(obs_p, exp_p, subcell_m or _SUBCELL_M)
-            if fit is not None:
-                th, off, sig_th, off_sig = fit
-                landmark_sig = sig_th
-                if sig_th <= params.landmark_max_sigma_rad:
-                    landmark_rot = th
-                    landmark = off
-                    landmark_off_sig = off_sig
+        # two lights or more at distinct cell centres (the fit says None otherwise): with one, a
+        # sideways offset and a rotation look alike (1 cm at 40 cm is 1.4 degrees), so fit both
+        # at once: where the lights are against where they should be, ``exp = R(-th) (obs - rob)
+        # + rob + offset``, linearised in the small rotation ``th`` and weighted by each light's
+        # error ellipse (its bearing is much surer than its range: :func:`light_sigma_m`)
+        fit = _landmark_fit(obs_p, exp_p, subcell_m or _SUBCELL_M)
+        if fit is not None:
+            th, off, sig_th, off_sig = fit
+            landmark_sig = sig_th
+            if sig_th <= params.landmark_max_sigma_rad:
+                landmark_rot = th
+                landmark = off
+                landmark_off_sig = off_sig
     return landmark, landmark_rot, landmark_sig if landmark_rot is not None else None, landmark_off_sig
 
 

@@ -180,16 +180,17 @@ def self_crossing_area(l1, n_self):
         return np.asarray(l1, dtype=float) ** 2 / (math.pi * n)
 
 
-def online_area(l1, l2, n, blind, n_self, self_blind):
+def online_area(l1, l2, n, blind, n_self, self_blind, *, w: float | None = None):
     """The online rule's uncorrected estimate (u^2; :data:`ONLINE_CORRECTION` not applied): the
-    geometric mean, weighted by :data:`ONLINE_SECOND_WEIGHT`, of the second visit's Buffon
-    estimate and the first visit's own self-crossing estimate, each with its visit's dead-time
-    correction (``blind``, ``self_blind``: the share of the visit's steps its counter was blind;
-    module doc)."""
+    geometric mean, weighted by ``w`` (None: :data:`ONLINE_SECOND_WEIGHT`), of the second
+    visit's Buffon estimate and the first visit's own self-crossing estimate, each with its
+    visit's dead-time correction (``blind``, ``self_blind``: the share of the visit's steps its
+    counter was blind; module doc)."""
+    w = ONLINE_SECOND_WEIGHT if w is None else w
     a2 = buffon_area(l1, l2, n) * (1.0 - np.asarray(blind, dtype=float))
     a1 = self_crossing_area(l1, n_self) * (1.0 - np.asarray(self_blind, dtype=float))
     with np.errstate(invalid="ignore"):
-        return a2**ONLINE_SECOND_WEIGHT * a1 ** (1.0 - ONLINE_SECOND_WEIGHT)
+        return a2**w * a1 ** (1.0 - w)
 
 
 def area_estimates(ts, *, dead_time: bool = True, correction: float | None = None) -> np.ndarray:
@@ -216,11 +217,26 @@ def _t95() -> float:
     return float(stats.t.ppf(0.975, CALIBRATION_DOF))
 
 
+def trial_half_width(
+    rate_rel_se,
+    *,
+    w: float = ONLINE_SECOND_WEIGHT,
+    extra: float = TRIAL_EXTRA_SIGMA,
+    correction_se: float = ONLINE_CORRECTION_SE,
+    shape: float = SHAPE_SIGMA,
+    dof: int = CALIBRATION_DOF,
+) -> np.ndarray:
+    """The per-trial 95 % interval's half-width in log (module doc): t(dof) sqrt((w se)^2 +
+    extra^2 + correction_se^2 + shape^2) for each trial's crossing-rate relative error
+    ``rate_rel_se`` (inf where it is not finite); the shipped calibration by default, another
+    weight's own calibration when given."""
+    se = w * np.where(np.isfinite(rate_rel_se), rate_rel_se, np.inf)
+    return float(stats.t.ppf(0.975, dof)) * np.sqrt(se**2 + extra**2 + correction_se**2 + shape**2)
+
+
 def trial_intervals(est: np.ndarray, rate_rel_se: np.ndarray) -> np.ndarray:
     """(n, 2) per-trial 95 % intervals of the online rule's estimates ``est`` (see module doc)."""
-    se = ONLINE_SECOND_WEIGHT * np.where(np.isfinite(rate_rel_se), rate_rel_se, np.inf)
-    sd = np.sqrt(se**2 + TRIAL_EXTRA_SIGMA**2 + ONLINE_CORRECTION_SE**2 + SHAPE_SIGMA**2)
-    h = _t95() * sd
+    h = trial_half_width(np.asarray(rate_rel_se, float))
     with np.errstate(invalid="ignore", over="ignore"):
         return np.column_stack([est * np.exp(-h), est * np.exp(h)])
 

@@ -168,22 +168,25 @@ def evaluation_nests(folder: str | Path) -> list[dict]:
     return out
 
 
-def calibrate_online(results: list[dict]) -> dict:
+def calibrate_online(results: list[dict], *, w: float | None = None) -> dict:
     """The factor and spreads of the online rule from the calibration family's stored results
     (each with ``area_true`` and per-trial ``l1_u``, ``l2_u``, ``crossings``, ``blind_fraction``,
-    ``n_self``, ``self_blind``, ``rate_rel_se``): see :mod:`controllers.buffon.estimate`."""
+    ``n_self``, ``self_blind``, ``rate_rel_se``) for the weight ``w`` (None: the shipped
+    :data:`~controllers.buffon.estimate.ONLINE_SECOND_WEIGHT`): see
+    :mod:`controllers.buffon.estimate`."""
     from controllers.buffon.estimate import ONLINE_SECOND_WEIGHT, online_area
 
+    w = ONLINE_SECOND_WEIGHT if w is None else w
     meds, samp, resid, se2 = [], [], [], []
     for r in results:
         keys = ("l1_u", "l2_u", "crossings", "blind_fraction", "n_self", "self_blind")
-        a = online_area(*(np.asarray(r[k], float) for k in keys))
+        a = online_area(*(np.asarray(r[k], float) for k in keys), w=w)
         d = np.log(a / r["area_true"])
         m = float(np.median(d))
         meds.append(m)
         samp.append(math.pi / 2 * np.var(d, ddof=1) / len(d))  # the sampling variance of a median
         resid.extend((d - m).tolist())
-        se2.extend(((ONLINE_SECOND_WEIGHT * np.asarray(r["rate_rel_se"])) ** 2).tolist())
+        se2.extend(((w * np.asarray(r["rate_rel_se"])) ** 2).tolist())
     meds = np.array(meds)
     n = len(meds)
     between = float(np.var(meds, ddof=1))

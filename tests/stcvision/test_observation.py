@@ -179,8 +179,8 @@ def test_the_marks_offset_says_which_axes_its_rows_measured():
 
 #: the seven red lights of a short frame (cell units, rotated by the heading fit; the robot at
 #: ROBOT_IN_CELL) and the cell centres they were assigned, at spiral_stc_test_2, cooled, seed
-#: 918, t = 5,289 s: the light at (6.525, 0.091) lies 8.4 cm (5.7 sigma) off its centre along
-#: its ray; fitted with it, the robot's offset came out 0.9 cm from the truth
+#: 918, t = 5,289 s: the light at (6.525, 0.091) lies 8.5 cm off its centre (5.6 sigma along
+#: its ray); fitted with it, the robot's offset came out 0.9 cm from the truth
 _LIGHTS_918 = [(5.906, -5.837), (5.944, -3.878), (6.005, -1.909), (7.898, -1.894), (6.525, 0.091), (6.002, 2.085),
                (5.956, 4.05)]  # fmt: skip
 _CENTRES_918 = [(6, -6), (6, -4), (6, -2), (8, -2), (6, 0), (6, 2), (6, 4)]

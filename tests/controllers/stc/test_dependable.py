@@ -315,7 +315,7 @@ def test_a_look_takes_its_position_from_the_red_lights_only():
 
 def test_an_axis_the_marks_did_not_measure_keeps_the_belief():
     """Rows across one axis say nothing of the other, where the observation reads 0: fused as a
-    reading, that 0 held a robot 2.3 cm off its centre at 'centred' on open floor and shrank its
+    reading, that 0 held a robot 2-3 cm off its centre at 'centred' on open floor and shrank its
     variance until the red lights that showed the offset were left out as outliers
     (spiral_stc_test_3, lowlight, seed 821, a safe stop). The measured axis is fused, the other
     keeps its value and its variance."""
