@@ -320,9 +320,11 @@ def _visit(st, beh, irg, slip, steps, grid, lay, geo, outer, trail, prm, ir_ang,
             turn = 1.0 if beh.random() < 0.5 else -1.0
         crossings += crossed
         blind += above
-        # the batch means of the encounter rate, whatever the rule: the second visit's crossings
-        # (their standard error), the first visit's self-encounters (its mixing test)
-        batch_add(bst, 1.0 if crossed else 0.0, step_m / BODY_LENGTH_M, batches)
+        # the batch means of the encounter rate: the second visit's crossings whatever the rule
+        # (their standard error is reported), the first visit's self-encounters for the online
+        # rule's mixing test (nothing else reads them: a fixed-length visit skips the work)
+        if auto or not lay:
+            batch_add(bst, 1.0 if crossed else 0.0, step_m / BODY_LENGTH_M, batches)
         if (s & 15) == 0 and not inside_polygon(outer, x, y):
             escapes += 1
         if recording:
