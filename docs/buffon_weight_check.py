@@ -1,6 +1,6 @@
 """The online estimate's weight chosen by a rule stated in advance, on the calibration family only.
 
-For each weight w, the factor and spreads are calibrated at w on one store of the calibration
+For each weight w, the coverage slope, factor and spreads are calibrated at w on one store of the calibration
 family (``docs/buffon_heldout.py --calibration``, seeds 9100 + i), as they would ship. The
 per-trial intervals they give are scored on the same 20 nests' trials at two seed sets: the store
 itself (seeds 9100+) and the calibration rows of a ``stcvision buffon online --trials 12`` store
@@ -69,15 +69,18 @@ def score(w: float, cal: list[dict], other: list[dict]) -> dict:
         "extra": c["trial_extra_sigma"],
         "correction_se": c["correction_se_log"],
         "shape": c["shape_sigma_upper"],
+        "slope_se": c["coverage_slope_se"],
         "dof": c["dof"],
     }
     out = {"w": w, "cal": c, "other": c2, "holds": {}, "resid": {}, "log_err": {}, "worst": {}}
     for label, recs in (("9100+", cal), ("0+", other)):
         errs, worst = [], 0.0
         for r in recs:
-            a = c["correction"] * est.online_area(*(np.asarray(r[k], float) for k in KEYS), w=w)
+            a = c["correction"] * est.online_area(*(np.asarray(r[k], float) for k in KEYS), w=w,
+                                                  slope=c["coverage_slope"])  # fmt: skip
             log_a = np.log(a / r["area_true"])
-            half = est.trial_half_width(np.asarray(r["rate_rel_se"], float), **widths)
+            offset = est.reading_coverage(r["l1_u"], r["n_self"]) - est.REFERENCE_COVERAGE
+            half = est.trial_half_width(np.asarray(r["rate_rel_se"], float), coverage_offset=offset, **widths)
             out["holds"].setdefault((label, _group(r)), []).extend((np.abs(log_a) <= half).tolist())
             out["resid"].setdefault(_group(r), []).extend((log_a - np.median(log_a)).tolist())
             errs.extend(log_a.tolist())

@@ -370,6 +370,7 @@ class TrialSet:
     converged: np.ndarray | None = None
     online: bool = False  # both visits' lengths decided by the online rule
     self_blind: np.ndarray | None = None  # share of the first visit's steps its counter was blind on its old trail
+    trail_width_u: float = PAPER_TRAIL_WIDTH_U  # the trail the first visit laid (its coverage reads n_self with it)
 
     @property
     def nbc(self) -> np.ndarray:
@@ -466,7 +467,7 @@ def run_trials(
         np.array(l1), np.array(l2), np.array(n, dtype=np.int64), np.array(blind), int(sum(esc)),
         int(sum(steps)), time.perf_counter() - t0, next((t for t in trails if t), {}),
         time.process_time() - c0, np.array(n_self, dtype=np.int64), np.array(se), np.array(steps, dtype=np.int64),
-        np.array(conv, dtype=bool), config.auto, np.array(self_blind),
+        np.array(conv, dtype=bool), config.auto, np.array(self_blind), config.trail_width_u,
     )  # fmt: skip
 
 

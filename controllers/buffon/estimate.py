@@ -59,8 +59,33 @@ against 0.96-1.04 in open nests. The first visit therefore also waits until its 
 come at a steady rate (:mod:`controllers.buffon.stopping`, rule (1b)); with it A1 reads
 0.95-1.05 of the truth over the whole calibration family (the spread of the nests' median A1
 0.021 in log, 0.045 before) and is the steadier of the two, so it gets the larger share
-(w = 0.3, chosen on the calibration family: the weights' note below). One factor, :data:`ONLINE_CORRECTION`, is then
-calibrated on a family of nests
+(w = 0.3, chosen on the calibration family: the weights' note below).
+
+**Read at one coverage.** Both estimates grow with the coverage rho = pi w_t n1 / L1 (w_t the trail
+width) at which the first visit stopped, whatever the nest: the counter loses more of a denser
+trail's encounters than its dead-time correction restores (weighting each encounter by the blind
+share of the path just before it, tried over 50-800 steps, did not flatten the curve), and a short
+trail's count carries more of the start's neighbourhood and of the path's own recent loops.
+Measured with the coverage forced (``coverage = max_coverage``, 32 trials a nest, the calibration
+family's circles of 60, 100 and 160 u, before the factor K;
+``python docs/buffon_coverage_response.py``): A1 reads 1.01-1.04 of
+the truth at 0.13, 1.11-1.19 at 0.18 and 1.21-1.39 at 0.24, A2 1.09-1.11, 1.14-1.23 and
+1.21-1.34; from 0.13 to 0.18 the log of their weighted mean rises 1.6-2.7 per unit of coverage.
+The first visit stops at 0.13 once its trail has mixed, later (up to 0.18) when it has not, so
+the trials of one nest were read at different points of that curve: within a nest the reading
+coverage explained half of the trials' spread (correlation 0.69 over the calibration family's
+240 trials), and nests where most trials stop late (long ellipses, nests split by barriers) read
+high (5.4-6.0 % median error in three nests of ``stcvision buffon online``'s evaluation family,
+all below 3.6 % once read at one coverage). The estimate is therefore brought back to
+the rule's own coverage rho0 (:data:`REFERENCE_COVERAGE`, ``StopParams.coverage``):
+
+    log A = w log A2 + (1 - w) log A1 - kappa (rho - rho0) + log K
+
+with kappa (:data:`COVERAGE_SLOPE`) the pooled within-nest least-squares slope of the log estimate
+on rho over the calibration family (:func:`controllers.buffon.online.calibrate_online` measures
+it). The robot knows rho (it stopped by it); the truth is not used.
+
+One factor, :data:`ONLINE_CORRECTION`, is then calibrated on a family of nests
 (:func:`controllers.buffon.online.calibrate_online`; circles, squares, ellipses, barriers and
 concave polygons of 1,300-20,000 u^2, none of them in the evaluation family), with what that
 calibration leaves:
@@ -75,7 +100,8 @@ calibration leaves:
 **Intervals** (log scale, Student t with the calibration family's degrees of freedom, scipy.stats):
 
 * per trial (``trial_area_ci95``: what one robot can say about its one measurement):
-  log A +- t sqrt((w se_rel)^2 + TRIAL_EXTRA_SIGMA^2 + ONLINE_CORRECTION_SE^2 + SHAPE_SIGMA^2);
+  log A +- t sqrt((w se_rel)^2 + TRIAL_EXTRA_SIGMA^2 + ONLINE_CORRECTION_SE^2 + SHAPE_SIGMA^2
+  + (COVERAGE_SLOPE_SE (rho - rho0))^2);
 * over trials (``area_ci95``): the percentile bootstrap of the median log estimate
   (:func:`scipy.stats.bootstrap`, 2,000 resamples, seeded; the trial-to-trial spread), its
   half-widths combined in quadrature with t sqrt(ONLINE_CORRECTION_SE^2 + SHAPE_SIGMA^2).
@@ -92,8 +118,9 @@ import math
 import numpy as np
 from scipy import stats
 
-from controllers.buffon.batched import VisitConfig
+from controllers.buffon.batched import PAPER_TRAIL_WIDTH_U, VisitConfig
 from controllers.buffon.nests import BODY_LENGTH_M
+from controllers.buffon.stopping import StopParams
 from stcvision.errors import BadInputError
 
 __all__ = [
@@ -102,6 +129,7 @@ __all__ = [
     "area_estimates",
     "buffon_area",
     "online_area",
+    "reading_coverage",
     "self_crossing_area",
     "calibrate_area_correction",
     "median_ci95",
@@ -144,14 +172,20 @@ ONLINE_SECOND_WEIGHT = 0.3
 # CALIBRATION_POLYGONS and CALIBRATION_COMPARTMENTS, 20 nests x 12 trials, nest i with seed 9100 + i,
 # the estimate of online_area; `python docs/buffon_heldout.py --calibration --out DIR --seed 9100`
 # prints these; `stcvision buffon online` recomputes them at its own seeds): measured, then held fixed.
-ONLINE_CORRECTION = 0.962  # measured 0.9618: exp(-mean of the nests' median log-bias)
-ONLINE_CORRECTION_SE = 0.0041  # measured: sd of the nests' median log-bias / sqrt(20)
-# the nests' median log-biases' whole spread, measured 0.0183, of which 0.0100 beyond their
+# the log estimate's pooled within-nest slope on the first visit's reading coverage (module doc,
+# 'Read at one coverage'): measured 1.73, standard error 0.12
+COVERAGE_SLOPE = 1.73
+COVERAGE_SLOPE_SE = 0.12
+#: the coverage every online estimate is brought back to: the one the first visit may stop at
+REFERENCE_COVERAGE = StopParams().coverage
+ONLINE_CORRECTION = 0.977  # measured 0.9774: exp(-mean of the nests' median log-bias)
+ONLINE_CORRECTION_SE = 0.0051  # measured: sd of the nests' median log-bias / sqrt(20)
+# the nests' median log-biases' whole spread, measured 0.0226, of which 0.0197 beyond their
 # sampling error at 12 trials; the whole spread ships, an upper bound
-SHAPE_SIGMA = 0.018
+SHAPE_SIGMA = 0.023
 # single trials about their nest's median, beyond their own second-visit error
-# (ONLINE_SECOND_WEIGHT * rate_rel_se): measured 0.043
-TRIAL_EXTRA_SIGMA = 0.043
+# (ONLINE_SECOND_WEIGHT * rate_rel_se): measured 0.030
+TRIAL_EXTRA_SIGMA = 0.030
 CALIBRATION_DOF = 19
 # the online rule's trials stay calibrated up to this blind fraction (measured: 0.43 in a 30 u
 # circle, 1.10 of the truth, as at 31,000 u^2); fixed lengths keep MAX_BLIND_FRACTION
@@ -180,17 +214,39 @@ def self_crossing_area(l1, n_self):
         return np.asarray(l1, dtype=float) ** 2 / (math.pi * n)
 
 
-def online_area(l1, l2, n, blind, n_self, self_blind, *, w: float | None = None):
+def reading_coverage(l1, n_self, trail_width_u: float = PAPER_TRAIL_WIDTH_U):
+    """The coverage the first visit's trail was read at, by its own count: pi w n_self / L1
+    (rule (1) of :mod:`controllers.buffon.stopping`; nan where L1 = 0). Arrays broadcast."""
+    l1 = np.asarray(l1, dtype=float)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(l1 > 0, math.pi * trail_width_u * np.asarray(n_self, dtype=float) / l1, np.nan)
+
+
+def online_area(
+    l1,
+    l2,
+    n,
+    blind,
+    n_self,
+    self_blind,
+    *,
+    w: float | None = None,
+    trail_width_u: float = PAPER_TRAIL_WIDTH_U,
+    slope: float | None = None,
+):
     """The online rule's uncorrected estimate (u^2; :data:`ONLINE_CORRECTION` not applied): the
     geometric mean, weighted by ``w`` (None: :data:`ONLINE_SECOND_WEIGHT`), of the second
     visit's Buffon estimate and the first visit's own self-crossing estimate, each with its
     visit's dead-time correction (``blind``, ``self_blind``: the share of the visit's steps its
-    counter was blind; module doc)."""
+    counter was blind), brought back to :data:`REFERENCE_COVERAGE` from the coverage its trail
+    was read at by ``slope`` (None: :data:`COVERAGE_SLOPE`; module doc)."""
     w = ONLINE_SECOND_WEIGHT if w is None else w
+    slope = COVERAGE_SLOPE if slope is None else slope
     a2 = buffon_area(l1, l2, n) * (1.0 - np.asarray(blind, dtype=float))
     a1 = self_crossing_area(l1, n_self) * (1.0 - np.asarray(self_blind, dtype=float))
+    back = np.exp(-slope * (reading_coverage(l1, n_self, trail_width_u) - REFERENCE_COVERAGE))
     with np.errstate(invalid="ignore"):
-        return a2**w * a1 ** (1.0 - w)
+        return a2**w * a1 ** (1.0 - w) * back
 
 
 def area_estimates(ts, *, dead_time: bool = True, correction: float | None = None) -> np.ndarray:
@@ -205,7 +261,8 @@ def area_estimates(ts, *, dead_time: bool = True, correction: float | None = Non
                 "older version): "
                 "run it again (--fresh)"
             )
-        a = online_area(ts.l1_u, ts.l2_u, ts.crossings, ts.blind_fraction, ts.n_self, ts.self_blind)
+        a = online_area(ts.l1_u, ts.l2_u, ts.crossings, ts.blind_fraction, ts.n_self, ts.self_blind,
+                        trail_width_u=ts.trail_width_u)  # fmt: skip
     else:
         a = buffon_area(ts.l1_u, ts.l2_u, ts.crossings)
         if dead_time:
@@ -220,23 +277,27 @@ def _t95() -> float:
 def trial_half_width(
     rate_rel_se,
     *,
+    coverage_offset=0.0,
     w: float = ONLINE_SECOND_WEIGHT,
     extra: float = TRIAL_EXTRA_SIGMA,
     correction_se: float = ONLINE_CORRECTION_SE,
     shape: float = SHAPE_SIGMA,
+    slope_se: float = COVERAGE_SLOPE_SE,
     dof: int = CALIBRATION_DOF,
 ) -> np.ndarray:
     """The per-trial 95 % interval's half-width in log (module doc): t(dof) sqrt((w se)^2 +
-    extra^2 + correction_se^2 + shape^2) for each trial's crossing-rate relative error
-    ``rate_rel_se`` (inf where it is not finite); the shipped calibration by default, another
-    weight's own calibration when given."""
+    extra^2 + correction_se^2 + shape^2 + (slope_se d)^2) for each trial's crossing-rate relative
+    error ``rate_rel_se`` (inf where it is not finite) and the distance d (``coverage_offset``) of
+    its reading coverage from :data:`REFERENCE_COVERAGE`; the shipped calibration by default,
+    another weight's own calibration when given."""
     se = w * np.where(np.isfinite(rate_rel_se), rate_rel_se, np.inf)
-    return float(stats.t.ppf(0.975, dof)) * np.sqrt(se**2 + extra**2 + correction_se**2 + shape**2)
+    back = slope_se * np.nan_to_num(np.asarray(coverage_offset, dtype=float), nan=np.inf)
+    return float(stats.t.ppf(0.975, dof)) * np.sqrt(se**2 + extra**2 + correction_se**2 + shape**2 + back**2)
 
 
-def trial_intervals(est: np.ndarray, rate_rel_se: np.ndarray) -> np.ndarray:
+def trial_intervals(est: np.ndarray, rate_rel_se: np.ndarray, coverage_offset=0.0) -> np.ndarray:
     """(n, 2) per-trial 95 % intervals of the online rule's estimates ``est`` (see module doc)."""
-    h = trial_half_width(np.asarray(rate_rel_se, float))
+    h = trial_half_width(np.asarray(rate_rel_se, float), coverage_offset=coverage_offset)
     with np.errstate(invalid="ignore", over="ignore"):
         return np.column_stack([est * np.exp(-h), est * np.exp(h)])
 
@@ -290,7 +351,8 @@ def summarise(ts, area_true_u2: float, *, correction: float | None = None) -> di
     online = bool(getattr(ts, "online", False))
     trial_ci = None
     if online and ts.rate_rel_se is not None:
-        tci = trial_intervals(est, ts.rate_rel_se)
+        offset = reading_coverage(ts.l1_u, ts.n_self, ts.trail_width_u) - REFERENCE_COVERAGE
+        tci = trial_intervals(est, ts.rate_rel_se, offset)
         trial_ci = [[_finite(lo), _finite(hi)] for lo, hi in tci]
         holds = (tci[:, 0] <= area_true_u2) & (area_true_u2 <= tci[:, 1])
     raw = area_estimates(ts, dead_time=False, correction=1.0)

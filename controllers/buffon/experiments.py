@@ -133,6 +133,7 @@ def result_of(ts: TrialSet, area_true_u2: float) -> dict:
         "self_blind": ts.self_blind.tolist(),
         "steps": ts.steps.tolist(),
         "converged": ts.converged.tolist(),
+        "trail_width_u": ts.trail_width_u,
     }
     return refresh(out, area_true_u2)
 
@@ -147,9 +148,10 @@ def refresh(stored: dict, area_true_u2: float) -> dict:
         rate_rel_se=_opt(stored, "rate_rel_se", float), steps=_opt(stored, "steps", np.int64),
         converged=_opt(stored, "converged", bool), online=bool(stored.get("online", False)),
         n_self=_opt(stored, "n_self", np.int64), self_blind=_opt(stored, "self_blind", float),
+        trail_width_u=float(stored.get("trail_width_u", PAPER_TRAIL_WIDTH_U)),
     )  # fmt: skip
     keep = ("crossings", "l1_u", "l2_u", "blind_fraction", "escapes", "robot_steps", "wall_s", "cpu_s", "online",
-            "rate_rel_se", "n_self", "self_blind", "steps", "converged")  # fmt: skip
+            "rate_rel_se", "n_self", "self_blind", "steps", "converged", "trail_width_u")  # fmt: skip
     out = {k: stored[k] for k in keep if k in stored}
     out.update(summarise(ts, area_true_u2))
     out["nbc"] = ts.nbc.tolist()

@@ -168,20 +168,43 @@ def evaluation_nests(folder: str | Path) -> list[dict]:
     return out
 
 
-def calibrate_online(results: list[dict], *, w: float | None = None) -> dict:
-    """The factor and spreads of the online rule from the calibration family's stored results
-    (each with ``area_true`` and per-trial ``l1_u``, ``l2_u``, ``crossings``, ``blind_fraction``,
-    ``n_self``, ``self_blind``, ``rate_rel_se``) for the weight ``w`` (None: the shipped
+def calibrate_online(results: list[dict], *, w: float | None = None, slope: float | None = None) -> dict:
+    """The coverage slope, factor and spreads of the online rule from the calibration family's
+    stored results (each with ``area_true`` and per-trial ``l1_u``, ``l2_u``, ``crossings``,
+    ``blind_fraction``, ``n_self``, ``self_blind``, ``rate_rel_se``; ``trail_width_u`` if not the
+    paper's) for the weight ``w`` (None: the shipped
     :data:`~controllers.buffon.estimate.ONLINE_SECOND_WEIGHT`): see
-    :mod:`controllers.buffon.estimate`."""
-    from controllers.buffon.estimate import ONLINE_SECOND_WEIGHT, online_area
+    :mod:`controllers.buffon.estimate`. The slope (the log estimate's on the reading coverage,
+    within nests, pooled) is measured on ``results`` unless ``slope`` is given (or the trials of
+    every nest were read at one coverage: then the shipped one and its error are used)."""
+    from controllers.buffon.batched import PAPER_TRAIL_WIDTH_U
+    from controllers.buffon.estimate import (
+        COVERAGE_SLOPE,
+        COVERAGE_SLOPE_SE,
+        ONLINE_SECOND_WEIGHT,
+        REFERENCE_COVERAGE,
+        online_area,
+        reading_coverage,
+    )
 
     w = ONLINE_SECOND_WEIGHT if w is None else w
-    meds, samp, resid, se2 = [], [], [], []
+    keys = ("l1_u", "l2_u", "crossings", "blind_fraction", "n_self", "self_blind")
+    logs, offsets = [], []
     for r in results:
-        keys = ("l1_u", "l2_u", "crossings", "blind_fraction", "n_self", "self_blind")
-        a = online_area(*(np.asarray(r[k], float) for k in keys), w=w)
-        d = np.log(a / r["area_true"])
+        width = float(r.get("trail_width_u", PAPER_TRAIL_WIDTH_U))
+        a = online_area(*(np.asarray(r[k], float) for k in keys), w=w, trail_width_u=width, slope=0.0)
+        logs.append(np.log(a / r["area_true"]))
+        offsets.append(reading_coverage(r["l1_u"], r["n_self"], width) - REFERENCE_COVERAGE)
+    x = np.concatenate([x - x.mean() for x in offsets])
+    if np.ptp(x) > 0:
+        fit = stats.linregress(x, np.concatenate([y - y.mean() for y in logs]))
+        measured, measured_se, r_value = float(fit.slope), float(fit.stderr), float(fit.rvalue)
+    else:  # every nest's trials read at one coverage: nothing to measure the slope on
+        measured, measured_se, r_value = COVERAGE_SLOPE, COVERAGE_SLOPE_SE, math.nan
+    slope = measured if slope is None else slope
+    meds, samp, resid, se2 = [], [], [], []
+    for r, y, x in zip(results, logs, offsets, strict=True):
+        d = y - slope * x
         m = float(np.median(d))
         meds.append(m)
         samp.append(math.pi / 2 * np.var(d, ddof=1) / len(d))  # the sampling variance of a median
@@ -198,6 +221,9 @@ def calibrate_online(results: list[dict], *, w: float | None = None) -> dict:
     return {
         "nests": n,
         "trials": n_trials,
+        "coverage_slope": slope,
+        "coverage_slope_se": measured_se,
+        "coverage_slope_r": r_value,
         "correction": k,
         "correction_se_log": math.sqrt(between / n),
         "shape_sigma": math.sqrt(shape2),

@@ -563,10 +563,12 @@ def online_summary(
         "",
         "## Calibration (its own family, not the evaluation's)",
         "",
-        f"{cal['nests']} nests, {cal['trials']} trials: factor {cal['correction']:.4f} "
-        f"(shipped {e.ONLINE_CORRECTION}), "
+        f"{cal['nests']} nests, {cal['trials']} trials: coverage slope {cal['coverage_slope']:.2f} "
+        f"+- {cal['coverage_slope_se']:.2f} (shipped {e.COVERAGE_SLOPE} +- {e.COVERAGE_SLOPE_SE}), "
+        f"factor {cal['correction']:.4f} (shipped {e.ONLINE_CORRECTION}), "
         f"SE of log K {cal['correction_se_log']:.4f} (shipped {e.ONLINE_CORRECTION_SE}), shape sigma "
-        f"{cal['shape_sigma']:.4f} (shipped {e.SHAPE_SIGMA}), extra per-trial sigma {cal['trial_extra_sigma']:.4f} "
+        f"{cal['shape_sigma']:.4f} beyond sampling, {cal['shape_sigma_upper']:.4f} whole (shipped "
+        f"{e.SHAPE_SIGMA}, the whole spread), extra per-trial sigma {cal['trial_extra_sigma']:.4f} "
         f"(shipped {e.TRIAL_EXTRA_SIGMA}).",
         "",
         "## Coverage on the held-out family",

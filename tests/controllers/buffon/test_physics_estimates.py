@@ -186,12 +186,37 @@ def test_self_crossing_area_on_random_needles_in_a_torus():
 
 def test_online_estimate_is_the_weighted_geometric_mean_of_the_two_visits():
     """Both visits' dead-time corrected estimates, in the stated weights."""
-    from controllers.buffon.estimate import ONLINE_SECOND_WEIGHT, online_area, self_crossing_area
+    from controllers.buffon.estimate import (
+        COVERAGE_SLOPE,
+        ONLINE_SECOND_WEIGHT,
+        REFERENCE_COVERAGE,
+        online_area,
+        self_crossing_area,
+    )
 
-    l1, l2, n, b, ns = np.array([900.0]), np.array([500.0]), np.array([60]), np.array([0.25]), np.array([3000])
+    l1, l2, n, b, ns = np.array([900.0]), np.array([500.0]), np.array([60]), np.array([0.25]), np.array([458])
     b1 = np.array([0.15])
     a2 = buffon_area(l1, l2, n) * (1 - b)
     a1 = self_crossing_area(l1, ns) * (1 - b1)
-    expected = np.exp(ONLINE_SECOND_WEIGHT * np.log(a2) + (1 - ONLINE_SECOND_WEIGHT) * np.log(a1))
+    mean = np.exp(ONLINE_SECOND_WEIGHT * np.log(a2) + (1 - ONLINE_SECOND_WEIGHT) * np.log(a1))
+    rho = math.pi * 0.1 * ns / l1  # the first visit's reading coverage, trail 0.1 u (rule (1))
+    expected = mean * np.exp(-COVERAGE_SLOPE * (rho - REFERENCE_COVERAGE))
     np.testing.assert_allclose(online_area(l1, l2, n, b, ns, b1), expected)
+    np.testing.assert_allclose(online_area(l1, l2, n, b, ns, b1, slope=0.0), mean)
     assert 0 < ONLINE_SECOND_WEIGHT < 1
+
+
+def test_online_estimate_is_brought_back_to_the_reference_coverage():
+    """Two trials with the same two raw estimates, read at the reference coverage and 0.05 above
+    it: the first is left as it is, the second divided by exp(0.05 kappa); a wider trail reads
+    the same count at a higher coverage."""
+    from controllers.buffon.estimate import COVERAGE_SLOPE, REFERENCE_COVERAGE, online_area, reading_coverage
+
+    l1 = np.array([2000.0, 2000.0])
+    ns = np.array([REFERENCE_COVERAGE, REFERENCE_COVERAGE + 0.05]) * l1 / (math.pi * 0.1)
+    np.testing.assert_allclose(reading_coverage(l1, ns), [REFERENCE_COVERAGE, REFERENCE_COVERAGE + 0.05])
+    np.testing.assert_allclose(reading_coverage(l1, ns, 0.2), 2 * reading_coverage(l1, ns))
+    # the same raw estimates: crossings and self-encounters scaled so that both A1 and A2 agree
+    a = online_area(l1, 0.5 * l1, np.array([300.0, 300.0]), 0.2, ns, 0.15)
+    raw = online_area(l1, 0.5 * l1, np.array([300.0, 300.0]), 0.2, ns, 0.15, slope=0.0)
+    np.testing.assert_allclose(a / raw, [1.0, math.exp(-0.05 * COVERAGE_SLOPE)])

@@ -247,6 +247,18 @@ def test_trial_interval_widens_with_the_measured_error():
     assert ci[0, 0] < 1000 < ci[0, 1]
 
 
+def test_trial_interval_carries_the_coverage_slopes_error():
+    """A trial read away from the reference coverage carries the slope's standard error times
+    that distance, in quadrature: t sqrt(h0^2 / t^2 + (se_kappa d)^2)."""
+    from scipy import stats
+
+    from controllers.buffon.estimate import CALIBRATION_DOF, COVERAGE_SLOPE_SE, trial_half_width
+
+    h0, h = trial_half_width(np.array([0.02, 0.02]), coverage_offset=np.array([0.0, 0.05]))
+    t = stats.t.ppf(0.975, CALIBRATION_DOF)
+    assert h == pytest.approx(t * math.sqrt((h0 / t) ** 2 + (COVERAGE_SLOPE_SE * 0.05) ** 2), rel=1e-12)
+
+
 def _docs_script(name: str):
     """docs/NAME.py (a results page's measurement script), loaded as a module."""
     import importlib.util
@@ -275,16 +287,16 @@ def test_calibration_recovers_a_planted_factor_and_spread():
     """Synthetic trials whose two estimates read c times the true area, the second visit's with a
     log-normal error of 0.06 it does not report: the calibration gives K = 1/c and a per-trial
     extra spread of w * 0.06."""
-    from controllers.buffon.estimate import ONLINE_SECOND_WEIGHT
+    from controllers.buffon.estimate import ONLINE_SECOND_WEIGHT, REFERENCE_COVERAGE
     from controllers.buffon.online import calibrate_online
 
     rng = np.random.default_rng(8)
     c, sigma, trials = 1.08, 0.06, 40
     records = []
     for area in (2000.0, 5000.0, 9000.0, 15000.0, 22000.0, 30000.0):
-        l1 = np.full(trials, 1.3 * area)
-        l2 = 0.5 * l1
         b2, b1 = np.full(trials, 0.25), np.full(trials, 0.18)
+        l1 = REFERENCE_COVERAGE * c * area / (0.1 * (1 - b1))  # its own count reads it at the reference coverage
+        l2 = 0.5 * l1
         n = 2 * l1 * l2 * (1 - b2) / (math.pi * c * area) * np.exp(-sigma * rng.standard_normal(trials))
         n_self = l1**2 * (1 - b1) / (math.pi * c * area)
         records.append({"area_true": area, "l1_u": l1, "l2_u": l2, "crossings": n, "blind_fraction": b2,
@@ -293,6 +305,34 @@ def test_calibration_recovers_a_planted_factor_and_spread():
     assert cal["correction"] == pytest.approx(1 / c, rel=0.01)
     assert cal["trial_extra_sigma"] == pytest.approx(ONLINE_SECOND_WEIGHT * sigma, rel=0.15)
     assert cal["shape_sigma"] < 0.01
+
+
+def test_calibration_recovers_a_planted_coverage_slope():
+    """Synthetic trials read at coverages spread about the reference, whose log estimate grows
+    2.0 per unit of coverage on top of a factor 1.05 and a 0.02 log-normal scatter: the calibration
+    measures the slope within its standard error (times 3), and once the estimates are brought
+    back, K = 1 / 1.05 and no extra spread is left beyond the scatter."""
+    from controllers.buffon.estimate import ONLINE_SECOND_WEIGHT, REFERENCE_COVERAGE
+    from controllers.buffon.online import calibrate_online
+
+    rng = np.random.default_rng(3)
+    kappa, c, sigma, trials = 2.0, 1.05, 0.02, 30
+    records = []
+    for area in (2500.0, 6000.0, 12000.0, 20000.0):
+        rho = REFERENCE_COVERAGE + rng.uniform(0.0, 0.05, trials)  # the coverage each trial stopped at
+        bias = c * np.exp(kappa * (rho - REFERENCE_COVERAGE) + sigma * rng.standard_normal(trials))
+        b1, b2 = np.full(trials, 0.2), np.full(trials, 0.25)
+        l1 = rho * bias * area / (0.1 * (1 - b1))  # the trail that its own count reads at rho (rule (1))...
+        n_self = l1**2 * (1 - b1) / (math.pi * bias * area)  # ...with A1 = bias * A
+        l2 = 0.5 * l1
+        n = 2 * l1 * l2 * (1 - b2) / (math.pi * bias * area)  # A2 = bias * A
+        records.append({"area_true": area, "l1_u": l1, "l2_u": l2, "crossings": n, "blind_fraction": b2,
+                        "n_self": n_self, "self_blind": b1, "rate_rel_se": np.zeros(trials)})  # fmt: skip
+    cal = calibrate_online(records)
+    assert abs(cal["coverage_slope"] - kappa) < 3 * cal["coverage_slope_se"]
+    assert cal["correction"] == pytest.approx(1 / c, rel=0.01)
+    assert cal["trial_extra_sigma"] == pytest.approx(sigma, rel=0.2)
+    assert 0 < ONLINE_SECOND_WEIGHT < 1
 
 
 def test_heldout_script_calibration_mode_prints_the_factor(tmp_path, capsys, monkeypatch):
@@ -353,15 +393,18 @@ def test_weight_check_rule_keeps_the_shipped_weight_when_a_group_undercovers(tmp
         for store in ("cal", "sweep"):
             for spec, barrier in nests:
                 area, n = 4000.0, 12
-                l1 = np.full(n, 1.3 * area)
+                l1 = np.full(n, 2.6 * area)
                 l2 = 0.5 * l1
                 e1, e2 = 0.03 * rng.standard_normal(n), 0.03 * rng.standard_normal(n)
                 if bad and "ellipse" in spec:
                     e1[:2] = 0.6
+                # every first visit read at the reference coverage; A1 = A exp(e1) through its blind share
+                n_self = est.REFERENCE_COVERAGE * l1 / (math.pi * 0.1)
+                b1 = 1 - np.exp(e1) * math.pi * n_self * area / l1**2
                 rec = {"area_true": area, "l1_u": l1.tolist(), "l2_u": l2.tolist(),
                        "crossings": (2 * l1 * l2 / (math.pi * area) * np.exp(-e2)).tolist(),
-                       "blind_fraction": [0.0] * n, "n_self": (l1**2 / (math.pi * area) * np.exp(-e1)).tolist(),
-                       "self_blind": [0.0] * n, "rate_rel_se": [0.03] * n}  # fmt: skip
+                       "blind_fraction": [0.0] * n, "n_self": n_self.tolist(),
+                       "self_blind": b1.tolist(), "rate_rel_se": [0.03] * n}  # fmt: skip
                 if store == "cal":
                     lines.append(json.dumps({"spec": spec, "barrier": barrier, **rec}))
                 else:
@@ -380,3 +423,14 @@ def test_weight_check_rule_keeps_the_shipped_weight_when_a_group_undercovers(tmp
     scores = [mod.score(w, cal, other) for w in (0.3, 0.4, 0.5)]
     assert all(s["eligible"] for s in scores)
     assert mod.choose(scores) == min(scores, key=lambda s: s["rms"]["both"])["w"]
+
+
+def test_coverage_response_script_prints_a_row_per_forced_coverage(capsys):
+    """docs/buffon_coverage_response.py (the results page's measurement of how the estimates
+    grow with the reading coverage) on one small nest, two trials: one row per coverage, each
+    first visit stopped at its forced coverage."""
+    mod = _docs_script("buffon_coverage_response")
+    mod.main(["--trials", "2", "--nests", "circle:30", "--threads", "1"])
+    rows = [line for line in capsys.readouterr().out.splitlines() if line.startswith("| circle:30 |")]
+    assert [float(r.split("|")[2]) for r in rows] == list(mod.COVERAGES)
+    assert all(float(r.split("|")[5]) > 0 for r in rows)
