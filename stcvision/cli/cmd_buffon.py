@@ -52,8 +52,9 @@ def add_parser(p):
         default="auto",
         metavar="N|auto",
         help=f"steps of 0.05 s per visit, or 'auto': the robot ends each visit itself (first: when its "
-        f"trail covers a tenth of the floor, from how often it meets it; second: when its crossing rate is "
-        f"pinned down), at most {MAX_BUFFON_VISIT_STEPS:,} (default auto)",
+        "trail covers a set share of the floor, judged from how often it meets it, and it meets it at a "
+        "steady rate; second: when its crossing rate is pinned down), at most "
+        f"{MAX_BUFFON_VISIT_STEPS:,} (default auto)",
     )
     p.add_argument(
         "--trials",
