@@ -17,6 +17,7 @@ Two families that share no nest:
 
 from __future__ import annotations
 
+import functools
 import json
 import math
 from pathlib import Path
@@ -28,6 +29,7 @@ __all__ = [
     "CALIBRATION_COMPARTMENTS",
     "CALIBRATION_NESTS",
     "calibrate_online",
+    "calibration_area_range",
     "calibration_family",
     "calibration_rows",
     "coverage_table",
@@ -98,6 +100,23 @@ def _random_polygon(rng: np.random.Generator, area: float) -> list:
     v = v * math.sqrt(area / a)
     v -= v.min(axis=0)
     return v.round(3).tolist()
+
+
+def calibration_area_range() -> tuple[float, float]:
+    """The smallest and the largest true area (u^2) of the calibration family's nests: the sizes
+    the online rule's factor and intervals were calibrated on."""
+    polygons = tuple(tuple(map(tuple, v)) for v in CALIBRATION_POLYGONS.values())
+    return _area_range(tuple(CALIBRATION_NESTS) + tuple(CALIBRATION_COMPARTMENTS), polygons)
+
+
+@functools.lru_cache(maxsize=4)
+def _area_range(nests: tuple, polygons: tuple) -> tuple[float, float]:
+    from controllers.buffon.nests import parse_nest
+    from sim_camera.arenas import polygon_area
+
+    areas = [parse_nest(s, b).area_u2 for s, b in nests]
+    areas += [abs(polygon_area(np.asarray(v, float))) for v in polygons]
+    return min(areas), max(areas)
 
 
 def calibration_polygons(folder: str | Path) -> list[dict]:

@@ -125,6 +125,8 @@ def format_text(r: dict) -> str:
             f"trial 0 alone: 95 % interval {_num(lo)}-{_num(hi)}; {r['trial_ci95_coverage']:.0%} of the trials' "
             "own intervals hold the true area",
         )
+    if r.get("trial_ci95_note"):
+        lines.append(f"note: {r['trial_ci95_note']}")
     if r.get("area_warning"):
         lines.append(f"WARNING: {r['area_warning']}")
     return "\n".join(lines)

@@ -239,6 +239,10 @@ def test_measure_defaults_to_the_online_rule_with_per_trial_intervals(cli, tmp_p
     holds = [lo <= r["area_true"] <= hi for lo, hi in r["trial_area_ci95"]]
     assert r["trial_ci95_coverage"] == pytest.approx(sum(holds) / 3)
     assert r["robot_steps"] < 2 * 3 * 300_000 and rrd.stat().st_size > 10_000
+    # a 531 u^2 nest is below the smallest calibration nest (circle:40, 1,257 u^2): its intervals say so
+    assert r["area_estimate_median"] < 1257 and "calibrated on" in r["trial_ci95_note"]
+    code, out, err = cli("buffon", "--nest", "circle:26", "--trials", 3)
+    assert code == 0 and "note: the nest reads" in out, err
     # a fixed length gives no per-trial interval (its shape bias was not measured)
     code, out, err = cli("buffon", "--nest", "circle:26", "--trials", 3, "--visit-steps", 2000, "--json")
     r = json.loads(out)

@@ -235,6 +235,7 @@ def test_online_estimate_and_intervals_on_a_small_family():
         assert abs(s["area_bias"]) < 0.08
         assert s["area_ci95"][0] <= nest.area_u2 <= s["area_ci95"][1]
         held += round(s["trial_ci95_coverage"] * 6)
+        assert s["trial_ci95_note"] is None  # within the calibrated sizes
         n += 6
         ci = np.array(s["trial_area_ci95"])
         assert np.all(ci[:, 0] < ci[:, 1])
