@@ -187,6 +187,10 @@ SHAPE_SIGMA = 0.023
 # (ONLINE_SECOND_WEIGHT * rate_rel_se): measured 0.030
 TRIAL_EXTRA_SIGMA = 0.030
 CALIBRATION_DOF = 19
+# the smallest and the largest true area (u^2) of the calibration family's nests, the sizes the
+# factor and the intervals above were calibrated on (controllers.buffon.online.calibration_area_range
+# computes them from the family's definitions; a test holds the two equal)
+CALIBRATED_AREA_U2 = (1256.6, 20106.2)
 # the online rule's trials stay calibrated up to this blind fraction (measured: 0.43 in a 30 u
 # circle, 1.10 of the truth, as at 31,000 u^2); fixed lengths keep MAX_BLIND_FRACTION
 MAX_BLIND_FRACTION_ONLINE = 0.45
@@ -394,9 +398,7 @@ def _trial_interval_note(estimate: float) -> str | None:
     """Why the per-trial intervals of a nest that reads below the calibrated sizes say more than
     they should (measured: in a 707 u^2 circle they held the truth in 67 % of 48 trials;
     docs/results/buffon.md), or None."""
-    from controllers.buffon.online import calibration_area_range
-
-    smallest = calibration_area_range()[0]
+    smallest = CALIBRATED_AREA_U2[0]
     if not (math.isfinite(estimate) and estimate < smallest):
         return None
     return (

@@ -435,3 +435,11 @@ def test_coverage_response_script_prints_a_row_per_forced_coverage(capsys):
     rows = [line for line in capsys.readouterr().out.splitlines() if line.startswith("| circle:30 |")]
     assert [float(r.split("|")[2]) for r in rows] == list(mod.COVERAGES)
     assert all(float(r.split("|")[5]) > 0 for r in rows)
+
+
+def test_the_shipped_calibrated_sizes_are_the_calibration_familys():
+    """The range the per-trial intervals say they were calibrated on is the family's own."""
+    from controllers.buffon.estimate import CALIBRATED_AREA_U2
+    from controllers.buffon.online import calibration_area_range
+
+    assert calibration_area_range() == pytest.approx(CALIBRATED_AREA_U2, abs=0.1)
