@@ -18,7 +18,7 @@ import math
 import numpy as np
 
 from controllers.buffon.batched import VisitConfig, run_trials
-from controllers.buffon.estimate import ONLINE_SECOND_WEIGHT, buffon_area, self_crossing_area
+from controllers.buffon.estimate import buffon_area, online_area, self_crossing_area
 from controllers.buffon.nests import parse_nest
 from controllers.buffon.stopping import StopParams
 
@@ -26,7 +26,9 @@ COVERAGES = (0.10, 0.13, 0.18, 0.24)
 
 
 def response(spec: str, *, trials: int, seed: int, threads: int = 1, coverages=COVERAGES) -> list[dict]:
-    """Per forced coverage: the medians of A1 / A and A2 / A (dead-time corrected, no factor)."""
+    """Per forced coverage: the medians of A1 / A, A2 / A and of their weighted mean over A
+    (:func:`~controllers.buffon.estimate.online_area` not brought back to one coverage; dead-time
+    corrected, no factor)."""
     nest = parse_nest(spec, None)
     out = []
     for j, c in enumerate(coverages):
@@ -34,9 +36,9 @@ def response(spec: str, *, trials: int, seed: int, threads: int = 1, coverages=C
         ts = run_trials(nest, config, trials=trials, seed=seed + j, threads=threads)
         a1 = self_crossing_area(ts.l1_u, ts.n_self) * (1 - ts.self_blind) / nest.area_u2
         a2 = buffon_area(ts.l1_u, ts.l2_u, ts.crossings) * (1 - ts.blind_fraction) / nest.area_u2
-        w = ONLINE_SECOND_WEIGHT
+        mean = online_area(ts.l1_u, ts.l2_u, ts.crossings, ts.blind_fraction, ts.n_self, ts.self_blind, slope=0.0)
         out.append({"coverage": c, "a1": float(np.median(a1)), "a2": float(np.median(a2)),
-                    "mean": float(np.median(a2**w * a1 ** (1 - w)))})  # fmt: skip
+                    "mean": float(np.median(mean / nest.area_u2))})  # fmt: skip
     return out
 
 

@@ -64,7 +64,8 @@ come at a steady rate (:mod:`controllers.buffon.stopping`, rule (1b)); with it A
 **Read at one coverage.** Both estimates grow with the coverage rho = pi w_t n1 / L1 (w_t the trail
 width) at which the first visit stopped, whatever the nest: the counter loses more of a denser
 trail's encounters than its dead-time correction restores (weighting each encounter by the blind
-share of the path just before it, tried over 50-800 steps, did not flatten the curve), and a short
+share of the path just before it, over 50-800 steps, did not flatten the curve: a prototype of the
+compiled loop measured on the same circles, not kept), and a short
 trail's count carries more of the start's neighbourhood and of the path's own recent loops.
 Measured with the coverage forced (``coverage = max_coverage``, 32 trials a nest, the calibration
 family's circles of 60, 100 and 160 u, before the factor K;

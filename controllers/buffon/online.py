@@ -17,7 +17,6 @@ Two families that share no nest:
 
 from __future__ import annotations
 
-import functools
 import json
 import math
 from pathlib import Path
@@ -104,18 +103,13 @@ def _random_polygon(rng: np.random.Generator, area: float) -> list:
 
 def calibration_area_range() -> tuple[float, float]:
     """The smallest and the largest true area (u^2) of the calibration family's nests: the sizes
-    the online rule's factor and intervals were calibrated on."""
-    polygons = tuple(tuple(map(tuple, v)) for v in CALIBRATION_POLYGONS.values())
-    return _area_range(tuple(CALIBRATION_NESTS) + tuple(CALIBRATION_COMPARTMENTS), polygons)
-
-
-@functools.lru_cache(maxsize=4)
-def _area_range(nests: tuple, polygons: tuple) -> tuple[float, float]:
+    the online rule's factor and intervals were calibrated on (shipped as
+    :data:`~controllers.buffon.estimate.CALIBRATED_AREA_U2`)."""
     from controllers.buffon.nests import parse_nest
     from sim_camera.arenas import polygon_area
 
-    areas = [parse_nest(s, b).area_u2 for s, b in nests]
-    areas += [abs(polygon_area(np.asarray(v, float))) for v in polygons]
+    areas = [parse_nest(s, b).area_u2 for s, b in CALIBRATION_NESTS + CALIBRATION_COMPARTMENTS]
+    areas += [abs(polygon_area(np.asarray(v, float))) for v in CALIBRATION_POLYGONS.values()]
     return min(areas), max(areas)
 
 
@@ -208,22 +202,22 @@ def calibrate_online(results: list[dict], *, w: float | None = None, slope: floa
 
     w = ONLINE_SECOND_WEIGHT if w is None else w
     keys = ("l1_u", "l2_u", "crossings", "blind_fraction", "n_self", "self_blind")
-    logs, offsets = [], []
+    logs, offsets = [], []  # per nest: each trial's log estimate over the truth, and rho - rho0
     for r in results:
         width = float(r.get("trail_width_u", PAPER_TRAIL_WIDTH_U))
         a = online_area(*(np.asarray(r[k], float) for k in keys), w=w, trail_width_u=width, slope=0.0)
         logs.append(np.log(a / r["area_true"]))
         offsets.append(reading_coverage(r["l1_u"], r["n_self"], width) - REFERENCE_COVERAGE)
-    x = np.concatenate([x - x.mean() for x in offsets])
-    if np.ptp(x) > 0:
-        fit = stats.linregress(x, np.concatenate([y - y.mean() for y in logs]))
+    within_x = np.concatenate([o - o.mean() for o in offsets])  # about each nest's own mean
+    if np.ptp(within_x) > 0:
+        fit = stats.linregress(within_x, np.concatenate([g - g.mean() for g in logs]))
         measured, measured_se, r_value = float(fit.slope), float(fit.stderr), float(fit.rvalue)
     else:  # every nest's trials read at one coverage: nothing to measure the slope on
         measured, measured_se, r_value = COVERAGE_SLOPE, COVERAGE_SLOPE_SE, math.nan
     slope = measured if slope is None else slope
     meds, samp, resid, se2 = [], [], [], []
-    for r, y, x in zip(results, logs, offsets, strict=True):
-        d = y - slope * x
+    for r, log_a, offset in zip(results, logs, offsets, strict=True):
+        d = log_a - slope * offset
         m = float(np.median(d))
         meds.append(m)
         samp.append(math.pi / 2 * np.var(d, ddof=1) / len(d))  # the sampling variance of a median

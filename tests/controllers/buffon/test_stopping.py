@@ -428,8 +428,8 @@ def test_weight_check_rule_keeps_the_shipped_weight_when_a_group_undercovers(tmp
 
 def test_coverage_response_script_prints_a_row_per_forced_coverage(capsys):
     """docs/buffon_coverage_response.py (the results page's measurement of how the estimates
-    grow with the reading coverage) on one small nest, two trials: one row per coverage, each
-    first visit stopped at its forced coverage."""
+    grow with the reading coverage) runs on one small nest, two trials, and prints one row per
+    forced coverage with a positive estimate."""
     mod = _docs_script("buffon_coverage_response")
     mod.main(["--trials", "2", "--nests", "circle:30", "--threads", "1"])
     rows = [line for line in capsys.readouterr().out.splitlines() if line.startswith("| circle:30 |")]
