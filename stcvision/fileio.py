@@ -7,9 +7,11 @@ replaced when the caller says so (``overwrite=True``): nothing a user made is lo
 
 from __future__ import annotations
 
+import errno
 import json
 import math
 import os
+import secrets
 import tempfile
 from pathlib import Path
 from typing import Any
@@ -90,20 +92,35 @@ def check_output_file(path: str | os.PathLike, *, overwrite: bool = False, what:
 
 def temp_sibling(path: Path, *, directory: bool = False) -> Path:
     """A new hidden temporary sibling ``.NAME.PID.RANDOM.tmp`` of ``path`` (file or folder),
-    registered for removal on exit; the first in a folder in this run removes the stale ones."""
+    registered for removal on exit; the first in a folder in this run removes the stale ones.
+
+    The name is registered before the file or folder exists (made with O_EXCL, as mkstemp
+    does): a termination signal that lands between making it and registering it would leave an
+    unregistered temporary behind, and a run stopped as soon as its recording's file appears
+    lands there (seen under load: an ``stcvision cover --rrd`` stopped by SIGTERM kept its
+    ``.run.rrd....tmp``)."""
     _sweep_once(path.parent)
     prefix = f".{path.name}.{os.getpid()}."
-    if directory:
-        tmp = Path(tempfile.mkdtemp(prefix=prefix, suffix=_TEMP_SUFFIX, dir=path.parent))
-    else:
-        fd, name = tempfile.mkstemp(prefix=prefix, suffix=_TEMP_SUFFIX, dir=path.parent)
+    for _ in range(tempfile.TMP_MAX):
+        tmp = path.parent / f"{prefix}{secrets.token_hex(4)}{_TEMP_SUFFIX}"
+        _LIVE_TEMPS.add(tmp)
         try:
-            os.fchmod(fd, _new_file_mode(path))  # mkstemp makes 0600; the file gets open()'s mode
-        finally:
-            os.close(fd)
-        tmp = Path(name)
-    _LIVE_TEMPS.add(tmp)
-    return tmp
+            if directory:
+                os.mkdir(tmp, 0o700)
+            else:
+                fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600)
+                try:
+                    os.fchmod(fd, _new_file_mode(path))  # the mode open() would give, not 0600
+                finally:
+                    os.close(fd)
+        except FileExistsError:
+            _LIVE_TEMPS.discard(tmp)
+            continue
+        except OSError:
+            _LIVE_TEMPS.discard(tmp)
+            raise
+        return tmp
+    raise FileExistsError(errno.EEXIST, "no free temporary name", str(path.parent))
 
 
 #: folders already swept for stale temporaries in this run (one directory scan per folder, not

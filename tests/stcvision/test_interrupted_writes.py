@@ -193,6 +193,22 @@ def test_sigkill_temp_of_a_live_writer_is_never_taken(tmp_path):
     assert not dead.exists() and temps(tmp_path) == []
 
 
+def test_a_signal_while_a_temporary_is_made_leaves_it_registered(tmp_path, monkeypatch):
+    """A signal (here its exception) that lands once the temporary file exists but before
+    temp_sibling returns: the file is already registered, so the run's clean-up removes it."""
+    from stcvision import fileio
+
+    def interrupted(fd, mode):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(fileio.os, "fchmod", interrupted)
+    with pytest.raises(KeyboardInterrupt):
+        fileio.temp_sibling(tmp_path / "run.rrd")
+    assert len(temps(tmp_path)) == 1  # made, and interrupted before it was handed back
+    fileio.remove_live_temps()
+    assert temps(tmp_path) == []
+
+
 # ---------------------------------------------------------------------------------- render set
 def test_render_killed_leaves_no_partial_set(tmp_path):
     """A killed render leaves its set whole or absent, so the same command run again (without
