@@ -17,7 +17,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from controllers.stc.geometry import COMPASS_VEC, start_heading
+from controllers.stc.geometry import start_heading, step_from, turned
 from controllers.stc.localise import Bearing, Fix
 from stcvision.stcgrid import entry_axes
 
@@ -64,7 +64,7 @@ def turn(plant, belief: Belief, left: bool) -> None:
     """A 90-degree timed turn; the robot now believes it faces the next compass heading, as
     surely as the recalibration on its newest row will set it (:func:`finish_turn`)."""
     plant.turn(left, belief.turn_s)
-    belief.hc = (belief.hc + (3 if left else 1)) % 4
+    belief.hc = turned(belief.hc, left)
     belief.bearing.turned()
 
 
@@ -118,8 +118,7 @@ def drive_forward(plant, belief: Belief) -> str | None:
     it stands at that sub-cell's centre. Returns why the run must stop, or None."""
     moved, why = plant.forward(belief.sub, belief.hc, belief.offset_m, belief.turn_s)
     if moved:
-        di, dj = COMPASS_VEC[belief.hc]
-        belief.sub = (belief.sub[0] + di, belief.sub[1] + dj)
+        belief.sub = step_from(belief.sub, belief.hc)
         belief.offset_m = np.zeros(2)
         belief.fix.moved()
     return why

@@ -29,10 +29,10 @@ from functools import cache
 
 import numpy as np
 
-from stcvision.observation import MARK_INSET, ROW_TOL, _rotate, row_orientation
+from stcvision.observation import LANDING_DOTS, MARK_INSET, ROW_TOL, _rotate, row_orientation
 from stcvision.stcgrid import BOX_EDGES, DIRECTIONS, START_MARKS, SUBCELLS
 
-__all__ = ["CellFit", "fit_cell_offset", "mark_lines"]
+__all__ = ["CellFit", "fit_cell_offset", "mark_lines", "shows_tour_row", "tour_lines"]
 
 #: how far (sub-cell sides) the fit searches either side of the pipeline's offset: short of the
 #: 0.375 at which a row would meet the next line of its half (half the lines' 0.75 spacing)
@@ -67,6 +67,43 @@ def mark_lines() -> tuple[tuple[tuple[float, int], ...], tuple[tuple[float, int]
         coord = float(centre[axis] + (0.5 - MARK_INSET) * e[axis])
         lines[axis].append((coord, int(SUBCELLS[k][1 - axis])))
     return tuple(lines[0]), tuple(lines[1])
+
+
+@cache
+def tour_lines() -> np.ndarray:
+    """Every line an STC tour marks in a cell whose entry frame the reader does not know (a
+    neighbour, the cell ahead): (K, 4) rows of (across axis, coordinate across, centre along,
+    sub-cell) in cell units from that cell's centre. Sub-cell ``m`` of an entry frame is left
+    towards ``m + 1`` (its row on exterior edge ``m + 3``) or out of the cell towards ``m`` (its
+    row on interior edge ``m + 2``), and the start mark lies on exterior edge ``m``; entry frames
+    turn the sub-cells and the directions together, so the same three edges per sub-cell hold in
+    any frame: the eight exterior edges and four of the eight interior ones."""
+    rows = []
+    for m in range(4):
+        centre = 0.5 * np.asarray(SUBCELLS[m], float)
+        for d in ((m + 2) % 4, (m + 3) % 4, START_MARKS[m]):
+            e = np.asarray(DIRECTIONS[d], float)
+            axis = 0 if e[0] else 1
+            rows.append((axis, centre[axis] + (0.5 - MARK_INSET) * e[axis], centre[1 - axis], m))
+    return np.array(rows, float)
+
+
+def shows_tour_row(ru: np.ndarray, lit: np.ndarray, centre) -> bool:
+    """Whether the lit dots ``ru`` (cell units, rotated and shifted as the pipeline read them)
+    show a row an STC tour lays in the cell centred at ``centre``: at least
+    :data:`stcvision.observation.LANDING_DOTS` of a row's four dots within :data:`ON_LINE`
+    across one of :func:`tour_lines` and inside its sub-cell along it. A noise peak, a bloom or
+    another cell's row read across the cell's edge (it lies 0.25 of a sub-cell from the nearest
+    such line) shows none; a mark the tour laid there does, once a frame sees most of its dots."""
+    p = np.asarray(ru, float)[np.asarray(lit, bool)] - np.asarray(centre, float)
+    if len(p) < LANDING_DOTS:
+        return False
+    lines = tour_lines()
+    axis = lines[:, 0].astype(int)
+    across = p[:, axis] - lines[:, 1]  # (dots, lines)
+    along = p[:, 1 - axis] - lines[:, 2]
+    on = (np.abs(across) < ON_LINE) & (np.abs(along) < 0.5)
+    return bool((on.sum(axis=0) >= LANDING_DOTS).any())
 
 
 @dataclass(frozen=True, slots=True)

@@ -85,10 +85,17 @@ class CoverConfig:
     #: ("misread: ...") rather than decide on a mark missed within its frames' reach; off, it
     #: decides on what it read (a study of what the misread costs)
     check_returns: bool = True
-    #: at a decision, a box read unlit whose row the robot's count of its moves laid is read
-    #: again, and a second miss stops the robot (:class:`controllers.stc.health.RowsLaid`); off,
-    #: it decides on the reading (a study of what the check guards)
-    check_rows: bool = True
+    #: at a return, an unlit box's frames must reach the clock at this SNR of its deciding dot,
+    #: else the cell is read again with the next longer frame
+    #: (:meth:`controllers.stc.frames.Exposures._check_old_boxes`): two noise sigmas above the
+    #: dot search's threshold, so each dot is found ~98 % of the time and two of a row's four
+    #: > 99.99 % (at ``sizing_snr`` 98.6 %: over a long tour's returns, now and then a miss)
+    return_snr: float = _SIZING_SNR + 1.0
+    #: a study switch, off in the ant-like robot: keep beside the count of moves a map of where
+    #: the robot has been (every cell entered, every row laid: it grows with the board) and
+    #: check the camera's readings against it (:class:`controllers.stc.movecount.MoveLog`); on,
+    #: the cost of deciding from the floor and a constant memory alone is measured
+    move_log: bool = False
     trace: bool = False  # heading from the lean of all rows in view, not the newest only
     #: hardware faults injected into the run: (name, level) pairs (:mod:`controllers.stc.faults`)
     faults: tuple[tuple[str, float], ...] = ()

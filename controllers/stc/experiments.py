@@ -88,10 +88,11 @@ RUN_FIELDS = (
     "sim_time_s",
     "wall_s",
     "frames",
-    "neighbours_recounted",
+    "neighbours_unproven",
     "relooked",
+    "returns_reread",
     "offsets_left_out",
-    "boxes_reread",
+    "robot_memory_bytes",
 )
 
 
@@ -324,6 +325,7 @@ def cover_run(params: dict, seed) -> dict:
         seed=params["seed"],
         max_decisions=cap,
         camera=hardware.load_camera(params["camera"]),
+        move_log=params.get("move_log", False),
     )
     r = run_cover(board, cfg)
     keep = {k: v for k, v in params.items() if k != "grid"}  # the map's bits stay in the task
@@ -363,9 +365,11 @@ def plan(
     *,
     start: str = "board",
     decisions_per_subcell: int = 10,
+    move_log: bool = False,
 ):
     """The tasks, largest boards first (so the pool is not left waiting on one at the end);
-    every input checked, and the count capped, before a task is made."""
+    every input checked, and the count capped, before a task is made. ``move_log``: the study
+    switch's robot (``CoverConfig.move_log``), tabled apart from the ant-like one."""
     from sim_camera import hardware
     from stcvision.limits import MAX_SWEEP_SEEDS, MAX_SWEEP_TASKS, check_count
     from stcvision.sweep import Task
@@ -388,6 +392,8 @@ def plan(
     check_count("the sweep", n, MAX_SWEEP_TASKS, what, minimum=0)
     order = sorted(families, key=lambda f: -f.largest_cells())
     common = {"start": start, "decisions_per_subcell": decisions_per_subcell}
+    if move_log:  # (absent otherwise: the ant-like robot's tasks keep their parameters)
+        common["move_log"] = True
     grid = itertools.product(order, exposures, perceptions, cameras, seeds)
     kw = ("exposure", "perception", "camera", "seed")
     return [Task(EXPERIMENT, {**f.params(), **common, **dict(zip(kw, rest, strict=True))}, rest[-1])
@@ -484,6 +490,12 @@ def _seed_text(seeds: list[int]) -> str:
     return ",".join(out)
 
 
+def perception_label(r: dict) -> str:
+    """A run's perception as the table names it: the study switch's robot, which keeps a map of
+    where it has been (``CoverConfig.move_log``), is tabled apart from the ant-like robot."""
+    return f"{r['perception']} + move log" if r.get("move_log") else r["perception"]
+
+
 def summarise(runs: list[dict]) -> list[dict]:
     """The dependability table: one row per (camera, perception, exposure, board family), then
     one per (camera, perception, exposure) over all its boards (family ``all``): runs, complete
@@ -491,7 +503,7 @@ def summarise(runs: list[dict]) -> list[dict]:
     decisions and sub-cells covered twice (the referee's counts), coverage and times."""
     groups: dict[tuple, list[dict]] = {}
     for r in runs:
-        kind = (r["camera"], r["perception"], str(r["exposure"]))
+        kind = (r["camera"], perception_label(r), str(r["exposure"]))
         groups.setdefault((*kind, family_of(r)), []).append(r)
         groups.setdefault((*kind, "all"), []).append(r)
     order = sorted(groups, key=lambda k: (*k[:3], k[3] == "all", _family_order(k[3]) if k[3] != "all" else ()))
@@ -543,7 +555,7 @@ def replay_command(r: dict) -> str:
     exposure = f"--exposure {r['exposure']}" if isinstance(r["exposure"], str) else f"--exposure-s {r['exposure']}"
     return (
         f"stcvision cover {board}{start} --seed {r['seed']} --perception {r['perception']} {exposure} "
-        f"--camera {r['camera']} --rrd run.rrd"
+        f"--camera {r['camera']}{' --move-log' if r.get('move_log') else ''} --rrd run.rrd"
     )
 
 
@@ -667,6 +679,7 @@ def sweep(
     obstacle_fraction: tuple[float, float] = (OBSTACLE_FRACTION, OBSTACLE_FRACTION),
     start: str = "board",
     decisions_per_subcell: int = 10,
+    move_log: bool = False,
     options=None,
     force: bool = False,
 ) -> dict:
@@ -676,7 +689,7 @@ def sweep(
 
     families = [*map_families(maps), *with_fraction(sizes, obstacle_fraction)]
     tasks = plan(families, seeds, exposures, perceptions, cameras, start=start,
-                 decisions_per_subcell=decisions_per_subcell)  # fmt: skip
+                 decisions_per_subcell=decisions_per_subcell, move_log=move_log)  # fmt: skip
     out = output_folder(out, OUTPUTS, store=STORE, force=force, what="cover sweep")
     report = run_sweep(tasks, out / STORE, options or SweepOptions(), desc="cover sweep")
     runs = list(report.results.values())

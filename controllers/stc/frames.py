@@ -31,7 +31,7 @@ from controllers.stc.config import CoverConfig
 from controllers.stc.fsm import NeighbourObs, StcObservation
 from controllers.stc.oracle import MarkFloor, landing_oracle, look_oracle, observe_oracle
 from sim_camera.board import DEFAULT_SUBCELL_M
-from stcvision.stcgrid import NEIGHBOURS
+from stcvision.stcgrid import DIRECTIONS, NEIGHBOURS
 
 __all__ = ["AUTO_LONG", "AUTO_REACH_M", "ROW_EQUIVALENT_STACK", "WEBCAM", "Exposures", "IdealCamera", "RobotCamera"]
 
@@ -146,7 +146,7 @@ class Exposures:
         self.cam = SyntheticCamera(sensor=cfg.camera.sensor)
         self.cfg = cfg
         self.subcell_m = subcell_m
-        self._horizons: dict[int, np.ndarray] = {}
+        self._horizons: dict[tuple[int, float], np.ndarray] = {}  # a few curves per rung: bounded
         if cfg.exposure == "auto":
             ladder = (WEBCAM, *AUTO_LONG)
         elif cfg.exposure == "webcam":
@@ -163,6 +163,7 @@ class Exposures:
         self.long_frames = 0
         self.per_rung = [0] * len(self.ladder)  # frames taken at each rung
         self.agreed = 0  # returns' boxes taken by two longer frames' agreement (:meth:`_check_return`)
+        self.reread_old = 0  # returns read again for an unlit box near its frames' reach (:meth:`_check_old_boxes`)
 
     #: the distances (m) at which each rung's horizon is tabulated once (1 cm steps, read at
     #: the next step out: never longer than the truth)
@@ -173,16 +174,19 @@ class Exposures:
     #: upper bound)
     frame_noise = False
 
-    def _curve(self, k: int) -> np.ndarray:
-        """Rung ``k``'s horizon (s) at :data:`RHO`, for a lone dot at ``CoverConfig.sizing_snr``
-        (the camera's calibration of the phosphor, :func:`sim_camera.camera.visibility_horizon_s`)."""
-        if k not in self._horizons:
+    def _curve(self, k: int, snr: float | None = None) -> np.ndarray:
+        """Rung ``k``'s horizon (s) at :data:`RHO`, for a lone dot at ``snr`` (default
+        ``CoverConfig.sizing_snr``; the camera's calibration of the phosphor,
+        :func:`sim_camera.camera.visibility_horizon_s`)."""
+        snr = self.cfg.sizing_snr if snr is None else snr
+        if (k, snr) not in self._horizons:
             from sim_camera.camera import ROSE_SNR, visibility_horizon_s
 
-            eq = (ROSE_SNR / self.cfg.sizing_snr) ** 2  # as if that many more frames were stacked
+            eq = (ROSE_SNR / snr) ** 2  # as if that many more frames were stacked
             n = self.stack_equivalent(k) if self.frame_noise and self.cfg.size_by_frame_noise else self.stack(k)
-            self._horizons[k] = visibility_horizon_s(self.cam, sensor=self._sensor(k), rho_m=self.RHO, n_stack=eq * n)
-        return self._horizons[k]
+            curve = visibility_horizon_s(self.cam, sensor=self._sensor(k), rho_m=self.RHO, n_stack=eq * n)
+            self._horizons[(k, snr)] = curve
+        return self._horizons[(k, snr)]
 
     def stack_equivalent(self, k: int) -> float:
         """The frames rung ``k`` is worth in the horizon: :func:`sim_camera.camera.visibility_horizon_s`
@@ -207,10 +211,11 @@ class Exposures:
         n = self.stack(k)
         return noise_floor_dn(self._sensor(k), n_avg=n, n_dark=8 * n)
 
-    def horizon(self, k: int, rho_m: float) -> float:
-        """How old (s) a mark ``rho_m`` from the robot may be and still be seen in a frame at rung ``k``."""
+    def horizon(self, k: int, rho_m: float, snr: float | None = None) -> float:
+        """How old (s) a mark ``rho_m`` from the robot may be and still be seen in a frame at rung
+        ``k`` (its deciding dot at ``snr``, default ``CoverConfig.sizing_snr``)."""
         i = min(int(np.searchsorted(self.RHO, rho_m - 1e-9)), len(self.RHO) - 1)
-        return float(self._curve(k)[i])
+        return float(self._curve(k, snr)[i])
 
     def horizons(self, reach_m: float = AUTO_REACH_M) -> tuple[float, ...]:
         """The long rungs' visibility horizons (s) for a dot ``reach_m`` from the robot."""
@@ -275,6 +280,8 @@ class Exposures:
             obs, dt = self._check_start_away(t_s, read, obs, dt, taken)
             if obs.misread:
                 return obs, dt
+        if not (fresh or at_start):
+            obs, dt = self._check_old_boxes(t_s, read, obs, dt, taken)
         if self.cfg.check_returns and not (fresh or at_start):
             obs, dt = self._check_return(t_s, read, obs, dt, taken)
         kw = dict(subcell_m=self.subcell_m, margin_m=self.cfg.position_margin_m)
@@ -314,6 +321,28 @@ class Exposures:
                 f"of the robot within {100 * SEARCH_OFFSET * self.subcell_m:.1f} cm, also with a {label} frame"
             )
             obs = dataclasses.replace(obs, misread=why)
+        return obs, dt
+
+    def _check_old_boxes(self, t_s: float, read, obs, dt: float, taken: list):
+        """At a return, a box read unlit decides the parent, and a tour may show the set left
+        without it ({4} for {2,4}: a wrong parent no cross-check of the boxes sees). The claims
+        size the frames so that a mark as old as the clock still shows each dot ~84 % of the
+        time (``CoverConfig.sizing_snr``): two of a row's four are then read 98.6 % of the time,
+        so over a long tour's returns an old row at the edge of a frame's reach is missed now
+        and then. Where no frame taken reaches the clock at ``CoverConfig.return_snr`` (each dot
+        found ~98 % of the time, two of four > 99.99 %) for an unlit box's deciding dot, the
+        cell is read again with the next longer frame (the longest again at the top), merged:
+        the clock, not a record of where the robot has been, says a mark there may be that old.
+        Returns (reading, seconds)."""
+        from controllers.stc.claims import distance_m
+
+        margin, snr = self.cfg.position_margin_m, self.cfg.return_snr
+        for b, lit in enumerate(obs.boxes, 1):
+            rho = distance_m(f"box {b}", self.subcell_m, margin)
+            if not lit and not any(self.horizon(k, rho, snr) >= tk for k, tk in taken):
+                self.reread_old += 1
+                obs, dt, _, _ = self._longer(t_s, read, obs, dt, taken)
+                return obs, dt
         return obs, dt
 
     def _check_return(self, t_s: float, read, obs, dt: float, taken: list):
@@ -506,6 +535,8 @@ class RobotCamera(Exposures):
         self.pipe = None  # the pipeline that read the last frame (for the recording)
         self.bad_frames = 0  # frames lost or black, taken again
         self.refits = 0  # frames read again against the cell's own marks (:meth:`_on_cell_lines`)
+        self.unproven = 0  # neighbours read marked by dots that show no tour's row (:meth:`_neighbour_rows`)
+        self.relooked = 0  # looks taken again for dots on no line of the cell ahead (:meth:`_look_again`)
         self.last_image = None  # the last frame shot (read again by :meth:`_on_cell_lines`)
         from controllers.stc.health import NoiseCheck
 
@@ -606,10 +637,40 @@ class RobotCamera(Exposures):
             r, dt = self.shoot(pose, t, phosphor, k, **(self._as_short(res[0]) if res else {}))
             r, off_line = self._on_cell_lines(r)
             res.append(r)
-            return dataclasses.replace(_to_stc_obs(r.observation), other_marks=off_line), dt
+            obs = dataclasses.replace(_to_stc_obs(r.observation), other_marks=off_line)
+            return self._neighbour_rows(r, obs), dt
 
         obs, dt = self.decision(t_s, read, fresh, at_start, start_cell)
         return obs, res[0], (res[-1] if len(res) > 1 else None), dt
+
+    def _neighbour_rows(self, res, obs: StcObservation) -> StcObservation:
+        """A neighbour read marked (lit dots in it, no red light) whose dots show no row an STC
+        tour lays there (:func:`controllers.stc.cellfit.shows_tour_row`: a row of this cell or of
+        another neighbour read across the cell's edge, a noise peak, a bloom) is read as
+        unmarked: it stays a candidate child, and the look from next to it, 2-3x closer, reads
+        it again before the robot enters it or moves on (:meth:`look`). Passed by on such a
+        reading, a new cell would be left uncovered."""
+        from controllers.stc.cellfit import shows_tour_row
+
+        doubt = [d for d, n in enumerate(obs.neighbours) if n.has_marks and not n.has_red]
+        if not doubt:
+            return obs
+        ru, lit = self._dots(res)
+        neigh = list(obs.neighbours)
+        for d in doubt:
+            if not shows_tour_row(ru, lit, 2 * np.asarray(DIRECTIONS[d])):
+                neigh[d] = NeighbourObs(False, False)
+                self.unproven += 1
+        return dataclasses.replace(obs, neighbours=tuple(neigh))
+
+    def _dots(self, res, offset=...) -> tuple[np.ndarray, np.ndarray]:
+        """A result's dots in cell units as the pipeline read its cell: rotated by its heading
+        and shifted by ``offset`` (default: the offset it read the boxes with), and which are lit."""
+        from controllers.stc.cellfit import frame_dots
+
+        ru, lit = frame_dots(res, self.pipe.geometry)
+        off = res.observation.position_offset if offset is ... else offset
+        return (ru + np.asarray(off) if off is not None else ru), lit
 
     def _on_cell_lines(self, res):
         """Localisation against the cell's own marks (:mod:`controllers.stc.cellfit`): where the
@@ -647,22 +708,58 @@ class RobotCamera(Exposures):
         (before a return to the parent: does the tour close there?), else in the cell ahead (a
         child). What any frame sees counts (it is never less right); the long frames are read
         with the short frame's heading fit."""
+        from controllers.stc.cellfit import shows_tour_row
         from stcvision.observation import LANDING_DOTS, marks_ahead, marks_landing_ahead
 
         count, need = (marks_landing_ahead, LANDING_DOTS) if landing else (marks_ahead, 2)
         res: list = []
 
         def read(k, t):
+            """(marked, shows a tour's row), seconds: a frame at rung ``k``."""
             how = self._as_short(res[0]) if res else {}
             herr = how.get("heading_error_rad")
             r, dt = self.shoot(pose, t, phosphor, k, **how)
             res.append(r)
             off = r.observation.position_offset if k > 0 else None
             n = count(r.dots, self.pipe.geometry, heading_error_rad=herr or 0.0, offset=off)
-            return n >= need, dt
+            row = landing or (n >= need and shows_tour_row(*self._dots(r, off), AHEAD_CENTRE))
+            return (n >= need, row), dt
 
-        marked, dt, _ = self.sure(t_s, read, bool.__or__, self.look_claims(landing))
+        claims = self.look_claims(landing)
+        (marked, row), dt, taken = self.sure(t_s, read, _either, lambda m: claims(m[0]))
+        if marked and not row:
+            (marked, row), dt = self._look_again(t_s, read, dt, taken)
         return marked, res[0], (res[-1] if len(res) > 1 else None), dt
+
+    def _look_again(self, t_s: float, read, dt: float, taken: list):
+        """A child read marked by dots on no line an STC tour marks in the cell ahead
+        (:func:`controllers.stc.cellfit.shows_tour_row`): a mark the tour laid there shows its
+        row once a frame sees most of its dots, so it is looked at once more with a frame one
+        rung longer than any taken (the longest again at the top). A row there: the cell is
+        marked; no dot: it is new (the first entry's check reads its floor again:
+        :meth:`_settle_fresh`); dots on no line again: no reading explains them, and the robot
+        stops before it decides. Returns ((marked, row), seconds)."""
+        from controllers.stc.health import RobotStop
+
+        k = min(max(j for j, _ in taken) + 1, len(self.ladder) - 1)
+        (marked, row), dk = read(k, t_s + dt)
+        self.relooked += 1
+        if marked and not row:
+            raise RobotStop(
+                "misread: lit dots in the cell ahead on no line an STC tour marks there, also with a "
+                f"{self.frame_label(k)} frame"
+            )
+        return (marked, row), dt + dk
+
+
+#: the cell ahead of a robot at a look, in cell units: it stands in the front-right sub-cell of
+#: its own cell, facing the cell ``[-1, 1] x [0, 2]`` (:func:`stcvision.observation.marks_ahead`)
+AHEAD_CENTRE = (0.0, 1.0)
+
+
+def _either(a: tuple[bool, bool], b: tuple[bool, bool]) -> tuple[bool, bool]:
+    """What two frames of a look show together: dots either saw, a row either saw."""
+    return a[0] or b[0], a[1] or b[1]
 
 
 def _fit(res) -> float | None:

@@ -61,8 +61,8 @@ again before the return, from next to it.
 
 Controller
 ----------
-:func:`step` ``(StcState, StcObservation) -> (StcState, Action)`` is a pure function over a
-frozen, constant-size state (phase, current sub-cell index in the entry frame, heading relative
+:func:`step` ``(StcState, StcObservation) -> Step(StcState, Action, Decision)`` is a pure
+function over a frozen, constant-size state (phase, current sub-cell index in the entry frame, heading relative
 to the entry frame, exit direction, a "stop there" flag). No map, no history: every decision comes
 from the observation (:func:`decide`).
 """
@@ -72,6 +72,7 @@ from __future__ import annotations
 import dataclasses
 import enum
 from dataclasses import dataclass
+from typing import NamedTuple
 
 from stcvision.stcgrid import VISITED_BY
 
@@ -84,6 +85,7 @@ __all__ = [
     "StcObservation",
     "StcPhase",
     "StcState",
+    "Step",
     "decide",
     "initial_state",
     "step",
@@ -248,7 +250,17 @@ def _plan(
     )  # fmt: skip
 
 
-def step(state: StcState, obs: StcObservation | LookObs | None) -> tuple[StcState, Action]:
+class Step(NamedTuple):
+    """One controller tick's result: the next state, the action, and the :class:`Decision` the
+    tick made (a ``DECIDE`` tick that read an observation; None on every other tick), so that
+    nothing downstream (the referee, the observers) decides again."""
+
+    state: StcState
+    action: Action
+    decision: Decision | None = None
+
+
+def step(state: StcState, obs: StcObservation | LookObs | None) -> Step:
     """One controller tick. ``obs`` is read in the ``DECIDE`` phase (a :class:`StcObservation`)
     and the ``LOOK`` phase (a :class:`LookObs`).
 
@@ -259,43 +271,43 @@ def step(state: StcState, obs: StcObservation | LookObs | None) -> tuple[StcStat
     The state stays constant-size: the four "looked free" bits and the parent direction."""
     ph = state.phase
     if ph is StcPhase.INIT:
-        return dataclasses.replace(state, phase=StcPhase.START_MARK), Action.TURN_LEFT
+        return Step(dataclasses.replace(state, phase=StcPhase.START_MARK), Action.TURN_LEFT)
     if ph is StcPhase.START_MARK:
-        return dataclasses.replace(state, phase=StcPhase.START_FACE), Action.MARK
+        return Step(dataclasses.replace(state, phase=StcPhase.START_FACE), Action.MARK)
     if ph is StcPhase.START_FACE:
-        return StcState(phase=StcPhase.DECIDE, at_start=True), Action.TURN_RIGHT
+        return Step(StcState(phase=StcPhase.DECIDE, at_start=True), Action.TURN_RIGHT)
     if ph is StcPhase.DONE:
-        return state, Action.DONE
+        return Step(state, Action.DONE)
     if ph is StcPhase.DECIDE:
         if state.closing:  # we just drove onto the marked start sub-cell: the tour is closed
-            return StcState(phase=StcPhase.DONE), Action.DONE
-        if obs is None:
-            raise ValueError("the DECIDE phase needs an observation")
+            return Step(StcState(phase=StcPhase.DONE), Action.DONE)
+        if not isinstance(obs, StcObservation):
+            raise ValueError("the DECIDE phase needs an StcObservation")
         dec = decide(obs, at_start=state.at_start)
         if dec.done:
-            return StcState(phase=StcPhase.DONE), Action.DONE
+            return Step(StcState(phase=StcPhase.DONE), Action.DONE, dec)
         land = bool(obs.landing_marked[dec.parent])
         known = land or bool(obs.landing_known[dec.parent])
-        state = _plan(dec.parent, dec.free, dec.is_start, land, dec.child, known)
+        return Step(*_walk(_plan(dec.parent, dec.free, dec.is_start, land, dec.child, known)), dec)
     if ph is StcPhase.LOOK:
         if not isinstance(obs, LookObs):
             raise ValueError("the LOOK phase needs a LookObs")
         if not state.child:  # the look at the parent's sub-cell ahead: marked, the tour closes there
-            return StcState(phase=StcPhase.DECIDE, closing=obs.marked), Action.FORWARD
+            return Step(StcState(phase=StcPhase.DECIDE, closing=obs.marked), Action.FORWARD)
         if not obs.marked:  # a new cell indeed: enter it
-            return StcState(phase=StcPhase.DECIDE, fresh=True), Action.FORWARD
+            return Step(StcState(phase=StcPhase.DECIDE, fresh=True), Action.FORWARD)
         free = [bool(state.free >> d & 1) and d != state.target for d in range(4)]
         nxt = _next_child(state.parent, free, state.is_start, after=state.target)
         state = _plan(
-            state.parent,
-            free,
-            state.is_start,
-            state.land_parent,
-            nxt,
-            state.land_known,
-            sub=state.sub,
-            heading=state.heading,
-        )
+            state.parent, free, state.is_start, state.land_parent, nxt, state.land_known,
+            sub=state.sub, heading=state.heading,
+        )  # fmt: skip
+    return Step(*_walk(state))
+
+
+def _walk(state: StcState) -> tuple[StcState, Action]:
+    """The ``MOVE`` phase's tick: turn towards the next sub-cell on the way to the exit (counter-
+    clockwise), drive there, look before leaving, leave, or stop in the final sub-cell."""
     m, r, j = state.sub, state.heading, state.target
     if state.final and m == j:
         return StcState(phase=StcPhase.DONE, sub=m, heading=r, target=j, final=True), Action.DONE

@@ -28,17 +28,37 @@ __all__ = [
     "BOXES",
     "COMPASS_NAMES",
     "COMPASS_VEC",
+    "behind",
     "cell_of",
     "compass_to_rad",
     "frame_compass",
     "frame_step",
     "frame_subcells",
     "start_heading",
+    "step_from",
+    "turned",
 ]
 
 COMPASS_NAMES = "NESW"
 #: The five boxes in order as (sub-cell, entry-frame edge direction)
 BOXES = tuple(BOX_EDGES[b] for b in sorted(BOX_EDGES))
+
+
+def turned(h: int, left: bool) -> int:
+    """The compass heading after a quarter turn from ``h``: left is counter-clockwise (compass
+    headings run clockwise)."""
+    return (h + (3 if left else 1)) % 4
+
+
+def behind(h: int) -> int:
+    """The compass direction behind a robot heading ``h`` (where its rear LEDs lay a row)."""
+    return (h + 2) % 4
+
+
+def step_from(sub: tuple[int, int], h: int) -> tuple[int, int]:
+    """The sub-cell one forward move from ``sub`` heading compass ``h``."""
+    di, dj = COMPASS_VEC[h]
+    return sub[0] + di, sub[1] + dj
 
 
 def frame_compass(h: int, d: int) -> int:

@@ -23,27 +23,27 @@ motion, and the camera, physics-limited and oracle runs of one seed drive the sa
 
 from __future__ import annotations
 
-import dataclasses
 import math
 import time
+from dataclasses import dataclass
 
 import numpy as np
 
-from controllers.stc.belief import Belief, align_along, drive_forward, finish_turn, lay_row, recentre, turn
+from controllers.stc.belief import Belief
 from controllers.stc.claims import OutOfSight
-from controllers.stc.config import ALIGN_MARK_M, RECENTRE_M, CoverConfig
+from controllers.stc.config import CoverConfig
 from controllers.stc.faults import Faults
-from controllers.stc.fsm import Action, LookObs, NeighbourObs, StcObservation, StcPhase, decide, initial_state, step
-from controllers.stc.geometry import COMPASS_VEC
-from controllers.stc.health import CellsEntered, RobotStop, RowsLaid, done_away_from_start, landing_at_start
+from controllers.stc.fsm import Action, StcObservation, StcPhase, initial_state, step
+from controllers.stc.health import RobotStop
+from controllers.stc.movecount import MoveCount, MoveLog
 from controllers.stc.observers import Observers, Reading, Trace
 from controllers.stc.oracle import coverage
 from controllers.stc.perception import make_perception
 from controllers.stc.plant import Floor, Plant
 from controllers.stc.referee import Referee
-from stcvision.stcgrid import entry_axes
+from controllers.stc.robot import Robot, act, robot_memory
 
-__all__ = ["CoverConfig", "is_complete", "run_cover", "streams"]
+__all__ = ["CoverConfig", "LoopEnd", "is_complete", "run_cover", "streams"]
 
 STREAMS = ("motion", "camera", "oracle", "board")
 
@@ -79,7 +79,6 @@ def run_cover(board, cfg: CoverConfig | None = None, *, observers=(), perception
     faults = Faults(cfg.faults, cfg.seed, cfg.perception)  # each fault draws from its own stream
     plant = Plant(board, cfg.robot, rngs["motion"], rate_factor=faults.rate_factor(),
                   disturbances=faults.disturbances())  # fmt: skip
-    floor = Floor(board, lay_filter=faults.lay_filter())
     # facing the start heading as well as the turn time set before the run turns a quarter turn
     start_sigma_rad = cfg.robot.initial_turn_error * math.pi / 2
     belief = Belief.at_start(board, plant.calibrated_turn_s, cfg.robot.drive_sigma_m, start_sigma_rad)
@@ -88,193 +87,84 @@ def run_cover(board, cfg: CoverConfig | None = None, *, observers=(), perception
     if perception_hook is not None:
         perception_hook(see)
     watch = Observers([*observers, *([Trace()] if cfg.trace else [])])
+    count = MoveCount(tuple(board.start_subcell))
+    robot = Robot(plant, belief, Floor(board, lay_filter=faults.lay_filter()), see, count, watch,
+                  MoveLog(count) if cfg.move_log else None)  # fmt: skip
     referee = Referee(board, active=see.refereed, report=watch.on_referee)
-    run = _Run(board.start_subcell, check_rows=cfg.check_rows)
+    end = LoopEnd()
     try:
-        _loop(run, cfg, plant, belief, floor, see, watch, referee)
+        _loop(robot, cfg.max_decisions, watch, referee, end)
     except RobotStop as stop:  # a part found that the robot cannot go on (controllers.stc.health)
-        run.abort = f"{stop} (decision {run.decisions})"
-    watch.on_end(plant, floor)
-    out = _summary(board, cfg, plant, belief, see, referee, run, wall_s=time.perf_counter() - wall0)
+        end.abort = f"{stop} (decision {end.decisions})"
+    watch.on_end(plant, robot.floor)
+    out = _summary(board, cfg, robot, referee, end, wall_s=time.perf_counter() - wall0)
     if faults:
         out["faults"] = faults.labels()
         out["fault_events"] = dict(faults.events)
     return out
 
 
-class _Run:
-    """The loop's counters and its outcome, and the robot's count of its moves from its start
-    sub-cell ``start_sub``."""
+@dataclass(slots=True)
+class LoopEnd:
+    """How the loop went: its decisions and looks, whether the controller finished, why the
+    robot stopped (None: it did not), and the most the robot kept between two decisions
+    (:func:`controllers.stc.robot.robot_memory`, bytes)."""
 
-    decisions = looks = 0
-    finished = False
+    decisions: int = 0
+    looks: int = 0
+    finished: bool = False
     abort: str | None = None
-    moved = (0, 0)  # sub-cells moved from the start, by the robot's own compass (rows, columns)
-    recounted = 0  # neighbours read marked that the count never entered, left to the look to read again
-    relooked = 0  # looks that read a never-entered cell marked, taken again
-    reread = 0  # decisions read again because a box read unlit holds a row the count laid
-
-    def __init__(self, start_sub: tuple[int, int], *, check_rows: bool = True):
-        self.entered = CellsEntered(start_sub)  # the cells that count has put the robot in
-        self.rows = RowsLaid(start_sub)  # the rows that count says it laid
-        self.check_rows = check_rows  # (CoverConfig.check_rows)
+    memory_bytes: int = 0
 
 
-def _loop(run: _Run, cfg, plant, belief, floor, see, watch, referee) -> None:
-    """Perception -> controller -> plant until the controller is done, the robot stops or
-    ``cfg.max_decisions`` is reached; the outcome goes into ``run``."""
+def _loop(robot: Robot, max_decisions: int, watch, referee, end: LoopEnd) -> None:
+    """Perception -> controller -> motors until the controller is done, the robot stops or
+    ``max_decisions`` is reached; the outcome goes into ``end``."""
     state = initial_state()
-    while run.decisions < cfg.max_decisions:
+    plant, belief, floor, see = robot.plant, robot.belief, robot.floor, robot.see
+    while end.decisions < max_decisions:
         try:
-            obs = _read(state, plant, belief, floor, see, run)
+            obs = robot.read(state)
         except OutOfSight as e:  # what the reading must rule out, no frame of its camera can
-            run.abort = f"{e} (at sub-cell {belief.sub}, decision {run.decisions + (state.phase is StcPhase.DECIDE)})"
+            end.abort = f"{e} (at sub-cell {belief.sub}, decision {end.decisions + (state.phase is StcPhase.DECIDE)})"
             return
-        obs = _landing_by_count(obs, plant.board, belief, run.moved)
-        if isinstance(obs, StcObservation):
-            obs = _neighbours_by_count(obs, run, belief)
-            run.decisions += 1
-            if obs.misread:  # no STC tour shows this reading, not even with a longer frame
-                run.abort = f"{obs.misread} (at sub-cell {belief.sub}, decision {run.decisions})"
-                return
-            if obs.start_mark is not None and not state.at_start:  # the start mark lies in the start cell only
-                away = done_away_from_start(tuple(plant.board.start_subcell), run.moved)
-                if away is not None:
-                    run.abort = f"start mark read away from the start ({away.split(': ', 1)[1]})"
-                    return
-            watch.on_reading(Reading("decision", run.decisions, plant, belief, floor, obs=obs,
-                                     decision=decide(obs, at_start=state.at_start), frame=see.last_frame))  # fmt: skip
-            referee.decision(plant, belief, floor, obs, state, run.decisions)
-        elif obs is not None:
-            run.looks += 1
-            referee.look(plant, belief, floor, obs.marked, landing=not state.child)
-            watch.on_reading(
-                Reading("look", run.decisions, plant, belief, floor, marked=obs.marked, frame=see.last_frame)
-            )
+        deciding = isinstance(obs, StcObservation)
+        end.decisions += deciding
+        end.looks += obs is not None and not deciding
+        why = robot.refuses(obs, state) if deciding else None
+        if why is not None:  # no STC tour shows this reading: stop before deciding on it
+            end.abort = f"{why} (at sub-cell {belief.sub}, decision {end.decisions})"
+            return
         prev = state
-        state, action = step(state, obs)
-        referee.step(prev, state, action, plant, belief, run.decisions)
+        state, action, decision = step(state, obs)
+        if deciding:
+            watch.on_reading(Reading("decision", end.decisions, plant, belief, floor, obs=obs, decision=decision,
+                                     frame=see.last_frame))  # fmt: skip
+            referee.decision(plant, belief, floor, obs, prev, end.decisions, decision)
+            end.memory_bytes = max(end.memory_bytes, len(robot_memory(robot, state)))
+        elif obs is not None:
+            referee.look(plant, belief, floor, obs.marked, landing=not prev.child)
+            watch.on_reading(Reading("look", end.decisions, plant, belief, floor, marked=obs.marked,
+                                     frame=see.last_frame))  # fmt: skip
+        referee.step(prev, state, action, plant, belief, end.decisions)
         watch.on_step(plant, belief, state, action)
         if action is Action.DONE:
-            run.abort = done_away_from_start(tuple(plant.board.start_subcell), run.moved)
-            run.finished = run.abort is None
+            end.abort = robot.count.done_away()
+            end.finished = end.abort is None
             return
-        if action is Action.FORWARD:  # the robot's own count of its moves on the grid
-            run.rows.laid(run.moved, belief.hc)  # (the row behind it, laid before the move)
-            di, dj = COMPASS_VEC[belief.hc]
-            run.moved = (run.moved[0] + di, run.moved[1] + dj)
-            run.entered.moved_to(run.moved)
-        abort = _act(action, plant, belief, floor, see, watch)
-        if abort is not None:
-            run.abort = f"{abort} (decision {run.decisions})" if abort.startswith("drove") else abort
+        why = act(action, robot)
+        if why is not None:
+            end.abort = f"{why} (decision {end.decisions})" if why.startswith("drove") else why
             return
-    run.abort = f"gave up after {cfg.max_decisions} decisions"
+    end.abort = f"gave up after {max_decisions} decisions"
 
 
-def _landing_by_count(obs, board, belief: Belief, moved: tuple[int, int]):
-    """A decision's ``landing_marked`` (does a return close the tour?) from the robot's count of
-    its moves (:func:`controllers.stc.health.landing_at_start`), not from a mark read 0.2-0.4 m
-    away: a row laid askew or a neighbour's row read there closed a tour away from its start.
-    The count is sure, so no look before a return is needed for it."""
-    if not isinstance(obs, StcObservation):
-        return obs
-    land = landing_at_start(tuple(board.start_subcell), moved, belief.hc)
-    return dataclasses.replace(obs, landing_marked=land, landing_known=(True,) * 4)
-
-
-def _neighbours_by_count(obs: StcObservation, run: _Run, belief: Belief) -> StcObservation:
-    """A decision's neighbours read marked (no red light) that the robot's count of its moves
-    never entered hold no mark it laid: the reading is wrong (a row of this cell or of another
-    neighbour read into it, a noise peak). Passing such a neighbour by would leave it uncovered,
-    so it stays a candidate child and the look from next to it, 2-3x closer, reads it again
-    before the robot enters it or moves on (:func:`_look`)."""
-    suspect = run.entered.suspect_neighbours(obs.neighbours, run.moved, belief.hc)
-    if not suspect:
-        return obs
-    run.recounted += len(suspect)
-    neigh = tuple(NeighbourObs(False, n.has_red) if d in suspect else n for d, n in enumerate(obs.neighbours))
-    return dataclasses.replace(obs, neighbours=neigh)
-
-
-def _boxes_by_count(obs: StcObservation, observe, run: _Run, belief: Belief) -> StcObservation:
-    """A decision's boxes against the rows the robot's count of its moves says it laid
-    (:class:`controllers.stc.health.RowsLaid`): a box read unlit that holds such a row is a mark
-    the frames missed, so the cell is read once more (``observe()``); a second reading that
-    still misses one is not decided on (``StcObservation.misread``). A reading the count agrees
-    with is returned as it is."""
-    if not run.check_rows or obs.misread or not run.rows.missed_boxes(obs.boxes, run.moved, belief.hc):
-        return obs
-    run.reread += 1
-    again = observe()
-    still = () if again.misread else run.rows.missed_boxes(again.boxes, run.moved, belief.hc)
-    if not still:
-        return again
-    boxes = ", ".join(map(str, still))
-    why = f"misread: box {boxes} read unlit by two readings, though the robot's count of its moves laid its row"
-    return dataclasses.replace(again, misread=why)
-
-
-def _read(state, plant: Plant, belief: Belief, floor: Floor, see, run: _Run) -> StcObservation | LookObs | None:
-    """What the controller reads in ``state``: a decision's observation, a look's, or nothing.
-    ``run.moved``: the robot's count of its moves, which says whether it is in its start cell."""
-    if state.phase is StcPhase.DECIDE and not state.closing:
-        start_cell = done_away_from_start(tuple(plant.board.start_subcell), run.moved) is None
-
-        def observe() -> StcObservation:
-            return see.observe(plant, belief, floor, fresh=state.fresh, at_start=state.at_start, start_cell=start_cell)
-
-        return _boxes_by_count(observe(), observe, run, belief)
-    if state.phase is StcPhase.LOOK:
-        return LookObs(_look(state, plant, belief, floor, see, run))
-    return None
-
-
-def _look(state, plant: Plant, belief: Belief, floor: Floor, see, run: _Run) -> bool:
-    """The look before leaving a cell: marked or not. A child read marked that the count of
-    moves never entered is looked at once more: read unmarked, the robot enters it (where the
-    first-entry check reads its floor with longer frames: ``Exposures._settle_fresh``); read
-    marked again, no reading explains both the count and the frames, and the robot stops."""
-    marked = see.look(plant, belief, floor, landing=not state.child)
-    if not (marked and state.child and run.entered.never_entered(run.moved, belief.hc)):
-        return marked
-    run.relooked += 1
-    if see.look(plant, belief, floor, landing=False):
-        raise RobotStop(
-            f"misread: the cell ahead read marked by two looks at sub-cell {belief.sub}, though the robot's count "
-            "of its moves never entered it"
-        )
-    return False
-
-
-def _act(action: Action, plant: Plant, belief: Belief, floor: Floor, see, watch) -> str | None:
-    """The robot carries out ``action`` with what it believes; after a turn the perception
-    measures the heading for the recalibration. Returns why the run must stop, or None."""
-    if action is Action.MARK:
-        lay_row(plant, belief, floor)
-    elif action is Action.FORWARD:
-        # a robot this far off its sub-cell centre (pushed, slipped) would lay its mark in the
-        # wrong place, where the boxes read it wrongly: back to the centre first
-        if np.hypot(*belief.offset_m) > RECENTRE_M:
-            recentre(plant, belief)
-        elif abs(belief.offset_m @ entry_axes(belief.hc)[1]) > ALIGN_MARK_M:
-            # a row lies across the heading: standing behind (or ahead of) the centre lays it
-            # off its box line by as much, so the robot drives along its heading to it first
-            align_along(plant, belief)
-        lay_row(plant, belief, floor)
-        return drive_forward(plant, belief)
-    elif action in (Action.TURN_LEFT, Action.TURN_RIGHT):
-        left = action is Action.TURN_LEFT
-        turn(plant, belief, left)
-        err = see.heading_after_turn(plant, belief, floor)  # (takes frames, does not turn)
-        watch.on_turn(plant, belief, err)
-        finish_turn(plant, belief, left, err)
-    return None
-
-
-def _summary(board, cfg, plant, belief, see, referee, run: _Run, *, wall_s: float) -> dict:
+def _summary(board, cfg, robot: Robot, referee, end: LoopEnd, *, wall_s: float) -> dict:
     # the sub-cell the robot ended in: the one it believes, checked within 0.45 sub-cell of the
     # truth after every move (Plant.check_lost), so the two agree
-    cov = coverage(board, plant.visits, belief.sub, finished=run.finished, moves=plant.moves)
+    plant, belief, see = robot.plant, robot.belief, robot.see
+    cov = coverage(board, plant.visits, belief.sub, finished=end.finished, moves=plant.moves)
+    cam = getattr(see, "cam", None)
     out = {
         "perception": cfg.perception,
         "exposure": cfg.exposure,
@@ -283,12 +173,12 @@ def _summary(board, cfg, plant, belief, see, referee, run: _Run, *, wall_s: floa
         "board_cells": list(board.shape_cells),
         **{k: cov[k] for k in ("subcells_reachable", "subcells_covered", "subcells_covered_more_than_once")},
         "returned_to_start": cov["returned_to_start"],
-        "finished": run.finished,
-        "abort_reason": run.abort,
+        "finished": end.finished,
+        "abort_reason": end.abort,
         "moves": plant.moves,
         "turns": plant.turns,
-        "decisions": run.decisions,
-        "looks": run.looks,
+        "decisions": end.decisions,
+        "looks": end.looks,
         "look_errors": referee.look_errors,
         "reobserved": see.reobserved,
         "sim_time_s": plant.t,
@@ -302,11 +192,18 @@ def _summary(board, cfg, plant, belief, see, referee, run: _Run, *, wall_s: floa
         "turn_rate_error_pct": 100 * (plant.rate_gain - 1),
         "frames": see.frames,
         "long_exposures": see.long_frames,
-        "neighbours_recounted": run.recounted,
-        "relooked": run.relooked,
+        # the floor's checks (camera): neighbours read marked by dots showing no tour's row,
+        # looks taken again for dots on no line, returns read again for a box near its reach
+        "neighbours_unproven": getattr(cam, "unproven", 0),
+        "relooked": getattr(cam, "relooked", 0),
+        "returns_reread": getattr(cam, "reread_old", 0),
         "offsets_left_out": belief.fix.rejected,
-        "boxes_reread": run.reread,
+        "move_log": cfg.move_log,
+        "robot_memory_bytes": end.memory_bytes,
     }
+    if robot.log is not None:  # the study switch's own checks
+        log = robot.log
+        out |= {"log_neighbours_recounted": log.recounted, "log_relooked": log.relooked, "log_boxes_reread": log.reread}
     # the referee's verdict: the robot's "finished" says only that it believes it is done
     out["complete"] = is_complete(out)
     if referee.first_error is not None:

@@ -13,8 +13,20 @@ from __future__ import annotations
 
 import numpy as np
 
-from controllers.stc.fsm import Action, LookObs, NeighbourObs, StcObservation, StcPhase, decide, initial_state, step
-from controllers.stc.geometry import BOXES, COMPASS_NAMES, COMPASS_VEC, frame_compass, frame_subcells, start_heading
+from controllers.stc.fsm import Action, LookObs, NeighbourObs, StcObservation, StcPhase, initial_state, step
+from controllers.stc.geometry import (
+    BOXES,
+    COMPASS_NAMES,
+    COMPASS_VEC,
+    behind,
+    cell_of,
+    frame_compass,
+    frame_subcells,
+    start_heading,
+    step_from,
+    turned,
+)
+from controllers.stc.robot import act
 from stcvision.stcgrid import START_MARKS
 
 __all__ = ["MarkFloor", "coverage", "landing_oracle", "look_oracle", "observe_oracle", "run_oracle"]
@@ -73,16 +85,13 @@ def observe_oracle(
 
 def look_oracle(floor: MarkFloor, robot_subcell: tuple[int, int], heading: int) -> LookObs:
     """The perfect look at the cell ahead of a robot in ``robot_subcell`` heading ``heading``."""
-    di, dj = COMPASS_VEC[heading]
-    i, j = robot_subcell[0] + di, robot_subcell[1] + dj
-    return LookObs(floor.cell_has_marks(i // 2, j // 2))
+    return LookObs(floor.cell_has_marks(*cell_of(step_from(robot_subcell, heading))))
 
 
 def landing_oracle(floor: MarkFloor, robot_subcell: tuple[int, int], heading: int) -> LookObs:
     """The perfect look before a return to the parent: any mark in the sub-cell just ahead (the
     one the robot lands on; marked only when the tour closes there, on the start sub-cell)."""
-    di, dj = COMPASS_VEC[heading]
-    return LookObs(bool(floor.edges.get((robot_subcell[0] + di, robot_subcell[1] + dj))))
+    return LookObs(bool(floor.edges.get(step_from(robot_subcell, heading))))
 
 
 def run_oracle(board, *, max_steps: int = 1_000_000, keep_mismatches: int = 20, camera_view: bool = False) -> dict:
@@ -106,21 +115,23 @@ def run_oracle(board, *, max_steps: int = 1_000_000, keep_mismatches: int = 20, 
     cell_visited = np.zeros(board.shape_cells, bool)
     cell_visited[start_cell] = True
     state = initial_state()
-    moves = turns = marks = steps = decisions = collisions = box_violations = looks = 0
+    grid = _GridMotors(board, floor, s, h, visits, parent_of, cell_visited)
+    steps = decisions = box_violations = looks = 0
     mismatches: list[dict] = []
     box_patterns: dict[tuple[int, ...], int] = {}
     n_mismatch = 0
     finished = False
     while steps < max_steps:
         steps += 1
+        s, h = grid.sub, grid.hc
         deciding = state.phase is StcPhase.DECIDE and not state.closing  # closing: DONE without looking
         obs = observe_oracle(floor, board, s, h, camera_view=camera_view) if deciding else None
         if state.phase is StcPhase.LOOK:
             obs = (look_oracle if state.child else landing_oracle)(floor, s, h)
+        state, action, dec = step(state, obs)
         if deciding:
             decisions += 1
-            dec = decide(obs, at_start=state.at_start)
-            bad = _check_decision(dec, obs, board, s, h, visits, parent_of, cell_visited, start_cell, moves)
+            bad = _check_decision(dec, obs, board, s, h, visits, parent_of, cell_visited, start_cell, grid.moves)
             if not dec.done:
                 box_violations += obs.other_marks > 0
                 key = tuple(k + 1 for k, lit in enumerate(obs.boxes) if lit)
@@ -129,50 +140,63 @@ def run_oracle(board, *, max_steps: int = 1_000_000, keep_mismatches: int = 20, 
                 n_mismatch += 1
                 if len(mismatches) < keep_mismatches:
                     mismatches.append({"subcell": s, "heading": COMPASS_NAMES[h], **bad})
-        state, action = step(state, obs)
-        if action is Action.FORWARD:
-            floor.mark(s, (h + 2) % 4)
-            di, dj = COMPASS_VEC[h]
-            n = (s[0] + di, s[1] + dj)
-            if not (0 <= n[0] < rows and 0 <= n[1] < cols) or board.blocked[n]:
-                collisions += 1
-                break
-            c_old, c_new = (s[0] // 2, s[1] // 2), (n[0] // 2, n[1] // 2)
-            if c_new != c_old and c_new not in parent_of:
-                parent_of[c_new] = c_old
-            cell_visited[c_new] = True
-            visits[n] += 1
-            s = n
-            moves += 1
-        elif action is Action.TURN_LEFT:
-            h = (h + 3) % 4
-            turns += 1
-        elif action is Action.TURN_RIGHT:
-            h = (h + 1) % 4
-            turns += 1
-        elif action is Action.MARK:
-            floor.mark(s, (h + 2) % 4)
-            marks += 1
-        elif action is Action.LOOK:
-            looks += 1
-        elif action is Action.DONE:
+        looks += action is Action.LOOK
+        if action is Action.DONE:
             finished = True
             break
+        if act(action, grid) is not None:  # drove off the board or into an obstacle
+            break
+    s = grid.sub
     return {
-        **coverage(board, visits, s, finished=finished, moves=moves),
-        "moves": moves,
-        "turns": turns,
-        "marks": marks,
+        **coverage(board, visits, s, finished=finished, moves=grid.moves),
+        "moves": grid.moves,
+        "turns": grid.turns,
+        "marks": grid.marks,
         "looks": looks,
         "steps": steps,
         "decisions": decisions,
-        "collisions": collisions,
+        "collisions": grid.collisions,
         "box_table_violations": box_violations,
         "box_patterns": box_patterns,
         "decision_mismatches": n_mismatch,
         "mismatch_examples": mismatches,
         "final_subcell": s,
     }
+
+
+class _GridMotors:
+    """:class:`controllers.stc.robot.Motors` on the grid: exact moves and turns, marks in the
+    floor's record, and the true visit history and spanning tree that ``run_oracle`` checks every
+    decision against."""
+
+    def __init__(self, board, floor: MarkFloor, sub, hc: int, visits, parent_of, cell_visited):
+        self.board, self.floor, self.sub, self.hc = board, floor, tuple(sub), hc
+        self.visits, self.parent_of, self.cell_visited = visits, parent_of, cell_visited
+        self.moves = self.turns = self.marks = self.collisions = 0
+
+    def mark(self) -> None:
+        self.floor.mark(self.sub, behind(self.hc))
+        self.marks += 1
+
+    def forward(self) -> str | None:
+        self.floor.mark(self.sub, behind(self.hc))
+        n = step_from(self.sub, self.hc)
+        rows, cols = self.board.shape_subcells
+        if not (0 <= n[0] < rows and 0 <= n[1] < cols) or self.board.blocked[n]:
+            self.collisions += 1
+            return f"drove into an obstacle or off the board at {n}"
+        c_old, c_new = cell_of(self.sub), cell_of(n)
+        if c_new != c_old and c_new not in self.parent_of:
+            self.parent_of[c_new] = c_old
+        self.cell_visited[c_new] = True
+        self.visits[n] += 1
+        self.sub = n
+        self.moves += 1
+        return None
+
+    def turn(self, left: bool) -> None:
+        self.hc = turned(self.hc, left)
+        self.turns += 1
 
 
 def coverage(board, visits: np.ndarray, final_sub: tuple[int, int], *, finished: bool, moves: int) -> dict:

@@ -24,7 +24,7 @@ import math
 
 import numpy as np
 
-from controllers.stc.geometry import COMPASS_VEC, cell_of, compass_to_rad, start_heading
+from controllers.stc.geometry import behind, cell_of, compass_to_rad, start_heading, step_from
 from controllers.stc.oracle import MarkFloor
 from stcvision.angles import wrap_angle
 from stcvision.stcgrid import entry_axes
@@ -160,7 +160,7 @@ class Plant:
         """Rear LEDs on for ``led_on_s``: a row of dots inside sub-cell ``sub``, on its rear edge
         for compass heading ``hc``."""
         xy = floor.phosphor.led_positions_m(self.pose)
-        floor.lay(xy, sub, (hc + 2) % 4, self.t, self.robot.led_on_s)
+        floor.lay(xy, sub, behind(hc), self.t, self.robot.led_on_s)
         self.t += self.robot.led_on_s
 
     def forward(self, sub: tuple[int, int], hc: int, offset_m: np.ndarray, turn_s: float) -> tuple[bool, str | None]:
@@ -169,8 +169,7 @@ class Plant:
         ``offset_m``, drive, turn back (turns timed by ``turn_s``, at the true rate). Returns
         whether it moved, and why the run must stop (or None)."""
         D = self.board.subcell_m
-        di, dj = COMPASS_VEC[hc]
-        nxt = (sub[0] + di, sub[1] + dj)
+        nxt = step_from(sub, hc)
         rows, cols = self.board.shape_subcells
         if not (0 <= nxt[0] < rows and 0 <= nxt[1] < cols) or self.board.blocked[nxt]:
             return False, f"drove into a blocked sub-cell at {nxt}"

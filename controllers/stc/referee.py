@@ -9,7 +9,7 @@ import math
 from collections.abc import Callable
 
 from controllers.stc.belief import Belief
-from controllers.stc.fsm import Action, StcObservation, StcPhase, StcState, decide
+from controllers.stc.fsm import Action, Decision, StcObservation, StcPhase, StcState, decide
 from controllers.stc.geometry import COMPASS_VEC, cell_of
 from controllers.stc.oracle import landing_oracle, look_oracle, observe_oracle
 from controllers.stc.plant import Floor, Plant
@@ -34,15 +34,14 @@ class Referee:
         self._at: dict = {}
 
     def decision(
-        self, plant: Plant, belief: Belief, floor: Floor, obs: StcObservation, state: StcState, k: int
+        self, plant: Plant, belief: Belief, floor: Floor, obs: StcObservation, state: StcState, k: int, dc: Decision
     ) -> None:
-        """The robot decided from ``obs`` at its ``k``-th decision (state ``state``)."""
+        """The robot decided ``dc`` from ``obs`` at its ``k``-th decision (in state ``state``)."""
         self.max_age_read = max(self.max_age_read, floor.oldest_near(belief.sub, plant.t))
         if not self.active:
             return
         o_obs = observe_oracle(floor.record, self.board, belief.sub, belief.hc, camera_view=True)
         od = decide(o_obs, at_start=state.at_start)
-        dc = decide(obs, at_start=state.at_start)
         self._decided = dc
         if (dc.visited, dc.parent, dc.is_start, dc.done) != (od.visited, od.parent, od.is_start, od.done):
             # what the cell says of itself (visited sub-cells, parent, start, end) was misread:

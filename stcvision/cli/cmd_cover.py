@@ -79,6 +79,9 @@ def add_parser(p):
         help="inject a hardware fault (repeatable): rate, led, drop, stray, noise, bump, slip; --list-faults for "
         "what each LEVEL means, its default and range",
     )
+    p.add_argument("--move-log", action="store_true",
+                   help="a study switch: keep beside the count of moves a map of every cell entered and row laid, "
+                   "and check the camera's readings against it (the ant-like robot keeps no such map)")  # fmt: skip
     p.add_argument("--list-faults", action="store_true", help="list the faults with their LEVEL meaning and range")
     p.add_argument("--list-cameras", action="store_true", help="list the camera presets with their sources")
     p.add_argument("--list-robots", action="store_true", help="list the robot presets with their sources")
@@ -177,9 +180,8 @@ def run(args):
 
     faults = tuple(parse_fault(f) for f in args.fault)
     Faults(faults, args.seed, args.perception)  # a fault twice or one the perception has no frames for: exit 2
-    cfg = CoverConfig(
-        perception=args.perception, exposure=exposure, seed=args.seed, camera=camera, robot=robot, faults=faults
-    )
+    cfg = CoverConfig(perception=args.perception, exposure=exposure, seed=args.seed, camera=camera, robot=robot,
+                      faults=faults, move_log=args.move_log)  # fmt: skip
     result = run_recorded(board, cfg, args.rrd)
     result["rrd"] = args.rrd
     return result

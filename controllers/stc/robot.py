@@ -1,0 +1,187 @@
+"""The STC robot as parts with public seams, so that a real robot's camera and motors can take
+the simulator's place: what the controller's actions drive (:class:`Motors`, :func:`act`), the
+robot in the closed loop (:class:`Robot`: the plant, what it believes, the floor, its
+perception, its count of moves), and what it keeps between two decisions
+(:func:`robot_memory`).
+
+The controller (:func:`controllers.stc.fsm.step`) returns an action; :func:`act` carries it out on
+any :class:`Motors`: the simulated robot here, the grid of :func:`controllers.stc.oracle.run_oracle`,
+a robot behind a serial link. The ant-like robot's memory between decisions is constant: its
+controller state, its pose belief, its clock, its camera's settings and its count of moves
+(:func:`robot_memory`); never a record of cells.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import pickle
+from dataclasses import dataclass, field
+from typing import Protocol
+
+import numpy as np
+
+from controllers.stc.belief import Belief, align_along, drive_forward, finish_turn, lay_row, recentre, turn
+from controllers.stc.config import ALIGN_MARK_M, RECENTRE_M
+from controllers.stc.fsm import Action, LookObs, NeighbourObs, StcObservation, StcPhase, StcState
+from controllers.stc.health import RobotStop
+from controllers.stc.movecount import MoveCount, MoveLog
+from controllers.stc.observers import Observer
+from stcvision.stcgrid import entry_axes
+
+__all__ = ["Motors", "Robot", "act", "robot_memory"]
+
+
+class Motors(Protocol):
+    """What the controller's actions drive."""
+
+    def mark(self) -> None:
+        """Switch the rear LEDs on without moving (the start mark)."""
+
+    def forward(self) -> str | None:
+        """Lay a row on the rear edge of the sub-cell, then drive one sub-cell on; returns why
+        the robot cannot go on, or None."""
+
+    def turn(self, left: bool) -> None:
+        """A quarter turn in place (``left``: counter-clockwise)."""
+
+
+def act(action: Action, motors: Motors) -> str | None:
+    """Carry out a controller ``action`` on ``motors``; returns why the robot cannot go on, or
+    None. ``LOOK`` and ``DONE`` move nothing (the look's reading is the next tick's observation)."""
+    if action is Action.MARK:
+        motors.mark()
+    elif action is Action.FORWARD:
+        return motors.forward()
+    elif action in (Action.TURN_LEFT, Action.TURN_RIGHT):
+        motors.turn(action is Action.TURN_LEFT)
+    return None
+
+
+@dataclass(eq=False)
+class Robot:
+    """The robot in the closed loop: ``plant`` (its body, clock and motors: the simulator's
+    :class:`controllers.stc.plant.Plant`), ``belief`` (what it believes of itself), ``floor``
+    (what it marks), ``see`` (its perception: :mod:`controllers.stc.perception`) and ``count``
+    (its count of moves). ``log``: the study switch's map of where it has been
+    (``CoverConfig.move_log``), None in the ant-like robot. ``watch`` hears of every turn's
+    measurement."""
+
+    plant: object
+    belief: Belief
+    floor: object
+    see: object
+    count: MoveCount
+    watch: Observer = field(default_factory=Observer)
+    log: MoveLog | None = None
+
+    # ------------------------------------------------------------------ the motors
+    def mark(self) -> None:
+        lay_row(self.plant, self.belief, self.floor)
+
+    def forward(self) -> str | None:
+        plant, belief = self.plant, self.belief
+        if self.log is not None:
+            self.log.forward(belief.hc)
+        self.count.forward(belief.hc)
+        # a robot this far off its sub-cell centre (pushed, slipped) would lay its mark in the
+        # wrong place, where the boxes read it wrongly: back to the centre first
+        if np.hypot(*belief.offset_m) > RECENTRE_M:
+            recentre(plant, belief)
+        elif abs(belief.offset_m @ entry_axes(belief.hc)[1]) > ALIGN_MARK_M:
+            # a row lies across the heading: standing behind (or ahead of) the centre lays it
+            # off its box line by as much, so the robot drives along its heading to it first
+            align_along(plant, belief)
+        lay_row(plant, belief, self.floor)
+        return drive_forward(plant, belief)
+
+    def turn(self, left: bool) -> None:
+        """The turn, then the perception measures the heading for the recalibration."""
+        turn(self.plant, self.belief, left)
+        err = self.see.heading_after_turn(self.plant, self.belief, self.floor)  # (takes frames, does not turn)
+        self.watch.on_turn(self.plant, self.belief, err)
+        finish_turn(self.plant, self.belief, left, err)
+
+    # ------------------------------------------------------------------ the readings
+    def read(self, state: StcState) -> StcObservation | LookObs | None:
+        """What the controller reads in ``state``: a decision's observation, a look's, or
+        nothing. May raise :class:`controllers.stc.claims.OutOfSight` or
+        :class:`controllers.stc.health.RobotStop`."""
+        if state.phase is StcPhase.DECIDE and not state.closing:
+
+            def observe() -> StcObservation:
+                obs = self.see.observe(self.plant, self.belief, self.floor, fresh=state.fresh,
+                                       at_start=state.at_start, start_cell=self.count.in_start_cell())  # fmt: skip
+                # does a return close the tour? The count says, not a mark read 0.2-0.4 m away
+                # (a row laid askew or a neighbour's row read there closed a tour away from its
+                # start); the count is sure, so no look before a return is needed for it
+                land = self.count.landing_at_start(self.belief.hc)
+                return dataclasses.replace(obs, landing_marked=land, landing_known=(True,) * 4)
+
+            obs = observe()
+            return obs if self.log is None else self._checked_by_log(obs, observe)
+        if state.phase is StcPhase.LOOK:
+            marked = self.see.look(self.plant, self.belief, self.floor, landing=not state.child)
+            if marked and state.child and self.log is not None:
+                marked = self._look_by_log()
+            return LookObs(marked)
+        return None
+
+    def refuses(self, obs: StcObservation, state: StcState) -> str | None:
+        """Why the robot will not decide on ``obs``, or None: no STC tour shows this reading
+        (``obs.misread``), or it shows the start mark where the count says the robot is not in
+        its start cell."""
+        if obs.misread:
+            return obs.misread
+        if obs.start_mark is not None and not state.at_start and not self.count.in_start_cell():
+            return f"start mark read away from the start ({self.count.done_away().split(': ', 1)[1]})"
+        return None
+
+    # ------------------------------------------------------------------ the study switch
+    def _checked_by_log(self, obs: StcObservation, observe) -> StcObservation:
+        """``CoverConfig.move_log``: a neighbour read marked that the count never entered holds no
+        mark the robot laid, so it stays a candidate child for the look to read again; a box
+        read unlit whose row the count laid is a mark the frames missed, so the cell is read
+        once more, and a second miss is not decided on."""
+        log, hc = self.log, self.belief.hc
+        suspect = log.suspect_neighbours(obs.neighbours, hc)
+        if suspect:
+            log.recounted += len(suspect)
+            neigh = tuple(NeighbourObs(False, n.has_red) if d in suspect else n for d, n in enumerate(obs.neighbours))
+            obs = dataclasses.replace(obs, neighbours=neigh)
+        if obs.misread or not log.missed_boxes(obs.boxes, hc):
+            return obs
+        log.reread += 1
+        again = observe()
+        still = () if again.misread else log.missed_boxes(again.boxes, hc)
+        if not still:
+            return again
+        boxes = ", ".join(map(str, still))
+        why = f"misread: box {boxes} read unlit by two readings, though the robot's count of its moves laid its row"
+        return dataclasses.replace(again, misread=why)
+
+    def _look_by_log(self) -> bool:
+        """``CoverConfig.move_log``: a child read marked that the count never entered is looked
+        at once more; marked again, no reading explains both the count and the frames."""
+        if not self.log.never_entered_ahead(self.belief.hc):
+            return True
+        self.log.relooked += 1
+        if self.see.look(self.plant, self.belief, self.floor, landing=False):
+            raise RobotStop(
+                f"misread: the cell ahead read marked by two looks at sub-cell {self.belief.sub}, though the robot's "
+                "count of its moves never entered it"
+            )
+        return False
+
+
+def robot_memory(robot: Robot, state: StcState) -> bytes:
+    """Everything the robot keeps between two decisions, serialised with :mod:`pickle` (protocol
+    5): its controller state, its pose belief (the sub-cell, the compass heading, the offset
+    from the sub-cell's centre and the heading's drift with their variances, the turn time),
+    its clock, its camera's settings (the exposure ladder) and its count of moves. Not the
+    floor, the plant or the referee (the world and its judge), nor the camera's calibration
+    (dark frames, visibility horizons: measured once before the run, the same on any board).
+    The study switch's :class:`controllers.stc.movecount.MoveLog` is counted when it is on: it
+    is what the ant-like robot must not need. ``len()`` of the result is ``robot_memory_bytes``."""
+    cam = getattr(robot.see, "cam", None)
+    kept = (state, robot.belief, float(robot.plant.t), getattr(cam, "ladder", ()), robot.count, robot.log)
+    return pickle.dumps(kept, protocol=5)
