@@ -33,7 +33,16 @@ from controllers.stc.oracle import MarkFloor, landing_oracle, look_oracle, obser
 from sim_camera.board import DEFAULT_SUBCELL_M
 from stcvision.stcgrid import DIRECTIONS, NEIGHBOURS
 
-__all__ = ["AUTO_LONG", "AUTO_REACH_M", "ROW_EQUIVALENT_STACK", "WEBCAM", "Exposures", "IdealCamera", "RobotCamera"]
+__all__ = [
+    "AUTO_LONG",
+    "AUTO_REACH_M",
+    "ROW_EQUIVALENT_STACK",
+    "WEBCAM",
+    "Exposures",
+    "IdealCamera",
+    "RobotCamera",
+    "stc_observation",
+]
 
 #: the short frame of every observation: the seed's webcam (red lights, fresh marks, the pose):
 #: (exposure_s, gain, frames averaged)
@@ -63,7 +72,11 @@ WHITE_BLUE_RATIO = 0.92
 AUTO_REACH_M = 0.45
 
 
-def _to_stc_obs(cell_obs) -> StcObservation:
+def stc_observation(cell_obs) -> StcObservation:
+    """The controller's observation (:class:`controllers.stc.fsm.StcObservation`) from the pipeline's
+    per-cell reading (:class:`stcvision.observation.CellObservation`): the five boxes lit, per
+    neighbour (right, forward, left, back) marked and red, the start mark's sub-cell and the
+    landing sub-cells marked."""
     neigh = tuple(NeighbourObs(cell_obs.neighbours[d].has_marks, cell_obs.neighbours[d].has_red) for d in NEIGHBOURS)
     return StcObservation(
         boxes=tuple(b.lit for b in cell_obs.boxes),
@@ -637,7 +650,7 @@ class RobotCamera(Exposures):
             r, dt = self.shoot(pose, t, phosphor, k, **(self._as_short(res[0]) if res else {}))
             r, off_line = self._on_cell_lines(r)
             res.append(r)
-            obs = dataclasses.replace(_to_stc_obs(r.observation), other_marks=off_line)
+            obs = dataclasses.replace(stc_observation(r.observation), other_marks=off_line)
             return self._neighbour_rows(r, obs), dt
 
         obs, dt = self.decision(t_s, read, fresh, at_start, start_cell)

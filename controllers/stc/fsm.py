@@ -101,6 +101,9 @@ REENTRY_BOXES = frozenset({(4,), (2, 4), (3, 4), (2, 4, 5), (3, 4, 5), (1, 2, 4)
 
 
 class Action(enum.Enum):
+    """What the controller asks of the robot at one tick (carried out by
+    :func:`controllers.stc.robot.act` on any :class:`controllers.stc.robot.Motors`)."""
+
     FORWARD = "forward"  # mark the rear edge of the current sub-cell, then drive one sub-cell
     TURN_LEFT = "turn_left"  # 90 deg counter-clockwise in place
     TURN_RIGHT = "turn_right"  # 90 deg clockwise in place
@@ -141,11 +144,15 @@ class StcState:
 
 
 def initial_state() -> StcState:
+    """The state before the first tick: about to turn left and lay the start mark."""
     return StcState()
 
 
 @dataclass(frozen=True, slots=True)
 class NeighbourObs:
+    """A neighbour cell as the camera reads it: marks in it, and a red light (an obstacle cell,
+    or beyond the board)."""
+
     has_marks: bool  # any mark inside that cell
     has_red: bool  # red light: obstacle cell or beyond the board
 
@@ -183,6 +190,11 @@ class LookObs:
 
 @dataclass(frozen=True, slots=True)
 class Decision:
+    """What a decision made of one observation (:func:`decide`): the visited sub-cells, the
+    parent, the child to enter (None: back to the parent, or stop in the start cell), whether
+    this is the start cell and whether the tour is done, the sub-cell to go to, and the
+    candidate children."""
+
     visited: tuple[bool, bool, bool]  # sub-cells 1, 2, 3
     parent: int  # entry-frame direction of the parent (virtual parent in the start cell)
     child: int | None  # direction of the new neighbour to enter, None = none
@@ -196,8 +208,22 @@ class Decision:
 
 
 def decide(obs: StcObservation, *, at_start: bool = False) -> Decision:
-    """The ant-like STC decision from one observation (pure, no memory). ``at_start``: the very
-    first decision, standing on the start sub-cell (whose start mark the camera cannot see)."""
+    """The ant-like STC decision from one observation (pure, no memory).
+
+    Parameters
+    ----------
+    obs : StcObservation
+        The cell read in its entry frame (robot in sub-cell 0, heading up).
+    at_start : bool
+        The very first decision, standing on the start sub-cell (whose start mark the camera
+        cannot see).
+
+    Returns
+    -------
+    Decision
+        Visited sub-cells from the five boxes, the parent (the first unvisited-then-visited
+        sub-cell counter-clockwise), and the first candidate child counter-clockwise after it.
+    """
     v = (False, *(any(obs.boxes[b - 1] for b in VISITED_BY[m]) for m in (1, 2, 3)))
     is_start = obs.start_mark is not None or at_start
     if is_start and obs.start_mark == 0 and v[1] and v[2] and v[3]:
@@ -268,7 +294,28 @@ def step(state: StcState, obs: StcObservation | LookObs | None) -> Step:
     (``Action.LOOK``): from there a visited neighbour's marks are 2-3x closer than from the
     decision's sub-cell, so an old mark the decision missed is still read. If the child turns
     out marked, the exit moves on to the next free neighbour counter-clockwise (or the parent).
-    The state stays constant-size: the four "looked free" bits and the parent direction."""
+    The state stays constant-size: the four "looked free" bits and the parent direction.
+
+    Parameters
+    ----------
+    state : StcState
+        The controller's state (frozen, constant size).
+    obs : StcObservation, LookObs or None
+        What the robot read for this tick: an observation in ``DECIDE``, a look in ``LOOK``,
+        nothing in the other phases.
+
+    Returns
+    -------
+    Step
+        The next state, the action, and the :class:`Decision` when this tick decided.
+
+    Examples
+    --------
+    >>> from controllers.stc.fsm import Action, initial_state, step
+    >>> state, action, decision = step(initial_state(), None)
+    >>> action is Action.TURN_LEFT and decision is None
+    True
+    """
     ph = state.phase
     if ph is StcPhase.INIT:
         return Step(dataclasses.replace(state, phase=StcPhase.START_MARK), Action.TURN_LEFT)

@@ -10,7 +10,7 @@ from collections.abc import Callable
 
 from controllers.stc.belief import Belief
 from controllers.stc.fsm import Action, Decision, StcObservation, StcPhase, StcState, decide
-from controllers.stc.geometry import COMPASS_VEC, cell_of
+from controllers.stc.geometry import cell_of, step_from
 from controllers.stc.oracle import landing_oracle, look_oracle, observe_oracle
 from controllers.stc.plant import Floor, Plant
 
@@ -62,8 +62,7 @@ class Referee:
         if not self.active or marked == truth:
             return
         self.look_errors += 1
-        di, dj = COMPASS_VEC[belief.hc]
-        ahead = cell_of((belief.sub[0] + di, belief.sub[1] + dj))
+        ahead = cell_of(step_from(belief.sub, belief.hc))
         seen = [
             (s, e, round(plant.t - t), round(math.dist(self.board.subcell_center_m(*s), (plant.x, plant.y)), 2))
             for (s, e), t in floor.laid_at.items()

@@ -157,9 +157,8 @@ def _blind_to_box_4(up_to_rung: int):
 def test_a_return_missing_box_4_is_read_again_then_stops_before_deciding():
     """The physics-limited camera made blind to box 4: with the return check the robot reads a
     return again with a longer frame and, blind there too, stops ("misread") at its first
-    return with nothing covered twice and no wrong decision; without the check the rows the count
-    laid stop it too (read again, then "misread"); without either it decides on the misreading.
-    Blind only in the short and the 2 s frame, the longer frame mends the
+    return with nothing covered twice and no wrong decision; without the check it decides on
+    the misreading. Blind only in the short and the 2 s frame, the longer frame mends the
     reading and the tour completes."""
     board = Board.random((4, 4), obstacle_fraction=0.1, rng=np.random.default_rng(2))
     cfg = CoverConfig(perception="ideal", exposure="auto", seed=1)
@@ -167,13 +166,8 @@ def test_a_return_missing_box_4_is_read_again_then_stops_before_deciding():
     assert r["abort_reason"].startswith("misread: boxes {"), r["abort_reason"]
     assert "also with a" in r["abort_reason"] and "(at sub-cell" in r["abort_reason"]
     assert r["subcells_covered_more_than_once"] == 0 and r["decision_errors"] == 0
-    unchecked = dataclasses.replace(cfg, check_returns=False, check_rows=False)
-    unchecked = run_cover(board, unchecked, perception_hook=_blind_to_box_4(99))
+    unchecked = run_cover(board, dataclasses.replace(cfg, check_returns=False), perception_hook=_blind_to_box_4(99))
     assert unchecked["decision_errors"] > 0 and not unchecked["complete"]
-    # the rows the count laid guard the same miss without the return's check: read again, then a stop
-    rows = run_cover(board, dataclasses.replace(cfg, check_returns=False), perception_hook=_blind_to_box_4(99))
-    assert "count of its moves laid its row" in rows["abort_reason"], rows["abort_reason"]
-    assert rows["boxes_reread"] >= 1 and rows["decision_errors"] == 0 and rows["subcells_covered_more_than_once"] == 0
     mended = run_cover(board, cfg, perception_hook=_blind_to_box_4(1))
     assert mended["complete"], mended["abort_reason"]
     assert mended["long_exposures"] > run_cover(board, cfg)["long_exposures"]  # the re-reads
@@ -197,3 +191,40 @@ def test_frames_sized_by_their_own_noise_see_less_far_on_the_webcam():
     honest.frame_noise = True
     last = len(web.ladder) - 1
     assert 0.45 < honest.horizon(last, 0.45) / web.horizon(last, 0.45) < 0.6
+
+
+def test_an_unlit_box_at_a_return_near_its_frames_reach_is_read_with_the_next_longer_frame():
+    """At a return the claims size the frames for each dot at ``sizing_snr``; an unlit box whose
+    frames do not also reach the clock at the stricter ``return_snr`` is read again with the next
+    longer rung, once; where they do, or in a fresh cell (nothing to miss), no frame is added."""
+    from controllers.stc.claims import distance_m
+    from controllers.stc.frames import Exposures
+    from sim_camera.hardware import load_camera
+
+    cam = Exposures(CoverConfig(exposure="auto", camera=load_camera("cooled")))
+    rho = distance_m("box 2", cam.subcell_m, cam.cfg.position_margin_m)  # the farthest box
+    k = 3
+    sized, strict = cam.horizon(k, rho), cam.horizon(k, rho, cam.cfg.return_snr)
+    assert strict < sized  # each dot at 2 sigma above the threshold, not 1: a shorter reach
+    clock = 0.5 * (sized + strict)  # rung 3's sizing horizon covers box 2, its stricter one does not
+    taken: list[int] = []
+
+    def read(k, t):
+        taken.append(k)
+        return StcObservation(boxes=lit, neighbours=(NeighbourObs(False, False),) * 4, start_mark=None), 1.0
+
+    def frames(t_s, fresh):
+        taken.clear()
+        cam.decision(t_s, read, fresh=fresh, at_start=False)
+        return list(taken)
+
+    lit = (False, False, False, True, False)  # {4}: a return's set, box 2 unlit
+
+    sized_only = [j for j, _ in cam.sure(clock, read, lambda a, b: a, cam.decision_claims(False, False))[2]]
+    assert sized_only[-1] >= k
+    before = cam.reread_old
+    assert frames(clock, False) == [*sized_only, sized_only[-1] + 1] and cam.reread_old == before + 1
+    lit = (False,) * 5
+    assert frames(clock, True) == [0]  # a fresh cell, read empty: nothing to miss
+    lit = (False, False, False, True, False)
+    assert frames(1.0, False) == [0] and cam.reread_old == before + 1  # the short frame reaches 1 s at any SNR

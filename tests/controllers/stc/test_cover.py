@@ -121,6 +121,19 @@ def test_cover_cli_json_and_rerun_recording(tmp_path, capsys):
         assert path in text, path
 
 
+def test_cover_cli_move_log_is_the_study_switch(capsys):
+    """``cover --move-log`` runs the robot with the map of where it has been and reports the map's
+    own checks; without it the ant-like robot keeps its constant memory."""
+    argv = ["cover", "--board", "4x3", "--seed", "2", "--perception", "oracle", "--json"]
+    assert main(argv) == 0
+    ant = json.loads(capsys.readouterr().out)
+    assert main([*argv, "--move-log"]) == 0
+    logged = json.loads(capsys.readouterr().out)
+    assert ant["move_log"] is False and "log_relooked" not in ant and ant["complete"]
+    assert logged["move_log"] is True and logged["log_relooked"] == 0 and logged["complete"]
+    assert logged["robot_memory_bytes"] > ant["robot_memory_bytes"] > 0
+
+
 @pytest.mark.parametrize(
     ("argv", "words"),
     [

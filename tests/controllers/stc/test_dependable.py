@@ -77,8 +77,7 @@ def test_a_small_lean_of_all_rows_trims_the_heading_without_reobserving():
     from controllers.stc.config import REOBSERVE_RAD
     from controllers.stc.perception import LEAN_TRIM_RAD, CameraPerception
 
-    see = CameraPerception.__new__(CameraPerception)
-    see.cfg = CoverConfig()
+    see = CameraPerception(CoverConfig(), Board(np.zeros((4, 4), bool), (3, 1)), np.random.default_rng(0))
     for lean_deg, turned_deg, reobserve in (
         (0.3, 0.3, False),
         (-0.25, -0.25, False),
@@ -251,8 +250,9 @@ def test_a_row_is_laid_on_its_line_by_a_robot_behind_its_sub_cell_centre():
 
     from controllers.stc.config import ALIGN_MARK_M, RECENTRE_M
     from controllers.stc.fsm import Action
-    from controllers.stc.loop import _act
+    from controllers.stc.movecount import MoveCount
     from controllers.stc.plant import Floor, Plant
+    from controllers.stc.robot import Robot, act
     from sim_camera.robot import LEGO_STC_ROBOT
     from stcvision.stcgrid import entry_axes
 
@@ -266,7 +266,7 @@ def test_a_row_is_laid_on_its_line_by_a_robot_behind_its_sub_cell_centre():
         plant.x, plant.y = plant.x + off[0], plant.y + off[1]
         belief.offset_m = off.copy()
         assert np.hypot(*off) < RECENTRE_M
-        assert _act(Action.FORWARD, plant, belief, floor, None, None) is None
+        assert act(Action.FORWARD, Robot(plant, belief, floor, None, MoveCount(board.start_subcell))) is None
         laid.append(_row_along(board, belief, floor, 0))
         assert plant.aligned == (behind > ALIGN_MARK_M)
     assert laid[1] == pytest.approx(laid[0], abs=1e-3)  # aligned first
@@ -281,9 +281,7 @@ def _perception():
     """The camera perception's localisation alone, on a 4x4 open board (no camera)."""
     from controllers.stc.perception import CameraPerception
 
-    see = CameraPerception.__new__(CameraPerception)
-    see.cfg, see.board = CoverConfig(), Board(np.zeros((4, 4), bool), (3, 1))
-    return see
+    return CameraPerception(CoverConfig(), Board(np.zeros((4, 4), bool), (3, 1)), np.random.default_rng(0))
 
 
 def _fix_reading(lights=None, spread=None, *, marks=(0.0, 0.0), axes=(True, True)):
@@ -377,9 +375,10 @@ def test_rows_laid_askew_do_not_turn_back_a_heading_the_lights_set():
     from controllers.stc.belief import realign
     from controllers.stc.fsm import Action
     from controllers.stc.localise import ROWS_LEAN_SIGMA_RAD, Bearing
-    from controllers.stc.loop import _act
+    from controllers.stc.movecount import MoveCount
     from controllers.stc.perception import CameraPerception
     from controllers.stc.plant import Floor, Plant
+    from controllers.stc.robot import Robot, act
     from sim_camera.hardware import load_camera
     from sim_camera.robot import LEGO_STC_ROBOT
     from stcvision.stcgrid import entry_axes
@@ -390,9 +389,10 @@ def test_rows_laid_askew_do_not_turn_back_a_heading_the_lights_set():
     plant, floor = Plant(board, LEGO_STC_ROBOT, np.random.default_rng(0)), Floor(board)
     belief = Belief.at_start(board, plant.calibrated_turn_s)
     plant.hdg += askew
+    robot = Robot(plant, belief, floor, see, MoveCount(board.start_subcell))
     for _ in range(5):
-        _act(Action.MARK, plant, belief, floor, see, None)
-        _act(Action.FORWARD, plant, belief, floor, see, None)
+        act(Action.MARK, robot)
+        act(Action.FORWARD, robot)
     sideways = abs(plant.true_offset(belief.sub) @ entry_axes(belief.hc)[0])
     assert sideways == pytest.approx(5 * board.subcell_m * math.sin(-askew), rel=0.05)
     realign(plant, belief, -askew)  # what the red lights did
@@ -605,63 +605,30 @@ def test_a_first_entry_read_with_a_box_is_read_again_and_settled_or_stopped_on()
 
 
 # ---------------------------------------------------------------------------------------------
-# a neighbour read marked that the robot never entered
+# the study switch's map of where the robot has been (CoverConfig.move_log)
 
 
-def test_the_cells_entered_are_the_count_of_moves():
-    """The log of cells the count of moves entered: the start cell, then each cell a move lands
-    in; at a decision the neighbours read marked outside it are suspect, at a look the cell ahead."""
+def test_the_move_log_is_the_count_of_moves():
+    """The study switch's log: the start cell, then each cell a forward move lands in; at a
+    decision the neighbours read marked outside it are suspect, at a look the cell ahead."""
     from controllers.stc.fsm import NeighbourObs
-    from controllers.stc.health import CellsEntered
+    from controllers.stc.movecount import MoveCount, MoveLog
 
-    log = CellsEntered((3, 2))  # cell (1, 1)
+    count = MoveCount((3, 2))  # cell (1, 1)
+    log = MoveLog(count)
     assert log.cells == {(1, 1)}
-    assert not log.never_entered((0, 0), 0)  # north of (3, 2) is (2, 2): the start cell
-    assert log.never_entered((0, 0), 2)  # south: (4, 2), cell (2, 1)
-    log.moved_to((-1, 0))  # now in sub-cell (2, 2): the same cell
-    assert log.cells == {(1, 1)}
-    assert log.never_entered((-1, 0), 0)  # north of (2, 2) is (1, 2): cell (0, 1)
-    assert not log.never_entered((-1, 0), 2)  # south: (3, 2), cell (1, 1)
-    log.moved_to((-2, 0))
-    assert log.cells == {(1, 1), (0, 1)}
+    assert not log.never_entered_ahead(0)  # north of (3, 2) is (2, 2): the start cell
+    assert log.never_entered_ahead(2)  # south: (4, 2), cell (2, 1)
     marked = NeighbourObs(True, False)
     # a decision at sub-cell (3, 2) heading north (entry frame: 0 right = E, 1 forward = N, 2 left = W, 3 back = S)
     neighbours = (marked, marked, NeighbourObs(True, True), NeighbourObs(False, False))
-    assert log.suspect_neighbours(neighbours, (0, 0), 0) == (0,)  # east never entered; north was; west is red
-
-
-class _Looks:
-    """A perception whose looks read what it is told, in order."""
-
-    def __init__(self, *marked):
-        self.marked = list(marked)
-
-    def look(self, plant, belief, floor, *, landing=False):
-        return self.marked.pop(0)
-
-
-def test_a_child_the_count_never_entered_read_marked_is_looked_at_again():
-    """A look that reads a never-entered child marked is taken once more: read unmarked the
-    robot enters it (the first-entry check reads it again there); read marked twice it stops
-    before deciding, with the reason. A child the count entered, read marked, is passed by as
-    before, and a look at the parent's landing is never taken again."""
-    from controllers.stc.fsm import StcPhase, StcState
-    from controllers.stc.health import RobotStop
-    from controllers.stc.loop import _look, _Run
-
-    board = Board(np.zeros((8, 8), bool), (3, 2))
-    belief = Belief.at_start(board, 2.7)
-    belief.hc = 3  # facing west from (3, 2): the cell ahead, (1, 0), never entered
-    child = StcState(phase=StcPhase.LOOK, child=True)
-    run = _Run(board.start_subcell)
-    assert _look(child, None, belief, None, _Looks(True, False), run) is False and run.relooked == 1
-    with pytest.raises(RobotStop, match="read marked by two looks .* never entered it"):
-        _look(child, None, belief, None, _Looks(True, True), run)
-    run = _Run(board.start_subcell)
-    run.entered.cells.add((1, 0))  # entered: its marks are its own
-    assert _look(child, None, belief, None, _Looks(True), run) is True and run.relooked == 0
-    parent = StcState(phase=StcPhase.LOOK, child=False)
-    assert _look(parent, None, belief, None, _Looks(True), _Run(board.start_subcell)) is True
+    assert log.suspect_neighbours(neighbours, 0) == (0, 1)  # east and north never entered; west is red
+    for _ in range(2):  # north twice: (2, 2), the same cell, then (1, 2), cell (0, 1)
+        log.forward(0)
+        count.forward(0)
+    assert count.moved == (-2, 0) and log.cells == {(1, 1), (0, 1)}
+    assert log.rows == {((3, 2), 2), ((2, 2), 2)}  # each row on the edge behind (south)
+    assert not log.never_entered_ahead(2)  # south of (1, 2): (2, 2), cell (1, 1)
 
 
 class _Stain:
@@ -680,84 +647,46 @@ class _Stain:
         return lambda *a, **k: None
 
 
-def test_a_mark_in_a_cell_the_robot_never_entered_stops_it_before_passing_the_cell_by():
-    """With a mark in a cell next to the start cell that the robot never entered, the STC robot
-    used to read that neighbour visited and leave it uncovered, a tour 'finished' short. The
-    count of its moves says the mark is not its own: the look from next to it reads it again,
-    and two looks reading it marked stop the robot with the reason, before it decides."""
+def test_the_move_log_stops_the_robot_at_a_mark_it_never_laid():
+    """A mark in a cell next to the start cell that the robot never entered reads, to the oracle's
+    perfect reading, exactly as a visited neighbour: the ant-like robot, deciding from the floor
+    alone, passes it by and its tour ends short (never as a success: the referee's coverage
+    says so). The study switch's map says the mark is not its own: the look from next to it reads
+    it again, and two looks reading it marked stop the robot with the reason, before it
+    decides. Its memory grows with that map; the ant's does not."""
     board = Board(np.zeros((6, 6), bool), (3, 2))  # start cell (1, 1): cell (1, 2) east of it
-    clean = run_cover(board, CoverConfig(perception="oracle", seed=0))
-    assert clean["complete"] and clean["neighbours_recounted"] == clean["relooked"] == 0
-    r = run_cover(board, CoverConfig(perception="oracle", seed=0), observers=[_Stain((2, 5))])
-    assert not r["complete"] and r["relooked"] >= 1, r
-    assert "read marked by two looks" in r["abort_reason"] and "never entered it" in r["abort_reason"], r
+    for move_log in (False, True):
+        cfg = CoverConfig(perception="oracle", seed=0, move_log=move_log)
+        clean = run_cover(board, cfg)
+        assert clean["complete"] and clean["move_log"] is move_log
+        stained = run_cover(board, cfg, observers=[_Stain((2, 5))])
+        assert not stained["complete"]
+        if move_log:
+            assert stained["log_relooked"] >= 1 and "never entered it" in stained["abort_reason"], stained
+            ant = run_cover(board, CoverConfig(perception="oracle"))
+            assert clean["robot_memory_bytes"] > ant["robot_memory_bytes"]
+        else:
+            assert stained["finished"] and stained["subcells_covered"] < stained["subcells_reachable"]
 
 
-# ---------------------------------------------------------------------------------------------
-# a box read unlit whose row the count of moves laid
-
-
-def _oracle_boxes_against_the_rows_laid(board_wh: str, seed: int):
-    """Per decision of an oracle run: (the boxes the floor shows lit, those whose row the robot's
-    count of its moves laid), from :class:`controllers.stc.health.RowsLaid` kept by an observer."""
-    from controllers.stc.experiments import random_board
-    from controllers.stc.fsm import Action
-    from controllers.stc.health import RowsLaid
-    from controllers.stc.observers import Observer
-    from stcvision.stcgrid import BOX_EDGES
-
-    w, h = map(int, board_wh.split("x"))
-    board = random_board(w, h, 0.15, seed)
-
-    class Watch(Observer):
-        def __init__(self):
-            self.rows, self.pairs = RowsLaid((0, 0)), []
-
-        def on_step(self, plant, belief, state, action):
-            if action is Action.FORWARD:  # (the count is the believed sub-cell: the oracle is exact)
-                self.rows.laid(tuple(belief.sub), belief.hc)
-
-        def on_reading(self, ev):
-            if ev.kind == "decision":
-                none = (False,) * 5
-                missed = self.rows.missed_boxes(none, tuple(ev.belief.sub), ev.belief.hc)
-                self.pairs.append(({b for b in BOX_EDGES if ev.obs.boxes[b - 1]}, set(missed)))
-
-    watch = Watch()
-    out = run_cover(board, CoverConfig(perception="oracle", seed=seed), observers=[watch])
-    return out, watch.pairs
-
-
-def test_the_rows_the_count_laid_are_the_boxes_the_floor_shows():
-    """At every decision of oracle tours, the boxes lit on the floor are exactly those whose row
-    the count of moves says the robot laid: the log predicts every box, and no other (so a box
-    read unlit that the log holds is a miss, never a row that is not there)."""
-    for wh, seed in (("6x6", 1), ("7x5", 2)):
-        out, pairs = _oracle_boxes_against_the_rows_laid(wh, seed)
-        assert out["complete"] and out["boxes_reread"] == 0
-        assert pairs and any(lit for lit, _ in pairs)
-        assert all(lit == laid for lit, laid in pairs), [p for p in pairs if p[0] != p[1]][:3]
-
-
-def test_a_box_missed_twice_is_not_decided_on():
+def test_the_move_log_rereads_a_box_whose_row_it_laid():
     """A reading that misses a box whose row the count laid is taken again; read right the
     second time, the robot decides on it; missed again, it stops with the reason."""
     import dataclasses
 
     from controllers.stc.fsm import StcObservation
     from controllers.stc.geometry import frame_subcells
-    from controllers.stc.loop import _boxes_by_count, _Run
+    from controllers.stc.movecount import MoveCount, MoveLog
+    from controllers.stc.robot import Robot
 
-    run = _Run((5, 5))
-    belief = Belief((5, 5), 0, 1.5)  # back in its entry sub-cell, heading north
+    count = MoveCount((5, 5))
+    robot = Robot(None, Belief((5, 5), 0, 1.5), None, None, count, log=MoveLog(count))
     # earlier the robot left entry-frame sub-cell 2 heading south: a row on its north edge, box 2
-    sub2 = frame_subcells((5, 5), 0)[2]
-    run.rows.laid((sub2[0] - 5, sub2[1] - 5), 2)
+    robot.log.rows.add((frame_subcells((5, 5), 0)[2], 0))
     base = StcObservation(boxes=(False,) * 5, neighbours=(), start_mark=None)
-    missed = run.rows.missed_boxes(base.boxes, run.moved, belief.hc)
-    assert missed == (2,)
-    right = dataclasses.replace(base, boxes=tuple(b in missed for b in range(1, 6)))
-    assert _boxes_by_count(base, lambda: right, run, belief) is right and run.reread == 1
-    stopped = _boxes_by_count(base, lambda: base, run, belief)
-    assert "count of its moves laid its row" in stopped.misread and run.reread == 2
-    assert _boxes_by_count(right, lambda: base, run, belief) is right and run.reread == 2
+    assert robot.log.missed_boxes(base.boxes, 0) == (2,)
+    right = dataclasses.replace(base, boxes=(False, True, False, False, False))
+    assert robot._checked_by_log(base, lambda: right) is right and robot.log.reread == 1
+    stopped = robot._checked_by_log(base, lambda: base)
+    assert "count of its moves laid its row" in stopped.misread and robot.log.reread == 2
+    assert robot._checked_by_log(right, lambda: base) is right and robot.log.reread == 2

@@ -1,0 +1,71 @@
+"""The STC robot's parts: the action dispatch over any motors, and what the robot keeps between
+two decisions (constant, whatever the board)."""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+import pytest
+
+from controllers.stc.experiments import random_board
+from controllers.stc.fsm import Action
+from controllers.stc.loop import CoverConfig, run_cover
+from controllers.stc.robot import act
+
+ROOM = Path(__file__).resolve().parents[3] / "controllers" / "stc"
+
+
+class _Recorder:
+    def __init__(self):
+        self.did = []
+
+    def mark(self):
+        self.did.append("mark")
+
+    def forward(self):
+        self.did.append("forward")
+        return "blocked" if len(self.did) > 3 else None
+
+    def turn(self, left):
+        self.did.append("left" if left else "right")
+
+
+def test_act_drives_any_motors():
+    motors = _Recorder()
+    assert [act(a, motors) for a in (Action.MARK, Action.TURN_LEFT, Action.LOOK, Action.FORWARD)] == [None] * 4
+    assert act(Action.TURN_RIGHT, motors) is None and act(Action.DONE, motors) is None
+    assert act(Action.FORWARD, motors) == "blocked"
+    assert motors.did == ["mark", "left", "forward", "right", "forward"]
+
+
+def test_the_robots_memory_is_the_same_on_a_small_and_a_large_board():
+    """What the robot keeps between two decisions (``robot_memory_bytes``, the largest over the
+    tour), on an 8x8 and a 60x60 board: equal within 16 bytes (a pickled integer grows by a byte
+    past 255); the study switch's map grows with the board."""
+    small = run_cover(random_board(8, 8, 0.1, 3), CoverConfig(perception="oracle", seed=3))
+    large = run_cover(random_board(60, 60, 0.1, 3), CoverConfig(perception="oracle", seed=3))
+    assert small["complete"] and large["complete"]
+    assert abs(small["robot_memory_bytes"] - large["robot_memory_bytes"]) <= 16
+    assert 0 < small["robot_memory_bytes"] < 2048
+    logged = run_cover(random_board(8, 8, 0.1, 3), CoverConfig(perception="oracle", seed=3, move_log=True))
+    assert logged["complete"] and logged["robot_memory_bytes"] > small["robot_memory_bytes"] + 500
+
+
+@pytest.mark.parametrize("name", ["robot.py", "loop.py", "fsm.py", "movecount.py", "belief.py", "localise.py"])
+def test_the_ant_like_robot_holds_no_container_that_grows_with_the_board(name):
+    """The robot's own modules keep no set, dict or list across decisions, apart from the study
+    switch's :class:`controllers.stc.movecount.MoveLog`: no attribute is assigned a container
+    display or constructor outside it."""
+    tree = ast.parse((ROOM / name).read_text())
+    grown = []
+    for cls in (n for n in ast.walk(tree) if isinstance(n, ast.ClassDef) and n.name != "MoveLog"):
+        for node in ast.walk(cls):
+            if isinstance(node, (ast.Assign, ast.AnnAssign)):
+                targets = node.targets if isinstance(node, ast.Assign) else [node.target]
+                value = node.value
+                containers = (ast.Set, ast.Dict, ast.List, ast.SetComp, ast.DictComp, ast.ListComp)
+                built = isinstance(value, ast.Call) and getattr(value.func, "id", "") in ("set", "dict", "list")
+                if any(isinstance(t, ast.Attribute) for t in targets) and (isinstance(value, containers) or built):
+                    grown.append(f"{cls.name}: line {node.lineno}")
+    assert not grown, grown
