@@ -121,33 +121,25 @@ def _loop(robot: Robot, max_decisions: int, watch, referee, end: LoopEnd) -> Non
     """Perception -> controller -> motors until the controller is done, the robot stops or
     ``max_decisions`` is reached; the outcome goes into ``end``."""
     state = initial_state()
-    plant, belief, floor, see = robot.plant, robot.belief, robot.floor, robot.see
     while end.decisions < max_decisions:
         try:
             obs = robot.read(state)
         except OutOfSight as e:  # what the reading must rule out, no frame of its camera can
-            end.abort = f"{e} (at sub-cell {belief.sub}, decision {end.decisions + (state.phase is StcPhase.DECIDE)})"
+            at = end.decisions + (state.phase is StcPhase.DECIDE)
+            end.abort = f"{e} (at sub-cell {robot.belief.sub}, decision {at})"
             return
         deciding = isinstance(obs, StcObservation)
         end.decisions += deciding
         end.looks += obs is not None and not deciding
         why = robot.refuses(obs, state) if deciding else None
         if why is not None:  # no STC tour shows this reading: stop before deciding on it
-            end.abort = f"{why} (at sub-cell {belief.sub}, decision {end.decisions})"
+            end.abort = f"{why} (at sub-cell {robot.belief.sub}, decision {end.decisions})"
             return
         prev = state
         state, action, decision = step(state, obs)
-        if deciding:
-            watch.on_reading(Reading("decision", end.decisions, plant, belief, floor, obs=obs, decision=decision,
-                                     frame=see.last_frame))  # fmt: skip
-            referee.decision(plant, belief, floor, obs, prev, end.decisions, decision)
-            end.memory_bytes = max(end.memory_bytes, len(robot_memory(robot, state)))
-        elif obs is not None:
-            referee.look(plant, belief, floor, obs.marked, landing=not prev.child)
-            watch.on_reading(Reading("look", end.decisions, plant, belief, floor, marked=obs.marked,
-                                     frame=see.last_frame))  # fmt: skip
-        referee.step(prev, state, action, plant, belief, end.decisions)
-        watch.on_step(plant, belief, state, action)
+        _tell(robot, watch, referee, end, prev, state, obs, decision)
+        referee.step(prev, state, action, robot.plant, robot.belief, end.decisions)
+        watch.on_step(robot.plant, robot.belief, state, action)
         if action is Action.DONE:
             end.abort = robot.count.done_away()
             end.finished = end.abort is None
@@ -157,6 +149,20 @@ def _loop(robot: Robot, max_decisions: int, watch, referee, end: LoopEnd) -> Non
             end.abort = f"{why} (decision {end.decisions})" if why.startswith("drove") else why
             return
     end.abort = f"gave up after {max_decisions} decisions"
+
+
+def _tell(robot: Robot, watch, referee, end: LoopEnd, prev, state, obs, decision) -> None:
+    """The observers and the referee hear of a reading and what the controller made of it; the
+    robot's memory is measured between two decisions."""
+    plant, belief, floor, frame = robot.plant, robot.belief, robot.floor, robot.see.last_frame
+    if isinstance(obs, StcObservation):
+        watch.on_reading(Reading("decision", end.decisions, plant, belief, floor, obs=obs, decision=decision,
+                                 frame=frame))  # fmt: skip
+        referee.decision(plant, belief, floor, obs, prev, end.decisions, decision)
+        end.memory_bytes = max(end.memory_bytes, len(robot_memory(robot, state)))
+    elif obs is not None:
+        referee.look(plant, belief, floor, obs.marked, landing=not prev.child)
+        watch.on_reading(Reading("look", end.decisions, plant, belief, floor, marked=obs.marked, frame=frame))
 
 
 def _summary(board, cfg, robot: Robot, referee, end: LoopEnd, *, wall_s: float) -> dict:
