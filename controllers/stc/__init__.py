@@ -1,4 +1,5 @@
-"""The ant-like STC robot (seed 003): its finite-state machine (:mod:`.fsm`), the one STC
+"""The ant-like STC robot (Srour & Abboud, "Optimally Covering an Unknown Environment with Ant-like STC
+algorithm"): its finite-state machine (:mod:`.fsm`), the one STC
 geometry on the board (:mod:`.geometry`), the grid oracle (:mod:`.oracle`) and the closed loop as
 parts: plant (:mod:`.plant`), perception (:mod:`.perception`, :mod:`.frames`), referee
 (:mod:`.referee`), observers (:mod:`.observers`, :mod:`.recorder`) and the loop (:mod:`.loop`).

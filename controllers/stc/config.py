@@ -26,7 +26,7 @@ _SIZING_SNR = DotParams().k_sigma + 1.0
 class CoverConfig:
     perception: str = "camera"  # "camera", "ideal" or "oracle"
     #: "auto" (the short webcam frame, then longer ones while a reading relies on an absence no
-    #: frame so far could have seen), "webcam" (the seed's camera alone) or an exposure in
+    #: frame so far could have seen), "webcam" (the STC paper's camera alone) or an exposure in
     #: seconds. The one default: ``stcvision cover`` with no options takes it from here
     exposure: str | float = "auto"
     gain: float | None = None
@@ -34,7 +34,7 @@ class CoverConfig:
     seed: int = 0
     #: the robot (motion, timing, marking): :data:`sim_camera.robot.LEGO_STC_ROBOT` by default
     robot: MarkingRobot = LEGO_STC_ROBOT
-    #: the camera's sensor physics (:mod:`sim_camera.hardware`): the seed's webcam by default
+    #: the camera's sensor physics (:mod:`sim_camera.hardware`): the STC paper's webcam by default
     camera: CameraProfile = WEBCAM
     max_decisions: int = 20000
     heading_sigma_oracle_rad: float = math.radians(0.25)  # the pipeline's measured heading RMS

@@ -1,16 +1,16 @@
 """The robot's camera in the coverage loop: which frames it takes and what they show.
 
-* **Exposure**: ``webcam`` (1/30 s, gain 16: the seed's camera), a fixed ``exposure_s``, or
+* **Exposure**: ``webcam`` (1/30 s, gain 16: the STC paper's camera), a fixed ``exposure_s``, or
   ``auto``: every observation takes a short webcam frame (red lights without bloom, fresh marks,
   the pose) and then, while the reading relies on an absence that no frame so far could have
   seen (a mark as old as the clock, at the deciding dot's distance: :mod:`controllers.stc.claims`),
   a longer one (:data:`AUTO_LONG`: 2-30 s, then 2 to 64 30 s frames stacked: frame
   stacking), the shortest that covers it (``sizing_snr``); a mark counts if any frame sees it --
-  the seed's proposal, "a camera with a fully controlled integration time". Dark frames are
+  the STC paper's proposal, "a camera with a fully controlled integration time". Dark frames are
   taken once per setting, at the matching exposure (a master dark of 8n frames for a stack of
   n). When not even the longest frame covers a claim the robot stops ("out of sight: ...",
   :class:`controllers.stc.claims.OutOfSight`), before deciding.
-* **Gain**: the seed's webcam keeps the ladder's gains (16 for the short frame, 4 for the long
+* **Gain**: the STC paper's webcam keeps the ladder's gains (16 for the short frame, 4 for the long
   ones); any other sensor takes at each rung the lowest gain at which its frame's temporal dark
   noise spans :data:`NOISE_DN` DN (:func:`sensor_gain`: from the sensor's read noise and dark
   current, EMVA 1288 and the astronomer's rule of thumb), its frames digitised at its own ADC
@@ -44,7 +44,7 @@ __all__ = [
     "stc_observation",
 ]
 
-#: the short frame of every observation: the seed's webcam (red lights, fresh marks, the pose):
+#: the short frame of every observation: the STC paper's webcam (red lights, fresh marks, the pose):
 #: (exposure_s, gain, frames averaged)
 WEBCAM = (1 / 30, 16.0, 1)
 #: ``--exposure auto``, long frames: (exposure_s, gain, frames averaged), shortest first. Each is
@@ -133,7 +133,7 @@ def sensor_gain(sensor, exposure_s: float, n_avg: int, webcam_gain: float) -> fl
     gain >= 1 at which the frame's temporal dark noise (read noise and the dark current's shot
     noise, ``sqrt(read^2 + dark * t / n)`` electrons) spans :data:`NOISE_DN` DN, so that no faint
     mark is quantised away, and no higher, so that the ADC clips as late as it can (at gain g it
-    saturates at ``full_well_e / g`` electrons). The seed's webcam (an 8-bit ADC, the default
+    saturates at ``full_well_e / g`` electrons). The STC paper's webcam (an 8-bit ADC, the default
     sensor) keeps the ladder's own gains (``webcam_gain``: the paper's 16x and the long frames' 4x),
     so its frames are exactly what they were. A robot setting from the sensor's figures, not
     the world."""
@@ -264,7 +264,7 @@ class Exposures:
         (:func:`controllers.stc.claims.read_until_sure`; raises
         :class:`controllers.stc.claims.OutOfSight` when no frame can cover one, unless
         ``CoverConfig.stop_out_of_sight`` is off: then the longest frame is taken and the reading
-        kept); without it (the seed's camera) the short frame alone, whatever it misses."""
+        kept); without it (the STC paper's camera) the short frame alone, whatever it misses."""
         from controllers.stc.claims import read_until_sure
 
         if not self.controlled:
@@ -276,7 +276,7 @@ class Exposures:
         """(StcObservation, seconds): a decision's frames (:meth:`sure`), and per direction
         whether its landing reading is sure (``StcObservation.landing_known``): a mark was seen,
         or a frame taken could have seen one as old as the clock was then. Without exposure
-        control the seed's robot takes what it sees for sure. ``start_cell``: the robot's count of
+        control the STC paper's robot takes what it sees for sure. ``start_cell``: the robot's count of
         its moves puts it in its start cell (elsewhere a start mark read is not its own:
         :meth:`_check_start_away`)."""
         from controllers.stc.claims import landing_claim

@@ -1,11 +1,13 @@
-"""Ant-like STC (seed ``003_01c9be04038c8c46.txt``) as a pure O(1)-memory finite-state machine
-(no physics, no camera); :mod:`controllers.stc.oracle` runs it on a grid against the truth.
+"""Ant-like STC (Srour & Abboud, "Optimally Covering an Unknown Environment with Ant-like STC
+algorithm") as a pure O(1)-memory finite-state machine (no physics, no camera);
+:mod:`controllers.stc.oracle` runs it on a grid against the truth.
 
 The geometry (entry frame, sub-cells 0..3, directions 0 right 1 forward 2 left 3 back) is
 :mod:`controllers.stc.geometry`'s.
 
 Marking: just before every forward move the robot marks the sub-cell it leaves on its rear edge
-(the edge opposite the direction of travel). The five-box table of DESIGN.md is used as is:
+(the edge opposite the direction of travel). The five-box table of the STC geometry
+(``docs/explanation/stc-geometry.md``) is used as is:
 
 ====  ======================================  =================================
 box   inside sub-cell, along edge             laid when
@@ -22,8 +24,8 @@ table against the true visit history at every decision (``decision_mismatches``)
 marks of the current cell lying outside the five boxes and the start-mark positions
 (``box_table_violations``); the tests find both zero on hundreds of random boards, so the table
 and the three visited-rules hold. On re-entry exactly these lit-box sets occur (``box_patterns``):
-{4}, {2,4}, {3,4}, {2,4,5}, {3,4,5}, {1,2,4}, {1,3,4}. Note on DESIGN.md's remark about the seed:
-the seed's "entered from sub-cell 1, takes left: boxes 1, 3 and 4" is *also* right — it is the
+{4}, {2,4}, {3,4}, {2,4,5}, {3,4,5}, {1,2,4}, {1,3,4}. Note on a remark about the paper:
+the paper's "entered from sub-cell 1, takes left: boxes 1, 3 and 4" is *also* right — it is the
 path 1 -> 2 -> out to the left child (box 3) -> back into 3 -> out down (box 4); the path
 1 -> 2 -> 3 -> out down lights 1, 2 and 4. Both occur; the rules "2 iff box 2 or 3" cover both.
 

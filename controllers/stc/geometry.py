@@ -1,6 +1,6 @@
 """The STC grid on the board: compass headings, the entry frame of a cell, sub-cell indices.
 
-Geometry (``../shared/DESIGN.md``, "The ant-like STC geometry")
+Geometry (``docs/explanation/stc-geometry.md``)
 ---------------------------------------------------------------
 The robot occupies one sub-cell; a cell is 2x2 sub-cells. Every decision is taken on entering a
 cell, in the **entry frame** (robot heading "up"), where the robot stands in sub-cell 0 =

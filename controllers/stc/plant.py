@@ -1,10 +1,10 @@
 """The plant of the coverage loop: the robot's true motion and clock, and the floor it marks.
 
-* **Robot** (:class:`sim_camera.robot.MarkingRobot`, by default the seed's Lego robot built from
+* **Robot** (:class:`sim_camera.robot.MarkingRobot`, by default the STC paper's Lego robot built from
   ``sim_camera.robot.LEGO_STC``): drives one sub-cell (16 cm) at the cruise speed, turns 90
   degrees by a timed command at a rate that is off nominal by up to ``rate_spread`` per robot
   and fades with the battery (``fade_per_h``), and keeps its rear UV LEDs on for ``led_on_s``
-  before every forward move (seed 003: "for a few seconds"). Moves are kinematic on the floor
+  before every forward move (the STC paper: "for a few seconds"). Moves are kinematic on the floor
   plane: the robot drives straight along its *true* heading, with ``drive_sigma_m`` of distance
   error per move; the pymunk world is not needed for these straight moves between free cells.
 * **Rotation-time recalibration** (ant-like STC paper): after a turn, the heading the perception
