@@ -548,7 +548,8 @@ class RobotCamera(Exposures):
         self.pipe = None  # the pipeline that read the last frame (for the recording)
         self.bad_frames = 0  # frames lost or black, taken again
         self.refits = 0  # frames read again against the cell's own marks (:meth:`_on_cell_lines`)
-        self.unproven = 0  # neighbours read marked by dots that show no tour's row (:meth:`_neighbour_rows`)
+        self.unproven = 0  # decisions' neighbours read marked by dots showing no tour's row (:meth:`_neighbour_rows`)
+        self._doubted: set[int] = set()
         self.relooked = 0  # looks taken again for dots on no line of the cell ahead (:meth:`_look_again`)
         self.last_image = None  # the last frame shot (read again by :meth:`_on_cell_lines`)
         from controllers.stc.health import NoiseCheck
@@ -653,7 +654,9 @@ class RobotCamera(Exposures):
             obs = dataclasses.replace(stc_observation(r.observation), other_marks=off_line)
             return self._neighbour_rows(r, obs), dt
 
+        self._doubted: set[int] = set()  # (this decision's only: at most the four neighbours)
         obs, dt = self.decision(t_s, read, fresh, at_start, start_cell)
+        self.unproven += sum(not obs.neighbours[d].has_marks for d in self._doubted)
         return obs, res[0], (res[-1] if len(res) > 1 else None), dt
 
     def _neighbour_rows(self, res, obs: StcObservation) -> StcObservation:
@@ -673,7 +676,7 @@ class RobotCamera(Exposures):
         for d in doubt:
             if not shows_tour_row(ru, lit, 2 * np.asarray(DIRECTIONS[d])):
                 neigh[d] = NeighbourObs(False, False)
-                self.unproven += 1
+                self._doubted.add(d)
         return dataclasses.replace(obs, neighbours=tuple(neigh))
 
     def _dots(self, res, offset=...) -> tuple[np.ndarray, np.ndarray]:

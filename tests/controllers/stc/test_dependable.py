@@ -690,3 +690,93 @@ def test_the_move_log_rereads_a_box_whose_row_it_laid():
     stopped = robot._checked_by_log(base, lambda: base)
     assert "count of its moves laid its row" in stopped.misread and robot.log.reread == 2
     assert robot._checked_by_log(right, lambda: base) is right and robot.log.reread == 2
+
+
+# ---------------------------------------------------------------------------------------------
+# the floor's checks of a look: a mark the tour laid shows its row, stray dots do not
+
+
+def _look_at(row: str):
+    """A camera look from the front-right sub-cell of the start cell of an open 8x8 board at the
+    cell ahead, a minute after a row was laid there: ``"tour"`` a row the robot lays (its rear
+    LEDs, on the rear edge of the cell ahead's nearest sub-cell), ``"stray"`` the same four dots
+    across that sub-cell's middle (on no line a tour marks), ``"none"`` nothing."""
+    from controllers.stc.geometry import step_from
+    from controllers.stc.perception import CameraPerception
+    from controllers.stc.plant import Floor, Plant
+    from sim_camera.hardware import load_camera
+    from sim_camera.robot import LEGO_STC_ROBOT
+    from stcvision.stcgrid import entry_axes
+
+    board = Board(np.zeros((8, 8), bool), (7, 3))
+    plant, floor = Plant(board, LEGO_STC_ROBOT, np.random.default_rng(0)), Floor(board)
+    belief = Belief.at_start(board, plant.calibrated_turn_s)
+    belief.sub = step_from(belief.sub, belief.hc)  # the front-right sub-cell, facing the cell ahead
+    plant.x, plant.y = board.subcell_center_m(*belief.sub)
+    ahead = step_from(belief.sub, belief.hc)
+    if row != "none":
+        x0, y0 = plant.x, plant.y
+        plant.x, plant.y = board.subcell_center_m(*ahead)
+        if row == "stray":  # half a sub-cell on: the row lies across the sub-cell's middle
+            plant.x, plant.y = np.array([plant.x, plant.y]) + 0.5 * board.subcell_m * entry_axes(belief.hc)[1]
+        plant.lay_mark(floor, ahead, belief.hc)
+        plant.x, plant.y = x0, y0
+    plant.wait(60.0)
+    see = CameraPerception(CoverConfig(exposure="auto", camera=load_camera("cooled")), board, np.random.default_rng(3))
+    return see, plant, belief, floor
+
+
+def test_a_look_reads_a_tour_row_at_once_and_stray_dots_again_then_stops():
+    """The look at a child counts lit dots in the cell ahead; a mark the tour laid there shows its
+    row on one of the cell's tour lines and is read marked at once; four dots across a
+    sub-cell's middle (on no such line: a stain, another cell's row read across the edge) are
+    looked at again with a longer frame and, still on no line, stop the robot before it decides;
+    an empty cell is read unmarked."""
+    from controllers.stc.health import RobotStop
+
+    see, plant, belief, floor = _look_at("tour")
+    assert see.look(plant, belief, floor, landing=False) is True and see.cam.relooked == 0
+    see, plant, belief, floor = _look_at("none")
+    assert see.look(plant, belief, floor, landing=False) is False and see.cam.relooked == 0
+    see, plant, belief, floor = _look_at("stray")
+    with pytest.raises(RobotStop, match="misread: lit dots in the cell ahead on no line an STC tour marks"):
+        see.look(plant, belief, floor, landing=False)
+    assert see.cam.relooked == 1
+
+
+def test_a_neighbour_read_marked_by_dots_on_no_tour_line_stays_a_candidate():
+    """At a decision, the right neighbour's tour row reads it marked (visited, passed by); four
+    dots across its sub-cell's middle read it unmarked (a candidate the look will read again) and
+    are counted as unproven. Two rows of the robot's own cell (box 5's and box 2's lines) pin its
+    offset, as the rows of a tour do: a lone row in view would let the marks' offset move the
+    robot until even the stray dots lie on a line."""
+    from controllers.stc.geometry import frame_compass, step_from
+    from controllers.stc.perception import CameraPerception
+    from controllers.stc.plant import Floor, Plant
+    from sim_camera.hardware import load_camera
+    from sim_camera.robot import LEGO_STC_ROBOT
+    from stcvision.stcgrid import entry_axes
+
+    board = Board(np.zeros((8, 8), bool), (7, 3))
+    for row, marked in (("tour", True), ("stray", False)):
+        plant, floor = Plant(board, LEGO_STC_ROBOT, np.random.default_rng(0)), Floor(board)
+        belief = Belief.at_start(board, plant.calibrated_turn_s)
+        right = frame_compass(belief.hc, 0)
+        there = step_from(belief.sub, right)  # the right neighbour's sub-cell next to ours
+        x0, y0, h0 = plant.x, plant.y, plant.hdg
+        plant.x, plant.y = board.subcell_center_m(*there)
+        if row == "stray":
+            plant.x, plant.y = np.array([plant.x, plant.y]) + 0.5 * board.subcell_m * entry_axes(belief.hc)[1]
+        plant.lay_mark(floor, there, belief.hc)
+        sub1 = step_from(belief.sub, belief.hc)  # the own cell's sub-cell 1, then sub-cell 2 beside it
+        for own, back in ((sub1, False), (step_from(sub1, frame_compass(belief.hc, 2)), True)):
+            plant.x, plant.y = board.subcell_center_m(*own)
+            plant.hdg = h0 + np.pi * back  # facing down, its rear row lies on the top edge: box 2
+            plant.lay_mark(floor, own, (belief.hc + 2 * back) % 4)
+        plant.x, plant.y, plant.hdg = x0, y0, h0
+        plant.wait(60.0)
+        cfg = CoverConfig(exposure="auto", camera=load_camera("cooled"))
+        see = CameraPerception(cfg, board, np.random.default_rng(3))
+        obs = see.observe(plant, belief, floor, fresh=False, at_start=True, start_cell=True)
+        assert obs.neighbours[0].has_marks is marked, row
+        assert see.cam.unproven == (0 if marked else 1), row
