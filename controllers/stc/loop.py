@@ -203,6 +203,7 @@ def _summary(board, cfg, robot: Robot, referee, end: LoopEnd, *, wall_s: float) 
         "neighbours_unproven": getattr(cam, "unproven", 0),
         "relooked": getattr(cam, "relooked", 0),
         "returns_reread": getattr(cam, "reread_old", 0),
+        "start_marks_by_count": robot.start_marks_by_count,
         "offsets_left_out": belief.fix.rejected,
         "move_log": cfg.move_log,
         "robot_memory_bytes": end.memory_bytes,

@@ -14,6 +14,10 @@ too; a count is constant memory, whatever the board.
   from the start or walk past it.
 * :meth:`MoveCount.in_start_cell`: a start mark read elsewhere is not the robot's own
   (:meth:`controllers.stc.frames.Exposures.decision` reads such a cell again).
+* :meth:`MoveCount.start_in_frame`: in the start cell, which of its sub-cells is the start
+  sub-cell. The start mark laid there at the very beginning is the tour's oldest mark; a frame
+  sized for each dot at ``CoverConfig.sizing_snr`` misses it now and then, and a start cell
+  read without it is read as any other cell, with the wrong parent. The count says it.
 
 :class:`MoveLog` is not part of the ant-like robot: a study switch (``CoverConfig.move_log``,
 ``stcvision cover --move-log``) that keeps, beside the count, every cell the count has put the
@@ -60,6 +64,14 @@ class MoveCount:
             f"done away from the start: the robot has moved {self.moved[0]:+d}, {self.moved[1]:+d} sub-cells from its "
             "start sub-cell, so the start mark it read there was not its own"
         )
+
+    def start_in_frame(self, hc: int) -> int | None:
+        """At a decision (the robot in its entry frame's sub-cell 0, heading ``hc``): the
+        entry-frame sub-cell (0-3) that is the start sub-cell, or None outside the start cell
+        (:attr:`controllers.stc.fsm.StcObservation.start_mark`)."""
+        subs = frame_subcells(self.here(), hc)
+        start = tuple(self.start_sub)
+        return next((m for m, s in enumerate(subs) if tuple(s) == start), None)
 
     def landing_at_start(self, hc: int) -> tuple[bool, bool, bool, bool]:
         """At a decision (the robot in its entry frame's sub-cell 0, heading ``hc``): per

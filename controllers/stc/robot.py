@@ -73,6 +73,8 @@ class Robot:
     count: MoveCount
     watch: Observer = field(default_factory=Observer)
     log: MoveLog | None = None
+    #: decisions in the start cell whose frames missed the start mark, taken from the count
+    start_marks_by_count: int = 0
 
     # ------------------------------------------------------------------ the motors
     def mark(self) -> None:
@@ -115,7 +117,8 @@ class Robot:
                 # (a row laid askew or a neighbour's row read there closed a tour away from its
                 # start); the count is sure, so no look before a return is needed for it
                 land = self.count.landing_at_start(self.belief.hc)
-                return dataclasses.replace(obs, landing_marked=land, landing_known=(True,) * 4)
+                obs = dataclasses.replace(obs, landing_marked=land, landing_known=(True,) * 4)
+                return self._start_by_count(obs, state)
 
             obs = observe()
             return obs if self.log is None else self._checked_by_log(obs, observe)
@@ -125,6 +128,21 @@ class Robot:
                 marked = self._look_by_log()
             return LookObs(marked)
         return None
+
+    def _start_by_count(self, obs: StcObservation, state: StcState) -> StcObservation:
+        """In the start cell the count says which sub-cell is the start sub-cell: a start mark the
+        frames missed there (the tour's oldest mark) is the count's, and one read in another
+        sub-cell is a row read on a start-mark line that is not the start mark: the robot will not
+        decide on it. Outside the start cell a start mark read is checked by the frames
+        (:meth:`controllers.stc.frames.Exposures.decision`) and by :meth:`refuses`."""
+        m = self.count.start_in_frame(self.belief.hc)
+        if m is None or state.at_start or obs.misread or obs.start_mark == m:
+            return obs
+        if obs.start_mark is None:
+            self.start_marks_by_count += m > 0  # (sub-cell 0 is under the robot: no camera sees it)
+            return dataclasses.replace(obs, start_mark=m if m > 0 else None)
+        why = f"misread: a start mark in sub-cell {obs.start_mark}, where the count of moves puts the start at {m}"
+        return dataclasses.replace(obs, misread=why)
 
     def refuses(self, obs: StcObservation, state: StcState) -> str | None:
         """Why the robot will not decide on ``obs``, or None: no STC tour shows this reading

@@ -69,3 +69,41 @@ def test_the_ant_like_robot_holds_no_container_that_grows_with_the_board(name):
                 if any(isinstance(t, ast.Attribute) for t in targets) and (isinstance(value, containers) or built):
                     grown.append(f"{cls.name}: line {node.lineno}")
     assert not grown, grown
+
+
+class _Reads:
+    """A perception whose decisions read ``obs`` (and nothing else of the robot)."""
+
+    last_frame = None
+
+    def __init__(self, obs):
+        self.obs = obs
+
+    def observe(self, plant, belief, floor, *, fresh, at_start, start_cell):
+        return self.obs
+
+
+def test_the_start_cell_takes_its_start_mark_from_the_count_when_the_frames_miss_it():
+    """In the start cell the count of moves says which sub-cell is the start sub-cell: a reading
+    that missed the start mark (the tour's oldest mark) gets it from the count; one that reads it
+    in another sub-cell is not decided on; outside the start cell the reading stands."""
+    from controllers.stc.belief import Belief
+    from controllers.stc.fsm import NeighbourObs, StcObservation, StcPhase, StcState
+    from controllers.stc.movecount import MoveCount
+    from controllers.stc.robot import Robot
+
+    def read(start_mark, moved):
+        obs = StcObservation(boxes=(False,) * 5, neighbours=(NeighbourObs(False, False),) * 4, start_mark=start_mark)
+        # start sub-cell (5, 5); facing south from (4, 4), the start sub-cell is entry-frame sub-cell 2
+        robot = Robot(None, Belief((5 + moved[0], 5 + moved[1]), 2, 1.5), None, _Reads(obs), MoveCount((5, 5), moved))
+        return robot.read(StcState(phase=StcPhase.DECIDE)), robot.start_marks_by_count
+
+    assert MoveCount((5, 5), (-1, -1)).start_in_frame(2) == 2
+    got, n = read(None, (-1, -1))
+    assert got.start_mark == 2 and not got.misread and n == 1
+    got, n = read(2, (-1, -1))
+    assert got.start_mark == 2 and n == 0
+    got, _ = read(1, (-1, -1))
+    assert got.misread.startswith("misread: a start mark in sub-cell 1, where the count of moves puts the start at 2")
+    got, n = read(None, (-3, -1))  # two sub-cells on: another cell
+    assert got.start_mark is None and not got.misread and n == 0
