@@ -88,13 +88,15 @@ def tour_lines() -> np.ndarray:
     return np.array(rows, float)
 
 
-def shows_tour_row(ru: np.ndarray, lit: np.ndarray, centre) -> bool:
+def shows_tour_row(ru: np.ndarray, lit: np.ndarray, centre, *, margin: float = 0.0) -> bool:
     """Whether the lit dots ``ru`` (cell units, rotated and shifted as the pipeline read them)
     show a row an STC tour lays in the cell centred at ``centre``: at least
     :data:`stcvision.observation.LANDING_DOTS` of a row's four dots within :data:`ON_LINE`
-    across one of :func:`tour_lines` and inside its sub-cell along it. A noise peak, a bloom or
-    another cell's row read across the cell's edge (it lies 0.25 of a sub-cell from the nearest
-    such line) shows none; a mark the tour laid there does, once a frame sees most of its dots."""
+    across one of :func:`tour_lines` and inside its sub-cell along it, both widened by
+    ``margin`` (sub-cell sides) where the frame was read without the robot's offset. A noise
+    peak, a bloom or, read in place, another cell's row across the cell's edge (it lies 0.25 of
+    a sub-cell from the nearest such line) shows none; a mark the tour laid there does, once a
+    frame sees most of its dots."""
     p = np.asarray(ru, float)[np.asarray(lit, bool)] - np.asarray(centre, float)
     if len(p) < LANDING_DOTS:
         return False
@@ -102,7 +104,7 @@ def shows_tour_row(ru: np.ndarray, lit: np.ndarray, centre) -> bool:
     axis = lines[:, 0].astype(int)
     across = p[:, axis] - lines[:, 1]  # (dots, lines)
     along = p[:, 1 - axis] - lines[:, 2]
-    on = (np.abs(across) < ON_LINE) & (np.abs(along) < 0.5)
+    on = (np.abs(across) < ON_LINE + margin) & (np.abs(along) < 0.5 + margin)
     return bool((on.sum(axis=0) >= LANDING_DOTS).any())
 
 

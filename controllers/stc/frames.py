@@ -728,6 +728,11 @@ class RobotCamera(Exposures):
         from stcvision.observation import LANDING_DOTS, marks_ahead, marks_landing_ahead
 
         count, need = (marks_landing_ahead, LANDING_DOTS) if landing else (marks_ahead, 2)
+        # a look reads its short frame where the robot believes it stands, not where its marks
+        # say (the rows in view were laid at many times): a row there lies off its line by the
+        # robot's own offset, up to the position margin the claims allow for (a robot 1.3 cm
+        # off read a visited cell's two rows 0.08 of a sub-cell off their lines)
+        margin = self.cfg.position_margin_m / self.subcell_m
         res: list = []
 
         def read(k, t):
@@ -738,7 +743,7 @@ class RobotCamera(Exposures):
             res.append(r)
             off = r.observation.position_offset if k > 0 else None
             n = count(r.dots, self.pipe.geometry, heading_error_rad=herr or 0.0, offset=off)
-            row = landing or (n >= need and shows_tour_row(*self._dots(r, off), AHEAD_CENTRE))
+            row = landing or (n >= need and shows_tour_row(*self._dots(r, off), AHEAD_CENTRE, margin=margin))
             return (n >= need, row), dt
 
         claims = self.look_claims(landing)

@@ -60,3 +60,16 @@ def test_a_row_of_the_readers_own_cell_read_across_the_edge_is_no_neighbours_row
     assert not shows_tour_row(own, lit, (2.0, 0.0))
     assert not shows_tour_row(own + (0.15, 0.0), lit, (2.0, 0.0))
     assert shows_tour_row(own + (0.25, 0.0), lit, (2.0, 0.0))
+
+
+def test_a_look_read_without_the_robots_offset_widens_the_lines_by_its_margin():
+    """A look's short frame is read where the robot believes it stands: a visited cell's row
+    seen 1.3 cm (0.08 of a sub-cell) off its line, with the robot 1.3 cm off, is a row within the
+    robot's position margin (2 cm: 0.125), while a row across a sub-cell's middle, 4 cm from any
+    line, is none with or without it."""
+    lit = np.ones(4, bool)
+    shifted = _row(1, 0, centre=(0.0, 1.0)) + (0.08, 0.0)
+    assert not shows_tour_row(shifted, lit, (0.0, 1.0))
+    assert shows_tour_row(shifted, lit, (0.0, 1.0), margin=0.125)
+    middle = _row(1, 0, centre=(0.0, 1.0)) - (0.25, 0.0)
+    assert not shows_tour_row(middle, lit, (0.0, 1.0), margin=0.125)
