@@ -2,9 +2,10 @@
 loads numba does not expose, the bilinear interpolation ``cv2.remap`` uses, and the bit-set
 helpers of the compiled 3 x 3 maximum tests.
 
-The loops themselves live with their stage (``stcvision.stages.front``, ``dots``, ``rows``,
-``red``, ``heading``; ``stcvision.observation``). Each is a loop numpy cannot vectorise (a
-greedy choice, strongest first, where each choice depends on the earlier ones), or a chain of
+The loops themselves live with their stage (``stcvision.stages.dark``, ``window``, ``ground_view``,
+``channels``, ``dots``, ``rows``, ``red``, ``heading``; ``stcvision.observation``). Each is a
+loop numpy cannot vectorise (a greedy choice, strongest first, where each choice depends on the
+earlier ones), or a chain of
 OpenCV / numpy passes fused into one (each pass over the view, each call on a small array,
 costs microseconds), written out element by element in the stage's own arithmetic order, so its
 results are those of the numpy/OpenCV version it replaced, bit for bit. Image loops index views

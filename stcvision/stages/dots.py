@@ -17,7 +17,8 @@ import numpy as np
 from stcvision.errors import BadInputError
 from stcvision.stages.common import SUM_DTYPES, check_image, noise_floor
 from stcvision.stages.compiled import _fma32, _grow, _lerp, _marked, _row_flags
-from stcvision.stages.front import UnwarpMap, estimate_background
+from stcvision.stages.dark import estimate_background
+from stcvision.stages.ground_view import UnwarpMap
 
 
 @dataclass(frozen=True, kw_only=True, slots=True)
