@@ -6,7 +6,8 @@ Stages (``stcvision.stages``), in the order they run::
               hot pixels masked; the frame's background and noise
     window    sums over the dot-sized square, in the mirror image (filter once)
     unwarp    phi/theta remap of the window sums to the ground view, and the red/green test
-              per ground pixel (one compiled pass: obstacle and marks images)
+              per ground pixel (one compiled pass: obstacle and marks images; with the pose
+              estimates also the wide view's obstacle image)
     channels  the red lights' black-out margin in the marks image
     dots      window-mean dot search with black-out; centroids on the mirror image
     red       red-light blobs; white lights told from red on the raw frame; far red lights
@@ -366,10 +367,7 @@ class Pipeline:
             if lit and not all_dots.untrusted:
                 all_dots = dataclasses.replace(all_dots, untrusted=lit)
         with times("red"):
-            # the far lights (landmarks) from the wide view of the same window sums
-            wide = None
-            if self.wide is not None:
-                wide = (self.front.wide_obstacle(f, self.scratch), self.front.wide_profile.ground_to_robot)
+            wide = None if f.wide_obstacle is None else (f.wide_obstacle, self.front.wide_profile.ground_to_robot)
             lights = read_red(
                 obstacle,
                 frame,

@@ -24,7 +24,8 @@ class FrontOutput(NamedTuple):
     """What the front end (:meth:`FrontEnd.run`) gives the later stages: the dark-subtracted
     green and red of the crop, their window sums (scratch), the ground views ``obstacle`` and
     ``marks``, the frame's green background and noise, the quantisation step, the red lights'
-    levels and the leak level (:func:`separation_rule`)."""
+    levels and the leak level (:func:`separation_rule`), and the wide view's obstacle image
+    ``wide_obstacle`` (None without a wide view)."""
 
     green: np.ndarray
     red: np.ndarray
@@ -36,6 +37,7 @@ class FrontOutput(NamedTuple):
     quantum: int
     red_levels: tuple[float, float]
     leak: float
+    wide_obstacle: np.ndarray | None = None
 
 
 @dataclass(frozen=True, eq=False)
@@ -136,12 +138,14 @@ class FrontEnd:
             leak = w * w * bg_r + self.channels.leak_k_sigma * noise_r * w
             rule = separation_rule(self.channels, w * w, red_levels, leak, sums.dtype)
             obstacle, marks, black, n = unwarp_separate(self.tables, sums, self.umap_crop.map_x.shape, rule, scratch)
+            wide = None
+            if self.wide is not None:  # the same sums and rule through the wide view's tables
+                # its own scratch: a wide view of the main view's size must not overwrite the
+                # main view's black-out mask before the channels stage reads it
+                def wide_scratch(purpose, shape, dtype):
+                    return scratch("wide " + purpose, shape, dtype)
+
+                wide = unwarp_separate(self.wide_tables, sums, self.wide.map_x.shape, rule, wide_scratch)[0]
         with times("channels"):
             black_out(marks, black, n, self.margin, scratch)
-        return FrontOutput(g, r, sums, obstacle, marks, bg, noise, q, red_levels, leak)
-
-    def wide_obstacle(self, f: FrontOutput, scratch: Scratch) -> np.ndarray:
-        """The obstacle image of the wide view, from the window sums of the front end's output
-        ``f`` (:meth:`run`)."""
-        rule = separation_rule(self.channels, self.window_px**2, f.red_levels, f.leak, f.sums.dtype)
-        return unwarp_separate(self.wide_tables, f.sums, self.wide.map_x.shape, rule, scratch)[0]
+        return FrontOutput(g, r, sums, obstacle, marks, bg, noise, q, red_levels, leak, wide)
