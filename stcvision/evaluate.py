@@ -210,8 +210,30 @@ def _confusion(pairs) -> list[list[int]]:
     return c
 
 
+class _Progress:
+    """A one-line text progress bar on stderr (only on a terminal)."""
+
+    def __init__(self, total: int, label: str, stream=None) -> None:
+        self.total, self.label = total, label
+        self.stream = stream or sys.stderr
+        self.on = bool(getattr(self.stream, "isatty", lambda: False)())
+        self.done = 0
+
+    def __call__(self, n: int = 1) -> None:
+        self.done += n
+        if self.on:
+            w = 30
+            k = int(w * self.done / max(self.total, 1))
+            self.stream.write(f"\r{self.label} [{'#' * k}{'.' * (w - k)}] {self.done}/{self.total}")
+            self.stream.flush()
+
+    def close(self) -> None:
+        if self.on:
+            self.stream.write("\n")
+            self.stream.flush()
+
+
 def _progress(total: int, label: str):
-    from stcvision.datasets import _Progress
 
     return _Progress(total, label)
 

@@ -124,7 +124,7 @@ def _labelled(args, ds=None) -> dict:
         out = compare_detectors(ds, default_profile=default_profile())
         out["source"] = args.labelled
         return out
-    from calibration.dataset_render import generate
+    from stcvision.datasets.render import generate
     from stcvision.sweep import SweepOptions
 
     recipe = _ages_recipe(args.labelled_frames)
