@@ -23,7 +23,7 @@ import numpy as np
 
 from stcvision.localisation import landmark_pose, rotate_about_robot
 from stcvision.profile import CORNER_ORDER
-from stcvision.stages.compiled import _fma64
+from stcvision.stages.compiled import fma64
 from stcvision.stcgrid import BOXES, DIRECTIONS, NEIGHBOURS, START_MARKS, SUBCELLS, VISITED_BY
 
 __all__ = [
@@ -683,9 +683,9 @@ def homography(H, p):
     out = np.empty((n, 2))
     for i in range(n):
         x, y = p[i, 0], p[i, 1]
-        a = _fma64(y, H[0, 1], x * H[0, 0]) + H[0, 2]
-        b = _fma64(y, H[1, 1], x * H[1, 0]) + H[1, 2]
-        c = _fma64(y, H[2, 1], x * H[2, 0]) + H[2, 2]
+        a = fma64(y, H[0, 1], x * H[0, 0]) + H[0, 2]
+        b = fma64(y, H[1, 1], x * H[1, 0]) + H[1, 2]
+        c = fma64(y, H[2, 1], x * H[2, 0]) + H[2, 2]
         out[i, 0] = a / c
         out[i, 1] = b / c
     return out

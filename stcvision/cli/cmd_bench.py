@@ -66,7 +66,7 @@ def _bench_sweep(args) -> dict:
     from stcvision.errors import StcVisionError
     from stcvision.limits import MAX_BENCH_SWEEP_TASKS, check_count
     from stcvision.sweep import SweepOptions, machine_workers
-    from stcvision.sweep._selftest import measure_overhead
+    from stcvision.sweep.selftest import measure_overhead
 
     check_count("--tasks", args.tasks, MAX_BENCH_SWEEP_TASKS)
     rows = []

@@ -21,7 +21,7 @@ import numpy as np
 
 from stcvision.errors import BadInputError
 from stcvision.stages.common import SUM_DTYPES, Scratch, check_image, new_arrays
-from stcvision.stages.compiled import _U
+from stcvision.stages.compiled import uidx
 from stcvision.stages.dark import estimate_background
 from stcvision.stages.ground_view import GatherTables, UnwarpMap, unwarp_separate
 
@@ -200,6 +200,6 @@ def black_out(marks: np.ndarray, black: np.ndarray, n: int, margin: np.ndarray |
 @numba.njit(cache=True)
 def zero_where(img, mask):
     """``img[mask != 0] = 0`` (flat arrays)."""
-    for i in range(_U(len(img))):
+    for i in range(uidx(len(img))):
         if mask[i]:
             img[i] = 0

@@ -26,7 +26,7 @@ import numpy as np
 
 from stcvision.errors import BadInputError
 from stcvision.stages.common import Scratch, check_image, new_arrays
-from stcvision.stages.compiled import _U, _as_f32, _f32, _fma32, _lerp, _load_u64
+from stcvision.stages.compiled import as_f32, f32, fma32, load_u64, remap_lerp, uidx
 
 
 @dataclass(frozen=True, eq=False)
@@ -146,7 +146,7 @@ def _red_test(gv, rv, use_frac, thr, tol, bottom, top, frac, gamma, leak):
     that stored into the output arrays ran the uint16 loop 3x slower, 0.69 vs 0.24 ms)."""
     dom = min(max(rv + tol, bottom), top) >= gv
     if use_frac:
-        dom = dom & (_fma32(rv, np.float32(1.0), _fma32(gv, frac, gamma)) >= np.float32(0.0))
+        dom = dom & (fma32(rv, np.float32(1.0), fma32(gv, frac, gamma)) >= np.float32(0.0))
     light = dom & (rv > thr)
     return light, light | (dom & (rv > leak))
 
@@ -169,14 +169,14 @@ def unwarp_border(src, w, h, border, border_xy, rnd, rule, obstacle, marks, blac
             xx = x + (k & 1)
             yy = y + (k >> 1)
             inside = 0 <= xx < w and 0 <= yy < h
-            p[k] = _f32(src[2 * (yy * w + xx)]) if inside else np.float32(0.0)
-            p[4 + k] = _f32(src[2 * (yy * w + xx) + 1]) if inside else np.float32(0.0)
+            p[k] = f32(src[2 * (yy * w + xx)]) if inside else np.float32(0.0)
+            p[4 + k] = f32(src[2 * (yy * w + xx) + 1]) if inside else np.float32(0.0)
         aa = mx - np.float32(x)
         bb = my - np.float32(y)
         j = border[i]
         old = black[j]
-        gv = _lerp(aa, bb, p[0], p[1], p[2], p[3])
-        rv = _lerp(aa, bb, p[4], p[5], p[6], p[7])
+        gv = remap_lerp(aa, bb, p[0], p[1], p[2], p[3])
+        rv = remap_lerp(aa, bb, p[4], p[5], p[6], p[7])
         if rnd:
             gv = min(max(np.rint(gv), np.float32(0.0)), np.float32(65535.0))
             rv = min(max(np.rint(rv), np.float32(0.0)), np.float32(65535.0))
@@ -192,7 +192,7 @@ def unwarp_border(src, w, h, border, border_xy, rnd, rule, obstacle, marks, blac
 def unwarp_separate_u16(src32, w, base, alpha, beta, rule, obstacle, marks, black, scratch):
     """The unwarp of the green and red window sums and their red/green separation, in one pass
     over the ground view: ``cv2.remap`` (float maps, ``INTER_LINEAR``, ``BORDER_CONSTANT`` 0) of
-    each channel as it computes on this machine (:func:`_lerp`; rounded half to even and
+    each channel as it computes on this machine (:func:`remap_lerp`; rounded half to even and
     saturated for uint16 sums), then the rule and the arithmetic of
     :func:`stcvision.stages.separate_channels` in float32 as OpenCV has it: red-dominated where
     ``r + tol >= g`` (the add saturating at ``bottom`` and ``top``) and, with ``frac`` (the
@@ -221,35 +221,35 @@ def unwarp_separate_u16(src32, w, base, alpha, beta, rule, obstacle, marks, blac
     use_frac = frac != zero
     n = 0
     nb = scratch.shape[1]
-    row = _U(w)
+    row = uidx(w)
     lo = np.uint64(0xFFFF)
     s0, s1 = scratch[0], scratch[1]
     N = len(base)
     for start in range(0, N, nb):
-        m = _U(min(nb, N - start))
-        st = _U(start)
+        m = uidx(min(nb, N - start))
+        st = uidx(start)
         for i in range(m):  # a source pixel and its right neighbour, both channels: one load
-            o = _U(base[st + i])
-            s0[i] = _load_u64(src32, o)
-            s1[i] = _load_u64(src32, o + row)
+            o = uidx(base[st + i])
+            s0[i] = load_u64(src32, o)
+            s1[i] = load_u64(src32, o + row)
         for i in range(m):
             j = st + i
             aa = alpha[j]
             bb = beta[j]
             q0, q1 = s0[i], s1[i]  # (green, red) of the left pixel in the low half, the right's above
-            p00, p01 = _f32(q0 & lo), _f32((q0 >> np.uint64(32)) & lo)
-            p10, p11 = _f32(q1 & lo), _f32((q1 >> np.uint64(32)) & lo)
-            v0 = _fma32(aa, p01 - p00, p00)
-            gv = min(max(np.rint(_fma32(bb, _fma32(aa, p11 - p10, p10) - v0, v0)), zero), hi)
-            p00, p01 = _f32((q0 >> np.uint64(16)) & lo), _f32(q0 >> np.uint64(48))
-            p10, p11 = _f32((q1 >> np.uint64(16)) & lo), _f32(q1 >> np.uint64(48))
-            v0 = _fma32(aa, p01 - p00, p00)
-            rv = min(max(np.rint(_fma32(bb, _fma32(aa, p11 - p10, p10) - v0, v0)), zero), hi)
+            p00, p01 = f32(q0 & lo), f32((q0 >> np.uint64(32)) & lo)
+            p10, p11 = f32(q1 & lo), f32((q1 >> np.uint64(32)) & lo)
+            v0 = fma32(aa, p01 - p00, p00)
+            gv = min(max(np.rint(fma32(bb, fma32(aa, p11 - p10, p10) - v0, v0)), zero), hi)
+            p00, p01 = f32((q0 >> np.uint64(16)) & lo), f32(q0 >> np.uint64(48))
+            p10, p11 = f32((q1 >> np.uint64(16)) & lo), f32(q1 >> np.uint64(48))
+            v0 = fma32(aa, p01 - p00, p00)
+            rv = min(max(np.rint(fma32(bb, fma32(aa, p11 - p10, p10) - v0, v0)), zero), hi)
             # the separation as _red_test has it, written out: this is the bench's loop, and
             # through the inlined helper it measured no faster and at times slower here
             dom = min(max(rv + tol, bottom), top) >= gv
             if use_frac:
-                dom = dom & (_fma32(rv, np.float32(1.0), _fma32(gv, frac, gamma)) >= zero)
+                dom = dom & (fma32(rv, np.float32(1.0), fma32(gv, frac, gamma)) >= zero)
             light = dom & (rv > thr)
             obstacle[j] = rv if light else zero
             marks[j] = gv
@@ -285,34 +285,34 @@ def unwarp_separate_f32(
     use_frac = frac != zero
     n = 0
     nb = scratch.shape[1]
-    row = _U(w)
+    row = uidx(w)
     lo = np.uint64(0xFFFFFFFF)
     gs = np.uint64(0) if green_low else np.uint64(32)
     rs = np.uint64(32) if green_low else np.uint64(0)
     s0, s1, s2, s3 = scratch[0], scratch[1], scratch[2], scratch[3]
     N = len(base)
     for start in range(0, N, nb):
-        m = _U(min(nb, N - start))
-        st = _U(start)
+        m = uidx(min(nb, N - start))
+        st = uidx(start)
         for i in range(m):
-            o = _U(base[st + i])
+            o = uidx(base[st + i])
             s0[i] = src64[o]
-            s1[i] = src64[o + _U(1)]
+            s1[i] = src64[o + uidx(1)]
             s2[i] = src64[o + row]
-            s3[i] = src64[o + row + _U(1)]
+            s3[i] = src64[o + row + uidx(1)]
         for i in range(m):
             j = st + i
             aa = alpha[j]
             bb = beta[j]
             q0, q1, q2, q3 = s0[i], s1[i], s2[i], s3[i]
-            p00, p01 = _as_f32(np.uint32((q0 >> gs) & lo)), _as_f32(np.uint32((q1 >> gs) & lo))
-            p10, p11 = _as_f32(np.uint32((q2 >> gs) & lo)), _as_f32(np.uint32((q3 >> gs) & lo))
-            v0 = _fma32(aa, p01 - p00, p00)
-            gv = _fma32(bb, _fma32(aa, p11 - p10, p10) - v0, v0)
-            p00, p01 = _as_f32(np.uint32((q0 >> rs) & lo)), _as_f32(np.uint32((q1 >> rs) & lo))
-            p10, p11 = _as_f32(np.uint32((q2 >> rs) & lo)), _as_f32(np.uint32((q3 >> rs) & lo))
-            v0 = _fma32(aa, p01 - p00, p00)
-            rv = _fma32(bb, _fma32(aa, p11 - p10, p10) - v0, v0)
+            p00, p01 = as_f32(np.uint32((q0 >> gs) & lo)), as_f32(np.uint32((q1 >> gs) & lo))
+            p10, p11 = as_f32(np.uint32((q2 >> gs) & lo)), as_f32(np.uint32((q3 >> gs) & lo))
+            v0 = fma32(aa, p01 - p00, p00)
+            gv = fma32(bb, fma32(aa, p11 - p10, p10) - v0, v0)
+            p00, p01 = as_f32(np.uint32((q0 >> rs) & lo)), as_f32(np.uint32((q1 >> rs) & lo))
+            p10, p11 = as_f32(np.uint32((q2 >> rs) & lo)), as_f32(np.uint32((q3 >> rs) & lo))
+            v0 = fma32(aa, p01 - p00, p00)
+            rv = fma32(bb, fma32(aa, p11 - p10, p10) - v0, v0)
             if rnd:
                 gv = min(max(np.rint(gv), zero), hi)
                 rv = min(max(np.rint(rv), zero), hi)

@@ -12,7 +12,7 @@ import numpy as np
 
 from stcvision.errors import BadInputError
 from stcvision.stages.common import Scratch, check_image, new_arrays
-from stcvision.stages.compiled import _U
+from stcvision.stages.compiled import uidx
 
 
 def window_sums(image, window_px: int, *, scratch: Scratch = new_arrays) -> np.ndarray:
@@ -55,10 +55,10 @@ def _row3(src, o, w, hs, oh):
     if w == 1:
         hs[oh] = np.uint16(src[o])
         return
-    hs[oh] = np.uint16(src[o]) + np.uint16(src[o + _U(1)])
-    for x in range(_U(1), _U(w - 1)):
-        hs[oh + x] = np.uint16(src[o + x - _U(1)]) + np.uint16(src[o + x]) + np.uint16(src[o + x + _U(1)])
-    hs[oh + _U(w - 1)] = np.uint16(src[o + _U(w - 2)]) + np.uint16(src[o + _U(w - 1)])
+    hs[oh] = np.uint16(src[o]) + np.uint16(src[o + uidx(1)])
+    for x in range(uidx(1), uidx(w - 1)):
+        hs[oh + x] = np.uint16(src[o + x - uidx(1)]) + np.uint16(src[o + x]) + np.uint16(src[o + x + uidx(1)])
+    hs[oh + uidx(w - 1)] = np.uint16(src[o + uidx(w - 2)]) + np.uint16(src[o + uidx(w - 1)])
 
 
 @numba.njit(cache=True)
@@ -69,32 +69,32 @@ def box3_pair(g, r, h, w, sums, scratch):
     each, bit for bit (integers), row by row: each row's sums along it into a ring of three
     rows (``scratch``: 6 w uint16), then the sums of three of those, interleaved, in loops
     LLVM vectorises."""
-    uw = _U(w)
+    uw = uidx(w)
     for y in range(h + 1):
         if y < h:
-            slot = _U(2 * (y % 3)) * uw
-            _row3(g, _U(y) * uw, w, scratch, slot)
-            _row3(r, _U(y) * uw, w, scratch, slot + uw)
+            slot = uidx(2 * (y % 3)) * uw
+            _row3(g, uidx(y) * uw, w, scratch, slot)
+            _row3(r, uidx(y) * uw, w, scratch, slot + uw)
         if y == 0:
             continue
         yy = y - 1  # the output row: rows yy - 1, yy, yy + 1 (those inside)
-        o = _U(2 * yy) * uw
-        mid = _U(2 * (yy % 3)) * uw
-        up = _U(2 * ((yy + 2) % 3)) * uw
-        dn = _U(2 * ((yy + 1) % 3)) * uw
+        o = uidx(2 * yy) * uw
+        mid = uidx(2 * (yy % 3)) * uw
+        up = uidx(2 * ((yy + 2) % 3)) * uw
+        dn = uidx(2 * ((yy + 1) % 3)) * uw
         if yy >= 1 and yy + 1 < h:
             for x in range(uw):
-                sums[o + _U(2) * x] = scratch[up + x] + scratch[mid + x] + scratch[dn + x]
-                sums[o + _U(2) * x + _U(1)] = scratch[up + uw + x] + scratch[mid + uw + x] + scratch[dn + uw + x]
+                sums[o + uidx(2) * x] = scratch[up + x] + scratch[mid + x] + scratch[dn + x]
+                sums[o + uidx(2) * x + uidx(1)] = scratch[up + uw + x] + scratch[mid + uw + x] + scratch[dn + uw + x]
         elif yy >= 1:
             for x in range(uw):
-                sums[o + _U(2) * x] = scratch[up + x] + scratch[mid + x]
-                sums[o + _U(2) * x + _U(1)] = scratch[up + uw + x] + scratch[mid + uw + x]
+                sums[o + uidx(2) * x] = scratch[up + x] + scratch[mid + x]
+                sums[o + uidx(2) * x + uidx(1)] = scratch[up + uw + x] + scratch[mid + uw + x]
         elif yy + 1 < h:
             for x in range(uw):
-                sums[o + _U(2) * x] = scratch[mid + x] + scratch[dn + x]
-                sums[o + _U(2) * x + _U(1)] = scratch[mid + uw + x] + scratch[dn + uw + x]
+                sums[o + uidx(2) * x] = scratch[mid + x] + scratch[dn + x]
+                sums[o + uidx(2) * x + uidx(1)] = scratch[mid + uw + x] + scratch[dn + uw + x]
         else:
             for x in range(uw):
-                sums[o + _U(2) * x] = scratch[mid + x]
-                sums[o + _U(2) * x + _U(1)] = scratch[mid + uw + x]
+                sums[o + uidx(2) * x] = scratch[mid + x]
+                sums[o + uidx(2) * x + uidx(1)] = scratch[mid + uw + x]
