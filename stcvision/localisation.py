@@ -30,7 +30,19 @@ __all__ = [
 
 
 def rotate_about_robot(ru: np.ndarray, angle_rad: float) -> np.ndarray:
-    """Rotate cell-unit points about the robot by ``angle_rad`` (counter-clockwise)."""
+    """Rotate cell-unit points about the robot by ``angle_rad`` (counter-clockwise).
+
+    Parameters
+    ----------
+    ru : (N, 2) float
+        Points in cell units.
+    angle_rad : float
+
+    Returns
+    -------
+    (N, 2) float
+        The points turned (``ru`` itself when the angle is 0).
+    """
     if angle_rad == 0.0:
         return ru
     c, s = math.cos(angle_rad), math.sin(angle_rad)
@@ -71,7 +83,19 @@ def landmark_fit(obs_p: np.ndarray, exp_p: np.ndarray, subcell_m: float):
     ray; a squared residual of 40 after the fit) pulled a fit of six lights 1.2 cm and 0.5
     degrees off, its reported spread 4.6 mm (spiral_stc_test_2, cooled, seed 918); the robot
     moved by it, laid its rows 2 cm off, and later read one of them as a start mark (a safe
-    stop)."""
+    stop).
+
+    Parameters
+    ----------
+    obs_p, exp_p : (N, 2) float
+        Where the lights are seen, and the cell centres they stand at (cell units).
+    subcell_m : float
+        The sub-cell side (m) the lights' errors are converted with.
+
+    Returns
+    -------
+    tuple or None
+    """
     keep = np.ones(len(obs_p), bool)
     while len(np.unique(np.round(exp_p[keep] / 2.0), axis=0)) >= 2:
         fit = landmark_wls(obs_p[keep], exp_p[keep], subcell_m)
@@ -88,7 +112,18 @@ def landmark_fit(obs_p: np.ndarray, exp_p: np.ndarray, subcell_m: float):
 
 def landmark_wls(obs_p: np.ndarray, exp_p: np.ndarray, subcell_m: float):
     """One weighted least-squares fit of :func:`landmark_fit`: (th, offset, the covariance of
-    (th, offset), each light's squared Mahalanobis residual) or None when ill-conditioned."""
+    (th, offset), each light's squared Mahalanobis residual) or None when ill-conditioned.
+
+    Parameters
+    ----------
+    obs_p, exp_p : (N, 2) float
+        As :func:`landmark_fit`'s.
+    subcell_m : float
+
+    Returns
+    -------
+    tuple or None
+    """
     v = obs_p - ROBOT_IN_CELL
     dist = np.hypot(*v.T)
     u = v / np.maximum(dist, 1e-9)[:, None]

@@ -159,7 +159,18 @@ def _identity_tables(w: int, h: int) -> GatherTables:
 
 
 def black_out_margin(red_margin_px: int) -> np.ndarray | None:
-    """The structuring element the black-out grows by (None: not grown)."""
+    """The structuring element the black-out grows by: an ellipse reaching ``red_margin_px``
+    beyond a pixel.
+
+    Parameters
+    ----------
+    red_margin_px : int
+
+    Returns
+    -------
+    (k, k) uint8 ndarray or None
+        None where the margin is 0 (not grown).
+    """
     if red_margin_px <= 0:
         return None
     k = 2 * red_margin_px + 1
