@@ -29,7 +29,7 @@ from pathlib import Path
 import numpy as np
 from scipy import stats
 
-from controllers.buffon.batched import VisitConfig, _TrialWorld, run_trials, trial_seeds
+from controllers.buffon.batched import TrialWorld, VisitConfig, run_trials, trial_seeds
 from controllers.buffon.estimate import self_crossing_area
 from controllers.buffon.nests import BODY_LENGTH_M, parse_nest
 from controllers.buffon.online import CALIBRATION_COMPARTMENTS, calibration_family
@@ -69,7 +69,7 @@ def streams(rows, trials: int, seed: int) -> list[dict]:
     cfg = VisitConfig(visit_steps="auto", stop=COVERAGE_ALONE)
     for i, r in enumerate(rows):
         nest = parse_nest(r["spec"], r["barrier"])
-        world = _TrialWorld(nest, cfg)
+        world = TrialWorld(nest, cfg)
         recs = []
         for s in trial_seeds(seed + i, trials):
             l1, _, _, _, _, trails, n_self, _, _, _, b1 = world.trial(s, record=True)

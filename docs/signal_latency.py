@@ -17,7 +17,7 @@ import subprocess
 import sys
 import time
 
-from stcvision.sweep._worker import session_processes as session
+from stcvision.sweep import session_processes as session
 
 
 def main() -> int:

@@ -55,6 +55,7 @@ __all__ = [
     "PolygonObstacle",
     "SquareArena",
     "arena_from_board",
+    "as_points",
 ]
 
 SCHEMA_VERSION = 1
@@ -76,7 +77,22 @@ _COMMON_KEYS = {"schema_version", "kind", "wall_thickness_m", "barriers", "obsta
 # --------------------------------------------------------------------------- geometry helpers
 
 
-def _as_points(points: Any) -> np.ndarray:
+def as_points(points: Any) -> np.ndarray:
+    """``points`` as an (N, 2) float array of floor points (m); one point (2,) becomes (1, 2).
+
+    Parameters
+    ----------
+    points : array_like, (N, 2) or (2,)
+
+    Returns
+    -------
+    (N, 2) float ndarray
+
+    Raises
+    ------
+    BadInputError
+        If they are not points on the floor.
+    """
     p = np.asarray(points, dtype=float)
     if p.ndim == 1 and p.shape[0] == 2:
         p = p[None, :]
@@ -369,7 +385,7 @@ class Arena:
 
         points : (N, 2) or (2,) float, metres. Returns (N,) bool.
         """
-        p = _as_points(points)
+        p = as_points(points)
         if margin_m > 0:
             return self.clearance_m(p) > margin_m
         ok = self._outer_contains(p)
@@ -394,7 +410,7 @@ class Arena:
 
     def clearance_m(self, points: Any) -> np.ndarray:
         """Signed distance (m) to the nearest solid: positive in the free region."""
-        p = _as_points(points)
+        p = as_points(points)
         c = self._outer_signed_distance(p)
         for o in self.obstacles:
             c = np.minimum(c, o.signed_distance(p))
@@ -802,7 +818,7 @@ class BoardArena(Arena):
         return 0.0 < x < w and 0.0 < y < h
 
     def contains(self, points, margin_m=0.0):
-        p = _as_points(points)
+        p = as_points(points)
         if margin_m > 0:
             return self.clearance_m(p) > margin_m
         ok = self._outer_contains(p)

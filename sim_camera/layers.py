@@ -21,7 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from sim_camera.arenas import _as_points, points_in_polygon
+from sim_camera.arenas import as_points, points_in_polygon
 from stcvision.errors import BadInputError
 
 __all__ = [
@@ -76,7 +76,7 @@ class PheromoneLayer:
 
     def deposit_path(self, points) -> None:
         """Mark the trail along a polyline ``points`` (N, 2); N = 1 marks a dot."""
-        p = _as_points(points)
+        p = as_points(points)
         half = 0.5 * self.width_m
         c = self.cell_m
         ox, oy = self.origin_m
@@ -104,7 +104,7 @@ class PheromoneLayer:
 
     def read(self, points) -> np.ndarray:
         """Pheromone present (bool) at each point (N, 2); points off the grid read False."""
-        p = _as_points(points)
+        p = as_points(points)
         j = np.floor((p[:, 0] - self.origin_m[0]) / self.cell_m).astype(int)
         i = np.floor((p[:, 1] - self.origin_m[1]) / self.cell_m).astype(int)
         ok = (i >= 0) & (i < self.shape[0]) & (j >= 0) & (j < self.shape[1])
@@ -159,7 +159,7 @@ class ChemicalLayer:
         self.patches.append(patch)
 
     def concentration(self, points) -> np.ndarray:
-        p = _as_points(points)
+        p = as_points(points)
         out = np.zeros(len(p))
         for patch in self.patches:
             out += patch.value(p)

@@ -8,7 +8,8 @@ corners of the five cells), through a homography to *cell units* (the entry fram
 the sub-cell side, origin at the current cell's centre). A mark lies a few centimetres inside
 one edge of its sub-cell, so each dot is assigned to the sub-cell it falls in and that
 sub-cell's nearest edge. The measured heading error (from the heading fit) rotates the dots
-back into the entry frame about the robot before they are assigned.
+back into the entry frame about the robot before they are assigned. The robot's pose from the
+red lights (landmarks at cell centres) is fitted by :mod:`stcvision.localisation`.
 """
 
 from __future__ import annotations
@@ -20,9 +21,10 @@ import cv2
 import numba
 import numpy as np
 
-from stcvision.profile import CORNER_ORDER, ROBOT_IN_CELL
-from stcvision.stages.compiled import _fma64
-from stcvision.stcgrid import BOXES, DEFAULT_SUBCELL_M, DIRECTIONS, NEIGHBOURS, START_MARKS, SUBCELLS, VISITED_BY
+from stcvision.localisation import landmark_pose, rotate_about_robot
+from stcvision.profile import CORNER_ORDER
+from stcvision.stages.compiled import fma64
+from stcvision.stcgrid import BOXES, DIRECTIONS, NEIGHBOURS, START_MARKS, SUBCELLS, VISITED_BY
 
 __all__ = [
     "BOXES",
@@ -35,6 +37,7 @@ __all__ = [
     "marks_ahead",
     "marks_landing_ahead",
     "observe_cell",
+    "rotate_about_robot",
 ]
 
 #: a landing sub-cell counts as marked with a whole row inside it: this many of its four dots,
@@ -116,98 +119,12 @@ class CellGeometry:
             polys[f"box{b}"] = np.array([c, c + 0.5 * (e + t), c + 0.5 * (e - t)])
         for name, (dr, du) in NEIGHBOURS.items():
             polys[name] = _sq((2 * dr, 2 * du), 1)
-        return {k: self.to_ground(_rotate(v, heading_error_rad)) for k, v in polys.items()}
-
-
-#: the sub-cell side (m) the light errors are converted with when the caller gives none
-_SUBCELL_M = DEFAULT_SUBCELL_M
-
-
-def light_sigma_m(d_m) -> tuple[np.ndarray, np.ndarray]:
-    """A red light's position error (1 sigma, m) at ``d_m`` metres from the robot, along the
-    ray from the robot (radial) and across it (tangential). Measured on rendered frames (lights
-    at cell centres 0.3-1.2 m away, 440 found): across the ray 0.8-1.3 mm at every distance --
-    the mirror keeps the azimuth -- along it 1.5 mm at 0.3 m, 4 mm at 0.7 m, 10 mm (and a bias
-    of up to -18 mm) at 1.1-1.2 m, where the mirror squeezes the floor radially. The model is a
-    little above both, bias included: 1.5 mm across, ``1.5 mm + 15 mm * d^3`` along."""
-    d = np.asarray(d_m, float)
-    return 0.0015 + 0.015 * d**3, np.full_like(d, 0.0015)
-
-
-#: a light whose residual from the fit of the others lies beyond this (its squared Mahalanobis
-#: distance under its own error ellipse, :func:`light_sigma_m`; the chi-square 2-d.o.f. point
-#: of 0.999, in closed form: -2 ln(1 - p)) is no light at the cell centre the fit assigned it:
-#: left out, the rest fitted again
-LIGHT_OUTLIER_CHI2 = -2.0 * math.log(1.0 - 0.999)
-
-
-def _landmark_fit(obs_p: np.ndarray, exp_p: np.ndarray, subcell_m: float):
-    """Weighted least squares of ``exp = R(-th) (obs - robot) + robot + offset`` (cell units,
-    rotation about the robot as :func:`_rotate`) for lights seen at ``obs_p`` that stand at
-    ``exp_p``, each weighted by its error ellipse (:func:`light_sigma_m`); the light furthest
-    beyond :data:`LIGHT_OUTLIER_CHI2` is left out and the rest fitted again, until none is.
-    Returns (th, offset, sigma of th, sigma of the offset: the larger axis of its ellipse) or
-    None if the lights left do not fix all three (fewer than two cell centres).
-
-    Why the outliers: a light seen 8.6 cm off its cell centre at 0.97 m (5.7 sigma along its
-    ray; a squared residual of 40 after the fit) pulled a fit of six lights 1.2 cm and 0.5
-    degrees off, its reported spread 4.6 mm (spiral_stc_test_2, cooled, seed 918); the robot
-    moved by it, laid its rows 2 cm off, and later read one of them as a start mark (a safe
-    stop)."""
-    keep = np.ones(len(obs_p), bool)
-    while len(np.unique(np.round(exp_p[keep] / 2.0), axis=0)) >= 2:
-        fit = _landmark_wls(obs_p[keep], exp_p[keep], subcell_m)
-        if fit is None:
-            return None
-        th, off, cov, m2 = fit
-        worst = int(np.argmax(m2))
-        if m2[worst] <= LIGHT_OUTLIER_CHI2:
-            sig_off = math.sqrt(float(np.linalg.eigvalsh(cov[1:, 1:]).max()))
-            return th, tuple(float(x) for x in off), math.sqrt(float(cov[0, 0])), sig_off
-        keep[np.flatnonzero(keep)[worst]] = False
-    return None
-
-
-def _landmark_wls(obs_p: np.ndarray, exp_p: np.ndarray, subcell_m: float):
-    """One weighted least-squares fit of :func:`_landmark_fit`: (th, offset, the covariance of
-    (th, offset), each light's squared Mahalanobis residual) or None when ill-conditioned."""
-    v = obs_p - ROBOT_IN_CELL
-    dist = np.hypot(*v.T)
-    u = v / np.maximum(dist, 1e-9)[:, None]
-    sr, st = light_sigma_m(dist * subcell_m)
-    sr, st = sr / subcell_m, st / subcell_m
-    uu = u[:, :, None] * u[:, None, :]
-    w = uu / (sr**2)[:, None, None] + (np.eye(2) - uu) / (st**2)[:, None, None]  # inverse covariances
-    th, off = 0.0, np.zeros(2)
-    for _ in range(2):  # once linearised about 0, once about the first answer
-        rv = _rotate(obs_p, -th) - ROBOT_IN_CELL
-        r = exp_p - (rv + ROBOT_IN_CELL + off)
-        a = np.zeros((len(v), 2, 3))
-        a[:, 0, 0], a[:, 1, 0] = rv[:, 1], -rv[:, 0]  # d/d(th) of R(-th) v
-        a[:, :, 1:] = np.eye(2)
-        at_w = np.einsum("nki,nkl->nil", a, w)
-        n = np.einsum("nil,nlj->ij", at_w, a)
-        if np.linalg.cond(n) > 1e10:
-            return None
-        cov = np.linalg.inv(n)
-        step = cov @ np.einsum("nil,nl->i", at_w, r)
-        th += float(step[0])
-        off = off + step[1:]
-    r = exp_p - (_rotate(obs_p, -th) + off)
-    return th, off, cov, np.einsum("ni,nij,nj->n", r, w, r)
+        return {k: self.to_ground(rotate_about_robot(v, heading_error_rad)) for k, v in polys.items()}
 
 
 def _sq(c, h):
     c = np.asarray(c, float)
     return np.array([c + (h, -h), c + (h, h), c + (-h, h), c + (-h, -h)])
-
-
-def _rotate(ru: np.ndarray, angle_rad: float) -> np.ndarray:
-    """Rotate cell-unit points about the robot by ``angle_rad`` (counter-clockwise)."""
-    if angle_rad == 0.0:
-        return ru
-    c, s = math.cos(angle_rad), math.sin(angle_rad)
-    return rotate_about(np.ascontiguousarray(ru, np.float64), c, s, *ROBOT_IN_CELL)
 
 
 #: Half-width (cell units, i.e. fractions of D) of the band a row's dots share across the row
@@ -482,7 +399,7 @@ def observe_cell(
     # dots, clear of the borders)
     inside = landing_counts(ru, np.asarray(dots.lit, np.bool_), _LANDING, _LANDING_HALF)
     landing = tuple(bool(c >= max(params.min_dots, LANDING_DOTS)) for c in inside)
-    rru = _rotate(geometry.to_cell(red_px), heading_error_rad) if len(red_px) else np.zeros((0, 2))
+    rru = rotate_about_robot(geometry.to_cell(red_px), heading_error_rad) if len(red_px) else np.zeros((0, 2))
     landmark = (None,) * 4
     if params.pose_estimates:
         landmark = _landmarks(rru, landmark_px, geometry, heading_error_rad, params, subcell_m)
@@ -511,7 +428,7 @@ def _cell_dots(dots, geometry: CellGeometry, heading_error_rad: float, params: O
     that offset (None: too few rows); and which of its axes the marks measured."""
     if not len(dots):
         return np.zeros((0, 2)), np.zeros(0, np.int64), None, (False, False)
-    ru = _rotate(geometry.to_cell(dots.xy_px), heading_error_rad)
+    ru = rotate_about_robot(geometry.to_cell(dots.xy_px), heading_error_rad)
     lit = np.asarray(dots.lit, np.bool_)
     orient, have, off = cell_dots(ru, lit, ROW_TOL, ROW_SPAN, MARK_INSET, MARK_MIN_DOTS)
     # where the robot really stands, from the marks: read the boxes relative to that
@@ -567,34 +484,20 @@ def _landmarks(
     rru, landmark_px, geometry: CellGeometry, heading_error_rad: float, params: ObservationParams, subcell_m
 ):
     """Red lights stand at cell centres (even coordinates in cell units): absolute landmarks.
-    (offset, rotation, rotation sigma, offset sigma) of :func:`_landmark_fit` over the lights
-    near a cell centre within reach (``landmark_px`` out to ``params.landmark_range_m``, else
-    the view's lights ``rru`` within 2.6 sub-cells), each None where not fixed."""
-    landmark = landmark_rot = landmark_sig = landmark_off_sig = None
+    (offset, rotation, rotation sigma, offset sigma) of the landmark pose fit
+    (:func:`stcvision.localisation.landmark_pose`) over the lights near a cell centre within
+    reach (``landmark_px`` out to ``params.landmark_range_m``, else the view's lights ``rru``
+    within 2.6 sub-cells), each None where not fixed."""
     if landmark_px is not None and subcell_m:
-        lru = _rotate(geometry.to_cell(landmark_px), heading_error_rad) if len(landmark_px) else np.zeros((0, 2))
+        lru = (
+            rotate_about_robot(geometry.to_cell(landmark_px), heading_error_rad)
+            if len(landmark_px)
+            else np.zeros((0, 2))
+        )
         reach = params.landmark_range_m / subcell_m
     else:
         lru, reach = rru, 2.6  # well inside the ground view (a blob cut by its border is biased)
-    if len(lru):
-        resid = lru - 2.0 * np.round(lru / 2.0)
-        near = (np.abs(resid) < 0.6).all(axis=1) & (np.hypot(*(lru - ROBOT_IN_CELL).T) < reach)
-        obs_p = lru[near]
-        exp_p = obs_p - resid[near]
-        # two lights or more at distinct cell centres (the fit says None otherwise): with one, a
-        # sideways offset and a rotation look alike (1 cm at 40 cm is 1.4 degrees), so fit both
-        # at once: where the lights are against where they should be, ``exp = R(-th) (obs - rob)
-        # + rob + offset``, linearised in the small rotation ``th`` and weighted by each light's
-        # error ellipse (its bearing is much surer than its range: :func:`light_sigma_m`)
-        fit = _landmark_fit(obs_p, exp_p, subcell_m or _SUBCELL_M)
-        if fit is not None:
-            th, off, sig_th, off_sig = fit
-            landmark_sig = sig_th
-            if sig_th <= params.landmark_max_sigma_rad:
-                landmark_rot = th
-                landmark = off
-                landmark_off_sig = off_sig
-    return landmark, landmark_rot, landmark_sig if landmark_rot is not None else None, landmark_off_sig
+    return landmark_pose(lru, reach, subcell_m, max_sigma_rad=params.landmark_max_sigma_rad)
 
 
 def marks_ahead(
@@ -608,7 +511,7 @@ def marks_ahead(
     """
     if not len(dots):
         return 0
-    ru = _rotate(geometry.to_cell(dots.xy_px[dots.lit]), heading_error_rad)
+    ru = rotate_about_robot(geometry.to_cell(dots.xy_px[dots.lit]), heading_error_rad)
     if offset is not None:
         ru = ru + np.asarray(offset)
     return int(((np.abs(ru[:, 0]) < 1) & (ru[:, 1] > 0) & (ru[:, 1] < 2)).sum())
@@ -622,25 +525,13 @@ def marks_landing_ahead(
     :func:`observe_cell`'s landing rule: a row of the next sub-cell must not count."""
     if not len(dots):
         return 0
-    ru = _rotate(geometry.to_cell(dots.xy_px[dots.lit]), heading_error_rad)
+    ru = rotate_about_robot(geometry.to_cell(dots.xy_px[dots.lit]), heading_error_rad)
     if offset is not None:
         ru = ru + np.asarray(offset)
     return int(((np.abs(ru[:, 0] - 0.5) < _LANDING_HALF) & (np.abs(ru[:, 1] - 0.5) < _LANDING_HALF)).sum())
 
 
 # --------------------------------------------------------------------------- compiled loops
-@numba.njit(cache=True)
-def rotate_about(ru, c, s, cx, cy):
-    """Points rotated about (cx, cy) by the angle of cosine ``c`` and sine ``s``
-    (:func:`stcvision.observation._rotate`), element by element as the numpy version."""
-    out = np.empty_like(ru)
-    for i in range(len(ru)):
-        dx, dy = ru[i, 0] - cx, ru[i, 1] - cy
-        out[i, 0] = (c * dx - s * dy) + cx
-        out[i, 1] = (s * dx + c * dy) + cy
-    return out
-
-
 @numba.njit(cache=True)
 def row_orientation_loop(ru, tol, span):
     """Per dot (cell units): 1 if it has more row-mates along 'up' than along 'right', 0 if
@@ -788,9 +679,9 @@ def homography(H, p):
     out = np.empty((n, 2))
     for i in range(n):
         x, y = p[i, 0], p[i, 1]
-        a = _fma64(y, H[0, 1], x * H[0, 0]) + H[0, 2]
-        b = _fma64(y, H[1, 1], x * H[1, 0]) + H[1, 2]
-        c = _fma64(y, H[2, 1], x * H[2, 0]) + H[2, 2]
+        a = fma64(y, H[0, 1], x * H[0, 0]) + H[0, 2]
+        b = fma64(y, H[1, 1], x * H[1, 0]) + H[1, 2]
+        c = fma64(y, H[2, 1], x * H[2, 0]) + H[2, 2]
         out[i, 0] = a / c
         out[i, 1] = b / c
     return out

@@ -6,10 +6,12 @@ Stages (``stcvision.stages``), in the order they run::
               hot pixels masked; the frame's background and noise
     window    sums over the dot-sized square, in the mirror image (filter once)
     unwarp    phi/theta remap of the window sums to the ground view, and the red/green test
-              per ground pixel (one compiled pass: obstacle and marks images)
+              per ground pixel (one compiled pass: obstacle and marks images; with the pose
+              estimates also the wide view's obstacle image)
     channels  the red lights' black-out margin in the marks image
     dots      window-mean dot search with black-out; centroids on the mirror image
-    red       red-light blobs
+    red       red-light blobs; white lights told from red on the raw frame; far red lights
+              (landmarks) in a wide view, refined on the mirror image
     heading   line fit through the newest mark row
     observe   five boxes, visited sub-cells, four neighbours
 
@@ -18,7 +20,8 @@ the remap tables, the background sample; rebuilt for each dark frame) and the ce
 ``process`` allocates only the images it returns, besides the scratch images it lends the stages
 (:class:`stcvision.stages.Scratch`, so one ``Pipeline`` per thread). Each stage's module chooses
 its compiled path itself; the window sums of green and red are one two-channel image, which the
-unwarp gathers both channels of at once. Logging (``stcvision.rr``) observes the result
+unwarp gathers both channels of at once. Each stage is timed under its own name
+(:class:`stcvision.stages.StageTimes`). Logging (``stcvision.rr``) observes the result
 afterwards.
 """
 
@@ -43,11 +46,11 @@ from stcvision.stages import (
     RedParams,
     RowParams,
     Scratch,
+    StageTimes,
     UnwarpMap,
     check_dark_dtype,
     check_frame,
     find_dots,
-    find_red,
     find_rows,
     fit_heading,
     mirror_centroids,
@@ -56,7 +59,8 @@ from stcvision.stages import (
     unwarp,
     window_sums,
 )
-from stcvision.stages.front import FrontEnd, FrontOutput
+from stcvision.stages.front import FrontEnd
+from stcvision.stages.red import read_red
 
 __all__ = ["Pipeline", "PipelineParams", "PipelineResult", "STAGES", "display_scale"]
 
@@ -322,137 +326,97 @@ class Pipeline:
         p = self.params
         w = p.dots.window_px
         area = w * w
-        clock = time.perf_counter_ns
-        t = [clock()]
-        f = self.front.run(frame, self.scratch, clock, t)
+        times = StageTimes()
+        f = self.front.run(frame, self.scratch, times)
         g, r, obstacle, marks, bg, noise, q = f.green, f.red, f.obstacle, f.marks, f.bg, f.noise, f.quantum
         g2r = self.profile.ground_to_robot
-        dots = find_dots(  # robot-frame positions from the mirror-image centroids when they run
-            marks,
-            p.dots,
-            gain=self.gain,
-            background_dn=bg,
-            noise_dn=noise,
-            ground_to_robot=None if p.dots.mirror_sigma_px > 0 else g2r,
-            quantum=q,
-        )
-        dots = mirror_centroids(  # g is the crop the view reads: its own map
-            dots,
-            g,
-            background_dn=bg,
-            umap=self.front.umap_crop,
-            ground_to_robot=self.profile.ground_to_robot,
-            params=p.dots,
-        )
-        t.append(clock())
-        all_dots = find_rows(
-            marks,
-            dots,
-            gain=self.gain,
-            background_dn=bg,
-            noise_dn=noise,
-            px_per_m=self.profile.ground_px_per_m,
-            window_px=w,
-            params=p.rows,
-            dot_params=p.dots,
-            ground_to_robot=self.profile.ground_to_robot,
-            quantum=q,
-            buffers=self.scratch,
-        )
-        lit = self._lit_frame(bg, noise)
-        if lit and not all_dots.untrusted:
-            all_dots = dataclasses.replace(all_dots, untrusted=lit)
-        t.append(clock())
-        red = find_red(obstacle, p.red, window_area=area)
-        white_m = np.zeros((0, 2))
-        if p.white_blue_ratio is not None:
-            xy_m = self.profile.ground_to_robot(red.xy_px) if len(red) else np.zeros((0, 2))
-            white = self._white(frame, xy_m)
-            white_m = xy_m[white]
-            red = RedLights(red.xy_px[~white], red.peak_dn[~white], red.area_px[~white])
-        t.append(clock())
-        heading = fit_heading(dots, p.heading)
-        t.append(clock())
-        landmark_px = self._far_lights(f, frame) if self.wide is not None else None
-        herr = heading.heading_error_rad if (heading.ok and p.use_heading) else 0.0
-        if heading_error_rad is not None:
-            herr = float(heading_error_rad)
-        obs = observe_cell(
-            all_dots,
-            red.xy_px,
-            red.peak_dn,
-            self.geometry,
-            red_threshold_dn=p.channels.levels(*f.red_levels)[0],
-            heading_error_rad=herr,
-            params=p.observation,
-            landmark_px=landmark_px,
-            subcell_m=self.profile.subcell_m,
-            position_offset=position_offset,
-        )
-        t.append(clock())
-        stage_ms = {name: (t[i + 1] - t[i]) / 1e6 for i, name in enumerate(STAGES)}
+        with times("dots"):
+            dots = find_dots(  # robot-frame positions from the mirror-image centroids when they run
+                marks,
+                p.dots,
+                gain=self.gain,
+                background_dn=bg,
+                noise_dn=noise,
+                ground_to_robot=None if p.dots.mirror_sigma_px > 0 else g2r,
+                quantum=q,
+            )
+            dots = mirror_centroids(  # g is the crop the view reads: its own map
+                dots,
+                g,
+                background_dn=bg,
+                umap=self.front.umap_crop,
+                ground_to_robot=self.profile.ground_to_robot,
+                params=p.dots,
+            )
+        with times("rows"):
+            all_dots = find_rows(
+                marks,
+                dots,
+                gain=self.gain,
+                background_dn=bg,
+                noise_dn=noise,
+                px_per_m=self.profile.ground_px_per_m,
+                window_px=w,
+                params=p.rows,
+                dot_params=p.dots,
+                ground_to_robot=self.profile.ground_to_robot,
+                quantum=q,
+                buffers=self.scratch,
+            )
+            lit = self._lit_frame(bg, noise)
+            if lit and not all_dots.untrusted:
+                all_dots = dataclasses.replace(all_dots, untrusted=lit)
+        with times("red"):
+            wide = None if f.wide_obstacle is None else (f.wide_obstacle, self.front.wide_profile.ground_to_robot)
+            lights = read_red(
+                obstacle,
+                frame,
+                p.red,
+                window_area=area,
+                profile=self.profile,
+                dark=self.dark,
+                pedestal=self.pedestal,
+                red_channel=r,
+                white_blue_ratio=p.white_blue_ratio,
+                wide=wide,
+            )
+            red = lights.lights
+        with times("heading"):
+            heading = fit_heading(dots, p.heading)
+        with times("observe"):
+            herr = heading.heading_error_rad if (heading.ok and p.use_heading) else 0.0
+            if heading_error_rad is not None:
+                herr = float(heading_error_rad)
+            obs = observe_cell(
+                all_dots,
+                red.xy_px,
+                red.peak_dn,
+                self.geometry,
+                red_threshold_dn=p.channels.levels(*f.red_levels)[0],
+                heading_error_rad=herr,
+                params=p.observation,
+                landmark_px=lights.landmark_px,
+                subcell_m=self.profile.subcell_m,
+                position_offset=position_offset,
+            )
+        if tuple(times.ms) != STAGES:  # every stage timed once, in order (a new stage names itself in STAGES)
+            raise RuntimeError(f"stages timed {tuple(times.ms)}, expected {STAGES}")
         return PipelineResult(
-            frame, self.dark, self.pedestal, g, r, obstacle, marks, all_dots, red, heading, obs, stage_ms, area, white_m
+            frame,
+            self.dark,
+            self.pedestal,
+            g,
+            r,
+            obstacle,
+            marks,
+            all_dots,
+            red,
+            heading,
+            obs,
+            times.ms,
+            area,
+            lights.white_m,
         )
-
-    def _white(self, frame: np.ndarray, xy_m: np.ndarray, *, half: int = 4) -> np.ndarray:
-        """Per light at robot-frame ``xy_m``: white (:attr:`PipelineParams.white_blue_ratio`)."""
-        uv = self.profile.robot_to_image(xy_m)
-        h, w = frame.shape[:2]
-        out = np.zeros(len(uv), bool)
-        for i, (u, v) in enumerate(uv):
-            if not (np.isfinite(u) and np.isfinite(v)):
-                continue
-            u0, v0 = int(round(u)), int(round(v))
-            sl = (slice(max(v0 - half, 0), min(v0 + half + 1, h)), slice(max(u0 - half, 0), min(u0 + half + 1, w)))
-            patch = frame[sl].astype(np.float32)
-            if self.dark is not None:
-                patch -= self.dark[sl]
-            b, r = float(patch[..., 0].sum()), float(patch[..., 2].sum())
-            out[i] = r > 0 and b >= self.params.white_blue_ratio * r
-        return out
-
-    def _far_lights(self, f: FrontOutput, frame: np.ndarray) -> np.ndarray:
-        """Red lights out to ``landmark_range_m`` for the landmark fit, as ground-view pixels of
-        the main view (beyond its edges too): found in the wide, coarse view of the window sums
-        of the front end ``f`` and refined on its dark-subtracted red channel."""
-        p = self.params
-        area = p.dots.window_px**2
-        far = find_red(self.front.wide_obstacle(f, self.scratch), p.red, window_area=area)
-        wide_to_robot = self.front.wide_profile.ground_to_robot
-        xy_m = self._refine_lights(f.red, wide_to_robot(far.xy_px)) if len(far) else np.zeros((0, 2))
-        if p.white_blue_ratio is not None and len(xy_m):
-            xy_m = xy_m[~self._white(frame, xy_m)]
-        return self.profile.robot_to_ground(xy_m)
-
-    def _refine_lights(self, red: np.ndarray, xy_m: np.ndarray, *, half: int = 6) -> np.ndarray:
-        """Robot-frame positions of red lights found in the coarse wide view, refined on the
-        full-resolution mirror image: the centroid of the pixels above half the peak in a patch
-        around each (a far light covers a few pixels there, each ~2 cm of floor at 0.85 m, so
-        the coarse view alone is off by up to a centimetre). Lights that cannot be refined (at
-        the image edge, nothing above the pedestal) are dropped."""
-        uv = self.profile.robot_to_image(xy_m)
-        h, w = red.shape
-        ped = float(self.pedestal)
-        out = []
-        for u, v in uv:
-            if not (np.isfinite(u) and np.isfinite(v)):
-                continue
-            u0, v0 = int(round(u)), int(round(v))
-            if u0 - half < 0 or v0 - half < 0 or u0 + half >= w or v0 + half >= h:
-                continue
-            patch = red[v0 - half : v0 + half + 1, u0 - half : u0 + half + 1].astype(np.float32) - ped
-            top = float(patch.max())
-            if top <= 0:
-                continue
-            wgt = np.maximum(patch - 0.5 * top, 0.0)
-            yy, xx = np.mgrid[-half : half + 1, -half : half + 1]
-            tot = float(wgt.sum())
-            out.append((u0 + float((xx * wgt).sum()) / tot, v0 + float((yy * wgt).sum()) / tot))
-        if not out:
-            return np.zeros((0, 2))
-        xy = self.profile.image_to_robot(np.array(out))
-        return xy[np.isfinite(xy).all(axis=1)]
 
     def ground_view(self, image: np.ndarray) -> np.ndarray:
         """8-bit colour ground view of an image, as the stages see it (window means; a 16-bit

@@ -1,7 +1,8 @@
 """The house's import rules (docs/architecture.md), read from the source: no import circle
 between the project's modules, the pipeline imports no simulator, robot or calibration code, the
-simulator takes from the pipeline only what cannot let their errors cancel, and the robots'
-rooms do not import each other. Function-level (lazy) imports count like top-level ones."""
+simulator takes from the pipeline only what cannot let their errors cancel, the robots' rooms do
+not import each other, and no module (nor script of docs/) imports another module's private
+name. Function-level (lazy) imports count like top-level ones."""
 
 import ast
 from collections import defaultdict
@@ -19,6 +20,15 @@ SIM_MAY_IMPORT = {
     "stcvision.limits": None,
     "stcvision.angles": None,
     "stcvision.stcgrid": {"DEFAULT_SUBCELL_M"},
+}
+
+
+#: the datasets' owner sits above the simulator and the calibration workflow: it renders frames
+#: with the one and fits their profiles with the other, and a recipe's scene parameters are the
+#: simulator's scene function's; reading a dataset (stcvision.datasets.reading) imports neither
+DATASETS_MAY_IMPORT = {
+    "stcvision.datasets.render": ("sim_camera", "calibration"),
+    "stcvision.datasets.recipe": ("sim_camera",),
 }
 
 
@@ -111,13 +121,14 @@ def test_no_import_circle():
 
 
 def test_the_pipeline_imports_no_simulator_robot_or_calibration():
-    """stcvision is the bottom layer; only its CLI (and the warm-up that drives it) reach up."""
+    """stcvision is the bottom layer; only its CLI (and the warm-up that drives it) reach up, and
+    the datasets' renderer and recipes to the simulator and calibration (:data:`DATASETS_MAY_IMPORT`)."""
     bad = [
         (m, t)
         for m, ts in IMPORTS.items()
         if m.split(".")[0] == "stcvision" and not m.startswith(("stcvision.cli", "stcvision.warm"))
         for t, _ in ts
-        if t.split(".")[0] != "stcvision"
+        if t.split(".")[0] != "stcvision" and t.split(".")[0] not in DATASETS_MAY_IMPORT.get(m, ())
     ]
     assert bad == []
 
@@ -167,3 +178,70 @@ def test_the_packages_facade_is_the_one_place_the_pipeline_names_other_packages(
 
     outside = {m.split(".")[0] for m, _ in stcvision._LAZY.values()} - {"stcvision"}
     assert outside <= {"sim_camera", "controllers", "calibration"}
+
+
+#: (importing module, imported module, private name) pairs still allowed: none
+PRIVATE_IMPORTS_ALLOWED: set[tuple[str, str, str]] = set()
+
+
+def _private(name: str) -> bool:
+    return name.startswith("_") and not name.startswith("__")
+
+
+def _private_imports(path: Path, me: str) -> list[tuple[str, str, str]]:
+    """(``me``, module, private name) for each import in ``path`` of a private name of another
+    module: ``from M import _x``, or a private module ``P._m`` (or a name from it) imported from
+    outside its package ``P``. A package's own modules may import each other's private modules
+    (``stcvision.sweep`` from ``stcvision.sweep._run``)."""
+    out = []
+    for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+        if isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
+            targets = [(node.module, a.name) for a in node.names]
+        elif isinstance(node, ast.Import):
+            targets = [(a.name, None) for a in node.names]
+        else:
+            continue
+        for mod, name in targets:
+            if mod.split(".")[0] not in PACKAGES:
+                continue
+            parts = mod.split(".")
+            for i, part in enumerate(parts):  # a private module on the way: only its package may
+                pkg = ".".join(parts[:i])
+                if _private(part) and not (me == pkg or me.startswith(pkg + ".")):
+                    out.append((me, pkg, part))
+                    break
+            else:
+                if name is not None and _private(name):
+                    inside = me.startswith(mod + ".") or (path.name == "__init__.py" and me == mod)
+                    if not inside:
+                        out.append((me, mod, name))
+    return out
+
+
+def test_the_private_name_finder_finds_them(tmp_path):
+    src = tmp_path / "m.py"
+    src.write_text(
+        "from stcvision.observation import _rotate, observe_cell\n"
+        "import stcvision.sweep._worker\n"
+        "from stcvision.sweep._run import run_sweep\n"
+        "from stcvision.sweep import run_sweep\n"
+        "from numpy import _globals\n"
+    )
+    assert _private_imports(src, "docs.m") == [
+        ("docs.m", "stcvision.observation", "_rotate"),
+        ("docs.m", "stcvision.sweep", "_worker"),
+        ("docs.m", "stcvision.sweep", "_run"),
+    ]
+    assert _private_imports(src, "stcvision.sweep.other")[1:] == []
+
+
+def test_no_module_imports_another_modules_private_name():
+    """Every installed module and every script of docs/: a name another module uses is public
+    (no leading underscore), so a module's private names can change without breaking others."""
+    found = []
+    for pkg in PACKAGES:
+        for path in (ROOT / pkg).rglob("*.py"):
+            found += _private_imports(path, _module_name(path))
+    for path in sorted((ROOT / "docs").glob("*.py")):
+        found += _private_imports(path, f"docs.{path.stem}")
+    assert sorted(set(found) - PRIVATE_IMPORTS_ALLOWED) == []

@@ -63,6 +63,7 @@ __all__ = [
     "PAPER_TRAIL_WIDTH_U",
     "PAPER_VISIT_STEPS",
     "TrialSet",
+    "TrialWorld",
     "VisitConfig",
     "run_trials",
     "start_headings",
@@ -431,7 +432,7 @@ def run_trials(
         raise BadInputError(f"threads must be a positive integer; got {threads!r}")
     check_buffon_work(trials=trials, visit_steps=config.step_limit, raster_bytes=0, threads=threads,
                       record_steps=0, auto=config.auto)  # fmt: skip
-    world = _TrialWorld(nest, config)
+    world = TrialWorld(nest, config)
     threads = min(threads, trials)
     check_buffon_work(
         trials=trials,
@@ -475,7 +476,7 @@ class Cancelled(Exception):
     """A trial stopped because another thread's trial failed or was interrupted."""
 
 
-class _TrialWorld:
+class TrialWorld:
     """What every trial of one nest shares (walls, raster layout, constants), built once."""
 
     def __init__(self, nest: Nest, config: VisitConfig):

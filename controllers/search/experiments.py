@@ -461,9 +461,9 @@ def detours(out, *, n_seeds: int = 4, root_seed: int = 2026, sweep=None, force: 
 
 
 def _detour_figure(pooled: dict):
-    from controllers.search.plots import _figure
+    from controllers.search.plots import new_figure
 
-    fig, ax = _figure(figsize=(6, 3.5))
+    fig, ax = new_figure(figsize=(6, 3.5))
     for dx, (name, _) in zip((-0.004, 0.004), DETOUR_PATTERNS, strict=True):
         rs = np.array(DETOUR_SIZES_M)
         k, n, lo, hi = (np.array(v, float) for v in zip(*(pooled[(name, r)] for r in DETOUR_SIZES_M), strict=True))

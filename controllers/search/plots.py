@@ -8,10 +8,16 @@ import numpy as np
 
 from controllers.search.metrics import footprints, sampling_points_odo, sampling_points_true
 
-__all__ = ["plot_density", "plot_path", "plot_pattern", "plot_timeline", "save_figure"]
+__all__ = ["new_figure", "plot_density", "plot_path", "plot_pattern", "plot_timeline", "save_figure"]
 
 
-def _figure(*args, **kw):
+def new_figure(*args, **kw):
+    """``matplotlib.pyplot.subplots(*args, **kw)`` on the Agg backend (no display needed).
+
+    Returns
+    -------
+    (Figure, Axes or array of Axes)
+    """
     import matplotlib
 
     matplotlib.use("Agg")
@@ -41,7 +47,7 @@ def plot_path(run, title: str = "", *, shadow: bool = True, ax=None):
     (``shadow``) the shadow area in red."""
     own = ax is None
     if own:
-        fig, ax = _figure(figsize=(6.5, 6.5))
+        fig, ax = new_figure(figsize=(6.5, 6.5))
     if shadow:
         xs, ys, intended, sampled = footprints(run, grid_m=0.01)
         sh = np.ma.masked_where(~(intended & ~sampled), np.ones_like(intended, float))
@@ -68,7 +74,7 @@ def plot_path(run, title: str = "", *, shadow: bool = True, ax=None):
 
 def plot_timeline(run, title: str = "", threshold: float | None = None):
     """Tongue reading and phase per sensing operation (Figs. 12 and 14)."""
-    fig, (a1, a2) = _figure(2, 1, figsize=(7, 4.5), sharex=True)
+    fig, (a1, a2) = new_figure(2, 1, figsize=(7, 4.5), sharex=True)
     k = np.arange(len(run.moves) + 1)
     a1.plot(k, [run.start_tongue] + [m.tongue for m in run.moves], ".-")
     if threshold is not None:
@@ -84,7 +90,7 @@ def plot_timeline(run, title: str = "", threshold: float | None = None):
 
 
 def plot_pattern(points: np.ndarray, title: str = ""):
-    fig, ax = _figure(figsize=(6, 6))
+    fig, ax = new_figure(figsize=(6, 6))
     ax.plot(*points.T, ".-", ms=3, lw=0.8)
     ax.plot(0, 0, "r*", ms=10)
     ax.set_aspect("equal")
@@ -94,7 +100,7 @@ def plot_pattern(points: np.ndarray, title: str = ""):
 
 def plot_density(points: np.ndarray, title: str = "", bins: int = 20):
     """Fig. 2: histogram of the sampling points' distance from the centre."""
-    fig, ax = _figure(figsize=(6, 3.5))
+    fig, ax = new_figure(figsize=(6, 3.5))
     ax.hist(np.hypot(*points.T), bins=bins)
     ax.set_xlabel("distance from the centre")
     ax.set_ylabel("sampling points")

@@ -29,7 +29,7 @@ from functools import cache
 
 import numpy as np
 
-from stcvision.observation import LANDING_DOTS, MARK_INSET, ROW_TOL, _rotate, row_orientation
+from stcvision.observation import LANDING_DOTS, MARK_INSET, ROW_TOL, rotate_about_robot, row_orientation
 from stcvision.stcgrid import BOX_EDGES, DIRECTIONS, START_MARKS, SUBCELLS
 
 __all__ = ["CellFit", "fit_cell_offset", "mark_lines", "shows_tour_row", "tour_lines"]
@@ -214,5 +214,5 @@ def frame_dots(res, geometry) -> tuple[np.ndarray, np.ndarray]:
     dots = res.dots
     if not len(dots):
         return np.zeros((0, 2)), np.zeros(0, bool)
-    ru = _rotate(geometry.to_cell(dots.xy_px), res.observation.heading_error_rad)
+    ru = rotate_about_robot(geometry.to_cell(dots.xy_px), res.observation.heading_error_rad)
     return ru, np.asarray(dots.lit, bool)

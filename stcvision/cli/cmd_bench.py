@@ -66,7 +66,7 @@ def _bench_sweep(args) -> dict:
     from stcvision.errors import StcVisionError
     from stcvision.limits import MAX_BENCH_SWEEP_TASKS, check_count
     from stcvision.sweep import SweepOptions, machine_workers
-    from stcvision.sweep._selftest import measure_overhead
+    from stcvision.sweep.selftest import measure_overhead
 
     check_count("--tasks", args.tasks, MAX_BENCH_SWEEP_TASKS)
     rows = []
@@ -124,7 +124,7 @@ def _labelled(args, ds=None) -> dict:
         out = compare_detectors(ds, default_profile=default_profile())
         out["source"] = args.labelled
         return out
-    from calibration.dataset_render import generate
+    from stcvision.datasets.render import generate
     from stcvision.sweep import SweepOptions
 
     recipe = _ages_recipe(args.labelled_frames)

@@ -70,8 +70,8 @@ def run(args):
             "counts": m["counts"],
             "groups": {g["name"]: g["n"] for g in m["groups"]},
         }
-    from calibration.dataset_render import generate
     from stcvision.datasets import load_recipe
+    from stcvision.datasets.render import generate
     from stcvision.sweep import sweep_options_from_args
 
     recipe = load_recipe(args.recipe)

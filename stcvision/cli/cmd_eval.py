@@ -97,8 +97,8 @@ def run(args):
 
         check_recording_path(args.rrd, overwrite=args.force)
     if args.report:  # before any work: an evaluation is minutes lost to a folder it cannot write
-        from stcvision.evaluate import REPORT_FILES
         from stcvision.fileio import check_output_folder
+        from stcvision.report import REPORT_FILES
 
         check_output_folder(args.report, REPORT_FILES, overwrite=args.force)
     if (root / "manifest.json").exists() or (root / "labels.jsonl").exists():
@@ -109,7 +109,8 @@ def run(args):
 def _run_dataset(args, root):
     from stcvision.datasets import open_dataset
     from stcvision.errors import BadInputError
-    from stcvision.evaluate import log_worst, sweep_evaluation, write_report
+    from stcvision.evaluate import log_worst, sweep_evaluation
+    from stcvision.report import write_report
 
     if args.dark or args.no_dark or args.out:
         raise BadInputError(f"{root} is a dataset: its dark frames are in the dataset; drop --dark/--no-dark/--out")
@@ -176,7 +177,7 @@ def _f(v, fmt=".4g"):
 
 def format_text(r):
     if r["mode"] == "compare":
-        from stcvision.evaluate import format_compare
+        from stcvision.report import format_compare
 
         return format_compare(r)
     if r["mode"] == "frames":

@@ -1,36 +1,34 @@
 """The pipeline's stages, one module each, each a pure function with frozen, documented
 parameters.
 
-``front`` (dark frame, background, window sums, unwarp, channel separation), ``dots``, ``rows``,
-``red`` and ``heading``; the cell observation is :mod:`stcvision.observation`. Each module holds
-its stage's public function, the compiled loops it runs, and chooses between them itself;
-``compiled`` holds the helpers those loops share, ``common`` the contracts every stage checks.
+``dark`` (dark frame, background and noise), ``window`` (window sums), ``ground_view`` (the
+unwarp to the ground view), ``channels`` (red/green separation), ``dots``, ``rows``, ``red`` and
+``heading``; the cell observation is :mod:`stcvision.observation`; ``front`` puts the first four together as the
+pipeline runs them. Each module holds its stage's public function, the compiled loops it runs
+and the OpenCV reference beside them, and chooses between them itself; ``compiled`` holds the
+helpers those loops share, ``common`` the contracts every stage checks and the stage timing.
 Seed 003 sections implemented here: "Noise handling", "Image Transformation and Filtering",
 "Finding the green dots", "Angle Detection" and "Rotation and Calibration". Inputs are never
 modified; outputs are new arrays or small frozen results. A missing detection is a value
 (``ok=False`` with a reason), not an exception.
 """
 
-from stcvision.stages.common import FRAME_DTYPES, SUM_DTYPES, Scratch, check_frame, noise_floor
-from stcvision.stages.dots import DotParams, Dots, find_dots, mirror_centroids, noise_gain
-from stcvision.stages.front import (
-    ChannelParams,
-    GatherTables,
-    UnwarpMap,
+from stcvision.stages.channels import ChannelParams, filter_channels, separate_channels
+from stcvision.stages.common import FRAME_DTYPES, SUM_DTYPES, Scratch, StageTimes, check_frame, noise_floor
+from stcvision.stages.dark import (
     check_dark_dtype,
     estimate_background,
-    filter_channels,
     hot_pixels,
     quantum_dn,
     robust_sigma,
-    separate_channels,
     subtract_dark,
-    unwarp,
-    window_sums,
 )
+from stcvision.stages.dots import DotParams, Dots, find_dots, mirror_centroids, noise_gain
+from stcvision.stages.ground_view import GatherTables, UnwarpMap, unwarp
 from stcvision.stages.heading import HeadingFit, HeadingParams, Recalibration, fit_heading, recalibrate_turn
-from stcvision.stages.red import RedLights, RedParams, find_red
+from stcvision.stages.red import RedLights, RedParams, RedReading, find_red, read_red
 from stcvision.stages.rows import RowParams, find_rows
+from stcvision.stages.window import window_sums
 
 __all__ = [
     "ChannelParams",
@@ -41,12 +39,14 @@ __all__ = [
     "HeadingParams",
     "RedLights",
     "RedParams",
+    "RedReading",
     "Recalibration",
     "UnwarpMap",
     "GatherTables",
     "FRAME_DTYPES",
     "SUM_DTYPES",
     "Scratch",
+    "StageTimes",
     "check_dark_dtype",
     "check_frame",
     "estimate_background",
@@ -58,6 +58,7 @@ __all__ = [
     "filter_channels",
     "find_dots",
     "find_red",
+    "read_red",
     "find_rows",
     "fit_heading",
     "hot_pixels",

@@ -16,8 +16,9 @@ import numpy as np
 
 from stcvision.errors import BadInputError
 from stcvision.stages.common import SUM_DTYPES, check_image, noise_floor
-from stcvision.stages.compiled import _fma32, _grow, _lerp, _marked, _row_flags
-from stcvision.stages.front import UnwarpMap, estimate_background
+from stcvision.stages.compiled import fma32, grow_array, marked_positions, remap_lerp, row_flags
+from stcvision.stages.dark import estimate_background
+from stcvision.stages.ground_view import UnwarpMap
 
 
 @dataclass(frozen=True, kw_only=True, slots=True)
@@ -256,7 +257,7 @@ def dot_candidates(sums, gain, mode, a, c, e, area, background, noise):
     only those marked, eight at a time skipped where none is, are tested exactly."""
     h, w = sums.shape
     nx = w - 2 * e
-    flag, words, idx = _row_flags(nx)
+    flag, words, idx = row_flags(nx)
     xs = np.empty(256, np.int64)
     ys = np.empty(256, np.int64)
     m = 0
@@ -278,11 +279,11 @@ def dot_candidates(sums, gain, mode, a, c, e, area, background, noise):
         else:
             for i in range(nx):
                 flag[i] = c0[i] >= c
-        for t in range(_marked(flag, words, idx)):
+        for t in range(marked_positions(flag, words, idx)):
             i = idx[t]
             s = c0[i]
             if mode == 0:
-                lv = np.rint(_fma32(gain[y, e + i], fa, fc))
+                lv = np.rint(fma32(gain[y, e + i], fa, fc))
                 if s < min(max(lv, 0.0), 65535.0):
                     continue
             x = e + i
@@ -299,7 +300,7 @@ def dot_candidates(sums, gain, mode, a, c, e, area, background, noise):
             ):
                 continue
             if m == len(xs):
-                xs, ys = _grow(xs, m), _grow(ys, m)
+                xs, ys = grow_array(xs, m), grow_array(ys, m)
             xs[m] = e + i
             ys[m] = y
             m += 1
@@ -482,7 +483,7 @@ def map_at(map_x, map_y, xy, steps, border):
     """The unwarp map (``map_x``, ``map_y``: (S, S) float32) read at each ground-view point
     ``xy[i]`` plus each of ``steps`` ((K, 2); the points rounded to float32 after the add):
     (N, K, 2) float64 mirror-image positions, as ``cv2.remap`` of each map (``INTER_LINEAR``,
-    ``BORDER_CONSTANT`` ``border``) at those points computes them (:func:`_lerp`), in one pass
+    ``BORDER_CONSTANT`` ``border``) at those points computes them (:func:`remap_lerp`), in one pass
     instead of two OpenCV calls and the arrays around them."""
     h, w = map_x.shape
     n, k = len(xy), len(steps)
@@ -504,7 +505,7 @@ def map_at(map_x, map_y, xy, steps, border):
                 p01 = img[y, x + 1] if (0 <= x + 1 < w and 0 <= y < h) else bv
                 p10 = img[y + 1, x] if (0 <= x < w and 0 <= y + 1 < h) else bv
                 p11 = img[y + 1, x + 1] if (0 <= x + 1 < w and 0 <= y + 1 < h) else bv
-                out[i, j, c] = _lerp(aa, bb, p00, p01, p10, p11)
+                out[i, j, c] = remap_lerp(aa, bb, p00, p01, p10, p11)
     return out
 
 

@@ -1,8 +1,15 @@
-"""The red lights: blobs of the obstacle image (red-light pixels after the channel separation),
-their centroids, areas and peaks."""
+"""The red stage: the red lights, blobs of the obstacle image (red-light pixels after the
+channel separation), their centroids, areas and peaks; white lights told apart from red ones on
+the raw frame; and the far red lights (landmarks) found in the wide ground view and refined on
+the full-resolution mirror image.
+
+:func:`read_red` is the stage as the pipeline runs it; :func:`find_red` the blob search alone,
+its contour moments computed by the compiled :func:`blobs`, bit for bit ``cv2.moments``.
+"""
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import cv2
@@ -128,3 +135,175 @@ def blobs(obstacle, pts, starts, min_area, window_area):
         area[m] = ar
         m += 1
     return xy[:m], peak[:m], area[:m]
+
+
+@dataclass(frozen=True, eq=False)
+class RedReading:
+    """What the red stage gives the cell observation.
+
+    ``lights``: the red lights of the main ground view (white lights removed); ``white_m``:
+    (N, 2) robot-frame positions (m) of the white lights removed; ``landmark_px``: the far red
+    lights as pixels of the main ground view (beyond its edges too), None without a wide view.
+    """
+
+    lights: RedLights
+    white_m: np.ndarray
+    landmark_px: np.ndarray | None
+
+
+def read_red(
+    obstacle: np.ndarray,
+    frame: np.ndarray,
+    params: RedParams,
+    *,
+    window_area: int,
+    profile,
+    dark: np.ndarray | None = None,
+    pedestal: float = 0.0,
+    red_channel: np.ndarray | None = None,
+    white_blue_ratio: float | None = None,
+    wide: tuple[np.ndarray, Callable] | None = None,
+) -> RedReading:
+    """The red stage: the red lights of the ground view, white lights removed, and the far ones.
+
+    Parameters
+    ----------
+    obstacle : (S, S) window sums
+        The main ground view's obstacle image.
+    frame : (H, W, 3) uint8 or uint16
+        The raw frame (the white test reads its blue and red).
+    params : RedParams
+    window_area : int
+        Pixels per window sum.
+    profile : Profile
+        The camera's mirror model (robot frame to image and ground view, and back).
+    dark : (H, W, 3), optional
+        The dark frame the white test subtracts.
+    pedestal : float
+        The pedestal kept by the dark subtraction (the far lights' refinement starts above it).
+    red_channel : (h, w)
+        The dark-subtracted red of the part of the mirror image the stages read (needed with
+        ``wide``).
+    white_blue_ratio : float, optional
+        A light whose blue is at least this fraction of its red is white, not red (None: off).
+    wide : (image, callable), optional
+        The wide view's obstacle image and its ground pixels to robot frame: search far lights
+        there (:func:`far_lights`).
+
+    Returns
+    -------
+    RedReading
+    """
+    red = find_red(obstacle, params, window_area=window_area)
+    white_m = np.zeros((0, 2))
+    if white_blue_ratio is not None:
+        xy_m = profile.ground_to_robot(red.xy_px) if len(red) else np.zeros((0, 2))
+        white = white_lights(frame, dark, profile.robot_to_image(xy_m), white_blue_ratio)
+        white_m = xy_m[white]
+        red = RedLights(red.xy_px[~white], red.peak_dn[~white], red.area_px[~white])
+    landmark_px = None
+    if wide is not None:
+        landmark_px = far_lights(
+            wide[0],
+            wide[1],
+            frame,
+            params,
+            window_area=window_area,
+            profile=profile,
+            dark=dark,
+            pedestal=pedestal,
+            red_channel=red_channel,
+            white_blue_ratio=white_blue_ratio,
+        )
+    return RedReading(red, white_m, landmark_px)
+
+
+def white_lights(
+    frame: np.ndarray, dark: np.ndarray | None, uv: np.ndarray, blue_ratio: float, *, half: int = 4
+) -> np.ndarray:
+    """Which lights at image points ``uv`` (N, 2) are white, not red: the blue of the
+    (2 ``half`` + 1)-pixel square around each, dark-subtracted, at least ``blue_ratio`` times
+    its red (a red LED's blue is a few per cent of its red; a white lamp's is about equal).
+
+    Returns
+    -------
+    (N,) bool
+    """
+    h, w = frame.shape[:2]
+    out = np.zeros(len(uv), bool)
+    for i, (u, v) in enumerate(uv):
+        if not (np.isfinite(u) and np.isfinite(v)):
+            continue
+        u0, v0 = int(round(u)), int(round(v))
+        sl = (slice(max(v0 - half, 0), min(v0 + half + 1, h)), slice(max(u0 - half, 0), min(u0 + half + 1, w)))
+        patch = frame[sl].astype(np.float32)
+        if dark is not None:
+            patch -= dark[sl]
+        b, r = float(patch[..., 0].sum()), float(patch[..., 2].sum())
+        out[i] = r > 0 and b >= blue_ratio * r
+    return out
+
+
+def far_lights(
+    wide_obstacle: np.ndarray,
+    wide_to_robot: Callable,
+    frame: np.ndarray,
+    params: RedParams,
+    *,
+    window_area: int,
+    profile,
+    dark: np.ndarray | None,
+    pedestal: float,
+    red_channel: np.ndarray,
+    white_blue_ratio: float | None,
+) -> np.ndarray:
+    """Red lights out to the landmark range, for the landmark fit, as ground-view pixels of the
+    main view (beyond its edges too): found in the wide, coarse view's obstacle image
+    ``wide_obstacle`` (its pixels to robot frame by ``wide_to_robot``) and refined on the
+    dark-subtracted red channel ``red_channel`` (:func:`refine_lights`), white ones removed
+    (:func:`white_lights`). Arguments as :func:`read_red`'s.
+
+    Returns
+    -------
+    (N, 2) float
+    """
+    far = find_red(wide_obstacle, params, window_area=window_area)
+    xy_m = refine_lights(red_channel, pedestal, wide_to_robot(far.xy_px), profile) if len(far) else np.zeros((0, 2))
+    if white_blue_ratio is not None and len(xy_m):
+        xy_m = xy_m[~white_lights(frame, dark, profile.robot_to_image(xy_m), white_blue_ratio)]
+    return profile.robot_to_ground(xy_m)
+
+
+def refine_lights(red: np.ndarray, pedestal: float, xy_m: np.ndarray, profile, *, half: int = 6) -> np.ndarray:
+    """Robot-frame positions of red lights found in the coarse wide view, refined on the
+    full-resolution mirror image ``red`` (dark-subtracted, ``pedestal`` kept): the centroid of
+    the pixels above half the peak in a patch around each (a far light covers a few pixels there,
+    each ~2 cm of floor at 0.85 m, so the coarse view alone is off by up to a centimetre). Lights
+    that cannot be refined (at the image edge, nothing above the pedestal) are dropped.
+
+    Returns
+    -------
+    (N, 2) float
+    """
+    uv = profile.robot_to_image(xy_m)
+    h, w = red.shape
+    ped = float(pedestal)
+    out = []
+    for u, v in uv:
+        if not (np.isfinite(u) and np.isfinite(v)):
+            continue
+        u0, v0 = int(round(u)), int(round(v))
+        if u0 - half < 0 or v0 - half < 0 or u0 + half >= w or v0 + half >= h:
+            continue
+        patch = red[v0 - half : v0 + half + 1, u0 - half : u0 + half + 1].astype(np.float32) - ped
+        top = float(patch.max())
+        if top <= 0:
+            continue
+        wgt = np.maximum(patch - 0.5 * top, 0.0)
+        yy, xx = np.mgrid[-half : half + 1, -half : half + 1]
+        tot = float(wgt.sum())
+        out.append((u0 + float((xx * wgt).sum()) / tot, v0 + float((yy * wgt).sum()) / tot))
+    if not out:
+        return np.zeros((0, 2))
+    xy = profile.image_to_robot(np.array(out))
+    return xy[np.isfinite(xy).all(axis=1)]

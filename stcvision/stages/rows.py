@@ -13,7 +13,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from stcvision.stages.common import SUM_DTYPES, noise_floor
-from stcvision.stages.compiled import _fma32, _grow, _marked, _row_flags
+from stcvision.stages.compiled import fma32, grow_array, marked_positions, row_flags
 from stcvision.stages.dots import DotParams, Dots, window_centroids
 
 #: the dot search's defaults, for a caller of :func:`find_rows` that gives none
@@ -159,7 +159,7 @@ def row_snr(marks, gain, area, background, noise, clip, out):
     for y in range(h):
         mr, gr, o = marks[y], gain[y], out[y]
         for x in range(w):
-            v = _fma32(np.float32(mr[x]), a, g) * s / gr[x]
+            v = fma32(np.float32(mr[x]), a, g) * s / gr[x]
             o[x] = v if v < c else c
     return out
 
@@ -423,7 +423,7 @@ def free_rows(z, occ, offs, ends, e, gate, thr, min_dot, spread, end_max, ok):
         for x in range(w):
             okr[x] = (zr[x] >= g) & (orow[x] == 0)
     nx = w - 2 * e
-    acc, words, idx = _row_flags(nx)
+    acc, words, idx = row_flags(nx)
     xs = np.empty(256, np.int64)
     ys = np.empty(256, np.int64)
     st = np.empty(256, np.float32)
@@ -438,7 +438,7 @@ def free_rows(z, occ, offs, ends, e, gate, thr, min_dot, spread, end_max, ok):
                 src = ok[y + o, e : w - e] if axis else ok[y, e + o : w - e + o]
                 for i in range(nx):
                     acc[i] &= src[i]
-            for t in range(_marked(acc, words, idx)):
+            for t in range(marked_positions(acc, words, idx)):
                 i = idx[t]
                 base = y * w + e + i  # flat index of (x, y); the row's dots stride apart
                 total = zf[base + offs[0] * stride]
@@ -456,7 +456,7 @@ def free_rows(z, occ, offs, ends, e, gate, thr, min_dot, spread, end_max, ok):
                 if not free:
                     continue
                 if m == len(xs):
-                    xs, ys, st, ax = _grow(xs, m), _grow(ys, m), _grow(st, m), _grow(ax, m)
+                    xs, ys, st, ax = grow_array(xs, m), grow_array(ys, m), grow_array(st, m), grow_array(ax, m)
                 xs[m] = e + i
                 ys[m] = y
                 st[m] = total / sq

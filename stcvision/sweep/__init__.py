@@ -12,7 +12,8 @@ finished task: see :mod:`stcvision.sweep._store`), on a local process pool sized
 (``--workers N``; 1 runs in this process) or on an existing Dask cluster (``--scheduler
 tcp://HOST:PORT``, the optional ``dask`` extra), with one tqdm bar, and returns a
 :class:`SweepReport`. A failed task is recorded with its error and retried by the next run;
-``--fresh`` starts over. Commands add the three options with :func:`add_sweep_arguments` and
+``--fresh`` starts over. :mod:`stcvision.sweep.selftest` holds cheap experiments for trying a
+backend and measuring the runner's own cost. Commands add the three options with :func:`add_sweep_arguments` and
 read them with :func:`sweep_options_from_args`::
 
     from stcvision.sweep import Task, SweepOptions, run_sweep
@@ -32,6 +33,7 @@ from stcvision.sweep._run import (
 )
 from stcvision.sweep._store import read_store
 from stcvision.sweep._task import Task, seed_sequence
+from stcvision.sweep._worker import session_processes
 
 __all__ = [
     "SweepOptions",
@@ -43,5 +45,6 @@ __all__ = [
     "read_store",
     "run_sweep",
     "seed_sequence",
+    "session_processes",
     "sweep_options_from_args",
 ]

@@ -68,7 +68,7 @@ def _stubs():
         stack.enter_context(mock.patch("controllers.stc.recorder.CoverRecorder", _reached))
         stack.enter_context(mock.patch.object(sweep, "run_sweep", _reached))
         stack.enter_context(mock.patch("sim_camera.scenarios.benchmark_scene", _reached))
-        stack.enter_context(mock.patch("stcvision.sweep._selftest.measure_overhead", _reached))
+        stack.enter_context(mock.patch("stcvision.sweep.selftest.measure_overhead", _reached))
         stack.enter_context(mock.patch("sim_camera.scene.Scene.camera", _reached))
         for name in ("reproduce", "compare", "calibrate"):
             stack.enter_context(mock.patch.object(buffon_run, name, _reached))

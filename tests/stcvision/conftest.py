@@ -25,6 +25,6 @@ def smoke(tmp_path_factory):
 @pytest.fixture
 def session_pids():
     """``session_pids(sid)``: the live processes of a session (to check none outlived a kill)."""
-    from stcvision.sweep._worker import session_processes
+    from stcvision.sweep import session_processes
 
     return session_processes

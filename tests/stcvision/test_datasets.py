@@ -18,6 +18,23 @@ def files(d: Path) -> dict[str, bytes]:
     return {str(p.relative_to(d)): p.read_bytes() for p in sorted(d.rglob("*")) if p.is_file()}
 
 
+def test_a_recipes_scene_parameters_are_the_scene_functions():
+    """The scene parameters a recipe may set are read from ``cell_scene``'s signature, each with
+    the JSON its annotation takes, and every one has the range a recipe's values are checked
+    against; reading a dataset does not load the simulator that signature comes from."""
+    import subprocess
+    import sys
+
+    from stcvision.datasets import recipe
+
+    keys = recipe.scene_keys()
+    assert keys["cells"] == "pair" and keys["charge_s"] == "number"
+    assert keys["heading_error_deg"] == "number_or_pair"
+    assert set(keys) == set(recipe._SCENE_RANGES)
+    code = "import sys, stcvision.evaluate; assert not any(m.startswith('sim_camera') for m in sys.modules)"
+    subprocess.run([sys.executable, "-c", code], check=True, cwd=ROOT)
+
+
 def test_every_shipped_recipe_parses():
     names = {p.stem for p in RECIPES.glob("*.json")}
     assert {"smoke", "ages", "rotation", "exposure", "obstacles", "perturbed-camera", "calibration"} <= names
@@ -67,7 +84,7 @@ def test_resume_renders_only_what_is_missing(smoke, tmp_path, cli):
 
 
 def test_a_failed_chunk_leaves_an_incomplete_dataset_that_the_next_run_finishes(smoke, tmp_path, cli, monkeypatch):
-    import calibration.dataset_render as dg
+    import stcvision.datasets.render as dg
 
     real = dg.render_frames
 
@@ -97,7 +114,7 @@ def test_frame_k_does_not_depend_on_earlier_frames(tmp_path):
     base = {"schema_version": 1, "name": "indep", "dark_frames": 1, "seed": 9}
     a = parse_recipe({**base, "groups": [{"name": "g", "n": 3}]})
     b = parse_recipe({**base, "groups": [{"name": "first", "n": 1}, {"name": "g", "n": 3}]})
-    from calibration.dataset_render import generate
+    from stcvision.datasets.render import generate
     from stcvision.sweep import SweepOptions
 
     generate(a, tmp_path / "a", options=SweepOptions(workers=1))

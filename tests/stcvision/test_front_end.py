@@ -1,9 +1,9 @@
-"""The pipeline's compiled front end (``stcvision.stages.front``) against the OpenCV stages it
-stands for, bit for bit: the unwarp and channel separation against ``cv2.remap`` and the
-separation written with OpenCV calls (:func:`opencv_separation`, kept here as the reference), the
-two-channel dark subtraction against each channel's, the background sample against
-``estimate_background``; and a result's images are its own (the next frame does not overwrite
-them)."""
+"""The pipeline's compiled front end (``stcvision.stages.front`` and its four stage modules)
+against the OpenCV stages it stands for, bit for bit: the unwarp and channel separation against
+``cv2.remap`` and the separation written with OpenCV calls (:func:`opencv_separation`, kept here
+as the reference), the two-channel dark subtraction against each channel's, the background
+sample against ``estimate_background``; and a result's images are its own (the next frame does
+not overwrite them)."""
 
 from __future__ import annotations
 
@@ -13,15 +13,17 @@ import pytest
 
 from stcvision.observation import ObservationParams
 from stcvision.pipeline import Pipeline, PipelineParams
-from stcvision.stages import ChannelParams, estimate_background, noise_floor, separate_channels, window_sums
-from stcvision.stages import front as front_module
-from stcvision.stages.front import (
-    black_out,
-    dark_channels,
-    frame_background,
-    separation_rule,
-    unwarp_separate,
+from stcvision.stages import (
+    ChannelParams,
+    estimate_background,
+    ground_view,
+    noise_floor,
+    separate_channels,
+    window_sums,
 )
+from stcvision.stages.channels import black_out, separation_rule
+from stcvision.stages.dark import dark_channels, frame_background
+from stcvision.stages.ground_view import unwarp_separate
 
 
 def opencv_separation(
@@ -142,7 +144,7 @@ def test_unwarp_and_separation_are_remap_and_separate_channels(
     assert np.array_equal(marks, ref_m)
     assert (marks == 0).sum() > (gg == 0).sum()  # something was blacked out
     if dtype == np.uint16:  # the float32 gathers uint16 sums take where the uint32 ones cannot
-        monkeypatch.setattr(front_module, "_U32_GATHERS", False)
+        monkeypatch.setattr(ground_view, "_U32_GATHERS", False)
         obst2, marks2, black2, n2 = unwarp_separate(tables, sums, shape, rule, pipe.scratch)
         black_out(marks2, black2, n2, pipe.front.margin, pipe.scratch)
         assert n2 == n and np.array_equal(obst2, ref_o) and np.array_equal(marks2, ref_m)

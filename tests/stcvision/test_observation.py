@@ -194,23 +194,23 @@ def test_a_red_light_far_off_its_cell_centre_is_left_out_of_the_fit():
     without the far-off light."""
     from scipy import stats
 
-    from stcvision.observation import LIGHT_OUTLIER_CHI2, _landmark_fit, _landmark_wls, _rotate
+    from stcvision.localisation import LIGHT_OUTLIER_CHI2, landmark_fit, landmark_wls, rotate_about_robot
     from stcvision.profile import ROBOT_IN_CELL
 
     assert LIGHT_OUTLIER_CHI2 == pytest.approx(stats.chi2.ppf(0.999, 2))
     exp = np.array(_CENTRES_918, float)
     th, off = np.radians(0.3), np.array([0.05, -0.03])
-    obs = _rotate(exp - off, th)  # exp = R(-th) (obs - robot) + robot + off
+    obs = rotate_about_robot(exp - off, th)  # exp = R(-th) (obs - robot) + robot + off
     rng = np.random.default_rng(5)
     obs = obs + rng.normal(0, 0.003, obs.shape)
     ray = (obs[4] - ROBOT_IN_CELL) / np.hypot(*(obs[4] - ROBOT_IN_CELL))
     bad = obs.copy()
     bad[4] = obs[4] + 0.5 * ray + 0.09 * np.array([-ray[1], ray[0]])  # as recorded: 0.5 along, 0.09 across
-    got_th, got_off, _, _ = _landmark_fit(bad, exp, 0.16)
+    got_th, got_off, _, _ = landmark_fit(bad, exp, 0.16)
     assert np.allclose(got_off, off, atol=0.005) and got_th == pytest.approx(th, abs=np.radians(0.05))
-    naive = _landmark_wls(bad, exp, 0.16)
+    naive = landmark_wls(bad, exp, 0.16)
     assert np.hypot(*(naive[1] - off)) > 0.03  # what the fit would have been
     # the recorded frame: the same as the fit without the light at (6.525, 0.091)
     rec, cen = np.array(_LIGHTS_918), np.array(_CENTRES_918, float)
     kept = np.arange(len(rec)) != 4
-    assert np.allclose(_landmark_fit(rec, cen, 0.16)[1], _landmark_fit(rec[kept], cen[kept], 0.16)[1])
+    assert np.allclose(landmark_fit(rec, cen, 0.16)[1], landmark_fit(rec[kept], cen[kept], 0.16)[1])

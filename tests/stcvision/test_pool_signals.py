@@ -49,7 +49,7 @@ def reap(proc, session_pids) -> None:
 
 def selftest(store: Path, tmp_path):
     # 2 quick tasks, then 4 that sleep a minute: the interrupt lands while both workers are busy
-    argv = [sys.executable, "-m", "stcvision.sweep._selftest", str(store), "6", "--workers", "2"]
+    argv = [sys.executable, "-m", "stcvision.sweep.selftest", str(store), "6", "--workers", "2"]
     return start(argv + ["--sleep-s", "60", "--fast", "2"], tmp_path)
 
 

@@ -220,3 +220,23 @@ def test_red_blobs_are_opencvs_moments():
             area.append(a)
         assert np.array_equal(got.xy_px, np.array(xy, float).reshape(-1, 2))
         assert np.array_equal(got.peak_dn, np.array(peak)) and np.array_equal(got.area_px, np.array(area))
+
+
+def test_stage_times_keep_each_stage_under_its_own_name():
+    """Each stage's time is stored under the name it was timed by, from a clock read on entry and
+    exit; a name timed twice or a stage timed inside another is refused, so no stage's time can
+    land under another's name."""
+    from stcvision.stages import StageTimes
+
+    ticks = iter([0, 2_000_000, 5_000_000, 5_500_000])
+    times = StageTimes(clock=lambda: next(ticks))
+    with times("dark"):
+        pass
+    with times("dots"):
+        pass
+    assert times.ms == {"dark": 2.0, "dots": 0.5}
+    with pytest.raises(RuntimeError, match="twice"):
+        times("dark")
+    outer = StageTimes()
+    with pytest.raises(RuntimeError, match="inside"), outer("red"), outer("heading"):
+        pass

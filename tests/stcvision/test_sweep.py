@@ -23,10 +23,10 @@ from stcvision.sweep import (
     seed_sequence,
     sweep_options_from_args,
 )
-from stcvision.sweep._selftest import draws, draws_tasks
 from stcvision.sweep._store import Store
+from stcvision.sweep.selftest import draws, draws_tasks
 
-DRAWS = "stcvision.sweep._selftest:draws"
+DRAWS = "stcvision.sweep.selftest:draws"
 
 
 def ok_keys(store) -> list[str]:
@@ -82,7 +82,7 @@ def dask_cluster():
 
 def test_dask_cluster_gives_the_local_pools_results(tmp_path, dask_cluster):
     tasks = draws_tasks(12) + [
-        Task(experiment="stcvision.sweep._selftest:fails_until", params={"exists": "/nonexistent", "x": 0}, seed=0)
+        Task(experiment="stcvision.sweep.selftest:fails_until", params={"exists": "/nonexistent", "x": 0}, seed=0)
     ]
     local = run_sweep(tasks, tmp_path / "local.jsonl", SweepOptions(workers=2))
     remote = run_sweep(tasks, tmp_path / "dask.jsonl", SweepOptions(scheduler=dask_cluster), desc="dask")
@@ -97,7 +97,7 @@ def test_dask_cluster_gives_the_local_pools_results(tmp_path, dask_cluster):
 def test_a_sigkilled_sweep_resumes_with_every_key_once_and_equal_to_an_uninterrupted_run(tmp_path):
     store, n = tmp_path / "killed.jsonl", 40
     proc = subprocess.Popen(
-        [sys.executable, "-m", "stcvision.sweep._selftest", str(store), str(n), "--workers", "2", "--sleep-s", "0.1"],
+        [sys.executable, "-m", "stcvision.sweep.selftest", str(store), str(n), "--workers", "2", "--sleep-s", "0.1"],
         start_new_session=True,  # its own process group: the kill takes the pool workers too
         stderr=subprocess.DEVNULL,
     )
@@ -123,7 +123,7 @@ def test_a_sigkilled_sweep_resumes_with_every_key_once_and_equal_to_an_uninterru
 
 def test_a_failed_task_is_recorded_with_its_error_and_retried_next_run(tmp_path):
     flag = tmp_path / "fixed"
-    bad = Task(experiment="stcvision.sweep._selftest:fails_until", params={"exists": str(flag), "x": 99}, seed=1)
+    bad = Task(experiment="stcvision.sweep.selftest:fails_until", params={"exists": str(flag), "x": 99}, seed=1)
     tasks = [*draws_tasks(3), bad]
     first = run_sweep(tasks, tmp_path / "s.jsonl", SweepOptions(workers=1))
     assert list(first.failed) == [bad.key] and first.failed[bad.key] == f"RuntimeError: {flag} is missing"

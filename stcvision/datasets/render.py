@@ -7,9 +7,9 @@ result (the labels of its frames) goes to the folder's ``.sweep.jsonl`` as it fi
 interrupted run resumes where it stopped; the store is removed when the dataset is complete.
 With ``--scheduler`` the folder must be on a filesystem every worker sees.
 
-It lives in ``calibration`` because a dataset joins the simulator's frames to the profiles the
-calibration workflow fits on the simulated cameras, the one package allowed to combine the two
-(``stcvision`` reads and scores datasets without importing the simulator).
+A dataset joins the simulator's frames to the profiles the calibration workflow fits on the
+simulated cameras, so this module imports both (where it uses them); it is the one part of
+``stcvision.datasets`` that does, and reading or scoring a dataset never imports it.
 """
 
 from __future__ import annotations
@@ -19,15 +19,8 @@ import json
 import shutil
 from pathlib import Path
 
-from stcvision.datasets import (
-    DATASET_SCHEMA_VERSION,
-    Recipe,
-    _frame_name,
-    _is_empty,
-    _key,
-    _stream,
-    parse_recipe,
-)
+from stcvision.datasets.layout import DATASET_SCHEMA_VERSION, content_key, frame_name, is_empty_folder, seed_stream
+from stcvision.datasets.recipe import Recipe, parse_recipe
 from stcvision.errors import BadInputError, FileExistsRefusedError
 from stcvision.fileio import dumps, read_json, write_bytes_atomic, write_json
 
@@ -61,7 +54,7 @@ def _plan(recipe: Recipe, seed: int) -> tuple[dict, list[dict]]:
             sensor = SensorParams.from_dict({**base, **g.sensor}).to_dict()
         except BadInputError as exc:
             raise BadInputError(f"recipe {recipe.name}, group {g.name}: {exc}") from None
-        k = _key([optics, g.pattern_seed] + ([g.sensor_profile] if g.sensor_profile else []))
+        k = content_key([optics, g.pattern_seed] + ([g.sensor_profile] if g.sensor_profile else []))
         if k not in by_key:
             cid = f"cam{len(cameras)}"
             by_key[k] = cid
@@ -83,7 +76,7 @@ def _plan(recipe: Recipe, seed: int) -> tuple[dict, list[dict]]:
     for ci, (cid, cam) in enumerate(cameras.items()):
         cam["calibration_frames"] = [f"calibration/{cid}_{j}.png" for j in range(recipe.lights_on_frames)]
         n_seeds = max(recipe.lights_on_frames, 1 if recipe.profiles else 0)
-        cam["calibration_seeds"] = [int(_stream(seed, 2, ci, j).integers(2**31)) for j in range(n_seeds)]
+        cam["calibration_seeds"] = [int(seed_stream(seed, 2, ci, j).integers(2**31)) for j in range(n_seeds)]
         cam["profile"] = f"profiles/{cid}.json" if recipe.profiles else None
     return cameras, groups
 
@@ -169,7 +162,7 @@ def render_dark(params: dict, seed) -> dict:
     gi = params["group"]
     g = groups[gi]
     sensor = SensorParams.from_dict(g["sensor"])
-    dark = _cam(cameras, g["camera"]).median_dark(recipe.dark_frames, rng=_stream(dseed, 1, gi), sensor=sensor)
+    dark = _cam(cameras, g["camera"]).median_dark(recipe.dark_frames, rng=seed_stream(dseed, 1, gi), sensor=sensor)
     write_image(out / g["dark"], dark, overwrite=True)
     return {"darks": 1}
 
@@ -212,7 +205,7 @@ def render_frames(params: dict, seed) -> dict:
             sensor=sensor,
             truth=True,
         )
-        name = _frame_name(k)
+        name = frame_name(k)
         label = {"frame": name, "index": k, "group": g["name"], "camera": g["camera"], "dark": g["dark"]}
         label.update(f.truth)
         label["marks"] = s.marks
@@ -230,7 +223,7 @@ def _check_folder(out: Path, recipe: Recipe, seed: int) -> None:
         from stcvision.fileio import remove_stale_temps
 
         remove_stale_temps(out)
-    if _is_empty(out):
+    if is_empty_folder(out):
         return
     if not mpath.exists():
         raise FileExistsRefusedError(f"{out} is not empty and holds no dataset; choose an empty or new folder")
@@ -305,7 +298,7 @@ def generate(recipe: Recipe, out: str | Path, *, seed: int | None = None, option
         stop = g["first_frame"] + g["n"]
         for first in range(g["first_frame"], stop, FRAMES_PER_TASK):
             ks = range(first, min(first + FRAMES_PER_TASK, stop))
-            if all(have(_frame_name(k)) and _frame_name(k) in labels for k in ks):
+            if all(have(frame_name(k)) and frame_name(k) in labels for k in ks):
                 continue
             params = {**base, "group": gi, "first": ks.start, "stop": ks.stop}
             tasks.append(Task(experiment=f"{__name__}:render_frames", params=params, seed=seed))
@@ -325,13 +318,13 @@ def generate(recipe: Recipe, out: str | Path, *, seed: int | None = None, option
         made["frames"] += len(r.get("labels", {}))
         for k in ("calibration_frames", "profiles", "darks"):
             made[k] += r.get(k, 0)
-    expected = [_frame_name(k) for k in range(recipe.n_frames)] + [g["dark"] for g in groups]
+    expected = [frame_name(k) for k in range(recipe.n_frames)] + [g["dark"] for g in groups]
     for c in cameras.values():
         expected += c["calibration_frames"] + ([c["profile"]] if c["profile"] else [])
     missing = [name for name in expected if not (out / name).exists()]
     if missing:  # deleted after its task was recorded as done
         raise BadInputError(f"{out / missing[0]} is missing though its task is done; re-run with --fresh")
-    text = "".join(labels[_frame_name(k)] + "\n" for k in range(recipe.n_frames))
+    text = "".join(labels[frame_name(k)] + "\n" for k in range(recipe.n_frames))
     write_bytes_atomic(lpath, text.encode(), overwrite=True)
     manifest["complete"] = True
     write_json(mpath, manifest, overwrite=True)

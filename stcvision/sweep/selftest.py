@@ -1,7 +1,7 @@
 """Cheap experiments for the sweep's own tests and its overhead benchmark.
 
 They live in the package (not in ``tests/``) because a spawned pool worker or a Dask worker must
-be able to import them by name. ``python -m stcvision.sweep._selftest STORE N`` runs a sweep of
+be able to import them by name. ``python -m stcvision.sweep.selftest STORE N`` runs a sweep of
 ``N`` :func:`draws` tasks into ``STORE`` (the crash test kills it mid-run).
 """
 
@@ -18,7 +18,7 @@ from stcvision.errors import StcVisionError
 from stcvision.sweep._run import SweepOptions, add_sweep_arguments, run_sweep, sweep_options_from_args
 from stcvision.sweep._task import Task
 
-_MODULE = "stcvision.sweep._selftest"  # not __name__: that is "__main__" under python -m
+_MODULE = "stcvision.sweep.selftest"  # not __name__: that is "__main__" under python -m
 
 __all__ = ["draws", "draws_tasks", "fails_until", "measure_overhead", "noop"]
 

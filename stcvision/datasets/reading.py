@@ -1,0 +1,166 @@
+"""Reading a dataset folder: its manifest, its labels, and the checks that every file they name
+is there at the depth its sensor gives (:func:`open_dataset`); and the images of a folder of a
+user's own frames (:func:`list_images`).
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from pathlib import Path
+
+from stcvision.datasets.layout import DATASET_SCHEMA_VERSION, IMAGE_SUFFIXES
+from stcvision.errors import BadInputError
+from stcvision.fileio import read_json
+
+__all__ = ["Dataset", "list_images", "open_dataset"]
+
+
+@dataclass(frozen=True)
+class Dataset:
+    """A validated dataset folder: its manifest and its labels (in frame order)."""
+
+    root: Path
+    manifest: dict
+    labels: list[dict]
+
+    @property
+    def image_size_px(self) -> tuple[int, int]:
+        return tuple(self.manifest["image_size_px"])
+
+    def profile_path(self, camera: str) -> Path | None:
+        p = self.manifest["cameras"].get(camera, {}).get("profile")
+        return self.root / p if p else None
+
+
+def open_dataset(root: str | Path) -> Dataset:
+    """Read and check a dataset folder; every problem is a one-line :class:`BadInputError`.
+
+    Checked: the manifest exists (when labels do) and is a complete dataset of a known schema;
+    every line of ``labels.jsonl`` is a JSON object naming a frame; the manifest's frame count
+    matches; every labelled frame exists; every frame in ``frames/`` has a label; the dark
+    frames and profiles the manifest names exist; every PNG frame and dark frame is 3-channel at
+    its sensor's depth (8-bit, or 16-bit for a deeper ADC: from the PNG header). Frames are
+    decoded later (by the evaluation), where a corrupt frame is skipped and counted and a wrong
+    size is an error.
+    """
+    root = Path(root)
+    if not root.is_dir():
+        what = "is a file, not a folder" if root.exists() else "does not exist"
+        raise BadInputError(f"dataset folder {root} {what}; expected a folder made by 'dataset generate'")
+    mpath, lpath = root / "manifest.json", root / "labels.jsonl"
+    if not mpath.exists() and not lpath.exists():
+        raise BadInputError(f"{root} is not a dataset (no manifest.json); expected a folder made by 'dataset generate'")
+    if not mpath.exists():
+        raise BadInputError(
+            f"dataset {root} has labels.jsonl but no manifest.json; expected a folder made by "
+            "'stcvision dataset generate' (or remove labels.jsonl to run on the images without labels)"
+        )
+    m = read_json(mpath, what="dataset manifest")
+    if not isinstance(m, dict) or m.get("kind") != "stcvision-dataset":
+        raise BadInputError(f'{mpath} is not a dataset manifest (no "kind": "stcvision-dataset")')
+    v = m.get("schema_version")
+    if not isinstance(v, int) or v > DATASET_SCHEMA_VERSION:
+        raise BadInputError(
+            f"{mpath}: schema_version {v!r} is not supported; expected <= {DATASET_SCHEMA_VERSION} (upgrade stcvision)"
+        )
+    for key in ("cameras", "groups", "counts", "image_size_px"):
+        if key not in m:
+            raise BadInputError(f"{mpath} has no {key!r}; expected a complete dataset manifest")
+    if not m.get("complete"):
+        raise BadInputError(
+            f"dataset {root} is incomplete (generation was interrupted); "
+            "re-run 'stcvision dataset generate' to finish it"
+        )
+    if not lpath.exists():
+        raise BadInputError(f"dataset {root} has a manifest but no labels.jsonl")
+    labels = []
+    for i, line in enumerate(lpath.read_text(encoding="utf-8").splitlines(), 1):
+        if not line.strip():
+            continue
+        try:
+            lab = json.loads(line)
+        except json.JSONDecodeError as exc:
+            raise BadInputError(
+                f"{lpath} line {i} is not valid JSON ({exc.msg}); expected one object per line"
+            ) from None
+        if not isinstance(lab, dict) or not isinstance(lab.get("frame"), str):
+            raise BadInputError(f'{lpath} line {i} has no "frame" (the frame\'s file name)')
+        for key in ("dots", "pose", "sensor"):
+            if key not in lab:
+                raise BadInputError(f"{lpath} line {i} ({lab['frame']}) has no {key!r}; expected a camera truth dict")
+        if not (root / lab["frame"]).exists():
+            raise BadInputError(f"{lpath} line {i} labels {lab['frame']}, but that frame is missing from {root}")
+        labels.append(lab)
+    n = m["counts"].get("frames")
+    if n != len(labels):
+        raise BadInputError(f"{mpath} lists {n} frames but {lpath} has {len(labels)} labels")
+    named = {lab["frame"] for lab in labels}
+    if len(named) != len(labels):
+        raise BadInputError(f"{lpath} labels the same frame twice")
+    frames_dir = root / "frames"
+    if frames_dir.is_dir():
+        for p in sorted(frames_dir.iterdir()):
+            rel = f"frames/{p.name}"
+            if p.suffix.lower() in IMAGE_SUFFIXES and rel not in named:
+                raise BadInputError(f"{root / rel} has no label in {lpath}; expected every frame to be labelled")
+    for lab in labels:
+        dark = lab.get("dark")
+        if dark is not None and not (root / dark).exists():
+            raise BadInputError(f"dark frame {root / dark} (for {lab['frame']}) is missing")
+    _check_depths(root, labels)
+    for cid, c in m["cameras"].items():
+        if c.get("profile") and not (root / c["profile"]).exists():
+            raise BadInputError(f"profile {root / c['profile']} of camera {cid} is missing")
+    return Dataset(root, m, labels)
+
+
+def _png_header(path: Path) -> tuple[int, int] | None:
+    """(bit depth per channel, PNG colour type) from a PNG's IHDR chunk (its first 26 bytes), or
+    None if ``path`` is not a PNG file. Colour type 2 is RGB (a BGR frame), 0 grey."""
+    with open(path, "rb") as f:
+        head = f.read(26)
+    if len(head) < 26 or head[:8] != b"\x89PNG\r\n\x1a\n" or head[12:16] != b"IHDR":
+        return None
+    return head[24], head[25]
+
+
+def _check_depths(root: Path, labels: list[dict]) -> None:
+    """Every labelled PNG frame and its dark frame hold 3 channels at the depth the label's sensor
+    digitises (8 bits for an 8-bit ADC, 16 for 9-16 bits: the ADC counts), read from the PNG
+    headers (the frames are not decoded)."""
+    seen: dict[str, int] = {}
+    for lab in labels:
+        bits = lab["sensor"].get("adc_bits", 8) if isinstance(lab["sensor"], dict) else 8
+        want = 8 if bits == 8 else 16
+        for name in (lab["frame"], lab.get("dark")):
+            if name is None or seen.get(name) == want:
+                continue
+            head = _png_header(root / name)
+            if head is None:
+                continue  # not a PNG: decoded (and checked) by the evaluation
+            depth, colour = head
+            if colour != 2:
+                raise BadInputError(f"{root / name} is not a 3-channel BGR PNG (colour type {colour}); expected BGR")
+            if depth != want:
+                raise BadInputError(
+                    f"{root / name} is a {depth}-bit PNG but {lab['frame']}'s sensor has a {bits}-bit ADC; "
+                    f"expected a {want}-bit PNG"
+                )
+            seen[name] = want
+
+
+def list_images(root: str | Path) -> list[Path]:
+    """The image files of a folder of the user's own frames (sorted by name; ``frames/`` if the
+    folder itself holds none)."""
+    root = Path(root)
+    if not root.is_dir():
+        raise BadInputError(f"frame folder {root} does not exist")
+    for d in (root, root / "frames"):
+        if d.is_dir():
+            imgs = sorted(p for p in d.iterdir() if p.is_file() and p.suffix.lower() in IMAGE_SUFFIXES)
+            if imgs:
+                return imgs
+    raise BadInputError(
+        f"{root} holds no images; expected PNG or JPEG frames (or a dataset made by 'dataset generate')"
+    )
