@@ -32,7 +32,7 @@ import numpy as np
 from stcvision.observation import LANDING_DOTS, MARK_INSET, ROW_TOL, rotate_about_robot, row_orientation
 from stcvision.stcgrid import BOX_EDGES, DIRECTIONS, START_MARKS, SUBCELLS
 
-__all__ = ["CellFit", "fit_cell_offset", "mark_lines", "shows_tour_row", "tour_lines"]
+__all__ = ["CellFit", "fit_cell_offset", "mark_lines", "shows_row", "shows_tour_row", "tour_lines"]
 
 #: how far (sub-cell sides) the fit searches either side of the pipeline's offset: short of the
 #: 0.375 at which a row would meet the next line of its half (half the lines' 0.75 spacing)
@@ -88,15 +88,14 @@ def tour_lines() -> np.ndarray:
     return np.array(rows, float)
 
 
-def shows_tour_row(ru: np.ndarray, lit: np.ndarray, centre, *, margin: float = 0.0) -> bool:
+def shows_tour_row(ru: np.ndarray, lit: np.ndarray, centre) -> bool:
     """Whether the lit dots ``ru`` (cell units, rotated and shifted as the pipeline read them)
     show a row an STC tour lays in the cell centred at ``centre``: at least
     :data:`stcvision.observation.LANDING_DOTS` of a row's four dots within :data:`ON_LINE`
-    across one of :func:`tour_lines` and inside its sub-cell along it, both widened by
-    ``margin`` (sub-cell sides) where the frame was read without the robot's offset. A noise
-    peak, a bloom or, read in place, another cell's row across the cell's edge (it lies 0.25 of
-    a sub-cell from the nearest such line) shows none; a mark the tour laid there does, once a
-    frame sees most of its dots."""
+    across one of :func:`tour_lines` and inside its sub-cell along it. A noise peak, a bloom or
+    another cell's row read across the cell's edge (it lies 0.25 of a sub-cell from the nearest
+    such line) shows none; a mark the tour laid there does, once a frame sees most of its dots.
+    For a frame registered on the marks (a decision's: :func:`fit_cell_offset`)."""
     p = np.asarray(ru, float)[np.asarray(lit, bool)] - np.asarray(centre, float)
     if len(p) < LANDING_DOTS:
         return False
@@ -104,8 +103,33 @@ def shows_tour_row(ru: np.ndarray, lit: np.ndarray, centre, *, margin: float = 0
     axis = lines[:, 0].astype(int)
     across = p[:, axis] - lines[:, 1]  # (dots, lines)
     along = p[:, 1 - axis] - lines[:, 2]
-    on = (np.abs(across) < ON_LINE + margin) & (np.abs(along) < 0.5 + margin)
+    on = (np.abs(across) < ON_LINE) & (np.abs(along) < 0.5)
     return bool((on.sum(axis=0) >= LANDING_DOTS).any())
+
+
+#: a row's dots span this along it (sub-cell sides): three of the four LEDs' dots at least
+#: (0.375 at 16 cm), all four at most (0.5625), with the dots' read-out error either side
+ROW_SPAN = (0.3, 0.7)
+
+
+def shows_row(ru: np.ndarray, lit: np.ndarray, centre) -> bool:
+    """Whether the lit dots ``ru`` (cell units) inside the cell centred at ``centre`` show a row
+    of the robot's LEDs, wherever it lies: at least :data:`stcvision.observation.LANDING_DOTS`
+    dots within :data:`ON_LINE` of one line along either axis, spanning :data:`ROW_SPAN` along
+    it. A noise peak, two dots or a bloom show none. Unlike :func:`shows_tour_row` it asks
+    nothing of where the row lies: for a frame read where the robot believes it stands, whose
+    rows may lie several centimetres off their lines."""
+    p = np.asarray(ru, float)[np.asarray(lit, bool)] - np.asarray(centre, float)
+    p = p[(np.abs(p) < 1.0).all(axis=1)]
+    for axis in (0, 1):  # the coordinate across the row
+        across, along = p[:, axis], p[:, 1 - axis]
+        for a in across:
+            near = np.sort(along[np.abs(across - a) < ON_LINE])
+            for k in range(len(near) - LANDING_DOTS + 1):
+                run = near[k:][near[k:] - near[k] <= ROW_SPAN[1]]
+                if len(run) >= LANDING_DOTS and run[-1] - run[0] >= ROW_SPAN[0]:
+                    return True
+    return False
 
 
 @dataclass(frozen=True, slots=True)

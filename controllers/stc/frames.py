@@ -724,15 +724,10 @@ class RobotCamera(Exposures):
         (before a return to the parent: does the tour close there?), else in the cell ahead (a
         child). What any frame sees counts (it is never less right); the long frames are read
         with the short frame's heading fit."""
-        from controllers.stc.cellfit import shows_tour_row
+        from controllers.stc.cellfit import shows_row
         from stcvision.observation import LANDING_DOTS, marks_ahead, marks_landing_ahead
 
         count, need = (marks_landing_ahead, LANDING_DOTS) if landing else (marks_ahead, 2)
-        # a look reads its short frame where the robot believes it stands, not where its marks
-        # say (the rows in view were laid at many times): a row there lies off its line by the
-        # robot's own offset, up to the position margin the claims allow for (a robot 1.3 cm
-        # off read a visited cell's two rows 0.08 of a sub-cell off their lines)
-        margin = self.cfg.position_margin_m / self.subcell_m
         res: list = []
 
         def read(k, t):
@@ -743,7 +738,7 @@ class RobotCamera(Exposures):
             res.append(r)
             off = r.observation.position_offset if k > 0 else None
             n = count(r.dots, self.pipe.geometry, heading_error_rad=herr or 0.0, offset=off)
-            row = landing or (n >= need and shows_tour_row(*self._dots(r, off), AHEAD_CENTRE, margin=margin))
+            row = landing or (n >= need and shows_row(*self._dots(r, off), AHEAD_CENTRE))
             return (n >= need, row), dt
 
         claims = self.look_claims(landing)
@@ -753,13 +748,18 @@ class RobotCamera(Exposures):
         return marked, res[0], (res[-1] if len(res) > 1 else None), dt
 
     def _look_again(self, t_s: float, read, dt: float, taken: list):
-        """A child read marked by dots on no line an STC tour marks in the cell ahead
-        (:func:`controllers.stc.cellfit.shows_tour_row`): a mark the tour laid there shows its
-        row once a frame sees most of its dots, so it is looked at once more with a frame one
-        rung longer than any taken (the longest again at the top). A row there: the cell is
-        marked; no dot: it is new (the first entry's check reads its floor again:
-        :meth:`_settle_fresh`); dots on no line again: no reading explains them, and the robot
-        stops before it decides. Returns ((marked, row), seconds)."""
+        """A child read marked by lit dots in the cell ahead that show no row of the robot's LEDs
+        (:func:`controllers.stc.cellfit.shows_row`: a noise peak, two dots of a faint row, a
+        bloom): a mark the tour laid there shows its row once a frame sees most of its dots, so
+        it is looked at once more with a frame one rung longer than any taken (the longest again
+        at the top). A row there: the cell is marked; no dot: it is new (the first entry's check
+        reads its floor again: :meth:`_settle_fresh`); dots and no row again: no reading
+        explains them, and the robot stops before it decides. The look does not ask on which
+        line the row lies: it reads its short frame where the robot believes it stands (the rows
+        in view were laid at many times, so they do not say where it stands), and on open floor,
+        beyond the red lights, a visited cell's rows lay 3-4 cm off their lines there
+        (spiral_stc_test_3: the robot 1.9 cm off, its rows laid 2 cm off the other way).
+        Returns ((marked, row), seconds)."""
         from controllers.stc.health import RobotStop
 
         k = min(max(j for j, _ in taken) + 1, len(self.ladder) - 1)
@@ -767,7 +767,7 @@ class RobotCamera(Exposures):
         self.relooked += 1
         if marked and not row:
             raise RobotStop(
-                "misread: lit dots in the cell ahead on no line an STC tour marks there, also with a "
+                "misread: lit dots in the cell ahead that show no row of the robot's LEDs, also with a "
                 f"{self.frame_label(k)} frame"
             )
         return (marked, row), dt + dk

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from controllers.stc.cellfit import shows_tour_row, tour_lines
+from controllers.stc.cellfit import shows_row, shows_tour_row, tour_lines
 from sim_camera.phosphor import LED_OFFSETS_M
 from stcvision.observation import MARK_INSET
 from stcvision.stcgrid import DEFAULT_SUBCELL_M, DIRECTIONS, SUBCELLS
@@ -62,14 +62,17 @@ def test_a_row_of_the_readers_own_cell_read_across_the_edge_is_no_neighbours_row
     assert shows_tour_row(own + (0.25, 0.0), lit, (2.0, 0.0))
 
 
-def test_a_look_read_without_the_robots_offset_widens_the_lines_by_its_margin():
-    """A look's short frame is read where the robot believes it stands: a visited cell's row
-    seen 1.3 cm (0.08 of a sub-cell) off its line, with the robot 1.3 cm off, is a row within the
-    robot's position margin (2 cm: 0.125), while a row across a sub-cell's middle, 4 cm from any
-    line, is none with or without it."""
+def test_a_row_of_the_leds_shows_wherever_it_lies_and_scattered_dots_do_not():
+    """The look's test: a row of the robot's LEDs inside the cell ahead, whole or three of its
+    four dots, on a tour line or 4 cm off it (a look reads where the robot believes it stands);
+    two dots, a scatter, or a row outside the cell show none."""
+    centre = (0.0, 1.0)
     lit = np.ones(4, bool)
-    shifted = _row(1, 0, centre=(0.0, 1.0)) + (0.08, 0.0)
-    assert not shows_tour_row(shifted, lit, (0.0, 1.0))
-    assert shows_tour_row(shifted, lit, (0.0, 1.0), margin=0.125)
-    middle = _row(1, 0, centre=(0.0, 1.0)) - (0.25, 0.0)
-    assert not shows_tour_row(middle, lit, (0.0, 1.0), margin=0.125)
+    for m, edge in ((1, 0), (2, 1), (0, 2), (3, 3)):
+        row = _row(m, edge, centre=centre)
+        assert shows_row(row, lit, centre) and shows_row(row[1:], lit[1:], centre)
+        assert shows_row(row + 0.25 * np.asarray(DIRECTIONS[(edge + 1) % 4], float), lit, centre)
+        assert not shows_row(row[:2], lit[:2], centre)
+    scatter = np.array([[0.3, 1.2], [0.45, 1.5], [-0.2, 1.3], [0.1, 1.75]])
+    assert not shows_row(scatter, np.ones(4, bool), centre)
+    assert not shows_row(_row(1, 0, centre=(0.0, 3.0)), lit, centre)  # the cell beyond

@@ -698,9 +698,10 @@ def test_the_move_log_rereads_a_box_whose_row_it_laid():
 
 def _look_at(row: str):
     """A camera look from the front-right sub-cell of the start cell of an open 8x8 board at the
-    cell ahead, a minute after a row was laid there: ``"tour"`` a row the robot lays (its rear
-    LEDs, on the rear edge of the cell ahead's nearest sub-cell), ``"stray"`` the same four dots
-    across that sub-cell's middle (on no line a tour marks), ``"none"`` nothing."""
+    cell ahead, a minute after marks were laid there: ``"tour"`` a row the robot lays (its rear
+    LEDs, on the rear edge of the cell ahead's nearest sub-cell), ``"off line"`` the same row
+    across that sub-cell's middle (on no line a tour marks), ``"scatter"`` four dots in no row
+    (a stain, a bloom), ``"none"`` nothing."""
     from controllers.stc.geometry import step_from
     from controllers.stc.perception import CameraPerception
     from controllers.stc.plant import Floor, Plant
@@ -714,11 +715,14 @@ def _look_at(row: str):
     belief.sub = step_from(belief.sub, belief.hc)  # the front-right sub-cell, facing the cell ahead
     plant.x, plant.y = board.subcell_center_m(*belief.sub)
     ahead = step_from(belief.sub, belief.hc)
-    if row != "none":
+    centre = board.subcell_center_m(*ahead)
+    right, up = entry_axes(belief.hc)
+    if row == "scatter":  # four dots 4-6 cm apart in no line, inside the sub-cell ahead
+        dots = centre + np.array([[-0.04, -0.03], [0.01, 0.04], [0.05, -0.01], [-0.02, 0.05]]) @ np.array([right, up])
+        floor.lay(dots, ahead, 0, plant.t, plant.robot.led_on_s)
+    elif row != "none":
         x0, y0 = plant.x, plant.y
-        plant.x, plant.y = board.subcell_center_m(*ahead)
-        if row == "stray":  # half a sub-cell on: the row lies across the sub-cell's middle
-            plant.x, plant.y = np.array([plant.x, plant.y]) + 0.5 * board.subcell_m * entry_axes(belief.hc)[1]
+        plant.x, plant.y = centre + (0.5 * board.subcell_m * up if row == "off line" else 0.0)
         plant.lay_mark(floor, ahead, belief.hc)
         plant.x, plant.y = x0, y0
     plant.wait(60.0)
@@ -726,20 +730,20 @@ def _look_at(row: str):
     return see, plant, belief, floor
 
 
-def test_a_look_reads_a_tour_row_at_once_and_stray_dots_again_then_stops():
-    """The look at a child counts lit dots in the cell ahead; a mark the tour laid there shows its
-    row on one of the cell's tour lines and is read marked at once; four dots across a
-    sub-cell's middle (on no such line: a stain, another cell's row read across the edge) are
-    looked at again with a longer frame and, still on no line, stop the robot before it decides;
-    an empty cell is read unmarked."""
+def test_a_look_reads_a_row_at_once_and_scattered_dots_again_then_stops():
+    """The look at a child counts lit dots in the cell ahead; a row of the robot's LEDs there,
+    on a tour line or off it (the look reads where the robot believes it stands), is read marked
+    at once; four dots in no row (a stain, a bloom) are looked at again with a longer frame and,
+    still no row, stop the robot before it decides; an empty cell is read unmarked."""
     from controllers.stc.health import RobotStop
 
-    see, plant, belief, floor = _look_at("tour")
-    assert see.look(plant, belief, floor, landing=False) is True and see.cam.relooked == 0
+    for row in ("tour", "off line"):
+        see, plant, belief, floor = _look_at(row)
+        assert see.look(plant, belief, floor, landing=False) is True and see.cam.relooked == 0, row
     see, plant, belief, floor = _look_at("none")
     assert see.look(plant, belief, floor, landing=False) is False and see.cam.relooked == 0
-    see, plant, belief, floor = _look_at("stray")
-    with pytest.raises(RobotStop, match="misread: lit dots in the cell ahead on no line an STC tour marks"):
+    see, plant, belief, floor = _look_at("scatter")
+    with pytest.raises(RobotStop, match="misread: lit dots in the cell ahead that show no row of the robot's LEDs"):
         see.look(plant, belief, floor, landing=False)
     assert see.cam.relooked == 1
 
