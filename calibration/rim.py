@@ -61,8 +61,8 @@ def _coverage(pts, c, r, shape, tol):
     return float((hit & visible).sum() / visible.sum()), inl
 
 
-#: what makes a circle of edge points a rim, not texture (README 'Calibration'): it covers at least
-#: this share of its visible circumference...
+#: what makes a circle of edge points a rim, not texture (docs/explanation/calibration.md, "Rim"):
+#: it covers at least this share of its visible circumference...
 MIN_COVERAGE = 0.5
 #: ...its edge points lie within this share of the inlier band's half-width (points drawn at random
 #: in the band have an RMS distance of tol/sqrt(3) = 0.58 tol; a real rim's sit within ~0.2 tol)...

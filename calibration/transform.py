@@ -1,9 +1,10 @@
 """Transformation and neighbours calibration from a lights-on frame.
 
 The robot stands on the board as it does when it enters a cell: at the centre of a sub-cell,
-facing along the grid (DESIGN.md: "in the entry frame the robot stands in the lower-right
-sub-cell"). In its frame (x forward, y left) the cell boundaries -- dark tape lines -- are then
-the lines ``x = -D/2 + 2kD`` and ``y = -D/2 + 2kD``, and their crossings are known floor points.
+facing along the grid (docs/explanation/stc-geometry.md: "in the entry frame ... it stands in the
+lower-right sub-cell"). In its frame (x forward, y left) the cell boundaries -- dark tape lines --
+are then the lines ``x = -D/2 + 2kD`` and ``y = -D/2 + 2kD``, and their crossings are known floor
+points.
 
 1. :func:`calibration.rim.detect_rim` finds the mirror's rim (centre and radius), unless a
    person gives the centre.

@@ -6,7 +6,7 @@ error out to 0.9 m (true image point -> profile -> floor), over the perturbed mi
 
     python docs/calibration_depth.py [--mirrors 4]
 
-Prints a markdown table (README, "Calibration").
+Prints a markdown table (docs/explanation/calibration.md, "12- and 16-bit lights-on frames").
 """
 
 from __future__ import annotations

@@ -5,9 +5,9 @@ against the renderer's truth (ray-traced spherical mirror), beside the toolkit's
 
     python docs/lens_formats.py [--out-dir DIR]
 
-Prints a markdown table (README, "Calibration"). The spherical mirror has no single viewpoint, so
-every central model is an approximation of it; what the table shows is how much each format's
-equations cost on top of the toolkit's own calibration.
+Prints a markdown table (docs/explanation/calibration.md, "Profiles from other tools"). The
+spherical mirror has no single viewpoint, so every central model is an approximation of it; what the
+table shows is how much each format's equations cost on top of the toolkit's own calibration.
 """
 
 from __future__ import annotations

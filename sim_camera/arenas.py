@@ -1,8 +1,8 @@
 """Arena geometry: the closed regions robots live in, as frozen dataclasses.
 
 An arena is an outer shape (circle, square, ellipse, polygon, or an STC board's rectangle) plus
-optional straight barriers (the ``|`` and ``+`` partial barriers of the Buffon paper, seed
-``000_65e7c97ffd15e972.txt`` sec. 3.1 / 5.3) and obstacles (circles, polygons; for a board, its
+optional straight barriers (the ``|`` and ``+`` partial barriers of the Buffon's needle paper,
+Girgin & Sahin, sec. 3.1 / 5.3) and obstacles (circles, polygons; for a board, its
 blocked sub-cells). Everything is in metres, world frame (x east, y north).
 
 The *free region* is inside the outer shape, outside every obstacle and farther than half a
@@ -60,7 +60,7 @@ __all__ = [
 
 SCHEMA_VERSION = 1
 DEFAULT_WALL_THICKNESS_M = 0.05  # outer walls: built outward, so thickness costs no floor area
-DEFAULT_BARRIER_THICKNESS_M = 0.01  # Buffon barriers: not given in the seed; thin vs. 55 mm robot
+DEFAULT_BARRIER_THICKNESS_M = 0.01  # Buffon barriers: not given in the paper; thin vs. 55 mm robot
 DEFAULT_CURVE_TOLERANCE_M = 0.0005  # max sagitta of the inscribed polygon of a curved arena
 #: the largest length or coordinate an arena file may give: 10 km, far beyond any arena a robot
 #: explores; it keeps areas finite (a radius of 1e300 m overflowed pi r^2, found by fuzzing)
@@ -455,8 +455,8 @@ class Arena:
         raise BadInputError(f"arena has no free point {margin_m} m away from its walls")
 
     def start_pose(self, clearance_m: float) -> tuple[float, float, float]:
-        """A start pose at the central bottom of the arena, heading north (Buffon seed sec. 3.1:
-        "the robot began its exploration from the central bottom part of the nest")."""
+        """A start pose at the central bottom of the arena, heading north (Buffon's needle paper
+        sec. 3.1: "the robot began its exploration from the central bottom part of the nest")."""
         cx, cy = self.center_m
         ymin = self.bounds_m[1]
         # candidates bottom-up, each row centre first; the first free one (one vectorised test:
@@ -558,7 +558,7 @@ class Arena:
         self, kind: str, length_fraction: float, thickness_m: float = DEFAULT_BARRIER_THICKNESS_M
     ) -> tuple[Barrier, ...]:
         """The Buffon paper's ``|`` or ``+`` barrier(s), centred, length a fraction of the
-        arena's extent along the barrier (seed 000 sec. 5.3)."""
+        arena's extent along the barrier (sec. 5.3)."""
         cx, cy = self.center_m
         out = []
         if kind in ("|", "+"):

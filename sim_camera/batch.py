@@ -1,9 +1,10 @@
 """Vectorised batch of N disc robots treated as points in the arena shrunk by their radius.
 
-For Monte-Carlo sweeps (Buffon: 50,000 steps per visit, 100 trials per nest, DESIGN.md
-"Performance budget") one Python call per robot per step is too slow, so this path advances all
-robots with numpy: unicycle kinematics (v, omega per robot), then a wall rule for robots whose
-new centre is closer than ``radius_m`` to a solid (``arena.contains(p, margin_m=radius_m)``):
+For Monte-Carlo sweeps (Buffon: 50,000 steps per visit, 100 trials per nest, the
+Buffon's needle paper, sec. 4 and 5) one Python call per robot per step is too slow, so this path
+advances all robots with numpy: unicycle kinematics (v, omega per robot), then a wall rule for
+robots whose new centre is closer than ``radius_m`` to a solid
+(``arena.contains(p, margin_m=radius_m)``):
 
 * ``"slide"`` (default, like the pymunk path's frictionless contact): project the new centre back
   onto the edge of the free region (``radius_m`` from the nearest solid, along the gradient of

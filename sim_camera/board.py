@@ -12,7 +12,8 @@ Map files
 Both dimensions must be even (a cell is 2x2 sub-cells). A cell is free iff all four of its
 sub-cells are free; every other cell is an obstacle cell and carries a red light at its centre.
 Cells beyond the board's edge read as blocked too: :meth:`Board.red_lights_m` adds a ring of red
-lights one cell outside the border (``../shared/DESIGN.md``, "the start cell").
+lights one cell outside the border (``docs/explanation/stc-geometry.md``, "Parent, child and the
+start cell").
 
 Frames: row 0 is the map's top (north) row. World x is east along the columns, y north, with the
 origin at the board's south-west corner, so sub-cell ``(i, j)`` has its centre at

@@ -1,11 +1,11 @@
 """Batched physics for many small disc robots among static walls, compiled with numba.
 
 The pymunk world (:mod:`sim_camera.world`) with the Buffon explorer's six IR ray casts runs
-~4,200 robot-steps/s here; a Buffon reproduction is ~10^9 robot-steps (seed
-``000_65e7c97ffd15e972.txt`` sec. 5: 100 trials x 2 visits x 50,000 steps per nest, and more),
-so the Monte-Carlo path needs compiled per-step loops. numba compiles the plain Python below to
-machine code (``cache=True`` keeps the compiled code between runs): 1.7 million robot-steps/s on
-one core in a 30 body-length circle (``stcvision bench``).
+~4,200 robot-steps/s here; a Buffon reproduction is ~10^9 robot-steps (the
+Buffon's needle paper of Girgin & Sahin, sec. 4-5: 100 trials x 2 visits x 50,000 steps per nest,
+and more), so the Monte-Carlo path needs compiled per-step loops. numba compiles the plain Python
+below to machine code (``cache=True`` keeps the compiled code between runs): 1.7 million
+robot-steps/s on one core in a 30 body-length circle (``stcvision bench``).
 
 What it models, and how it matches the pymunk path:
 

@@ -5,7 +5,7 @@ quantum efficiency at the phosphor's ~520 nm, read noise, dark current at its op
 temperature, pixel pitch, full well and the lens f-number (the optics' geometry, the fixed
 pattern's shape, the colour responses and the exposure/gain settings the robot chooses stay the
 model's). A **robot** profile is a :class:`sim_camera.robot.MarkingRobot`. Every figure of a
-preset carries its source; "assumed" says where no datasheet or seed gives one.
+preset carries its source; "assumed" says where no datasheet or paper gives one.
 
 JSON (``schema_version`` 1; unit-suffixed keys)::
 

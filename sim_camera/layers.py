@@ -1,12 +1,12 @@
 """Floor layers queried by position (vectorised): pheromone trail and chemical patches.
 
-* :class:`PheromoneLayer` -- the Buffon explorer's trail (seed ``000_65e7c97ffd15e972.txt``
-  sec. 4): a robot with its nozzle open marks every floor cell whose centre lies within half the
-  trail width of its path; the default width is 0.1 body length ("the width of the pheromone is
-  taken as 0.1, i.e. one tenth of the body length of the robot"). The trail is a raster, like the
-  paper's own "pixellized implementation"; cells default to half the width.
+* :class:`PheromoneLayer` -- the Buffon explorer's trail (the Buffon's needle paper of
+  Girgin & Sahin, sec. 4): a robot with its nozzle open marks every floor cell whose centre lies
+  within half the trail width of its path; the default width is 0.1 body length ("the width of the
+  pheromone is taken as 0.1, i.e. one tenth of the body length of the robot"). The trail is a
+  raster, like the paper's own "pixellized implementation"; cells default to half the width.
 * :class:`ChemicalLayer` -- circular or polygonal patches with a concentration, read by the
-  tongue sensor (TASTI 2, seed ``001_c1bae9b25b0dd54b.txt`` sec. V: "a circular patch of salt
+  tongue sensor (the TASTI 2 paper by Russell, sec. V: "a circular patch of salt
   crystals 350mm in diameter"). An optional linear edge ramp stands in for scattered crystals.
 
 The phosphor layer lives in :mod:`sim_camera.phosphor`. A layer that wants to react to the world
@@ -32,7 +32,7 @@ __all__ = [
     "TASTI2_SALT_PATCH_DIAMETER_M",
 ]
 
-TASTI2_SALT_PATCH_DIAMETER_M = 0.350  # seed 001 sec. V
+TASTI2_SALT_PATCH_DIAMETER_M = 0.350  # the TASTI 2 paper (Russell), sec. V
 
 
 class PheromoneLayer:

@@ -1,7 +1,7 @@
 """Wheel encoders and dead reckoning with systematic and random error.
 
 Error model (Borenstein & Feng 1996, "Measurement and correction of systematic odometry errors in
-mobile robots", IEEE T-RA 12(6), cited by the TASTI 2 seed ``001_c1bae9b25b0dd54b.txt`` ref. [10]):
+mobile robots", IEEE T-RA 12(6), ref. [10] of the TASTI 2 paper by Russell):
 
 * **Ed** = D_R / D_L, the ratio of the *true* right and left wheel diameters. Their mean equals
   the nominal diameter D_n that the odometry assumes, so D_L = 2 D_n / (Ed + 1) and
@@ -77,7 +77,7 @@ class OdometryParams:
 
 class WheelEncoders:
     """Quadrature wheel encoders: ``lines_per_rev`` slots, 4 counts per slot (both edges of both
-    phases, as TASTI 2's two-phase quadrature encoder, seed 001 sec. IV).
+    phases, as TASTI 2's two-phase quadrature encoder, TASTI 2 paper sec. IV).
 
     Counts are whole numbers of the true wheel rotation (quantisation is the encoder's random
     error); the robot advances the wheel angles, this class only reads them.

@@ -2,7 +2,8 @@
 convex spherical mirror, reflecting each pixel's ray onto the floor.
 
 This is the *renderer's* model. The vision pipeline in ``stcvision`` has its own (fitted) model;
-the two must stay independent or their errors would cancel (``../shared/DESIGN.md``).
+the two must stay independent or their errors would cancel (``docs/architecture.md``, "The
+layers").
 
 Frames
 ------

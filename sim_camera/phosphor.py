@@ -16,21 +16,22 @@ Parameters (world constants; see :class:`AfterglowLaw`):
   = 1.09``.
 * ``tau_s = 10 s``: the onset of the power law; the fast initial component of SrAl2O4:Eu,Dy
   decays on a scale of seconds to tens of seconds.
-* ``fill_s = 2 s``: charging saturates within a few seconds under a close UV LED; the seed charges
-  "for a few seconds ... to allow the surface to absorb the light" (seed 003, Marking Sub-cells).
+* ``fill_s = 2 s``: charging saturates within a few seconds under a close UV LED; the ant-like STC
+  paper (Srour & Abboud) charges "for a few seconds ... to allow the surface to absorb the light"
+  (its section "Marking Sub-cells").
 * ``l_sat_cd_m2 = 0.45``: the saturated initial luminance of a dot. This is the one constant fitted
-  to an observation: with the seed's webcam (``sim_camera.sensor.SensorParams`` defaults,
+  to an observation: with the paper's webcam (``sim_camera.sensor.SensorParams`` defaults,
   exposure 1/30 s, gain 16) a dot charged for 3 s at the reference distance (0.25 m from the
-  robot, a mark in its own cell) stays detectable (Rose criterion, SNR >= 5 in the seed's 3x3
-  search window) for about a minute and not at two (seed 003, Limitations: "it could be seen
+  robot, a mark in its own cell) stays detectable (Rose criterion, SNR >= 5 in the paper's 3x3
+  search window) for about a minute and not at two (the paper's "Limitations": "it could be seen
   by the camera we used only in the first minute or so"). The same law then gives ~3.8 mcd/m^2
   at 10 minutes, above the 0.3 mcd/m^2 perception limit DIN 67510 uses for the dark-adapted
-  eye, consistent with the seed's "could be still seen by humans until after 10 minutes".
+  eye, consistent with the paper's "could be still seen by humans until after 10 minutes".
   A fresh dot (0.35 cd/m^2) is of the order of commercial pigments a minute after a short
   charge.
 
 A dot is a small disc (``dot_diameter_m``, the spot of one UV LED) laid by a row of four rear
-LEDs (seed 003, The Robot: "4 UV LEDs").
+LEDs (the ant-like STC paper, "The Robot": "4 UV LEDs").
 """
 
 from __future__ import annotations
@@ -168,11 +169,13 @@ class PhosphorLayer:
         return np.where(d2 <= r * r, lum[None, :], 0.0).max(axis=1)
 
 
-#: Lateral positions (m, robot y) of the four rear UV LEDs (seed 003: "4 UV LEDs"), 3 cm apart.
+#: Lateral positions (m, robot y) of the four rear UV LEDs (ant-like STC paper: "4 UV LEDs"), 3 cm
+#: apart.
 LED_OFFSETS_M = (-0.045, -0.015, 0.015, 0.045)
 #: How far inside its sub-cell a mark lies: the rear LEDs sit 6 cm behind the turning centre of
 #: a robot whose footprint is the 16 cm sub-cell, so dots land 2 cm inside the rear edge
-#: (DESIGN.md: "a few centimetres from the edge line").
+#: (docs/explanation/stc-geometry.md, "Marks and the five boxes": "a few centimetres from the edge
+#: line").
 MARK_INSET_M = 0.02
 
 

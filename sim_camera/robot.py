@@ -3,7 +3,7 @@
 Commands are *nominal* wheel surface speeds in m/s (what the robot's motor controller is asked
 for). The wheels actually turn at ``command * motor_gain(t)``, where the motor gain is drawn once
 per robot (``speed_gain_spread``, e.g. +-10 %) and fades with battery charge
-(``battery_fade_per_h``) -- the STC seed (``003_01c9be04038c8c46.txt``): "Because of the battery
+(``battery_fade_per_h``) -- the ant-like STC paper (Srour & Abboud): "Because of the battery
 decay, and the fact that the robot is built from Lego, a 90 degree turn, wasn't actually 90
 degree". Each wheel rolls ``rotation * true_radius`` plus slip noise; the body's velocity follows
 from the true wheelbase (see :mod:`sim_camera.odometry` for the error model).
@@ -16,21 +16,22 @@ angle, so the true angle is off only by what the odometry gets wrong, 1/Eb) and 
 ``set_wheel_speeds``. ``World.run_until_done(robot, stop_when=...)`` steps until the primitive
 ends, or until a sensor condition (e.g. the capacitive ring firing) stops it: status "stopped".
 
-Presets (every number with its source; "assumed" means the seeds give none):
+Presets (every number with its source; "assumed" means the papers give none):
 
-* :data:`KHEPERA` -- the Buffon explorer (seed 000 sec. 3). Diameter 55 mm and wheelbase 53 mm
-  (K-Team Khepera user manual); wheel diameter 15.6 mm and 150 encoder lines x 4 = 600 counts per
-  revolution give the manual's ~12 counts per mm; top speed 1 m/s (K-Team spec).
-* :data:`TASTI2` -- the chemical-search robot (seed 001 sec. IV). Body radius 153 mm = the radius
-  of its front capacitive ring; wheelbase 0.22 m, wheel diameter 65 mm, 128-line quadrature
-  encoders, cruise speed 0.05 m/s: assumed. Ed = 1.002 and Eb = 1.01: assumed, the order of the
-  uncalibrated errors Borenstein & Feng 1996 report for their platforms.
-* :data:`LEGO_STC` -- the ant-like STC robot (seed 003). Radius 70 mm so it fits a 0.16 m
-  sub-cell (the default board); LEGO 56 mm tyres; wheelbase 0.12 m; NXT-style motor encoders at
-  360 counts/rev; cruise 0.08 m/s; turn wheel speed 0.0628 m/s so a nominal 90-degree turn takes
-  1.5 s (exactly: the wheel speed is derived from it); motor gain +-10 % per robot and 20 %/h
-  battery fade (assumed; the seed gives only the qualitative statement above); Ed = 1.005,
-  Eb = 1.03 (assumed: a flexible Lego frame).
+* :data:`KHEPERA` -- the Buffon explorer (Buffon's needle paper, Girgin & Sahin, sec. 3). Diameter
+  55 mm and wheelbase 53 mm (K-Team Khepera user manual); wheel diameter 15.6 mm and 150 encoder
+  lines x 4 = 600 counts per revolution give the manual's ~12 counts per mm; top speed 1 m/s (K-Team
+  spec).
+* :data:`TASTI2` -- the chemical-search robot (the TASTI 2 paper by Russell, sec. IV). Body radius
+  153 mm = the radius of its front capacitive ring; wheelbase 0.22 m, wheel diameter 65 mm, 128-line
+  quadrature encoders, cruise speed 0.05 m/s: assumed. Ed = 1.002 and Eb = 1.01: assumed, the order
+  of the uncalibrated errors Borenstein & Feng 1996 report for their platforms.
+* :data:`LEGO_STC` -- the ant-like STC robot (the ant-like STC paper, Srour & Abboud). Radius 70 mm
+  so it fits a 0.16 m sub-cell (the default board); LEGO 56 mm tyres; wheelbase 0.12 m; NXT-style
+  motor encoders at 360 counts/rev; cruise 0.08 m/s; turn wheel speed 0.0628 m/s so a nominal
+  90-degree turn takes 1.5 s (exactly: the wheel speed is derived from it); motor gain +-10 % per
+  robot and 20 %/h battery fade (assumed; the paper gives only the qualitative statement above);
+  Ed = 1.005, Eb = 1.03 (assumed: a flexible Lego frame).
 * :data:`LEGO_STC_ROBOT` -- the same robot as the coverage loop's kinematic plant sees it
   (:class:`MarkingRobot`): motion from :data:`LEGO_STC`, LED-on time and timing cited there.
 """
@@ -477,8 +478,9 @@ class MarkingRobot:
         )
 
 
-#: The seed 003 Lego robot for the coverage loop: motion from :data:`LEGO_STC` (see the module
-#: docstring for its sources), marking and timing figures cited below.
+#: The Lego robot of the ant-like STC paper (Srour & Abboud) for the coverage loop: motion from
+#: :data:`LEGO_STC` (see the module docstring for its sources), marking and timing figures cited
+#: below.
 LEGO_STC_ROBOT = MarkingRobot.from_body(
     LEGO_STC,
     name="lego",

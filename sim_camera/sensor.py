@@ -20,12 +20,12 @@ mosaic and no demosaicing):
   0..4095, not scaled to 65535), the form a machine-vision or astronomy camera delivers its raw
   frames in and the form a 16-bit PNG keeps.
 
-Defaults describe the seed's cheap wireless webcam in the dark (seed 003: "The camera we used,
-was not intended to work with low-light conditions"): a VGA CMOS sensor with 6 um pixels (the
-OmniVision OV7725 class), a 4.7 mm f/2.0 lens, 1/30 s exposure (30 frames/s) and the analogue
-gain its auto-exposure reaches in the dark (16x). Noise figures are typical of small-pixel
-consumer CMOS sensors (read noise ~6 e-, dark current ~40 e-/s at room temperature), not taken
-from one datasheet.
+Defaults describe the cheap wireless webcam in the dark of the ant-like STC paper (Srour &
+Abboud: "The camera we used, was not intended to work with low-light conditions"): a VGA CMOS sensor
+with 6 um pixels (the OmniVision OV7725 class), a 4.7 mm f/2.0 lens, 1/30 s exposure (30 frames/s)
+and the analogue gain its auto-exposure reaches in the dark (16x). Noise figures are typical of
+small-pixel consumer CMOS sensors (read noise ~6 e-, dark current ~40 e-/s at room temperature), not
+taken from one datasheet.
 """
 
 from __future__ import annotations
@@ -335,8 +335,8 @@ def digitise(e: np.ndarray, s: SensorParams) -> np.ndarray:
 
 
 def detection_snr(total_e: np.ndarray, cov_px: np.ndarray, s: SensorParams, *, window: int = 3) -> np.ndarray:
-    """Expected SNR of a dot in a ``window`` x ``window`` square (the seed's square search
-    window) after an ideal dark-frame subtraction.
+    """Expected SNR of a dot in a ``window`` x ``window`` square (the ant-like STC paper's square
+    search window) after an ideal dark-frame subtraction.
 
     ``SNR = S / sigma_bg`` (Rose's definition: the signal against the noise of the background it
     must be told from), with ``S`` the dot's electrons inside the window (Gaussian

@@ -5,30 +5,31 @@ updated every step by the world (:mod:`sim_camera.odometry`). Ray sensors use py
 ``segment_query_first`` against walls, obstacles and other robots (never the robot itself).
 All noise comes from a per-sensor ``numpy.random.Generator`` split off the robot's seed stream.
 
-IR (Buffon explorer, seed ``000_65e7c97ffd15e972.txt`` sec. 3 and 3.2): six front sensors on
-the body's rim, pointing at the Khepera angles +90, +45, +10, -10, -45, -90 degrees (index 0 =
-left ... 5 = right; K-Team Khepera user manual, sensor layout). Reading I in [0, 1] (0 = no
-object, 1 = very close, the paper's convention) vs. distance d from the rim::
+IR (Buffon explorer; the Buffon's needle paper of Girgin & Sahin, sec. 3 and 3.2): six front sensors
+on the body's rim, pointing at the Khepera angles +90, +45, +10, -10, -45, -90 degrees (index 0 =
+left ... 5 = right; K-Team Khepera user manual, sensor layout). Reading I in [0, 1] (0 = no object,
+1 = very close, the paper's convention) vs. distance d from the rim::
 
     I(d) = 1                                    d <= d_sat   (5 mm)
     I(d) = ((d_max - d) / (d_max - d_sat))^2    d_sat < d < d_max
     I(d) = 0                                    d >= d_max   (50 mm, Khepera IR range ~5 cm)
 
 plus Gaussian noise (sigma 0.02 by default), clipped to [0, 1]. The quadratic fall-off is an
-assumption shaped like the sampled Khepera responses (Miglino, Lund & Nolfi 1995, seed ref. [9]).
+assumption shaped like the sampled Khepera responses (Miglino, Lund & Nolfi 1995, ref. [9] of the
+Buffon's needle paper).
 
-Capacitive ring (TASTI 2, seed ``001_c1bae9b25b0dd54b.txt`` sec. IV): nine electrodes of 20
+Capacitive ring (the TASTI 2 paper by Russell, sec. IV): nine electrodes of 20
 degrees each over the front 180 degrees, on a ring of radius 153 mm, connected in parallel, so
 one proximity signal. Model: electrode k sees the smallest gap g_k over a few radial rays in its
 sector and contributes exp(-g_k / lambda) (lambda = 10 mm: fringing fields decay over about an
 electrode width; assumed); the signal is the sum. The stop threshold is the signal for a steel
 can (radius 36.5 mm, assumed) dead ahead at a 15 mm gap, so a robot that halts when the signal
-reaches it stops "1.5cm away from the can", as the seed reports.
+reaches it stops "1.5cm away from the can", as the paper reports.
 
 Tongue: the chemical layer's concentration at the turning centre (TASTI 2 moved its tongue
-there, seed 001 sec. IV) plus Gaussian noise. Pheromone detector: binary reading of the pheromone
-layer at the body centre (seed 000 sec. 3); the robot's leaky integrator and crossing counter
-(sec. 4) are the Buffon controller's, in :mod:`controllers.buffon.counter`.
+there, TASTI 2 paper sec. IV) plus Gaussian noise. Pheromone detector: binary reading of the
+pheromone layer at the body centre (Buffon's needle paper sec. 3); the robot's leaky integrator and
+crossing counter (sec. 4) are the Buffon controller's, in :mod:`controllers.buffon.counter`.
 """
 
 from __future__ import annotations
@@ -193,7 +194,7 @@ class TongueSensor:
 
 
 class PheromoneDetector:
-    """Binary pheromone reading at the body centre (Buffon seed sec. 3)."""
+    """Binary pheromone reading at the body centre (Buffon's needle paper sec. 3)."""
 
     def __init__(self, world, robot):
         self.world, self.robot = world, robot

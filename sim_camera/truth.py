@@ -1,9 +1,9 @@
 """Ground truth attached to rendered frames.
 
-Cell geometry follows ``../shared/DESIGN.md``: in the *entry frame* (the robot's heading rounded
-to the nearest multiple of 90 degrees points "up"), the sub-cells of the robot's cell are
-numbered counter-clockwise from the lower-right one: 0 lower-right, 1 upper-right, 2 upper-left,
-3 lower-left. The five mark boxes:
+Cell geometry follows ``docs/explanation/stc-geometry.md``: in the *entry frame* (the robot's
+heading rounded to the nearest multiple of 90 degrees points "up"), the sub-cells of the robot's
+cell are numbered counter-clockwise from the lower-right one: 0 lower-right, 1 upper-right, 2
+upper-left, 3 lower-left. The five mark boxes:
 
 ==== ========== ===================
 box  sub-cell   edge (entry frame)
@@ -195,6 +195,6 @@ def _cell_truth(camera, pose, board, truth, red_lights_m) -> dict:
 
 
 def _visited(boxes) -> dict:
-    """Sub-cells 1-3 visited according to the five-box rule (DESIGN.md table)."""
+    """Sub-cells 1-3 visited according to the five-box rule (docs/explanation/stc-geometry.md)."""
     lit = {b["box"]: b["lit"] for b in boxes}
     return {1: lit[1] or lit[5], 2: lit[2] or lit[3], 3: lit[4]}

@@ -1,4 +1,5 @@
-"""Caps on the work one command line or input file can ask for (README 'Command line').
+"""Caps on the work one command line or input file can ask for (docs/reference/guarantees.md,
+"Caps").
 
 Each bounds memory or time that would otherwise grow until the machine gives up; going over one
 is bad input (one line, exit code 2) that names the cap. One table, used by every command.

@@ -12,9 +12,9 @@ renderer's ray-traced spherical mirror -- and it says:
 * elevation ``theta``: the depression angle below the horizon, seen from an effective viewpoint
   ``viewpoint_height_m`` above the floor, as a polynomial of the normalised image radius
   ``r / rim_radius_px`` (``theta_poly``, ascending powers). A floor point at distance ``rho``
-  from the robot has ``theta = atan2(viewpoint_height_m, rho)`` (seed 003, "Image
-  Transformation": the pixel moves along the axis through the lens centre; phi and theta give
-  how far);
+  from the robot has ``theta = atan2(viewpoint_height_m, rho)`` (the ant-like STC
+  paper, "Image Transformation and Filtering": the pixel moves along the axis through the lens
+  centre; phi and theta give how far);
 * the mirror axis may lean against the floor's normal (a decentred or tilted mirror):
   ``axis_tilt_rad`` = (tilt about the robot's x axis, tilt about its y axis); the rays are
   built in the axis frame and rotated into the floor frame before meeting the floor;

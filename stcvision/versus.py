@@ -10,7 +10,8 @@ the fraction of *all* visible dots found by age (faint marks, past the SNR-8 lin
 bright dots missed, for diagnosis. :func:`format_comparison` prints it as a table.
 :func:`time_detectors` times them on the same frames without labels (``stcvision bench``).
 
-Used by ``stcvision bench`` and by the README's comparison of the pipeline with the baseline.
+Used by ``stcvision bench`` and by the comparison of the pipeline with the baseline in
+docs/results/pipeline.md, "Beside a plain-OpenCV baseline".
 """
 
 from __future__ import annotations

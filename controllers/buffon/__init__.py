@@ -1,5 +1,5 @@
-"""The Buffon's-needle explorer (seed ``000_65e7c97ffd15e972.txt``, Girgin & Sahin,
-CMU-RI-TR-03-42): blind area measurement by two visits and a pheromone trail.
+"""The Buffon's-needle explorer (Girgin & Sahin, "Blind Area Measurement with Mobile Robots",
+CMU-RI-TR-03-42, 2003): blind area measurement by two visits and a pheromone trail.
 
 * :mod:`~controllers.buffon.behaviour` -- the exploration behaviour of sec. 3.2 (scalar and
   batched, one source of the equations);

@@ -1,6 +1,7 @@
 """Buffon's method on many robots at once: the fast Monte-Carlo path (numba).
 
-Each trial is one robot making the two visits of sec. 4 (seed ``000_65e7c97ffd15e972.txt``):
+Each trial is one robot making the two visits of the Buffon's needle paper (Girgin & Sahin,
+sec. 4):
 both start at the central bottom of the nest, heading away from the bottom wall within +-15
 degrees (sec. 3.1); the first lays a pheromone trail of width w, the second reads it with the
 binary detector at its centre, filters it (:mod:`controllers.buffon.counter`) and counts the
@@ -96,7 +97,8 @@ class VisitConfig:
     visit_steps: int | str = PAPER_VISIT_STEPS
     stop: StopParams = StopParams()
     max_visit_steps: int = 0  # 0: the cap of stcvision.limits
-    trail_turn: float = 0.0  # trail-aware exploration (beta; 0: the paper's behaviour); see README
+    # trail-aware exploration (beta; 0: the paper's behaviour): docs/results/buffon.md
+    trail_turn: float = 0.0
     trail_width_u: float = PAPER_TRAIL_WIDTH_U
     dt_s: float = 0.05
     robot: DiffDriveParams = KHEPERA

@@ -1,4 +1,5 @@
-"""The Buffon explorer's exploration behaviour (seed ``000_65e7c97ffd15e972.txt``, sec. 3.2).
+"""The Buffon explorer's exploration behaviour (the Buffon's needle paper of Girgin &
+Sahin, sec. 3.2).
 
 A Braitenberg-style behaviour with noise and short-term memory, from six front IR readings
 I_0..I_5 in [0, 1] (0 = left side ... 5 = right side, Khepera order):

@@ -1,4 +1,4 @@
-"""The crossing counter of Buffon's method (seed ``000_65e7c97ffd15e972.txt`` sec. 4).
+"""The crossing counter of Buffon's method (the Buffon's needle paper of Girgin & Sahin, sec. 4).
 
 "The output of the pheromone sensor (a binary value) is first filtered by a leaky integrator to
 remove any artefacts that may have occurred due to a pixellized implementation of the pheromone

@@ -1,7 +1,7 @@
 """From crossings to area: nBC, the Buffon/Barbier estimate, its corrections and intervals.
 
-**nBC** (seed ``000_65e7c97ffd15e972.txt`` sec. 4): the Buffon count normalised by the length
-of the second visit, N / L2 (per body length).
+**nBC** (the Buffon's needle paper of Girgin & Sahin, sec. 4): the Buffon count normalised by
+the length of the second visit, N / L2 (per body length).
 
 **Absolute area** (Buffon/Barbier; Mallon & Franks 2000, Proc. R. Soc. B 267:765): two
 independent random curves of lengths L1 and L2, isotropic and uniform over a region of area A,
@@ -138,10 +138,10 @@ __all__ = [
 ]
 
 # Visits long enough for the two paths to mix through a nest of the standard area. Measured,
-# median |error| of one trial (100 trials per nest, `stcvision buffon reproduce`, table in the
-# README): at the paper's 50,000 steps (sec. 4) 19 % (circle) and 17 % (square) by the raw
-# formula; at 300,000 steps 2.6-6.1 % over eight standard-area nests and 10.1 % in the ellipse of
-# r1/r2 = 15.8 (a 400 u corridor along which the paths mix slowly).
+# median |error| of one trial (100 trials per nest, `stcvision buffon reproduce`, table in
+# docs/results/buffon.md, "Visit length"): at the paper's 50,000 steps (sec. 4) 19 % (circle) and
+# 17 % (square) by the raw formula; at 300,000 steps 2.6-6.1 % over eight standard-area nests and
+# 10.1 % in the ellipse of r1/r2 = 15.8 (a 400 u corridor along which the paths mix slowly).
 AREA_VISIT_STEPS = 300_000
 
 MAX_BLIND_FRACTION = 0.3

@@ -1,4 +1,4 @@
-"""The paper's experiment sets (seed ``000_65e7c97ffd15e972.txt`` sec. 5) as tasks, and the
+"""The experiment sets of the Buffon's needle paper (Girgin & Sahin, sec. 5) as tasks, and the
 claim-by-claim analysis of their results.
 
 Sets (lengths in body lengths u; the scale is explained in :mod:`controllers.buffon.nests`):

@@ -1,5 +1,5 @@
-"""Nests of the Buffon experiments (seed ``000_65e7c97ffd15e972.txt`` sec. 3.1 and 5), in body
-lengths, and their parsing from the command line.
+"""Nests of the Buffon experiments (the Buffon's needle paper of Girgin & Sahin, sec. 3.1 and 5),
+in body lengths, and their parsing from the command line.
 
 Unit: one *body length* u = the Khepera's diameter, 55 mm (``2 * KHEPERA.radius_m``; the paper
 measures nests in "units (robot diameters)").

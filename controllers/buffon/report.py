@@ -221,7 +221,8 @@ def claims(cases, results, *, trials: int, wall_s: float | None = None, steps_pe
     out = [
         "# Buffon's needle: the paper's experiments reproduced",
         "",
-        f"Seed 000 (Girgin & Sahin, CMU-RI-TR-03-42). {len(cases)} nests, {trials} trials each (the "
+        "Girgin & Sahin, *Blind Area Measurement with Mobile Robots* (CMU-RI-TR-03-42, 2003). "
+        f"{len(cases)} nests, {trials} trials each (the "
         "absolute-area set fewer, below), two visits per trial; lengths in body lengths u (55 mm). Figures: "
         "`fig3_patterns.png` ... `fig7_thickness.png`, `area_accuracy.png`; every nest in `nests.csv`.",
         "",
@@ -250,7 +251,8 @@ def claims(cases, results, *, trials: int, wall_s: float | None = None, steps_pe
         "",
         "A = 2 L1 L2 / (pi N) per trial; *raw* is that formula, the other columns add the dead-time correction "
         "(the counter's blind fraction, measured by the robot) and the one correction factor calibrated on the "
-        "standard circle (see the README) at the default visit length of a measurement, which is why the "
+        "standard circle (docs/explanation/buffon.md) at the default visit length of a measurement, "
+        "which is why the "
         "paper-length families (50,000 steps) read low with it. `accuracy` repeats the standard-area nests with "
         "visits of that length, long enough for the paths to mix "
         f"({min(results[c]['trials'] for c in cases if c.family == 'accuracy')} trials a nest).",

@@ -380,7 +380,8 @@ ONLINE_FILES = (
 FIXED_STEPS = (50_000, 100_000, 200_000, 300_000)
 #: nests outside the acceptance range of 2,000-30,000 u^2 (the size sweep's ends)
 SIZE_ENDS = ("circle:10", "circle:20", "circle:30", "circle:250", "circle:400")
-#: trail-aware exploration beside the paper's behaviour: nests and the turn (README)
+#: trail-aware exploration beside the paper's behaviour: nests and the turn (docs/results/buffon.md,
+#: "Trail-aware exploration")
 TRAIL_AWARE_NESTS = ("circle:100", "square:70", "ellipse:12000:3", "circle:150")
 TRAIL_TURN = 0.5
 #: equal areas (u^2) at which a circle and a square are measured side by side

@@ -1,6 +1,6 @@
 """When a visit ends: the robot's own online rule (``--visit-steps auto``), from what it senses.
 
-The seed (``000_65e7c97ffd15e972.txt``, sec. 6) asks how long the first visit should be and
+The Buffon's needle paper (Girgin & Sahin, sec. 6) asks how long the first visit should be and
 whether that can be decided during the visit. The rule here needs no knowledge of the nest: it
 reads only the robot's odometry (its path length) and its pheromone detector.
 
@@ -125,7 +125,7 @@ __all__ = [
 @dataclass(frozen=True, kw_only=True, slots=True)
 class StopParams:
     """Constants of the online rule (the robot's, not the world's; chosen on the calibration
-    nests, README 'Online visit lengths').
+    nests, docs/results/buffon.md, "Online visit lengths").
 
     coverage : trail coverage w L1 / A at which the first visit may stop (once mixed).
     mix_tol : the largest spread (1b) of the first visit's self-encounter rate about its smooth

@@ -1,4 +1,5 @@
-"""The TASTI 2 chemical-search robot (seed ``001_c1bae9b25b0dd54b.txt``).
+"""The TASTI 2 chemical-search robot (Russell, "TASTI 2 Searches for Chemicals in the Presence of
+Obstacles").
 
 * :mod:`~controllers.search.patterns` -- the radial flower (equations (1)-(2)) and the
   Archimedes spiral as lists of step headings; the planned sampling points (equations (4)-(5));

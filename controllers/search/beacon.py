@@ -1,5 +1,5 @@
-"""Beyond the paper (seed ``001_c1bae9b25b0dd54b.txt`` sec. VI: "drop off one or more beacons at
-the start of the search and ... use this/them to correct subsequent odometry errors"), with this
+"""Beyond the paper (the TASTI 2 paper by Russell, sec. VI: "drop off one or more beacons at the
+start of the search and ... use this/them to correct subsequent odometry errors"), with this
 toolkit's own means.
 
 TASTI 2 carries the catadioptric camera of :mod:`sim_camera` and drops at the start a flat bar

@@ -1,7 +1,7 @@
 """The TASTI 2 search controller: a pure state machine over a frozen state.
 
-``step(state, obs) -> (state, action)``. The observation is all TASTI 2 has (seed
-``001_c1bae9b25b0dd54b.txt`` sec. IV): its odometric pose, the capacitive ring's verdict, the
+``step(state, obs) -> (state, action)``. The observation is all TASTI 2 has (the
+TASTI 2 paper by Russell, sec. IV): its odometric pose, the capacitive ring's verdict, the
 tongue reading at the turning centre and the result of its last move ("done" or "blocked": a
 move is blocked when the ring halted the drive, or the motor stalled; the executor then drives
 back to where the move began -- "must return to a previous point", sec. V). An action is a
@@ -90,7 +90,7 @@ __all__ = [
     "step",
 ]
 
-ALIGN_RAD = math.radians(45.0)  # seed sec. III-B: "within +-45 degrees of each other"
+ALIGN_RAD = math.radians(45.0)  # TASTI 2 paper sec. III-B: "within +-45 degrees of each other"
 
 
 class Phase(enum.Enum):
@@ -116,7 +116,7 @@ class MoveKind(enum.Enum):
 @dataclass(frozen=True, kw_only=True, slots=True)
 class SearchConfig:
     """``pattern`` (:mod:`controllers.search.patterns`), detour ``policy``, the tongue
-    ``threshold`` (sensor units; the seed's robot stopped above 296 Hz, Fig. 12) and the loop
+    ``threshold`` (sensor units; the paper's robot stopped above 296 Hz, Fig. 12) and the loop
     guard ``max_detour_moves``."""
 
     pattern: object

@@ -304,8 +304,8 @@ def _summary_markdown(tables: dict, results: dict, figures: list[str], n_seeds: 
     lines = [
         "# TASTI 2 search: the paper's figures and statements, reproduced",
         "",
-        "Seed: `001_c1bae9b25b0dd54b.txt` (Russell, TASTI 2 searches for chemicals in the presence of "
-        "obstacles). Regenerate with `stcvision search reproduce --out DIR`. Layouts: "
+        "Paper: Russell, *TASTI 2 Searches for Chemicals in the Presence of Obstacles*. "
+        "Regenerate with `stcvision search reproduce --out DIR`. Layouts: "
         "`controllers/search/scenarios.py` (the paper gives no coordinates; ours are chosen so the "
         "patch is first sampled on step 21, as in the paper). Means over "
         f"{n_seeds} seeds (the same seeds in every row).",
@@ -333,7 +333,8 @@ def _summary_markdown(tables: dict, results: dict, figures: list[str], n_seeds: 
         "Shadow area: the part of the pattern's intended sensing footprint (discs of step/sqrt(2) "
         "around the planned sampling points, minus the floor within a robot radius + 15 mm of an "
         "obstacle) that the executed moves did not cover (the detour's doing); unsampled (true): "
-        "the same against the true sensing positions, drift included (README, the TASTI 2 search robot).",
+        "the same against the true sensing positions, drift included "
+        "(docs/explanation/search.md, 'Shadow area').",
     ]
     return "\n".join(lines) + "\n"
 

@@ -1,5 +1,5 @@
-"""Search patterns of TASTI 2 (seed ``001_c1bae9b25b0dd54b.txt`` sec. II): a repeated sequence of
-a straight step of fixed length ``step_m``, an on-the-spot turn and a sensing operation.
+"""Search patterns of TASTI 2 (the TASTI 2 paper by Russell, sec. II): a repeated sequence of a
+straight step of fixed length ``step_m``, an on-the-spot turn and a sensing operation.
 
 A pattern is its list of headings: step ``i`` moves ``step_m`` along ``headings_rad[i]`` (in the
 robot's start frame, heading 0 = the start heading), so the planned sampling points are
@@ -26,7 +26,8 @@ centre) is ``p_{n//4 + 1}``, the point reached by the step after which the kick 
 sin^2 term turns fastest at ``i = 0`` and ``n/2``, the petals' outer and inner bends, and the
 kick falls on the straight leg between them). Starting at ``i = 0`` would put the robot on the
 rim of its own flower, about one petal length from the centre. The search starts at its best
-guess and extends outwards (seed sec. II), so step ``j`` of the search uses ``i = j + n//4 + 1``:
+guess and extends outwards (TASTI 2 paper sec. II), so step ``j`` of the search uses
+``i = j + n//4 + 1``:
 the robot starts at the centre, every petal comes back through it, and the flower (``n *
 petals`` steps) ends there.
 
@@ -47,10 +48,12 @@ from stcvision.errors import BadInputError
 
 __all__ = ["RadialPattern", "SpiralPattern", "planned_points", "radial_turn_rad"]
 
-DEFAULT_STEP_M = 0.141  # seed 001 sec. V: "The step size of the robot search path was 141mm"
+# the TASTI 2 paper (Russell), sec. V: "The step size of the robot search path was 141mm"
+DEFAULT_STEP_M = 0.141
 DEFAULT_SPIRAL_MAX_STEPS = 150  # ~1.3 m radius at the default step and spacing
-# The seed gives no spacing between the spiral's turns. 0.25 m (our choice) is below 0.35 / sqrt(2):
-# with chords of 0.141 m along turns 0.25 m apart every 350 mm patch (sec. V) holds a sampling point.
+# The TASTI 2 paper gives no spacing between the spiral's turns. 0.25 m (our choice) is below 0.35 /
+# sqrt(2): with chords of 0.141 m along turns 0.25 m apart every 350 mm patch (sec. V) holds a
+# sampling point.
 DEFAULT_SPIRAL_SPACING_M = 0.25
 
 

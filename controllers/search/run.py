@@ -2,7 +2,7 @@
 :data:`sim_camera.robot.TASTI2`), the controller (:mod:`controllers.search.controller`) navigates
 by dead reckoning.
 
-Executor of a :class:`Move` (TASTI 2's motion layer, seed ``001_c1bae9b25b0dd54b.txt``):
+Executor of a :class:`Move` (TASTI 2's motion layer, the TASTI 2 paper by Russell):
 turn on the spot to the move's heading by the odometry (``rotate_by``), drive the step with the
 capacitive ring watching (``run_until_done(stop_when=...)``: halted when the ring's one signal is
 at its stop threshold and has risen 5 noise sigmas since the move began -- the electrodes are in
@@ -154,8 +154,8 @@ def execute_move(world: World, robot, move: Move, *, back_off: bool = True) -> s
 
     def approaching(_w) -> bool:
         # at the threshold *and* risen since the move began: the nine electrodes are wired in
-        # parallel over the front half (seed sec. IV), so beside an obstacle the signal can sit
-        # above the threshold while the move leads along it or away from it
+        # parallel over the front half (TASTI 2 paper sec. IV), so beside an obstacle the signal can
+        # sit above the threshold while the move leads along it or away from it
         v = ring.read()
         return v >= ring.stop_threshold and v > start + margin
 

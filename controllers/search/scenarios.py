@@ -1,5 +1,5 @@
 """The layouts of the paper's experiments as this toolkit reproduces them (metres, relative to
-the start, heading 0 = +x). The seed (``001_c1bae9b25b0dd54b.txt``) gives the step (141 mm), the
+the start, heading 0 = +x). The TASTI 2 paper (Russell) gives the step (141 mm), the
 patch (350 mm diameter), the can the ring was tuned on and the move counts (21 without the
 obstacle, 30 with it, sec. V); it gives no coordinates, so the places are ours: the patch where
 the default spiral (turns 0.25 m apart) first samples it on step 21, the can on the path

@@ -41,7 +41,7 @@ class CoverConfig:
     position_sigma_oracle_m: float = 0.001  # the marks' position read-out (measured: ~1 mm)
     use_mark_consensus: bool = True
     #: red lights as absolute references, near and far (offset, heading, with their
-    #: uncertainties; README "Red lights as landmarks")
+    #: uncertainties; docs/explanation/stc-robot.md, "Red lights as landmarks")
     use_landmarks: bool = True
     #: with exposure control, after each turn also a frame at the shortest long rung (2 s) for the
     #: lean of all rows: it sees the rows of many minutes, the webcam frame the last one or two;
@@ -54,7 +54,7 @@ class CoverConfig:
     #: (:mod:`controllers.stc.claims`: box 2 0.26 m away, the start mark 0.16-0.26 m, the cell
     #: ahead at a look 0.41 m, the sub-cell ahead before a return 0.23 m); the distances are
     #: taken this much farther, for the robot's own offset from its sub-cell centre (it stays
-    #: within 1.3-2.9 cm: README "Drift is no longer where it stops")
+    #: within 1.3-2.9 cm: docs/explanation/stc-robot.md, "Each reading weighted by how sure it is")
     position_margin_m: float = 0.02
     #: a frame covers a claim while the deciding dot, as old as the clock, still has this
     #: expected SNR: one noise sigma above the dot search's threshold (``DotParams.k_sigma``,

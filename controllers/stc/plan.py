@@ -5,11 +5,11 @@ within their visibility horizon; no rendering, no pipeline: seconds), at the giv
 robot profiles with exposure control, and reports whether the tour converges (complete: every
 reachable sub-cell once, back at the start) or runs past the longest frame ("out of sight"), how
 long it takes, the oldest mark a decision had to read, and the frames it takes (length x count).
-It is an upper bound: a real pipeline does no better than the physics (README, "The
-physics-limited camera"). It counts a stack's noise as idealised (over the square root of its
-frames); the camera-mode robot sizes its frames by the noise the stack will have, digitised
-(``CoverConfig.size_by_frame_noise``), so the plan also gives that robot's limit: on 8-bit
-frames its longest frame sees about half as far back.
+It is an upper bound: a real pipeline does no better than the physics
+(docs/explanation/stc-robot.md, "The physics-limited camera"). It counts a stack's noise as
+idealised (over the square root of its frames); the camera-mode robot sizes its frames by the noise
+the stack will have, digitised (``CoverConfig.size_by_frame_noise``), so the plan also gives that
+robot's limit: on 8-bit frames its longest frame sees about half as far back.
 """
 
 from __future__ import annotations

@@ -68,7 +68,7 @@ def build_world(args):
     else:
         arena = CircleArena(radius_m=0.55)
         what = "default circular arena, diameter 1.1 m"
-    width = 0.1 * 2 * KHEPERA.radius_m  # Buffon seed sec. 4: 0.1 body length
+    width = 0.1 * 2 * KHEPERA.radius_m  # Buffon's needle paper sec. 4: 0.1 body length
     xmin, ymin, xmax, ymax = arena.bounds_m
     cell = max(0.5 * width, max(xmax - xmin, ymax - ymin) / 4000)
     world = World(arena, seed=args.seed, pheromone=PheromoneLayer(arena.bounds_m, width_m=width, cell_m=cell))

@@ -7,10 +7,10 @@ unwarp to the ground view), ``channels`` (red/green separation), ``dots``, ``row
 pipeline runs them. Each module holds its stage's public function, the compiled loops it runs
 and the OpenCV reference beside them, and chooses between them itself; ``compiled`` holds the
 helpers those loops share, ``common`` the contracts every stage checks and the stage timing.
-Seed 003 sections implemented here: "Noise handling", "Image Transformation and Filtering",
-"Finding the green dots", "Angle Detection" and "Rotation and Calibration". Inputs are never
-modified; outputs are new arrays or small frozen results. A missing detection is a value
-(``ok=False`` with a reason), not an exception.
+Sections of the ant-like STC paper (Srour & Abboud) implemented here: "Noise handling", "Image
+Transformation and Filtering", "Finding the green dots", "Angle Detection" and "Rotation and
+Calibration". Inputs are never modified; outputs are new arrays or small frozen results. A missing
+detection is a value (``ok=False`` with a reason), not an exception.
 """
 
 from stcvision.stages.channels import ChannelParams, filter_channels, separate_channels

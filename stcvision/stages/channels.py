@@ -28,8 +28,8 @@ from stcvision.stages.ground_view import GatherTables, UnwarpMap, unwarp_separat
 
 @dataclass(frozen=True, kw_only=True, slots=True)
 class ChannelParams:
-    """Red/green separation (seed 003: "In the obstacle image, we keep all the pixels that the
-    red color is bigger than a threshold. And in the visited cells, we keep the colors that the
+    """Red/green separation (ant-like STC paper: "In the obstacle image, we keep all the pixels that
+    the red color is bigger than a threshold. And in the visited cells, we keep the colors that the
     red colors is less than a threshold").
 
     A pixel is *red light* iff its red value (after dark subtraction) is ``red_k_sigma`` noise

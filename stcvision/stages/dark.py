@@ -64,9 +64,9 @@ def subtract_dark(
 ) -> np.ndarray:
     """Subtract a dark frame, saturating at 0 (never wrapping).
 
-    Seed 003, "Noise handling": "we took a photo in complete darkness ... and deducted this
-    photo from every taken snapshot". The dark frame must match the frame's size and, where
-    both are known, its exposure (dark current grows with exposure).
+    The ant-like STC paper (Srour & Abboud), "Noise handling": "we took a photo in complete darkness
+    ... and deducted this photo from every taken snapshot". The dark frame must match the frame's
+    size and, where both are known, its exposure (dark current grows with exposure).
 
     ``pedestal_dn`` keeps a constant offset (``frame - dark + pedestal``, still saturating):
     the background noise then stays symmetric instead of being cut at 0, so the noise level can

@@ -1,8 +1,8 @@
 """The dot search: window-mean peaks above the frame's noise, the greedy black-out, and the
 centroids, first on the ground view's window sums, then on the mirror image.
 
-Seed 003, "Finding the green dots": the square of a dot's size with the highest average, a
-threshold, then black out and look again.
+The ant-like STC paper (Srour & Abboud), "Finding the green dots": the square of a dot's size with
+the highest average, a threshold, then black out and look again.
 """
 
 from __future__ import annotations
@@ -23,7 +23,7 @@ from stcvision.stages.ground_view import UnwarpMap
 
 @dataclass(frozen=True, kw_only=True, slots=True)
 class DotParams:
-    """Dot search (seed 003, "Finding the green dots": the square of a dot's size with the
+    """Dot search (ant-like STC paper, "Finding the green dots": the square of a dot's size with the
     highest average, a threshold, then black out and look again).
 
     ``window_px``: side of the averaging square in mirror-image pixels (3 px: about a UV dot

@@ -1,5 +1,6 @@
-"""The heading: a line through the newest mark row's dots (seed 003, "Angle Detection"), and
-the turn-time recalibration from a measured turn ("Rotation and Calibration")."""
+"""The heading: a line through the newest mark row's dots (the ant-like STC paper of Srour &
+Abboud, "Angle Detection"), and the turn-time recalibration from a measured turn ("Rotation and
+Calibration")."""
 
 from __future__ import annotations
 
@@ -15,7 +16,8 @@ from stcvision.stages.dots import Dots
 
 @dataclass(frozen=True, kw_only=True, slots=True)
 class HeadingParams:
-    """Heading fit (seed 003, "Angle Detection": the newest three dots, a line through them).
+    """Heading fit (ant-like STC paper, "Angle Detection": the newest three dots, a line through
+    them).
 
     The newest mark is the brightest; its dots are the brightest dot and its lit neighbours
     within ``row_radius_m`` (a row of four UV dots spans 9 cm) that lie on one line with it
@@ -199,13 +201,13 @@ def recalibrate_turn(
     max_ratio: float = 1.25,
     tolerance_rad: float = math.radians(1.0),
 ) -> Recalibration:
-    """Seed 003, "Rotation and Calibration": in time T the robot turned d instead of 90
-    degrees, so the next turn gets ``T' = 90/d * T``, and a correction finishes this one.
+    """The ant-like STC paper, "Rotation and Calibration": in time T the robot turned d instead
+    of 90 degrees, so the next turn gets ``T' = 90/d * T``, and a correction finishes this one.
 
     Robust to a wild measurement: a non-positive or non-finite ``d`` is rejected (T kept), and
     ``T'/T`` is bounded to ``[1/max_ratio, max_ratio]`` (a Lego robot's rate drifts by a few
     per cent per turn, so a larger jump is a misreading, not the robot). Within
-    ``tolerance_rad`` no calibration is needed (seed: "If the robot has done the rotation
+    ``tolerance_rad`` no calibration is needed (the paper: "If the robot has done the rotation
     accurate enough, no calibration is needed").
     """
     if not (turn_time_s > 0 and math.isfinite(turn_time_s)):

@@ -22,11 +22,11 @@ def window_sums(image, window_px: int, *, scratch: Scratch = new_arrays) -> np.n
     pair of 8-bit images by a compiled pass (:func:`box3_pair`, bit for bit OpenCV's box filter
     and faster), into ``scratch`` (the next call lending the same scratch overwrites them).
 
-    Seed 003, "Finding the green dots": "we look for the square of pixels (of a dot's size)
-    that has the highest average value". Filtering once, in the mirror image where the pixels
-    are, and unwarping the sums keeps every photon of a dot and the noise of exactly
-    ``window_px**2`` pixels, wherever the dot lies (the unwarp would otherwise skip pixels near
-    the robot, where the ground view is coarser than the mirror image).
+    The ant-like STC paper (Srour & Abboud), "Finding the green dots": "we look for the square of
+    pixels (of a dot's size) that has the highest average value". Filtering once, in the mirror
+    image where the pixels are, and unwarping the sums keeps every photon of a dot and the noise of
+    exactly ``window_px**2`` pixels, wherever the dot lies (the unwarp would otherwise skip pixels
+    near the robot, where the ground view is coarser than the mirror image).
     """
     if isinstance(image, tuple):
         if len(image) != 2:

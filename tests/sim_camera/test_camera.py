@@ -122,7 +122,7 @@ def test_bright_red_lights_saturate_and_bloom(default_camera):
 
 
 def test_visibility_horizon_at_webcam_settings_is_about_a_minute(default_camera):
-    """Seed 003: the webcam saw a dot 'only in the first minute or so'."""
+    """The ant-like STC paper: the webcam saw a dot 'only in the first minute or so'."""
     h = visibility_horizon_s(default_camera)
     assert 45.0 <= h <= 90.0
     assert h < 120.0

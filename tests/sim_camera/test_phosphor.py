@@ -27,8 +27,8 @@ def test_afterglow_law_values_and_shape():
 
 
 def test_eye_sees_a_dot_after_ten_minutes():
-    # DIN 67510 perception limit of the dark-adapted eye: 0.3 mcd/m^2 (seed: "could be still
-    # seen by humans until after 10 minutes")
+    # DIN 67510 perception limit of the dark-adapted eye: 0.3 mcd/m^2 (ant-like STC paper: "could be
+    # still seen by humans until after 10 minutes")
     assert AfterglowLaw().luminance_cd_m2(600.0, 3.0) > 0.3e-3
 
 

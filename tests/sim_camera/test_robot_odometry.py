@@ -35,8 +35,8 @@ def test_drive_distance_done_and_blocked():
 
 
 def test_rotate_for_is_off_nominal_per_robot_and_drifts_with_battery():
-    """The 90-degree timed turn of the STC seed: the angle turned is the robot's true rate x
-    duration; rates differ per robot by up to +-10 % and fade with the battery."""
+    """The 90-degree timed turn of the ant-like STC paper: the angle turned is the robot's true
+    rate x duration; rates differ per robot by up to +-10 % and fade with the battery."""
     turn_s = (math.pi / 2) / LEGO_STC.nominal_turn_rate_rad_s
     assert 1.0 <= turn_s <= 2.0
     angles = []

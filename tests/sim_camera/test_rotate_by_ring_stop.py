@@ -36,8 +36,8 @@ def test_rotate_by_lands_on_the_odometric_angle_and_the_true_one_is_off_by_eb(pa
 
 def test_ring_stops_a_drive_about_1_5_cm_from_a_can():
     """TASTI 2 drives at a steel can (radius 36.5 mm): ``stop_when`` = the capacitive ring's
-    threshold halts it ~15 mm away (seed 001 sec. IV), status "stopped", no contact; without the
-    condition the same drive ends "blocked" against the can."""
+    threshold halts it ~15 mm away (TASTI 2 paper sec. IV), status "stopped", no contact; without
+    the condition the same drive ends "blocked" against the can."""
     can = CircleObstacle(center_m=(1.0, 0.0), radius_m=0.0365)
     arena = SquareArena(side_m=4.0, obstacles=(can,))
     for seed in range(3):

@@ -54,7 +54,7 @@ def test_ir_sees_wall_at_the_right_distance_and_side():
 
 def test_capacitive_ring_stops_tasti2_15mm_from_a_can():
     """TASTI 2 drives at a steel can and halts when the ring's signal crosses its threshold:
-    the gap between ring (radius 153 mm) and can is 1.5 cm (seed 001 sec. IV) within 3 mm."""
+    the gap between ring (radius 153 mm) and can is 1.5 cm (TASTI 2 paper sec. IV) within 3 mm."""
     can = CircleObstacle(center_m=(0.5, 0.0), radius_m=CapacitiveRingParams().reference_can_radius_m)
     world = World(SquareArena(side_m=2.0).with_parts(obstacles=(can,)), seed=0)
     r = world.add_robot(TASTI2, pose=(-0.4, 0.0, 0.0))

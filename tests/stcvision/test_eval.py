@@ -44,7 +44,7 @@ def test_smoke_generate_then_eval_gives_every_metric(evaluated):
     for k in METRICS:
         assert r[k] is not None, k
     assert r["frames"] == 6 and r["frames_skipped"] == 0
-    # the pipeline issue's goals, loosely (six frames): see the README's accuracy table
+    # the pipeline issue's goals, loosely (six frames): see docs/results/pipeline.md, "Accuracy"
     assert r["dot_recall"] >= 0.95 and r["dot_precision"] >= 0.98
     assert r["heading_err_deg_rms"] <= 0.6 and r["box_accuracy"] >= 0.95 and r["obstacle_accuracy"] >= 0.95
     assert set(r["by_exposure"]) == {"33.33 ms, gain 16", "250 ms, gain 8"}
@@ -198,7 +198,8 @@ def test_each_camera_is_read_with_its_own_workflow_profile(tmp_path, cli):
 
     code, out, _ = cli("eval", d, "--json", "--profile", default_profile_path())
     bad = json.loads(out)
-    # calibration matters: the shipped profile reads this mirror worse (README accuracy table)
+    # calibration matters: the shipped profile reads this mirror worse (docs/results/pipeline.md,
+    # "Accuracy")
     assert bad["dot_recall"] < own["dot_recall"]
     own_cam, bad_cam = own["by_camera"]["cam0"], bad["by_camera"]["cam0"]
     assert own_cam["profile"] == "profiles/cam0.json" and bad_cam["profile"] == "given"

@@ -1,4 +1,5 @@
-"""The five-box geometry: every mark position maps to the box of DESIGN.md's table."""
+"""The five-box geometry: every mark position maps to the box of the five-box table
+(docs/explanation/stc-geometry.md)."""
 
 import numpy as np
 import pytest

@@ -1,6 +1,6 @@
-"""The TASTI 2 search robot (seed 001): patterns against equations (1)-(2), the detour machine
-against equations (7)-(8) on an ideal kinematic executor, and closed-loop runs in the pymunk
-world (containment, determinism, simple vs improved shadow, the paper's move counts)."""
+"""The TASTI 2 search robot (the TASTI 2 paper by Russell): patterns against equations (1)-(2), the
+detour machine against equations (7)-(8) on an ideal kinematic executor, and closed-loop runs in the
+pymunk world (containment, determinism, simple vs improved shadow, the paper's move counts)."""
 
 import math
 
@@ -288,7 +288,8 @@ def test_the_03_m_obstacle_beside_the_petal_whole_flower(capsys):
 def test_physics_detours_round_large_obstacles(pattern, radius):
     """In the physics world (the ring, TASTI 2's odometry noise) round one obstacle of each large
     size at the middle place of the detour check: the pattern (cut at 60 steps) is done, no
-    contact. The measured rates over seeds are `stcvision search detours` (README)."""
+    contact. The measured rates over seeds are `stcvision search detours`
+    (docs/explanation/search.md)."""
     from controllers.search.experiments import DETOUR_PATTERNS, detour_obstacle, run_trial
 
     params = _cut(dict(DETOUR_PATTERNS)[pattern], 60)

@@ -37,8 +37,8 @@ def test_camera_mode_covers_random_boards_with_exposure_control(chunk):
 
 
 def test_webcam_exposure_fails_where_exposure_control_succeeds():
-    """The seed's limitation: at webcam settings marks fade (~67 s at 0.25 m, less farther
-    out) before the robot comes back to read them; a long second frame removes it."""
+    """The ant-like STC paper's limitation: at webcam settings marks fade (~67 s at 0.25 m, less
+    farther out) before the robot comes back to read them; a long second frame removes it."""
     board = Board.random((4, 4), obstacle_fraction=0.1, rng=np.random.default_rng(7))
     web = run_cover(board, CoverConfig(perception="camera", exposure="webcam", seed=3))
     auto = run_cover(board, CoverConfig(perception="camera", exposure="auto", seed=3))
@@ -252,7 +252,7 @@ def test_ideal_camera_sees_exactly_the_marks_within_the_horizon():
 
 def test_ideal_camera_bounds_what_any_pipeline_can_do():
     """The physics-limited camera spends the camera's time and sees what its frames could show
-    at all. On six 10x10 boards it reproduces the seed's limitation (at webcam settings the
+    at all. On six 10x10 boards it reproduces the paper's limitation (at webcam settings the
     first wrong decision within 15 minutes) and, with exposure control, covers every board."""
     for seed in range(6):
         board = Board.random((10, 10), obstacle_fraction=0.15, rng=np.random.default_rng(seed))
@@ -266,7 +266,7 @@ def test_ideal_camera_bounds_what_any_pipeline_can_do():
 
 
 def test_on_a_map_the_webcam_tour_outruns_its_marks_and_stops_before_deciding(peer_data):
-    """spiral_stc_test.png by the physics-limited camera with the seed's webcam sensor. Each
+    """spiral_stc_test.png by the physics-limited camera with the paper's webcam sensor. Each
     return to a cell reads marks as old as the tour so far, and each look at a child must rule
     out a mark as old as the tour in the child's far sub-cell (0.41 m away), so a longer tour
     needs longer frames, which lengthen the tour: it runs away. Frames sized one sigma above the

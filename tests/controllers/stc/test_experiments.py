@@ -185,8 +185,9 @@ def test_bad_input_is_one_line_and_writes_nothing(tmp_path, cli, two_maps):
 
 
 def test_readme_acceptance_commands_small(tmp_path, cli, peer_data):
-    """The README's two dependability commands, small: the three peer maps and the drawn random
-    boards, with the oracle's perception (the camera is not the point here: the plumbing is)."""
+    """The two dependability commands of docs/results/stc.md, small: the three peer maps and the
+    drawn random boards, with the oracle's perception (the camera is not the point here: the
+    plumbing is)."""
     maps = ",".join(str(peer_data / "pythonrobotics_maps" / f"spiral_stc_test{s}.png") for s in ("", "_2", "_3"))
     code, text, err = cli("cover", "sweep", "--maps", maps, "--runs", "1", "--cameras", "cooled,lowlight",
                           "--perceptions", "oracle", "--out", tmp_path / "D", "--workers", "1", "--json")  # fmt: skip
