@@ -88,9 +88,9 @@ se_rel <= ``rel_se``, with at least ``batches`` full bins; or at L2 = ``max_rati
 **What the scaling does not remove.** Wall-following packs both paths along the periphery
 (more crossings than uniform curves), an effect of perimeter / area that still grows in small
 nests, while the dead-time correction over-restores a denser trail. The coverage 0.13 is where
-the two cancel across 700-31,000 u^2 (measured: 0.07 and 0.15 leave opposite trends; README
-'Online visit lengths', measured with the second visit's estimate alone): a tuned constant of
-the robot, balanced rather than removed (the estimate of both visits,
+the two cancel across 700-31,000 u^2 (measured: 0.07 and 0.15 leave opposite trends;
+docs/results/buffon.md, "Online visit lengths", measured with the second visit's estimate alone): a
+tuned constant of the robot, balanced rather than removed (the estimate of both visits,
 :func:`controllers.buffon.estimate.online_area`, leaves less to balance: its factor is
 :data:`controllers.buffon.estimate.ONLINE_CORRECTION`). In a nest a few body lengths across
 the first visit is on its own trail most of the time and rule (1) cannot be met; it gives up
