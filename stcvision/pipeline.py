@@ -299,36 +299,11 @@ class Pipeline:
             "or a dark frame of other settings, not a dark-room frame at the dark frame's exposure"
         )
 
-    def process(
-        self,
-        frame: np.ndarray,
-        *,
-        dark: np.ndarray | None = None,
-        heading_error_rad: float | None = None,
-        position_offset: tuple[float, float] | None = None,
-    ) -> PipelineResult:
-        """Run every stage on one (H, W, 3) uint8 or uint16 BGR frame (a uint16 frame holds an
-        ADC's counts; the dark frame must have the frame's dtype).
-
-        ``heading_error_rad``: read the cell with this heading error instead of this frame's own
-        fit -- e.g. the fit of a short frame taken at the same pose, for a long one in which
-        every recent row saturates (the newest row is then no longer the brightest).
-        ``position_offset``: read the cell with the robot this far off its sub-cell centre
-        (:func:`stcvision.observation.observe_cell`) instead of where this frame's marks say.
-
-        Not re-entrant: one ``Pipeline`` per thread (the front end's scratch images are its own)."""
-        check_frame(frame)
-        self.profile.check_frame(frame.shape)
-        if dark is not None and dark is not self.dark:
-            self.set_dark(dark)
-        if self.dark is not None:
-            check_dark_dtype(self.dark, frame.dtype)
-        p = self.params
-        w = p.dots.window_px
-        area = w * w
-        times = StageTimes()
-        f = self.front.run(frame, self.scratch, times)
-        g, r, obstacle, marks, bg, noise, q = f.green, f.red, f.obstacle, f.marks, f.bg, f.noise, f.quantum
+    def _dots_and_rows(self, f, times: StageTimes):
+        """The dots and rows stages on the front end's output ``f``, each timed under its name:
+        (the dots, every dot with the rows' own); a lit room marks the reading untrusted."""
+        p, w = self.params, self.params.dots.window_px
+        marks, g, bg, noise, q = f.marks, f.green, f.bg, f.noise, f.quantum
         g2r = self.profile.ground_to_robot
         with times("dots"):
             dots = find_dots(  # robot-frame positions from the mirror-image centroids when they run
@@ -366,6 +341,39 @@ class Pipeline:
             lit = self._lit_frame(bg, noise)
             if lit and not all_dots.untrusted:
                 all_dots = dataclasses.replace(all_dots, untrusted=lit)
+        return dots, all_dots
+
+    def process(
+        self,
+        frame: np.ndarray,
+        *,
+        dark: np.ndarray | None = None,
+        heading_error_rad: float | None = None,
+        position_offset: tuple[float, float] | None = None,
+    ) -> PipelineResult:
+        """Run every stage on one (H, W, 3) uint8 or uint16 BGR frame (a uint16 frame holds an
+        ADC's counts; the dark frame must have the frame's dtype).
+
+        ``heading_error_rad``: read the cell with this heading error instead of this frame's own
+        fit -- e.g. the fit of a short frame taken at the same pose, for a long one in which
+        every recent row saturates (the newest row is then no longer the brightest).
+        ``position_offset``: read the cell with the robot this far off its sub-cell centre
+        (:func:`stcvision.observation.observe_cell`) instead of where this frame's marks say.
+
+        Not re-entrant: one ``Pipeline`` per thread (the front end's scratch images are its own)."""
+        check_frame(frame)
+        self.profile.check_frame(frame.shape)
+        if dark is not None and dark is not self.dark:
+            self.set_dark(dark)
+        if self.dark is not None:
+            check_dark_dtype(self.dark, frame.dtype)
+        p = self.params
+        w = p.dots.window_px
+        area = w * w
+        times = StageTimes()
+        f = self.front.run(frame, self.scratch, times)
+        g, r, obstacle, marks = f.green, f.red, f.obstacle, f.marks
+        dots, all_dots = self._dots_and_rows(f, times)
         with times("red"):
             wide = None if f.wide_obstacle is None else (f.wide_obstacle, self.front.wide_profile.ground_to_robot)
             lights = read_red(
