@@ -107,15 +107,15 @@ def shows_tour_row(ru: np.ndarray, lit: np.ndarray, centre) -> bool:
     return bool((on.sum(axis=0) >= LANDING_DOTS).any())
 
 
-#: a row's dots span this along it (sub-cell sides): three of the four LEDs' dots at least
+#: a row of the LEDs' dots spans this along it (sub-cell sides): three of the four LEDs' dots at least
 #: (0.375 at 16 cm), all four at most (0.5625), with the dots' read-out error either side
-ROW_SPAN = (0.3, 0.7)
+LED_ROW_SPAN = (0.3, 0.7)
 
 
 def shows_row(ru: np.ndarray, lit: np.ndarray, centre) -> bool:
     """Whether the lit dots ``ru`` (cell units) inside the cell centred at ``centre`` show a row
     of the robot's LEDs, wherever it lies: at least :data:`stcvision.observation.LANDING_DOTS`
-    dots within :data:`ON_LINE` of one line along either axis, spanning :data:`ROW_SPAN` along
+    dots within :data:`ON_LINE` of one line along either axis, spanning :data:`LED_ROW_SPAN` along
     it. A noise peak, two dots or a bloom show none. Unlike :func:`shows_tour_row` it asks
     nothing of where the row lies: for a frame read where the robot believes it stands, whose
     rows may lie several centimetres off their lines."""
@@ -126,8 +126,8 @@ def shows_row(ru: np.ndarray, lit: np.ndarray, centre) -> bool:
         for a in across:
             near = np.sort(along[np.abs(across - a) < ON_LINE])
             for k in range(len(near) - LANDING_DOTS + 1):
-                run = near[k:][near[k:] - near[k] <= ROW_SPAN[1]]
-                if len(run) >= LANDING_DOTS and run[-1] - run[0] >= ROW_SPAN[0]:
+                run = near[k:][near[k:] - near[k] <= LED_ROW_SPAN[1]]
+                if len(run) >= LANDING_DOTS and run[-1] - run[0] >= LED_ROW_SPAN[0]:
                     return True
     return False
 

@@ -550,7 +550,7 @@ class RobotCamera(Exposures):
         self.refits = 0  # frames read again against the cell's own marks (:meth:`_on_cell_lines`)
         self.unproven = 0  # decisions' neighbours read marked by dots showing no tour's row (:meth:`_neighbour_rows`)
         self._doubted: set[int] = set()
-        self.relooked = 0  # looks taken again for dots on no line of the cell ahead (:meth:`_look_again`)
+        self.relooked = 0  # looks taken again for dots in no row in the cell ahead (:meth:`_look_again`)
         self.last_image = None  # the last frame shot (read again by :meth:`_on_cell_lines`)
         from controllers.stc.health import NoiseCheck
 
@@ -654,7 +654,7 @@ class RobotCamera(Exposures):
             obs = dataclasses.replace(stc_observation(r.observation), other_marks=off_line)
             return self._neighbour_rows(r, obs), dt
 
-        self._doubted: set[int] = set()  # (this decision's only: at most the four neighbours)
+        self._doubted = set()  # (this decision's only: at most the four neighbours)
         obs, dt = self.decision(t_s, read, fresh, at_start, start_cell)
         self.unproven += sum(not obs.neighbours[d].has_marks for d in self._doubted)
         return obs, res[0], (res[-1] if len(res) > 1 else None), dt
@@ -671,7 +671,7 @@ class RobotCamera(Exposures):
         doubt = [d for d, n in enumerate(obs.neighbours) if n.has_marks and not n.has_red]
         if not doubt:
             return obs
-        ru, lit = self._dots(res)
+        ru, lit = self._dots(res, res.observation.position_offset)
         neigh = list(obs.neighbours)
         for d in doubt:
             if not shows_tour_row(ru, lit, 2 * np.asarray(DIRECTIONS[d])):
@@ -679,14 +679,13 @@ class RobotCamera(Exposures):
                 self._doubted.add(d)
         return dataclasses.replace(obs, neighbours=tuple(neigh))
 
-    def _dots(self, res, offset=...) -> tuple[np.ndarray, np.ndarray]:
-        """A result's dots in cell units as the pipeline read its cell: rotated by its heading
-        and shifted by ``offset`` (default: the offset it read the boxes with), and which are lit."""
+    def _dots(self, res, offset) -> tuple[np.ndarray, np.ndarray]:
+        """A result's dots in cell units, rotated by its heading and shifted by ``offset`` (the
+        robot's offset from its sub-cell centre, cell units; None: not shifted), and which are lit."""
         from controllers.stc.cellfit import frame_dots
 
         ru, lit = frame_dots(res, self.pipe.geometry)
-        off = res.observation.position_offset if offset is ... else offset
-        return (ru + np.asarray(off) if off is not None else ru), lit
+        return (ru + np.asarray(offset) if offset is not None else ru), lit
 
     def _on_cell_lines(self, res):
         """Localisation against the cell's own marks (:mod:`controllers.stc.cellfit`): where the

@@ -199,7 +199,7 @@ def _summary(board, cfg, robot: Robot, referee, end: LoopEnd, *, wall_s: float) 
         "frames": see.frames,
         "long_exposures": see.long_frames,
         # the floor's checks (camera): neighbours read marked by dots showing no tour's row,
-        # looks taken again for dots on no line, returns read again for a box near its reach
+        # looks taken again for dots in no row, returns read again for a box near its reach
         "neighbours_unproven": getattr(cam, "unproven", 0),
         "relooked": getattr(cam, "relooked", 0),
         "returns_reread": getattr(cam, "reread_old", 0),

@@ -2,7 +2,7 @@
 named so that it can be looked up (docs/reference/references.md).
 
 * No tracked text file names a source paper by its input file name, calls a paper "seed 00N",
-  or points at ``DESIGN.md`` or ``../shared``: files a clone does not hold.
+  or points at the design notes or the shared folder beside the repository: files a clone does not hold.
 * A citation of a page's section in the code -- ``README "Commands"``,
   ``docs/explanation/stc-robot.md, "Red lights as landmarks"`` -- names a heading of that page
   or the bold lead of one of its paragraphs (the explanation pages' sections); a quotation of a
@@ -33,7 +33,7 @@ SKIP_DIRS = {".venv", ".git", "site", "build", "dist", "node_modules", "__pycach
 FORBIDDEN = {
     "the input file name of a source paper (cite it by title and authors)": re.compile(r"\b00[0-3]_[0-9a-f]{16}\b"),
     'a source paper called a "seed" (say paper; seed means a random seed)': re.compile(r"\b[Ss]eed 00[0-3]\b"),
-    "DESIGN.md, a file outside the repository (cite the docs page that holds it)": re.compile(r"\bDESIGN\.md\b"),
+    "the design notes, a file outside the repository (cite the docs page that holds it)": re.compile(r"\bDESIGN\.md\b"),
     "a path outside the repository": re.compile(r"\.\./shared\b"),
 }
 
