@@ -91,6 +91,7 @@ RUN_FIELDS = (
     "neighbours_unproven",
     "relooked",
     "returns_reread",
+    "boxes_disputed",
     "start_marks_by_count",
     "offsets_left_out",
     "robot_memory_bytes",

@@ -228,3 +228,39 @@ def test_an_unlit_box_at_a_return_near_its_frames_reach_is_read_with_the_next_lo
     assert frames(clock, True) == [0]  # a fresh cell, read empty: nothing to miss
     lit = (False, False, False, True, False)
     assert frames(1.0, False) == [0] and cam.reread_old == before + 1  # the short frame reaches 1 s at any SNR
+
+
+def test_a_box_a_short_frame_reads_lit_and_a_longer_one_unlit_is_read_again():
+    """At one pose a longer frame sees every mark a shorter one can. A box only a shorter frame
+    read lit is read once more at that frame's rung and taken from it: a row of noise (not there
+    again) is dropped, a mark the longer frame missed (there again) is kept. A box every frame
+    agrees on, or one only the longer frame reads lit, takes no extra frame."""
+    from controllers.stc.frames import Exposures
+    from sim_camera.hardware import load_camera
+
+    cam = Exposures(CoverConfig(exposure="auto", camera=load_camera("cooled")))
+    clock = cam.horizon(0, distance_m("box 2", cam.subcell_m, cam.cfg.position_margin_m)) * 1.5  # needs rung 1
+    none = (NeighbourObs(False, False),) * 4
+
+    def decide(per_frame):
+        taken: list[int] = []
+
+        def read(k, t):
+            boxes = per_frame(k, len(taken))
+            taken.append(k)
+            return StcObservation(boxes=boxes, neighbours=none, start_mark=None), 1.0
+
+        obs, _ = cam.decision(clock, read, fresh=False, at_start=False)
+        return obs.boxes, taken
+
+    four, three_four = (False, False, False, True, False), (False, False, True, True, False)
+    before = cam.disputed
+    # the short frame's row of noise at box 3: not in the 2 s frame, nor in the short frame again
+    boxes, taken = decide(lambda k, i: three_four if i == 0 else four)
+    assert boxes == four and taken[-1] == 0 and len(taken) == 3 and cam.disputed == before + 1
+    # a mark the longer frame missed shows again in the short frame: kept
+    boxes, taken = decide(lambda k, i: four if (k > 0 and i == 1) else three_four)
+    assert boxes == three_four and cam.disputed == before + 2
+    # only the longer frame sees box 3 (an older mark): nothing disputed, no extra frame
+    boxes, taken = decide(lambda k, i: three_four if k > 0 else four)
+    assert boxes == three_four and len(taken) == 2 and cam.disputed == before + 2
