@@ -33,7 +33,9 @@ class Belief:
     it stands off the sub-cell's centre (world, m), from its localisation, ``fix`` how sure
     it is of it and ``bearing`` how sure of its heading (:mod:`controllers.stc.localise`);
     ``realigned_rad`` how far it turned towards the grid (:func:`realign`) since it laid its
-    newest row, which was laid that much askew of the heading it now has."""
+    newest row, which was laid that much askew of the heading it now has;
+    ``unmeasured_turns`` its quarter turns (left +1, right -1) since the last one a row
+    measured (:func:`finish_turn`)."""
 
     sub: tuple[int, int]
     hc: int
@@ -42,6 +44,7 @@ class Belief:
     fix: Fix = field(default_factory=lambda: Fix.placed(0.0))
     bearing: Bearing = field(default_factory=Bearing.unknown)
     realigned_rad: float = 0.0
+    unmeasured_turns: int = 0
 
     @classmethod
     def at_start(
@@ -71,16 +74,31 @@ def turn(plant, belief: Belief, left: bool) -> None:
 def finish_turn(plant, belief: Belief, left: bool, heading_err_rad: float | None) -> None:
     """The ant-like STC paper's recalibration after a turn, from the heading error measured after
     it: what the turn really did updates the turn time the robot believes, then the robot turns
-    back by the error."""
+    back by the error.
+
+    A turn no row measured (``heading_err_rad`` None: no row in view, as after the start's
+    turns, whose start mark lies under the robot) keeps its error, and every row laid after it
+    carries that error, which later turns, measured on those rows, keep. Those turns were timed
+    like the next measured one and erred as it did (a rate off nominal), so that turn's error
+    times the unmeasured turns' net count (left +1, right -1: ``Belief.unmeasured_turns``) is
+    taken out too, and the newest row is that much askew of the heading (17x17 board, seed 2708:
+    the first three turns unmeasured, 2.6 degrees left in the heading and in every row, which
+    pulled it back whenever a red light set it right, until the robot was 7.7 cm off and lost)."""
     from stcvision.stages import recalibrate_turn
 
+    sign = 1 if left else -1
     if heading_err_rad is None:
+        belief.unmeasured_turns += sign
         return
-    turned = math.pi / 2 + (1.0 if left else -1.0) * heading_err_rad
+    turned = math.pi / 2 + sign * heading_err_rad
     rec = recalibrate_turn(belief.turn_s, turned)
+    # a measurement the recalibration clips is a misreading: nothing of it goes to other turns
+    bias = belief.unmeasured_turns * sign * heading_err_rad if rec.accepted and not rec.clipped else 0.0
+    belief.unmeasured_turns = 0
     if rec.accepted:
         belief.turn_s = rec.turn_time_s
-    plant.rotate_by(-heading_err_rad, belief.turn_s)
+    plant.rotate_by(-heading_err_rad - bias, belief.turn_s)
+    belief.realigned_rad -= bias
 
 
 def realign(plant, belief: Belief, rad: float) -> None:

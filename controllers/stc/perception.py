@@ -213,6 +213,7 @@ class CameraPerception(_TakesFrames):
         lights = self._lights_rotation(res.observation)
         if lights is not None:  # the heading's absolute reference, as sure as their spread
             belief.bearing.lights(res.observation.landmark_rotation_sigma_rad)
+            belief.unmeasured_turns = 0  # (measured against the grid, any turn's error included)
         if not res.heading.ok:
             # no newest row to fit: the red lights, when they are sure enough, else the newest
             # row of a 2 s frame (a turn left uncorrected leaves the next cell read askew)

@@ -184,13 +184,15 @@ class Recalibration:
 
     ``turn_time_s``: time to command for the next 90-degree turn; ``correction_s``: signed
     extra rotation time (negative = rotate back) to complete this one; ``accepted``: the
-    measurement was used; ``reason``: why not, or what bound applied.
+    measurement was used; ``reason``: why not, or what bound applied; ``clipped``: the ratio
+    was bounded (the measurement is more likely a misreading than the robot).
     """
 
     turn_time_s: float
     correction_s: float
     accepted: bool
     reason: str = ""
+    clipped: bool = False
 
 
 def recalibrate_turn(
@@ -219,8 +221,9 @@ def recalibrate_turn(
         return Recalibration(turn_time_s, 0.0, True, "within tolerance")
     ratio = target_rad / d
     reason = ""
-    if ratio > max_ratio or ratio < 1 / max_ratio:
+    clipped = ratio > max_ratio or ratio < 1 / max_ratio
+    if clipped:
         reason = f"ratio {ratio:.2f} clipped to the +-{(max_ratio - 1) * 100:.0f} % bound"
         ratio = min(max(ratio, 1 / max_ratio), max_ratio)
     # finishing this turn takes (target - d) / (d / T) = T (ratio - 1): bounded with the ratio
-    return Recalibration(turn_time_s * ratio, float(turn_time_s * (ratio - 1.0)), True, reason)
+    return Recalibration(turn_time_s * ratio, float(turn_time_s * (ratio - 1.0)), True, reason, clipped)

@@ -107,3 +107,36 @@ def test_the_start_cell_takes_its_start_mark_from_the_count_when_the_frames_miss
     assert got.misread.startswith("misread: a start mark in sub-cell 1, where the count of moves puts the start at 2")
     got, n = read(None, (-3, -1))  # two sub-cells on: another cell
     assert got.start_mark is None and not got.misread and n == 0
+
+
+@pytest.mark.parametrize("turns", [(True, False, False), (False,), (True, True), ()])
+def test_turns_no_row_measured_are_taken_out_at_the_first_measured_turn(turns):
+    """Turns timed with a turn time 3 % short, none measured (no row in view), then a right turn
+    measured against the newest row, laid after them: the heading ends on the grid, not on that
+    row, and the row is known to be askew by what the
+    unmeasured turns left (``realigned_rad``)."""
+    import math
+
+    import numpy as np
+
+    from controllers.stc.belief import Belief, finish_turn, turn
+    from controllers.stc.plant import Plant
+    from sim_camera.board import Board
+    from sim_camera.robot import LEGO_STC_ROBOT
+    from stcvision.angles import wrap_angle
+
+    board = Board(np.zeros((4, 4), bool), (3, 1))
+    plant = Plant(board, LEGO_STC_ROBOT, np.random.default_rng(0))
+    belief = Belief.at_start(board, 0.97 * (math.pi / 2) / plant.true_rate(0.0))
+    for left in turns:
+        turn(plant, belief, left)
+        finish_turn(plant, belief, left, None)
+    left_over = plant.heading_error(belief.hc)  # what the unmeasured turns left, in every row laid now
+    assert abs(left_over) == pytest.approx(abs(sum(1 if x else -1 for x in turns)) * 0.03 * math.pi / 2, rel=0.01)
+    row = plant.hdg  # a row laid here
+    turn(plant, belief, False)
+    finish_turn(plant, belief, False, wrap_angle(plant.hdg + math.pi / 2 - row))  # measured against the row
+    # (to 0.05 degrees: the motors' rate fades a little from turn to turn)
+    assert plant.heading_error(belief.hc) == pytest.approx(0.0, abs=math.radians(0.05))
+    assert belief.realigned_rad == pytest.approx(-left_over, abs=math.radians(0.05))
+    assert belief.unmeasured_turns == 0
