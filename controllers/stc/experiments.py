@@ -92,6 +92,7 @@ RUN_FIELDS = (
     "relooked",
     "returns_reread",
     "boxes_disputed",
+    "start_marks_dropped",
     "start_marks_by_count",
     "offsets_left_out",
     "robot_memory_bytes",

@@ -178,6 +178,7 @@ class Exposures:
         self.agreed = 0  # returns' boxes taken by two longer frames' agreement (:meth:`_check_return`)
         self.reread_old = 0  # returns read again for an unlit box near its frames' reach (:meth:`_check_old_boxes`)
         self.disputed = 0  # boxes one frame read lit and a longer one unlit, read again (:meth:`_check_disputed`)
+        self.starts_dropped = 0  # start marks read outside the start cell, dropped (:meth:`_check_start_away`)
 
     #: the distances (m) at which each rung's horizon is tabulated once (1 cm steps, read at
     #: the next step out: never longer than the truth)
@@ -465,14 +466,22 @@ class Exposures:
         cell is a row read at a start-mark line that is not its own (spiral_stc_test_2 lowlight
         seed 209: the short and the 4 s frame, read at the pipeline's offset 1 cm off the truth,
         put a row on sub-cell 3's start-mark line; the 4 s frame read again against the cell's
-        own rows did not, but the merge kept the start mark), and the boxes read with it are
-        suspect too. It is read once more with a frame
+        own rows did not, but the merge kept the start mark). It is read once more with a frame
         one rung longer than any taken: when that frame and a second at its rung agree on a
-        reading without the start mark, the robot decides on it; otherwise it says why
-        (``StcObservation.misread``) and stops before deciding. Returns (reading, seconds)."""
+        reading without the start mark, the robot decides on it. Otherwise, with the cell's rows
+        on their lines (no other marks: the offset the boxes were read at is the cell's), the
+        count being sure, the row is another cell's laid off its line, and the start mark is
+        dropped (spiral_stc_test_3 lowlight seed 2060: a neighbour's row laid about 2 cm low,
+        read on sub-cell 1's start-mark line by the 4 s and the 8 s frame; the robot stood
+        0.5 cm off); the boxes read with it face the checks after this one. With rows of the
+        cell off the lines it says why (``StcObservation.misread``) and the robot stops before
+        deciding. Returns (reading, seconds)."""
         settled, merged, dt, k = self._longer_agreed(t_s, read, obs, dt, taken, lambda m: m.start_mark is None)
         if settled is not None:
             return settled, dt
+        if not merged.other_marks:
+            self.starts_dropped += 1
+            return dataclasses.replace(merged, start_mark=None), dt
         why = (
             f"misread: a start mark in sub-cell {obs.start_mark} where the robot's count of its moves puts it "
             f"outside its start cell, also with a {self.frame_label(k)} frame"

@@ -200,11 +200,13 @@ def _summary(board, cfg, robot: Robot, referee, end: LoopEnd, *, wall_s: float) 
         "long_exposures": see.long_frames,
         # the floor's checks (camera): neighbours read marked by dots showing no tour's row,
         # looks taken again for dots in no row, returns read again for a box near its reach,
-        # boxes a short frame read lit and a longer one unlit, read again
+        # boxes a short frame read lit and a longer one unlit, read again, start marks read
+        # where the count puts the robot outside its start cell, dropped
         "neighbours_unproven": getattr(cam, "unproven", 0),
         "relooked": getattr(cam, "relooked", 0),
         "returns_reread": getattr(cam, "reread_old", 0),
         "boxes_disputed": getattr(cam, "disputed", 0),
+        "start_marks_dropped": getattr(cam, "starts_dropped", 0),
         "start_marks_by_count": robot.start_marks_by_count,
         "offsets_left_out": belief.fix.rejected,
         "move_log": cfg.move_log,

@@ -546,18 +546,27 @@ def test_a_start_mark_away_from_the_start_is_read_again_and_settled_or_stopped_o
     start": the short and the 4 s frame, read at an offset 1 cm off, put a row on a start-mark
     line; the 4 s frame read against the cell's own rows did not, but the merge kept the mark.
     Now the robot, whose count of its moves puts it outside its start cell, reads the cell with
-    a longer frame: two at that rung agreeing on no start mark settle it; a longer frame still
-    showing the mark, or two that disagree, stop it before it decides."""
+    a longer frame: two at that rung agreeing on no start mark settle it. A longer frame still
+    showing the mark, or two that disagree, with the cell's rows on their lines: the count is
+    sure, so the row is another cell's and the mark is dropped, the merged boxes kept
+    (spiral_stc_test_3 lowlight seed 2060). With rows of the cell off the lines the robot stops
+    before it decides."""
+    import dataclasses
+
     from controllers.stc.frames import Exposures
 
     seen, cam = _reading(3, 2, 4), Exposures(CoverConfig())
-    for longer, settled in (([_reading(None, 2, 4)] * 2, True), ([_reading(3, 2, 4)], False),
-                            ([_reading(None, 2, 4), _reading(None, 4)], False)):  # fmt: skip
+    off_lines = dataclasses.replace(_reading(3, 2, 4), other_marks=4)
+    for first, longer, settled in ((seen, [_reading(None, 2, 4)] * 2, "agreed"), (seen, [_reading(3, 2, 4)], "dropped"),
+                                   (seen, [_reading(None, 2, 4), _reading(None, 4)], "dropped"),
+                                   (off_lines, [off_lines], None)):  # fmt: skip
         read, reads = _frames(longer)
-        obs, _ = cam._check_start_away(0.0, read, seen, 0.0, [(0, 0.0), (2, 0.0)])
+        dropped = cam.starts_dropped
+        obs, _ = cam._check_start_away(0.0, read, first, 0.0, [(0, 0.0), (2, 0.0)])
         assert len(reads) == len(longer) and set(reads) == {3}, longer
         if settled:
             assert obs.misread == "" and obs.start_mark is None and obs.boxes == _reading(None, 2, 4).boxes
+            assert cam.starts_dropped == dropped + (settled == "dropped")
         else:
             assert obs.misread.startswith("misread: a start mark in sub-cell 3 where the robot's count"), obs
 
