@@ -1,8 +1,8 @@
 """The house's import rules (docs/architecture.md), read from the source: no import circle
 between the project's modules, the pipeline imports no simulator, robot or calibration code, the
 simulator takes from the pipeline only what cannot let their errors cancel, the robots' rooms do
-not import each other, and no module (nor script of docs/) imports another module's private
-name. Function-level (lazy) imports count like top-level ones."""
+not import each other, and no module (nor script of docs/ or tests/tools/) imports another
+module's private name. Function-level (lazy) imports count like top-level ones."""
 
 import ast
 from collections import defaultdict
@@ -236,12 +236,13 @@ def test_the_private_name_finder_finds_them(tmp_path):
 
 
 def test_no_module_imports_another_modules_private_name():
-    """Every installed module and every script of docs/: a name another module uses is public
-    (no leading underscore), so a module's private names can change without breaking others."""
+    """Every installed module and every script of docs/ and tests/tools/: a name another module
+    uses is public (no leading underscore), so a module's private names can change without
+    breaking others."""
     found = []
     for pkg in PACKAGES:
         for path in (ROOT / pkg).rglob("*.py"):
             found += _private_imports(path, _module_name(path))
-    for path in sorted((ROOT / "docs").glob("*.py")):
-        found += _private_imports(path, f"docs.{path.stem}")
+    for path in sorted([*(ROOT / "docs").rglob("*.py"), *(ROOT / "tests" / "tools").glob("*.py")]):
+        found += _private_imports(path, ".".join(path.relative_to(ROOT).with_suffix("").parts))
     assert sorted(set(found) - PRIVATE_IMPORTS_ALLOWED) == []

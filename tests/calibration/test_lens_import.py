@@ -326,7 +326,7 @@ def test_synthetic_camera_through_ocamcalib_matches_the_own_calibration():
     from pathlib import Path
 
     root = Path(__file__).resolve().parents[2]
-    spec = importlib.util.spec_from_file_location("lens_formats", root / "docs" / "lens_formats.py")
+    spec = importlib.util.spec_from_file_location("lens_formats", root / "docs" / "measurements" / "lens_formats.py")
     mod = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(mod)
     own, ocam = mod.table(("ocamcalib",))

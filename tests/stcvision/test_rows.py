@@ -47,7 +47,7 @@ def _box_reads(sensor, age_s, n, seed, off_rows=NO_ROWS, **scene_kw):
 
 def test_rows_read_marks_too_old_for_single_dots():
     # webcam frames, every mark 100 s old: the single-dot search reads ~1 box in 15, the row
-    # search ~6 in 10 (measured 28/47 vs 3/47 here, 30/44 vs 1/44 with docs/row_gain.py),
+    # search ~6 in 10 (measured 28/47 vs 3/47 here, 30/44 vs 1/44 with docs/measurements/row_gain.py),
     # and neither reads an empty box
     cam = SyntheticCamera()
     marked, on, off, false_lit = _box_reads(cam.sensor, 100.0, 16, seed=11, box_prob=0.5)

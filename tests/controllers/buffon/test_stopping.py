@@ -261,11 +261,11 @@ def test_trial_interval_carries_the_coverage_slopes_error():
 
 
 def _docs_script(name: str):
-    """docs/NAME.py (a results page's measurement script), loaded as a module."""
+    """docs/measurements/NAME.py (a results page's measurement script), loaded as a module."""
     import importlib.util
     from pathlib import Path
 
-    path = Path(__file__).resolve().parents[3] / "docs" / f"{name}.py"
+    path = Path(__file__).resolve().parents[3] / "docs" / "measurements" / f"{name}.py"
     spec = importlib.util.spec_from_file_location(name, path)
     mod = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(mod)
@@ -273,7 +273,7 @@ def _docs_script(name: str):
 
 
 def test_heldout_family_script_runs_resumes_and_rescores(tmp_path, capsys):
-    """docs/buffon_heldout.py (the held-out measurement of the results page) on its first nest,
+    """docs/measurements/buffon_heldout.py (the held-out measurement of the results page) on its first nest,
     two trials: it stores the raw trials, and a rescore of the store prints the same table."""
     mod = _docs_script("buffon_heldout")
     assert len(mod.family(tmp_path / "n", 7100)) == 44
@@ -337,7 +337,7 @@ def test_calibration_recovers_a_planted_coverage_slope():
 
 
 def test_heldout_script_calibration_mode_prints_the_factor(tmp_path, capsys, monkeypatch):
-    """docs/buffon_heldout.py --calibration on a shrunk calibration family (two small nests, three
+    """docs/measurements/buffon_heldout.py --calibration on a shrunk calibration family (two small nests, three
     trials): it stores the trials and prints calibrate_online's factor and spreads."""
     import json
 
@@ -353,7 +353,7 @@ def test_heldout_script_calibration_mode_prints_the_factor(tmp_path, capsys, mon
 
 
 def test_mixing_choice_script_measures_the_rule_on_a_shrunk_family(tmp_path, capsys, monkeypatch):
-    """docs/buffon_mixing_choice.py (the results page's measurements behind the mixing test) on
+    """docs/measurements/buffon_mixing_choice.py (the results page's measurements behind the mixing test) on
     two small nests, two trials, one setting: it prints the per-nest table and writes every
     figure, the coverage-alone row first."""
     import json
@@ -375,7 +375,7 @@ def test_mixing_choice_script_measures_the_rule_on_a_shrunk_family(tmp_path, cap
 
 
 def test_weight_check_rule_keeps_the_shipped_weight_when_a_group_undercovers(tmp_path, capsys):
-    """docs/buffon_weight_check.py on synthetic stores (ten round nests and one of each other group,
+    """docs/measurements/buffon_weight_check.py on synthetic stores (ten round nests and one of each other group,
     at each seed set): two of the ellipse's twelve first visits read 1.8 times the truth, so no
     weight covers that group and the rule keeps the shipped weight (which it leaves set); with the
     ellipse as steady as the others every weight is eligible and the lowest RMS error wins."""
@@ -427,7 +427,7 @@ def test_weight_check_rule_keeps_the_shipped_weight_when_a_group_undercovers(tmp
 
 
 def test_coverage_response_script_prints_a_row_per_forced_coverage(capsys):
-    """docs/buffon_coverage_response.py (the results page's measurement of how the estimates
+    """docs/measurements/buffon_coverage_response.py (the results page's measurement of how the estimates
     grow with the reading coverage) runs on one small nest, two trials, and prints one row per
     forced coverage with a positive estimate."""
     mod = _docs_script("buffon_coverage_response")

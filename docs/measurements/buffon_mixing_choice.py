@@ -2,7 +2,7 @@
 the measurements behind its form and its two constants, on the calibration family only
 (``controllers.buffon.online.calibration_family``, nest i with seed ``--seed + i``).
 
-    python docs/buffon_mixing_choice.py --out DIR [--trials 8] [--seed 9100]
+    python docs/measurements/buffon_mixing_choice.py --out DIR [--trials 8] [--seed 9100]
 
 1. *Why a bound on the swings' size, the term a and the later half.* Each trial's first visit is
    run with the first-visit rule of coverage alone (``max_coverage`` = ``coverage``) and its

@@ -4,7 +4,7 @@ bits): rim centre error against the optics' true rim, and the grid corners' grou
 error out to 0.9 m (true image point -> profile -> floor), over the perturbed mirrors of
 ``tests/test_calibration.py``:
 
-    python docs/calibration_depth.py [--mirrors 4]
+    python docs/measurements/calibration_depth.py [--mirrors 4]
 
 Prints a markdown table (docs/explanation/calibration.md, "12- and 16-bit lights-on frames").
 """

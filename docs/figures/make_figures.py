@@ -1,7 +1,7 @@
-"""Regenerate the documentation's figures: ``python docs/make_figures.py`` (inside .venv).
+"""Regenerate the documentation's figures: ``python docs/figures/make_figures.py`` (inside .venv).
 
-``frame_and_lights_on.png``: a rendered dark-room frame beside the lights-on frame of the same
-pose (the README's picture). ``figures/pipeline_stages.png``: the same frame through the
+``docs/frame_and_lights_on.png``: a rendered dark-room frame beside the lights-on frame of the same
+pose (the README's picture). ``docs/figures/pipeline_stages.png``: the same frame through the
 pipeline's stages (the explanation page "The vision pipeline, stage by stage").
 """
 
@@ -12,7 +12,9 @@ import numpy as np
 
 from sim_camera.scene import EXAMPLE_SCENE, Scene
 
-HERE = Path(__file__).parent
+#: the figures folder (this script's own) and the docs folder above it, where the README's picture lives
+FIGURES = Path(__file__).resolve().parent
+DOCS = FIGURES.parent
 
 
 def main() -> None:
@@ -25,9 +27,9 @@ def main() -> None:
     shown = cv2.convertScaleAbs(cv2.subtract(frame, dark), alpha=6.0)  # 6x brighter to be seen
     crop = (slice(16, 464), slice(96, 544))  # the mirror
     pair = np.hstack([shown[crop], np.full((448, 8, 3), 255, np.uint8), lit[crop]])
-    cv2.imwrite(str(HERE / "frame_and_lights_on.png"), pair)
-    print("wrote", HERE / "frame_and_lights_on.png")
-    stages_figure(frame, dark, HERE / "figures" / "pipeline_stages.png")
+    cv2.imwrite(str(DOCS / "frame_and_lights_on.png"), pair)
+    print("wrote", DOCS / "frame_and_lights_on.png")
+    stages_figure(frame, dark, FIGURES / "pipeline_stages.png")
 
 
 def stages_figure(frame: np.ndarray, dark: np.ndarray, path: Path) -> None:

@@ -7,7 +7,8 @@ K) and the log slope of their weighted mean (``controllers.buffon.estimate``, 'R
 coverage'). The nests are the calibration family's circles; nest i, coverage j runs with seed
 ``--seed + 10 i + j`` on ``--threads`` threads (the results do not depend on them).
 
-    python docs/buffon_coverage_response.py [--trials 32] [--seed 11] [--nests circle:60,circle:100,circle:160]
+    python docs/measurements/buffon_coverage_response.py [--trials 32] [--seed 11] \\
+        [--nests circle:60,circle:100,circle:160]
 """
 
 from __future__ import annotations

@@ -1,13 +1,13 @@
 """Measure how fast a command stops on a signal, and whether any of its processes outlive it.
 
-    python docs/signal_latency.py WAIT_FILE MIN_LINES SIGNAL -- COMMAND...
+    python docs/measurements/signal_latency.py WAIT_FILE MIN_LINES SIGNAL -- COMMAND...
 
 Starts COMMAND in its own session, waits (polling) until WAIT_FILE has MIN_LINES lines (e.g. a
 sweep store with a finished task: header + 1), sends SIGNAL (SIGINT, SIGTERM, or SIGKILL to the
 parent alone), and prints the exit status, the seconds it took, the lines of WAIT_FILE then (the
 finished tasks kept) and the processes of the session still alive a moment later. E.g.
 
-    python docs/signal_latency.py D/sweep.jsonl 2 SIGINT -- \\
+    python docs/measurements/signal_latency.py D/sweep.jsonl 2 SIGINT -- \\
         stcvision cover sweep --sizes 3,4 --runs 2 --out D --workers 2
 """
 

@@ -3,13 +3,14 @@
 ``stcvision`` on the path) and compares, frame by frame, the ``to_dict`` output plus every
 candidate dot's position and SNR, the red blobs' areas and (with ``--pose``) the pose estimates.
 
-    python docs/pipeline_identity.py --other /path/to/other/checkout DATASET [DATASET ...] [--pose]
+    python tests/tools/pipeline_identity.py --other /path/to/other/checkout DATASET [DATASET ...] [--pose]
 
-Prints how many frames differ and the first differences; exit code 1 if any differ. Used for the
-pipeline's speed-ups and for splitting it into one module per stage, each bit-identical on the
-ages, rotation and obstacles sets, except the heading fit's closed form (``--rtol 1e-9``: every
-decision, count, flag and string the same, every number within that relative difference; the
-largest one found is printed)."""
+Prints how many frames differ and the first differences; exit code 1 if any differ. A check for
+a change to the pipeline that should not change what it reads (a speed-up, a module split): run
+it on the ages, rotation and obstacles sets against a checkout from before the change. With
+``--rtol R`` every decision, count, flag and string must still be the same and every number
+within R relative (the largest difference found is printed): for a change that reorders
+floating-point arithmetic. Not collected by pytest: it needs a second checkout."""
 
 from __future__ import annotations
 
@@ -21,7 +22,7 @@ import sys
 import tempfile
 from pathlib import Path
 
-HERE = Path(__file__).resolve().parents[1]
+HERE = Path(__file__).resolve().parents[2]  # this checkout's root
 
 
 def dump(datasets: list[str], out: str, pose: bool) -> None:

@@ -2,8 +2,8 @@
 the whole over ``--frames`` frames (after a warm-up), ``--repeats`` times. Run it for another
 checkout with that checkout on the path, alternating with this one so a busy host slows both:
 
-    python docs/stage_times.py [--frames 1000] [--repeats 2] [--seed 0]
-    PYTHONPATH=/path/to/other python /path/to/other/docs/stage_times.py   # or this file
+    python docs/measurements/stage_times.py [--frames 1000] [--repeats 2] [--seed 0]
+    PYTHONPATH=/path/to/other python /path/to/other/docs/measurements/stage_times.py   # or this file
 
 Used for the per-stage table (docs/results/pipeline.md, "Speed"); ``stcvision bench`` is the benchmark.
 """

@@ -1,11 +1,11 @@
-"""How much older marks the faint-row search reads: ``python docs/row_gain.py EXPOSURE_S GAIN AGES``.
+"""How much older marks the faint-row search reads: ``python docs/measurements/row_gain.py EXPOSURE_S GAIN AGES``.
 
 Renders 20 random STC entry situations per age (every mark that age, ``cell_scene`` with box
 probability 0.5 and neighbour-mark probability 0.6, seed 5) at the given exposure and gain,
 with a matching dark frame, and counts the marked boxes read lit with the full row search,
 with its free search only (``RowParams(anchored=False)``) and without it
 (``RowParams(enabled=False)``), the unmarked boxes read lit, and the neighbours' marks read.
-Example: ``python docs/row_gain.py 8 4 1500,2500,3500,5000,7000``.
+Example: ``python docs/measurements/row_gain.py 8 4 1500,2500,3500,5000,7000``.
 """
 
 import sys

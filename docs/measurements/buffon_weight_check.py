@@ -1,7 +1,7 @@
 """The online estimate's weight chosen by a rule stated in advance, on the calibration family only.
 
 For each weight w, the coverage slope, factor and spreads are calibrated at w on one store of the calibration
-family (``docs/buffon_heldout.py --calibration``, seeds 9100 + i), as they would ship. The
+family (``docs/measurements/buffon_heldout.py --calibration``, seeds 9100 + i), as they would ship. The
 per-trial intervals they give are scored on the same 20 nests' trials at two seed sets: the store
 itself (seeds 9100+) and the calibration rows of a ``stcvision buffon online --trials 12`` store
 (seeds 0 + the row's position), by nest group: round (open circles and squares, the short
@@ -13,7 +13,7 @@ group, the two seed sets pooled; of the eligible weights the one with the lowest
 single trials about the truth (the factor of the 9100+ store, both seed sets pooled) is chosen;
 if none is eligible the shipped weight stays. Candidates 0.3, 0.4 and 0.5 unless given.
 
-    python docs/buffon_weight_check.py CAL_DIR/calibration.jsonl ONLINE_DIR/sweep.jsonl [W ...]
+    python docs/measurements/buffon_weight_check.py CAL_DIR/calibration.jsonl ONLINE_DIR/sweep.jsonl [W ...]
 
 prints two markdown tables (accuracy; per-trial coverage by group), the single trials' spread
 about their nest's median by group, and the rule's choice.

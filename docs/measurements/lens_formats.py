@@ -3,7 +3,7 @@ as an OCamCalib, OpenCV omnidir (Mei + radtan), Kalibr double-sphere and EUCM fi
 back with ``stcvision calibrate import`` (the flags ``export`` prints) and its floor error measured
 against the renderer's truth (ray-traced spherical mirror), beside the toolkit's own calibration:
 
-    python docs/lens_formats.py [--out-dir DIR]
+    python docs/measurements/lens_formats.py [--out-dir DIR]
 
 Prints a markdown table (docs/explanation/calibration.md, "Profiles from other tools"). The
 spherical mirror has no single viewpoint, so every central model is an approximation of it; what the

@@ -7,12 +7,12 @@ The family (44 nests, 2,000-30,000 u^2, shares no nest with the calibration fami
 nests with barriers, eight concave polygons (L, U, T) and ten random simple polygons whose shapes
 come from ``--shape-seed``. Nest i runs its trials with seed ``--seed + i``, on one thread.
 
-    python docs/buffon_heldout.py --out DIR [--trials 12] [--seed 7300] [--shape-seed 7100] [--nests N]
+    python docs/measurements/buffon_heldout.py --out DIR [--trials 12] [--seed 7300] [--shape-seed 7100] [--nests N]
 
 writes DIR/heldout.jsonl (every trial's raw measurements, so that a changed estimator can be
 scored again without running the robots: ``--rescore``) and prints the markdown table.
 
-    python docs/buffon_heldout.py --calibration --out DIR [--trials 12] [--seed 9100]
+    python docs/measurements/buffon_heldout.py --calibration --out DIR [--trials 12] [--seed 9100]
 
 runs the calibration family instead (``controllers.buffon.online.calibration_family``, nest i
 with seed ``--seed + i``) into DIR/calibration.jsonl and prints what
