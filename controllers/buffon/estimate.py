@@ -69,7 +69,7 @@ compiled loop measured on the same circles, not kept), and a short
 trail's count carries more of the start's neighbourhood and of the path's own recent loops.
 Measured with the coverage forced (``coverage = max_coverage``, 32 trials a nest, the calibration
 family's circles of 60, 100 and 160 u, before the factor K;
-``python docs/buffon_coverage_response.py``): A1 reads 1.01-1.04 of
+``python docs/measurements/buffon_coverage_response.py``): A1 reads 1.01-1.04 of
 the truth at 0.13, 1.11-1.19 at 0.18 and 1.21-1.39 at 0.24, A2 1.09-1.11, 1.14-1.23 and
 1.21-1.34; from 0.13 to 0.18 the log of their weighted mean rises 1.6-2.7 per unit of coverage.
 The first visit stops at 0.13 once its trail has mixed, later (up to 0.18) when it has not, so
@@ -157,21 +157,21 @@ CORRECTION_REFERENCE = "circle:100"
 
 # The online estimate's log is this share of the second visit's Buffon estimate and the rest of
 # the first visit's self-crossing estimate, both dead-time corrected (module doc). Chosen on the
-# calibration family (20 nests x 12 trials, `python docs/buffon_heldout.py --calibration --seed
+# calibration family (20 nests x 12 trials, `python docs/measurements/buffon_heldout.py --calibration --seed
 # 9100`), with the first visit's mixing test: the RMS log error about the truth was 0.0448 at 0.2,
 # 0.0442 at 0.3, 0.0449 at 0.4, 0.0470 at 0.5, 0.0503 at 0.6, 0.072 with the second visit alone;
 # at 0.3 the spread of the nests' median biases (the shape bias, which more trials do not remove)
 # is also the smallest, 0.018 (0.019-0.021 at 0.2 and 0.4-0.6), and the worst nest's median error
 # 6.9 % (6.8-7.5 % at the others). Once the first visit waits for its trail to mix, its estimate
 # no longer reads low in nests split into compartments and is the steadier one. Checked again by a
-# rule fixed before it was applied (`python docs/buffon_weight_check.py`: of 0.3-0.5, the weights
+# rule fixed before it was applied (`python docs/measurements/buffon_weight_check.py`: of 0.3-0.5, the weights
 # whose per-trial intervals hold >= 95 % in every group of calibration nests at two seed sets, the
 # lowest RMS error): none qualifies (the compartment nests hold 94.8 % at each), so 0.3 stays.
 ONLINE_SECOND_WEIGHT = 0.3
 
 # The online rule's calibration (controllers.buffon.online.calibration_family: CALIBRATION_NESTS,
 # CALIBRATION_POLYGONS and CALIBRATION_COMPARTMENTS, 20 nests x 12 trials, nest i with seed 9100 + i,
-# the estimate of online_area; `python docs/buffon_heldout.py --calibration --out DIR --seed 9100`
+# the estimate of online_area; `python docs/measurements/buffon_heldout.py --calibration --out DIR --seed 9100`
 # prints these; `stcvision buffon online` recomputes them at its own seeds): measured, then held fixed.
 # the log estimate's pooled within-nest slope on the first visit's reading coverage (module doc,
 # 'Read at one coverage'): measured 1.73, standard error 0.12

@@ -50,7 +50,7 @@ reaches 0.2), so waiting for ever would trade one bias for another.
 Why not a test of significance, and why the term a: the robot's encounters are not Poisson about
 any smooth rate even in an open nest (the path lingers along its own trail and comes back to its
 recent loops). Measured on the calibration family at rho = 0.13 (8 trials a nest,
-``docs/buffon_mixing_choice.py``): the Poisson dispersion X^2 / (m - 1) about a rate proportional
+``docs/measurements/buffon_mixing_choice.py``): the Poisson dispersion X^2 / (m - 1) about a rate proportional
 to l alone (b only, all bins) had medians of 2.9-42 over the 16 nests without compartments, so a
 chi-square test rejects mixing in every nest at any level, and more often the larger the nest
 (more encounters). The spread s is the size of the swings, not their significance. The rate is
