@@ -33,7 +33,7 @@ from calibration.frames import geometry_frame
 from calibration.rim import RimFit, detect_rim
 from stcvision.errors import BadInputError
 from stcvision.profile import CORNER_ORDER, Profile, nominal_corners_px
-from stcvision.stcgrid import DEFAULT_SUBCELL_M
+from stcvision.stc_geometry import DEFAULT_SUBCELL_M
 
 __all__ = ["TransformReport", "calibrate_neighbors", "calibrate_transform", "draw_preview", "grid_corners_m"]
 

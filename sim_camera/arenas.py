@@ -42,7 +42,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from stcvision.errors import BadInputError
-from stcvision.stcgrid import DEFAULT_SUBCELL_M
+from stcvision.stc_geometry import DEFAULT_SUBCELL_M
 
 __all__ = [
     "Arena",

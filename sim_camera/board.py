@@ -29,12 +29,12 @@ from pathlib import Path
 import numpy as np
 
 from stcvision.errors import MapError
-from stcvision.stcgrid import DEFAULT_SUBCELL_M
+from stcvision.stc_geometry import DEFAULT_SUBCELL_M
 
 __all__ = ["DEFAULT_SUBCELL_M", "Board"]
 
 # DEFAULT_SUBCELL_M (re-exported here, the board's default sub-cell side) is defined once, in
-# stcvision.stcgrid, because the calibration profile's default needs it too and stcvision may not
+# stcvision.stc_geometry, because the calibration profile's default needs it too and stcvision may not
 # import the simulator.
 
 _TEXT_CHARS = {".": False, "#": True, "S": False}

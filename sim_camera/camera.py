@@ -1,6 +1,6 @@
 """The synthetic catadioptric camera: renders the phosphor floor and red lights into noisy
 mirror images at the sensor's ADC depth (uint8 for 8 bits, uint16 ADC counts for more:
-:mod:`sim_camera.sensor`), with ground truth.
+:mod:`sim_camera.image_sensor`), with ground truth.
 
 Build once, render many: :class:`SyntheticCamera` traces every pixel onto the floor once
 (:func:`sim_camera.optics.trace_pixels`) and draws its fixed-pattern noise once; per frame only
@@ -20,7 +20,7 @@ Rendering
 * Sources that overflow the full well bloom (``bloom_fraction`` of the excess charge spreads
   over a few pixels) and carry veiling glare (``glare_fraction`` of their light over tens of
   pixels); both are added around each such source only.
-* The sensor (:mod:`sim_camera.sensor`) adds dark current, fixed pattern, noise, colour
+* The sensor (:mod:`sim_camera.image_sensor`) adds dark current, fixed pattern, noise, colour
   response and crosstalk, saturation, and quantises to its ADC's depth; every frame, dark
   frame and lights-on frame of a camera has the sensor's dtype.
 """
@@ -34,8 +34,8 @@ import numpy as np
 from llvmlite import ir
 from numba.extending import intrinsic
 
+from sim_camera.image_sensor import ROSE_SNR, FixedPattern, SensorParams, detection_snr, expose
 from sim_camera.optics import FloorProjector, MirrorCameraParams, RayTable, trace_pixels
-from sim_camera.sensor import ROSE_SNR, FixedPattern, SensorParams, detection_snr, expose
 
 __all__ = [
     "Frame",
@@ -423,7 +423,7 @@ class SyntheticCamera:
         """Render one dark-room frame (phosphor dots + red lights) at sim time ``t_s``.
 
         ``n_avg`` > 1 renders the average of that many frames taken back to back from ``t_s``
-        (frame stacking; :func:`sim_camera.sensor.expose`), the scene as it is at the middle of
+        (frame stacking; :func:`sim_camera.image_sensor.expose`), the scene as it is at the middle of
         the stack: the marks a long stack must read are hundreds of seconds old or more and fade
         by a few per cent over it, and the fresh ones saturate in every frame anyway.
 

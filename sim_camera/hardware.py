@@ -1,6 +1,6 @@
 """Hardware profiles: cameras and marking robots as named presets and as versioned JSON.
 
-A **camera** profile sets the sensor's physics in :class:`sim_camera.sensor.SensorParams`: the
+A **camera** profile sets the sensor's physics in :class:`sim_camera.image_sensor.SensorParams`: the
 quantum efficiency at the phosphor's ~520 nm, read noise, dark current at its operating
 temperature, pixel pitch, full well and the lens f-number (the optics' geometry, the fixed
 pattern's shape, the colour responses and the exposure/gain settings the robot chooses stay the
@@ -22,7 +22,7 @@ A camera file may set any other ``SensorParams`` field too; unknown keys and oth
 versions are refused with a one-line reason (:class:`stcvision.errors.BadInputError`).
 
 ``adc_bits`` is the sensor's (:attr:`SensorParams.adc_bits`): frames are sensor-true, uint8 for an
-8-bit ADC and uint16 ADC counts for 12 or 16 bits (:mod:`sim_camera.sensor`); the coverage loop
+8-bit ADC and uint16 ADC counts for 12 or 16 bits (:mod:`sim_camera.image_sensor`); the coverage loop
 chooses each frame's gain from the sensor's own noise
 (:func:`controllers.stc.frames.sensor_gain`).
 """
@@ -33,8 +33,8 @@ import dataclasses
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from sim_camera.image_sensor import SensorParams
 from sim_camera.robot import LEGO_STC_ROBOT, MarkingRobot
-from sim_camera.sensor import SensorParams
 from stcvision.errors import BadInputError
 
 __all__ = [
@@ -70,7 +70,7 @@ class CameraProfile:
         return self.sensor.adc_bits
 
 
-_WEBCAM_SRC = "sim_camera/sensor.py defaults: typical of small-pixel consumer CMOS, not one datasheet"
+_WEBCAM_SRC = "sim_camera/image_sensor.py defaults: typical of small-pixel consumer CMOS, not one datasheet"
 WEBCAM = CameraProfile(
     name="webcam",
     description="the STC paper's cheap wireless webcam in the dark (OmniVision OV7725 class VGA CMOS, 4.7 mm f/2.0)",
@@ -82,7 +82,7 @@ WEBCAM = CameraProfile(
         ("dark_current_e_s", f"40 e-/s at room temperature; {_WEBCAM_SRC}"),
         ("pixel_pitch_m", "6.0 um: OmniVision OV7725 datasheet (pixel size 6.0 um x 6.0 um)"),
         ("full_well_e", f"20,000 e-; {_WEBCAM_SRC}"),
-        ("f_number", "f/2.0: a 4.7 mm webcam lens (assumed, sim_camera/sensor.py)"),
+        ("f_number", "f/2.0: a 4.7 mm webcam lens (assumed, sim_camera/image_sensor.py)"),
         ("adc_bits", "8: what a consumer webcam delivers (8-bit YUV/JPEG; the OV7725's raw output is 10-bit)"),
     ),
 )

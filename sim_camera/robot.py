@@ -225,7 +225,7 @@ class DiffDriveRobot:
         self.record_trail = record_trail
         self.trail: list[tuple[float, float]] = [(float(pose[0]), float(pose[1]))]
         self.distance_travelled_m = 0.0  # true path length of the centre
-        self.sensors = None  # set by World.add_robot (sim_camera.sensors.SensorSuite)
+        self.sensors = None  # set by World.add_robot (sim_camera.robot_sensors.SensorSuite)
 
         self.mode = MotionMode.IDLE
         self._cmd = (0.0, 0.0)

@@ -18,9 +18,9 @@ import numpy as np
 
 from sim_camera.board import DEFAULT_SUBCELL_M, Board
 from sim_camera.camera import Pose, SyntheticCamera
+from sim_camera.image_sensor import SensorParams
 from sim_camera.optics import MirrorCameraParams
 from sim_camera.phosphor import AfterglowLaw, PhosphorLayer, mark_dots_m
-from sim_camera.sensor import SensorParams
 from stcvision.errors import BadInputError
 
 __all__ = ["EDGES", "EXAMPLE_SCENE", "Scene"]
@@ -37,7 +37,7 @@ EXAMPLE_SCENE = {
         "along one edge (N/E/S/W), age_s seconds after its charge_s-second charge ended. dots: "
         "single dots at x_m/y_m. red_lights: 'board' (obstacle cells + border ring), a list of "
         "[x_m, y_m], or false. camera/sensor/afterglow: overrides of "
-        "sim_camera.optics.MirrorCameraParams, sim_camera.sensor.SensorParams, "
+        "sim_camera.optics.MirrorCameraParams, sim_camera.image_sensor.SensorParams, "
         "sim_camera.phosphor.AfterglowLaw. pattern_seed: the camera's fixed-pattern noise."
     ),
     "board": {

@@ -171,7 +171,7 @@ class World:
         self.space.add(robot.body, robot.shape)
         self.robots.append(robot)
         if sensors:
-            from sim_camera.sensors import SensorSuite
+            from sim_camera.robot_sensors import SensorSuite
 
             robot.sensors = SensorSuite(self, robot)
         return robot

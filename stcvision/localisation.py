@@ -17,7 +17,7 @@ import numba
 import numpy as np
 
 from stcvision.profile import ROBOT_IN_CELL
-from stcvision.stcgrid import DEFAULT_SUBCELL_M
+from stcvision.stc_geometry import DEFAULT_SUBCELL_M
 
 __all__ = [
     "LIGHT_OUTLIER_CHI2",

@@ -1,6 +1,6 @@
 """The per-cell observation the ant-like STC controller consumes.
 
-Geometry: :mod:`stcvision.stcgrid` (the entry frame, sub-cells 0..3, the five boxes, the
+Geometry: :mod:`stcvision.stc_geometry` (the entry frame, sub-cells 0..3, the five boxes, the
 start mark; shared with the controller).
 
 Where the cells are in the ground view comes from the profile's neighbours calibration (the 12
@@ -24,7 +24,7 @@ import numpy as np
 from stcvision.localisation import landmark_pose, rotate_about_robot
 from stcvision.profile import CORNER_ORDER
 from stcvision.stages.compiled import fma64
-from stcvision.stcgrid import BOXES, DIRECTIONS, NEIGHBOURS, START_MARKS, SUBCELLS, VISITED_BY
+from stcvision.stc_geometry import BOXES, DIRECTIONS, NEIGHBOURS, START_MARKS, SUBCELLS, VISITED_BY
 
 __all__ = [
     "BOXES",
@@ -46,11 +46,11 @@ __all__ = [
 LANDING_DOTS = 3
 _LANDING_HALF = 0.44
 
-# sub-cell of a point by its quadrant: [right, up] -> index (from stcgrid.SUBCELLS, built once)
+# sub-cell of a point by its quadrant: [right, up] -> index (from stc_geometry.SUBCELLS, built once)
 _SUB_OF_QUADRANT = np.full((2, 2), -1, np.int64)
 for _k, (_sr, _su) in SUBCELLS.items():
     _SUB_OF_QUADRANT[int(_sr > 0), int(_su > 0)] = _k
-# box of a dot by [sub-cell, edge right + 1, edge up + 1] (stcgrid.BOXES; the start marks, box
+# box of a dot by [sub-cell, edge right + 1, edge up + 1] (stc_geometry.BOXES; the start marks, box
 # -m, along sub-cell m's exterior edge m), built once: one look-up per dot instead of a mask per box
 _BOX_OF = np.zeros((4, 3, 3), np.int64)
 for _b, (_k, (_er, _eu)) in BOXES.items():

@@ -44,7 +44,7 @@ from typing import Any
 import numpy as np
 
 from stcvision.errors import ProfileError
-from stcvision.stcgrid import DEFAULT_SUBCELL_M
+from stcvision.stc_geometry import DEFAULT_SUBCELL_M
 
 __all__ = ["CORNER_ORDER", "SCHEMA_VERSION", "Profile", "nominal_corners_px"]
 

@@ -19,7 +19,7 @@ SIM_MAY_IMPORT = {
     "stcvision.fileio": None,
     "stcvision.limits": None,
     "stcvision.angles": None,
-    "stcvision.stcgrid": {"DEFAULT_SUBCELL_M"},
+    "stcvision.stc_geometry": {"DEFAULT_SUBCELL_M"},
 }
 
 

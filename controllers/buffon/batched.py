@@ -10,7 +10,7 @@ crossings. The trials of an experiment are independent worlds, so robots never m
 One step of one robot, in the order of the pymunk path (:mod:`controllers.buffon.pymunk_path`):
 
 1. six IR ray casts from the rim (:func:`sim_camera.fastworld.ray_cast`), the Khepera response
-   :func:`sim_camera.sensors.ir_response` plus Gaussian noise, clipped to [0, 1];
+   :func:`sim_camera.robot_sensors.ir_response` plus Gaussian noise, clipped to [0, 1];
 2. the behaviour of sec. 3.2 (:func:`controllers.buffon.behaviour.explorer_core`, the same source
    as the scalar controller) gives the wheel speeds;
 3. the wheels move the body as :class:`sim_camera.robot.DiffDriveRobot` does (true wheel
@@ -57,7 +57,7 @@ from sim_camera.fastworld import (
     stamp_segment,
 )
 from sim_camera.robot import KHEPERA, DiffDriveParams
-from sim_camera.sensors import IrParams
+from sim_camera.robot_sensors import IrParams
 from stcvision.errors import BadInputError
 
 __all__ = [
@@ -214,7 +214,7 @@ def _ir_reading(d, sat, rng_m, noise):
 
 @numba.njit(cache=True, nogil=True, inline="always")
 def _read_ir(ir, x, y, th, irg, geo, ir_cos, ir_sin, radius, ir_sat, ir_range, ir_sigma):
-    """The six IR rays from the rim (sim_camera.sensors.IrSensors) into ``ir``, their noise from
+    """The six IR rays from the rim (sim_camera.robot_sensors.IrSensors) into ``ir``, their noise from
     the IR stream ``irg`` (one draw per ray, in ray order)."""
     caps, ox, oy, cell, ny, nx, offsets, index = geo
     lo, hi = cell_span(x, y, ox, oy, cell, ny, nx, offsets)
@@ -282,7 +282,7 @@ def _visit(st, beh, irg, slip, steps, grid, lay, geo, outer, trail, prm, ir_ang,
     turn = 0.0  # trail-aware exploration: the turn away from the old trail under way (+1 left, -1 right)
     recording = rec.shape[0] > 0
     for s in range(steps):
-        # 1. six IR rays from the rim (sim_camera.sensors.IrSensors), noise from their stream
+        # 1. six IR rays from the rim (sim_camera.robot_sensors.IrSensors), noise from their stream
         _read_ir(ir, x, y, th, irg, geo, ir_cos, ir_sin, radius, ir_sat, ir_range, ir_sigma)
         # 2. the behaviour of sec. 3.2 (the scalar controller's own equations)
         n = -noise + 2.0 * noise * beh.random()

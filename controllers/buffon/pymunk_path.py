@@ -2,8 +2,8 @@
 
 The same trial as :mod:`controllers.buffon.batched`, built from the substrate's parts: the
 :class:`sim_camera.world.World` with real contacts, a :data:`~sim_camera.robot.KHEPERA` body, its
-pymunk IR ray casts (:class:`sim_camera.sensors.IrSensors`), the raster
-:class:`sim_camera.layers.PheromoneLayer` and :class:`sim_camera.sensors.PheromoneDetector`, and
+pymunk IR ray casts (:class:`sim_camera.robot_sensors.IrSensors`), the raster
+:class:`sim_camera.layers.PheromoneLayer` and :class:`sim_camera.robot_sensors.PheromoneDetector`, and
 the scalar controller :class:`controllers.buffon.behaviour.Explorer`. It is ~100x slower; it is
 what the batched path is a model of (``stcvision buffon compare`` tests them against each other).
 
@@ -24,7 +24,7 @@ from controllers.buffon.behaviour import Explorer
 from controllers.buffon.counter import LeakyIntegrator
 from controllers.buffon.nests import BODY_LENGTH_M, Nest
 from sim_camera.layers import PheromoneLayer
-from sim_camera.sensors import SensorSuite
+from sim_camera.robot_sensors import SensorSuite
 from sim_camera.world import World
 
 __all__ = ["run_trial_pymunk", "run_trials_pymunk"]

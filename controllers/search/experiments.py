@@ -18,7 +18,7 @@ from controllers.search.metrics import summarise
 from controllers.search.patterns import RadialPattern, SpiralPattern
 from controllers.search.run import SearchScene, run_search
 from controllers.search.scenarios import FIG6_OBSTACLE, FIG7_OBSTACLE, FIG13_CAN, PAPER_PATCH
-from sim_camera.sensors import CapacitiveRingParams
+from sim_camera.robot_sensors import CapacitiveRingParams
 
 __all__ = [
     "DETOUR_PATTERNS",

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from controllers.search.patterns import SpiralPattern
 from sim_camera.layers import TASTI2_SALT_PATCH_DIAMETER_M
-from sim_camera.sensors import CapacitiveRingParams
+from sim_camera.robot_sensors import CapacitiveRingParams
 
 __all__ = ["FIG6_OBSTACLE", "FIG7_OBSTACLE", "FIG13_CAN", "PAPER_PATCH", "paper_spiral"]
 

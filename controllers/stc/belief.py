@@ -17,9 +17,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from controllers.stc.geometry import start_heading, step_from, turned
+from controllers.stc.grid import start_heading, step_from, turned
 from controllers.stc.localise import Bearing, Fix
-from stcvision.stcgrid import entry_axes
+from stcvision.stc_geometry import entry_axes
 
 __all__ = ["Belief", "align_along", "drive_forward", "finish_turn", "lay_row", "recentre", "realign", "turn"]
 

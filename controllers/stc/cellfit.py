@@ -10,7 +10,7 @@ nothing absolute measured) read its cell's rows of an hour before against its ne
 of five minutes before, took the median (~0), and read boxes 2 and 4 as marks at no box at all.
 
 At a decision, though, the cell's marks can lie only on the box and start-mark lines
-(:data:`stcvision.stcgrid.BOX_EDGES`, :data:`~stcvision.stcgrid.START_MARKS`; the oracle's
+(:data:`stcvision.stc_geometry.BOX_EDGES`, :data:`~stcvision.stc_geometry.START_MARKS`; the oracle's
 ``box_table_violations`` is zero on every tour), and along each axis those lines stand 0.75 of a
 sub-cell apart within a half of the cell (a row's extent says which half). So the offset that
 puts the cell's rows on those lines is found well beyond the rows' inset (the search keeps to
@@ -30,7 +30,7 @@ from functools import cache
 import numpy as np
 
 from stcvision.observation import LANDING_DOTS, MARK_INSET, ROW_TOL, rotate_about_robot, row_orientation
-from stcvision.stcgrid import BOX_EDGES, DIRECTIONS, START_MARKS, SUBCELLS
+from stcvision.stc_geometry import BOX_EDGES, DIRECTIONS, START_MARKS, SUBCELLS
 
 __all__ = ["CellFit", "fit_cell_offset", "mark_lines", "shows_row", "shows_tour_row", "tour_lines"]
 

@@ -11,7 +11,7 @@ longer frames until each claim is covered by a frame whose horizon there reaches
 (:func:`read_until_sure`), or stops with :class:`OutOfSight` saying which claim, where, how old
 the marks may be and how far its longest frame sees there.
 
-The distances come from the one STC geometry (:mod:`stcvision.stcgrid`) and the LED row
+The distances come from the one STC geometry (:mod:`stcvision.stc_geometry`) and the LED row
 (:data:`sim_camera.phosphor.LED_OFFSETS_M`, the row's inset from the sub-cell's edge): for a mark,
 the distance of the ``n``-th nearest of its four dots, ``n`` being the dots the vision needs
 before it counts a mark (:class:`stcvision.observation.ObservationParams`: 2 in a box or a cell,
@@ -26,7 +26,7 @@ from functools import cache
 
 import numpy as np
 
-from stcvision.stcgrid import BOX_EDGES, DIRECTIONS, START_MARKS, SUBCELLS
+from stcvision.stc_geometry import BOX_EDGES, DIRECTIONS, START_MARKS, SUBCELLS
 
 __all__ = [
     "Claim",

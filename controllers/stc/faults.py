@@ -304,7 +304,7 @@ class FaultyCamera:
     def render(self, pose, *, rng, t_s: float = 0.0, phosphor=None, red_lights_m=None, sensor=None, n_avg: int = 1,
                **kw):  # fmt: skip
         from sim_camera.camera import RED_LIGHT_CD_M2, Frame
-        from sim_camera.sensor import expose
+        from sim_camera.image_sensor import expose
 
         f, rngs = self._f.faults, self._f.rngs
         s = self._noisy(sensor)

@@ -14,7 +14,7 @@
   ones); any other sensor takes at each rung the lowest gain at which its frame's temporal dark
   noise spans :data:`NOISE_DN` DN (:func:`sensor_gain`: from the sensor's read noise and dark
   current, EMVA 1288 and the astronomer's rule of thumb), its frames digitised at its own ADC
-  depth (16-bit frames for a 12- or 16-bit camera: :mod:`sim_camera.sensor`).
+  depth (16-bit frames for a 12- or 16-bit camera: :mod:`sim_camera.image_sensor`).
 * :class:`RobotCamera`: render -> pipeline, one pipeline per exposure setting.
 * :class:`IdealCamera`: the physics-limited camera, the same frames and time, but it sees
   exactly the marks within the frames' visibility horizon.
@@ -31,7 +31,7 @@ from controllers.stc.config import CoverConfig
 from controllers.stc.fsm import NeighbourObs, StcObservation
 from controllers.stc.oracle import MarkFloor, landing_oracle, look_oracle, observe_oracle
 from sim_camera.board import DEFAULT_SUBCELL_M
-from stcvision.stcgrid import DIRECTIONS, NEIGHBOURS
+from stcvision.stc_geometry import DIRECTIONS, NEIGHBOURS
 
 __all__ = [
     "AUTO_LONG",
@@ -137,7 +137,7 @@ def sensor_gain(sensor, exposure_s: float, n_avg: int, webcam_gain: float) -> fl
     sensor) keeps the ladder's own gains (``webcam_gain``: the paper's 16x and the long frames' 4x),
     so its frames are exactly what they were. A robot setting from the sensor's figures, not
     the world."""
-    from sim_camera.sensor import SensorParams
+    from sim_camera.image_sensor import SensorParams
 
     web = SensorParams()
     if sensor.replace(exposure_s=web.exposure_s, gain=web.gain) == web:

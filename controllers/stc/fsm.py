@@ -3,7 +3,7 @@ algorithm") as a pure O(1)-memory finite-state machine (no physics, no camera);
 :mod:`controllers.stc.oracle` runs it on a grid against the truth.
 
 The geometry (entry frame, sub-cells 0..3, directions 0 right 1 forward 2 left 3 back) is
-:mod:`controllers.stc.geometry`'s.
+:mod:`controllers.stc.grid`'s.
 
 Marking: just before every forward move the robot marks the sub-cell it leaves on its rear edge
 (the edge opposite the direction of travel). The five-box table of the STC geometry
@@ -76,7 +76,7 @@ import enum
 from dataclasses import dataclass
 from typing import NamedTuple
 
-from stcvision.stcgrid import VISITED_BY
+from stcvision.stc_geometry import VISITED_BY
 
 __all__ = [
     "Action",

@@ -30,8 +30,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from controllers.stc.geometry import COMPASS_VEC, behind, cell_of, frame_compass, frame_subcells, step_from
-from stcvision.stcgrid import BOX_EDGES
+from controllers.stc.grid import COMPASS_VEC, behind, cell_of, frame_compass, frame_subcells, step_from
+from stcvision.stc_geometry import BOX_EDGES
 
 __all__ = ["MoveCount", "MoveLog"]
 

@@ -14,7 +14,7 @@ from __future__ import annotations
 import numpy as np
 
 from controllers.stc.fsm import Action, LookObs, NeighbourObs, StcObservation, StcPhase, initial_state, step
-from controllers.stc.geometry import (
+from controllers.stc.grid import (
     BOXES,
     COMPASS_NAMES,
     COMPASS_VEC,
@@ -27,7 +27,7 @@ from controllers.stc.geometry import (
     turned,
 )
 from controllers.stc.robot import act
-from stcvision.stcgrid import START_MARKS
+from stcvision.stc_geometry import START_MARKS
 
 __all__ = ["MarkFloor", "coverage", "landing_oracle", "look_oracle", "observe_oracle", "run_oracle"]
 

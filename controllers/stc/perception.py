@@ -40,7 +40,7 @@ from controllers.stc.health import RobotStop
 from controllers.stc.localise import LIGHTS_WIDE_SIGMA_M, LIGHTS_WIDE_SPREAD, MARKS_SIGMA_M
 from controllers.stc.oracle import landing_oracle, look_oracle, observe_oracle
 from controllers.stc.plant import Floor, Plant
-from stcvision.stcgrid import entry_axes
+from stcvision.stc_geometry import entry_axes
 
 #: the newest row's lean at a decision or a look beyond which the robot turned on its own since
 #: it laid the row (a turn's recalibration leaves ~0.25 degrees): it is turned back

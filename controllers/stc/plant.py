@@ -24,10 +24,10 @@ import math
 
 import numpy as np
 
-from controllers.stc.geometry import behind, cell_of, compass_to_rad, start_heading, step_from
+from controllers.stc.grid import behind, cell_of, compass_to_rad, start_heading, step_from
 from controllers.stc.oracle import MarkFloor
 from stcvision.angles import wrap_angle
-from stcvision.stcgrid import entry_axes
+from stcvision.stc_geometry import entry_axes
 
 __all__ = ["Floor", "Plant"]
 

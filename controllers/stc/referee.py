@@ -10,7 +10,7 @@ from collections.abc import Callable
 
 from controllers.stc.belief import Belief
 from controllers.stc.fsm import Action, Decision, StcObservation, StcPhase, StcState, decide
-from controllers.stc.geometry import cell_of, step_from
+from controllers.stc.grid import cell_of, step_from
 from controllers.stc.oracle import landing_oracle, look_oracle, observe_oracle
 from controllers.stc.plant import Floor, Plant
 

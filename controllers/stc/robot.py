@@ -26,7 +26,7 @@ from controllers.stc.fsm import Action, LookObs, NeighbourObs, StcObservation, S
 from controllers.stc.health import RobotStop
 from controllers.stc.movecount import MoveCount, MoveLog
 from controllers.stc.observers import Observer
-from stcvision.stcgrid import entry_axes
+from stcvision.stc_geometry import entry_axes
 
 __all__ = ["Motors", "Robot", "act", "robot_memory"]
 

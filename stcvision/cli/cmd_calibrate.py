@@ -54,7 +54,7 @@ def add_parser(p):
     t.add_argument(
         "--center", type=pair(float, fmt="U,V", example="320,240"), metavar="U,V", help="mirror centre by hand (pixels)"
     )
-    from stcvision.stcgrid import DEFAULT_SUBCELL_M
+    from stcvision.stc_geometry import DEFAULT_SUBCELL_M
 
     t.add_argument(
         "--subcell-m",

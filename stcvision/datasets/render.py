@@ -36,8 +36,8 @@ def _plan(recipe: Recipe, seed: int) -> tuple[dict, list[dict]]:
     groups. The sensor profile is part of a camera: its lights-on calibration frames are rendered
     by that sensor, at its depth (a 12- or 16-bit camera is calibrated on its own frames)."""
     from sim_camera.hardware import CAMERAS
+    from sim_camera.image_sensor import SensorParams
     from sim_camera.optics import MirrorCameraParams
-    from sim_camera.sensor import SensorParams
 
     cameras: dict[str, dict] = {}
     by_key: dict[str, str] = {}
@@ -155,7 +155,7 @@ def calibrate_camera(params: dict, seed) -> dict:
 
 def render_dark(params: dict, seed) -> dict:
     """Task: the median dark frame of group ``params["group"]`` (stream ``(1, group)``)."""
-    from sim_camera.sensor import SensorParams
+    from sim_camera.image_sensor import SensorParams
     from stcvision.fileio import write_image
 
     recipe, dseed, cameras, groups, out = _task_plan(params)
@@ -173,8 +173,8 @@ def render_frames(params: dict, seed) -> dict:
     alone. Returns their label lines."""
     import numpy as np
 
+    from sim_camera.image_sensor import SensorParams
     from sim_camera.scenarios import cell_scene
-    from sim_camera.sensor import SensorParams
     from stcvision.fileio import write_image
 
     _, dseed, cameras, groups, out = _task_plan(params)

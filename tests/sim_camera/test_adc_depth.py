@@ -8,7 +8,7 @@ import pytest
 
 from sim_camera import hardware
 from sim_camera.camera import SyntheticCamera
-from sim_camera.sensor import SensorParams, expose
+from sim_camera.image_sensor import SensorParams, expose
 from stcvision.errors import BadInputError
 
 

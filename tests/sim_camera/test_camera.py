@@ -8,9 +8,9 @@ import pytest
 
 from sim_camera.board import Board
 from sim_camera.camera import ROSE_SNR, Pose, SyntheticCamera, visibility_horizon_s
+from sim_camera.image_sensor import SensorParams, expose
 from sim_camera.phosphor import PhosphorLayer
 from sim_camera.scene import EXAMPLE_SCENE, Scene
-from sim_camera.sensor import SensorParams, expose
 from stcvision.errors import BadInputError
 
 

@@ -11,7 +11,7 @@ from stcvision.errors import BadInputError
 
 
 def test_every_preset_figure_has_a_source_and_the_webcam_is_the_default_sensor():
-    from sim_camera.sensor import SensorParams
+    from sim_camera.image_sensor import SensorParams
 
     assert hardware.CAMERAS["webcam"].sensor == SensorParams()
     for cam in hardware.CAMERAS.values():

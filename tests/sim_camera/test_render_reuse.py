@@ -63,10 +63,10 @@ def test_new_marks_where_the_robot_stands_are_rendered():
 
 
 def test_the_fast_noise_draw_is_numpys_integers_draw():
-    """The noise indices (sim_camera.sensor._noise_indices) are exactly
+    """The noise indices (sim_camera.image_sensor._noise_indices) are exactly
     ``rng.integers(0, 65536, dtype=uint16)``, leaving the generator where it leaves it, with a
     32-bit half pending, on another bit generator and for a size not a multiple of 4."""
-    from sim_camera.sensor import _noise_indices
+    from sim_camera.image_sensor import _noise_indices
 
     def pair(make):
         return make(), make()

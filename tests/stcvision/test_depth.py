@@ -14,8 +14,8 @@ import numpy as np
 import pytest
 
 from sim_camera.camera import Pose, SyntheticCamera
+from sim_camera.image_sensor import expose
 from sim_camera.phosphor import PhosphorLayer, mark_dots_m
-from sim_camera.sensor import expose
 from stcvision.errors import BadInputError
 from stcvision.pipeline import Pipeline
 from stcvision.stages import (

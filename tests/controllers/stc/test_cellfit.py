@@ -9,7 +9,7 @@ import pytest
 from controllers.stc.cellfit import shows_row, shows_tour_row, tour_lines
 from sim_camera.phosphor import LED_OFFSETS_M
 from stcvision.observation import MARK_INSET
-from stcvision.stcgrid import DEFAULT_SUBCELL_M, DIRECTIONS, SUBCELLS
+from stcvision.stc_geometry import DEFAULT_SUBCELL_M, DIRECTIONS, SUBCELLS
 
 
 def _row(m: int, edge: int, *, shift=(0.0, 0.0), centre=(0.0, 0.0)) -> np.ndarray:

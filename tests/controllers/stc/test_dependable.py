@@ -233,7 +233,7 @@ def test_a_final_stop_in_the_sub_cell_the_robot_stands_in_is_not_scored_as_an_er
 
 def _row_along(board, belief, floor, k):
     """How far (m) mark ``k``'s dots lie along the heading from its sub-cell centre (their mean)."""
-    from stcvision.stcgrid import entry_axes
+    from stcvision.stc_geometry import entry_axes
 
     xy = floor.phosphor.xy_m[floor.dot_mark == k]
     sub = floor.laid[k][0]
@@ -254,7 +254,7 @@ def test_a_row_is_laid_on_its_line_by_a_robot_behind_its_sub_cell_centre():
     from controllers.stc.plant import Floor, Plant
     from controllers.stc.robot import Robot, act
     from sim_camera.robot import LEGO_STC_ROBOT
-    from stcvision.stcgrid import entry_axes
+    from stcvision.stc_geometry import entry_axes
 
     board = Board(np.zeros((6, 6), bool), (5, 1))
     laid = []
@@ -381,7 +381,7 @@ def test_rows_laid_askew_do_not_turn_back_a_heading_the_lights_set():
     from controllers.stc.robot import Robot, act
     from sim_camera.hardware import load_camera
     from sim_camera.robot import LEGO_STC_ROBOT
-    from stcvision.stcgrid import entry_axes
+    from stcvision.stc_geometry import entry_axes
 
     askew = math.radians(-1.2)
     board = Board(np.zeros((16, 16), bool), (15, 1))
@@ -684,7 +684,7 @@ def test_the_move_log_rereads_a_box_whose_row_it_laid():
     import dataclasses
 
     from controllers.stc.fsm import StcObservation
-    from controllers.stc.geometry import frame_subcells
+    from controllers.stc.grid import frame_subcells
     from controllers.stc.movecount import MoveCount, MoveLog
     from controllers.stc.robot import Robot
 
@@ -711,12 +711,12 @@ def _look_at(row: str):
     LEDs, on the rear edge of the cell ahead's nearest sub-cell), ``"off line"`` the same row
     across that sub-cell's middle (on no line a tour marks), ``"scatter"`` four dots in no row
     (a stain, a bloom), ``"none"`` nothing."""
-    from controllers.stc.geometry import step_from
+    from controllers.stc.grid import step_from
     from controllers.stc.perception import CameraPerception
     from controllers.stc.plant import Floor, Plant
     from sim_camera.hardware import load_camera
     from sim_camera.robot import LEGO_STC_ROBOT
-    from stcvision.stcgrid import entry_axes
+    from stcvision.stc_geometry import entry_axes
 
     board = Board(np.zeros((8, 8), bool), (7, 3))
     plant, floor = Plant(board, LEGO_STC_ROBOT, np.random.default_rng(0)), Floor(board)
@@ -763,12 +763,12 @@ def test_a_neighbour_read_marked_by_dots_on_no_tour_line_stays_a_candidate():
     are counted as unproven. Two rows of the robot's own cell (box 5's and box 2's lines) pin its
     offset, as the rows of a tour do: a lone row in view would let the marks' offset move the
     robot until even the stray dots lie on a line."""
-    from controllers.stc.geometry import frame_compass, step_from
+    from controllers.stc.grid import frame_compass, step_from
     from controllers.stc.perception import CameraPerception
     from controllers.stc.plant import Floor, Plant
     from sim_camera.hardware import load_camera
     from sim_camera.robot import LEGO_STC_ROBOT
-    from stcvision.stcgrid import entry_axes
+    from stcvision.stc_geometry import entry_axes
 
     board = Board(np.zeros((8, 8), bool), (7, 3))
     for row, marked in (("tour", True), ("stray", False)):

@@ -18,7 +18,7 @@ from controllers.stc.fsm import (
     initial_state,
     step,
 )
-from controllers.stc.geometry import COMPASS_VEC, start_heading
+from controllers.stc.grid import COMPASS_VEC, start_heading
 from controllers.stc.oracle import MarkFloor, look_oracle, observe_oracle, run_oracle
 from sim_camera.board import Board
 

@@ -16,13 +16,13 @@ On the board the robot's heading is a **compass** heading, clockwise: 0 N, 1 E, 
 east, counter-clockwise) only at the plant's edge: :func:`compass_to_rad`.
 
 The tables themselves (the five boxes, the sub-cells' and neighbours' (right, up) signs, the
-start mark, the compass) are :mod:`stcvision.stcgrid`'s, shared with the vision; this module maps
+start mark, the compass) are :mod:`stcvision.stc_geometry`'s, shared with the vision; this module maps
 them onto board indices.
 """
 
 from __future__ import annotations
 
-from stcvision.stcgrid import BOX_EDGES, COMPASS_VEC, SUBCELLS, compass_to_rad
+from stcvision.stc_geometry import BOX_EDGES, COMPASS_VEC, SUBCELLS, compass_to_rad
 
 __all__ = [
     "BOXES",
