@@ -29,24 +29,24 @@ __all__ = [
 ]
 
 
-def rotate_about_robot(ru: np.ndarray, angle_rad: float) -> np.ndarray:
+def rotate_about_robot(cell_pts: np.ndarray, angle_rad: float) -> np.ndarray:
     """Rotate cell-unit points about the robot by ``angle_rad`` (counter-clockwise).
 
     Parameters
     ----------
-    ru : (N, 2) float
+    cell_pts : (N, 2) float
         Points in cell units.
     angle_rad : float
 
     Returns
     -------
     (N, 2) float
-        The points turned (``ru`` itself when the angle is 0).
+        The points turned (``cell_pts`` itself when the angle is 0).
     """
     if angle_rad == 0.0:
-        return ru
+        return cell_pts
     c, s = math.cos(angle_rad), math.sin(angle_rad)
-    return rotate_about(np.ascontiguousarray(ru, np.float64), c, s, *ROBOT_IN_CELL)
+    return rotate_about(np.ascontiguousarray(cell_pts, np.float64), c, s, *ROBOT_IN_CELL)
 
 
 #: the sub-cell side (m) the light errors are converted with when the caller gives none
@@ -195,12 +195,12 @@ def landmark_pose(lru: np.ndarray, reach: float, subcell_m: float | None, *, max
 
 
 @numba.njit(cache=True)
-def rotate_about(ru, c, s, cx, cy):
+def rotate_about(cell_pts, c, s, cx, cy):
     """Points rotated about (cx, cy) by the angle of cosine ``c`` and sine ``s``
     (:func:`rotate_about_robot`), element by element as the numpy version."""
-    out = np.empty_like(ru)
-    for i in range(len(ru)):
-        dx, dy = ru[i, 0] - cx, ru[i, 1] - cy
+    out = np.empty_like(cell_pts)
+    for i in range(len(cell_pts)):
+        dx, dy = cell_pts[i, 0] - cx, cell_pts[i, 1] - cy
         out[i, 0] = (c * dx - s * dy) + cx
         out[i, 1] = (s * dx + c * dy) + cy
     return out

@@ -102,8 +102,8 @@ class CellGeometry:
     def to_cell(self, xy_px: np.ndarray) -> np.ndarray:
         return _apply(self.H, xy_px)
 
-    def to_ground(self, ru: np.ndarray) -> np.ndarray:
-        return _apply(self.H_inv, ru)
+    def to_ground(self, cell_pts: np.ndarray) -> np.ndarray:
+        return _apply(self.H_inv, cell_pts)
 
     def outline_px(self, heading_error_rad: float = 0.0) -> dict[str, np.ndarray]:
         """Ground-view polygons of the cell, its sub-cells, the five boxes and the four
@@ -133,7 +133,7 @@ ROW_TOL = 0.06
 ROW_SPAN = 0.6
 
 
-def row_orientation(ru: np.ndarray) -> np.ndarray:
+def row_orientation(cell_pts: np.ndarray) -> np.ndarray:
     """For each dot: 1 if it lies in a row running along 'up' (a mark on a right/left edge),
     0 if along 'right' (top/bottom edge), -1 if it has no row-mate (an isolated dot).
 
@@ -141,12 +141,12 @@ def row_orientation(ru: np.ndarray) -> np.ndarray:
     dots of two marks on perpendicular edges can be closer to each other than to their own
     row-mates, so a dot's edge is decided by the row it belongs to, not by the nearest edge.
     """
-    if len(ru) == 0:
+    if len(cell_pts) == 0:
         return np.zeros(0, int)
-    return row_orientation_loop(np.ascontiguousarray(ru, np.float64), ROW_TOL, ROW_SPAN)
+    return row_orientation_loop(np.ascontiguousarray(cell_pts, np.float64), ROW_TOL, ROW_SPAN)
 
 
-def assign_boxes(ru: np.ndarray, orient: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def assign_boxes(cell_pts: np.ndarray, orient: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """For dots in cell units: sub-cell index (-1 outside the cell), box (0 = none) and
     neighbour index (0..3 in :data:`NEIGHBOURS` order, -1 = none).
 
@@ -154,11 +154,15 @@ def assign_boxes(ru: np.ndarray, orient: np.ndarray | None = None) -> tuple[np.n
     :func:`row_orientation`); an isolated dot takes the nearest edge.
     """
     if orient is None:
-        orient = row_orientation(ru)
+        orient = row_orientation(cell_pts)
     # the box of the sub-cell's edge; the start mark, sub-cell m along its exterior edge in
     # direction m, is coded as box -m (m = 1, 2, 3; sub-cell 0's is under the robot)
     return assign_boxes_loop(
-        np.ascontiguousarray(ru, np.float64), np.asarray(orient, np.int64), _SUB_OF_QUADRANT, _BOX_OF, _NEIGHBOUR_DIRS
+        np.ascontiguousarray(cell_pts, np.float64),
+        np.asarray(orient, np.int64),
+        _SUB_OF_QUADRANT,
+        _BOX_OF,
+        _NEIGHBOUR_DIRS,
     )
 
 
@@ -168,17 +172,17 @@ MARK_INSET = 0.125
 MARK_MIN_DOTS = 4
 
 
-def mark_offset(ru: np.ndarray, orient: np.ndarray, *, inset: float = MARK_INSET, min_dots: int = MARK_MIN_DOTS):
+def mark_offset(cell_pts: np.ndarray, orient: np.ndarray, *, inset: float = MARK_INSET, min_dots: int = MARK_MIN_DOTS):
     """The robot's offset from its sub-cell centre (right, up; cell units) from the marks in
     view: every mark lies ``inset`` inside one edge of its sub-cell, so across its row a dot's
     coordinate should be an integer (an edge) +- ``inset``; the median residual of the rows
     running along 'up' gives the offset to the right, of those along 'right' the offset up.
     Unambiguous while the robot is less than ``inset`` off (the residual would flip sides)."""
-    if not len(ru):
+    if not len(cell_pts):
         return None
-    lit = np.ones(len(ru), np.bool_)
+    lit = np.ones(len(cell_pts), np.bool_)
     have, off = mark_offset_loop(
-        np.ascontiguousarray(ru, np.float64), np.asarray(orient, np.int64), lit, inset, min_dots
+        np.ascontiguousarray(cell_pts, np.float64), np.asarray(orient, np.int64), lit, inset, min_dots
     )
     return _offset_of(have, off)
 
@@ -190,7 +194,9 @@ def _offset_of(have: np.ndarray, off: np.ndarray):
     return (float(off[0]) or 0.0, float(off[1]) or 0.0)
 
 
-def pattern_rotation(ru: np.ndarray, orient: np.ndarray, *, min_rows: int = 2, max_rad: float = 0.06) -> float | None:
+def pattern_rotation(
+    cell_pts: np.ndarray, orient: np.ndarray, *, min_rows: int = 2, max_rad: float = 0.06
+) -> float | None:
     """Median lean (rad, counter-clockwise) of the mark rows in view. Dots are grouped into rows
     (same coordinate across the row within ``ROW_TOL``, no gap over 0.35 along it); each row of
     3+ dots spanning 0.3..0.7 sub-cells and fitting a line within 0.02 gives one angle. ``None``
@@ -199,7 +205,7 @@ def pattern_rotation(ru: np.ndarray, orient: np.ndarray, *, min_rows: int = 2, m
     dots, where numpy's per-call cost would dominate."""
     angles = []
     for along, across in ((1, 0), (0, 1)):  # rows along 'up' (vary in u), along 'right'
-        pts = sorted((float(p[across]), float(p[along])) for p in ru[orient == along])
+        pts = sorted((float(p[across]), float(p[along])) for p in cell_pts[orient == along])
         band: list[tuple[float, float]] = []
         for k, pt in enumerate(pts + [(math.inf, 0.0)]):
             if band and pt[0] - band[-1][0] > ROW_TOL:
@@ -391,20 +397,20 @@ def observe_cell(
         (right, up; cell units) instead of where this frame's marks say (e.g. the red lights'
         offset from a short frame at the same pose: a long frame's marks may mislead it).
     """
-    ru, orient, offset, axes = _cell_dots(dots, geometry, heading_error_rad, params, position_offset)
-    sub, box, nb = assign_boxes(ru, orient) if len(ru) else (np.zeros(0, np.int64),) * 3
+    cell_pts, orient, offset, axes = _cell_dots(dots, geometry, heading_error_rad, params, position_offset)
+    sub, box, nb = assign_boxes(cell_pts, orient) if len(cell_pts) else (np.zeros(0, np.int64),) * 3
     thr = dots.threshold_snr
     boxes, visited, stray, start_mark, nb_stats = _read_boxes(dots, sub, box, nb, params)
     # neighbour d's sub-cell next to our sub-cell d holds a whole row (LANDING_DOTS of its 4
     # dots, clear of the borders)
-    inside = landing_counts(ru, np.asarray(dots.lit, np.bool_), _LANDING, _LANDING_HALF)
+    inside = landing_counts(cell_pts, np.asarray(dots.lit, np.bool_), _LANDING, _LANDING_HALF)
     landing = tuple(bool(c >= max(params.min_dots, LANDING_DOTS)) for c in inside)
     rru = rotate_about_robot(geometry.to_cell(red_px), heading_error_rad) if len(red_px) else np.zeros((0, 2))
     landmark = (None,) * 4
     if params.pose_estimates:
         landmark = _landmarks(rru, landmark_px, geometry, heading_error_rad, params, subcell_m)
     neighbours = _read_neighbours(nb_stats, rru, red_strength, red_threshold_dn, thr, params)
-    lean = pattern_rotation(ru[dots.lit], orient[dots.lit]) if (len(ru) and params.pose_estimates) else None
+    lean = pattern_rotation(cell_pts[dots.lit], orient[dots.lit]) if (len(cell_pts) and params.pose_estimates) else None
     return CellObservation(
         tuple(boxes),
         visited,
@@ -428,15 +434,15 @@ def _cell_dots(dots, geometry: CellGeometry, heading_error_rad: float, params: O
     that offset (None: too few rows); and which of its axes the marks measured."""
     if not len(dots):
         return np.zeros((0, 2)), np.zeros(0, np.int64), None, (False, False)
-    ru = rotate_about_robot(geometry.to_cell(dots.xy_px), heading_error_rad)
+    cell_pts = rotate_about_robot(geometry.to_cell(dots.xy_px), heading_error_rad)
     lit = np.asarray(dots.lit, np.bool_)
-    orient, have, off = cell_dots(ru, lit, ROW_TOL, ROW_SPAN, MARK_INSET, MARK_MIN_DOTS)
+    orient, have, off = cell_dots(cell_pts, lit, ROW_TOL, ROW_SPAN, MARK_INSET, MARK_MIN_DOTS)
     # where the robot really stands, from the marks: read the boxes relative to that
     offset = _offset_of(have, off) if position_offset is None else tuple(position_offset)
     axes = (bool(have[0]), bool(have[1])) if position_offset is None else (False, False)
     if offset is not None and params.use_offset:
-        ru = ru + np.asarray(offset)
-    return ru, orient, offset, axes
+        cell_pts = cell_pts + np.asarray(offset)
+    return cell_pts, orient, offset, axes
 
 
 def _read_boxes(dots, sub: np.ndarray, box: np.ndarray, nb: np.ndarray, params: ObservationParams):
@@ -511,10 +517,10 @@ def marks_ahead(
     """
     if not len(dots):
         return 0
-    ru = rotate_about_robot(geometry.to_cell(dots.xy_px[dots.lit]), heading_error_rad)
+    cell_pts = rotate_about_robot(geometry.to_cell(dots.xy_px[dots.lit]), heading_error_rad)
     if offset is not None:
-        ru = ru + np.asarray(offset)
-    return int(((np.abs(ru[:, 0]) < 1) & (ru[:, 1] > 0) & (ru[:, 1] < 2)).sum())
+        cell_pts = cell_pts + np.asarray(offset)
+    return int(((np.abs(cell_pts[:, 0]) < 1) & (cell_pts[:, 1] > 0) & (cell_pts[:, 1] < 2)).sum())
 
 
 def marks_landing_ahead(
@@ -525,18 +531,18 @@ def marks_landing_ahead(
     :func:`observe_cell`'s landing rule: a row of the next sub-cell must not count."""
     if not len(dots):
         return 0
-    ru = rotate_about_robot(geometry.to_cell(dots.xy_px[dots.lit]), heading_error_rad)
+    cell_pts = rotate_about_robot(geometry.to_cell(dots.xy_px[dots.lit]), heading_error_rad)
     if offset is not None:
-        ru = ru + np.asarray(offset)
-    return int(((np.abs(ru[:, 0] - 0.5) < _LANDING_HALF) & (np.abs(ru[:, 1] - 0.5) < _LANDING_HALF)).sum())
+        cell_pts = cell_pts + np.asarray(offset)
+    return int(((np.abs(cell_pts[:, 0] - 0.5) < _LANDING_HALF) & (np.abs(cell_pts[:, 1] - 0.5) < _LANDING_HALF)).sum())
 
 
 # --------------------------------------------------------------------------- compiled loops
 @numba.njit(cache=True)
-def row_orientation_loop(ru, tol, span):
+def row_orientation_loop(cell_pts, tol, span):
     """Per dot (cell units): 1 if it has more row-mates along 'up' than along 'right', 0 if
     fewer, -1 if as many (:func:`stcvision.observation.row_orientation`)."""
-    n = len(ru)
+    n = len(cell_pts)
     out = np.empty(n, np.int64)
     for i in range(n):
         vertical = 0
@@ -544,8 +550,8 @@ def row_orientation_loop(ru, tol, span):
         for j in range(n):
             if j == i:
                 continue
-            dr = abs(ru[i, 0] - ru[j, 0])
-            du = abs(ru[i, 1] - ru[j, 1])
+            dr = abs(cell_pts[i, 0] - cell_pts[j, 0])
+            du = abs(cell_pts[i, 1] - cell_pts[j, 1])
             if dr < tol and du < span:
                 vertical += 1
             if du < tol and dr < span:
@@ -555,14 +561,14 @@ def row_orientation_loop(ru, tol, span):
 
 
 @numba.njit(cache=True)
-def assign_boxes_loop(ru, orient, sub_of_quadrant, box_of, neighbours):
+def assign_boxes_loop(cell_pts, orient, sub_of_quadrant, box_of, neighbours):
     """Sub-cell, box and neighbour of each dot (:func:`stcvision.observation.assign_boxes`)."""
-    n = len(ru)
+    n = len(cell_pts)
     sub = np.full(n, -1, np.int64)
     box = np.zeros(n, np.int64)
     nb = np.full(n, -1, np.int64)
     for i in range(n):
-        r, u = ru[i, 0], ru[i, 1]
+        r, u = cell_pts[i, 0], cell_pts[i, 1]
         right, up = r >= 0, u >= 0
         if abs(r) < 1 and abs(u) < 1:
             sub[i] = sub_of_quadrant[int(right), int(up)]
@@ -580,7 +586,7 @@ def assign_boxes_loop(ru, orient, sub_of_quadrant, box_of, neighbours):
 
 
 @numba.njit(cache=True)
-def mark_offset_loop(ru, orient, lit, inset, min_dots):
+def mark_offset_loop(cell_pts, orient, lit, inset, min_dots):
     """The median residuals of :func:`stcvision.observation.mark_offset` over the lit dots:
     per axis (0: right, from the rows along 'up'; 1: up, from those along 'right'), whether
     ``min_dots`` rows' dots were there, and minus the median of each dot's coordinate less its
@@ -589,11 +595,11 @@ def mark_offset_loop(ru, orient, lit, inset, min_dots):
     out = np.zeros(2)
     for axis in range(2):
         along = 1 - axis
-        r = np.empty(len(ru))
+        r = np.empty(len(cell_pts))
         k = 0
-        for i in range(len(ru)):
+        for i in range(len(cell_pts)):
             if lit[i] and orient[i] == along:
-                p = ru[i, axis]
+                p = cell_pts[i, axis]
                 q = np.round(p)
                 r[k] = p - (q + (inset if p >= q else -inset))
                 k += 1
@@ -624,21 +630,21 @@ def group_stats(code, n, lit, value):
 
 
 @numba.njit(cache=True)
-def cell_dots(ru, lit, tol, span, inset, min_dots):
-    """Row orientation and mark offset of the dots ``ru`` (cell units, already rotated), in
+def cell_dots(cell_pts, lit, tol, span, inset, min_dots):
+    """Row orientation and mark offset of the dots ``cell_pts`` (cell units, already rotated), in
     one call (:func:`stcvision.observation._cell_dots`): per dot, :func:`row_orientation` among
     the lit dots (-1 for the rest), then :func:`mark_offset` over the lit dots. Returns
     (orient, have, offset)."""
     idx = np.flatnonzero(lit)
     sub = np.empty((len(idx), 2))
     for k in range(len(idx)):
-        sub[k, 0] = ru[idx[k], 0]
-        sub[k, 1] = ru[idx[k], 1]
-    orient = np.full(len(ru), -1, np.int64)
+        sub[k, 0] = cell_pts[idx[k], 0]
+        sub[k, 1] = cell_pts[idx[k], 1]
+    orient = np.full(len(cell_pts), -1, np.int64)
     o = row_orientation_loop(sub, tol, span)
     for k in range(len(idx)):
         orient[idx[k]] = o[k]
-    have, off = mark_offset_loop(ru, orient, lit, inset, min_dots)
+    have, off = mark_offset_loop(cell_pts, orient, lit, inset, min_dots)
     return orient, have, off
 
 
@@ -657,14 +663,14 @@ def box_counts(box, nb, sub, lit, snr):
 
 
 @numba.njit(cache=True)
-def landing_counts(ru, lit, centres, half):
+def landing_counts(cell_pts, lit, centres, half):
     """Per landing centre, the lit dots within ``half`` of it along both axes."""
     out = np.zeros(len(centres), np.int64)
-    for i in range(len(ru)):
+    for i in range(len(cell_pts)):
         if not lit[i]:
             continue
         for k in range(len(centres)):
-            if abs(ru[i, 0] - centres[k, 0]) < half and abs(ru[i, 1] - centres[k, 1]) < half:
+            if abs(cell_pts[i, 0] - centres[k, 0]) < half and abs(cell_pts[i, 1] - centres[k, 1]) < half:
                 out[k] += 1
     return out
 

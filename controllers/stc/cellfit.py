@@ -88,15 +88,15 @@ def tour_lines() -> np.ndarray:
     return np.array(rows, float)
 
 
-def shows_tour_row(ru: np.ndarray, lit: np.ndarray, centre) -> bool:
-    """Whether the lit dots ``ru`` (cell units, rotated and shifted as the pipeline read them)
+def shows_tour_row(cell_pts: np.ndarray, lit: np.ndarray, centre) -> bool:
+    """Whether the lit dots ``cell_pts`` (cell units, rotated and shifted as the pipeline read them)
     show a row an STC tour lays in the cell centred at ``centre``: at least
     :data:`stcvision.observation.LANDING_DOTS` of a row's four dots within :data:`ON_LINE`
     across one of :func:`tour_lines` and inside its sub-cell along it. A noise peak, a bloom or
     another cell's row read across the cell's edge (it lies 0.25 of a sub-cell from the nearest
     such line) shows none; a mark the tour laid there does, once a frame sees most of its dots.
     For a frame registered on the marks (a decision's: :func:`fit_cell_offset`)."""
-    p = np.asarray(ru, float)[np.asarray(lit, bool)] - np.asarray(centre, float)
+    p = np.asarray(cell_pts, float)[np.asarray(lit, bool)] - np.asarray(centre, float)
     if len(p) < LANDING_DOTS:
         return False
     lines = tour_lines()
@@ -112,14 +112,14 @@ def shows_tour_row(ru: np.ndarray, lit: np.ndarray, centre) -> bool:
 LED_ROW_SPAN = (0.3, 0.7)
 
 
-def shows_row(ru: np.ndarray, lit: np.ndarray, centre) -> bool:
-    """Whether the lit dots ``ru`` (cell units) inside the cell centred at ``centre`` show a row
+def shows_row(cell_pts: np.ndarray, lit: np.ndarray, centre) -> bool:
+    """Whether the lit dots ``cell_pts`` (cell units) inside the cell centred at ``centre`` show a row
     of the robot's LEDs, wherever it lies: at least :data:`stcvision.observation.LANDING_DOTS`
     dots within :data:`ON_LINE` of one line along either axis, spanning :data:`LED_ROW_SPAN` along
     it. A noise peak, two dots or a bloom show none. Unlike :func:`shows_tour_row` it asks
     nothing of where the row lies: for a frame read where the robot believes it stands, whose
     rows may lie several centimetres off their lines."""
-    p = np.asarray(ru, float)[np.asarray(lit, bool)] - np.asarray(centre, float)
+    p = np.asarray(cell_pts, float)[np.asarray(lit, bool)] - np.asarray(centre, float)
     p = p[(np.abs(p) < 1.0).all(axis=1)]
     for axis in (0, 1):  # the coordinate across the row
         across, along = p[:, axis], p[:, 1 - axis]
@@ -238,5 +238,5 @@ def frame_dots(res, geometry) -> tuple[np.ndarray, np.ndarray]:
     dots = res.dots
     if not len(dots):
         return np.zeros((0, 2)), np.zeros(0, bool)
-    ru = rotate_about_robot(geometry.to_cell(dots.xy_px), res.observation.heading_error_rad)
-    return ru, np.asarray(dots.lit, bool)
+    cell_pts = rotate_about_robot(geometry.to_cell(dots.xy_px), res.observation.heading_error_rad)
+    return cell_pts, np.asarray(dots.lit, bool)

@@ -717,10 +717,10 @@ class RobotCamera(Exposures):
         doubt = [d for d, n in enumerate(obs.neighbours) if n.has_marks and not n.has_red]
         if not doubt:
             return obs
-        ru, lit = self._dots(res, res.observation.position_offset)
+        cell_pts, lit = self._dots(res, res.observation.position_offset)
         neigh = list(obs.neighbours)
         for d in doubt:
-            if not shows_tour_row(ru, lit, 2 * np.asarray(DIRECTIONS[d])):
+            if not shows_tour_row(cell_pts, lit, 2 * np.asarray(DIRECTIONS[d])):
                 neigh[d] = NeighbourObs(False, False)
                 self._doubted.add(d)
         return dataclasses.replace(obs, neighbours=tuple(neigh))
@@ -730,8 +730,8 @@ class RobotCamera(Exposures):
         robot's offset from its sub-cell centre, cell units; None: not shifted), and which are lit."""
         from controllers.stc.cellfit import frame_dots
 
-        ru, lit = frame_dots(res, self.pipe.geometry)
-        return (ru + np.asarray(offset) if offset is not None else ru), lit
+        cell_pts, lit = frame_dots(res, self.pipe.geometry)
+        return (cell_pts + np.asarray(offset) if offset is not None else cell_pts), lit
 
     def _on_cell_lines(self, res):
         """Localisation against the cell's own marks (:mod:`controllers.stc.cellfit`): where the
@@ -745,12 +745,12 @@ class RobotCamera(Exposures):
         from stcvision.observation import ObservationParams
 
         need = ObservationParams().min_dots
-        ru, lit = frame_dots(res, self.pipe.geometry)
+        cell_pts, lit = frame_dots(res, self.pipe.geometry)
         start = res.observation.position_offset or (0.0, 0.0)
-        base = fit_cell_offset(ru, lit, start, search=False)
+        base = fit_cell_offset(cell_pts, lit, start, search=False)
         if base is None or base.off_line < need:
             return res, 0
-        fit = fit_cell_offset(ru, lit, start)
+        fit = fit_cell_offset(cell_pts, lit, start)
         if fit.off_line < need and not fit.ambiguous:
             again = self.pipe.process(
                 self.last_image, heading_error_rad=res.observation.heading_error_rad, position_offset=fit.offset

@@ -66,10 +66,10 @@ def frame_compass(h: int, d: int) -> int:
     return (h + 1 - d) % 4
 
 
-def frame_step(h: int, ru: tuple[int, int]) -> tuple[int, int]:
-    """(row, column) step of an entry-frame step ``ru`` = (right, up) for a robot heading ``h``."""
+def frame_step(h: int, right_up: tuple[int, int]) -> tuple[int, int]:
+    """(row, column) step of an entry-frame step ``right_up`` = (right, up) for a robot heading ``h``."""
     up, right = COMPASS_VEC[h], COMPASS_VEC[(h + 1) % 4]
-    return ru[0] * right[0] + ru[1] * up[0], ru[0] * right[1] + ru[1] * up[1]
+    return right_up[0] * right[0] + right_up[1] * up[0], right_up[0] * right[1] + right_up[1] * up[1]
 
 
 def frame_subcells(sub: tuple[int, int], h: int) -> list[tuple[int, int]]:

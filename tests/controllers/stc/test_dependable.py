@@ -118,11 +118,11 @@ def test_the_cells_own_rows_fix_the_offset_the_median_of_all_rows_misses():
 
     from controllers.stc.cellfit import fit_cell_offset
 
-    ru, lit = np.array(_DECISION_317), np.ones(len(_DECISION_317), bool)
-    at_pipeline = fit_cell_offset(ru, lit, _PIPELINE_OFFSET_317, search=False)
+    cell_pts, lit = np.array(_DECISION_317), np.ones(len(_DECISION_317), bool)
+    at_pipeline = fit_cell_offset(cell_pts, lit, _PIPELINE_OFFSET_317, search=False)
     # the box-4 row on no line; the box-2 row on the cell's edge, beyond its inside
     assert at_pipeline.off_line == 4 and at_pipeline.on_line == 0
-    fit = fit_cell_offset(ru, lit, _PIPELINE_OFFSET_317)
+    fit = fit_cell_offset(cell_pts, lit, _PIPELINE_OFFSET_317)
     assert fit.off_line == 0 and fit.on_line == 8 and not fit.ambiguous
     assert fit.offset[1] == pytest.approx(-0.112, abs=0.01) and fit.offset[0] == pytest.approx(-0.0013, abs=1e-9)
 
@@ -136,11 +136,11 @@ def test_boxes_read_at_the_fitted_offset_are_the_truth():
     from controllers.stc.cellfit import fit_cell_offset
     from stcvision.observation import assign_boxes
 
-    ru, lit = np.array(_DECISION_317), np.ones(len(_DECISION_317), bool)
-    fit = fit_cell_offset(ru, lit, _PIPELINE_OFFSET_317)
-    _, box, _ = assign_boxes(ru + np.asarray(fit.offset))
+    cell_pts, lit = np.array(_DECISION_317), np.ones(len(_DECISION_317), bool)
+    fit = fit_cell_offset(cell_pts, lit, _PIPELINE_OFFSET_317)
+    _, box, _ = assign_boxes(cell_pts + np.asarray(fit.offset))
     assert sorted(int(b) for b in box if b > 0) == [2] * 4 + [4] * 4
-    _, box, _ = assign_boxes(ru + np.asarray(_PIPELINE_OFFSET_317))
+    _, box, _ = assign_boxes(cell_pts + np.asarray(_PIPELINE_OFFSET_317))
     assert sum(box == 4) == 0
 
 
@@ -580,11 +580,11 @@ def test_dots_with_no_line_within_reach_are_left_out_of_the_cell_fit():
 
     from controllers.stc.cellfit import NEAR_LINE, fit_cell_offset
 
-    ru = np.array(_DECISION_317)
-    clean = fit_cell_offset(ru, np.ones(len(ru), bool), _PIPELINE_OFFSET_317)
+    cell_pts = np.array(_DECISION_317)
+    clean = fit_cell_offset(cell_pts, np.ones(len(cell_pts), bool), _PIPELINE_OFFSET_317)
     for u, counted in ((0.375, False), (0.33, False), (0.75, True)):  # u 0.75: 0.125 below the 0.875 line
         stray = [(-0.2, u), (-0.39, u), (-0.58, u), (-0.77, u)]  # a row along 'right', left half
-        p = np.vstack([ru, stray])
+        p = np.vstack([cell_pts, stray])
         fit = fit_cell_offset(p, np.ones(len(p), bool), _PIPELINE_OFFSET_317)
         assert fit.offset == clean.offset, u
         assert (fit.on_line + fit.off_line > clean.on_line + clean.off_line) is counted, (u, fit)
