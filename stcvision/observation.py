@@ -248,10 +248,10 @@ def _row_angles(band: list[tuple[float, float]], along: int) -> list[float]:
     return out
 
 
-def _group_stats(code: np.ndarray, n: int, lit: np.ndarray, value: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def group_stats(code: np.ndarray, n: int, lit: np.ndarray, value: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """For codes 0..n-1 (one per dot): how many of the lit dots have each code, and the largest
     ``value`` among all dots of each code (0.0 where none has it)."""
-    return group_stats(np.asarray(code, np.int64), n, np.asarray(lit, np.bool_), np.asarray(value, float))
+    return group_stats_loop(np.asarray(code, np.int64), n, np.asarray(lit, np.bool_), np.asarray(value, float))
 
 
 def _confidence(value: float, threshold: float, noise: float) -> float:
@@ -472,7 +472,7 @@ def _read_neighbours(nb_stats, rru, red_strength, red_threshold_dn: float, thr: 
     _, _, rnb = assign_boxes(rru, np.full(len(rru), -1)) if len(rru) else (None, None, np.zeros(0, np.int64))
     neighbours = {}
     n_lit_nb, best_nb = nb_stats
-    n_red_nb, best_red = _group_stats(rnb + 1, 5, np.ones(len(rnb), bool), np.asarray(red_strength, float))
+    n_red_nb, best_red = group_stats(rnb + 1, 5, np.ones(len(rnb), bool), np.asarray(red_strength, float))
     n_red_nb, best_red = n_red_nb.tolist(), best_red.tolist()
     for i, name in enumerate(NEIGHBOURS):
         has_red = bool(n_red_nb[i + 1])
@@ -610,9 +610,9 @@ def mark_offset_loop(cell_pts, orient, lit, inset, min_dots):
 
 
 @numba.njit(cache=True)
-def group_stats(code, n, lit, value):
+def group_stats_loop(code, n, lit, value):
     """Per code 0..n-1: lit dots with it, and the largest ``value`` of any dot with it (0.0
-    where none has it) (:func:`stcvision.observation._group_stats`)."""
+    where none has it): the compiled loop of :func:`group_stats`, on arrays of its types."""
     counts = np.zeros(n, np.int64)
     best = np.full(n, -np.inf)
     seen = np.zeros(n, np.bool_)
@@ -651,10 +651,10 @@ def cell_dots(cell_pts, lit, tol, span, inset, min_dots):
 @numba.njit(cache=True)
 def box_counts(box, nb, sub, lit, snr):
     """Per box code (box + 3: -3..5) and neighbour code (nb + 1: -1..3): the lit dots and the
-    best SNR of any dot (:func:`group_stats`), and the stray lit dots (in a sub-cell, in no
+    best SNR of any dot (:func:`group_stats_loop`), and the stray lit dots (in a sub-cell, in no
     box) (:func:`stcvision.observation._read_boxes`)."""
-    n_box, best_box = group_stats(box + 3, 9, lit, snr)
-    n_nb, best_nb = group_stats(nb + 1, 5, lit, snr)
+    n_box, best_box = group_stats_loop(box + 3, 9, lit, snr)
+    n_nb, best_nb = group_stats_loop(nb + 1, 5, lit, snr)
     stray = 0
     for i in range(len(box)):
         if sub[i] >= 0 and box[i] == 0 and lit[i]:
