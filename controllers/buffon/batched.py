@@ -250,43 +250,69 @@ def _rule_stops(st, lay, plen, crossings, steps_done, blind, sp, bst, l1_u):
 
 
 @numba.njit(cache=True, nogil=True)
-def _visit(st, beh, irg, slip, steps, grid, lay, geo, outer, trail, prm, ir_ang, rec, auto, sp, bst, l1_u):
-    """Advance one robot (state ``st``, (N_STATE,)) by at most ``steps`` steps, drawing from its
-    own generators (numba runs numpy's Generator algorithms, bit for bit): ``beh`` the
-    behaviour's n and nbar, ``irg`` the IR noise, ``slip`` the wheel slip. ``grid``: the trail
+def _visit(
+    state,
+    behaviour_rng,
+    ir_rng,
+    slip_rng,
+    steps,
+    grid,
+    lay,
+    geo,
+    outer,
+    trail,
+    params,
+    ir_angles_rad,
+    record,
+    auto_stop,
+    stop_params,
+    batch_state,
+    first_path_u,
+):
+    """Advance one robot (``state``, (N_STATE,)) by at most ``steps`` steps, drawing from its
+    own generators (numba runs numpy's Generator algorithms, bit for bit): ``behaviour_rng`` the
+    behaviour's n and nbar, ``ir_rng`` the IR noise, ``slip_rng`` the wheel slip. ``grid``: the trail
     raster (uint32: 0 empty, else the path, in :data:`STAMP_M` units + 1, at which the first
     visit first laid the cell); ``lay``: visit 1 (lay, and count encounters with its own older
-    trail) or 2 (sense and count crossings); ``rec`` (steps or 0, 3): x, y, crossed per step.
-    ``auto``: stop when the online rule (:mod:`controllers.buffon.stopping`, constants ``sp``,
-    batch-means state ``bst`` of the visit's encounters, first-visit path ``l1_u``) says so. The loop returns after
-    ``steps`` steps at most, so that its caller can look at signals between chunks. Returns
+    trail) or 2 (sense and count crossings); ``record`` (steps or 0, 3): x, y, crossed per step.
+    ``auto_stop``: stop when the online rule (:mod:`controllers.buffon.stopping`, constants
+    ``stop_params``, batch-means state ``batch_state`` of the visit's encounters, first-visit path
+    ``first_path_u``) says so. The loop returns after ``steps`` steps at most, so that its caller
+    can look at signals between chunks. Returns
     (containment failures, stopped by the rule)."""
     caps, ox, oy, cell, ny, nx, offsets, index = geo
     gox, goy, gcell = trail
-    dt, gamma, front_thr, side_thr, k = prm[0], prm[1], prm[2], prm[3], prm[4]
-    noise, esc_min, esc_max, vmax, radius = prm[5], prm[6], prm[7], prm[8], prm[9]
-    b_true, dl_ratio, dr_ratio, slip_k = prm[10], prm[11], prm[12], prm[13]
-    ir_sat, ir_range, ir_sigma = prm[14], prm[15], prm[16]
-    rate, thr, hyst, half_w, recent_stamps, avoid = prm[17], prm[18], prm[19], prm[20], prm[21], prm[22]
-    batches = int(sp[6])
-    ir_cos, ir_sin = np.cos(ir_ang), np.sin(ir_ang)
+    dt, gamma, front_thr, side_thr, k = params[0], params[1], params[2], params[3], params[4]
+    noise, esc_min, esc_max, vmax, radius = params[5], params[6], params[7], params[8], params[9]
+    b_true, dl_ratio, dr_ratio, slip_k = params[10], params[11], params[12], params[13]
+    ir_sat, ir_range, ir_sigma = params[14], params[15], params[16]
+    rate, thr, hyst, half_w, recent_stamps, avoid = (
+        params[17],
+        params[18],
+        params[19],
+        params[20],
+        params[21],
+        params[22],
+    )
+    batches = int(stop_params[6])
+    ir_cos, ir_sin = np.cos(ir_angles_rad), np.sin(ir_angles_rad)
     ir = np.empty(6)
-    x, y, th = st[X], st[Y], st[TH]
-    r, wl, wr, level, plen = st[R], st[WL], st[WR], st[LEVEL], st[PLEN]
-    above = st[ABOVE] > 0.5
-    gain, blind, esc = st[GAIN], st[BLIND], st[ESC]
-    crossings = int(st[CROSS])
-    done = int(st[STEPS])
+    x, y, th = state[X], state[Y], state[TH]
+    r, wl, wr, level, plen = state[R], state[WL], state[WR], state[LEVEL], state[PLEN]
+    above = state[ABOVE] > 0.5
+    gain, blind, esc = state[GAIN], state[BLIND], state[ESC]
+    crossings = int(state[CROSS])
+    done = int(state[STEPS])
     escapes = 0
     stopped = False
     turn = 0.0  # trail-aware exploration: the turn away from the old trail under way (+1 left, -1 right)
-    recording = rec.shape[0] > 0
+    recording = record.shape[0] > 0
     for s in range(steps):
         # 1. six IR rays from the rim (sim_camera.robot_sensors.IrSensors), noise from their stream
-        _read_ir(ir, x, y, th, irg, geo, ir_cos, ir_sin, radius, ir_sat, ir_range, ir_sigma)
+        _read_ir(ir, x, y, th, ir_rng, geo, ir_cos, ir_sin, radius, ir_sat, ir_range, ir_sigma)
         # 2. the behaviour of sec. 3.2 (the scalar controller's own equations)
-        n = -noise + 2.0 * noise * beh.random()
-        nbar = esc_min + (esc_max - esc_min) * beh.random()
+        n = -noise + 2.0 * noise * behaviour_rng.random()
+        nbar = esc_min + (esc_max - esc_min) * behaviour_rng.random()
         r, wl, wr, esc, rbar = explorer_core_nb(
             r, wl, wr, esc, ir[0], ir[1], ir[2], ir[3], ir[4], ir[5], n, nbar, gamma, front_thr, side_thr
         )
@@ -297,7 +323,7 @@ def _visit(st, beh, irg, slip, steps, grid, lay, geo, outer, trail, prm, ir_ang,
         dl = min(vmax, max(-vmax, ml)) * dt * gain * dl_ratio
         dr = min(vmax, max(-vmax, mr)) * dt * gain * dr_ratio
         if slip_k > 0.0:
-            n0, n1 = slip.standard_normal(), slip.standard_normal()
+            n0, n1 = slip_rng.standard_normal(), slip_rng.standard_normal()
             dl += slip_k * math.sqrt(abs(dl)) * n0
             dr += slip_k * math.sqrt(abs(dr)) * n1
         v = 0.5 * (dl + dr)
@@ -320,31 +346,35 @@ def _visit(st, beh, irg, slip, steps, grid, lay, geo, outer, trail, prm, ir_ang,
         x, y = nx_, ny_
         level, above, crossed = integrate_nb(level, above, seen, rate, thr, hyst)
         if crossed and avoid > 0.0:
-            turn = 1.0 if beh.random() < 0.5 else -1.0
+            turn = 1.0 if behaviour_rng.random() < 0.5 else -1.0
         crossings += crossed
         blind += above
         # the batch means of the encounter rate: the second visit's crossings whatever the rule
         # (their standard error is reported), the first visit's self-encounters for the online
         # rule's mixing test (nothing else reads them: a fixed-length visit skips the work)
-        if auto or not lay:
-            batch_add(bst, 1.0 if crossed else 0.0, step_m / BODY_LENGTH_M, batches)
+        if auto_stop or not lay:
+            batch_add(batch_state, 1.0 if crossed else 0.0, step_m / BODY_LENGTH_M, batches)
         if (s & 15) == 0 and not inside_polygon(outer, x, y):
             escapes += 1
         if recording:
-            rec[s, 0], rec[s, 1], rec[s, 2] = x, y, 1.0 if crossed else 0.0
-        if auto and (s & 63) == 63 and _rule_stops(st, lay, plen, crossings, done + s + 1, blind, sp, bst, l1_u):
+            record[s, 0], record[s, 1], record[s, 2] = x, y, 1.0 if crossed else 0.0
+        if (
+            auto_stop
+            and (s & 63) == 63
+            and _rule_stops(state, lay, plen, crossings, done + s + 1, blind, stop_params, batch_state, first_path_u)
+        ):
             stopped = True
             done += s + 1
             break
     else:
         done += steps
-    st[X], st[Y], st[TH] = x, y, th
-    st[R], st[WL], st[WR], st[LEVEL], st[PLEN] = r, wl, wr, level, plen
-    st[ABOVE] = 1.0 if above else 0.0
-    st[BLIND] = blind
-    st[ESC] = esc
-    st[CROSS] = crossings
-    st[STEPS] = done
+    state[X], state[Y], state[TH] = x, y, th
+    state[R], state[WL], state[WR], state[LEVEL], state[PLEN] = r, wl, wr, level, plen
+    state[ABOVE] = 1.0 if above else 0.0
+    state[BLIND] = blind
+    state[ESC] = esc
+    state[CROSS] = crossings
+    state[STEPS] = done
     return escapes, stopped
 
 
