@@ -238,7 +238,7 @@ class Slip:
         dx, dy = plant.x - x0, plant.y - y0
         c, s = math.cos(theta / 2), math.sin(theta / 2)
         plant.x, plant.y = x0 + c * dx - s * dy, y0 + s * dx + c * dy
-        plant.hdg = wrap_angle(plant.hdg + theta)
+        plant.heading_rad = wrap_angle(plant.heading_rad + theta)
         self.events["slip"] += 1
 
 

@@ -44,38 +44,38 @@ COMPASS_NAMES = "NESW"
 BOXES = tuple(BOX_EDGES[b] for b in sorted(BOX_EDGES))
 
 
-def turned(h: int, left: bool) -> int:
-    """The compass heading after a quarter turn from ``h``: left is counter-clockwise (compass
+def turned(hc: int, left: bool) -> int:
+    """The compass heading after a quarter turn from ``hc``: left is counter-clockwise (compass
     headings run clockwise)."""
-    return (h + (3 if left else 1)) % 4
+    return (hc + (3 if left else 1)) % 4
 
 
-def behind(h: int) -> int:
-    """The compass direction behind a robot heading ``h`` (where its rear LEDs lay a row)."""
-    return (h + 2) % 4
+def behind(hc: int) -> int:
+    """The compass direction behind a robot heading ``hc`` (where its rear LEDs lay a row)."""
+    return (hc + 2) % 4
 
 
-def step_from(sub: tuple[int, int], h: int) -> tuple[int, int]:
-    """The sub-cell one forward move from ``sub`` heading compass ``h``."""
-    di, dj = COMPASS_VEC[h]
+def step_from(sub: tuple[int, int], hc: int) -> tuple[int, int]:
+    """The sub-cell one forward move from ``sub`` heading compass ``hc``."""
+    di, dj = COMPASS_VEC[hc]
     return sub[0] + di, sub[1] + dj
 
 
-def frame_compass(h: int, d: int) -> int:
-    """Compass direction of entry-frame direction ``d`` when the robot heads ``h``."""
-    return (h + 1 - d) % 4
+def frame_compass(hc: int, d: int) -> int:
+    """Compass direction of entry-frame direction ``d`` when the robot heads ``hc``."""
+    return (hc + 1 - d) % 4
 
 
-def frame_step(h: int, right_up: tuple[int, int]) -> tuple[int, int]:
-    """(row, column) step of an entry-frame step ``right_up`` = (right, up) for a robot heading ``h``."""
-    up, right = COMPASS_VEC[h], COMPASS_VEC[(h + 1) % 4]
+def frame_step(hc: int, right_up: tuple[int, int]) -> tuple[int, int]:
+    """(row, column) step of an entry-frame step ``right_up`` = (right, up) for a robot heading ``hc``."""
+    up, right = COMPASS_VEC[hc], COMPASS_VEC[(hc + 1) % 4]
     return right_up[0] * right[0] + right_up[1] * up[0], right_up[0] * right[1] + right_up[1] * up[1]
 
 
-def frame_subcells(sub: tuple[int, int], h: int) -> list[tuple[int, int]]:
-    """Board indices of entry-frame sub-cells 0..3 for a robot in ``sub`` (sub-cell 0) heading ``h``."""
+def frame_subcells(sub: tuple[int, int], hc: int) -> list[tuple[int, int]]:
+    """Board indices of entry-frame sub-cells 0..3 for a robot in ``sub`` (sub-cell 0) heading ``hc``."""
     r0, u0 = SUBCELLS[0]
-    steps = [frame_step(h, ((sr - r0) // 2, (su - u0) // 2)) for sr, su in (SUBCELLS[k] for k in range(4))]
+    steps = [frame_step(hc, ((sr - r0) // 2, (su - u0) // 2)) for sr, su in (SUBCELLS[k] for k in range(4))]
     return [(sub[0] + di, sub[1] + dj) for di, dj in steps]
 
 
@@ -87,7 +87,7 @@ def cell_of(sub: tuple[int, int]) -> tuple[int, int]:
 def start_heading(board) -> int:
     """Compass heading in which the board's start sub-cell is the lower-right one of its cell."""
     i, j = board.start_subcell
-    for h in range(4):
-        if all(cell_of(s) == cell_of((i, j)) for s in frame_subcells((i, j), h)):
-            return h
+    for hc in range(4):
+        if all(cell_of(s) == cell_of((i, j)) for s in frame_subcells((i, j), hc)):
+            return hc
     raise AssertionError("unreachable")  # pragma: no cover

@@ -86,7 +86,7 @@ class Plant:
         self.rng = rng
         start = tuple(board.start_subcell)
         c = board.subcell_center_m(*start)
-        self.x, self.y, self.hdg = float(c[0]), float(c[1]), compass_to_rad(start_heading(board))
+        self.x, self.y, self.heading_rad = float(c[0]), float(c[1]), compass_to_rad(start_heading(board))
         self.t = 0.0
         self.rate_gain = 1.0 + rng.uniform(-robot.rate_spread, robot.rate_spread)  # this robot's motors
         self.nominal_rate = (math.pi / 2) / robot.turn_90_s
@@ -107,7 +107,7 @@ class Plant:
     # ------------------------------------------------------------------ what is true
     @property
     def pose(self) -> tuple[float, float, float]:
-        return self.x, self.y, self.hdg
+        return self.x, self.y, self.heading_rad
 
     def true_rate(self, t_s: float) -> float:
         rate = self.nominal_rate * self.rate_gain * max(0.5, 1.0 - self.robot.fade_per_h * t_s / 3600.0)
@@ -115,7 +115,7 @@ class Plant:
 
     def heading_error(self, hc: int) -> float:
         """True heading less compass heading ``hc`` (the one the robot believes it has), rad."""
-        return wrap_angle(self.hdg - compass_to_rad(hc))
+        return wrap_angle(self.heading_rad - compass_to_rad(hc))
 
     def true_offset(self, sub: tuple[int, int]) -> np.ndarray:
         """Where the robot truly stands off the centre of sub-cell ``sub`` (world, m)."""
@@ -130,13 +130,13 @@ class Plant:
         """A small correction turn timed at the rate ``turn_s`` implies (the true rate applies)."""
         est_rate = (math.pi / 2) / turn_s
         dur = abs(angle_rad) / est_rate
-        self.hdg = wrap_angle(self.hdg + math.copysign(1.0, angle_rad) * self.true_rate(self.t) * dur)
+        self.heading_rad = wrap_angle(self.heading_rad + math.copysign(1.0, angle_rad) * self.true_rate(self.t) * dur)
         self.t += dur
 
     def turn(self, left: bool, turn_s: float) -> None:
         """A 90-degree timed turn: ``turn_s`` at the true rate."""
         sign = 1.0 if left else -1.0
-        self.hdg = wrap_angle(self.hdg + sign * self.true_rate(self.t) * turn_s)
+        self.heading_rad = wrap_angle(self.heading_rad + sign * self.true_rate(self.t) * turn_s)
         self.t += turn_s
         self.turns += 1
 
@@ -151,8 +151,8 @@ class Plant:
 
     def drive_along(self, dist_m: float) -> None:
         """Drive ``dist_m`` straight along the true heading, no turn (backwards when negative)."""
-        self.x += dist_m * math.cos(self.hdg)
-        self.y += dist_m * math.sin(self.hdg)
+        self.x += dist_m * math.cos(self.heading_rad)
+        self.y += dist_m * math.sin(self.heading_rad)
         self.t += abs(dist_m) / self.robot.drive_speed_m_s
         self.aligned += 1
 
@@ -183,8 +183,8 @@ class Plant:
         self.last_move_error_m = self.rng.normal(0, self.robot.drive_sigma_m)
         dist = math.hypot(along, lateral) + self.last_move_error_m
         start = (self.x, self.y)
-        self.x += dist * math.cos(self.hdg + beta_true)
-        self.y += dist * math.sin(self.hdg + beta_true)
+        self.x += dist * math.cos(self.heading_rad + beta_true)
+        self.y += dist * math.sin(self.heading_rad + beta_true)
         self.t += 2 * abs(beta) / est_rate + dist / self.robot.drive_speed_m_s
         self.visits[nxt] += 1
         self.moves += 1

@@ -388,7 +388,7 @@ def test_rows_laid_askew_do_not_turn_back_a_heading_the_lights_set():
     see = CameraPerception(CoverConfig(exposure="auto", camera=load_camera("cooled")), board, np.random.default_rng(1))
     plant, floor = Plant(board, LEGO_STC_ROBOT, np.random.default_rng(0)), Floor(board)
     belief = Belief.at_start(board, plant.calibrated_turn_s)
-    plant.hdg += askew
+    plant.heading_rad += askew
     robot = Robot(plant, belief, floor, see, MoveCount(board.start_subcell))
     for _ in range(5):
         act(Action.MARK, robot)
@@ -400,7 +400,7 @@ def test_rows_laid_askew_do_not_turn_back_a_heading_the_lights_set():
     rows_say = long.observation.heading_error_rad - long.observation.pattern_rotation_rad
     assert math.degrees(rows_say) == pytest.approx(-math.degrees(askew), abs=0.2)  # the rows carry it
     for sigma_deg in (0.1, 0.9):  # as sure as the lights made it; no light seen yet
-        plant.hdg -= plant.heading_error(belief.hc)  # (aligned, as the lights left it)
+        plant.heading_rad -= plant.heading_error(belief.hc)  # (aligned, as the lights left it)
         belief.bearing = Bearing.placed(math.radians(sigma_deg))
         k = belief.bearing.rows_gain(rows_say, math.radians(2))
         assert k == pytest.approx(sigma_deg**2 / (sigma_deg**2 + math.degrees(ROWS_LEAN_SIGMA_RAD) ** 2))
@@ -423,10 +423,10 @@ def test_a_turn_after_the_lights_set_the_heading_keeps_their_correction():
     from controllers.stc.belief import lay_row, realign
 
     class _Plant:
-        hdg = 0.0
+        heading_rad = 0.0
 
         def rotate_by(self, rad, turn_s):
-            self.hdg += rad
+            self.heading_rad += rad
 
         def lay_mark(self, floor, sub, hc):
             pass
@@ -776,7 +776,7 @@ def test_a_neighbour_read_marked_by_dots_on_no_tour_line_stays_a_candidate():
         belief = Belief.at_start(board, plant.calibrated_turn_s)
         right = frame_compass(belief.hc, 0)
         there = step_from(belief.sub, right)  # the right neighbour's sub-cell next to ours
-        x0, y0, h0 = plant.x, plant.y, plant.hdg
+        x0, y0, h0 = plant.x, plant.y, plant.heading_rad
         plant.x, plant.y = board.subcell_center_m(*there)
         if row == "stray":
             plant.x, plant.y = np.array([plant.x, plant.y]) + 0.5 * board.subcell_m * entry_axes(belief.hc)[1]
@@ -784,9 +784,9 @@ def test_a_neighbour_read_marked_by_dots_on_no_tour_line_stays_a_candidate():
         sub1 = step_from(belief.sub, belief.hc)  # the own cell's sub-cell 1, then sub-cell 2 beside it
         for own, back in ((sub1, False), (step_from(sub1, frame_compass(belief.hc, 2)), True)):
             plant.x, plant.y = board.subcell_center_m(*own)
-            plant.hdg = h0 + np.pi * back  # facing down, its rear row lies on the top edge: box 2
+            plant.heading_rad = h0 + np.pi * back  # facing down, its rear row lies on the top edge: box 2
             plant.lay_mark(floor, own, (belief.hc + 2 * back) % 4)
-        plant.x, plant.y, plant.hdg = x0, y0, h0
+        plant.x, plant.y, plant.heading_rad = x0, y0, h0
         plant.wait(60.0)
         cfg = CoverConfig(exposure="auto", camera=load_camera("cooled"))
         see = CameraPerception(cfg, board, np.random.default_rng(3))

@@ -133,9 +133,9 @@ def test_turns_no_row_measured_are_taken_out_at_the_first_measured_turn(turns):
         finish_turn(plant, belief, left, None)
     left_over = plant.heading_error(belief.hc)  # what the unmeasured turns left, in every row laid now
     assert abs(left_over) == pytest.approx(abs(sum(1 if x else -1 for x in turns)) * 0.03 * math.pi / 2, rel=0.01)
-    row = plant.hdg  # a row laid here
+    row = plant.heading_rad  # a row laid here
     turn(plant, belief, False)
-    finish_turn(plant, belief, False, wrap_angle(plant.hdg + math.pi / 2 - row))  # measured against the row
+    finish_turn(plant, belief, False, wrap_angle(plant.heading_rad + math.pi / 2 - row))  # measured against the row
     # (to 0.05 degrees: the motors' rate fades a little from turn to turn)
     assert plant.heading_error(belief.hc) == pytest.approx(0.0, abs=math.radians(0.05))
     assert belief.realigned_rad == pytest.approx(-left_over, abs=math.radians(0.05))
