@@ -2,7 +2,7 @@
 low-light, 16-bit cooled; the 12-bit camera's frames also MSB-aligned, shifted into the top 12
 bits): rim centre error against the optics' true rim, and the grid corners' ground reprojection
 error out to 0.9 m (true image point -> profile -> floor), over the perturbed mirrors of
-``tests/test_calibration.py``:
+``tests/calibration/test_workflow.py``:
 
     python docs/measurements/calibration_depth.py [--mirrors 4]
 
@@ -25,7 +25,7 @@ def measure(camera_name: str, k: int, *, msb: bool = False) -> dict:
     from sim_camera.hardware import CAMERAS
     from sim_camera.optics import MirrorCameraParams, rim_points_px
 
-    rng = np.random.default_rng(500 + k)  # the perturbed mirrors of tests/test_calibration.py
+    rng = np.random.default_rng(500 + k)  # the perturbed mirrors of tests/calibration/test_workflow.py
     optics = MirrorCameraParams(
         mirror_decentre_m=tuple(rng.uniform(-0.0013, 0.0013, 2)),
         mirror_tilt_rad=float(np.radians(rng.uniform(-2, 2))),
