@@ -269,42 +269,30 @@ def _visit(
     batch_state,
     first_path_u,
 ):
-    """Advance one robot (``state``, (N_STATE,)) by at most ``steps`` steps, drawing from its
-    own generators (numba runs numpy's Generator algorithms, bit for bit): ``behaviour_rng`` the
-    behaviour's n and nbar, ``ir_rng`` the IR noise, ``slip_rng`` the wheel slip. ``grid``: the trail
-    raster (uint32: 0 empty, else the path, in :data:`STAMP_M` units + 1, at which the first
-    visit first laid the cell); ``lay``: visit 1 (lay, and count encounters with its own older
-    trail) or 2 (sense and count crossings); ``record`` (steps or 0, 3): x, y, crossed per step.
-    ``auto_stop``: stop when the online rule (:mod:`controllers.buffon.stopping`, constants
-    ``stop_params``, batch-means state ``batch_state`` of the visit's encounters, first-visit path
-    ``first_path_u``) says so. The loop returns after ``steps`` steps at most, so that its caller
-    can look at signals between chunks. Returns
+    """Advance one robot (``state``, (N_STATE,)) by at most ``steps`` steps (so that the caller
+    can look at signals between chunks), drawing from its own generators (numba runs numpy's
+    Generator algorithms, bit for bit): ``behaviour_rng`` the behaviour's n and nbar, ``ir_rng``
+    the IR noise, ``slip_rng`` the wheel slip. ``grid``: the trail raster (uint32: 0 empty, else
+    the path, in :data:`STAMP_M` units + 1, at which the first visit first laid the cell);
+    ``lay``: visit 1 (lay, and count encounters with its own older trail) or 2 (sense and count
+    crossings); ``record`` (steps or 0, 3): x, y, crossed per step. ``auto_stop``: stop when the
+    online rule (:mod:`controllers.buffon.stopping`: constants ``stop_params``, batch-means state
+    ``batch_state`` of the encounters, first-visit path ``first_path_u``) says so. Returns
     (containment failures, stopped by the rule)."""
     caps, ox, oy, cell, ny, nx, offsets, index = geo
-    gox, goy, gcell = trail
     dt, gamma, front_thr, side_thr, k = params[0], params[1], params[2], params[3], params[4]
     noise, esc_min, esc_max, vmax, radius = params[5], params[6], params[7], params[8], params[9]
     b_true, dl_ratio, dr_ratio, slip_k = params[10], params[11], params[12], params[13]
     ir_sat, ir_range, ir_sigma = params[14], params[15], params[16]
-    rate, thr, hyst, half_w, recent_stamps, avoid = (
-        params[17],
-        params[18],
-        params[19],
-        params[20],
-        params[21],
-        params[22],
-    )
+    rate, thr, hyst = params[17], params[18], params[19]
+    half_w, recent_stamps, avoid = params[20], params[21], params[22]
     batches = int(stop_params[6])
-    ir_cos, ir_sin = np.cos(ir_angles_rad), np.sin(ir_angles_rad)
-    ir = np.empty(6)
+    ir_cos, ir_sin, ir = np.cos(ir_angles_rad), np.sin(ir_angles_rad), np.empty(6)
     x, y, th = state[X], state[Y], state[TH]
     r, wl, wr, level, plen = state[R], state[WL], state[WR], state[LEVEL], state[PLEN]
-    above = state[ABOVE] > 0.5
-    gain, blind, esc = state[GAIN], state[BLIND], state[ESC]
-    crossings = int(state[CROSS])
-    done = int(state[STEPS])
-    escapes = 0
-    stopped = False
+    gain, blind, esc, above = state[GAIN], state[BLIND], state[ESC], state[ABOVE] > 0.5
+    crossings, done = int(state[CROSS]), int(state[STEPS])
+    escapes, stopped = 0, False
     turn = 0.0  # trail-aware exploration: the turn away from the old trail under way (+1 left, -1 right)
     recording = record.shape[0] > 0
     for s in range(steps):
@@ -319,15 +307,8 @@ def _visit(
         if lay and avoid > 0.0 and above and esc == 0.0:  # laying over its old trail, no wall escape: turn off it
             rbar = min(1.0, max(-1.0, rbar + avoid * turn))
         ml, mr = wheel_speeds_nb(rbar, k)
-        # 3. wheels -> body, as sim_camera.robot.DiffDriveRobot._pre_step
-        dl = min(vmax, max(-vmax, ml)) * dt * gain * dl_ratio
-        dr = min(vmax, max(-vmax, mr)) * dt * gain * dr_ratio
-        if slip_k > 0.0:
-            n0, n1 = slip_rng.standard_normal(), slip_rng.standard_normal()
-            dl += slip_k * math.sqrt(abs(dl)) * n0
-            dr += slip_k * math.sqrt(abs(dr)) * n1
-        v = 0.5 * (dl + dr)
-        dth = (dr - dl) / b_true
+        # 3. wheels -> body
+        v, dth = _wheels_to_body(ml, mr, vmax, dt, gain, dl_ratio, dr_ratio, slip_k, slip_rng, b_true)
         mid = th + 0.5 * dth
         # 4. frictionless contact
         nx_, ny_, _ = push_out(
@@ -337,12 +318,7 @@ def _visit(
         step_m = math.hypot(nx_ - x, ny_ - y)
         plen += step_m
         # 5. the detector reads the cell it reached; visit 1 then lays its trail there
-        stamp = read_cell(grid, gox, goy, gcell, nx_, ny_)
-        if lay:  # its own trail laid long enough ago (not the stripe being laid)
-            seen = 1.0 if stamp > 0 and plen / STAMP_M + 1.0 - stamp > recent_stamps else 0.0
-            stamp_segment(grid, gox, goy, gcell, half_w, x, y, nx_, ny_, np.uint32(plen / STAMP_M + 1.0))
-        else:
-            seen = 1.0 if stamp > 0 else 0.0
+        seen = _sense_trail(grid, trail, lay, plen, recent_stamps, half_w, x, y, nx_, ny_)
         x, y = nx_, ny_
         level, above, crossed = integrate_nb(level, above, seen, rate, thr, hyst)
         if crossed and avoid > 0.0:
@@ -370,12 +346,38 @@ def _visit(
         done += steps
     state[X], state[Y], state[TH] = x, y, th
     state[R], state[WL], state[WR], state[LEVEL], state[PLEN] = r, wl, wr, level, plen
-    state[ABOVE] = 1.0 if above else 0.0
-    state[BLIND] = blind
-    state[ESC] = esc
-    state[CROSS] = crossings
-    state[STEPS] = done
+    state[ABOVE], state[BLIND], state[ESC] = 1.0 if above else 0.0, blind, esc
+    state[CROSS], state[STEPS] = crossings, done
     return escapes, stopped
+
+
+@numba.njit(cache=True, nogil=True)
+def _wheels_to_body(ml, mr, vmax, dt, gain, dl_ratio, dr_ratio, slip_k, slip_rng, b_true):
+    """One step's wheel travel (speeds ``ml``, ``mr`` clipped at ``vmax``, over the step ``dt``
+    at the battery's ``gain``; each wheel's own ratio, and slip drawn from ``slip_rng``) as
+    the body's forward move and turn, as :meth:`sim_camera.robot.DiffDriveRobot._pre_step` does:
+    (v, dth)."""
+    dl = min(vmax, max(-vmax, ml)) * dt * gain * dl_ratio
+    dr = min(vmax, max(-vmax, mr)) * dt * gain * dr_ratio
+    if slip_k > 0.0:
+        n0, n1 = slip_rng.standard_normal(), slip_rng.standard_normal()
+        dl += slip_k * math.sqrt(abs(dl)) * n0
+        dr += slip_k * math.sqrt(abs(dr)) * n1
+    return 0.5 * (dl + dr), (dr - dl) / b_true
+
+
+@numba.njit(cache=True, nogil=True)
+def _sense_trail(grid, trail, lay, plen, recent_stamps, half_w, x, y, nx_, ny_):
+    """The detector's reading (1.0 or 0.0) of the cell the robot reached, ``(nx_, ny_)``: on
+    the first visit (``lay``) its own trail laid long enough ago (not the stripe being laid),
+    which it then extends from ``(x, y)``; on the second, any trail."""
+    gox, goy, gcell = trail
+    stamp = read_cell(grid, gox, goy, gcell, nx_, ny_)
+    if not lay:
+        return 1.0 if stamp > 0 else 0.0
+    seen = 1.0 if stamp > 0 and plen / STAMP_M + 1.0 - stamp > recent_stamps else 0.0
+    stamp_segment(grid, gox, goy, gcell, half_w, x, y, nx_, ny_, np.uint32(plen / STAMP_M + 1.0))
+    return seen
 
 
 @dataclass(frozen=True, slots=True)
