@@ -1,7 +1,7 @@
 """The shipped default profile, made by running the calibration workflow on the default
 simulated camera.
 
-``python -m calibration.defaults`` regenerates ``calibration/profiles/default.json``; a test
+``python -m stcvision.calibration.defaults`` regenerates ``calibration/profiles/default.json``; a test
 regenerates it and compares. :func:`calibrate_simulated` runs the same workflow on any
 simulated camera (the tests use it on perturbed mirrors).
 """
@@ -20,8 +20,8 @@ CALIBRATION_SUBCELL = (7, 9)
 
 def calibration_frame(camera, *, seed: int = SEED) -> np.ndarray:
     """A rendered lights-on frame of the calibration board, robot at the calibration pose."""
-    from sim_camera.board import Board
-    from sim_camera.camera import Pose
+    from stcvision.sim_camera.board import Board
+    from stcvision.sim_camera.camera import Pose
 
     board = Board.from_text(CALIBRATION_MAP)
     c = board.subcell_center_m(*CALIBRATION_SUBCELL)
@@ -32,7 +32,7 @@ def calibration_frame(camera, *, seed: int = SEED) -> np.ndarray:
 
 def calibrate_simulated(camera, *, seed: int = SEED) -> Profile:
     """The transformation and neighbours calibration on a simulated camera's lights-on frame."""
-    from calibration.transform import calibrate_neighbors, calibrate_transform
+    from stcvision.calibration.transform import calibrate_neighbors, calibrate_transform
 
     frame = calibration_frame(camera, seed=seed)
     prof, _ = calibrate_transform(frame)
@@ -42,20 +42,20 @@ def calibrate_simulated(camera, *, seed: int = SEED) -> Profile:
 
 def build_default_profile() -> Profile:
     """Calibrate the default simulated camera (``sim_camera`` defaults, pattern seed 0)."""
-    from sim_camera.camera import SyntheticCamera
+    from stcvision.sim_camera.camera import SyntheticCamera
 
     prof = calibrate_simulated(SyntheticCamera())
     return prof.replace(
         provenance={
             **prof.provenance,
             "camera": "sim_camera defaults, pattern_seed 0",
-            "frame": f"calibration.defaults.calibration_frame(seed={SEED})",
+            "frame": f"stcvision.calibration.defaults.calibration_frame(seed={SEED})",
         }
     )
 
 
 def main() -> None:
-    from calibration.profiles import default_profile_path
+    from stcvision.calibration.profiles import default_profile_path
 
     prof = build_default_profile()
     path = default_profile_path()

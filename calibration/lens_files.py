@@ -26,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
-from calibration.lens_models import DISTORTIONS, PROJECTIONS, CentralModel, OcamModel
+from stcvision.calibration.lens_models import DISTORTIONS, PROJECTIONS, CentralModel, OcamModel
 from stcvision.errors import BadInputError
 
 __all__ = ["FORMATS", "detect_format", "read_lens_file", "write_lens_file", "lens_file_text"]

@@ -31,8 +31,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import least_squares
 
-from calibration.lens_models import CentralModel, OcamModel
 from stcvision.angles import wrap_angle
+from stcvision.calibration.lens_models import CentralModel, OcamModel
 from stcvision.errors import BadInputError
 from stcvision.profile import MAX_DECENTERING, MAX_DECENTERING_RADIAL, Profile
 

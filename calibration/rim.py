@@ -107,13 +107,13 @@ def detect_rim(
     tol_px: float = 2.0,
 ) -> RimFit:
     """Find the rim circle of a catadioptric image ((H, W, 3) or (H, W), uint8 or uint16: see
-    :func:`calibration.frames.geometry_frame`).
+    :func:`stcvision.calibration.frames.geometry_frame`).
 
     Radii are searched between ``min_radius_frac`` and ``max_radius_frac`` of the image's
     smaller side times 1... of the larger side's half-diagonal; the centre must lie in the
     middle half of the image.
     """
-    from calibration.frames import geometry_frame
+    from stcvision.calibration.frames import geometry_frame
 
     if not isinstance(image, np.ndarray) or image.dtype not in (np.uint8, np.uint16) or image.ndim not in (2, 3):
         raise BadInputError("rim detection needs an (H, W) or (H, W, 3) uint8 or uint16 image")

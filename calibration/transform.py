@@ -6,14 +6,14 @@ lower-right sub-cell"). In its frame (x forward, y left) the cell boundaries -- 
 are then the lines ``x = -D/2 + 2kD`` and ``y = -D/2 + 2kD``, and their crossings are known floor
 points.
 
-1. :func:`calibration.rim.detect_rim` finds the mirror's rim (centre and radius), unless a
+1. :func:`stcvision.calibration.rim.detect_rim` finds the mirror's rim (centre and radius), unless a
    person gives the centre.
 2. A coarse search fits the grid: for each of the four ways the robot can face in the image
    and a grid of radial shapes, the known grid lines are projected and scored by how many land
    on the dark-line mask (a chamfer score on its distance transform). A mirror view is always
    mirrored (one reflection), which removes the grid's diagonal symmetry.
 3. Grid crossings are predicted with the best model, refined to sub-pixel with
-   :func:`cv2.cornerSubPix`, and the profile is fitted to them (:func:`calibration.fit.fit_profile`);
+   :func:`cv2.cornerSubPix`, and the profile is fitted to them (:func:`stcvision.calibration.fit.fit_profile`);
    predict-refine-fit repeats so farther crossings join as the model improves.
 4. Neighbours calibration: the 12 corners of the five cells are found in the unwarped ground
    view the same way (straight lines there) and stored in the profile.
@@ -28,9 +28,9 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from calibration.fit import DEFAULT_VIEWPOINT_M, FitSetup, fit_profile
-from calibration.frames import geometry_frame
-from calibration.rim import RimFit, detect_rim
+from stcvision.calibration.fit import DEFAULT_VIEWPOINT_M, FitSetup, fit_profile
+from stcvision.calibration.frames import geometry_frame
+from stcvision.calibration.rim import RimFit, detect_rim
 from stcvision.errors import BadInputError
 from stcvision.profile import CORNER_ORDER, Profile, nominal_corners_px
 from stcvision.stc_geometry import DEFAULT_SUBCELL_M

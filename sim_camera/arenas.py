@@ -844,7 +844,7 @@ class BoardArena(Arena):
 
 
 def arena_from_board(board: Any, *, wall_thickness_m: float = DEFAULT_WALL_THICKNESS_M) -> BoardArena:
-    """Arena of a :class:`sim_camera.board.Board` (anything with ``blocked``, ``subcell_m``)."""
+    """Arena of a :class:`stcvision.sim_camera.board.Board` (anything with ``blocked``, ``subcell_m``)."""
     blocked = np.asarray(board.blocked, dtype=bool).copy()
     blocked.setflags(write=False)
     d = float(board.subcell_m)

@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from sim_camera.arenas import Arena, segment_distances
+from stcvision.sim_camera.arenas import Arena, segment_distances
 
 __all__ = ["PointRobotBatch"]
 

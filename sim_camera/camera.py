@@ -1,15 +1,15 @@
 """The synthetic catadioptric camera: renders the phosphor floor and red lights into noisy
 mirror images at the sensor's ADC depth (uint8 for 8 bits, uint16 ADC counts for more:
-:mod:`sim_camera.image_sensor`), with ground truth.
+:mod:`stcvision.sim_camera.image_sensor`), with ground truth.
 
 Build once, render many: :class:`SyntheticCamera` traces every pixel onto the floor once
-(:func:`sim_camera.optics.trace_pixels`) and draws its fixed-pattern noise once; per frame only
+(:func:`stcvision.sim_camera.optics.trace_pixels`) and draws its fixed-pattern noise once; per frame only
 the robot pose moves the floor under that table.
 
 Rendering
 ---------
 * **Dots and lights** are small emitting discs. Each is projected with the forward solver
-  (:func:`~sim_camera.optics.project_floor_points`); its electrons are
+  (:func:`~stcvision.sim_camera.optics.project_floor_points`); its electrons are
   ``L * e_per_cd_m2_s * exposure * vignetting * (disc area / pixel footprint)`` -- the fraction
   of the pixel's floor footprint the disc fills -- spread by a Gaussian whose covariance is the
   lens blur plus the disc mapped through the local pixel->floor Jacobian (far dots are squashed
@@ -20,7 +20,7 @@ Rendering
 * Sources that overflow the full well bloom (``bloom_fraction`` of the excess charge spreads
   over a few pixels) and carry veiling glare (``glare_fraction`` of their light over tens of
   pixels); both are added around each such source only.
-* The sensor (:mod:`sim_camera.image_sensor`) adds dark current, fixed pattern, noise, colour
+* The sensor (:mod:`stcvision.sim_camera.image_sensor`) adds dark current, fixed pattern, noise, colour
   response and crosstalk, saturation, and quantises to its ADC's depth; every frame, dark
   frame and lights-on frame of a camera has the sensor's dtype.
 """
@@ -34,8 +34,8 @@ import numpy as np
 from llvmlite import ir
 from numba.extending import intrinsic
 
-from sim_camera.image_sensor import ROSE_SNR, FixedPattern, SensorParams, detection_snr, expose
-from sim_camera.optics import FloorProjector, MirrorCameraParams, RayTable, trace_pixels
+from stcvision.sim_camera.image_sensor import ROSE_SNR, FixedPattern, SensorParams, detection_snr, expose
+from stcvision.sim_camera.optics import FloorProjector, MirrorCameraParams, RayTable, trace_pixels
 
 __all__ = [
     "Frame",
@@ -378,7 +378,7 @@ class SyntheticCamera:
         """Expected photo-electrons (H, W, 3) float32 of a dark-room frame, before noise, and
         per-source info (projected positions, electrons). ``lamps``: other emitting discs on the
         floor, ``(xy_m (N, 2) world, luminance_cd_m2, diameter_m, bgr response)`` (a stray light
-        source: :mod:`controllers.stc.faults`)."""
+        source: :mod:`stcvision.controllers.stc.faults`)."""
         s = sensor or self.sensor
         out = self._scratch
         out.fill(0)
@@ -423,7 +423,7 @@ class SyntheticCamera:
         """Render one dark-room frame (phosphor dots + red lights) at sim time ``t_s``.
 
         ``n_avg`` > 1 renders the average of that many frames taken back to back from ``t_s``
-        (frame stacking; :func:`sim_camera.image_sensor.expose`), the scene as it is at the middle of
+        (frame stacking; :func:`stcvision.sim_camera.image_sensor.expose`), the scene as it is at the middle of
         the stack: the marks a long stack must read are hundreds of seconds old or more and fade
         by a few per cent over it, and the fresh ones saturate in every frame anyway.
 
@@ -433,11 +433,11 @@ class SyntheticCamera:
             True robot pose (world).
         rng : numpy.random.Generator
             Temporal noise source.
-        phosphor : sim_camera.phosphor.PhosphorLayer, optional
+        phosphor : stcvision.sim_camera.phosphor.PhosphorLayer, optional
         red_lights_m : (N, 2) world positions of red lights, optional
         sensor : SensorParams, optional
             Settings for this frame (exposure, gain); defaults to the camera's.
-        board : sim_camera.board.Board, optional
+        board : stcvision.sim_camera.board.Board, optional
             Needed for the cell/box/neighbour regions in the ground truth.
         truth : bool
             Attach ground truth (slower: a few ms).
@@ -450,7 +450,7 @@ class SyntheticCamera:
         image = expose(sig, s, self.pattern, rng, n_avg=n_avg)
         gt = None
         if truth:
-            from sim_camera.truth import build_truth
+            from stcvision.sim_camera.truth import build_truth
 
             gt = build_truth(self, pose, s, info, t_s=t_s, phosphor=phosphor, red_lights_m=red_lights_m, board=board)
         return Frame(image, gt)
@@ -508,7 +508,7 @@ class SyntheticCamera:
         image = expose(np.ascontiguousarray(sig, np.float32), s, self.pattern, rng)
         gt = None
         if truth:
-            from sim_camera.truth import build_truth
+            from stcvision.sim_camera.truth import build_truth
 
             gt = build_truth(self, pose, s, {}, t_s=0.0, board=board)
             gt["lights_on"] = True
@@ -532,7 +532,7 @@ def visibility_horizon_s(
     dot is never detectable and ``inf`` if it still is at ``max_age_s``. ``rho_m`` may be an
     array of distances (one rendering for them all): the result is then an array too.
     """
-    from sim_camera.phosphor import AfterglowLaw, PhosphorLayer
+    from stcvision.sim_camera.phosphor import AfterglowLaw, PhosphorLayer
 
     s = sensor or camera.sensor
     law = law or AfterglowLaw()

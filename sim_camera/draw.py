@@ -13,8 +13,8 @@ import math
 import cv2
 import numpy as np
 
-from sim_camera.arenas import BoardArena, CircleObstacle
 from stcvision.errors import BadInputError
+from stcvision.sim_camera.arenas import BoardArena, CircleObstacle
 
 __all__ = ["draw_world", "world_to_px"]
 

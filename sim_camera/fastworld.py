@@ -1,6 +1,6 @@
 """Batched physics for many small disc robots among static walls, compiled with numba.
 
-The pymunk world (:mod:`sim_camera.world`) with the Buffon explorer's six IR ray casts runs
+The pymunk world (:mod:`stcvision.sim_camera.world`) with the Buffon explorer's six IR ray casts runs
 ~4,200 robot-steps/s here; a Buffon reproduction is ~10^9 robot-steps (the
 Buffon's needle paper of Girgin & Sahin, sec. 4-5: 100 trials x 2 visits x 50,000 steps per nest,
 and more), so the Monte-Carlo path needs compiled per-step loops. numba compiles the plain Python
@@ -21,7 +21,7 @@ What it models, and how it matches the pymunk path:
   elasticity 0. Robots move at most a few mm per step against a radius of 27.5 mm, so the
   centre can never pass a wall's centre line in one step (no tunnelling; tested).
 * **Pheromone raster** (:func:`deposit_segment`, :func:`read_cell`): the same grid convention as
-  :class:`sim_camera.layers.PheromoneLayer` (row 0 = south; a cell is marked when its centre is
+  :class:`stcvision.sim_camera.layers.PheromoneLayer` (row 0 = south; a cell is marked when its centre is
   within half the trail width of the path).
 * **Containment** (:func:`inside_polygon`): the outer polygon test, used as a guard.
 
@@ -254,7 +254,7 @@ def inside_polygon(poly, x, y):
 @_jit
 def deposit_segment(grid, ox, oy, cell, half, x0, y0, x1, y1):
     """Mark the cells of ``grid`` (uint8, row 0 = south) whose centre lies within ``half`` of the
-    segment (x0, y0)-(x1, y1) (the rule of :class:`sim_camera.layers.PheromoneLayer`)."""
+    segment (x0, y0)-(x1, y1) (the rule of :class:`stcvision.sim_camera.layers.PheromoneLayer`)."""
     stamp_segment(grid, ox, oy, cell, half, x0, y0, x1, y1, 1)
 
 

@@ -1,10 +1,10 @@
 """Hardware profiles: cameras and marking robots as named presets and as versioned JSON.
 
-A **camera** profile sets the sensor's physics in :class:`sim_camera.image_sensor.SensorParams`: the
+A **camera** profile sets the sensor's physics in :class:`stcvision.sim_camera.image_sensor.SensorParams`: the
 quantum efficiency at the phosphor's ~520 nm, read noise, dark current at its operating
 temperature, pixel pitch, full well and the lens f-number (the optics' geometry, the fixed
 pattern's shape, the colour responses and the exposure/gain settings the robot chooses stay the
-model's). A **robot** profile is a :class:`sim_camera.robot.MarkingRobot`. Every figure of a
+model's). A **robot** profile is a :class:`stcvision.sim_camera.robot.MarkingRobot`. Every figure of a
 preset carries its source; "assumed" says where no datasheet or paper gives one.
 
 JSON (``schema_version`` 1; unit-suffixed keys)::
@@ -22,9 +22,9 @@ A camera file may set any other ``SensorParams`` field too; unknown keys and oth
 versions are refused with a one-line reason (:class:`stcvision.errors.BadInputError`).
 
 ``adc_bits`` is the sensor's (:attr:`SensorParams.adc_bits`): frames are sensor-true, uint8 for an
-8-bit ADC and uint16 ADC counts for 12 or 16 bits (:mod:`sim_camera.image_sensor`); the coverage loop
+8-bit ADC and uint16 ADC counts for 12 or 16 bits (:mod:`stcvision.sim_camera.image_sensor`); the coverage loop
 chooses each frame's gain from the sensor's own noise
-(:func:`controllers.stc.frames.sensor_gain`).
+(:func:`stcvision.controllers.stc.frames.sensor_gain`).
 """
 
 from __future__ import annotations
@@ -33,9 +33,9 @@ import dataclasses
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from sim_camera.image_sensor import SensorParams
-from sim_camera.robot import LEGO_STC_ROBOT, MarkingRobot
 from stcvision.errors import BadInputError
+from stcvision.sim_camera.image_sensor import SensorParams
+from stcvision.sim_camera.robot import LEGO_STC_ROBOT, MarkingRobot
 
 __all__ = [
     "CAMERAS",

@@ -12,7 +12,7 @@ mosaic and no demosaicing):
   ``S + D + read_noise_e**2``. (Exact Poisson statistics matter only for a few electrons, where
   the read noise of several electrons already hides the difference.)
 * full-well saturation (blooming and glare of saturating sources are added by the renderer
-  around each such source, see :mod:`sim_camera.camera`);
+  around each such source, see :mod:`stcvision.sim_camera.camera`);
 * the ADC: ``adc_bits`` b, conversion gain ``dn_per_e = gain * (2**b - 1) / full_well_e`` DN per
   electron (at gain 1 the full well spans the ADC's range), a black-level pedestal, rounding and
   clipping to ``0 .. 2**b - 1``. Frames are sensor-true: b = 8 gives (H, W, 3) uint8, b > 8

@@ -9,7 +9,7 @@
   tongue sensor (the TASTI 2 paper by Russell, sec. V: "a circular patch of salt
   crystals 350mm in diameter"). An optional linear edge ramp stands in for scattered crystals.
 
-The phosphor layer lives in :mod:`sim_camera.phosphor`. A layer that wants to react to the world
+The phosphor layer lives in :mod:`stcvision.sim_camera.phosphor`. A layer that wants to react to the world
 every step (e.g. to robots' LEDs) implements ``on_step(world)`` and is added with
 ``World.add_layer``.
 """
@@ -21,8 +21,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from sim_camera.arenas import as_points, points_in_polygon
 from stcvision.errors import BadInputError
+from stcvision.sim_camera.arenas import as_points, points_in_polygon
 
 __all__ = [
     "ChemicalLayer",
@@ -97,7 +97,7 @@ class PheromoneLayer:
             return
         jj, ii = np.meshgrid(np.arange(j0, j1 + 1), np.arange(i0, i1 + 1))
         centres = np.c_[ox + (jj.ravel() + 0.5) * c, oy + (ii.ravel() + 0.5) * c]
-        from sim_camera.arenas import segment_distances
+        from stcvision.sim_camera.arenas import segment_distances
 
         hit = (segment_distances(centres, a, b) <= half).any(axis=1)
         self.grid[ii.ravel()[hit], jj.ravel()[hit]] = True

@@ -20,7 +20,7 @@ Parameters (world constants; see :class:`AfterglowLaw`):
   paper (Srour & Abboud) charges "for a few seconds ... to allow the surface to absorb the light"
   (its section "Marking Sub-cells").
 * ``l_sat_cd_m2 = 0.45``: the saturated initial luminance of a dot. This is the one constant fitted
-  to an observation: with the paper's webcam (``sim_camera.image_sensor.SensorParams`` defaults,
+  to an observation: with the paper's webcam (``stcvision.sim_camera.image_sensor.SensorParams`` defaults,
   exposure 1/30 s, gain 16) a dot charged for 3 s at the reference distance (0.25 m from the
   robot, a mark in its own cell) stays detectable (Rose criterion, SNR >= 5 in the paper's 3x3
   search window) for about a minute and not at two (the paper's "Limitations": "it could be seen

@@ -6,7 +6,7 @@ per robot (``speed_gain_spread``, e.g. +-10 %) and fades with battery charge
 (``battery_fade_per_h``) -- the ant-like STC paper (Srour & Abboud): "Because of the battery
 decay, and the fact that the robot is built from Lego, a 90 degree turn, wasn't actually 90
 degree". Each wheel rolls ``rotation * true_radius`` plus slip noise; the body's velocity follows
-from the true wheelbase (see :mod:`sim_camera.odometry` for the error model).
+from the true wheelbase (see :mod:`stcvision.sim_camera.odometry` for the error model).
 
 Motion primitives are small state machines advanced by :meth:`World.step`:
 ``drive_distance`` (done when the odometry says so, or "blocked" when the motor stalls against
@@ -45,8 +45,8 @@ from dataclasses import dataclass
 import numpy as np
 import pymunk
 
-from sim_camera.odometry import Odometry, OdometryParams, WheelEncoders, true_wheel_diameters_m
 from stcvision.errors import BadInputError
+from stcvision.sim_camera.odometry import Odometry, OdometryParams, WheelEncoders, true_wheel_diameters_m
 
 __all__ = [
     "KHEPERA",
@@ -74,7 +74,7 @@ class DiffDriveParams:
     turn_wheel_speed_m_s: float  # wheel speed of rotate_for (left -v, right +v for a left turn)
     encoder_lines_per_rev: int  # quadrature: 4 counts per line
     mass_kg: float = 0.5
-    # true-vs-nominal (systematic) and random error, see sim_camera.odometry
+    # true-vs-nominal (systematic) and random error, see stcvision.sim_camera.odometry
     ed: float = 1.0  # D_R / D_L (true)
     eb: float = 1.0  # b_true / b_nominal
     slip_k: float = 0.0  # m / sqrt(m): per-wheel travel noise std = slip_k * sqrt(|d|)
@@ -182,7 +182,7 @@ class MotionResult:
 
 
 class DiffDriveRobot:
-    """A robot in a :class:`sim_camera.world.World` (create it with ``world.add_robot``).
+    """A robot in a :class:`stcvision.sim_camera.world.World` (create it with ``world.add_robot``).
 
     State the rest of the sim reads: :attr:`pose` (true x, y, heading), :attr:`leds_lit` (the UV
     LEDs, read by the phosphor layer), :attr:`nozzle_open` (pheromone nozzle), :attr:`encoders`,
@@ -225,7 +225,7 @@ class DiffDriveRobot:
         self.record_trail = record_trail
         self.trail: list[tuple[float, float]] = [(float(pose[0]), float(pose[1]))]
         self.distance_travelled_m = 0.0  # true path length of the centre
-        self.sensors = None  # set by World.add_robot (sim_camera.robot_sensors.SensorSuite)
+        self.sensors = None  # set by World.add_robot (stcvision.sim_camera.robot_sensors.SensorSuite)
 
         self.mode = MotionMode.IDLE
         self._cmd = (0.0, 0.0)
@@ -437,7 +437,7 @@ class MarkingRobot:
     loop's kinematic plant sees it: one sub-cell per forward move, timed 90-degree turns.
 
     :meth:`from_body` takes the motion figures from a :class:`DiffDriveParams` preset (one source
-    for every number); a JSON profile gives them directly (:mod:`sim_camera.hardware`)."""
+    for every number); a JSON profile gives them directly (:mod:`stcvision.sim_camera.hardware`)."""
 
     name: str
     drive_speed_m_s: float  # cruise speed of a forward move

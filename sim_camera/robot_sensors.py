@@ -1,7 +1,7 @@
 """Robot sensors: IR proximity (Khepera), capacitive ring (TASTI 2), tongue, pheromone, encoders.
 
 Sensors are read on demand by controllers (``robot.sensors.ir.read()``); only the encoders are
-updated every step by the world (:mod:`sim_camera.odometry`). Ray sensors use pymunk
+updated every step by the world (:mod:`stcvision.sim_camera.odometry`). Ray sensors use pymunk
 ``segment_query_first`` against walls, obstacles and other robots (never the robot itself).
 All noise comes from a per-sensor ``numpy.random.Generator`` split off the robot's seed stream.
 
@@ -29,7 +29,7 @@ reaches it stops "1.5cm away from the can", as the paper reports.
 Tongue: the chemical layer's concentration at the turning centre (TASTI 2 moved its tongue
 there, TASTI 2 paper sec. IV) plus Gaussian noise. Pheromone detector: binary reading of the
 pheromone layer at the body centre (Buffon's needle paper sec. 3); the robot's leaky integrator and
-crossing counter (sec. 4) are the Buffon controller's, in :mod:`controllers.buffon.counter`.
+crossing counter (sec. 4) are the Buffon controller's, in :mod:`stcvision.controllers.buffon.counter`.
 """
 
 from __future__ import annotations

@@ -11,10 +11,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from sim_camera.board import DEFAULT_SUBCELL_M, Board
-from sim_camera.camera import Pose
-from sim_camera.phosphor import PhosphorLayer, mark_dots_m
-from sim_camera.truth import BOXES, NEIGHBOURS, SUBCELL_SIGNS, entry_frame
+from stcvision.sim_camera.board import DEFAULT_SUBCELL_M, Board
+from stcvision.sim_camera.camera import Pose
+from stcvision.sim_camera.phosphor import PhosphorLayer, mark_dots_m
+from stcvision.sim_camera.truth import BOXES, NEIGHBOURS, SUBCELL_SIGNS, entry_frame
 
 __all__ = ["CellScene", "benchmark_frames", "benchmark_scene", "cell_scene"]
 
@@ -112,8 +112,8 @@ def benchmark_scene(seed: int = 0):
     sub-cell marked at a random age up to 3 minutes, the robot inside the board."""
     import numpy as np
 
-    from sim_camera.board import Board
-    from sim_camera.scene import EDGES
+    from stcvision.sim_camera.board import Board
+    from stcvision.sim_camera.scene import EDGES
 
     rng = np.random.default_rng(seed)
     board = Board.random((22, 22), obstacle_fraction=0.1, rng=rng)
@@ -140,7 +140,7 @@ def benchmark_frames(seed: int = 0, n: int = 8):
     a median dark of 8, then the frames, from one stream seeded ``seed``."""
     import numpy as np
 
-    from sim_camera.camera import SyntheticCamera
+    from stcvision.sim_camera.camera import SyntheticCamera
 
     board, layer, pose = benchmark_scene(seed)
     cam = SyntheticCamera()

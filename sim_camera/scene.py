@@ -16,12 +16,12 @@ from pathlib import Path
 
 import numpy as np
 
-from sim_camera.board import DEFAULT_SUBCELL_M, Board
-from sim_camera.camera import Pose, SyntheticCamera
-from sim_camera.image_sensor import SensorParams
-from sim_camera.optics import MirrorCameraParams
-from sim_camera.phosphor import AfterglowLaw, PhosphorLayer, mark_dots_m
 from stcvision.errors import BadInputError
+from stcvision.sim_camera.board import DEFAULT_SUBCELL_M, Board
+from stcvision.sim_camera.camera import Pose, SyntheticCamera
+from stcvision.sim_camera.image_sensor import SensorParams
+from stcvision.sim_camera.optics import MirrorCameraParams
+from stcvision.sim_camera.phosphor import AfterglowLaw, PhosphorLayer, mark_dots_m
 
 __all__ = ["EDGES", "EXAMPLE_SCENE", "Scene"]
 
@@ -37,8 +37,8 @@ EXAMPLE_SCENE = {
         "along one edge (N/E/S/W), age_s seconds after its charge_s-second charge ended. dots: "
         "single dots at x_m/y_m. red_lights: 'board' (obstacle cells + border ring), a list of "
         "[x_m, y_m], or false. camera/sensor/afterglow: overrides of "
-        "sim_camera.optics.MirrorCameraParams, sim_camera.image_sensor.SensorParams, "
-        "sim_camera.phosphor.AfterglowLaw. pattern_seed: the camera's fixed-pattern noise."
+        "stcvision.sim_camera.optics.MirrorCameraParams, stcvision.sim_camera.image_sensor.SensorParams, "
+        "stcvision.sim_camera.phosphor.AfterglowLaw. pattern_seed: the camera's fixed-pattern noise."
     ),
     "board": {
         "text": [
@@ -141,7 +141,7 @@ class Scene:
     @classmethod
     def from_dict(cls, d: dict, *, base_dir: Path | None = None, sensor_base: SensorParams | None = None) -> Scene:
         """``sensor_base``: the sensor the scene's ``sensor`` overrides apply to (a camera
-        profile's, :mod:`sim_camera.hardware`); default the webcam's."""
+        profile's, :mod:`stcvision.sim_camera.hardware`); default the webcam's."""
         if not isinstance(d, dict):
             raise BadInputError("scene must be a JSON object")
         unknown = set(d) - _KEYS

@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from sim_camera.image_sensor import ROSE_SNR, detection_snr
+from stcvision.sim_camera.image_sensor import ROSE_SNR, detection_snr
 
 __all__ = ["BOXES", "NEIGHBOURS", "build_truth", "entry_frame"]
 

@@ -31,9 +31,9 @@ import math
 import numpy as np
 import pymunk
 
-from sim_camera.arenas import Arena, CircleObstacle, PolygonObstacle
-from sim_camera.robot import DiffDriveParams, DiffDriveRobot, MotionResult
 from stcvision.errors import BadInputError
+from stcvision.sim_camera.arenas import Arena, CircleObstacle, PolygonObstacle
+from stcvision.sim_camera.robot import DiffDriveParams, DiffDriveRobot, MotionResult
 
 __all__ = ["WALL_CATEGORY", "ROBOT_CATEGORY", "World"]
 
@@ -53,7 +53,7 @@ class World:
     seed : int or SeedSequence; everything random in this world derives from it.
     max_substep_travel_m : bound on a robot centre's travel per substep (default: a quarter of
         the thinnest wall's half-thickness, at most 2 mm).
-    pheromone, chemical : optional floor layers (see :mod:`sim_camera.layers`).
+    pheromone, chemical : optional floor layers (see :mod:`stcvision.sim_camera.layers`).
     """
 
     def __init__(
@@ -171,7 +171,7 @@ class World:
         self.space.add(robot.body, robot.shape)
         self.robots.append(robot)
         if sensors:
-            from sim_camera.robot_sensors import SensorSuite
+            from stcvision.sim_camera.robot_sensors import SensorSuite
 
             robot.sensors = SensorSuite(self, robot)
         return robot

@@ -2,8 +2,9 @@
 
 The vision pipeline (dark frame, phi/theta unwarp, channel filters, dot search, heading fit,
 rotation-time recalibration, cell observation), the calibration-profile data types and the rerun
-logging helpers live here. The simulator (``sim_camera``), the controllers and the calibration
-workflow are separate import packages.
+logging helpers live here. The simulator (``stcvision.sim_camera``), the robots
+(``stcvision.controllers``) and the calibration workflow (``stcvision.calibration``) install under
+this one name from folders of their own (docs/architecture.md).
 
 The names a user reaches for first are importable from the package itself::
 
@@ -31,7 +32,7 @@ _LAZY: dict[str, tuple[str, str | None]] = {
     "PipelineParams": ("stcvision.pipeline", "PipelineParams"),
     "PipelineResult": ("stcvision.pipeline", "PipelineResult"),
     "Profile": ("stcvision.profile", "Profile"),
-    "default_profile": ("calibration.profiles", "default_profile"),
+    "default_profile": ("stcvision.calibration.profiles", "default_profile"),
     "stages": ("stcvision.stages", None),
     "CellObservation": ("stcvision.observation", "CellObservation"),
     # frames and files
@@ -48,13 +49,13 @@ _LAZY: dict[str, tuple[str, str | None]] = {
     "SweepOptions": ("stcvision.sweep", "SweepOptions"),
     "run_sweep": ("stcvision.sweep", "run_sweep"),
     # the robots: STC coverage, Buffon's needle, TASTI 2 search
-    "Board": ("sim_camera.board", "Board"),
-    "run_cover": ("controllers.stc.loop", "run_cover"),
-    "CoverConfig": ("controllers.stc.config", "CoverConfig"),
-    "measure_nest": ("controllers.buffon.run", "measure"),
-    "run_search": ("controllers.search.run", "run_search"),
-    "SearchScene": ("controllers.search.run", "SearchScene"),
-    "SearchConfig": ("controllers.search.controller", "SearchConfig"),
+    "Board": ("stcvision.sim_camera.board", "Board"),
+    "run_cover": ("stcvision.controllers.stc.loop", "run_cover"),
+    "CoverConfig": ("stcvision.controllers.stc.config", "CoverConfig"),
+    "measure_nest": ("stcvision.controllers.buffon.run", "measure"),
+    "run_search": ("stcvision.controllers.search.run", "run_search"),
+    "SearchScene": ("stcvision.controllers.search.run", "SearchScene"),
+    "SearchConfig": ("stcvision.controllers.search.controller", "SearchConfig"),
 }
 
 #: the public names: the error classes, the version and the lazy names (the keys of _LAZY)

@@ -36,7 +36,7 @@ def check_board_cells(w: int, h: int, *, flag: str = "--board") -> None:
 
 
 # ---------------------------------------------------------------- sweeps of the STC robot
-# (``stcvision cover sweep`` and ``cover faults``; ``controllers.stc.experiments``)
+# (``stcvision cover sweep`` and ``cover faults``; ``stcvision.controllers.stc.experiments``)
 
 #: seeds per board family (``--runs N``, ``--seeds A-B``): a camera run on a 22x22 board takes
 #: ~40 s of one core, so 10,000 seeds of one family are ~4.6 core-days, far beyond any table a

@@ -1,4 +1,4 @@
-"""Score pipeline results against ground truth (``sim_camera`` truth dicts).
+"""Score pipeline results against ground truth (``stcvision.sim_camera`` truth dicts).
 
 Used by the tests and by ``stcvision eval``. Only what the camera can see is held against the
 pipeline: a truth dot "should be found" if it is visible and its expected SNR is at least

@@ -1,5 +1,5 @@
 """The one STC geometry (docs/explanation/stc-geometry.md), used by the
-vision (:mod:`stcvision.observation`) and the controller (:mod:`controllers.stc`).
+vision (:mod:`stcvision.observation`) and the controller (:mod:`stcvision.controllers.stc`).
 
 **Entry frame** (the robot's heading rounded to a multiple of 90 degrees points "up"): the robot
 stands in sub-cell 0 of its cell; sub-cells are numbered counter-clockwise 0 lower-right,

@@ -34,7 +34,7 @@ def warm(*, verbose: bool = True) -> dict:
         steps = [
             ("demo (closed loop, 8-bit pipeline, recording)", ["demo", "--out", f"{tmp}/demo"]),
         ]
-        from sim_camera.scene import EXAMPLE_SCENE
+        from stcvision.sim_camera.scene import EXAMPLE_SCENE
 
         scene = Path(tmp) / "scene.json"
         scene.write_text(json.dumps(EXAMPLE_SCENE))

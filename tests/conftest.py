@@ -30,7 +30,7 @@ def peer_data() -> Path:
 
 @pytest.fixture(scope="session")
 def default_camera():
-    from sim_camera.camera import SyntheticCamera
+    from stcvision.sim_camera.camera import SyntheticCamera
 
     return SyntheticCamera()
 

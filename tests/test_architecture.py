@@ -11,7 +11,19 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
-PACKAGES = ("stcvision", "sim_camera", "controllers", "calibration")
+#: the repository's package folders and the import name each installs under (pyproject.toml's
+#: package-dir): one installed name, stcvision, whose rooms keep their folders at the top
+FOLDERS = {
+    "stcvision": "stcvision",
+    "sim_camera": "stcvision.sim_camera",
+    "controllers": "stcvision.controllers",
+    "calibration": "stcvision.calibration",
+}
+#: the ground floor: what every layer may import, and which imports nothing of the project above it
+GROUND = {"stcvision.errors", "stcvision.fileio", "stcvision.limits", "stcvision.angles", "stcvision.stc_geometry"}
+#: the roof: the command line, and the two entry points that drive it (``python -m stcvision``,
+#: the numba warm-up that runs the CLI's commands once)
+ROOF = ("stcvision.cli", "stcvision.__main__", "stcvision.warm")
 #: what the simulator may take from stcvision: errors, file helpers, caps, angle wrapping, and
 #: the default sub-cell side; never the mirror model, the stages or the STC geometry's rules
 SIM_MAY_IMPORT = {
@@ -33,14 +45,29 @@ DATASETS_MAY_IMPORT = {
 
 
 def _module_name(path: Path) -> str:
-    return ".".join(path.relative_to(ROOT).with_suffix("").parts).removesuffix(".__init__")
+    """The installed name of a module file of one of :data:`FOLDERS`."""
+    folder, *rest = path.relative_to(ROOT).with_suffix("").parts
+    return ".".join([FOLDERS[folder], *rest]).removesuffix(".__init__")
+
+
+def room(module: str) -> str:
+    """The package a module belongs to: ``sim_camera``, ``controllers``, ``calibration`` (the
+    folders installed under stcvision), or ``stcvision`` for the pipeline's own modules."""
+    parts = module.split(".")
+    if parts[0] == "stcvision" and len(parts) > 1 and f"stcvision.{parts[1]}" in FOLDERS.values():
+        return parts[1]
+    return parts[0]
+
+
+def _ours(module: str) -> bool:
+    return module.split(".")[0] == "stcvision"
 
 
 def _imports() -> dict[str, set[tuple[str, tuple[str, ...]]]]:
     """module -> {(imported module, names imported from it)} for the project's own modules."""
     out: dict[str, set] = defaultdict(set)
-    for pkg in PACKAGES:
-        for path in (ROOT / pkg).rglob("*.py"):
+    for folder in FOLDERS:
+        for path in (ROOT / folder).rglob("*.py"):
             name = _module_name(path)
             for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
                 if isinstance(node, ast.Import):
@@ -49,7 +76,7 @@ def _imports() -> dict[str, set[tuple[str, tuple[str, ...]]]]:
                     targets = [(node.module, tuple(a.name for a in node.names))]
                 else:
                     continue
-                out[name] |= {t for t in targets if t[0].split(".")[0] in PACKAGES}
+                out[name] |= {t for t in targets if _ours(t[0])}
     return out
 
 
@@ -109,7 +136,7 @@ def _cycles(g: dict[str, set[str]]) -> list[list[str]]:
 def test_the_rules_see_the_modules():
     """The reader finds the packages' modules and their imports (a broken reader passes all)."""
     assert len(IMPORTS) > 50
-    assert ("stcvision.errors", ("BadInputError",)) in IMPORTS["sim_camera.arenas"]
+    assert ("stcvision.errors", ("BadInputError",)) in IMPORTS["stcvision.sim_camera.arenas"]
 
 
 def test_cycle_finder_finds_a_circle():
@@ -126,9 +153,9 @@ def test_the_pipeline_imports_no_simulator_robot_or_calibration():
     bad = [
         (m, t)
         for m, ts in IMPORTS.items()
-        if m.split(".")[0] == "stcvision" and not m.startswith(("stcvision.cli", "stcvision.warm"))
+        if room(m) == "stcvision" and not m.startswith(ROOF)
         for t, _ in ts
-        if t.split(".")[0] != "stcvision" and t.split(".")[0] not in DATASETS_MAY_IMPORT.get(m, ())
+        if room(t) != "stcvision" and room(t) not in DATASETS_MAY_IMPORT.get(m, ())
     ]
     assert bad == []
 
@@ -136,10 +163,10 @@ def test_the_pipeline_imports_no_simulator_robot_or_calibration():
 def test_the_simulator_does_not_share_the_pipelines_model():
     bad = []
     for m, ts in IMPORTS.items():
-        if m.split(".")[0] != "sim_camera":
+        if room(m) != "sim_camera":
             continue
         for t, names in ts:
-            top = t.split(".")[0]
+            top = room(t)
             if top in ("controllers", "calibration"):
                 bad.append((m, t))
             elif top == "stcvision":
@@ -149,14 +176,14 @@ def test_the_simulator_does_not_share_the_pipelines_model():
     assert bad == []
 
 
-@pytest.mark.parametrize("room", ["stc", "buffon", "search"])
-def test_a_robots_room_imports_no_other_room(room):
+@pytest.mark.parametrize("name", ["stc", "buffon", "search"])
+def test_a_robots_room_imports_no_other_room(name):
     bad = [
         (m, t)
         for m, ts in IMPORTS.items()
-        if m.startswith(f"controllers.{room}")
+        if m.startswith(f"stcvision.controllers.{name}")
         for t, _ in ts
-        if t.startswith("controllers.") and not t.startswith(f"controllers.{room}")
+        if t.startswith("stcvision.controllers.") and not t.startswith(f"stcvision.controllers.{name}")
     ]
     assert bad == []
 
@@ -176,7 +203,7 @@ def test_the_packages_facade_is_the_one_place_the_pipeline_names_other_packages(
     assert by_name == []
     import stcvision
 
-    outside = {m.split(".")[0] for m, _ in stcvision._LAZY.values()} - {"stcvision"}
+    outside = {room(m) for m, _ in stcvision._LAZY.values()} - {"stcvision"}
     assert outside <= {"sim_camera", "controllers", "calibration"}
 
 
@@ -202,7 +229,7 @@ def _private_imports(path: Path, me: str) -> list[tuple[str, str, str]]:
         else:
             continue
         for mod, name in targets:
-            if mod.split(".")[0] not in PACKAGES:
+            if not _ours(mod):
                 continue
             parts = mod.split(".")
             for i, part in enumerate(parts):  # a private module on the way: only its package may
@@ -240,9 +267,92 @@ def test_no_module_imports_another_modules_private_name():
     uses is public (no leading underscore), so a module's private names can change without
     breaking others."""
     found = []
-    for pkg in PACKAGES:
-        for path in (ROOT / pkg).rglob("*.py"):
+    for folder in FOLDERS:
+        for path in (ROOT / folder).rglob("*.py"):
             found += _private_imports(path, _module_name(path))
     for path in sorted([*(ROOT / "docs").rglob("*.py"), *(ROOT / "tests" / "tools").glob("*.py")]):
         found += _private_imports(path, ".".join(path.relative_to(ROOT).with_suffix("").parts))
     assert sorted(set(found) - PRIVATE_IMPORTS_ALLOWED) == []
+
+
+def test_the_ground_floor_imports_nothing_above_it():
+    """Errors, file helpers, caps, angle wrapping and the STC geometry are what every layer
+    stands on: they import one another at most, so no arrow of the house runs back up from them."""
+    bad = [(m, t) for m in GROUND for t, _ in IMPORTS.get(m, ()) if t not in GROUND]
+    assert bad == []
+    assert all((ROOT / f"{m.replace('.', '/')}.py").is_file() for m in GROUND)  # the rule names real modules
+
+
+def test_nothing_but_the_command_line_imports_it():
+    """The CLI is the roof: it may import every room; nothing under it imports the CLI back."""
+    bad = [(m, t) for m, ts in IMPORTS.items() if not m.startswith(ROOF) for t, _ in ts if t.startswith(ROOF)]
+    assert bad == []
+    assert any(t.startswith("stcvision.cli") for t, _ in IMPORTS["stcvision.warm"])  # the rule sees the roof
+
+
+def _listed_packages() -> list[str]:
+    import tomllib
+
+    return tomllib.loads((ROOT / "pyproject.toml").read_text(encoding="utf-8"))["tool"]["setuptools"]["packages"]
+
+
+def test_the_distribution_lists_every_package_folder_under_one_name():
+    """pyproject.toml lists its packages by hand (a package-dir mapping cannot be found by
+    search): the list is every folder of :data:`FOLDERS` holding an ``__init__.py``, by its
+    installed name, and the mapping sends each installed name to its folder."""
+    import tomllib
+
+    folders = sorted(_module_name(p) for f in FOLDERS for p in (ROOT / f).rglob("__init__.py"))
+    assert sorted(_listed_packages()) == folders
+    mapping = tomllib.loads((ROOT / "pyproject.toml").read_text(encoding="utf-8"))["tool"]["setuptools"]["package-dir"]
+    assert mapping == {name: folder for folder, name in FOLDERS.items() if name != folder}
+
+
+def test_a_built_wheel_installs_stcvision_alone(tmp_path):
+    """The wheel's top level is stcvision (and its metadata), the shipped profile inside it; and
+    from outside the checkout the generic folder names are not importable from it."""
+    import subprocess
+    import sys
+    import zipfile
+
+    subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "pip",
+            "wheel",
+            "-q",
+            "--no-deps",
+            "--no-build-isolation",
+            "-w",
+            str(tmp_path),
+            str(ROOT),
+        ],
+        check=True,
+        capture_output=True,
+        cwd=tmp_path,
+    )
+    (wheel,) = tmp_path.glob("stcvision-*.whl")
+    names = zipfile.ZipFile(wheel).namelist()
+    assert {n.split("/")[0] for n in names} == {
+        "stcvision",
+        wheel.name.split("-")[0] + "-" + wheel.name.split("-")[1] + ".dist-info",
+    }
+    assert "stcvision/calibration/profiles/default.json" in names
+    assert "stcvision/controllers/stc/fsm.py" in names
+    site = tmp_path / "site"
+    zipfile.ZipFile(wheel).extractall(site)
+    probe = (
+        "import importlib.util as u, sys; sys.path[:1] = []; "
+        "names = ('controllers', 'calibration', 'sim_camera', 'stcvision.controllers.stc.fsm'); "
+        "print([n for n in names if u.find_spec(n)])"
+    )
+    out = subprocess.run(
+        [sys.executable, "-c", probe],
+        env={"PYTHONPATH": str(site)},
+        cwd=tmp_path,
+        capture_output=True,
+        text=True,
+        check=True,
+    )
+    assert out.stdout.strip() == "['stcvision.controllers.stc.fsm']"

@@ -1,7 +1,7 @@
 """Shipped calibration profiles (JSON package data).
 
 ``default.json`` is the profile of the default simulated robot (``sim_camera`` defaults). It is
-produced by :func:`calibration.defaults.build_default_profile` -- the calibration workflow run
+produced by :func:`stcvision.calibration.defaults.build_default_profile` -- the calibration workflow run
 on rendered frames -- and a test regenerates it and compares.
 """
 

@@ -4,19 +4,19 @@ Each trial is one robot making the two visits of the Buffon's needle paper (Girg
 sec. 4):
 both start at the central bottom of the nest, heading away from the bottom wall within +-15
 degrees (sec. 3.1); the first lays a pheromone trail of width w, the second reads it with the
-binary detector at its centre, filters it (:mod:`controllers.buffon.counter`) and counts the
+binary detector at its centre, filters it (:mod:`stcvision.controllers.buffon.counter`) and counts the
 crossings. The trials of an experiment are independent worlds, so robots never meet.
 
-One step of one robot, in the order of the pymunk path (:mod:`controllers.buffon.pymunk_path`):
+One step of one robot, in the order of the pymunk path (:mod:`stcvision.controllers.buffon.pymunk_path`):
 
-1. six IR ray casts from the rim (:func:`sim_camera.fastworld.ray_cast`), the Khepera response
-   :func:`sim_camera.robot_sensors.ir_response` plus Gaussian noise, clipped to [0, 1];
-2. the behaviour of sec. 3.2 (:func:`controllers.buffon.behaviour.explorer_core`, the same source
+1. six IR ray casts from the rim (:func:`stcvision.sim_camera.fastworld.ray_cast`), the Khepera response
+   :func:`stcvision.sim_camera.robot_sensors.ir_response` plus Gaussian noise, clipped to [0, 1];
+2. the behaviour of sec. 3.2 (:func:`stcvision.controllers.buffon.behaviour.explorer_core`, the same source
    as the scalar controller) gives the wheel speeds;
-3. the wheels move the body as :class:`sim_camera.robot.DiffDriveRobot` does (true wheel
+3. the wheels move the body as :class:`stcvision.sim_camera.robot.DiffDriveRobot` does (true wheel
    diameters and wheelbase, motor gain, slip noise ``slip_k * sqrt(|d|)`` per wheel), with the
    heading at the step's midpoint;
-4. frictionless contact (:func:`sim_camera.fastworld.push_out`);
+4. frictionless contact (:func:`stcvision.sim_camera.fastworld.push_out`);
 5. visit 1 marks the trail along the step; visit 2 reads the cell under the centre and counts.
 
 Randomness: trial i has its own stream ``SeedSequence(seed).spawn(...)[i]``, split into four
@@ -35,10 +35,10 @@ from dataclasses import dataclass, field
 import numba
 import numpy as np
 
-from controllers.buffon.behaviour import ExplorerParams, explorer_core_nb, wheel_speeds_nb
-from controllers.buffon.counter import CounterParams, integrate_nb
-from controllers.buffon.nests import BODY_LENGTH_M, Nest
-from controllers.buffon.stopping import (
+from stcvision.controllers.buffon.behaviour import ExplorerParams, explorer_core_nb, wheel_speeds_nb
+from stcvision.controllers.buffon.counter import CounterParams, integrate_nb
+from stcvision.controllers.buffon.nests import BODY_LENGTH_M, Nest
+from stcvision.controllers.buffon.stopping import (
     StopParams,
     batch_add,
     batch_rel_se,
@@ -47,7 +47,8 @@ from controllers.buffon.stopping import (
     new_batch_state,
     second_visit_done,
 )
-from sim_camera.fastworld import (
+from stcvision.errors import BadInputError
+from stcvision.sim_camera.fastworld import (
     StaticGeometry,
     cell_span,
     inside_polygon,
@@ -56,9 +57,8 @@ from sim_camera.fastworld import (
     read_cell,
     stamp_segment,
 )
-from sim_camera.robot import KHEPERA, DiffDriveParams
-from sim_camera.robot_sensors import IrParams
-from stcvision.errors import BadInputError
+from stcvision.sim_camera.robot import KHEPERA, DiffDriveParams
+from stcvision.sim_camera.robot_sensors import IrParams
 
 __all__ = [
     "PAPER_TRAIL_WIDTH_U",
@@ -88,7 +88,7 @@ class VisitConfig:
     """Everything a trial needs besides the nest and its seed.
 
     visit_steps : steps of each visit (sec. 4: 50,000), or ``"auto"``: each visit ends when the
-        robot's online rule (``stop``, :mod:`controllers.buffon.stopping`) says so, after at most
+        robot's online rule (``stop``, :mod:`stcvision.controllers.buffon.stopping`) says so, after at most
         ``max_visit_steps``.
     trail_width_u : pheromone trail width in body lengths (sec. 4: 0.1).
     dt_s : world step (the pymunk world's default, 0.05 s).
@@ -143,7 +143,7 @@ class VisitConfig:
     def kernel_params(self) -> np.ndarray:
         """The constants the kernel reads, in :data:`_P` order."""
         rb, ir, b, c = self.robot, self.ir, self.behaviour, self.counter
-        from sim_camera.odometry import true_wheel_diameters_m
+        from stcvision.sim_camera.odometry import true_wheel_diameters_m
 
         dl, dr = true_wheel_diameters_m(rb.wheel_diameter_m, rb.ed)
         vals = {
@@ -214,7 +214,7 @@ def _ir_reading(d, sat, rng_m, noise):
 
 @numba.njit(cache=True, nogil=True, inline="always")
 def _read_ir(ir, x, y, th, irg, geo, ir_cos, ir_sin, radius, ir_sat, ir_range, ir_sigma):
-    """The six IR rays from the rim (sim_camera.robot_sensors.IrSensors) into ``ir``, their noise from
+    """The six IR rays from the rim (stcvision.sim_camera.robot_sensors.IrSensors) into ``ir``, their noise from
     the IR stream ``irg`` (one draw per ray, in ray order)."""
     caps, ox, oy, cell, ny, nx, offsets, index = geo
     lo, hi = cell_span(x, y, ox, oy, cell, ny, nx, offsets)
@@ -232,7 +232,7 @@ def _read_ir(ir, x, y, th, irg, geo, ir_cos, ir_sin, radius, ir_sat, ir_range, i
 
 @numba.njit(cache=True, nogil=True, inline="always")
 def _rule_stops(st, lay, plen, crossings, steps_done, blind, sp, bst, l1_u):
-    """Whether the online rule (:mod:`controllers.buffon.stopping`) ends the visit now; a first
+    """Whether the online rule (:mod:`stcvision.controllers.buffon.stopping`) ends the visit now; a first
     visit that cannot reach its coverage gives up (``st[GAVE_UP]``)."""
     coverage, min_self, pi_w, second_ratio = sp[0], sp[1], sp[2], sp[3]
     min_cross, rel_se, batches, max_ratio = sp[4], sp[5], int(sp[6]), sp[7]
@@ -276,7 +276,7 @@ def _visit(
     the path, in :data:`STAMP_M` units + 1, at which the first visit first laid the cell);
     ``lay``: visit 1 (lay, and count encounters with its own older trail) or 2 (sense and count
     crossings); ``record`` (steps or 0, 3): x, y, crossed per step. ``auto_stop``: stop when the
-    online rule (:mod:`controllers.buffon.stopping`: constants ``stop_params``, batch-means state
+    online rule (:mod:`stcvision.controllers.buffon.stopping`: constants ``stop_params``, batch-means state
     ``batch_state`` of the encounters, first-visit path ``first_path_u``) says so. Returns
     (containment failures, stopped by the rule)."""
     caps, ox, oy, cell, ny, nx, offsets, index = geo
@@ -296,7 +296,7 @@ def _visit(
     turn = 0.0  # trail-aware exploration: the turn away from the old trail under way (+1 left, -1 right)
     recording = record.shape[0] > 0
     for s in range(steps):
-        # 1. six IR rays from the rim (sim_camera.robot_sensors.IrSensors), noise from their stream
+        # 1. six IR rays from the rim (stcvision.sim_camera.robot_sensors.IrSensors), noise from their stream
         _read_ir(ir, x, y, th, ir_rng, geo, ir_cos, ir_sin, radius, ir_sat, ir_range, ir_sigma)
         # 2. the behaviour of sec. 3.2 (the scalar controller's own equations)
         n = -noise + 2.0 * noise * behaviour_rng.random()
@@ -355,7 +355,7 @@ def _visit(
 def _wheels_to_body(ml, mr, vmax, dt, gain, dl_ratio, dr_ratio, slip_k, slip_rng, b_true):
     """One step's wheel travel (speeds ``ml``, ``mr`` clipped at ``vmax``, over the step ``dt``
     at the battery's ``gain``; each wheel's own ratio, and slip drawn from ``slip_rng``) as
-    the body's forward move and turn, as :meth:`sim_camera.robot.DiffDriveRobot._pre_step` does:
+    the body's forward move and turn, as :meth:`stcvision.sim_camera.robot.DiffDriveRobot._pre_step` does:
     (v, dth)."""
     dl = min(vmax, max(-vmax, ml)) * dt * gain * dl_ratio
     dr = min(vmax, max(-vmax, mr)) * dt * gain * dr_ratio
@@ -386,7 +386,7 @@ class TrialSet:
 
     Beside what the estimate needs (L1, L2, N, the blind fraction): the first visit's
     self-encounters ``n_self``, the second visit's batch-means relative standard error of its
-    crossing rate ``rate_rel_se`` (:mod:`controllers.buffon.stopping`), each trial's robot-steps
+    crossing rate ``rate_rel_se`` (:mod:`stcvision.controllers.buffon.stopping`), each trial's robot-steps
     ``steps`` and whether the online rule ended both visits (``converged``; True for fixed
     lengths)."""
 
@@ -516,7 +516,7 @@ class TrialWorld:
     def __init__(self, nest: Nest, config: VisitConfig):
         rb = config.robot
         self.config = config
-        cell = 0.5 * config.trail_width_m  # as sim_camera.layers.PheromoneLayer
+        cell = 0.5 * config.trail_width_m  # as stcvision.sim_camera.layers.PheromoneLayer
         xmin, ymin = nest.arena.bounds_m[:2]
         self.trail = (xmin, ymin, cell)
         self.grid_shape = _trail_grid_shape(nest, cell)  # refused before the walls' grid is built

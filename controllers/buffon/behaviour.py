@@ -41,7 +41,7 @@ Choices the paper leaves open (documented assumptions):
 One source for the equations: :func:`explorer_core` is plain Python on floats. The scalar
 controller :func:`explorer_step` calls it as it is; numba compiles the *same function* for the
 batched twin :func:`explorer_step_batch` and for the fused Monte-Carlo loop
-(:mod:`controllers.buffon.batched`), so the two paths cannot drift apart, and the tests check
+(:mod:`stcvision.controllers.buffon.batched`), so the two paths cannot drift apart, and the tests check
 them step for step on the same readings and draws.
 """
 

@@ -15,7 +15,7 @@ trail is ~2.3 steps wide at full speed, more at a slant) counts once, however lo
 runs along the trail.
 
 One source: :func:`integrate` is plain Python; numba compiles the same function for the batched
-path (:mod:`controllers.buffon.batched`).
+path (:mod:`stcvision.controllers.buffon.batched`).
 """
 
 from __future__ import annotations

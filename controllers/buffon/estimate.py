@@ -12,7 +12,7 @@ cross on average 2 L1 L2 / (pi A) times, so
 Two things bend it on a real explorer, and each gets one correction:
 
 1. **Blending (dead time).** After a crossing the counter is blind until the leaky integrator
-   has fallen back below its re-arm level (:mod:`controllers.buffon.counter`); a second visit
+   has fallen back below its re-arm level (:mod:`stcvision.controllers.buffon.counter`); a second visit
    that spends a fraction b of its steps blind meets trail only on the other 1 - b. This is the
    dead-time correction of counting statistics (Knoll, *Radiation Detection and Measurement*,
    ch. 4: n = m / (1 - m tau)); the robot measures b itself, no parameter is fitted:
@@ -33,7 +33,7 @@ steps is blended beyond what the corrections hold (measured: the dead-time corre
 within ~10 % of the truth up to b ~ 0.3 and runs to 1.3-1.8x at b = 0.5-0.7): its summary
 carries ``area_warning`` saying so, and the estimate must not be trusted.
 
-**Online visit lengths** (``--visit-steps auto``, the default; :mod:`controllers.buffon.stopping`):
+**Online visit lengths** (``--visit-steps auto``, the default; :mod:`stcvision.controllers.buffon.stopping`):
 the first visit ends at a fixed trail coverage once its self-encounters come at a steady rate
 (its trail has mixed), the second when its crossing rate is known to a set relative error. Each
 visit then measures the area on its own:
@@ -56,7 +56,7 @@ the undead-time-corrected A1 in the mean). A bunched trail biases A1, not only i
 nests split into compartments by long barriers (and in concave nests) a first visit that stops at
 its coverage alone has not spread its trail evenly over them, and A1 read 0.87-0.97 of the truth
 against 0.96-1.04 in open nests. The first visit therefore also waits until its self-encounters
-come at a steady rate (:mod:`controllers.buffon.stopping`, rule (1b)); with it A1 reads
+come at a steady rate (:mod:`stcvision.controllers.buffon.stopping`, rule (1b)); with it A1 reads
 0.95-1.05 of the truth over the whole calibration family (the spread of the nests' median A1
 0.021 in log, 0.045 before) and is the steadier of the two, so it gets the larger share
 (w = 0.3, chosen on the calibration family: the weights' note below).
@@ -83,11 +83,11 @@ the rule's own coverage rho0 (:data:`REFERENCE_COVERAGE`, ``StopParams.coverage`
     log A = w log A2 + (1 - w) log A1 - kappa (rho - rho0) + log K
 
 with kappa (:data:`COVERAGE_SLOPE`) the pooled within-nest least-squares slope of the log estimate
-on rho over the calibration family (:func:`controllers.buffon.online.calibrate_online` measures
+on rho over the calibration family (:func:`stcvision.controllers.buffon.online.calibrate_online` measures
 it). The robot knows rho (it stopped by it); the truth is not used.
 
 One factor, :data:`ONLINE_CORRECTION`, is then calibrated on a family of nests
-(:func:`controllers.buffon.online.calibrate_online`; circles, squares, ellipses, barriers and
+(:func:`stcvision.controllers.buffon.online.calibrate_online`; circles, squares, ellipses, barriers and
 concave polygons of 1,300-20,000 u^2, none of them in the evaluation family), with what that
 calibration leaves:
 
@@ -119,9 +119,9 @@ import math
 import numpy as np
 from scipy import stats
 
-from controllers.buffon.batched import PAPER_TRAIL_WIDTH_U, VisitConfig
-from controllers.buffon.nests import BODY_LENGTH_M
-from controllers.buffon.stopping import StopParams
+from stcvision.controllers.buffon.batched import PAPER_TRAIL_WIDTH_U, VisitConfig
+from stcvision.controllers.buffon.nests import BODY_LENGTH_M
+from stcvision.controllers.buffon.stopping import StopParams
 from stcvision.errors import BadInputError
 
 __all__ = [
@@ -169,7 +169,7 @@ CORRECTION_REFERENCE = "circle:100"
 # lowest RMS error): none qualifies (the compartment nests hold 94.8 % at each), so 0.3 stays.
 ONLINE_SECOND_WEIGHT = 0.3
 
-# The online rule's calibration (controllers.buffon.online.calibration_family: CALIBRATION_NESTS,
+# The online rule's calibration (stcvision.controllers.buffon.online.calibration_family: CALIBRATION_NESTS,
 # CALIBRATION_POLYGONS and CALIBRATION_COMPARTMENTS, 20 nests x 12 trials, nest i with seed 9100 + i,
 # the estimate of online_area; `python docs/measurements/buffon_heldout.py --calibration --out DIR --seed 9100`
 # prints these; `stcvision buffon online` recomputes them at its own seeds): measured, then held fixed.
@@ -189,7 +189,7 @@ SHAPE_SIGMA = 0.023
 TRIAL_EXTRA_SIGMA = 0.030
 CALIBRATION_DOF = 19
 # the smallest and the largest true area (u^2) of the calibration family's nests, the sizes the
-# factor and the intervals above were calibrated on (controllers.buffon.online.calibration_area_range
+# factor and the intervals above were calibrated on (stcvision.controllers.buffon.online.calibration_area_range
 # computes them from the family's definitions; a test holds the two equal)
 CALIBRATED_AREA_U2 = (1256.6, 20106.2)
 # the online rule's trials stay calibrated up to this blind fraction (measured: 0.43 in a 30 u
@@ -221,7 +221,7 @@ def self_crossing_area(l1, n_self):
 
 def reading_coverage(l1, n_self, trail_width_u: float = PAPER_TRAIL_WIDTH_U):
     """The coverage the first visit's trail was read at, by its own count: pi w n_self / L1
-    (rule (1) of :mod:`controllers.buffon.stopping`; nan where L1 = 0). Arrays broadcast."""
+    (rule (1) of :mod:`stcvision.controllers.buffon.stopping`; nan where L1 = 0). Arrays broadcast."""
     l1 = np.asarray(l1, dtype=float)
     with np.errstate(divide="ignore", invalid="ignore"):
         return np.where(l1 > 0, math.pi * trail_width_u * np.asarray(n_self, dtype=float) / l1, np.nan)
@@ -255,7 +255,7 @@ def online_area(
 
 
 def area_estimates(ts, *, dead_time: bool = True, correction: float | None = None) -> np.ndarray:
-    """Per-trial area estimates (u^2) from a :class:`~controllers.buffon.batched.TrialSet`;
+    """Per-trial area estimates (u^2) from a :class:`~stcvision.controllers.buffon.batched.TrialSet`;
     inf where a trial counted no crossing. ``correction`` None: :func:`default_correction`.
     An online trial set's corrected estimate (``dead_time``) is :func:`online_area`;
     ``dead_time=False`` is the raw Buffon formula for every set."""

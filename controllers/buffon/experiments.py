@@ -1,7 +1,7 @@
 """The experiment sets of the Buffon's needle paper (Girgin & Sahin, sec. 5) as tasks, and the
 claim-by-claim analysis of their results.
 
-Sets (lengths in body lengths u; the scale is explained in :mod:`controllers.buffon.nests`):
+Sets (lengths in body lengths u; the scale is explained in :mod:`stcvision.controllers.buffon.nests`):
 
 * ``circles`` (a, Fig. 4): diameters 10, 20, ..., 100;
 * ``squares`` (b, Fig. 4): the same ten areas;
@@ -13,7 +13,7 @@ Sets (lengths in body lengths u; the scale is explained in :mod:`controllers.buf
 * ``thickness`` (f, Fig. 7): trails of 0.2, 0.4 and 0.8 u on circles of 10, 20, 30, 50 and
   100 u (0.1 u is the circles set);
 * ``accuracy``: the standard-area nests again with visits of
-  :data:`~controllers.buffon.estimate.AREA_VISIT_STEPS`, for the absolute area, at most
+  :data:`~stcvision.controllers.buffon.estimate.AREA_VISIT_STEPS`, for the absolute area, at most
   :data:`ACCURACY_TRIALS` trials a nest.
 
 A task is one nest's whole trial set (:func:`nest_task`), coarse enough that a pool's or a
@@ -27,9 +27,15 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from controllers.buffon.batched import PAPER_TRAIL_WIDTH_U, PAPER_VISIT_STEPS, TrialSet, VisitConfig, run_trials
-from controllers.buffon.estimate import AREA_VISIT_STEPS, area_estimates, summarise
-from controllers.buffon.nests import STANDARD_AREA_U2, STANDARD_DIAMETER_U, eccentricity_to_ratio, parse_nest
+from stcvision.controllers.buffon.batched import (
+    PAPER_TRAIL_WIDTH_U,
+    PAPER_VISIT_STEPS,
+    TrialSet,
+    VisitConfig,
+    run_trials,
+)
+from stcvision.controllers.buffon.estimate import AREA_VISIT_STEPS, area_estimates, summarise
+from stcvision.controllers.buffon.nests import STANDARD_AREA_U2, STANDARD_DIAMETER_U, eccentricity_to_ratio, parse_nest
 
 __all__ = ["Case", "PAPER_VISIT_STEPS", "experiment_cases", "nest_task"]
 
@@ -166,7 +172,7 @@ def _opt(stored: dict, key: str, dtype):
 def pymunk_task(params: dict, seed: np.random.SeedSequence) -> dict:
     """A chunk of trials on the pymunk world (``stcvision buffon compare``): the same fields as
     :func:`nest_task` (``chunk`` only names the chunk)."""
-    from controllers.buffon.pymunk_path import run_trials_pymunk
+    from stcvision.controllers.buffon.pymunk_path import run_trials_pymunk
 
     nest = parse_nest(params["spec"], params.get("barrier"))
     config = VisitConfig(visit_steps=int(params["visit_steps"]), trail_width_u=float(params["trail_width_u"]))

@@ -26,7 +26,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from sim_camera.arenas import (
+from stcvision.errors import BadInputError
+from stcvision.sim_camera.arenas import (
     DEFAULT_BARRIER_THICKNESS_M,
     Arena,
     CircleArena,
@@ -34,8 +35,7 @@ from sim_camera.arenas import (
     PolygonArena,
     SquareArena,
 )
-from sim_camera.robot import KHEPERA
-from stcvision.errors import BadInputError
+from stcvision.sim_camera.robot import KHEPERA
 
 __all__ = [
     "BODY_LENGTH_M",

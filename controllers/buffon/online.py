@@ -7,7 +7,7 @@ Two families that share no nest:
   circles, squares, ellipses, six barriers (four of them long enough to split the nest into
   compartments) and three concave polygons (L, U, T), 1,300-20,000 u^2;
   :func:`calibrate_online` turns their trials into the factor and the three spreads of
-  :mod:`controllers.buffon.estimate`;
+  :mod:`stcvision.controllers.buffon.estimate`;
 * :func:`evaluation_nests`: 42 nests of 2,000-30,000 u^2 in six families (circles, squares,
   ellipses, barriers, concave polygons, random simple polygons), other sizes, ratios and
   barrier lengths than the calibration's, each run with its own seed; the coverage of
@@ -104,9 +104,9 @@ def _random_polygon(rng: np.random.Generator, area: float) -> list:
 def calibration_area_range() -> tuple[float, float]:
     """The smallest and the largest true area (u^2) of the calibration family's nests: the sizes
     the online rule's factor and intervals were calibrated on (shipped as
-    :data:`~controllers.buffon.estimate.CALIBRATED_AREA_U2`)."""
-    from controllers.buffon.nests import parse_nest
-    from sim_camera.arenas import polygon_area
+    :data:`~stcvision.controllers.buffon.estimate.CALIBRATED_AREA_U2`)."""
+    from stcvision.controllers.buffon.nests import parse_nest
+    from stcvision.sim_camera.arenas import polygon_area
 
     areas = [parse_nest(s, b).area_u2 for s, b in CALIBRATION_NESTS + CALIBRATION_COMPARTMENTS]
     areas += [abs(polygon_area(np.asarray(v, float))) for v in CALIBRATION_POLYGONS.values()]
@@ -186,12 +186,12 @@ def calibrate_online(results: list[dict], *, w: float | None = None, slope: floa
     stored results (each with ``area_true`` and per-trial ``l1_u``, ``l2_u``, ``crossings``,
     ``blind_fraction``, ``n_self``, ``self_blind``, ``rate_rel_se``; ``trail_width_u`` if not the
     paper's) for the weight ``w`` (None: the shipped
-    :data:`~controllers.buffon.estimate.ONLINE_SECOND_WEIGHT`): see
-    :mod:`controllers.buffon.estimate`. The slope (the log estimate's on the reading coverage,
+    :data:`~stcvision.controllers.buffon.estimate.ONLINE_SECOND_WEIGHT`): see
+    :mod:`stcvision.controllers.buffon.estimate`. The slope (the log estimate's on the reading coverage,
     within nests, pooled) is measured on ``results`` unless ``slope`` is given (or the trials of
     every nest were read at one coverage: then the shipped one and its error are used)."""
-    from controllers.buffon.batched import PAPER_TRAIL_WIDTH_U
-    from controllers.buffon.estimate import (
+    from stcvision.controllers.buffon.batched import PAPER_TRAIL_WIDTH_U
+    from stcvision.controllers.buffon.estimate import (
         COVERAGE_SLOPE,
         COVERAGE_SLOPE_SE,
         ONLINE_SECOND_WEIGHT,

@@ -1,14 +1,15 @@
 """The reference path: Buffon's two visits on the pymunk world, one Python call per step.
 
-The same trial as :mod:`controllers.buffon.batched`, built from the substrate's parts: the
-:class:`sim_camera.world.World` with real contacts, a :data:`~sim_camera.robot.KHEPERA` body, its
-pymunk IR ray casts (:class:`sim_camera.robot_sensors.IrSensors`), the raster
-:class:`sim_camera.layers.PheromoneLayer` and :class:`sim_camera.robot_sensors.PheromoneDetector`, and
-the scalar controller :class:`controllers.buffon.behaviour.Explorer`. It is ~100x slower; it is
+The same trial as :mod:`stcvision.controllers.buffon.batched`, built from the substrate's parts: the
+:class:`stcvision.sim_camera.world.World` with real contacts, a :data:`~stcvision.sim_camera.robot.KHEPERA` body, its
+pymunk IR ray casts (:class:`stcvision.sim_camera.robot_sensors.IrSensors`), the raster
+:class:`stcvision.sim_camera.layers.PheromoneLayer` and
+:class:`stcvision.sim_camera.robot_sensors.PheromoneDetector`, and
+the scalar controller :class:`stcvision.controllers.buffon.behaviour.Explorer`. It is ~100x slower; it is
 what the batched path is a model of (``stcvision buffon compare`` tests them against each other).
 
 Streams: trial i takes the same four seed streams as the batched path
-(:func:`controllers.buffon.batched.trial_seeds`): the same start headings; the behaviour's
+(:func:`stcvision.controllers.buffon.batched.trial_seeds`): the same start headings; the behaviour's
 draws from its own stream; the world (wheel slip, IR noise) from the fourth.
 """
 
@@ -19,13 +20,13 @@ from collections.abc import Callable
 
 import numpy as np
 
-from controllers.buffon.batched import TrialSet, VisitConfig, start_headings, trial_seeds
-from controllers.buffon.behaviour import Explorer
-from controllers.buffon.counter import LeakyIntegrator
-from controllers.buffon.nests import BODY_LENGTH_M, Nest
-from sim_camera.layers import PheromoneLayer
-from sim_camera.robot_sensors import SensorSuite
-from sim_camera.world import World
+from stcvision.controllers.buffon.batched import TrialSet, VisitConfig, start_headings, trial_seeds
+from stcvision.controllers.buffon.behaviour import Explorer
+from stcvision.controllers.buffon.counter import LeakyIntegrator
+from stcvision.controllers.buffon.nests import BODY_LENGTH_M, Nest
+from stcvision.sim_camera.layers import PheromoneLayer
+from stcvision.sim_camera.robot_sensors import SensorSuite
+from stcvision.sim_camera.world import World
 
 __all__ = ["run_trial_pymunk", "run_trials_pymunk"]
 

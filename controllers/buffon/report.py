@@ -458,7 +458,7 @@ def online_figures(rows: list[dict]) -> dict:
     ax.legend(fontsize=7, ncol=2)
     figs["online_error_by_size.png"] = fig
 
-    from controllers.buffon.online import EVALUATION_FAMILIES, coverage_table
+    from stcvision.controllers.buffon.online import EVALUATION_FAMILIES, coverage_table
 
     table = coverage_table([r for r in rows if r["family"] in EVALUATION_FAMILIES])
     fig, ax = plt.subplots(figsize=(7, 4))
@@ -556,7 +556,7 @@ def online_summary(
     rows: list[dict], table: list[dict], cal: dict, pairs: dict, aware: list[dict], *, trials: int, wall_s: float
 ) -> str:
     """The online-rule experiment's markdown summary."""
-    from controllers.buffon import estimate as e
+    from stcvision.controllers.buffon import estimate as e
 
     md = [
         "# Online visit lengths and intervals",

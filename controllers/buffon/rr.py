@@ -20,7 +20,7 @@ import numpy as np
 import rerun as rr
 import rerun.blueprint as rrb
 
-from controllers.buffon.nests import BODY_LENGTH_M
+from stcvision.controllers.buffon.nests import BODY_LENGTH_M
 
 __all__ = ["record_trial"]
 
@@ -47,7 +47,7 @@ def _xy(p) -> np.ndarray:
 
 def record_trial(path: str | Path, nest, visit1: np.ndarray, visit2: np.ndarray, *, frames: int = 250) -> Path:
     """Write ``path`` (.rrd, atomically): the trial whose paths are ``visit1``, ``visit2``
-    ((S, 3) arrays x m, y m, crossed), as recorded by :func:`controllers.buffon.batched.run_trials`."""
+    ((S, 3) arrays x m, y m, crossed), as recorded by :func:`stcvision.controllers.buffon.batched.run_trials`."""
     from stcvision.rr import abort_recording, finish_recording, open_recording
 
     path = Path(path)

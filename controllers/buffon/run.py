@@ -14,17 +14,17 @@ from pathlib import Path
 
 import numpy as np
 
-from controllers.buffon.batched import PAPER_TRAIL_WIDTH_U, PAPER_VISIT_STEPS, VisitConfig, run_trials
-from controllers.buffon.estimate import (
+from stcvision.controllers.buffon.batched import PAPER_TRAIL_WIDTH_U, PAPER_VISIT_STEPS, VisitConfig, run_trials
+from stcvision.controllers.buffon.estimate import (
     AREA_CORRECTION,
     AREA_VISIT_STEPS,
     CORRECTION_REFERENCE,
     calibrate_area_correction,
     summarise,
 )
-from controllers.buffon.experiments import experiment_cases, refresh
-from controllers.buffon.nests import BODY_LENGTH_M, parse_nest
-from controllers.buffon.stopping import StopParams
+from stcvision.controllers.buffon.experiments import experiment_cases, refresh
+from stcvision.controllers.buffon.nests import BODY_LENGTH_M, parse_nest
+from stcvision.controllers.buffon.stopping import StopParams
 from stcvision.errors import BadInputError
 from stcvision.fileio import write_bytes_atomic, write_figure
 from stcvision.sweep import machine_workers
@@ -86,7 +86,7 @@ def measure(
         "wall_s": ts.wall_s,
     }
     if rrd:
-        from controllers.buffon.rr import record_trial
+        from stcvision.controllers.buffon.rr import record_trial
 
         record_trial(rrd, nest, ts.trails["visit1"], ts.trails["visit2"])
         out["rrd"] = str(rrd)
@@ -173,13 +173,13 @@ def reproduce(
 ) -> dict:
     """Every experiment set of sec. 5 plus the absolute-area set, through the sweep runner; then
     (``online_trials`` > 0) the online rule's experiments (:func:`online`) into ``out/online``."""
-    from controllers.buffon import report
+    from stcvision.controllers.buffon import report
     from stcvision.sweep import SweepOptions, Task
 
     out = _out_dir(out, force, REPRODUCE_FILES)
     cases = experiment_cases()
     tasks = {
-        c: Task(experiment="controllers.buffon.experiments:nest_task", params=c.params(trials), seed=seed)
+        c: Task(experiment="stcvision.controllers.buffon.experiments:nest_task", params=c.params(trials), seed=seed)
         for c in cases
     }
     t0 = time.perf_counter()
@@ -249,10 +249,12 @@ def compare(
     nest = parse_nest(nest_spec, barrier)
     out = _out_dir(out, force, ("compare.md", "compare.png"))
     base = {"spec": nest_spec, "barrier": barrier, "trail_width_u": trail_width_u, "visit_steps": visit_steps}
-    batched = Task(experiment="controllers.buffon.experiments:nest_task", params={**base, "trials": trials}, seed=seed)
+    batched = Task(
+        experiment="stcvision.controllers.buffon.experiments:nest_task", params={**base, "trials": trials}, seed=seed
+    )
     chunks = [
         Task(
-            experiment="controllers.buffon.experiments:pymunk_task",
+            experiment="stcvision.controllers.buffon.experiments:pymunk_task",
             params={**base, "trials": min(PYMUNK_CHUNK_TRIALS, trials - k), "chunk": k},
             seed=seed,
         )
@@ -321,7 +323,7 @@ def _compare_outputs(out: Path, res: dict, nbc_p, nbc_b) -> None:
 # --------------------------------------------------------------------------------- calibrate
 def calibrate(*, trials: int = 100, seed: int = 0) -> dict:
     """The area correction measured on the reference nest (the shipped one stays fixed)."""
-    from controllers.buffon.estimate import area_estimates, median_ci95
+    from stcvision.controllers.buffon.estimate import area_estimates, median_ci95
 
     nest = parse_nest(CORRECTION_REFERENCE)
     config = VisitConfig(visit_steps=AREA_VISIT_STEPS)
@@ -348,7 +350,7 @@ def calibrate(*, trials: int = 100, seed: int = 0) -> dict:
 def bench(*, spec: str = "circle:30", seed: int = 0) -> dict:
     """Robot-steps per second of the batched path and of the pymunk path on the same nest and
     behaviour, measured one after the other in this process (one core)."""
-    from controllers.buffon.pymunk_path import run_trials_pymunk
+    from stcvision.controllers.buffon.pymunk_path import run_trials_pymunk
 
     nest = parse_nest(spec)
     run_trials(nest, VisitConfig(visit_steps=100), trials=1, seed=seed)  # compile (cached) and warm up
@@ -392,8 +394,8 @@ def online(out: str | Path, *, trials: int = 12, seed: int = 0, sweep=None, forc
     """The online rule measured: its calibration family again, the held-out evaluation family
     (coverage of both intervals per family), the size sweep's ends, and error vs robot-steps of
     fixed lengths beside the rule on the standard circle; CSV, figures, summary."""
-    from controllers.buffon import online as exp
-    from controllers.buffon import report
+    from stcvision.controllers.buffon import online as exp
+    from stcvision.controllers.buffon import report
     from stcvision.sweep import SweepOptions, Task
 
     out = _out_dir(out, force, ONLINE_FILES)
@@ -422,7 +424,7 @@ def online(out: str | Path, *, trials: int = 12, seed: int = 0, sweep=None, forc
     rule = {"stop": dataclasses.asdict(StopParams())}
     tasks = [
         Task(
-            experiment="controllers.buffon.experiments:nest_task",
+            experiment="stcvision.controllers.buffon.experiments:nest_task",
             params={**base, "spec": r["spec"], "barrier": r["barrier"], "visit_steps": r["visit_steps"]}
             | ({"trail_turn": r["trail_turn"]} if r.get("trail_turn") else {})
             | (rule if r["visit_steps"] == "auto" else {}),

@@ -91,12 +91,12 @@ nests, while the dead-time correction over-restores a denser trail. The coverage
 the two cancel across 700-31,000 u^2 (measured: 0.07 and 0.15 leave opposite trends;
 docs/results/buffon.md, "Online visit lengths", measured with the second visit's estimate alone): a
 tuned constant of the robot, balanced rather than removed (the estimate of both visits,
-:func:`controllers.buffon.estimate.online_area`, leaves less to balance: its factor is
-:data:`controllers.buffon.estimate.ONLINE_CORRECTION`). In a nest a few body lengths across
+:func:`stcvision.controllers.buffon.estimate.online_area`, leaves less to balance: its factor is
+:data:`stcvision.controllers.buffon.estimate.ONLINE_CORRECTION`). In a nest a few body lengths across
 the first visit is on its own trail most of the time and rule (1) cannot be met; it gives up
 (:func:`first_visit_hopeless`) and the trial is untrusted.
 
-The rules are compiled functions (numba) that the visit loop (:mod:`controllers.buffon.batched`)
+The rules are compiled functions (numba) that the visit loop (:mod:`stcvision.controllers.buffon.batched`)
 calls every 64 steps (the batch means of both visits every step), and the synthetic-stream
 tests call from Python: one code.
 """

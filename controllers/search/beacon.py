@@ -6,7 +6,7 @@ TASTI 2 carries the catadioptric camera of :mod:`sim_camera` and drops at the st
 with two red LEDs ``separation_m`` apart, centred on the start point and lying along the start
 heading (the same red lights the STC robot's camera reads). After a move, when the robot
 *believes* it is within ``max_range_m`` of the beacon, it takes one frame: the frame is rendered
-at the robot's **true** pose (:meth:`sim_camera.camera.SyntheticCamera.render`, noise, dark
+at the robot's **true** pose (:meth:`stcvision.sim_camera.camera.SyntheticCamera.render`, noise, dark
 frame) and read by the vision pipeline (:class:`stcvision.pipeline.Pipeline`, its red-light
 search ``find_red`` on the ground view); the two lights' robot-frame positions and their known
 places give the robot's position and heading (which light is which: the assignment nearer the
@@ -86,9 +86,9 @@ class BeaconFixer:
     """The camera, its dark frame and the pipeline of one run (built once, applied per move)."""
 
     def __init__(self, beacon: Beacon, world, robot, seed: np.random.SeedSequence):
-        from calibration.profiles import default_profile
-        from sim_camera.camera import SyntheticCamera
+        from stcvision.calibration.profiles import default_profile
         from stcvision.pipeline import Pipeline
+        from stcvision.sim_camera.camera import SyntheticCamera
 
         ss_pattern, ss_noise = seed.spawn(2)
         self.beacon, self.world, self.robot = beacon, world, robot
@@ -100,7 +100,7 @@ class BeaconFixer:
         self.last_result = None  # the pipeline's last result (for a recorder)
 
     def fix(self) -> BeaconFix | None:
-        from sim_camera.camera import Pose
+        from stcvision.sim_camera.camera import Pose
 
         b = self.beacon
         x, y, th = self.robot.odometry.pose

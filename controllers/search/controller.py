@@ -115,7 +115,7 @@ class MoveKind(enum.Enum):
 
 @dataclass(frozen=True, kw_only=True, slots=True)
 class SearchConfig:
-    """``pattern`` (:mod:`controllers.search.patterns`), detour ``policy``, the tongue
+    """``pattern`` (:mod:`stcvision.controllers.search.patterns`), detour ``policy``, the tongue
     ``threshold`` (sensor units; the paper's robot stopped above 296 Hz, Fig. 12) and the loop
     guard ``max_detour_moves``."""
 

@@ -13,12 +13,12 @@ import statistics
 
 import numpy as np
 
-from controllers.search.controller import Policy, SearchConfig
-from controllers.search.metrics import summarise
-from controllers.search.patterns import RadialPattern, SpiralPattern
-from controllers.search.run import SearchScene, run_search
-from controllers.search.scenarios import FIG6_OBSTACLE, FIG7_OBSTACLE, FIG13_CAN, PAPER_PATCH
-from sim_camera.robot_sensors import CapacitiveRingParams
+from stcvision.controllers.search.controller import Policy, SearchConfig
+from stcvision.controllers.search.metrics import summarise
+from stcvision.controllers.search.patterns import RadialPattern, SpiralPattern
+from stcvision.controllers.search.run import SearchScene, run_search
+from stcvision.controllers.search.scenarios import FIG6_OBSTACLE, FIG7_OBSTACLE, FIG13_CAN, PAPER_PATCH
+from stcvision.sim_camera.robot_sensors import CapacitiveRingParams
 
 __all__ = [
     "DETOUR_PATTERNS",
@@ -53,7 +53,7 @@ def _pattern(params: dict):
 
 def build_run(params: dict, seed: np.random.SeedSequence, **kw):
     """Run the search ``params`` describe; the :class:`SearchRun` itself (for figures)."""
-    from controllers.search.beacon import Beacon
+    from stcvision.controllers.search.beacon import Beacon
 
     scene = SearchScene(
         obstacles=tuple(tuple(map(float, o)) for o in params.get("obstacles", ())),
@@ -169,8 +169,8 @@ def cut(params: dict, max_steps: int | None) -> dict:
 def _figures(seed: np.random.SeedSequence, max_steps: int | None = None) -> dict[str, bytes]:
     """Figs. 1, 2, 6, 7, 8, 11-14 as PNG bytes (nothing is written here), in :data:`FIGURES`'
     order; the runs' patterns cut at ``max_steps``."""
-    from controllers.search.patterns import planned_points
-    from controllers.search.plots import plot_density, plot_path, plot_pattern, plot_timeline
+    from stcvision.controllers.search.patterns import planned_points
+    from stcvision.controllers.search.plots import plot_density, plot_path, plot_pattern, plot_timeline
     from stcvision.fileio import figure_png
 
     def png(fig):
@@ -226,7 +226,7 @@ def row_tasks(n_seeds: int, root_seed: int, max_steps: int | None = None) -> dic
                 if (t, label, k) in tasks:
                     raise BadInputError(f"table {t} lists the row {label!r} twice")
                 tasks[(t, label, k)] = Task(
-                    experiment="controllers.search.experiments:row_task",
+                    experiment="stcvision.controllers.search.experiments:row_task",
                     params={
                         "row": f"{t}/{label}",
                         "run": cut(params, max_steps),
@@ -361,8 +361,8 @@ def detour_obstacle(params: dict, radius_m: float, place: float) -> list[float]:
     """The obstacle ``[x, y, r]`` of one cell: centred on the planned point at ``place`` of the
     pattern's steps, or the first one after it that keeps ``DETOUR_CLEAR_START_M`` off the robot
     at the start."""
-    from controllers.search.patterns import planned_points
-    from sim_camera.robot import TASTI2
+    from stcvision.controllers.search.patterns import planned_points
+    from stcvision.sim_camera.robot import TASTI2
 
     pts = planned_points(_pattern(params))
     for k in range(int(place * (len(pts) - 1)), len(pts)):
@@ -383,7 +383,7 @@ def detour_tasks(n_seeds: int, root_seed: int) -> dict:
                 run = {**params, "policy": "improved", "obstacles": [detour_obstacle(params, r, place)]}
                 for k in range(n_seeds):
                     tasks[(name, r, place, k)] = Task(
-                        experiment="controllers.search.experiments:row_task",
+                        experiment="stcvision.controllers.search.experiments:row_task",
                         params={
                             "row": f"detours/{name}/{r}/{place}",
                             "run": run,
@@ -462,7 +462,7 @@ def detours(out, *, n_seeds: int = 4, root_seed: int = 2026, sweep=None, force: 
 
 
 def _detour_figure(pooled: dict):
-    from controllers.search.plots import new_figure
+    from stcvision.controllers.search.plots import new_figure
 
     fig, ax = new_figure(figsize=(6, 3.5))
     for dx, (name, _) in zip((-0.004, 0.004), DETOUR_PATTERNS, strict=True):

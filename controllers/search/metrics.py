@@ -1,4 +1,4 @@
-"""Metrics of a search run, computed from :class:`controllers.search.run.SearchRun` (observers
+"""Metrics of a search run, computed from :class:`stcvision.controllers.search.run.SearchRun` (observers
 of results; nothing here runs the robot).
 
 **Shadow area** (Fig. 7 vs Fig. 8): the part of the pattern's intended sensing footprint that
@@ -27,7 +27,7 @@ import collections
 
 import numpy as np
 
-from sim_camera.robot import TASTI2
+from stcvision.sim_camera.robot import TASTI2
 
 __all__ = ["footprints", "odometry_errors_m", "sampling_points_true", "shadow_area_m2", "summarise"]
 

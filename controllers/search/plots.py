@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from controllers.search.metrics import footprints, sampling_points_odo, sampling_points_true
+from stcvision.controllers.search.metrics import footprints, sampling_points_odo, sampling_points_true
 
 __all__ = ["new_figure", "plot_density", "plot_path", "plot_pattern", "plot_timeline", "save_figure"]
 

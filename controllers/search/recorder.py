@@ -13,7 +13,7 @@ import numpy as np
 import rerun as rr
 import rerun.blueprint as rrb
 
-from controllers.search.patterns import planned_points
+from stcvision.controllers.search.patterns import planned_points
 
 __all__ = ["SearchRecorder"]
 

@@ -1,5 +1,5 @@
-"""One search run: the world moves TASTI 2 truly (pymunk, :class:`sim_camera.world.World` +
-:data:`sim_camera.robot.TASTI2`), the controller (:mod:`controllers.search.controller`) navigates
+"""One search run: the world moves TASTI 2 truly (pymunk, :class:`stcvision.sim_camera.world.World` +
+:data:`stcvision.sim_camera.robot.TASTI2`), the controller (:mod:`stcvision.controllers.search.controller`) navigates
 by dead reckoning.
 
 Executor of a :class:`Move` (TASTI 2's motion layer, the TASTI 2 paper by Russell):
@@ -25,14 +25,23 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from controllers.search.controller import Move, Phase, Policy, SearchConfig, SearchObs, Stop, initial_state, step
-from controllers.search.patterns import planned_points
-from sim_camera.arenas import CircleObstacle, SquareArena
-from sim_camera.layers import ChemicalLayer, ChemicalPatch
-from sim_camera.robot import TASTI2
-from sim_camera.world import World
 from stcvision.angles import wrap_angle
+from stcvision.controllers.search.controller import (
+    Move,
+    Phase,
+    Policy,
+    SearchConfig,
+    SearchObs,
+    Stop,
+    initial_state,
+    step,
+)
+from stcvision.controllers.search.patterns import planned_points
 from stcvision.errors import BadInputError
+from stcvision.sim_camera.arenas import CircleObstacle, SquareArena
+from stcvision.sim_camera.layers import ChemicalLayer, ChemicalPatch
+from stcvision.sim_camera.robot import TASTI2
+from stcvision.sim_camera.world import World
 
 __all__ = ["MoveRecord", "SearchRun", "SearchScene", "check_reach", "execute_move", "run_search", "robot_params"]
 
@@ -88,7 +97,7 @@ class SearchScene:
 
 
 def robot_params(odometry_noise: bool):
-    """TASTI 2 as in :mod:`sim_camera.robot`, or with exact wheels (no Ed, Eb, slip; encoder
+    """TASTI 2 as in :mod:`stcvision.sim_camera.robot`, or with exact wheels (no Ed, Eb, slip; encoder
     quantisation stays) for ``odometry_noise=False``."""
     if odometry_noise:
         return TASTI2
@@ -117,7 +126,7 @@ class MoveRecord:
 @dataclass(frozen=True, slots=True)
 class SearchRun:
     """Everything a run produced (the metrics are computed from it by
-    :func:`controllers.search.metrics.summarise`)."""
+    :func:`stcvision.controllers.search.metrics.summarise`)."""
 
     scene: SearchScene
     config: SearchConfig
@@ -209,7 +218,7 @@ def run_search(
     progress=None,
 ) -> SearchRun:
     """Run the search until the controller stops. ``seed`` is split into the world's stream and
-    the beacon camera's. ``beacon``: a :class:`controllers.search.beacon.Beacon` (or None).
+    the beacon camera's. ``beacon``: a :class:`stcvision.controllers.search.beacon.Beacon` (or None).
     ``observer``: an object with ``on_move(record, world, robot, fixer=)`` (e.g. the rerun recorder).
     ``progress``: callable(search_steps) after each move (a progress bar)."""
     check_reach(config.pattern)

@@ -8,9 +8,9 @@ before step 13, and a larger obstacle where the spiral turns by more than 45 deg
 
 from __future__ import annotations
 
-from controllers.search.patterns import SpiralPattern
-from sim_camera.layers import TASTI2_SALT_PATCH_DIAMETER_M
-from sim_camera.robot_sensors import CapacitiveRingParams
+from stcvision.controllers.search.patterns import SpiralPattern
+from stcvision.sim_camera.layers import TASTI2_SALT_PATCH_DIAMETER_M
+from stcvision.sim_camera.robot_sensors import CapacitiveRingParams
 
 __all__ = ["FIG6_OBSTACLE", "FIG7_OBSTACLE", "FIG13_CAN", "PAPER_PATCH", "paper_spiral"]
 

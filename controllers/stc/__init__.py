@@ -4,7 +4,7 @@ geometry on the board (:mod:`.geometry`), the grid oracle (:mod:`.oracle`) and t
 parts: plant (:mod:`.plant`), perception (:mod:`.perception`, :mod:`.frames`), referee
 (:mod:`.referee`), observers (:mod:`.observers`, :mod:`.recorder`) and the loop (:mod:`.loop`).
 
-``from controllers.stc import run_cover, CoverConfig, is_complete`` (imported on first use).
+``from stcvision.controllers.stc import run_cover, CoverConfig, is_complete`` (imported on first use).
 """
 
 __all__ = ["CoverConfig", "is_complete", "run_cover"]
@@ -12,7 +12,7 @@ __all__ = ["CoverConfig", "is_complete", "run_cover"]
 
 def __getattr__(name):
     if name in __all__:
-        from controllers.stc import loop
+        from stcvision.controllers.stc import loop
 
         return getattr(loop, name)
     raise AttributeError(name)

@@ -1,7 +1,7 @@
 """What the STC robot believes of itself, apart from the world: the sub-cell it stands in, its
 compass heading, the time its motors take for 90 degrees, and its offset from the sub-cell
 centre (:class:`Belief`); and the robot's acts, which command the plant
-(:class:`controllers.stc.plant.Plant`) with what the robot believes and update the belief with
+(:class:`stcvision.controllers.stc.plant.Plant`) with what the robot believes and update the belief with
 what it did or measured.
 
 The plant is the physical robot (true pose, clock, motors); perception reads frames taken at
@@ -17,8 +17,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from controllers.stc.grid import start_heading, step_from, turned
-from controllers.stc.localise import Bearing, Fix
+from stcvision.controllers.stc.grid import start_heading, step_from, turned
+from stcvision.controllers.stc.localise import Bearing, Fix
 from stcvision.stc_geometry import entry_axes
 
 __all__ = ["Belief", "align_along", "drive_forward", "finish_turn", "lay_row", "recentre", "realign", "turn"]
@@ -31,7 +31,7 @@ class Belief:
     ``sub`` (row, column) the sub-cell it believes it stands in; ``hc`` its compass heading
     (0 N, clockwise); ``turn_s`` its rotation time for 90 degrees; ``offset_m`` where it believes
     it stands off the sub-cell's centre (world, m), from its localisation, ``fix`` how sure
-    it is of it and ``bearing`` how sure of its heading (:mod:`controllers.stc.localise`);
+    it is of it and ``bearing`` how sure of its heading (:mod:`stcvision.controllers.stc.localise`);
     ``realigned_rad`` how far it turned towards the grid (:func:`realign`) since it laid its
     newest row, which was laid that much askew of the heading it now has;
     ``unmeasured_turns`` its quarter turns (left +1, right -1) since the last one a row
@@ -51,8 +51,8 @@ class Belief:
         cls, board, turn_s: float, step_sigma_m: float = 0.0, heading_sigma_rad: float | None = None
     ) -> Belief:
         """On the start sub-cell, facing the board's start heading to within
-        ``heading_sigma_rad`` (None: :meth:`~controllers.stc.localise.Bearing.unknown`), turn
-        time ``turn_s`` (set before the run: :attr:`controllers.stc.plant.Plant.calibrated_turn_s`);
+        ``heading_sigma_rad`` (None: :meth:`~stcvision.controllers.stc.localise.Bearing.unknown`), turn
+        time ``turn_s`` (set before the run: :attr:`stcvision.controllers.stc.plant.Plant.calibrated_turn_s`);
         placed on its centre as well as one move of error ``step_sigma_m`` ends there."""
         return cls(
             tuple(board.start_subcell),

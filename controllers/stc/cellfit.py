@@ -17,7 +17,7 @@ puts the cell's rows on those lines is found well beyond the rows' inset (the se
 +-0.3 of a sub-cell, 4.8 cm; a neighbour's row just beyond the cell's edge lies 0.25 from its
 outermost lines, which is why an offset two ways as good is not taken), and it is
 the offset that matters for reading the boxes: the robot relative to the marks it reads.
-:func:`fit_cell_offset` finds it; :class:`controllers.stc.frames.RobotCamera` reads a frame again
+:func:`fit_cell_offset` finds it; :class:`stcvision.controllers.stc.frames.RobotCamera` reads a frame again
 with it when the pipeline's offset leaves rows of the cell on no line, and a reading whose rows
 no offset puts on the lines is not decided on (``StcObservation.misread``).
 """

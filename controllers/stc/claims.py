@@ -4,7 +4,7 @@ have shown what it takes for absent.
 A decision or a look reads marks as present or absent. *Present* is what a frame saw; *absent*
 is only worth what the frame could have seen: a mark older than the frame's visibility horizon
 at its distance is invisible to it. The robot knows its clock (no mark can be older), its own
-frame settings and the camera's calibrated horizon (:meth:`controllers.stc.frames.Exposures.horizon`),
+frame settings and the camera's calibrated horizon (:meth:`stcvision.controllers.stc.frames.Exposures.horizon`),
 not the true ages of the marks. So every absence a reading relies on is a :class:`Claim` --
 what is ruled out, and the distance of the dot that decides it -- and the perception takes
 longer frames until each claim is covered by a frame whose horizon there reaches the clock
@@ -12,7 +12,7 @@ longer frames until each claim is covered by a frame whose horizon there reaches
 the marks may be and how far its longest frame sees there.
 
 The distances come from the one STC geometry (:mod:`stcvision.stc_geometry`) and the LED row
-(:data:`sim_camera.phosphor.LED_OFFSETS_M`, the row's inset from the sub-cell's edge): for a mark,
+(:data:`stcvision.sim_camera.phosphor.LED_OFFSETS_M`, the row's inset from the sub-cell's edge): for a mark,
 the distance of the ``n``-th nearest of its four dots, ``n`` being the dots the vision needs
 before it counts a mark (:class:`stcvision.observation.ObservationParams`: 2 in a box or a cell,
 3 in a landing sub-cell), plus the robot's position margin. Where the mark may lie on any edge of
@@ -58,7 +58,7 @@ class Claim:
 def _row_dots(sub_centre, edge: int, side: float) -> np.ndarray:
     """The four dots of a mark along edge ``edge`` (a direction) of the sub-cell centred at
     ``sub_centre`` (cell units: sub-cell sides of ``side`` m)."""
-    from sim_camera.phosphor import LED_OFFSETS_M, PhosphorLayer
+    from stcvision.sim_camera.phosphor import LED_OFFSETS_M, PhosphorLayer
 
     inset = (0.5 * side + PhosphorLayer().rear_led_x_m) / side  # the LEDs sit behind the centre
     e = np.asarray(DIRECTIONS[edge], float)
@@ -105,7 +105,7 @@ def distance_m(kind: str, subcell_m: float, margin_m: float) -> float:
 
 
 def decision_claims(obs, *, fresh: bool, at_start: bool, subcell_m: float, margin_m: float) -> list[Claim]:
-    """What a decision from ``obs`` (a :class:`controllers.stc.fsm.StcObservation`) takes for
+    """What a decision from ``obs`` (a :class:`stcvision.controllers.stc.fsm.StcObservation`) takes for
     absent: every unlit box (which sub-cells are visited, so the parent), and no start mark in
     sub-cells 1-3 (this is not the start cell). A cell entered as a child the look found
     unmarked (``fresh``) holds no mark: that look ruled them out. The neighbours' marks are
@@ -127,12 +127,12 @@ def decision_claims(obs, *, fresh: bool, at_start: bool, subcell_m: float, margi
 
 
 def return_misread(obs) -> str | None:
-    """Why ``obs`` (a :class:`controllers.stc.fsm.StcObservation` at a decision after a return
+    """Why ``obs`` (a :class:`stcvision.controllers.stc.fsm.StcObservation` at a decision after a return
     from a child: not the first one, not in a cell just entered as a child) cannot be right, or
-    None: the lit boxes of a cell re-entered are one of :data:`controllers.stc.fsm.REENTRY_BOXES`
+    None: the lit boxes of a cell re-entered are one of :data:`stcvision.controllers.stc.fsm.REENTRY_BOXES`
     (box 4 always). A cross-check of the reading against the tour, not against the frames'
     reach: it catches a mark missed *within* the horizon (a pipeline miss), which no claim can."""
-    from controllers.stc.fsm import REENTRY_BOXES
+    from stcvision.controllers.stc.fsm import REENTRY_BOXES
 
     def name(boxes) -> str:
         return "{" + ",".join(map(str, boxes)) + "}"
@@ -166,7 +166,7 @@ def landing_claims(marked: bool, *, subcell_m: float, margin_m: float) -> list[C
 
 def read_until_sure(cam, t_s: float, read, merge, claims, *, strict: bool = True):
     """Frames until every claim of the reading is covered: ``read(k, t) -> (reading, seconds)``
-    takes a frame at rung ``k`` of ``cam`` (:class:`controllers.stc.frames.Exposures`) at clock
+    takes a frame at rung ``k`` of ``cam`` (:class:`stcvision.controllers.stc.frames.Exposures`) at clock
     ``t``; ``merge(a, b)`` is what two frames show together; ``claims(reading)`` what it takes for
     absent. The short frame (rung 0) first; then, while a claim is open (no frame taken so far
     sees marks as old as the clock was at that frame, at the claim's distance), the shortest

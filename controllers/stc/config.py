@@ -5,8 +5,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from sim_camera.hardware import WEBCAM, CameraProfile
-from sim_camera.robot import LEGO_STC_ROBOT, MarkingRobot
+from stcvision.sim_camera.hardware import WEBCAM, CameraProfile
+from stcvision.sim_camera.robot import LEGO_STC_ROBOT, MarkingRobot
 from stcvision.stages import DotParams
 
 __all__ = [
@@ -32,9 +32,9 @@ class CoverConfig:
     gain: float | None = None
     n_stack: int = 1
     seed: int = 0
-    #: the robot (motion, timing, marking): :data:`sim_camera.robot.LEGO_STC_ROBOT` by default
+    #: the robot (motion, timing, marking): :data:`stcvision.sim_camera.robot.LEGO_STC_ROBOT` by default
     robot: MarkingRobot = LEGO_STC_ROBOT
-    #: the camera's sensor physics (:mod:`sim_camera.hardware`): the STC paper's webcam by default
+    #: the camera's sensor physics (:mod:`stcvision.sim_camera.hardware`): the STC paper's webcam by default
     camera: CameraProfile = WEBCAM
     max_decisions: int = 20000
     heading_sigma_oracle_rad: float = math.radians(0.25)  # the pipeline's measured heading RMS
@@ -51,7 +51,7 @@ class CoverConfig:
     consensus_rows: int = 8
     #: with exposure control, a reading takes longer frames until every absence it relies on
     #: is covered: a frame whose horizon at the deciding dot's distance reaches the clock
-    #: (:mod:`controllers.stc.claims`: box 2 0.26 m away, the start mark 0.16-0.26 m, the cell
+    #: (:mod:`stcvision.controllers.stc.claims`: box 2 0.26 m away, the start mark 0.16-0.26 m, the cell
     #: ahead at a look 0.41 m, the sub-cell ahead before a return 0.23 m); the distances are
     #: taken this much farther, for the robot's own offset from its sub-cell centre (it stays
     #: within 1.3-2.9 cm: docs/explanation/stc-robot.md, "Each reading weighted by how sure it is")
@@ -64,7 +64,7 @@ class CoverConfig:
     #: but at its threshold it too finds a row only half the time)
     sizing_snr: float = _SIZING_SNR
     #: size the camera's frames by the noise they will have, the stack's and the dark frame's
-    #: rounding included (:meth:`controllers.stc.frames.Exposures.stack_equivalent`), not the
+    #: rounding included (:meth:`stcvision.controllers.stc.frames.Exposures.stack_equivalent`), not the
     #: idealised noise over the square root of the frames stacked: on the webcam's 8-bit frames a
     #: 32 x 30 s stack is worth 12 frames and the longest frame's reach halves. On by default
     #: (never decide on a frame sized for noise it will not have): measured (the results page's
@@ -80,30 +80,30 @@ class CoverConfig:
     #: it reads the longest frame and decides anyway (a study of what the guess costs)
     stop_out_of_sight: bool = True
     #: with exposure control, cross-check a return's reading against the tour: a cell re-entered
-    #: from a child shows box 4 and one of :data:`controllers.stc.fsm.REENTRY_BOXES`; a reading
+    #: from a child shows box 4 and one of :data:`stcvision.controllers.stc.fsm.REENTRY_BOXES`; a reading
     #: that does not is read again with a longer frame, and still wrong the robot stops
     #: ("misread: ...") rather than decide on a mark missed within its frames' reach; off, it
     #: decides on what it read (a study of what the misread costs)
     check_returns: bool = True
     #: at a return, an unlit box's frames must reach the clock at this SNR of its deciding dot,
     #: else the cell is read again with the next longer frame
-    #: (:meth:`controllers.stc.frames.Exposures._check_old_boxes`): two noise sigmas above the
+    #: (:meth:`stcvision.controllers.stc.frames.Exposures._check_old_boxes`): two noise sigmas above the
     #: dot search's threshold, so each dot is found ~98 % of the time and two of a row's four
     #: > 99.99 % (at ``sizing_snr`` 98.6 %: over a long tour's returns, now and then a miss)
     return_snr: float = _SIZING_SNR + 1.0
     #: a study switch, off in the ant-like robot: keep beside the count of moves a map of where
     #: the robot has been (every cell entered, every row laid: it grows with the board) and
-    #: check the camera's readings against it (:class:`controllers.stc.movecount.MoveLog`); on,
+    #: check the camera's readings against it (:class:`stcvision.controllers.stc.movecount.MoveLog`); on,
     #: the cost of deciding from the floor and a constant memory alone is measured
     move_log: bool = False
     trace: bool = False  # heading from the lean of all rows in view, not the newest only
-    #: hardware faults injected into the run: (name, level) pairs (:mod:`controllers.stc.faults`)
+    #: hardware faults injected into the run: (name, level) pairs (:mod:`stcvision.controllers.stc.faults`)
     faults: tuple[tuple[str, float], ...] = ()
 
 
 #: the red lights' estimates are used as long as they are this sure (1 sigma): the offset within
 #: 0.03 sub-cell sides (5 mm) replaces the robot's belief (less sure, it is weighed against it:
-#: :mod:`controllers.stc.localise`), the heading within 0.3 degrees for the turn-time recalibration
+#: :mod:`stcvision.controllers.stc.localise`), the heading within 0.3 degrees for the turn-time recalibration
 #: (the newest row's fit is 0.25 deg); a drift correction needs 2.5 sigma whatever the spread
 LANDMARK_OFFSET_SIGMA = 0.03
 LANDMARK_TURN_SIGMA_RAD = math.radians(0.3)
@@ -111,7 +111,7 @@ LANDMARK_TURN_SIGMA_RAD = math.radians(0.3)
 #: 2, 0.27 m away, moves 0.5 cm per degree): they are taken again
 REOBSERVE_RAD = math.radians(1.0)
 #: a robot that measures itself this far off its sub-cell centre (pushed, slipped) drives back
-#: to it (:meth:`controllers.stc.plant.Plant.recentre`) before it marks, and before it decides
+#: to it (:meth:`stcvision.controllers.stc.plant.Plant.recentre`) before it marks, and before it decides
 #: (the boxes are read from where it should stand): healthy runs stay within 1.3 cm (6x6 board,
 #: seed 0); a mark 2.5 cm off lies half-way to the next box
 RECENTRE_M = 0.025

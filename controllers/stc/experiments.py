@@ -2,7 +2,7 @@
 the boards it runs on (map files; random boards of a fixed or a drawn size, obstacle fraction and
 start sub-cell) and the dependability table (:func:`summarise`, its CSV, markdown and plot).
 
-One task is one run of :func:`controllers.stc.loop.run_cover` (seconds to minutes: far above the
+One task is one run of :func:`stcvision.controllers.stc.loop.run_cover` (seconds to minutes: far above the
 sweep runner's per-task cost), run through :mod:`stcvision.sweep` (local pool or Dask cluster,
 results kept in ``OUT/sweep.jsonl`` as each run ends). Every run of a table can be replayed alone
 with ``stcvision cover`` (the summary prints the command, ``--rrd`` records it):
@@ -10,7 +10,7 @@ with ``stcvision cover`` (the summary prints the command, ``--rrd`` records it):
 * a map's run is ``stcvision cover --map FILE --seed S`` (the map travels inside the task, so a
   Dask worker elsewhere needs no copy of the file, and an edited map is a new task);
 * a random board is ``random_board(W, H, F, S)``, drawn from the run's own board stream
-  (:func:`controllers.stc.loop.streams`), the board of ``stcvision cover --board WxH
+  (:func:`stcvision.controllers.stc.loop.streams`), the board of ``stcvision cover --board WxH
   --obstacle-fraction F --seed S``; what a family draws for a seed (W and H from a size range, F
   from a fraction range, a start sub-cell anywhere on the board) comes from a stream of its own
   (:func:`family_rng`), so the drawn values, printed with the run, are all a replay needs.
@@ -49,7 +49,7 @@ __all__ = [
     "write_outputs",
 ]
 
-EXPERIMENT = "controllers.stc.experiments:cover_run"
+EXPERIMENT = "stcvision.controllers.stc.experiments:cover_run"
 STORE = "sweep.jsonl"
 OUTPUTS = ("runs.csv", "table.csv", "summary.md", "dependability.png")
 #: obstacle cells of a random board (``stcvision cover --board``, and the sweep's boards)
@@ -103,10 +103,10 @@ RUN_FIELDS = (
 def random_board(w: int, h: int, obstacle_fraction: float, seed: int):
     """The random board of ``stcvision cover --board WxH --obstacle-fraction F --seed S`` (also
     the sweep's): drawn from the board's own stream of the run's seed
-    (:func:`controllers.stc.loop.streams`)."""
-    from controllers.stc.loop import streams
-    from sim_camera.board import Board
+    (:func:`stcvision.controllers.stc.loop.streams`)."""
+    from stcvision.controllers.stc.loop import streams
     from stcvision.limits import check_board_cells
+    from stcvision.sim_camera.board import Board
 
     check_board_cells(w, h)
     if not 0 <= obstacle_fraction < 1:
@@ -238,7 +238,7 @@ def decode_grid(grid: dict):
 
     import numpy as np
 
-    from sim_camera.board import Board
+    from stcvision.sim_camera.board import Board
 
     n = grid["rows"] * grid["cols"]
     bits = np.unpackbits(np.frombuffer(base64.b64decode(grid["blocked"]), np.uint8), count=n)
@@ -246,11 +246,11 @@ def decode_grid(grid: dict):
 
 
 def map_family(path: str | Path, name: str | None = None) -> BoardFamily:
-    """The family of one map file (a ``.txt`` or an image, :meth:`sim_camera.board.Board.from_file`;
+    """The family of one map file (a ``.txt`` or an image, :meth:`stcvision.sim_camera.board.Board.from_file`;
     its start as the map gives it or as the loader picks); too big a map is refused as a random
     board of its size would be."""
-    from sim_camera.board import Board
     from stcvision.limits import check_board_cells
+    from stcvision.sim_camera.board import Board
 
     p = Path(path)
     if p.is_dir():
@@ -289,7 +289,7 @@ def draw_board(params: dict, seed: int):
     board's own ``shape_cells``)."""
     import numpy as np
 
-    from sim_camera.board import Board
+    from stcvision.sim_camera.board import Board
 
     rng = family_rng(seed)
     drawn: dict = {}
@@ -315,8 +315,8 @@ def cover_run(params: dict, seed) -> dict:
     seed, start ("board" or "random"), exposure, perception, camera, decisions_per_subcell.
     ``seed`` (the sweep's stream) is not used: the run's own ``params["seed"]`` makes it the same
     run as ``stcvision cover --seed S`` on the same board."""
-    from controllers.stc.loop import CoverConfig, run_cover
-    from sim_camera import hardware
+    from stcvision.controllers.stc.loop import CoverConfig, run_cover
+    from stcvision.sim_camera import hardware
 
     board, drawn = draw_board(params, params["seed"])
     # a complete tour makes a few decisions per sub-cell; a robot lost in its own faded marks can
@@ -373,8 +373,8 @@ def plan(
     """The tasks, largest boards first (so the pool is not left waiting on one at the end);
     every input checked, and the count capped, before a task is made. ``move_log``: the study
     switch's robot (``CoverConfig.move_log``), tabled apart from the ant-like one."""
-    from sim_camera import hardware
     from stcvision.limits import MAX_SWEEP_SEEDS, MAX_SWEEP_TASKS, check_count
+    from stcvision.sim_camera import hardware
     from stcvision.sweep import Task
 
     if not families:
@@ -639,7 +639,7 @@ def write_outputs(out: Path, runs: list[dict], rows: list[dict], report_summary:
         "",
         "A run is **complete** when every reachable sub-cell was covered exactly once, the robot finished "
         "back in its start cell and made no decision the oracle would not have made in its place "
-        "(`controllers.stc.loop.is_complete`, the referee's ground truth). **Safely stopped**: not complete, "
+        "(`stcvision.controllers.stc.loop.is_complete`, the referee's ground truth). **Safely stopped**: not complete, "
         "but the robot stopped with a reason before any wrong decision or sub-cell covered twice. **Unsafe**: "
         "anything else. The interval is Clopper-Pearson's (`scipy.stats.binomtest(k, n).proportion_ci()`). "
         "Random boards: `random_board(W, H, F, seed)`; a drawn size is tabled by the band of its larger side.",

@@ -1,8 +1,8 @@
 """The fault experiment (``stcvision cover faults``): the outcome of the STC robot per hardware
 fault and level, through the sweep runner; its table, plot and markdown summary.
 
-One task is one run of :func:`controllers.stc.loop.run_cover` on the board of ``stcvision cover
---board NxN --seed S`` with one fault (:mod:`controllers.stc.faults`), so any run of the table is
+One task is one run of :func:`stcvision.controllers.stc.loop.run_cover` on the board of ``stcvision cover
+--board NxN --seed S`` with one fault (:mod:`stcvision.controllers.stc.faults`), so any run of the table is
 replayed alone with ``stcvision cover --board NxN --seed S --fault NAME:LEVEL``. Outcomes
 (:func:`outcome`): complete; aborted with a reason, none covered twice; aborted with sub-cells
 covered twice; finished with the right coverage but decision errors the referee saw; and the
@@ -58,9 +58,9 @@ def outcome(r: dict) -> str:
 def fault_run(params: dict, seed) -> dict:
     """One run (the sweep's task); ``seed`` (the sweep's stream) is not used: the run's own
     ``params["seed"]`` makes it the same run as ``stcvision cover --seed S --fault F:L``."""
-    from controllers.stc.experiments import random_board
-    from controllers.stc.loop import CoverConfig, is_complete, run_cover
-    from sim_camera import hardware
+    from stcvision.controllers.stc.experiments import random_board
+    from stcvision.controllers.stc.loop import CoverConfig, is_complete, run_cover
+    from stcvision.sim_camera import hardware
 
     n = params["cells"]
     board = random_board(n, n, params["obstacle_fraction"], params["seed"])
@@ -80,7 +80,7 @@ def fault_run(params: dict, seed) -> dict:
 
 
 def plan(faults, runs: int, *, cells: int, obstacle_fraction: float, exposure: str, camera: str):
-    from controllers.stc.faults import FAULTS
+    from stcvision.controllers.stc.faults import FAULTS
     from stcvision.limits import MAX_FAULT_RUNS, check_board_cells, check_count
     from stcvision.sweep import Task
 
@@ -115,7 +115,7 @@ def plan(faults, runs: int, *, cells: int, obstacle_fraction: float, exposure: s
 
 def summarise(runs: list[dict]) -> list[dict]:
     """One row per (fault, level): how many runs ended in each outcome, and the abort reasons."""
-    from controllers.stc.experiments import stop_kind
+    from stcvision.controllers.stc.experiments import stop_kind
 
     groups: dict[tuple, list[dict]] = {}
     order = list(LEVELS)
@@ -171,8 +171,8 @@ def plot(rows: list[dict]) -> bytes:
 def write_outputs(out: Path, runs: list[dict], rows: list[dict], setup: dict, report_summary: str) -> list[str]:
     """runs.csv, summary.md and faults.png in ``out``; ``setup`` holds the sweep's board
     (cells, obstacle_fraction) and camera (camera, exposure)."""
-    from controllers.stc.experiments import write_csv as _csv
-    from controllers.stc.experiments import write_files
+    from stcvision.controllers.stc.experiments import write_csv as _csv
+    from stcvision.controllers.stc.experiments import write_files
 
     n = setup["cells"]
     md = [
@@ -180,7 +180,8 @@ def write_outputs(out: Path, runs: list[dict], rows: list[dict], setup: dict, re
         "",
         f"Board {n}x{n} cells (`Board.random`, obstacle fraction {setup['obstacle_fraction']}, seed = run seed), "
         f"camera {setup['camera']}, exposure {setup['exposure']}, perception camera; one fault per run "
-        "(`controllers.stc.faults`). Outcomes: complete (every reachable sub-cell once, back at the start, no "
+        "(`stcvision.controllers.stc.faults`). Outcomes: complete (every reachable sub-cell once, back at the start, "
+        "no "
         "decision error); aborted with a specific reason; finished with the right coverage but decision errors; "
         "wrong success (finished with the wrong coverage: never allowed).",
         "",

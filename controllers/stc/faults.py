@@ -32,7 +32,7 @@ with the lamp in view, bumps, slips (``rate`` and ``noise`` act all the time: 0)
 Random streams: each fault draws from its own generator, :func:`fault_stream` (a SeedSequence of
 the run's seed and the fault's name, apart from the loop's four spawned children), so adding a
 fault never reshuffles the motion, camera, oracle or board streams of a run
-(:func:`controllers.stc.loop.streams`), and one fault's draws never depend on which other faults
+(:func:`stcvision.controllers.stc.loop.streams`), and one fault's draws never depend on which other faults
 are on.
 """
 
@@ -272,7 +272,7 @@ def _drifting_rate(amplitude: float, rng: np.random.Generator):
 
 
 class FaultyCamera:
-    """The robot's camera (:class:`sim_camera.camera.SyntheticCamera`) with its frame faults:
+    """The robot's camera (:class:`stcvision.sim_camera.camera.SyntheticCamera`) with its frame faults:
     lost frames (``render`` returns None: nothing arrived) and black ones, a stray lamp in the
     scene, a raised noise floor (its dark frames too: taken with the same faulty camera). Every
     other attribute is the camera's own."""
@@ -303,8 +303,8 @@ class FaultyCamera:
 
     def render(self, pose, *, rng, t_s: float = 0.0, phosphor=None, red_lights_m=None, sensor=None, n_avg: int = 1,
                **kw):  # fmt: skip
-        from sim_camera.camera import RED_LIGHT_CD_M2, Frame
-        from sim_camera.image_sensor import expose
+        from stcvision.sim_camera.camera import RED_LIGHT_CD_M2, Frame
+        from stcvision.sim_camera.image_sensor import expose
 
         f, rngs = self._f.faults, self._f.rngs
         s = self._noisy(sensor)

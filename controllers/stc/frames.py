@@ -3,18 +3,18 @@
 * **Exposure**: ``webcam`` (1/30 s, gain 16: the STC paper's camera), a fixed ``exposure_s``, or
   ``auto``: every observation takes a short webcam frame (red lights without bloom, fresh marks,
   the pose) and then, while the reading relies on an absence that no frame so far could have
-  seen (a mark as old as the clock, at the deciding dot's distance: :mod:`controllers.stc.claims`),
+  seen (a mark as old as the clock, at the deciding dot's distance: :mod:`stcvision.controllers.stc.claims`),
   a longer one (:data:`AUTO_LONG`: 2-30 s, then 2 to 64 30 s frames stacked: frame
   stacking), the shortest that covers it (``sizing_snr``); a mark counts if any frame sees it --
   the STC paper's proposal, "a camera with a fully controlled integration time". Dark frames are
   taken once per setting, at the matching exposure (a master dark of 8n frames for a stack of
   n). When not even the longest frame covers a claim the robot stops ("out of sight: ...",
-  :class:`controllers.stc.claims.OutOfSight`), before deciding.
+  :class:`stcvision.controllers.stc.claims.OutOfSight`), before deciding.
 * **Gain**: the STC paper's webcam keeps the ladder's gains (16 for the short frame, 4 for the long
   ones); any other sensor takes at each rung the lowest gain at which its frame's temporal dark
   noise spans :data:`NOISE_DN` DN (:func:`sensor_gain`: from the sensor's read noise and dark
   current, EMVA 1288 and the astronomer's rule of thumb), its frames digitised at its own ADC
-  depth (16-bit frames for a 12- or 16-bit camera: :mod:`sim_camera.image_sensor`).
+  depth (16-bit frames for a 12- or 16-bit camera: :mod:`stcvision.sim_camera.image_sensor`).
 * :class:`RobotCamera`: render -> pipeline, one pipeline per exposure setting.
 * :class:`IdealCamera`: the physics-limited camera, the same frames and time, but it sees
   exactly the marks within the frames' visibility horizon.
@@ -26,11 +26,11 @@ import dataclasses
 
 import numpy as np
 
-from controllers.stc.cellfit import SEARCH as SEARCH_OFFSET
-from controllers.stc.config import CoverConfig
-from controllers.stc.fsm import NeighbourObs, StcObservation
-from controllers.stc.oracle import MarkFloor, landing_oracle, look_oracle, observe_oracle
-from sim_camera.board import DEFAULT_SUBCELL_M
+from stcvision.controllers.stc.cellfit import SEARCH as SEARCH_OFFSET
+from stcvision.controllers.stc.config import CoverConfig
+from stcvision.controllers.stc.fsm import NeighbourObs, StcObservation
+from stcvision.controllers.stc.oracle import MarkFloor, landing_oracle, look_oracle, observe_oracle
+from stcvision.sim_camera.board import DEFAULT_SUBCELL_M
 from stcvision.stc_geometry import DIRECTIONS, NEIGHBOURS
 
 __all__ = [
@@ -49,8 +49,8 @@ __all__ = [
 WEBCAM = (1 / 30, 16.0, 1)
 #: ``--exposure auto``, long frames: (exposure_s, gain, frames averaged), shortest first. Each is
 #: used while the robot's clock (the oldest age any mark can have) is within its visibility
-#: horizon at the distance of what the frame must rule out (:mod:`controllers.stc.claims`;
-#: ``sim_camera.camera.visibility_horizon_s``: the camera's calibration of the phosphor,
+#: horizon at the distance of what the frame must rule out (:mod:`stcvision.controllers.stc.claims`;
+#: ``stcvision.sim_camera.camera.visibility_horizon_s``: the camera's calibration of the phosphor,
 #: measured once per robot). The gains are the webcam's (4 keeps its 8-bit
 #: quantisation below the dark current's noise at every length); another sensor's come from
 #: :func:`sensor_gain`. 60 s frames were tried and read fewer boxes than 30 s ones
@@ -73,7 +73,7 @@ AUTO_REACH_M = 0.45
 
 
 def stc_observation(cell_obs) -> StcObservation:
-    """The controller's observation (:class:`controllers.stc.fsm.StcObservation`) from the pipeline's
+    """The controller's observation (:class:`stcvision.controllers.stc.fsm.StcObservation`) from the pipeline's
     per-cell reading (:class:`stcvision.observation.CellObservation`): the five boxes lit, per
     neighbour (right, forward, left, back) marked and red, the start mark's sub-cell and the
     landing sub-cells marked."""
@@ -137,7 +137,7 @@ def sensor_gain(sensor, exposure_s: float, n_avg: int, webcam_gain: float) -> fl
     sensor) keeps the ladder's own gains (``webcam_gain``: the paper's 16x and the long frames' 4x),
     so its frames are exactly what they were. A robot setting from the sensor's figures, not
     the world."""
-    from sim_camera.image_sensor import SensorParams
+    from stcvision.sim_camera.image_sensor import SensorParams
 
     web = SensorParams()
     if sensor.replace(exposure_s=web.exposure_s, gain=web.gain) == web:
@@ -152,7 +152,7 @@ class Exposures:
     webcam frame first, and which long rung the robot's clock asks for."""
 
     def __init__(self, cfg: CoverConfig, subcell_m: float = DEFAULT_SUBCELL_M, *, frame_noise: bool | None = None):
-        from sim_camera.camera import SyntheticCamera
+        from stcvision.sim_camera.camera import SyntheticCamera
 
         if frame_noise is not None:  # size the horizons as the camera-mode robot does (or not)
             self.frame_noise = frame_noise
@@ -192,10 +192,10 @@ class Exposures:
     def _curve(self, k: int, snr: float | None = None) -> np.ndarray:
         """Rung ``k``'s horizon (s) at :data:`RHO`, for a lone dot at ``snr`` (default
         ``CoverConfig.sizing_snr``; the camera's calibration of the phosphor,
-        :func:`sim_camera.camera.visibility_horizon_s`)."""
+        :func:`stcvision.sim_camera.camera.visibility_horizon_s`)."""
         snr = self.cfg.sizing_snr if snr is None else snr
         if (k, snr) not in self._horizons:
-            from sim_camera.camera import ROSE_SNR, visibility_horizon_s
+            from stcvision.sim_camera.camera import ROSE_SNR, visibility_horizon_s
 
             eq = (ROSE_SNR / snr) ** 2  # as if that many more frames were stacked
             n = self.stack_equivalent(k) if self.frame_noise and self.cfg.size_by_frame_noise else self.stack(k)
@@ -204,10 +204,10 @@ class Exposures:
         return self._horizons[(k, snr)]
 
     def stack_equivalent(self, k: int) -> float:
-        """The frames rung ``k`` is worth in the horizon: :func:`sim_camera.camera.visibility_horizon_s`
+        """The frames rung ``k`` is worth in the horizon: :func:`stcvision.sim_camera.camera.visibility_horizon_s`
         divides a frame's noise by the square root of the frames stacked, rounding included, but a
         stack arrives digitised once at the ADC's depth and is read against a dark frame digitised
-        too, so its noise is :func:`controllers.stc.health.noise_floor_dn` (the figure the noise
+        too, so its noise is :func:`stcvision.controllers.stc.health.noise_floor_dn` (the figure the noise
         check holds every frame to; measured 1.05-1.28x of it). On the webcam's 8-bit frames
         the two roundings are as large as a 30 s frame's noise over 32: 32 frames are worth 12
         (its 64 x 30 s frame sees a mark 0.45 m away for 8,900 s, not 17,100 s: a box 0.13-0.21
@@ -219,9 +219,9 @@ class Exposures:
         return n * idealised * s.dn_per_e**2 / self._noise_floor(k) ** 2
 
     def _noise_floor(self, k: int) -> float:
-        """Rung ``k``'s noise floor by the camera's figures (:func:`controllers.stc.health.noise_floor_dn`),
+        """Rung ``k``'s noise floor by the camera's figures (:func:`stcvision.controllers.stc.health.noise_floor_dn`),
         with its dark frame (a median of 8, or a mean of 8n frames for a stack of n)."""
-        from controllers.stc.health import noise_floor_dn
+        from stcvision.controllers.stc.health import noise_floor_dn
 
         n = self.stack(k)
         return noise_floor_dn(self._sensor(k), n_avg=n, n_dark=8 * n)
@@ -247,15 +247,15 @@ class Exposures:
         return next((k for k in range(len(self.ladder)) if self.horizon(k, rho_m) >= t_s), None)
 
     def decision_claims(self, fresh: bool, at_start: bool):
-        """What a decision's reading takes for absent (:func:`controllers.stc.claims.decision_claims`)."""
-        from controllers.stc.claims import decision_claims
+        """What a decision's reading takes for absent (:func:`stcvision.controllers.stc.claims.decision_claims`)."""
+        from stcvision.controllers.stc.claims import decision_claims
 
         kw = dict(fresh=fresh, at_start=at_start, subcell_m=self.subcell_m, margin_m=self.cfg.position_margin_m)
         return lambda obs: decision_claims(obs, **kw)
 
     def look_claims(self, landing: bool):
         """What a look's reading takes for absent: the sub-cell ahead (``landing``) or the cell ahead."""
-        from controllers.stc.claims import ahead_claims, landing_claims
+        from stcvision.controllers.stc.claims import ahead_claims, landing_claims
 
         f = landing_claims if landing else ahead_claims
         return lambda marked: f(marked, subcell_m=self.subcell_m, margin_m=self.cfg.position_margin_m)
@@ -263,11 +263,11 @@ class Exposures:
     def sure(self, t_s: float, read, merge, claims):
         """(reading, seconds, the (rung, clock) of each frame taken): with exposure control,
         frames until every claim of the reading is covered
-        (:func:`controllers.stc.claims.read_until_sure`; raises
-        :class:`controllers.stc.claims.OutOfSight` when no frame can cover one, unless
+        (:func:`stcvision.controllers.stc.claims.read_until_sure`; raises
+        :class:`stcvision.controllers.stc.claims.OutOfSight` when no frame can cover one, unless
         ``CoverConfig.stop_out_of_sight`` is off: then the longest frame is taken and the reading
         kept); without it (the STC paper's camera) the short frame alone, whatever it misses."""
-        from controllers.stc.claims import read_until_sure
+        from stcvision.controllers.stc.claims import read_until_sure
 
         if not self.controlled:
             reading, dt = read(0, t_s)
@@ -281,7 +281,7 @@ class Exposures:
         control the STC paper's robot takes what it sees for sure. ``start_cell``: the robot's count of
         its moves puts it in its start cell (elsewhere a start mark read is not its own:
         :meth:`_check_start_away`)."""
-        from controllers.stc.claims import landing_claim
+        from stcvision.controllers.stc.claims import landing_claim
 
         seen: list = []  # (rung, reading) of every frame this decision takes
 
@@ -326,7 +326,7 @@ class Exposures:
     def _check_lines(self, t_s: float, read, obs, dt: float, taken: list):
         """At a decision the cell's marks lie on the box and start-mark lines only; a reading
         with lit rows of the cell on none (``StcObservation.other_marks``: no offset of the
-        robot puts them there, :mod:`controllers.stc.cellfit`) reads the boxes from regions
+        robot puts them there, :mod:`stcvision.controllers.stc.cellfit`) reads the boxes from regions
         the marks do not fill, so a box may be missed or taken from a neighbour. With exposure
         control it is read once more with a frame one rung longer than any taken (more rows to
         fit); still so, or on a camera without control, it says why
@@ -357,7 +357,7 @@ class Exposures:
         cell is read again with the next longer frame (the longest again at the top), merged:
         the clock, not a record of where the robot has been, says a mark there may be that old.
         Returns (reading, seconds)."""
-        from controllers.stc.claims import distance_m
+        from stcvision.controllers.stc.claims import distance_m
 
         margin, snr = self.cfg.position_margin_m, self.cfg.return_snr
         for b, lit in enumerate(obs.boxes, 1):
@@ -397,7 +397,7 @@ class Exposures:
         return dataclasses.replace(obs, boxes=tuple(boxes)), dt
 
     def _check_return(self, t_s: float, read, obs, dt: float, taken: list):
-        """A return's reading that no STC tour shows (:func:`controllers.stc.claims.return_misread`)
+        """A return's reading that no STC tour shows (:func:`stcvision.controllers.stc.claims.return_misread`)
         is read once more with a frame one rung longer than any taken (the longest again at the
         top), merged. Still wrong merged, the frames disagree: a mark one frame alone shows (a
         short frame's noise or a neighbour's fresh row read into a box) is kept by the merge
@@ -407,7 +407,7 @@ class Exposures:
         ``_check_lines`` has held each frame's rows to the cell's lines). Otherwise it says why
         (``StcObservation.misread``: the loop stops rather than decide on it). Returns
         (reading, seconds)."""
-        from controllers.stc.claims import return_misread
+        from stcvision.controllers.stc.claims import return_misread
 
         if return_misread(obs) is None:
             return obs, dt
@@ -515,13 +515,13 @@ class IdealCamera(Exposures):
     """The physics-limited camera (``--perception ideal``): it takes the same frames as the
     camera and spends the same time, but instead of rendering and reading them it sees exactly
     the marks with a dot whose age is within the frame's visibility horizon at its distance
-    (:func:`sim_camera.camera.visibility_horizon_s`, the Rose criterion on the camera model; for
+    (:func:`stcvision.sim_camera.camera.visibility_horizon_s`, the Rose criterion on the camera model; for
     a row of four dots with ``rows``), and nothing else. No pipeline error and no drift beyond
     the oracle's: what it cannot do, no pipeline on this camera can."""
 
     def __init__(self, cfg: CoverConfig, board, *, rows: bool = True):
         super().__init__(cfg, board.subcell_m)
-        from sim_camera.camera import visibility_horizon_s
+        from stcvision.sim_camera.camera import visibility_horizon_s
 
         self.board = board
         n = ROW_EQUIVALENT_STACK if rows else 1.0
@@ -598,7 +598,7 @@ class RobotCamera(Exposures):
         self._doubted: set[int] = set()
         self.relooked = 0  # looks taken again for dots in no row in the cell ahead (:meth:`_look_again`)
         self.last_image = None  # the last frame shot (read again by :meth:`_on_cell_lines`)
-        from controllers.stc.health import NoiseCheck
+        from stcvision.controllers.stc.health import NoiseCheck
 
         self.noise_check = NoiseCheck()
 
@@ -610,7 +610,7 @@ class RobotCamera(Exposures):
         e, g, _ = self.ladder[k]
         n = self.stack(k)
         if (e, g) not in self.pipes:
-            from calibration.profiles import default_profile
+            from stcvision.calibration.profiles import default_profile
             from stcvision.observation import ObservationParams
             from stcvision.pipeline import Pipeline, PipelineParams
 
@@ -638,14 +638,14 @@ class RobotCamera(Exposures):
         self, pose, t_s: float, phosphor, k: int = 0, *, heading_error_rad: float | None = None, position_offset=None
     ):
         """Returns (pipeline result, capture seconds). A stacked rung is the average of its
-        frames (:meth:`sim_camera.camera.SyntheticCamera.render`, ``n_avg``); the frame is read
+        frames (:meth:`stcvision.sim_camera.camera.SyntheticCamera.render`, ``n_avg``); the frame is read
         with ``heading_error_rad`` and ``position_offset`` when given
         (:meth:`stcvision.pipeline.Pipeline.process`).
-        A frame lost or black (:func:`controllers.stc.health.frame_fault`) is taken again, up to
-        :data:`~controllers.stc.health.FRAME_RETRIES` times (their time counts), then the robot
-        stops (:class:`~controllers.stc.health.RobotStop`): it never reads a frame it cannot trust."""
-        from controllers.stc.health import FRAME_RETRIES, RobotStop, frame_fault
-        from sim_camera.camera import Pose
+        A frame lost or black (:func:`stcvision.controllers.stc.health.frame_fault`) is taken again, up to
+        :data:`~stcvision.controllers.stc.health.FRAME_RETRIES` times (their time counts), then the robot
+        stops (:class:`~stcvision.controllers.stc.health.RobotStop`): it never reads a frame it cannot trust."""
+        from stcvision.controllers.stc.health import FRAME_RETRIES, RobotStop, frame_fault
+        from stcvision.sim_camera.camera import Pose
 
         dt = 0.0
         for _ in range(FRAME_RETRIES + 1):
@@ -675,7 +675,7 @@ class RobotCamera(Exposures):
         are sure, their offset (the long frame has no far lights, and its many old rows, each
         laid where the robot then stood, may mislead its own offset by more than the rows' 2 cm
         inset: a row of the cell behind then reads as a start mark)."""
-        from controllers.stc.config import LANDMARK_OFFSET_SIGMA
+        from stcvision.controllers.stc.config import LANDMARK_OFFSET_SIGMA
 
         o = short.observation
         sure = (
@@ -707,12 +707,12 @@ class RobotCamera(Exposures):
 
     def _neighbour_rows(self, res, obs: StcObservation) -> StcObservation:
         """A neighbour read marked (lit dots in it, no red light) whose dots show no row an STC
-        tour lays there (:func:`controllers.stc.cellfit.shows_tour_row`: a row of this cell or of
+        tour lays there (:func:`stcvision.controllers.stc.cellfit.shows_tour_row`: a row of this cell or of
         another neighbour read across the cell's edge, a noise peak, a bloom) is read as
         unmarked: it stays a candidate child, and the look from next to it, 2-3x closer, reads
         it again before the robot enters it or moves on (:meth:`look`). Passed by on such a
         reading, a new cell would be left uncovered."""
-        from controllers.stc.cellfit import shows_tour_row
+        from stcvision.controllers.stc.cellfit import shows_tour_row
 
         doubt = [d for d, n in enumerate(obs.neighbours) if n.has_marks and not n.has_red]
         if not doubt:
@@ -728,20 +728,20 @@ class RobotCamera(Exposures):
     def _dots(self, res, offset) -> tuple[np.ndarray, np.ndarray]:
         """A result's dots in cell units, rotated by its heading and shifted by ``offset`` (the
         robot's offset from its sub-cell centre, cell units; None: not shifted), and which are lit."""
-        from controllers.stc.cellfit import frame_dots
+        from stcvision.controllers.stc.cellfit import frame_dots
 
         cell_pts, lit = frame_dots(res, self.pipe.geometry)
         return (cell_pts + np.asarray(offset) if offset is not None else cell_pts), lit
 
     def _on_cell_lines(self, res):
-        """Localisation against the cell's own marks (:mod:`controllers.stc.cellfit`): where the
+        """Localisation against the cell's own marks (:mod:`stcvision.controllers.stc.cellfit`): where the
         pipeline's offset leaves lit row dots of the cell on no box or start-mark line, as many
         as make a mark (``ObservationParams.min_dots``: a lone dot of a row crossing the cell's
         edge, or a noise peak beside a row, makes none), the frame is read again with the offset
         that puts them on the lines. Returns (result, the cell's row dots still on no line: 0
         when the reading is consistent; at least ``min_dots`` when it is not, or when two
         offsets explain them)."""
-        from controllers.stc.cellfit import fit_cell_offset, frame_dots
+        from stcvision.controllers.stc.cellfit import fit_cell_offset, frame_dots
         from stcvision.observation import ObservationParams
 
         need = ObservationParams().min_dots
@@ -769,7 +769,7 @@ class RobotCamera(Exposures):
         (before a return to the parent: does the tour close there?), else in the cell ahead (a
         child). What any frame sees counts (it is never less right); the long frames are read
         with the short frame's heading fit."""
-        from controllers.stc.cellfit import shows_row
+        from stcvision.controllers.stc.cellfit import shows_row
         from stcvision.observation import LANDING_DOTS, marks_ahead, marks_landing_ahead
 
         count, need = (marks_landing_ahead, LANDING_DOTS) if landing else (marks_ahead, 2)
@@ -794,7 +794,7 @@ class RobotCamera(Exposures):
 
     def _look_again(self, t_s: float, read, dt: float, taken: list):
         """A child read marked by lit dots in the cell ahead that show no row of the robot's LEDs
-        (:func:`controllers.stc.cellfit.shows_row`: a noise peak, two dots of a faint row, a
+        (:func:`stcvision.controllers.stc.cellfit.shows_row`: a noise peak, two dots of a faint row, a
         bloom): a mark the tour laid there shows its row once a frame sees most of its dots, so
         it is looked at once more with a frame one rung longer than any taken (the longest again
         at the top). A row there: the cell is marked; no dot: it is new (the first entry's check
@@ -805,7 +805,7 @@ class RobotCamera(Exposures):
         beyond the red lights, a visited cell's rows lay 3-4 cm off their lines there
         (spiral_stc_test_3: the robot 1.9 cm off, its rows laid 2 cm off the other way).
         Returns ((marked, row), seconds)."""
-        from controllers.stc.health import RobotStop
+        from stcvision.controllers.stc.health import RobotStop
 
         k = min(max(j for j, _ in taken) + 1, len(self.ladder) - 1)
         (marked, row), dk = read(k, t_s + dt)

@@ -1,9 +1,9 @@
 """Ant-like STC (Srour & Abboud, "Optimally Covering an Unknown Environment with Ant-like STC
 algorithm") as a pure O(1)-memory finite-state machine (no physics, no camera);
-:mod:`controllers.stc.oracle` runs it on a grid against the truth.
+:mod:`stcvision.controllers.stc.oracle` runs it on a grid against the truth.
 
 The geometry (entry frame, sub-cells 0..3, directions 0 right 1 forward 2 left 3 back) is
-:mod:`controllers.stc.grid`'s.
+:mod:`stcvision.controllers.stc.grid`'s.
 
 Marking: just before every forward move the robot marks the sub-cell it leaves on its rear edge
 (the edge opposite the direction of travel). The five-box table of the STC geometry
@@ -58,7 +58,7 @@ from the sub-cell next to it (:data:`Action.LOOK`); if it is marked after all th
 to the next candidate, or back to the parent. A mark in the sub-cell a return to the parent
 lands on (the start mark, laid at the very beginning) is the tour closing. The decision sees
 that sub-cell 0.2-0.4 m away; where its frames could not have seen a mark as old as the tour
-there (``StcObservation.landing_known``, :mod:`controllers.stc.claims`), the robot looks at it
+there (``StcObservation.landing_known``, :mod:`stcvision.controllers.stc.claims`), the robot looks at it
 again before the return, from next to it.
 
 Controller
@@ -104,7 +104,7 @@ REENTRY_BOXES = frozenset({(4,), (2, 4), (3, 4), (2, 4, 5), (3, 4, 5), (1, 2, 4)
 
 class Action(enum.Enum):
     """What the controller asks of the robot at one tick (carried out by
-    :func:`controllers.stc.robot.act` on any :class:`controllers.stc.robot.Motors`)."""
+    :func:`stcvision.controllers.stc.robot.act` on any :class:`stcvision.controllers.stc.robot.Motors`)."""
 
     FORWARD = "forward"  # mark the rear edge of the current sub-cell, then drive one sub-cell
     TURN_LEFT = "turn_left"  # 90 deg counter-clockwise in place
@@ -174,10 +174,10 @@ class StcObservation:
     #: from its own camera.
     landing_marked: tuple[bool, bool, bool, bool] = (False, False, False, False)
     #: per direction: ``landing_marked`` is sure -- a mark was seen, or the frames could have
-    #: seen one as old as any can be (:mod:`controllers.stc.claims`); where it is not, the
+    #: seen one as old as any can be (:mod:`stcvision.controllers.stc.claims`); where it is not, the
     #: robot looks at that sub-cell from next to it before it leaves that way
     landing_known: tuple[bool, bool, bool, bool] = (True, True, True, True)
-    #: why no STC tour can show this reading ("" when one can: :func:`controllers.stc.claims.return_misread`);
+    #: why no STC tour can show this reading ("" when one can: :func:`stcvision.controllers.stc.claims.return_misread`);
     #: the loop stops before deciding on it
     misread: str = ""
 
@@ -313,7 +313,7 @@ def step(state: StcState, obs: StcObservation | LookObs | None) -> Step:
 
     Examples
     --------
-    >>> from controllers.stc.fsm import Action, initial_state, step
+    >>> from stcvision.controllers.stc.fsm import Action, initial_state, step
     >>> state, action, decision = step(initial_state(), None)
     >>> action is Action.TURN_LEFT and decision is None
     True

@@ -2,13 +2,13 @@
 where it stands, rather than decide on garbage.
 
 * :func:`frame_fault`: a frame that never arrived or arrived black (below the dark frame's black
-  level) is not read; :class:`controllers.stc.frames.RobotCamera` takes it again, up to
+  level) is not read; :class:`stcvision.controllers.stc.frames.RobotCamera` takes it again, up to
   :data:`FRAME_RETRIES` times, and then stops.
 * :class:`NoiseCheck`: every frame's noise floor against the camera's own figures; a camera
   much noisier than its calibration stops the robot (its frames no longer see as far as the
   exposure ladder assumes).
 * The robot's count of its moves, and what the tour takes from it, is
-  :class:`controllers.stc.movecount.MoveCount`.
+  :class:`stcvision.controllers.stc.movecount.MoveCount`.
 * :class:`RobotStop`: raised by a part of the loop that finds the robot cannot go on; the loop
   ends the run with its message as the ``abort_reason``.
 """

@@ -17,7 +17,7 @@ The rule, per axis:
 
 * a forward move adds ``drive_sigma_m ** 2`` to the variance (:meth:`Fix.moved`);
 * the red lights (absolute: they stand at cell centres) replace the belief when their own
-  spread is within :data:`controllers.stc.config.LANDMARK_OFFSET_SIGMA`; the variance becomes
+  spread is within :data:`stcvision.controllers.stc.config.LANDMARK_OFFSET_SIGMA`; the variance becomes
   :data:`LIGHTS_SIGMA_M` squared;
 * red lights less sure than that, up to :data:`LIGHTS_WIDE_SPREAD` (they were left out
   before, although they are right to ~2.5 mm there), and the marks are each fused
@@ -44,7 +44,7 @@ variance of its heading: the lights set it from their own spread, each 90-degree
 recalibration adds its residual (:data:`TURN_SIGMA_RAD`), and the rows' lean is weighed
 against it by the Kalman gain ``var / (var + sigma_rows^2)`` (:data:`ROWS_LEAN_SIGMA_RAD`):
 most of it where no light has been seen for many turns, a fifth just after the lights,
-all of it where it shows a turn (over :data:`controllers.stc.perception.HEADING_CHECK_RAD`)
+all of it where it shows a turn (over :data:`stcvision.controllers.stc.perception.HEADING_CHECK_RAD`)
 that no reference's error explains. A lean shared by many rows is not independent from one
 reading to the next; the gain is what keeps a run of them from undoing the lights, and the
 turns are what gives the rows their weight back.

@@ -1,16 +1,16 @@
 """Closed-loop ant-like STC coverage: perception -> finite-state controller -> plant, with a
 referee and observers watching.
 
-The controller (:mod:`controllers.stc.fsm`) decides from one observation per cell entry; the
+The controller (:mod:`stcvision.controllers.stc.fsm`) decides from one observation per cell entry; the
 loop runs it on a board with honest time and honest marks, from its parts:
 
-* the **plant** (:mod:`controllers.stc.plant`): the physical robot (true motion, clock, motors)
+* the **plant** (:mod:`stcvision.controllers.stc.plant`): the physical robot (true motion, clock, motors)
   and the floor it marks;
-* the **belief** (:mod:`controllers.stc.belief`): what the robot believes of itself (sub-cell,
+* the **belief** (:mod:`stcvision.controllers.stc.belief`): what the robot believes of itself (sub-cell,
   compass heading, turn time, offset), updated by its acts and by perception's results;
-* **perception** (:mod:`controllers.stc.perception`): camera, physics-limited camera or oracle;
-* the **referee** (:mod:`controllers.stc.referee`): what the oracle would have decided;
-* **observers** (:mod:`controllers.stc.observers`, :mod:`controllers.stc.recorder`): trace,
+* **perception** (:mod:`stcvision.controllers.stc.perception`): camera, physics-limited camera or oracle;
+* the **referee** (:mod:`stcvision.controllers.stc.referee`): what the oracle would have decided;
+* **observers** (:mod:`stcvision.controllers.stc.observers`, :mod:`stcvision.controllers.stc.recorder`): trace,
   rerun recording, the floor's picture.
 
 Random streams: one seed, four independent children (``numpy.random.SeedSequence.spawn``), one
@@ -29,19 +29,19 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from controllers.stc.belief import Belief
-from controllers.stc.claims import OutOfSight
-from controllers.stc.config import CoverConfig
-from controllers.stc.faults import Faults
-from controllers.stc.fsm import Action, StcObservation, StcPhase, initial_state, step
-from controllers.stc.health import RobotStop
-from controllers.stc.movecount import MoveCount, MoveLog
-from controllers.stc.observers import Observers, Reading, Trace
-from controllers.stc.oracle import coverage
-from controllers.stc.perception import make_perception
-from controllers.stc.plant import Floor, Plant
-from controllers.stc.referee import Referee
-from controllers.stc.robot import Robot, act, robot_memory
+from stcvision.controllers.stc.belief import Belief
+from stcvision.controllers.stc.claims import OutOfSight
+from stcvision.controllers.stc.config import CoverConfig
+from stcvision.controllers.stc.faults import Faults
+from stcvision.controllers.stc.fsm import Action, StcObservation, StcPhase, initial_state, step
+from stcvision.controllers.stc.health import RobotStop
+from stcvision.controllers.stc.movecount import MoveCount, MoveLog
+from stcvision.controllers.stc.observers import Observers, Reading, Trace
+from stcvision.controllers.stc.oracle import coverage
+from stcvision.controllers.stc.perception import make_perception
+from stcvision.controllers.stc.plant import Floor, Plant
+from stcvision.controllers.stc.referee import Referee
+from stcvision.controllers.stc.robot import Robot, act, robot_memory
 
 __all__ = ["CoverConfig", "LoopEnd", "is_complete", "run_cover", "streams"]
 
@@ -70,9 +70,9 @@ def is_complete(summary: dict) -> bool:
 
 def run_cover(board, cfg: CoverConfig | None = None, *, observers=(), perception_hook=None) -> dict:
     """Cover ``board`` from its start sub-cell; returns the summary the CLI prints.
-    ``observers``: :class:`controllers.stc.observers.Observer` s (None entries are skipped);
+    ``observers``: :class:`stcvision.controllers.stc.observers.Observer` s (None entries are skipped);
     ``perception_hook(perception)`` is handed the run's perception (e.g. to read its frames).
-    ``cfg.faults``: hardware faults built into the parts (:mod:`controllers.stc.faults`)."""
+    ``cfg.faults``: hardware faults built into the parts (:mod:`stcvision.controllers.stc.faults`)."""
     wall0 = time.perf_counter()
     cfg = cfg if cfg is not None else CoverConfig()
     rngs = streams(cfg.seed)
@@ -94,7 +94,7 @@ def run_cover(board, cfg: CoverConfig | None = None, *, observers=(), perception
     end = LoopEnd()
     try:
         _loop(robot, cfg.max_decisions, watch, referee, end)
-    except RobotStop as stop:  # a part found that the robot cannot go on (controllers.stc.health)
+    except RobotStop as stop:  # a part found that the robot cannot go on (stcvision.controllers.stc.health)
         end.abort = f"{stop} (decision {end.decisions})"
     watch.on_end(plant, robot.floor)
     out = _summary(board, cfg, robot, referee, end, wall_s=time.perf_counter() - wall0)
@@ -108,7 +108,7 @@ def run_cover(board, cfg: CoverConfig | None = None, *, observers=(), perception
 class LoopEnd:
     """How the loop went: its decisions and looks, whether the controller finished, why the
     robot stopped (None: it did not), and the most the robot kept between two decisions
-    (:func:`controllers.stc.robot.robot_memory`, bytes)."""
+    (:func:`stcvision.controllers.stc.robot.robot_memory`, bytes)."""
 
     decisions: int = 0
     looks: int = 0

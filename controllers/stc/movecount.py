@@ -13,7 +13,7 @@ too; a count is constant memory, whatever the board.
   askew, a neighbour's row, an old row at the edge of a frame's reach) could close the tour away
   from the start or walk past it.
 * :meth:`MoveCount.in_start_cell`: a start mark read elsewhere is not the robot's own
-  (:meth:`controllers.stc.frames.Exposures.decision` reads such a cell again).
+  (:meth:`stcvision.controllers.stc.frames.Exposures.decision` reads such a cell again).
 * :meth:`MoveCount.start_in_frame`: in the start cell, which of its sub-cells is the start
   sub-cell. The start mark laid there at the very beginning is the tour's oldest mark; a frame
   sized for each dot at ``CoverConfig.sizing_snr`` misses it now and then, and a start cell
@@ -30,7 +30,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from controllers.stc.grid import COMPASS_VEC, behind, cell_of, frame_compass, frame_subcells, step_from
+from stcvision.controllers.stc.grid import COMPASS_VEC, behind, cell_of, frame_compass, frame_subcells, step_from
 from stcvision.stc_geometry import BOX_EDGES
 
 __all__ = ["MoveCount", "MoveLog"]
@@ -68,7 +68,7 @@ class MoveCount:
     def start_in_frame(self, hc: int) -> int | None:
         """At a decision (the robot in its entry frame's sub-cell 0, heading ``hc``): the
         entry-frame sub-cell (0-3) that is the start sub-cell, or None outside the start cell
-        (:attr:`controllers.stc.fsm.StcObservation.start_mark`)."""
+        (:attr:`stcvision.controllers.stc.fsm.StcObservation.start_mark`)."""
         subs = frame_subcells(self.here(), hc)
         start = tuple(self.start_sub)
         return next((m for m, s in enumerate(subs) if tuple(s) == start), None)
@@ -77,7 +77,7 @@ class MoveCount:
         """At a decision (the robot in its entry frame's sub-cell 0, heading ``hc``): per
         entry-frame direction ``d``, the exit towards ``d`` (from sub-cell ``d``) lands on the
         start sub-cell; the sub-cell such a move lands on is marked exactly then
-        (:attr:`controllers.stc.fsm.StcObservation.landing_marked`)."""
+        (:attr:`stcvision.controllers.stc.fsm.StcObservation.landing_marked`)."""
         subs = frame_subcells(self.here(), hc)
         start = tuple(self.start_sub)
         return tuple(step_from(subs[d], frame_compass(hc, d)) == start for d in range(4))  # type: ignore[return-value]
@@ -86,7 +86,7 @@ class MoveCount:
 class MoveLog:
     """The study switch's map (``CoverConfig.move_log``): the cells the count has put the robot in
     and the rows it says the robot laid (per forward move, the sub-cell left and that sub-cell's
-    edge behind it, as :meth:`controllers.stc.plant.Plant.lay_mark` lays them), and the three
+    edge behind it, as :meth:`stcvision.controllers.stc.plant.Plant.lay_mark` lays them), and the three
     checks of the camera's readings against them. Both grow with the board."""
 
     def __init__(self, count: MoveCount):

@@ -1,6 +1,6 @@
 """Observers of a coverage run: they are told what happened (a reading, a controller step, a
 turn's measurement, the referee's findings, the end) and never change it. The rerun recording
-(:class:`controllers.stc.recorder.CoverRecorder`), a text trace (:class:`Trace`) and a top view of
+(:class:`stcvision.controllers.stc.recorder.CoverRecorder`), a text trace (:class:`Trace`) and a top view of
 the floor (:class:`FloorPicture`, :func:`draw_floor`) are observers.
 
 Events hand over the live plant (the physical robot), the robot's belief and the floor: an

@@ -1,6 +1,6 @@
 """The STC controller on a grid with perfect observations: the floor's record of marks
 (:class:`MarkFloor`), what a perfect camera would report (:func:`observe_oracle`,
-:func:`look_oracle`) and :func:`run_oracle`, which runs :func:`controllers.stc.fsm.step` against
+:func:`look_oracle`) and :func:`run_oracle`, which runs :func:`stcvision.controllers.stc.fsm.step` against
 them and checks every decision with the true visit history (no physics, no camera).
 
 ``run_oracle`` checks the five-box table against the true visit history at every decision
@@ -13,8 +13,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from controllers.stc.fsm import Action, LookObs, NeighbourObs, StcObservation, StcPhase, initial_state, step
-from controllers.stc.grid import (
+from stcvision.controllers.stc.fsm import Action, LookObs, NeighbourObs, StcObservation, StcPhase, initial_state, step
+from stcvision.controllers.stc.grid import (
     BOXES,
     COMPASS_NAMES,
     COMPASS_VEC,
@@ -26,7 +26,7 @@ from controllers.stc.grid import (
     step_from,
     turned,
 )
-from controllers.stc.robot import act
+from stcvision.controllers.stc.robot import act
 from stcvision.stc_geometry import START_MARKS
 
 __all__ = ["MarkFloor", "coverage", "landing_oracle", "look_oracle", "observe_oracle", "run_oracle"]
@@ -165,7 +165,7 @@ def run_oracle(board, *, max_steps: int = 1_000_000, keep_mismatches: int = 20, 
 
 
 class _GridMotors:
-    """:class:`controllers.stc.robot.Motors` on the grid: exact moves and turns, marks in the
+    """:class:`stcvision.controllers.stc.robot.Motors` on the grid: exact moves and turns, marks in the
     floor's record, and the true visit history and spanning tree that ``run_oracle`` checks every
     decision against."""
 

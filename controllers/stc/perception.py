@@ -3,17 +3,17 @@ interface (:class:`Perception`), three ways:
 
 * :class:`OraclePerception` -- the floor's record of marks (no camera); the pose read-out has
   the pipeline's measured noise;
-* :class:`IdealPerception` -- the physics-limited camera (:class:`controllers.stc.frames.IdealCamera`):
+* :class:`IdealPerception` -- the physics-limited camera (:class:`stcvision.controllers.stc.frames.IdealCamera`):
   the camera's frames and time, exactly the marks within their visibility horizon;
 * :class:`CameraPerception` -- rendered frames read by the vision pipeline, and the robot's
   localisation from them: where it stands (red lights and its own marks, each weighed against
-  what it believes: :mod:`controllers.stc.localise`), its heading error
+  what it believes: :mod:`stcvision.controllers.stc.localise`), its heading error
   (the newest row's fit less the lean the red lights or all rows show), frames taken again when
   the red lights show them askew.
 
 A perception may spend the robot's time (``plant.wait``) and, with the red lights, correct a
 drift it sees (``plant.rotate_by``) or drive back to the sub-cell centre
-(:func:`controllers.stc.belief.recentre`); what it measures of where the robot stands updates
+(:func:`stcvision.controllers.stc.belief.recentre`); what it measures of where the robot stands updates
 the robot's belief (``belief.offset_m``), never the plant. It never moves the robot to another
 sub-cell and never decides.
 """
@@ -26,20 +26,20 @@ from typing import Protocol
 
 import numpy as np
 
-from controllers.stc.belief import Belief, realign, recentre
-from controllers.stc.config import (
+from stcvision.controllers.stc.belief import Belief, realign, recentre
+from stcvision.controllers.stc.config import (
     LANDMARK_OFFSET_SIGMA,
     LANDMARK_TURN_SIGMA_RAD,
     RECENTRE_M,
     REOBSERVE_RAD,
     CoverConfig,
 )
-from controllers.stc.frames import IdealCamera, RobotCamera
-from controllers.stc.fsm import StcObservation
-from controllers.stc.health import RobotStop
-from controllers.stc.localise import LIGHTS_WIDE_SIGMA_M, LIGHTS_WIDE_SPREAD, MARKS_SIGMA_M
-from controllers.stc.oracle import landing_oracle, look_oracle, observe_oracle
-from controllers.stc.plant import Floor, Plant
+from stcvision.controllers.stc.frames import IdealCamera, RobotCamera
+from stcvision.controllers.stc.fsm import StcObservation
+from stcvision.controllers.stc.health import RobotStop
+from stcvision.controllers.stc.localise import LIGHTS_WIDE_SIGMA_M, LIGHTS_WIDE_SPREAD, MARKS_SIGMA_M
+from stcvision.controllers.stc.oracle import landing_oracle, look_oracle, observe_oracle
+from stcvision.controllers.stc.plant import Floor, Plant
 from stcvision.stc_geometry import entry_axes
 
 #: the newest row's lean at a decision or a look beyond which the robot turned on its own since
@@ -73,12 +73,12 @@ class Perception(Protocol):
     def observe(
         self, plant: Plant, belief: Belief, floor: Floor, *, fresh: bool, at_start: bool, start_cell: bool
     ) -> StcObservation:
-        """The decision's reading; may raise :class:`controllers.stc.claims.OutOfSight`.
+        """The decision's reading; may raise :class:`stcvision.controllers.stc.claims.OutOfSight`.
         ``start_cell``: the robot's count of its moves puts it in its start cell."""
 
     def look(self, plant: Plant, belief: Belief, floor: Floor, *, landing: bool) -> bool:
         """The look ahead (``landing``: at the sub-cell ahead, before a return to the parent);
-        may raise :class:`controllers.stc.claims.OutOfSight`."""
+        may raise :class:`stcvision.controllers.stc.claims.OutOfSight`."""
 
     def heading_after_turn(self, plant: Plant, belief: Belief, floor: Floor) -> float | None: ...
 
@@ -120,7 +120,7 @@ class OraclePerception:
 
 
 class _TakesFrames:
-    """What a perception with a camera (``self.cam``: :class:`controllers.stc.frames.Exposures`)
+    """What a perception with a camera (``self.cam``: :class:`stcvision.controllers.stc.frames.Exposures`)
     reports of its frames."""
 
     @property
@@ -288,7 +288,7 @@ class CameraPerception(_TakesFrames):
     def _where(self, observation, belief, *, lights_only: bool = False) -> tuple[np.ndarray, bool]:
         """The robot's offset from its sub-cell centre (world, m), from the red lights in view
         and its own marks (``lights_only``: not from them), each weighted by its uncertainty
-        against the belief so far (:class:`controllers.stc.localise.Fix`): sure red lights
+        against the belief so far (:class:`stcvision.controllers.stc.localise.Fix`): sure red lights
         (absolute: they stand at cell centres) replace it; less sure ones, and the marks, are
         fused into it unless they disagree with it beyond what either could be off by.
         Returns (the offset, whether the gate left the red lights out).
@@ -395,7 +395,7 @@ class CameraPerception(_TakesFrames):
 def _weigh_lean(newest: float, lean: float, belief) -> tuple[float, float]:
     """The heading error (rad) from the newest row's fit ``newest`` and the lean of all rows
     ``lean``, weighed by the robot's heading variance
-    (:meth:`controllers.stc.localise.Bearing.rows_gain`), and the gain used. Against the newest
+    (:meth:`stcvision.controllers.stc.localise.Bearing.rows_gain`), and the gain used. Against the newest
     row alone, the turns towards the grid made since it was laid come off (it lies that much
     askew of the heading they gave)."""
     k = belief.bearing.rows_gain(newest - lean, HEADING_CHECK_RAD)

@@ -17,11 +17,11 @@ from __future__ import annotations
 import dataclasses
 import math
 
-from controllers.stc.claims import distance_m
-from controllers.stc.config import CoverConfig
-from controllers.stc.frames import Exposures
-from controllers.stc.loop import is_complete, run_cover
-from controllers.stc.perception import IdealPerception
+from stcvision.controllers.stc.claims import distance_m
+from stcvision.controllers.stc.config import CoverConfig
+from stcvision.controllers.stc.frames import Exposures
+from stcvision.controllers.stc.loop import is_complete, run_cover
+from stcvision.controllers.stc.perception import IdealPerception
 
 __all__ = ["plan"]
 

@@ -1,7 +1,7 @@
 """The plant of the coverage loop: the robot's true motion and clock, and the floor it marks.
 
-* **Robot** (:class:`sim_camera.robot.MarkingRobot`, by default the STC paper's Lego robot built from
-  ``sim_camera.robot.LEGO_STC``): drives one sub-cell (16 cm) at the cruise speed, turns 90
+* **Robot** (:class:`stcvision.sim_camera.robot.MarkingRobot`, by default the STC paper's Lego robot built from
+  ``stcvision.sim_camera.robot.LEGO_STC``): drives one sub-cell (16 cm) at the cruise speed, turns 90
   degrees by a timed command at a rate that is off nominal by up to ``rate_spread`` per robot
   and fades with the battery (``fade_per_h``), and keeps its rear UV LEDs on for ``led_on_s``
   before every forward move (the STC paper: "for a few seconds"). Moves are kinematic on the floor
@@ -9,13 +9,13 @@
   error per move; the pymunk world is not needed for these straight moves between free cells.
 * **Rotation-time recalibration** (ant-like STC paper): after a turn, the heading the perception
   measured tells what the turn really did; the robot turns the rest of the way and updates the
-  turn time it believes, ``T' = 90/d * T`` (:func:`controllers.stc.belief.finish_turn`).
+  turn time it believes, ``T' = 90/d * T`` (:func:`stcvision.controllers.stc.belief.finish_turn`).
 * **Floor**: marks are laid in the phosphor layer at the true LED positions, at the true time;
   they fade by the afterglow law. The floor also keeps the record of which (sub-cell, edge) was
-  marked when (:class:`controllers.stc.oracle.MarkFloor`): the oracle's and the referee's truth.
+  marked when (:class:`stcvision.controllers.stc.oracle.MarkFloor`): the oracle's and the referee's truth.
 
 The plant is mutable on purpose (it *is* the world's state); what the robot believes of itself is
-not here but in :class:`controllers.stc.belief.Belief`; nothing here decides.
+not here but in :class:`stcvision.controllers.stc.belief.Belief`; nothing here decides.
 """
 
 from __future__ import annotations
@@ -24,9 +24,9 @@ import math
 
 import numpy as np
 
-from controllers.stc.grid import behind, cell_of, compass_to_rad, start_heading, step_from
-from controllers.stc.oracle import MarkFloor
 from stcvision.angles import wrap_angle
+from stcvision.controllers.stc.grid import behind, cell_of, compass_to_rad, start_heading, step_from
+from stcvision.controllers.stc.oracle import MarkFloor
 from stcvision.stc_geometry import entry_axes
 
 __all__ = ["Floor", "Plant"]
@@ -36,7 +36,7 @@ class Floor:
     """The marks on the board: the phosphor dots (what a camera sees) and their record."""
 
     def __init__(self, board, *, lay_filter=None):
-        from sim_camera.phosphor import PhosphorLayer
+        from stcvision.sim_camera.phosphor import PhosphorLayer
 
         #: which of a mark's dots are laid (``xy -> xy``): all, unless an LED is dead (a fault)
         self.lay_filter = lay_filter
@@ -46,7 +46,7 @@ class Floor:
         self.laid: list[tuple[tuple[int, int], int]] = []  # (sub-cell, edge) of every four dots, in order
         self.laid_at: dict[tuple[tuple[int, int], int], float] = {}  # when each mark's LEDs went off
         #: the mark (index into ``laid``) of every phosphor dot: a mark has four dots, or fewer
-        #: when an LED is dead (:mod:`controllers.stc.faults`)
+        #: when an LED is dead (:mod:`stcvision.controllers.stc.faults`)
         self.dot_mark = np.zeros(0, int)
 
     def lay(self, xy_m, sub: tuple[int, int], edge: int, t_s: float, duration_s: float) -> None:
@@ -71,14 +71,14 @@ class Plant:
 
     It holds nothing the robot believes: each command takes what the robot believes it needs
     (its sub-cell, compass heading, turn time ``turn_s``, offset from the sub-cell centre) as
-    arguments, from :class:`controllers.stc.belief.Belief`, and the true rate and the true
+    arguments, from :class:`stcvision.controllers.stc.belief.Belief`, and the true rate and the true
     heading apply. ``rng`` draws this robot's motors (rate off nominal, the first turn time's
     error) and every move's distance error. ``rate_factor`` and ``disturbances`` are faults
-    (:mod:`controllers.stc.faults`) built into the motors and the moves."""
+    (:mod:`stcvision.controllers.stc.faults`) built into the motors and the moves."""
 
     def __init__(self, board, robot, rng: np.random.Generator, *, rate_factor=None, disturbances=()):
         self.board = board
-        #: the turn rate's factor over time (a drifting motor, :mod:`controllers.stc.faults`), else 1
+        #: the turn rate's factor over time (a drifting motor, :mod:`stcvision.controllers.stc.faults`), else 1
         self.rate_factor = rate_factor
         #: what may befall the robot after a forward move (``after_move(plant, start_xy)``): faults
         self.disturbances = tuple(disturbances)

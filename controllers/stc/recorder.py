@@ -11,7 +11,7 @@ import numpy as np
 import rerun as rr
 import rerun.blueprint as rrb
 
-from controllers.stc.observers import Observer, Reading
+from stcvision.controllers.stc.observers import Observer, Reading
 from stcvision.rr import PipelineLogger, Recordings, abort_recording, finish_recording, open_recording
 
 __all__ = ["READINGS_BUDGET", "WORLD_BUDGET", "CoverRecorder", "readings_every", "run_cover_recorded"]
@@ -52,7 +52,7 @@ def readings_every(board, budget: int = READINGS_BUDGET) -> int:
 
 
 class CoverRecorder(Observer):
-    """An observer of a coverage run (:func:`controllers.stc.loop.run_cover`, ``observers=``).
+    """An observer of a coverage run (:func:`stcvision.controllers.stc.loop.run_cover`, ``observers=``).
     Writes ``path`` (.rrd) atomically on :meth:`close`.
 
     Bounded (rerun has no backpressure: what is logged stays in memory until written): every
@@ -182,9 +182,9 @@ class CoverRecorder(Observer):
 
 
 def run_cover_recorded(board, cfg, rrd=None, observers=()) -> dict:
-    """:func:`controllers.stc.loop.run_cover` with a rerun recording to ``rrd`` (when given),
+    """:func:`stcvision.controllers.stc.loop.run_cover` with a rerun recording to ``rrd`` (when given),
     renamed into place only when the run ends: an error or a signal removes it."""
-    from controllers.stc.loop import run_cover
+    from stcvision.controllers.stc.loop import run_cover
 
     with Recordings() as recs:
         recorder = recs.add(CoverRecorder(rrd, board)) if rrd else None

@@ -8,11 +8,11 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 
-from controllers.stc.belief import Belief
-from controllers.stc.fsm import Action, Decision, StcObservation, StcPhase, StcState, decide
-from controllers.stc.grid import cell_of, step_from
-from controllers.stc.oracle import landing_oracle, look_oracle, observe_oracle
-from controllers.stc.plant import Floor, Plant
+from stcvision.controllers.stc.belief import Belief
+from stcvision.controllers.stc.fsm import Action, Decision, StcObservation, StcPhase, StcState, decide
+from stcvision.controllers.stc.grid import cell_of, step_from
+from stcvision.controllers.stc.oracle import landing_oracle, look_oracle, observe_oracle
+from stcvision.controllers.stc.plant import Floor, Plant
 
 __all__ = ["Referee"]
 

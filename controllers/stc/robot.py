@@ -4,8 +4,8 @@ robot in the closed loop (:class:`Robot`: the plant, what it believes, the floor
 perception, its count of moves), and what it keeps between two decisions
 (:func:`robot_memory`).
 
-The controller (:func:`controllers.stc.fsm.step`) returns an action; :func:`act` carries it out on
-any :class:`Motors`: the simulated robot here, the grid of :func:`controllers.stc.oracle.run_oracle`,
+The controller (:func:`stcvision.controllers.stc.fsm.step`) returns an action; :func:`act` carries it out on
+any :class:`Motors`: the simulated robot here, the grid of :func:`stcvision.controllers.stc.oracle.run_oracle`,
 a robot behind a serial link. The ant-like robot's memory between decisions is constant: its
 controller state, its pose belief, its clock, its camera's settings and its count of moves
 (:func:`robot_memory`); never a record of cells.
@@ -20,12 +20,12 @@ from typing import Protocol
 
 import numpy as np
 
-from controllers.stc.belief import Belief, align_along, drive_forward, finish_turn, lay_row, recentre, turn
-from controllers.stc.config import ALIGN_MARK_M, RECENTRE_M
-from controllers.stc.fsm import Action, LookObs, NeighbourObs, StcObservation, StcPhase, StcState
-from controllers.stc.health import RobotStop
-from controllers.stc.movecount import MoveCount, MoveLog
-from controllers.stc.observers import Observer
+from stcvision.controllers.stc.belief import Belief, align_along, drive_forward, finish_turn, lay_row, recentre, turn
+from stcvision.controllers.stc.config import ALIGN_MARK_M, RECENTRE_M
+from stcvision.controllers.stc.fsm import Action, LookObs, NeighbourObs, StcObservation, StcPhase, StcState
+from stcvision.controllers.stc.health import RobotStop
+from stcvision.controllers.stc.movecount import MoveCount, MoveLog
+from stcvision.controllers.stc.observers import Observer
 from stcvision.stc_geometry import entry_axes
 
 __all__ = ["Motors", "Robot", "act", "robot_memory"]
@@ -60,8 +60,8 @@ def act(action: Action, motors: Motors) -> str | None:
 @dataclass(eq=False)
 class Robot:
     """The robot in the closed loop: ``plant`` (its body, clock and motors: the simulator's
-    :class:`controllers.stc.plant.Plant`), ``belief`` (what it believes of itself), ``floor``
-    (what it marks), ``see`` (its perception: :mod:`controllers.stc.perception`) and ``count``
+    :class:`stcvision.controllers.stc.plant.Plant`), ``belief`` (what it believes of itself), ``floor``
+    (what it marks), ``see`` (its perception: :mod:`stcvision.controllers.stc.perception`) and ``count``
     (its count of moves). ``log``: the study switch's map of where it has been
     (``CoverConfig.move_log``), None in the ant-like robot. ``watch`` hears of every turn's
     measurement."""
@@ -106,8 +106,8 @@ class Robot:
     # ------------------------------------------------------------------ the readings
     def read(self, state: StcState) -> StcObservation | LookObs | None:
         """What the controller reads in ``state``: a decision's observation, a look's, or
-        nothing. May raise :class:`controllers.stc.claims.OutOfSight` or
-        :class:`controllers.stc.health.RobotStop`."""
+        nothing. May raise :class:`stcvision.controllers.stc.claims.OutOfSight` or
+        :class:`stcvision.controllers.stc.health.RobotStop`."""
         if state.phase is StcPhase.DECIDE and not state.closing:
 
             def observe() -> StcObservation:
@@ -134,7 +134,7 @@ class Robot:
         frames missed there (the tour's oldest mark) is the count's, and one read in another
         sub-cell is a row read on a start-mark line that is not the start mark: the robot will not
         decide on it. Outside the start cell a start mark read is checked by the frames
-        (:meth:`controllers.stc.frames.Exposures.decision`) and by :meth:`refuses`."""
+        (:meth:`stcvision.controllers.stc.frames.Exposures.decision`) and by :meth:`refuses`."""
         m = self.count.start_in_frame(self.belief.hc)
         if m is None or state.at_start or obs.misread or obs.start_mark == m:
             return obs
@@ -198,7 +198,7 @@ def robot_memory(robot: Robot, state: StcState) -> bytes:
     its clock, its camera's settings (the exposure ladder) and its count of moves. Not the
     floor, the plant or the referee (the world and its judge), nor the camera's calibration
     (dark frames, visibility horizons: measured once before the run, the same on any board).
-    The study switch's :class:`controllers.stc.movecount.MoveLog` is counted when it is on: it
+    The study switch's :class:`stcvision.controllers.stc.movecount.MoveLog` is counted when it is on: it
     is what the ant-like robot must not need. ``len()`` of the result is ``robot_memory_bytes``."""
     cam = getattr(robot.see, "cam", None)
     kept = (state, robot.belief, float(robot.plant.t), getattr(cam, "ladder", ()), robot.count, robot.log)

@@ -10,7 +10,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from sim_camera.scene import EXAMPLE_SCENE, Scene
+from stcvision.sim_camera.scene import EXAMPLE_SCENE, Scene
 
 #: the figures folder (this script's own) and the docs folder above it, where the README's picture lives
 FIGURES = Path(__file__).resolve().parent
@@ -40,7 +40,7 @@ def stages_figure(frame: np.ndarray, dark: np.ndarray, path: Path) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from calibration.profiles import default_profile
+    from stcvision.calibration.profiles import default_profile
     from stcvision.fileio import write_figure
     from stcvision.pipeline import Pipeline
 

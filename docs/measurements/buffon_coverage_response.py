@@ -3,7 +3,7 @@
 The first visit's stop is forced to one coverage (``StopParams(coverage=c, max_coverage=c)``),
 so every trial of a nest is read at the same point; the table gives, per nest and coverage, the
 median of each visit's dead-time-corrected estimate over the truth (before the calibrated factor
-K) and the log slope of their weighted mean (``controllers.buffon.estimate``, 'Read at one
+K) and the log slope of their weighted mean (``stcvision.controllers.buffon.estimate``, 'Read at one
 coverage'). The nests are the calibration family's circles; nest i, coverage j runs with seed
 ``--seed + 10 i + j`` on ``--threads`` threads (the results do not depend on them).
 
@@ -18,17 +18,17 @@ import math
 
 import numpy as np
 
-from controllers.buffon.batched import VisitConfig, run_trials
-from controllers.buffon.estimate import buffon_area, online_area, self_crossing_area
-from controllers.buffon.nests import parse_nest
-from controllers.buffon.stopping import StopParams
+from stcvision.controllers.buffon.batched import VisitConfig, run_trials
+from stcvision.controllers.buffon.estimate import buffon_area, online_area, self_crossing_area
+from stcvision.controllers.buffon.nests import parse_nest
+from stcvision.controllers.buffon.stopping import StopParams
 
 COVERAGES = (0.10, 0.13, 0.18, 0.24)
 
 
 def response(spec: str, *, trials: int, seed: int, threads: int = 1, coverages=COVERAGES) -> list[dict]:
     """Per forced coverage: the medians of A1 / A, A2 / A and of their weighted mean over A
-    (:func:`~controllers.buffon.estimate.online_area` not brought back to one coverage; dead-time
+    (:func:`~stcvision.controllers.buffon.estimate.online_area` not brought back to one coverage; dead-time
     corrected, no factor)."""
     nest = parse_nest(spec, None)
     out = []

@@ -14,9 +14,9 @@ scored again without running the robots: ``--rescore``) and prints the markdown 
 
     python docs/measurements/buffon_heldout.py --calibration --out DIR [--trials 12] [--seed 9100]
 
-runs the calibration family instead (``controllers.buffon.online.calibration_family``, nest i
+runs the calibration family instead (``stcvision.controllers.buffon.online.calibration_family``, nest i
 with seed ``--seed + i``) into DIR/calibration.jsonl and prints what
-``controllers.buffon.online.calibrate_online`` makes of it (the factor and the spreads that
+``stcvision.controllers.buffon.online.calibrate_online`` makes of it (the factor and the spreads that
 ``controllers/buffon/estimate.py`` ships).
 """
 
@@ -30,10 +30,10 @@ from pathlib import Path
 
 import numpy as np
 
-from controllers.buffon import online as exp
-from controllers.buffon.batched import VisitConfig, run_trials
-from controllers.buffon.experiments import refresh, result_of
-from controllers.buffon.nests import parse_nest
+from stcvision.controllers.buffon import online as exp
+from stcvision.controllers.buffon.batched import VisitConfig, run_trials
+from stcvision.controllers.buffon.experiments import refresh, result_of
+from stcvision.controllers.buffon.nests import parse_nest
 
 
 def family(folder: Path, shape_seed: int) -> list[dict]:

@@ -1,6 +1,6 @@
 """How the first visit's mixing test (rule (1b) of ``controllers/buffon/stopping.py``) was chosen:
 the measurements behind its form and its two constants, on the calibration family only
-(``controllers.buffon.online.calibration_family``, nest i with seed ``--seed + i``).
+(``stcvision.controllers.buffon.online.calibration_family``, nest i with seed ``--seed + i``).
 
     python docs/measurements/buffon_mixing_choice.py --out DIR [--trials 8] [--seed 9100]
 
@@ -29,11 +29,11 @@ from pathlib import Path
 import numpy as np
 from scipy import stats
 
-from controllers.buffon.batched import TrialWorld, VisitConfig, run_trials, trial_seeds
-from controllers.buffon.estimate import self_crossing_area
-from controllers.buffon.nests import BODY_LENGTH_M, parse_nest
-from controllers.buffon.online import CALIBRATION_COMPARTMENTS, calibration_family
-from controllers.buffon.stopping import StopParams, mixing_spread, new_batch_state
+from stcvision.controllers.buffon.batched import TrialWorld, VisitConfig, run_trials, trial_seeds
+from stcvision.controllers.buffon.estimate import self_crossing_area
+from stcvision.controllers.buffon.nests import BODY_LENGTH_M, parse_nest
+from stcvision.controllers.buffon.online import CALIBRATION_COMPARTMENTS, calibration_family
+from stcvision.controllers.buffon.stopping import StopParams, mixing_spread, new_batch_state
 
 P = StopParams()
 COVERAGE_ALONE = StopParams(max_coverage=P.coverage)
@@ -50,7 +50,7 @@ def _bins(steps: int, batches: int, first: int = 64) -> int:
 
 def _state(enc: np.ndarray, dl: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The robot's bins at the end of a recorded first visit (per step: encounters, path): the
-    batch-means state of :func:`controllers.buffon.stopping.batch_add`, and the full bins'
+    batch-means state of :func:`stcvision.controllers.buffon.stopping.batch_add`, and the full bins'
     encounters and path edges."""
     width = _bins(len(enc), P.batches)
     k = len(enc) // width

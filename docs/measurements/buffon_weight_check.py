@@ -26,8 +26,8 @@ import sys
 
 import numpy as np
 
-from controllers.buffon import estimate as est
-from controllers.buffon.online import CALIBRATION_COMPARTMENTS, calibrate_online
+from stcvision.controllers.buffon import estimate as est
+from stcvision.controllers.buffon.online import CALIBRATION_COMPARTMENTS, calibrate_online
 
 KEYS = ("l1_u", "l2_u", "crossings", "blind_fraction", "n_self", "self_blind")
 GROUPS = ("round", "ellipses", "compartments", "concave")

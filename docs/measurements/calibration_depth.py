@@ -19,11 +19,11 @@ import numpy as np
 def measure(camera_name: str, k: int, *, msb: bool = False) -> dict:
     import cv2
 
-    from calibration.defaults import calibration_frame
-    from calibration.transform import calibrate_neighbors, calibrate_transform, grid_corners_m
-    from sim_camera.camera import SyntheticCamera
-    from sim_camera.hardware import CAMERAS
-    from sim_camera.optics import MirrorCameraParams, rim_points_px
+    from stcvision.calibration.defaults import calibration_frame
+    from stcvision.calibration.transform import calibrate_neighbors, calibrate_transform, grid_corners_m
+    from stcvision.sim_camera.camera import SyntheticCamera
+    from stcvision.sim_camera.hardware import CAMERAS
+    from stcvision.sim_camera.optics import MirrorCameraParams, rim_points_px
 
     rng = np.random.default_rng(500 + k)  # the perturbed mirrors of tests/calibration/test_workflow.py
     optics = MirrorCameraParams(

@@ -41,8 +41,8 @@ def floor_error_mm(profile, camera, xy: np.ndarray) -> np.ndarray:
 
 def through_format(profile, fmt: str, folder: Path, cli):
     """Export ``profile`` as ``fmt`` (any error accepted: this measures it), import it back."""
-    from calibration.lens_files import write_lens_file
-    from calibration.lens_import import model_from_profile
+    from stcvision.calibration.lens_files import write_lens_file
+    from stcvision.calibration.lens_import import model_from_profile
     from stcvision.profile import Profile
 
     model, fid, flags = model_from_profile(profile, fmt, max_err_deg=math.inf)
@@ -61,9 +61,9 @@ def through_format(profile, fmt: str, folder: Path, cli):
 
 
 def table(formats=FORMATS, folder: Path | None = None) -> list[dict]:
-    from calibration.profiles import default_profile
-    from sim_camera.camera import SyntheticCamera
+    from stcvision.calibration.profiles import default_profile
     from stcvision.cli import main
+    from stcvision.sim_camera.camera import SyntheticCamera
 
     cam = SyntheticCamera()
     own = default_profile()

@@ -12,10 +12,10 @@ import sys
 
 import numpy as np
 
-from calibration.profiles import default_profile
-from sim_camera.camera import SyntheticCamera
-from sim_camera.scenarios import cell_scene
+from stcvision.calibration.profiles import default_profile
 from stcvision.pipeline import Pipeline, PipelineParams
+from stcvision.sim_camera.camera import SyntheticCamera
+from stcvision.sim_camera.scenarios import cell_scene
 from stcvision.stages import RowParams
 
 cam = SyntheticCamera()

@@ -22,9 +22,9 @@ def main(argv=None) -> int:
     import cv2
     import numpy as np
 
-    from calibration.profiles import default_profile
-    from sim_camera.scenarios import benchmark_frames
+    from stcvision.calibration.profiles import default_profile
     from stcvision.pipeline import STAGES, Pipeline
+    from stcvision.sim_camera.scenarios import benchmark_frames
 
     cv2.setNumThreads(1)
     dark, imgs = benchmark_frames(a.seed)

@@ -116,7 +116,7 @@ def _labelled(args, ds=None) -> dict:
     the dataset ``ds`` if given, else frames rendered from the ages recipe."""
     import tempfile
 
-    from calibration.profiles import default_profile
+    from stcvision.calibration.profiles import default_profile
     from stcvision.datasets import open_dataset
     from stcvision.versus import compare_detectors
 
@@ -176,8 +176,8 @@ def run(args):
     import cv2
     import numpy as np
 
-    from sim_camera.camera import Pose, SyntheticCamera
     from stcvision.errors import BadInputError
+    from stcvision.sim_camera.camera import Pose, SyntheticCamera
 
     if args.frames < 1:
         raise BadInputError(f"--frames must be >= 1, got {args.frames}")
@@ -192,7 +192,7 @@ def run(args):
 
         labelled = open_dataset(args.labelled)
     cv2.setNumThreads(1)
-    from sim_camera import scenarios
+    from stcvision.sim_camera import scenarios
 
     board, layer, pose = scenarios.benchmark_scene(args.seed)
     cam = SyntheticCamera()
@@ -210,14 +210,14 @@ def run(args):
         "render_frames_per_s": 1000.0 / render_ms,
         "threads": 1,
     }
-    from controllers.buffon.run import bench as bench_buffon
+    from stcvision.controllers.buffon.run import bench as bench_buffon
 
     result.update(bench_buffon(seed=args.seed))
     try:
         from stcvision.pipeline import bench_pipeline
     except ImportError:
         return result
-    from calibration.profiles import default_profile
+    from stcvision.calibration.profiles import default_profile
 
     profile = default_profile()
     result.update(bench_pipeline(cam, board, layer, pose, frames=args.frames, rng=rng, profile=profile))

@@ -74,8 +74,8 @@ def add_parser(p):
 
 
 def _nest_arguments(p, *, required: bool) -> None:
-    from controllers.buffon.batched import PAPER_TRAIL_WIDTH_U
     from stcvision.cli._args import positive
+    from stcvision.controllers.buffon.batched import PAPER_TRAIL_WIDTH_U
 
     p.add_argument(
         "--nest",
@@ -174,7 +174,7 @@ def _add_compare(sub):
 
 
 def _add_calibrate(sub):
-    from controllers.buffon.estimate import CORRECTION_REFERENCE
+    from stcvision.controllers.buffon.estimate import CORRECTION_REFERENCE
 
     s = sub.add_parser(
         "calibrate",
@@ -189,7 +189,7 @@ def _add_calibrate(sub):
 
 
 def run(args):
-    from controllers.buffon import run as buffon
+    from stcvision.controllers.buffon import run as buffon
     from stcvision.errors import BadInputError
 
     if args.action in ("reproduce", "compare", "online"):
@@ -238,6 +238,6 @@ def run(args):
 
 
 def format_text(r: dict) -> str:
-    from controllers.buffon.run import format_text as fmt
+    from stcvision.controllers.buffon.run import format_text as fmt
 
     return fmt(r)

@@ -91,8 +91,8 @@ def add_parser(p):
 
 def _add_lens_file_parsers(sub):
     """The ``import`` and ``export`` steps: profiles from and to other tools' calibration files."""
-    from sim_camera.board import DEFAULT_SUBCELL_M
     from stcvision.cli._args import pair, positive
+    from stcvision.sim_camera.board import DEFAULT_SUBCELL_M
 
     i = sub.add_parser(
         "import",
@@ -209,8 +209,8 @@ def run(args):
 def _import(args):
     import math
 
-    from calibration.lens_files import read_lens_file
-    from calibration.lens_import import profile_from_model
+    from stcvision.calibration.lens_files import read_lens_file
+    from stcvision.calibration.lens_import import profile_from_model
     from stcvision.errors import OutputError
     from stcvision.fileio import check_output_file
 
@@ -236,7 +236,7 @@ def _import(args):
     prof = prof.replace(subcell_m=args.subcell_m)
     mount = {}
     if args.lights_on:
-        from calibration.transform import calibrate_mount
+        from stcvision.calibration.transform import calibrate_mount
         from stcvision.fileio import read_image
 
         frame = read_image(args.lights_on, what="lights-on frame")
@@ -272,8 +272,8 @@ def _model_name(model) -> str:
 
 
 def _export(args):
-    from calibration.lens_files import write_lens_file
-    from calibration.lens_import import model_from_profile
+    from stcvision.calibration.lens_files import write_lens_file
+    from stcvision.calibration.lens_import import model_from_profile
     from stcvision.fileio import check_output_file
     from stcvision.profile import Profile
 
@@ -304,7 +304,7 @@ def _dark(args):
 
     import numpy as np
 
-    from calibration.dark import median_dark
+    from stcvision.calibration.dark import median_dark
     from stcvision.errors import BadInputError
     from stcvision.fileio import check_output_file, read_image, read_json, write_image
     from stcvision.stages import hot_pixels
@@ -348,7 +348,7 @@ def _sidecar_exposure(d, path) -> float:
 
 
 def _rim(args):
-    from calibration.rim import detect_rim
+    from stcvision.calibration.rim import detect_rim
     from stcvision.fileio import read_image
 
     return detect_rim(read_image(args.frame, what="frame")).to_dict()
@@ -406,7 +406,7 @@ def _write_preview(preview: str, image) -> None:
 def _transform(args):
     from pathlib import Path
 
-    from calibration.transform import calibrate_neighbors, calibrate_transform, draw_preview
+    from stcvision.calibration.transform import calibrate_neighbors, calibrate_transform, draw_preview
     from stcvision.errors import BadInputError
     from stcvision.fileio import read_image
 
@@ -448,8 +448,8 @@ def _transform(args):
 def _neighbors(args):
     from pathlib import Path
 
-    from calibration.rim import check_rim_matches
-    from calibration.transform import calibrate_neighbors, draw_preview, with_corners
+    from stcvision.calibration.rim import check_rim_matches
+    from stcvision.calibration.transform import calibrate_neighbors, draw_preview, with_corners
     from stcvision.errors import BadInputError
     from stcvision.fileio import read_image, read_json
     from stcvision.profile import Profile

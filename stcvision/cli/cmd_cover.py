@@ -27,8 +27,8 @@ the sweep runner (resumable; see the docs, Scaling out) and writes the dependabi
 
 from __future__ import annotations
 
-from controllers.stc.experiments import OBSTACLE_FRACTION
 from stcvision.cli._args import seed
+from stcvision.controllers.stc.experiments import OBSTACLE_FRACTION
 
 
 def add_parser(p):
@@ -120,8 +120,8 @@ def _add_hardware_arguments(p) -> None:
 
 
 def load_board(args):
-    from controllers.stc.experiments import random_board
-    from sim_camera.board import Board
+    from stcvision.controllers.stc.experiments import random_board
+    from stcvision.sim_camera.board import Board
 
     if args.map:
         if args.obstacle_fraction is not None:
@@ -148,21 +148,21 @@ def run(args):
 
         return sweep_faults(args)
 
-    from controllers.stc.loop import CoverConfig
-    from sim_camera import hardware
+    from stcvision.controllers.stc.loop import CoverConfig
+    from stcvision.sim_camera import hardware
 
     if getattr(args, "list_cameras", False):
         return [hardware.camera_to_dict(c) for c in hardware.CAMERAS.values()]
     if getattr(args, "list_robots", False):
         return [hardware.robot_to_dict(r) for r in hardware.ROBOTS.values()]
     if getattr(args, "list_faults", False):
-        from controllers.stc.faults import fault_table
+        from stcvision.controllers.stc.faults import fault_table
 
         return fault_table()
     camera, robot = hardware.load_camera(args.camera), hardware.load_robot(args.robot)
     board = load_board(args)
     if args.action == "plan":
-        from controllers.stc.plan import plan
+        from stcvision.controllers.stc.plan import plan
 
         return plan(board, CoverConfig(seed=args.seed, camera=camera, robot=robot))
     # no option given: the library's own default (CoverConfig), so that the command and
@@ -176,7 +176,7 @@ def run(args):
         from stcvision.rr import check_recording_path
 
         check_recording_path(args.rrd, overwrite=args.force)
-    from controllers.stc.faults import Faults, parse_fault
+    from stcvision.controllers.stc.faults import Faults, parse_fault
 
     faults = tuple(parse_fault(f) for f in args.fault)
     Faults(faults, args.seed, args.perception)  # a fault twice or one the perception has no frames for: exit 2
@@ -188,10 +188,10 @@ def run(args):
 
 
 def run_recorded(board, cfg, rrd, observers=()) -> dict:
-    """:func:`controllers.stc.recorder.run_cover_recorded` and the command's exit status: 0 when
+    """:func:`stcvision.controllers.stc.recorder.run_cover_recorded` and the command's exit status: 0 when
     the robot completed the board, else :data:`~stcvision.cli.EXIT_INCOMPLETE` (3)."""
-    from controllers.stc.recorder import run_cover_recorded
     from stcvision.cli import EXIT_INCOMPLETE, EXIT_OK
+    from stcvision.controllers.stc.recorder import run_cover_recorded
 
     result = run_cover_recorded(board, cfg, rrd, observers)
     result["exit_code"] = EXIT_OK if result["complete"] else EXIT_INCOMPLETE

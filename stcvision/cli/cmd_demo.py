@@ -29,12 +29,12 @@ def add_parser(p) -> None:
 def run(args) -> dict:
     import numpy as np
 
-    from controllers.stc.loop import CoverConfig
-    from controllers.stc.observers import FloorPicture
-    from sim_camera.board import Board
     from stcvision.cli.cmd_cover import run_recorded
+    from stcvision.controllers.stc.loop import CoverConfig
+    from stcvision.controllers.stc.observers import FloorPicture
     from stcvision.fileio import check_output_folder, write_image
     from stcvision.rr import check_recording_path
+    from stcvision.sim_camera.board import Board
 
     out = check_output_folder(args.out, OUTPUTS, overwrite=args.force)
     check_recording_path(out / OUTPUTS[0], overwrite=args.force)

@@ -58,13 +58,13 @@ def _load_profile(path):
 
 
 def _default_profile():
-    from calibration.profiles import default_profile
+    from stcvision.calibration.profiles import default_profile
 
     return default_profile()
 
 
 def _default_profile_path() -> str:
-    from calibration.profiles import default_profile_path
+    from stcvision.calibration.profiles import default_profile_path
 
     return str(default_profile_path())
 

@@ -71,7 +71,7 @@ def run(args):
     if args.profile:
         profile = Profile.load(args.profile)
     else:
-        from calibration.profiles import default_profile
+        from stcvision.calibration.profiles import default_profile
 
         profile = default_profile()
     profile_name = f"profile {args.profile}" if args.profile else "the default profile"
@@ -97,7 +97,7 @@ def run(args):
         if dark is not None:
             check_same_depth(frame, dark, args.dark, frame_path=name)
         if i == 0:  # where its mirror rim shows (lights on), it must be where the profile has it
-            from calibration.rim import check_rim_matches
+            from stcvision.calibration.rim import check_rim_matches
 
             check_rim_matches(frame, profile, frame_name=name, profile_name=profile_name)
         res = pipe.process(frame)

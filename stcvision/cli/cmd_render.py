@@ -47,7 +47,7 @@ def run(args):
     from stcvision.errors import BadInputError
 
     if args.example_scene:
-        from sim_camera.scene import EXAMPLE_SCENE
+        from stcvision.sim_camera.scene import EXAMPLE_SCENE
 
         print(json.dumps(EXAMPLE_SCENE, indent=2))
         return 0
@@ -55,13 +55,13 @@ def run(args):
         raise BadInputError("render needs --scene SCENE.json and --out DIR (or --example-scene)")
     import numpy as np
 
-    from sim_camera.scene import Scene
     from stcvision.fileio import check_output_folder, dumps, image_bytes, write_set
+    from stcvision.sim_camera.scene import Scene
 
     out = check_output_folder(args.out, OUTPUTS, overwrite=args.force)
     base = None
     if args.camera:
-        from sim_camera.hardware import load_camera
+        from stcvision.sim_camera.hardware import load_camera
 
         base = load_camera(args.camera).sensor
     scene = Scene.from_file(args.scene, sensor_base=base)

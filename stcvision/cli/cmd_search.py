@@ -91,7 +91,7 @@ def add_parser(p):
 
 
 def _pattern(args):
-    from controllers.search.patterns import RadialPattern, SpiralPattern
+    from stcvision.controllers.search.patterns import RadialPattern, SpiralPattern
 
     if args.pattern == "radial":
         return RadialPattern(
@@ -121,9 +121,9 @@ def run(args):
     import numpy as np
     from tqdm import tqdm
 
-    from controllers.search.controller import Policy, SearchConfig
-    from controllers.search.metrics import summarise
-    from controllers.search.run import SearchScene, check_reach, run_search
+    from stcvision.controllers.search.controller import Policy, SearchConfig
+    from stcvision.controllers.search.metrics import summarise
+    from stcvision.controllers.search.run import SearchScene, check_reach, run_search
 
     pattern = _pattern(args)
     check_reach(pattern)
@@ -136,12 +136,12 @@ def run(args):
         check_recording_path(args.rrd, overwrite=args.force)
     beacon = None
     if args.beacon:
-        from controllers.search.beacon import Beacon
+        from stcvision.controllers.search.beacon import Beacon
 
         beacon = Beacon()
     recorder = None
     if args.rrd:
-        from controllers.search.recorder import SearchRecorder
+        from stcvision.controllers.search.recorder import SearchRecorder
 
         recorder = SearchRecorder(args.rrd, scene, pattern)
     bar = tqdm(total=pattern.n_steps, desc="search steps", unit="step", leave=False)
@@ -180,7 +180,7 @@ def run(args):
         "plot": args.plot,
     }
     if args.plot:
-        from controllers.search.plots import plot_path, save_figure
+        from stcvision.controllers.search.plots import plot_path, save_figure
 
         title = f"{pattern.describe()}, policy {args.policy}, seed {args.seed}: {result.reason}"
         save_figure(plot_path(result, title), args.plot, overwrite=True)
@@ -191,7 +191,7 @@ def _reproduce(args):
     import sys
     from pathlib import Path
 
-    from controllers.search.experiments import DETOUR_STORE_NAME, STORE_NAME, detours, reproduce
+    from stcvision.controllers.search.experiments import DETOUR_STORE_NAME, STORE_NAME, detours, reproduce
     from stcvision.errors import BadInputError
     from stcvision.sweep import sweep_options_from_args
 

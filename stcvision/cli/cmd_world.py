@@ -2,7 +2,7 @@
 behaviour, and draw it.
 
 The world comes from one of --arena (a JSON arena: circle, square, ellipse or polygon with
-optional barriers and obstacles; see sim_camera.arenas), --map (an STC board map, .txt or .png)
+optional barriers and obstacles; see stcvision.sim_camera.arenas), --map (an STC board map, .txt or .png)
 or --board WxH (a random board of W x H cells, obstacles drawn from --seed); default: a 1.1 m
 circular arena. A Khepera-sized robot (55 mm) explores it laying a pheromone trail; the command
 writes DIR/world.png and reports distance travelled, containment events (robot found outside
@@ -44,21 +44,21 @@ def build_world(args):
     """(world, description) from the parsed arguments."""
     import numpy as np
 
-    from sim_camera.arenas import Arena, CircleArena, arena_from_board
-    from sim_camera.layers import PheromoneLayer
-    from sim_camera.robot import KHEPERA
-    from sim_camera.world import World
+    from stcvision.sim_camera.arenas import Arena, CircleArena, arena_from_board
+    from stcvision.sim_camera.layers import PheromoneLayer
+    from stcvision.sim_camera.robot import KHEPERA
+    from stcvision.sim_camera.world import World
 
     if args.arena:
         arena = Arena.from_file(args.arena)
         what = f"arena {args.arena} ({arena.kind})"
     elif args.map:
-        from sim_camera.board import Board
+        from stcvision.sim_camera.board import Board
 
         arena = arena_from_board(Board.from_file(args.map))
         what = f"board map {args.map}"
     elif args.board:
-        from sim_camera.board import Board
+        from stcvision.sim_camera.board import Board
 
         w, h = args.board
         check_board_cells(w, h)
@@ -78,11 +78,11 @@ def build_world(args):
 def run(args) -> dict:
     import math
 
-    from controllers.buffon import Explorer
-    from sim_camera.draw import draw_world
-    from sim_camera.robot import KHEPERA
+    from stcvision.controllers.buffon import Explorer
     from stcvision.errors import BadInputError
     from stcvision.fileio import check_output_folder, write_image
+    from stcvision.sim_camera.draw import draw_world
+    from stcvision.sim_camera.robot import KHEPERA
 
     out = check_output_folder(args.out, ["world.png"], overwrite=args.force)
     world, what = build_world(args)

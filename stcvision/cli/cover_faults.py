@@ -1,5 +1,5 @@
 """``stcvision cover faults``: the parser and the printing of the fault experiment
-(:mod:`controllers.stc.fault_sweep`)."""
+(:mod:`stcvision.controllers.stc.fault_sweep`)."""
 
 from __future__ import annotations
 
@@ -7,9 +7,9 @@ from pathlib import Path
 
 
 def sweep_faults(args) -> dict:
-    """The ``cover faults`` action: :func:`controllers.stc.fault_sweep.sweep_faults` with the
+    """The ``cover faults`` action: :func:`stcvision.controllers.stc.fault_sweep.sweep_faults` with the
     command's options."""
-    from controllers.stc.fault_sweep import sweep_faults as run
+    from stcvision.controllers.stc.fault_sweep import sweep_faults as run
     from stcvision.sweep import sweep_options_from_args
 
     return run(args.out, args.faults, args.runs, cells=args.cells, obstacle_fraction=args.obstacle_fraction,
@@ -18,14 +18,14 @@ def sweep_faults(args) -> dict:
 
 
 def add_parser(sub) -> None:
-    from controllers.stc.fault_sweep import LEVELS
     from stcvision.cli._args import positive
+    from stcvision.controllers.stc.fault_sweep import LEVELS
     from stcvision.sweep import add_sweep_arguments
 
     s = sub.add_parser(
         "faults",
         help="outcome per hardware fault and level: a table and a plot (the fault table of the docs' STC robot page)",
-        description="Run the STC robot (camera perception) with each fault of controllers.stc.faults at the "
+        description="Run the STC robot (camera perception) with each fault of stcvision.controllers.stc.faults at the "
         "levels of LEVELS, over seeds, through the sweep runner (resumable: OUT/sweep.jsonl); write summary.md, "
         "runs.csv and faults.png. Exit 1 if any run reported success with the wrong coverage.",
     )
@@ -46,7 +46,7 @@ def add_parser(sub) -> None:
 
 
 def format_text(r: dict) -> str:
-    from controllers.stc.fault_sweep import markdown_table
+    from stcvision.controllers.stc.fault_sweep import markdown_table
 
     lines = [markdown_table(r["table"]), "", r["summary"]]
     if r["files"]:

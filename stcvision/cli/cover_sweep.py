@@ -1,6 +1,6 @@
 """``stcvision cover sweep``: the STC robot's dependability table over map files and random
 boards x seeds x exposure modes x perceptions x camera presets (the experiment itself:
-:mod:`controllers.stc.experiments`)."""
+:mod:`stcvision.controllers.stc.experiments`)."""
 
 from __future__ import annotations
 
@@ -12,8 +12,8 @@ __all__ = ["add_parser", "format_text", "sweep_cover"]
 def add_parser(sub) -> None:
     import argparse
 
-    from controllers.stc.experiments import OBSTACLE_FRACTION
     from stcvision.cli._args import positive
+    from stcvision.controllers.stc.experiments import OBSTACLE_FRACTION
     from stcvision.limits import MAX_DECISIONS_PER_SUBCELL
     from stcvision.sweep import add_sweep_arguments
 
@@ -72,7 +72,7 @@ not complete is listed with the 'stcvision cover' command that replays it.
 
 def sweep_cover(args) -> dict:
     """The ``cover sweep`` action."""
-    from controllers.stc.experiments import first_seeds, parse_fraction, parse_seeds, parse_sizes, sweep
+    from stcvision.controllers.stc.experiments import first_seeds, parse_fraction, parse_seeds, parse_sizes, sweep
     from stcvision.sweep import sweep_options_from_args
 
     sizes = args.sizes if args.sizes is not None else ("" if args.maps else "2,3,4,5,6,7,8,10,12")
@@ -85,7 +85,7 @@ def sweep_cover(args) -> dict:
 
 
 def format_text(r: dict) -> str:
-    from controllers.stc.experiments import markdown_table
+    from stcvision.controllers.stc.experiments import markdown_table
 
     lines = [markdown_table(r["table"]), "", r["summary"]]
     if r["files"]:

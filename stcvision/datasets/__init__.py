@@ -2,7 +2,7 @@
 
 A *recipe* (``datasets/recipes/*.json``, format in ``datasets/README.md``) lists groups of
 frames; each group names how many frames, the scene parameters of
-:func:`sim_camera.scenarios.cell_scene`, and camera and sensor overrides.
+:func:`stcvision.sim_camera.scenarios.cell_scene`, and camera and sensor overrides.
 :func:`stcvision.datasets.render.generate` renders it into a dataset folder::
 
     manifest.json          schema_version, recipe, seed, cameras (optics, pattern seed, profile),
@@ -24,7 +24,7 @@ frames (each file is written atomically; the chunks' labels are kept in the swee
 One package owns datasets: :mod:`~stcvision.datasets.recipe` (parsing and checking recipes),
 :mod:`~stcvision.datasets.layout` (the folder's names, the seed streams, the content keys),
 :mod:`~stcvision.datasets.render` (generation) and :mod:`~stcvision.datasets.reading` (opening
-and checking a dataset folder). Generation needs the simulator (``sim_camera``) and the
+and checking a dataset folder). Generation needs the simulator (``stcvision.sim_camera``) and the
 calibration workflow that fits each camera's profile, and a recipe's scene parameters are those
 of the simulator's scene function; reading a dataset needs neither, so the evaluation reads
 datasets without loading the simulator (both are imported where they are used).

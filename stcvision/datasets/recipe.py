@@ -2,7 +2,7 @@
 checking, every problem a one-line :class:`~stcvision.errors.BadInputError`.
 
 The scene parameters a recipe may set are the keyword arguments of the simulator's scene function
-(:func:`sim_camera.scenarios.cell_scene`), read from its signature (:func:`scene_keys`), so a new
+(:func:`stcvision.sim_camera.scenarios.cell_scene`), read from its signature (:func:`scene_keys`), so a new
 scene parameter needs no second list here (only its range, in ``_SCENE_RANGES``).
 """
 
@@ -27,7 +27,7 @@ RECIPE_SCHEMA_VERSION = 1
 @functools.cache
 def scene_keys() -> dict[str, str]:
     """The scene parameters a recipe may set: the keyword-only arguments of
-    :func:`sim_camera.scenarios.cell_scene`, each with the JSON it takes, from its annotation:
+    :func:`stcvision.sim_camera.scenarios.cell_scene`, each with the JSON it takes, from its annotation:
     ``"pair"`` (a tuple: a list of two numbers), ``"number"``, or ``"number_or_pair"`` (either).
 
     The simulator is imported on the first call (parsing a recipe), not with this module, so that
@@ -38,7 +38,7 @@ def scene_keys() -> dict[str, str]:
     dict
         Parameter name -> kind.
     """
-    from sim_camera.scenarios import cell_scene
+    from stcvision.sim_camera.scenarios import cell_scene
 
     out = {}
     for name, p in inspect.signature(cell_scene).parameters.items():
@@ -78,7 +78,7 @@ class Group:
     camera: dict  # optics overrides (MirrorCameraParams fields)
     sensor: dict  # sensor overrides (SensorParams fields)
     pattern_seed: int
-    #: the camera preset (sim_camera.hardware.CAMERAS) whose sensor ``sensor`` overrides; None: the webcam
+    #: the camera preset (stcvision.sim_camera.hardware.CAMERAS) whose sensor ``sensor`` overrides; None: the webcam
     sensor_profile: str | None = None
 
 
@@ -197,7 +197,7 @@ def parse_recipe(d: Any, *, where: str = "recipe") -> Recipe:
     if unknown:
         raise BadInputError(f"{where}: unknown calibration key(s) {sorted(unknown)}; expected {sorted(_CALIB_KEYS)}")
     if not isinstance(calib.get("profiles", False), bool):
-        raise BadInputError(f"{where}: calibration.profiles must be true or false")
+        raise BadInputError(f"{where}: stcvision.calibration.profiles must be true or false")
     base_cam = _obj(d.get("camera", {}), f"{where}: camera")
     base_sensor = _obj(d.get("sensor", {}), f"{where}: sensor")
     base_scene = _scene(d.get("scene", {}), f"{where}: scene")

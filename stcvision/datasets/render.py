@@ -35,9 +35,9 @@ def _plan(recipe: Recipe, seed: int) -> tuple[dict, list[dict]]:
     """Cameras (by identical optics, pattern seed and sensor profile, in order of first use) and
     groups. The sensor profile is part of a camera: its lights-on calibration frames are rendered
     by that sensor, at its depth (a 12- or 16-bit camera is calibrated on its own frames)."""
-    from sim_camera.hardware import CAMERAS
-    from sim_camera.image_sensor import SensorParams
-    from sim_camera.optics import MirrorCameraParams
+    from stcvision.sim_camera.hardware import CAMERAS
+    from stcvision.sim_camera.image_sensor import SensorParams
+    from stcvision.sim_camera.optics import MirrorCameraParams
 
     cameras: dict[str, dict] = {}
     by_key: dict[str, str] = {}
@@ -112,8 +112,8 @@ def _manifest(recipe: Recipe, seed: int, cameras: dict, groups: list) -> dict:
 @functools.lru_cache(maxsize=4)
 def _camera(optics_json: str, pattern_seed: int):
     """A camera per optics + pattern (building one takes ~1 s: kept for the worker's next task)."""
-    from sim_camera.camera import SyntheticCamera
-    from sim_camera.optics import MirrorCameraParams
+    from stcvision.sim_camera.camera import SyntheticCamera
+    from stcvision.sim_camera.optics import MirrorCameraParams
 
     return SyntheticCamera(MirrorCameraParams.from_dict(json.loads(optics_json)), pattern_seed=pattern_seed)
 
@@ -133,15 +133,15 @@ def calibrate_camera(params: dict, seed) -> dict:
     """Task: camera ``params["camera"]``'s lights-on calibration frames and, if the recipe asks,
     its profile from the calibration workflow. The dataset's seed streams are used (not the
     sweep's), so the files do not depend on how the work was split."""
-    from calibration.defaults import calibrate_simulated, calibration_frame
+    from stcvision.calibration.defaults import calibrate_simulated, calibration_frame
     from stcvision.fileio import write_image
 
     recipe, _, cameras, _, out = _task_plan(params)
     cid = params["camera"]
     c, cam = cameras[cid], _cam(cameras, cid)
     if c.get("sensor_profile"):  # lights-on frames by the camera's own sensor, at its depth
-        from sim_camera.camera import SyntheticCamera
-        from sim_camera.hardware import CAMERAS
+        from stcvision.sim_camera.camera import SyntheticCamera
+        from stcvision.sim_camera.hardware import CAMERAS
 
         cam = SyntheticCamera(cam.optics, CAMERAS[c["sensor_profile"]].sensor, pattern_seed=c["pattern_seed"])
     for j, name in enumerate(c["calibration_frames"]):
@@ -155,8 +155,8 @@ def calibrate_camera(params: dict, seed) -> dict:
 
 def render_dark(params: dict, seed) -> dict:
     """Task: the median dark frame of group ``params["group"]`` (stream ``(1, group)``)."""
-    from sim_camera.image_sensor import SensorParams
     from stcvision.fileio import write_image
+    from stcvision.sim_camera.image_sensor import SensorParams
 
     recipe, dseed, cameras, groups, out = _task_plan(params)
     gi = params["group"]
@@ -173,9 +173,9 @@ def render_frames(params: dict, seed) -> dict:
     alone. Returns their label lines."""
     import numpy as np
 
-    from sim_camera.image_sensor import SensorParams
-    from sim_camera.scenarios import cell_scene
     from stcvision.fileio import write_image
+    from stcvision.sim_camera.image_sensor import SensorParams
+    from stcvision.sim_camera.scenarios import cell_scene
 
     _, dseed, cameras, groups, out = _task_plan(params)
     g = groups[params["group"]]

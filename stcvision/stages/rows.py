@@ -23,7 +23,7 @@ _DOT_DEFAULTS = DotParams()
 @dataclass(frozen=True, kw_only=True, slots=True)
 class RowParams:
     """Faint-row search: a mark is a row of ``n_dots`` UV dots ``spacing_m`` apart (the robot's
-    rear LEDs; ``sim_camera.phosphor.LED_OFFSETS_M``: 4 LEDs 3 cm apart) parallel to a grid axis.
+    rear LEDs; ``stcvision.sim_camera.phosphor.LED_OFFSETS_M``: 4 LEDs 3 cm apart) parallel to a grid axis.
     Old marks fade below the single-dot threshold well before all four of their dots are lost
     in the noise: summing the four window SNRs at the row's spacing (a matched filter for the
     row) gains sqrt(4) = 2 in SNR over one dot, i.e. at k_sigma 6 against the dots' 5.5 the

@@ -1,9 +1,9 @@
-"""calibration.fit.fit_profile recovers a known mirror model from exact correspondences."""
+"""stcvision.calibration.fit.fit_profile recovers a known mirror model from exact correspondences."""
 
 import numpy as np
 
-from calibration.fit import FitSetup, fit_profile
-from calibration.profiles import default_profile
+from stcvision.calibration.fit import FitSetup, fit_profile
+from stcvision.calibration.profiles import default_profile
 
 
 def _grid_points(prof):

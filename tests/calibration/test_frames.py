@@ -7,11 +7,11 @@ import cv2
 import numpy as np
 import pytest
 
-from calibration.defaults import calibration_frame
-from calibration.frames import geometry_frame
-from sim_camera.camera import SyntheticCamera
-from sim_camera.hardware import CAMERAS
-from sim_camera.optics import MirrorCameraParams, rim_points_px
+from stcvision.calibration.defaults import calibration_frame
+from stcvision.calibration.frames import geometry_frame
+from stcvision.sim_camera.camera import SyntheticCamera
+from stcvision.sim_camera.hardware import CAMERAS
+from stcvision.sim_camera.optics import MirrorCameraParams, rim_points_px
 
 
 @pytest.fixture(scope="module")

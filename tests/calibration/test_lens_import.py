@@ -1,7 +1,7 @@
 """Profiles from other tools' calibrations (OCamCalib, Kalibr, OpenCV omnidir) and back.
 
 Each model is evaluated here with its own equations written out independently of
-``calibration.lens_models`` (OCamCalib's ``cam2world`` from its C code; Mei's lift with OpenCV's
+``stcvision.calibration.lens_models`` (OCamCalib's ``cam2world`` from its C code; Mei's lift with OpenCV's
 own radtan inverse, ``cv2.undistortPointsIter``; the double sphere's and EUCM's *forward*
 projections from their papers), and the imported profile's floor distance must give every tested
 pixel's ray elevation within 0.05 degrees where rays meet the floor within 75 degrees of the axis.
@@ -14,8 +14,8 @@ import cv2
 import numpy as np
 import pytest
 
-from calibration.lens_files import kalibr_text
-from calibration.lens_models import CentralModel
+from stcvision.calibration.lens_files import kalibr_text
+from stcvision.calibration.lens_models import CentralModel
 from stcvision.profile import Profile
 
 TOL_DEG = 0.05
@@ -202,7 +202,7 @@ def _round_trip(cli, tmp_path, prof_path, fmt, suffix):
 
 
 def test_export_round_trips(cli, tmp_path, peer_data):
-    from calibration.profiles import default_profile_path
+    from stcvision.calibration.profiles import default_profile_path
 
     # the toolkit's own calibration (mirrored, tilted a little) through OCamCalib's model
     back = _round_trip(cli, tmp_path, default_profile_path(), "ocamcalib", ".txt")
@@ -340,10 +340,10 @@ def test_import_with_a_lights_on_frame_fits_the_mount(cli, tmp_path):
     """The toolkit's camera as an OCamCalib file, imported with a wrong height and no flip but its
     lights-on frame: the fit finds the flip, forward angle and height, the rim and the corners,
     and the floor is as accurate as the toolkit's own calibration."""
-    from calibration.defaults import calibration_frame
-    from calibration.profiles import default_profile_path
-    from calibration.transform import grid_corners_m
-    from sim_camera.camera import SyntheticCamera
+    from stcvision.calibration.defaults import calibration_frame
+    from stcvision.calibration.profiles import default_profile_path
+    from stcvision.calibration.transform import grid_corners_m
+    from stcvision.sim_camera.camera import SyntheticCamera
 
     code, _, err = cli(
         "calibrate", "export", default_profile_path(), "--format", "ocamcalib", "--out", tmp_path / "c.txt"

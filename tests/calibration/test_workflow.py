@@ -7,14 +7,14 @@ import cv2
 import numpy as np
 import pytest
 
-from calibration.defaults import build_default_profile, calibration_frame
-from calibration.profiles import default_profile
-from calibration.rim import detect_rim
-from calibration.transform import calibrate_neighbors, calibrate_transform, grid_corners_m
-from sim_camera.camera import SyntheticCamera
-from sim_camera.optics import MirrorCameraParams, rim_points_px
+from stcvision.calibration.defaults import build_default_profile, calibration_frame
+from stcvision.calibration.profiles import default_profile
+from stcvision.calibration.rim import detect_rim
+from stcvision.calibration.transform import calibrate_neighbors, calibrate_transform, grid_corners_m
 from stcvision.cli import main
 from stcvision.profile import nominal_corners_px
+from stcvision.sim_camera.camera import SyntheticCamera
+from stcvision.sim_camera.optics import MirrorCameraParams, rim_points_px
 
 
 def perturbed(k):

@@ -34,7 +34,7 @@ def test_from_import_of_the_documented_names():
 def test_import_stcvision_stays_light():
     """The lazy names cost nothing until used: no OpenCV, numba, simulator or controller."""
     code = (
-        "import sys, stcvision; heavy = [m for m in ('cv2', 'numba', 'sim_camera', 'controllers', "
+        "import sys, stcvision; heavy = [m for m in ('cv2', 'numba', 'stcvision.sim_camera', 'stcvision.controllers', "
         "'stcvision.pipeline') if m in sys.modules]; print(heavy)"
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout

@@ -46,7 +46,7 @@ def _guarded_cover(real):
     run does first) and stop."""
 
     def run(board, cfg=None, **kw):
-        from controllers.stc.loop import streams
+        from stcvision.controllers.stc.loop import streams
 
         streams(cfg.seed)
         if cfg.perception == "oracle" and board.cell_free.size <= 4 and not kw.get("observers", [None])[0]:
@@ -58,18 +58,18 @@ def _guarded_cover(real):
 
 @contextlib.contextmanager
 def _stubs():
-    import controllers.buffon.run as buffon_run
-    import controllers.stc.loop as loop
+    import stcvision.controllers.buffon.run as buffon_run
+    import stcvision.controllers.stc.loop as loop
     import stcvision.sweep as sweep
 
     with contextlib.ExitStack() as stack:
         stack.enter_context(mock.patch.object(loop, "run_cover", _guarded_cover(loop.run_cover)))
-        stack.enter_context(mock.patch("controllers.stc.plan.plan", _reached))
-        stack.enter_context(mock.patch("controllers.stc.recorder.CoverRecorder", _reached))
+        stack.enter_context(mock.patch("stcvision.controllers.stc.plan.plan", _reached))
+        stack.enter_context(mock.patch("stcvision.controllers.stc.recorder.CoverRecorder", _reached))
         stack.enter_context(mock.patch.object(sweep, "run_sweep", _reached))
-        stack.enter_context(mock.patch("sim_camera.scenarios.benchmark_scene", _reached))
+        stack.enter_context(mock.patch("stcvision.sim_camera.scenarios.benchmark_scene", _reached))
         stack.enter_context(mock.patch("stcvision.sweep.selftest.measure_overhead", _reached))
-        stack.enter_context(mock.patch("sim_camera.scene.Scene.camera", _reached))
+        stack.enter_context(mock.patch("stcvision.sim_camera.scene.Scene.camera", _reached))
         for name in ("reproduce", "compare", "calibrate"):
             stack.enter_context(mock.patch.object(buffon_run, name, _reached))
         yield
@@ -77,9 +77,9 @@ def _stubs():
 
 # ------------------------------------------------------------------------------------ the files a case may name
 def _write_files(d: Path) -> None:
-    from calibration.profiles import default_profile_path
-    from sim_camera.hardware import LEGO_STC_ROBOT, LOWLIGHT, camera_to_dict, robot_to_dict
-    from sim_camera.scene import EXAMPLE_SCENE
+    from stcvision.calibration.profiles import default_profile_path
+    from stcvision.sim_camera.hardware import LEGO_STC_ROBOT, LOWLIGHT, camera_to_dict, robot_to_dict
+    from stcvision.sim_camera.scene import EXAMPLE_SCENE
 
     rng = np.random.default_rng(0)
     cv2.imwrite(str(d / "frame.png"), rng.integers(0, 30, (480, 640, 3), dtype=np.uint8))

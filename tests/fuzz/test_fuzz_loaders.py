@@ -118,7 +118,7 @@ def test_profile_load(data):
 
 # ------------------------------------------------------------------------------------ scenes
 def _scene_dict() -> dict:
-    from sim_camera.scene import EXAMPLE_SCENE
+    from stcvision.sim_camera.scene import EXAMPLE_SCENE
 
     return json.loads(json.dumps(EXAMPLE_SCENE))
 
@@ -140,7 +140,7 @@ _SCENE_BOARDS = st.sampled_from(
     st.one_of(st.none(), _SCENE_BOARDS),
 )
 def test_scene_from_dict(d, board):
-    from sim_camera.scene import Scene
+    from stcvision.sim_camera.scene import Scene
 
     if board is not None:
         d["board"] = board
@@ -227,7 +227,7 @@ def test_open_dataset(folder, with_manifest):
 @examples(3)
 @given(st.text(alphabet=".#S;x \n\r\t", max_size=60))
 def test_board_from_text(text):
-    from sim_camera.board import Board
+    from stcvision.sim_camera.board import Board
 
     b = project_call(Board.from_text, text)
     if isinstance(b, Board):
@@ -253,7 +253,7 @@ def small_arrays(draw, max_side: int = 8):
 @examples(3)
 @given(small_arrays(), st.one_of(st.none(), st.tuples(st.integers(-2, 9), st.integers(-2, 9))))
 def test_board_from_image(img, start):
-    from sim_camera.board import Board
+    from stcvision.sim_camera.board import Board
 
     project_call(Board.from_image, img, start_subcell=start)
 
@@ -261,7 +261,7 @@ def test_board_from_image(img, start):
 @examples(2)
 @given(image_files(), st.one_of(st.none(), st.tuples(st.integers(-1, 5), st.integers(-1, 5))))
 def test_board_from_file(named, start):
-    from sim_camera.board import Board
+    from stcvision.sim_camera.board import Board
 
     d, p = _tmp_file(*named)
     with d:
@@ -300,7 +300,7 @@ _ARENAS = [
 @examples(4)
 @given(st.sampled_from(_ARENAS).flatmap(lambda a: mutated(a, keys=["kind", "barriers", "obstacles", "radius_m"])))
 def test_arena_from_dict(d):
-    from sim_camera.arenas import Arena
+    from stcvision.sim_camera.arenas import Arena
 
     a = project_call(Arena.from_dict, d)
     if isinstance(a, Arena):
@@ -312,7 +312,7 @@ def test_arena_from_dict(d):
 @examples(1)
 @given(json_file_bytes(st.sampled_from(_ARENAS).flatmap(mutated)))
 def test_arena_from_file(data):
-    from sim_camera.arenas import Arena
+    from stcvision.sim_camera.arenas import Arena
 
     d, p = _tmp_file("a.json", data)
     with d:
@@ -339,7 +339,7 @@ barriers = st.one_of(
 @examples(4)
 @given(nest_specs, barriers)
 def test_parse_nest(spec, barrier):
-    from controllers.buffon.nests import Nest, parse_nest
+    from stcvision.controllers.buffon.nests import Nest, parse_nest
 
     n = project_call(parse_nest, spec, barrier)
     if isinstance(n, Nest):
@@ -357,7 +357,7 @@ polygon_docs = st.one_of(
 @examples(2)
 @given(json_file_bytes(polygon_docs), barriers)
 def test_parse_nest_polygon_file(data, barrier):
-    from controllers.buffon.nests import parse_nest
+    from stcvision.controllers.buffon.nests import parse_nest
 
     d, p = _tmp_file("nest.json", data)
     with d:
@@ -375,7 +375,7 @@ triples = st.one_of(
 @examples(3)
 @given(st.lists(triples, max_size=3), st.one_of(st.none(), triples))
 def test_search_scene(obstacles, patch):
-    from controllers.search.run import SearchScene
+    from stcvision.controllers.search.run import SearchScene
 
     s = project_call(SearchScene, obstacles=tuple(obstacles), patch=patch)
     if isinstance(s, SearchScene):
@@ -385,13 +385,13 @@ def test_search_scene(obstacles, patch):
 
 # ------------------------------------------------------------------------------------ camera and robot files
 def _camera_dict() -> dict:
-    from sim_camera.hardware import LOWLIGHT, camera_to_dict
+    from stcvision.sim_camera.hardware import LOWLIGHT, camera_to_dict
 
     return json.loads(json.dumps(camera_to_dict(LOWLIGHT)))
 
 
 def _robot_dict() -> dict:
-    from sim_camera.hardware import LEGO_STC_ROBOT, robot_to_dict
+    from stcvision.sim_camera.hardware import LEGO_STC_ROBOT, robot_to_dict
 
     return json.loads(json.dumps(robot_to_dict(LEGO_STC_ROBOT)))
 
@@ -399,13 +399,13 @@ def _robot_dict() -> dict:
 @examples(3)
 @given(st.one_of(json_file_bytes(mutated(_camera_dict(), keys=["sensor", "adc_bits"])), st.binary(max_size=20)))
 def test_load_camera(data):
-    from sim_camera.hardware import CameraProfile, load_camera
+    from stcvision.sim_camera.hardware import CameraProfile, load_camera
 
     d, p = _tmp_file("cam.json", data)
     with d:
         c = project_call(load_camera, str(p))
     if isinstance(c, CameraProfile):
-        from sim_camera.hardware import CAMERA_FIGURES
+        from stcvision.sim_camera.hardware import CAMERA_FIGURES
 
         assert all(math.isfinite(getattr(c.sensor, k)) for k in CAMERA_FIGURES)
 
@@ -413,7 +413,7 @@ def test_load_camera(data):
 @examples(3)
 @given(st.one_of(json_file_bytes(mutated(_robot_dict(), keys=["drive_speed_m_s"])), st.binary(max_size=20)))
 def test_load_robot(data):
-    from sim_camera.hardware import load_robot
+    from stcvision.sim_camera.hardware import load_robot
 
     d, p = _tmp_file("robot.json", data)
     with d:

@@ -26,7 +26,7 @@ H, W = 480, 640  # the default profile's frame
 
 @functools.cache
 def pipeline():
-    from calibration.profiles import default_profile
+    from stcvision.calibration.profiles import default_profile
     from stcvision.pipeline import Pipeline
 
     return Pipeline(default_profile())

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from sim_camera.arenas import (
+from stcvision.sim_camera.arenas import (
     Barrier,
     CircleArena,
     CircleObstacle,
@@ -51,7 +51,7 @@ def make_arenas() -> dict:
             ),
         ),
     )
-    from sim_camera.board import Board
+    from stcvision.sim_camera.board import Board
 
     board = arena_from_board(Board.random((4, 4), obstacle_fraction=0.25, rng=np.random.default_rng(3)))
     return {"circle": circle, "square": square, "ellipse": ellipse, "polygon": poly, "board": board}

@@ -4,7 +4,8 @@ import math
 import numpy as np
 import pytest
 
-from sim_camera.arenas import (
+from stcvision.errors import BadInputError
+from stcvision.sim_camera.arenas import (
     Arena,
     CircleArena,
     EllipseArena,
@@ -12,7 +13,6 @@ from sim_camera.arenas import (
     SquareArena,
     arena_from_board,
 )
-from stcvision.errors import BadInputError
 
 
 def test_areas_closed_form():
@@ -162,7 +162,7 @@ def test_from_file_errors(tmp_path):
 
 
 def test_board_arena_matches_board():
-    from sim_camera.board import Board
+    from stcvision.sim_camera.board import Board
 
     b = Board.from_text("....\n.S##\n..##\n....\n", subcell_m=0.2)
     a = arena_from_board(b)

@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
-from sim_camera.board import Board
 from stcvision.errors import MapError
+from stcvision.sim_camera.board import Board
 
 TEXT = """\
 ......

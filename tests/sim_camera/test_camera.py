@@ -6,12 +6,12 @@ import json
 import numpy as np
 import pytest
 
-from sim_camera.board import Board
-from sim_camera.camera import ROSE_SNR, Pose, SyntheticCamera, visibility_horizon_s
-from sim_camera.image_sensor import SensorParams, expose
-from sim_camera.phosphor import PhosphorLayer
-from sim_camera.scene import EXAMPLE_SCENE, Scene
 from stcvision.errors import BadInputError
+from stcvision.sim_camera.board import Board
+from stcvision.sim_camera.camera import ROSE_SNR, Pose, SyntheticCamera, visibility_horizon_s
+from stcvision.sim_camera.image_sensor import SensorParams, expose
+from stcvision.sim_camera.phosphor import PhosphorLayer
+from stcvision.sim_camera.scene import EXAMPLE_SCENE, Scene
 
 
 def _rngs(n, seed=0):

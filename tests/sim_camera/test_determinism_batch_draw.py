@@ -6,13 +6,13 @@ import math
 import numpy as np
 import pytest
 
-from controllers.buffon import Explorer
-from sim_camera.arenas import CircleArena
-from sim_camera.batch import PointRobotBatch
-from sim_camera.draw import draw_world, world_to_px
-from sim_camera.layers import PheromoneLayer
-from sim_camera.robot import KHEPERA, LEGO_STC
-from sim_camera.world import World
+from stcvision.controllers.buffon import Explorer
+from stcvision.sim_camera.arenas import CircleArena
+from stcvision.sim_camera.batch import PointRobotBatch
+from stcvision.sim_camera.draw import draw_world, world_to_px
+from stcvision.sim_camera.layers import PheromoneLayer
+from stcvision.sim_camera.robot import KHEPERA, LEGO_STC
+from stcvision.sim_camera.world import World
 
 
 def _explore(seed, steps=1500):
@@ -115,8 +115,8 @@ def test_batch_reflect_mode_stays_inside():
 
 
 def test_draw_world_top_down_north_up():
-    from sim_camera.arenas import arena_from_board
-    from sim_camera.board import Board
+    from stcvision.sim_camera.arenas import arena_from_board
+    from stcvision.sim_camera.board import Board
 
     board = Board.random((4, 4), obstacle_fraction=0.3, rng=np.random.default_rng(1))
     arena = arena_from_board(board)

@@ -4,14 +4,14 @@ import json
 
 import pytest
 
-from sim_camera import hardware
-from sim_camera.robot import LEGO_STC, LEGO_STC_ROBOT
 from stcvision.cli import main
 from stcvision.errors import BadInputError
+from stcvision.sim_camera import hardware
+from stcvision.sim_camera.robot import LEGO_STC, LEGO_STC_ROBOT
 
 
 def test_every_preset_figure_has_a_source_and_the_webcam_is_the_default_sensor():
-    from sim_camera.image_sensor import SensorParams
+    from stcvision.sim_camera.image_sensor import SensorParams
 
     assert hardware.CAMERAS["webcam"].sensor == SensorParams()
     for cam in hardware.CAMERAS.values():
@@ -28,7 +28,7 @@ def test_every_preset_figure_has_a_source_and_the_webcam_is_the_default_sensor()
     # ... and follows it: a faster body gives a faster marking robot
     import dataclasses
 
-    from sim_camera.robot import MarkingRobot
+    from stcvision.sim_camera.robot import MarkingRobot
 
     fast = dataclasses.replace(LEGO_STC, cruise_speed_m_s=0.1, turn_wheel_speed_m_s=2 * LEGO_STC.turn_wheel_speed_m_s)
     from_body = {"drive_speed_m_s", "turn_90_s", "rate_spread", "fade_per_h"}

@@ -6,10 +6,10 @@ import json
 import numpy as np
 import pytest
 
-from sim_camera import hardware
-from sim_camera.camera import SyntheticCamera
-from sim_camera.image_sensor import SensorParams, expose
 from stcvision.errors import BadInputError
+from stcvision.sim_camera import hardware
+from stcvision.sim_camera.camera import SyntheticCamera
+from stcvision.sim_camera.image_sensor import SensorParams, expose
 
 
 def _rngs(n, seed=0):
@@ -87,8 +87,8 @@ def test_a_twelve_bit_adc_clips_at_4095_and_keeps_counts_lsb_aligned():
     expected = s.black_dn + 1000.0 * s.dn_per_e
     assert np.median(lower) == pytest.approx(expected, abs=3.0)
     # lights-on frames have the sensor's depth too, the floor at the same fraction of the range
-    from sim_camera.board import Board
-    from sim_camera.camera import Pose
+    from stcvision.sim_camera.board import Board
+    from stcvision.sim_camera.camera import Pose
 
     board = Board.from_text("S...\n....\n....\n....\n")
     c = board.subcell_center_m(1, 1)
@@ -98,8 +98,8 @@ def test_a_twelve_bit_adc_clips_at_4095_and_keeps_counts_lsb_aligned():
 
 
 def test_sensor_gain_keeps_the_webcam_and_spans_the_noise_on_the_others():
-    from controllers.stc.config import CoverConfig
-    from controllers.stc.frames import AUTO_LONG, NOISE_DN, WEBCAM, Exposures, sensor_gain
+    from stcvision.controllers.stc.config import CoverConfig
+    from stcvision.controllers.stc.frames import AUTO_LONG, NOISE_DN, WEBCAM, Exposures, sensor_gain
 
     web = hardware.WEBCAM.sensor
     assert [sensor_gain(web, e, n, g) for e, g, n in (WEBCAM, *AUTO_LONG)] == [g for _, g, _ in (WEBCAM, *AUTO_LONG)]
@@ -113,7 +113,7 @@ def test_sensor_gain_keeps_the_webcam_and_spans_the_noise_on_the_others():
             assert g == 1.0 or noise_dn == pytest.approx(NOISE_DN, rel=1e-9)  # the lowest such gain
     # the cooled 16-bit camera's read noise spans 1.6 DN at gain 1: its short frame needs no gain
     assert sensor_gain(hardware.COOLED.sensor, *WEBCAM[:1], 1, 16.0) == 1.0
-    from sim_camera.hardware import CAMERAS
+    from stcvision.sim_camera.hardware import CAMERAS
 
     ladder = Exposures(CoverConfig(camera=CAMERAS["webcam"], exposure="auto")).ladder
     assert ladder == (WEBCAM, *AUTO_LONG)

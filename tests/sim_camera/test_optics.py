@@ -4,7 +4,7 @@ import cv2
 import numpy as np
 import pytest
 
-from sim_camera.optics import (
+from stcvision.sim_camera.optics import (
     FloorProjector,
     MirrorCameraParams,
     mirror_geometry,

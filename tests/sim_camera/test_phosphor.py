@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
-from sim_camera.phosphor import LED_OFFSETS_M, MARK_INSET_M, AfterglowLaw, PhosphorLayer, mark_dots_m
 from stcvision.errors import BadInputError
+from stcvision.sim_camera.phosphor import LED_OFFSETS_M, MARK_INSET_M, AfterglowLaw, PhosphorLayer, mark_dots_m
 
 
 def test_afterglow_law_values_and_shape():

@@ -6,8 +6,8 @@ import json
 
 import numpy as np
 
-from sim_camera.camera import Pose
-from sim_camera.scene import EXAMPLE_SCENE, Scene
+from stcvision.sim_camera.camera import Pose
+from stcvision.sim_camera.scene import EXAMPLE_SCENE, Scene
 
 
 def _render(cam, scene, pose, seed, t_s, **kw):
@@ -63,10 +63,10 @@ def test_new_marks_where_the_robot_stands_are_rendered():
 
 
 def test_the_fast_noise_draw_is_numpys_integers_draw():
-    """The noise indices (sim_camera.image_sensor._noise_indices) are exactly
+    """The noise indices (stcvision.sim_camera.image_sensor._noise_indices) are exactly
     ``rng.integers(0, 65536, dtype=uint16)``, leaving the generator where it leaves it, with a
     32-bit half pending, on another bit generator and for a size not a multiple of 4."""
-    from sim_camera.image_sensor import _noise_indices
+    from stcvision.sim_camera.image_sensor import _noise_indices
 
     def pair(make):
         return make(), make()

@@ -6,14 +6,14 @@ import math
 import numpy as np
 import pytest
 
-from sim_camera.arenas import SquareArena
-from sim_camera.odometry import (
+from stcvision.sim_camera.arenas import SquareArena
+from stcvision.sim_camera.odometry import (
     straight_heading_error_rad,
     straight_heading_sigma_rad,
     turn_heading_error_rad,
 )
-from sim_camera.robot import KHEPERA, LEGO_STC, TASTI2
-from sim_camera.world import World
+from stcvision.sim_camera.robot import KHEPERA, LEGO_STC, TASTI2
+from stcvision.sim_camera.world import World
 
 OPEN = SquareArena(side_m=4.0)
 

@@ -6,18 +6,18 @@ import math
 import numpy as np
 import pytest
 
-from controllers.buffon.counter import LeakyIntegrator
-from sim_camera.arenas import CircleObstacle, SquareArena
-from sim_camera.layers import ChemicalLayer, ChemicalPatch, PheromoneLayer, PolygonPatch
-from sim_camera.robot import KHEPERA, TASTI2
-from sim_camera.robot_sensors import (
+from stcvision.controllers.buffon.counter import LeakyIntegrator
+from stcvision.sim_camera.arenas import CircleObstacle, SquareArena
+from stcvision.sim_camera.layers import ChemicalLayer, ChemicalPatch, PheromoneLayer, PolygonPatch
+from stcvision.sim_camera.robot import KHEPERA, TASTI2
+from stcvision.sim_camera.robot_sensors import (
     CapacitiveRingParams,
     IrParams,
     IrSensors,
     capacitive_signal_for_can,
     ir_response,
 )
-from sim_camera.world import World
+from stcvision.sim_camera.world import World
 
 
 def test_ir_response_curve():
@@ -72,7 +72,7 @@ def test_capacitive_ring_stops_tasti2_15mm_from_a_can():
     gap = math.dist(r.pose[:2], can.center_m) - can.radius_m - 0.153
     assert gap == pytest.approx(0.015, abs=0.003)
     # the pure-geometry signal and the (noise-free) ray-cast signal agree
-    from sim_camera.robot_sensors import _signal_from_gaps
+    from stcvision.sim_camera.robot_sensors import _signal_from_gaps
 
     geo = capacitive_signal_for_can(gap, ring.params)
     # (TASTI 2 has Ed = 1.002, so it arrives slightly off-axis: 5 %)

@@ -8,10 +8,10 @@ import math
 import numpy as np
 import pytest
 
-from sim_camera.arenas import CircleObstacle, SquareArena
-from sim_camera.odometry import turn_heading_error_rad
-from sim_camera.robot import LEGO_STC, TASTI2
-from sim_camera.world import World
+from stcvision.sim_camera.arenas import CircleObstacle, SquareArena
+from stcvision.sim_camera.odometry import turn_heading_error_rad
+from stcvision.sim_camera.robot import LEGO_STC, TASTI2
+from stcvision.sim_camera.world import World
 
 OPEN = SquareArena(side_m=4.0)
 

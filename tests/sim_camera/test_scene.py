@@ -6,8 +6,8 @@ import json
 
 import pytest
 
-from sim_camera.scene import EXAMPLE_SCENE, Scene
 from stcvision.errors import BadInputError
+from stcvision.sim_camera.scene import EXAMPLE_SCENE, Scene
 
 
 def scene(**changes):

@@ -6,9 +6,9 @@ import math
 import numpy as np
 import pytest
 
-from sim_camera.arenas import Barrier, CircleObstacle, SquareArena
-from sim_camera.robot import KHEPERA, LEGO_STC
-from sim_camera.world import World
+from stcvision.sim_camera.arenas import Barrier, CircleObstacle, SquareArena
+from stcvision.sim_camera.robot import KHEPERA, LEGO_STC
+from stcvision.sim_camera.world import World
 
 
 def random_drive(world, robot, n_steps, rng, *, hold=(5, 60)):

@@ -7,7 +7,7 @@ SMOKE_RECIPE = Path(__file__).resolve().parents[2] / "datasets" / "recipes" / "s
 
 @pytest.fixture(scope="session")
 def default_profile():
-    from calibration.profiles import default_profile
+    from stcvision.calibration.profiles import default_profile
 
     return default_profile()
 

@@ -6,12 +6,12 @@ import json
 import numpy as np
 import pytest
 
-from sim_camera.camera import SyntheticCamera
-from sim_camera.scenarios import cell_scene
 from stcvision.baseline import Baseline, BlobParams, marks_image, rim_mask, threshold_dots
 from stcvision.cli import main
 from stcvision.errors import BadInputError
 from stcvision.scoring import match_dots
+from stcvision.sim_camera.camera import SyntheticCamera
+from stcvision.sim_camera.scenarios import cell_scene
 
 
 @pytest.fixture(scope="module")
@@ -102,8 +102,8 @@ def test_a_dark_room_pipeline_none_baseline_a_few(default_profile):
     """A frame with no marks: the pipeline lights no dot; the baseline's global mean + 4 sigma
     threshold falls with the image's spread to the noise itself (1.7 DN here), so a few noise
     blobs pass its minimum area -- the false alarms its precision pays for on marked frames."""
-    from sim_camera.camera import Pose
     from stcvision.pipeline import Pipeline
+    from stcvision.sim_camera.camera import Pose
 
     cam = SyntheticCamera()
     rng = np.random.default_rng(5)

@@ -53,7 +53,7 @@ def files(tmp_path_factory):
     d = tmp_path_factory.mktemp("files")
     code = main(["render", "--example-scene"])
     assert code == 0
-    from sim_camera.scene import EXAMPLE_SCENE
+    from stcvision.sim_camera.scene import EXAMPLE_SCENE
 
     (d / "scene.json").write_text(json.dumps(EXAMPLE_SCENE))
     assert main(["render", "--scene", str(d / "scene.json"), "--out", str(d / "r"), "--dark-frames", "4"]) == 0
@@ -359,7 +359,7 @@ def test_a_signal_a_library_swallowed_still_commits_nothing(tmp_path, capsys, mo
 def test_cover_exit_status_3_when_the_robot_did_not_complete(capsys, monkeypatch):
     code, out, _ = run_cli(capsys, "cover", "--board", "2x2", "--perception", "oracle", "--json")
     assert code == 0 and json.loads(out)["complete"] is True
-    import controllers.stc.loop as loop
+    import stcvision.controllers.stc.loop as loop
 
     real = loop.run_cover
 
@@ -383,3 +383,20 @@ def test_unexpected_errors_keep_their_traceback(capsys, monkeypatch):
     monkeypatch.setattr(bench, "run", bug)
     with pytest.raises(ZeroDivisionError):
         main(["bench"])
+
+
+def test_a_signal_wrapped_by_the_code_it_landed_in_still_reads_interrupted(capsys, monkeypatch):
+    """SIGTERM raised inside a dataclass's ``__set_name__`` (an import under way) reaches the CLI
+    as a RuntimeError caused by :class:`Terminated`: one line and 128 + 15, no traceback."""
+    import stcvision.cli.cmd_render as cmd
+    from stcvision.errors import Terminated
+
+    def run(args):
+        try:
+            raise Terminated(15)
+        except Terminated as exc:
+            raise RuntimeError("Error calling __set_name__ on 'Field' instance") from exc
+
+    monkeypatch.setattr(cmd, "run", run)
+    assert main(["render", "--scene", "x.json", "--out", "y.png"]) == 128 + 15
+    assert capsys.readouterr().err == "stcvision render: interrupted\n"

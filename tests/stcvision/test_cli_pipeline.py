@@ -16,7 +16,7 @@ from stcvision.cli import main
 def rendered(tmp_path_factory):
     d = tmp_path_factory.mktemp("render")
     scene = d / "scene.json"
-    from sim_camera.scene import EXAMPLE_SCENE
+    from stcvision.sim_camera.scene import EXAMPLE_SCENE
 
     scene.write_text(json.dumps(EXAMPLE_SCENE))
     assert main(["render", "--scene", str(scene), "--out", str(d / "out"), "--seed", "3"]) == 0
@@ -85,7 +85,7 @@ def test_pipeline_needs_a_dark_frame_or_says_so(rendered, capsys):
 
 
 def test_pipeline_profile_that_does_not_match(rendered, tmp_path, capsys):
-    from calibration.profiles import default_profile
+    from stcvision.calibration.profiles import default_profile
 
     p = default_profile().replace(image_size_px=(800, 600))
     p.save(tmp_path / "p.json")

@@ -31,7 +31,7 @@ def test_a_recipes_scene_parameters_are_the_scene_functions():
     assert keys["cells"] == "pair" and keys["charge_s"] == "number"
     assert keys["heading_error_deg"] == "number_or_pair"
     assert set(keys) == set(recipe._SCENE_RANGES)
-    code = "import sys, stcvision.evaluate; assert not any(m.startswith('sim_camera') for m in sys.modules)"
+    code = "import sys, stcvision.evaluate; assert not any(m.startswith('stcvision.sim_camera') for m in sys.modules)"
     subprocess.run([sys.executable, "-c", code], check=True, cwd=ROOT)
 
 

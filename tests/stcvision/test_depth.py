@@ -13,11 +13,11 @@ import tracemalloc
 import numpy as np
 import pytest
 
-from sim_camera.camera import Pose, SyntheticCamera
-from sim_camera.image_sensor import expose
-from sim_camera.phosphor import PhosphorLayer, mark_dots_m
 from stcvision.errors import BadInputError
 from stcvision.pipeline import Pipeline
+from stcvision.sim_camera.camera import Pose, SyntheticCamera
+from stcvision.sim_camera.image_sensor import expose
+from stcvision.sim_camera.phosphor import PhosphorLayer, mark_dots_m
 from stcvision.stages import (
     DotParams,
     estimate_background,

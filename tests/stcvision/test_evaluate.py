@@ -194,7 +194,7 @@ def test_each_camera_is_read_with_its_own_workflow_profile(tmp_path, cli):
     code, out, _ = cli("eval", d, "--json")
     own = json.loads(out)
     assert code == 0 and own["profile"] == "per camera" and own["dot_recall"] >= 0.95
-    from calibration.profiles import default_profile_path
+    from stcvision.calibration.profiles import default_profile_path
 
     code, out, _ = cli("eval", d, "--json", "--profile", default_profile_path())
     bad = json.loads(out)
@@ -207,7 +207,7 @@ def test_each_camera_is_read_with_its_own_workflow_profile(tmp_path, cli):
 
 
 def test_given_profile(smoke, tmp_path, cli):
-    from calibration.profiles import default_profile_path
+    from stcvision.calibration.profiles import default_profile_path
 
     code, out, _ = cli("eval", smoke, "--profile", default_profile_path(), "--json")
     assert code == 0 and json.loads(out)["profile"].endswith("default.json")

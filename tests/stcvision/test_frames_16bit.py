@@ -46,8 +46,8 @@ def test_greyscale_and_alpha_frames_are_refused_in_one_line(tmp_path, cli):
 
 @pytest.fixture(scope="module")
 def rendered16(tmp_path_factory):
-    from sim_camera.scene import EXAMPLE_SCENE
     from stcvision.cli import main
+    from stcvision.sim_camera.scene import EXAMPLE_SCENE
 
     d = tmp_path_factory.mktemp("render16")
     (d / "scene.json").write_text(json.dumps(EXAMPLE_SCENE))
@@ -59,8 +59,8 @@ def rendered16(tmp_path_factory):
 def test_render_writes_the_cooled_cameras_16_bit_frames(rendered16):
     """The frame on disk is the frame rendered: the same seed streams in this process give the
     same uint16 counts; the dark and the lights-on frame are 16-bit too."""
-    from sim_camera.hardware import COOLED
-    from sim_camera.scene import Scene
+    from stcvision.sim_camera.hardware import COOLED
+    from stcvision.sim_camera.scene import Scene
 
     out = rendered16 / "out"
     frame = read_image(out / "frame.png", what="frame")
@@ -126,7 +126,7 @@ def test_datasets_store_each_sensors_depth_and_check_it(deep, tmp_path, cli):
 def test_the_evaluations_loader_refuses_a_dark_of_another_depth(deep, tmp_path):
     """Past `dataset check` (a JPEG dark has no PNG header to read), the loader compares the
     decoded frame and dark and names the dark frame."""
-    from calibration.profiles import default_profile
+    from stcvision.calibration.profiles import default_profile
     from stcvision.datasets import open_dataset
     from stcvision.evaluate import evaluate_frames
 

@@ -65,7 +65,7 @@ def stcvision(*argv) -> list:
 # ---------------------------------------------------------------------------------- profile
 WRITE_PROFILES = """
 import sys
-from calibration.profiles import default_profile
+from stcvision.calibration.profiles import default_profile
 prof, path, n = default_profile(), sys.argv[1], int(sys.argv[2])
 for i in range(1, n + 1):
     prof.replace(provenance={"version": i, "pad": "x" * 400000}).save(path, overwrite=True)
@@ -73,7 +73,7 @@ for i in range(1, n + 1):
 
 
 def test_profile_killed_while_written_is_old_or_new_complete(tmp_path):
-    from calibration.profiles import default_profile
+    from stcvision.calibration.profiles import default_profile
     from stcvision.profile import Profile
 
     path = tmp_path / "p.json"
@@ -213,7 +213,7 @@ def test_a_signal_while_a_temporary_is_made_leaves_it_registered(tmp_path, monke
 def test_render_killed_leaves_no_partial_set(tmp_path):
     """A killed render leaves its set whole or absent, so the same command run again (without
     --force) completes it."""
-    from sim_camera.scene import EXAMPLE_SCENE
+    from stcvision.sim_camera.scene import EXAMPLE_SCENE
 
     scene = tmp_path / "scene.json"
     scene.write_text(json.dumps(EXAMPLE_SCENE))

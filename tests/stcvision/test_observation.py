@@ -60,10 +60,10 @@ def test_corner_order_is_the_plus_outline_counter_clockwise():
 def test_red_lights_give_the_robots_offset_and_residual_heading(default_profile):
     """Red lights stand at cell centres: with two or more well in view the observation says
     where the robot stands off its sub-cell centre and how far the heading fit is still off."""
-    from sim_camera.camera import SyntheticCamera
-    from sim_camera.scenarios import cell_scene
     from stcvision.observation import ObservationParams
     from stcvision.pipeline import Pipeline, PipelineParams
+    from stcvision.sim_camera.camera import SyntheticCamera
+    from stcvision.sim_camera.scenarios import cell_scene
 
     cam = SyntheticCamera()
     rng = np.random.default_rng(5)
@@ -100,10 +100,10 @@ def test_far_red_lights_pin_the_robot_down_in_open_floor(default_profile):
     frame has two or more, and the fit stays within a few millimetres of the truth (measured on
     these frames: 24 of 24 with a fix against 2 of 24 with near lights only; median 0.8 mm, max
     2.6 mm; the heading left after the newest row's fit within 0.17 degrees)."""
-    from sim_camera.camera import SyntheticCamera
-    from sim_camera.scenarios import cell_scene
     from stcvision.observation import ObservationParams
     from stcvision.pipeline import Pipeline, PipelineParams
+    from stcvision.sim_camera.camera import SyntheticCamera
+    from stcvision.sim_camera.scenarios import cell_scene
 
     cam = SyntheticCamera()
     rng = np.random.default_rng(5)

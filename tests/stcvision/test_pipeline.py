@@ -2,18 +2,18 @@
 
 Goals (issue: the vision pipeline): heading RMS <= 0.5 degree; box and obstacle classification
 >= 99.9 % inside the visibility horizon. Each test renders random STC entry situations
-(``sim_camera.scenarios.cell_scene``) and scores them with ``stcvision.scoring``.
+(``stcvision.sim_camera.scenarios.cell_scene``) and scores them with ``stcvision.scoring``.
 """
 
 import numpy as np
 import pytest
 
-from calibration.defaults import calibrate_simulated
-from sim_camera.camera import SyntheticCamera
-from sim_camera.optics import MirrorCameraParams
-from sim_camera.scenarios import cell_scene
+from stcvision.calibration.defaults import calibrate_simulated
 from stcvision.pipeline import Pipeline
 from stcvision.scoring import score_frame, summarize
+from stcvision.sim_camera.camera import SyntheticCamera
+from stcvision.sim_camera.optics import MirrorCameraParams
+from stcvision.sim_camera.scenarios import cell_scene
 
 
 def median_dark(camera, rng, n=16, sensor=None):

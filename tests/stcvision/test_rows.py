@@ -4,11 +4,11 @@ the single-dot threshold are still read as rows of four, and noise does not make
 import numpy as np
 import pytest
 
-from calibration.profiles import default_profile
-from sim_camera.camera import SyntheticCamera
-from sim_camera.phosphor import LED_OFFSETS_M
-from sim_camera.scenarios import cell_scene
+from stcvision.calibration.profiles import default_profile
 from stcvision.pipeline import Pipeline, PipelineParams
+from stcvision.sim_camera.camera import SyntheticCamera
+from stcvision.sim_camera.phosphor import LED_OFFSETS_M
+from stcvision.sim_camera.scenarios import cell_scene
 from stcvision.stages import RowParams
 
 

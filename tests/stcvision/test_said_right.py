@@ -23,7 +23,7 @@ def rendered(tmp_path_factory):
 
     d = tmp_path_factory.mktemp("scenes")
     scene = d / "scene.json"
-    from sim_camera.scene import EXAMPLE_SCENE
+    from stcvision.sim_camera.scene import EXAMPLE_SCENE
 
     scene.write_text(json.dumps(EXAMPLE_SCENE))
     for cam in ("webcam", "cooled"):

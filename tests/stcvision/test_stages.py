@@ -39,8 +39,8 @@ def test_dark_subtraction_saturates_and_checks_its_inputs():
 
 def test_unwarp_puts_a_floor_point_where_the_profile_says(default_profile, default_camera):
     """A dot rendered at a known floor point lands at that point in the ground view."""
-    from sim_camera.camera import Pose
-    from sim_camera.phosphor import PhosphorLayer
+    from stcvision.sim_camera.camera import Pose
+    from stcvision.sim_camera.phosphor import PhosphorLayer
 
     umap = UnwarpMap.from_profile(default_profile)
     s = default_camera.sensor.replace(

@@ -39,8 +39,8 @@ def temps(folder: Path) -> list[Path]:
 
 
 def test_every_writer_removes_a_killed_writers_temporaries_of_its_file(cli, tmp_path):
-    from calibration.profiles import default_profile
-    from sim_camera.scene import EXAMPLE_SCENE
+    from stcvision.calibration.profiles import default_profile
+    from stcvision.sim_camera.scene import EXAMPLE_SCENE
 
     pid = dead_pid()
     left = []

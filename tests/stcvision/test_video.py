@@ -7,7 +7,7 @@ import cv2
 import numpy as np
 import pytest
 
-from sim_camera.scene import EXAMPLE_SCENE, Scene
+from stcvision.sim_camera.scene import EXAMPLE_SCENE, Scene
 
 
 def _drop_times(d):

@@ -30,7 +30,7 @@ def dump(datasets: list[str], out: str, pose: bool) -> None:
     import cv2
     import numpy as np
 
-    from calibration.profiles import default_profile
+    from stcvision.calibration.profiles import default_profile
     from stcvision.observation import ObservationParams
     from stcvision.pipeline import Pipeline, PipelineParams
 

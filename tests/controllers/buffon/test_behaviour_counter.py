@@ -5,15 +5,15 @@ import math
 import numpy as np
 import pytest
 
-from controllers.buffon.behaviour import (
+from stcvision.controllers.buffon.behaviour import (
     ExplorerParams,
     ExplorerState,
     explorer_core,
     explorer_step,
     explorer_step_batch,
 )
-from controllers.buffon.counter import CounterParams, LeakyIntegrator, count_crossings
-from sim_camera.fastworld import deposit_segment, read_cell
+from stcvision.controllers.buffon.counter import CounterParams, LeakyIntegrator, count_crossings
+from stcvision.sim_camera.fastworld import deposit_segment, read_cell
 
 
 class _Fixed:
@@ -96,7 +96,7 @@ def test_scalar_and_batched_twin_agree_step_for_step():
 
 def test_core_is_the_same_function_compiled():
     args = (0.1, 0.2, 0.3, 0.0, 0.9, 0.5, 0.6, 0.7, 0.4, 0.2, 0.05, 0.8, 0.5, 2.7, 0.95)
-    from controllers.buffon.behaviour import explorer_core_nb
+    from stcvision.controllers.buffon.behaviour import explorer_core_nb
 
     assert explorer_core_nb(*args) == explorer_core(*args)
 

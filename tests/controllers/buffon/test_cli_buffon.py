@@ -4,8 +4,8 @@ import json
 
 import pytest
 
-import controllers.buffon.run as buffon_run
-from controllers.buffon.experiments import Case
+import stcvision.controllers.buffon.run as buffon_run
+from stcvision.controllers.buffon.experiments import Case
 
 
 def test_measure_json_keys_and_containment(cli):
@@ -183,7 +183,7 @@ def test_compare_runs_both_paths(cli, tmp_path):
 
 
 def _mini_evaluation(folder):
-    import controllers.buffon.online as exp
+    import stcvision.controllers.buffon.online as exp
 
     fams = [("circles", "circle:22"), ("squares", "square:20"), ("ellipses", "ellipse:400:2"),
             ("barriers", "circle:24"), ("concave", None), ("random", None)]  # fmt: skip
@@ -199,7 +199,7 @@ def _mini_evaluation(folder):
 
 
 def test_online_experiment_writes_its_tables_and_figures(cli, tmp_path, monkeypatch):
-    import controllers.buffon.online as exp
+    import stcvision.controllers.buffon.online as exp
 
     monkeypatch.setattr(exp, "CALIBRATION_NESTS", (("circle:21", None), ("square:19", None)))
     monkeypatch.setattr(exp, "CALIBRATION_POLYGONS", {"L": ((0, 0), (20, 0), (20, 10), (10, 10), (10, 20), (0, 20))})
@@ -252,7 +252,7 @@ def test_measure_defaults_to_the_online_rule_with_per_trial_intervals(cli, tmp_p
 def test_reproduce_runs_the_absolute_area_set_at_most_its_trials():
     """The absolute-area set (visits 6x the paper's) runs at most ACCURACY_TRIALS trials a nest,
     the paper's sets the trials asked for."""
-    from controllers.buffon.experiments import ACCURACY_TRIALS, experiment_cases
+    from stcvision.controllers.buffon.experiments import ACCURACY_TRIALS, experiment_cases
 
     cases = experiment_cases()
     acc = [c for c in cases if c.family == "accuracy"]

@@ -6,12 +6,12 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from controllers.buffon.batched import VisitConfig, run_trials
-from controllers.buffon.estimate import area_estimates, buffon_area, median_ci95, summarise
-from controllers.buffon.nests import BODY_LENGTH_M, parse_nest
-from sim_camera.fastworld import StaticGeometry, push_out, ray_cast
-from sim_camera.robot import KHEPERA
-from sim_camera.world import World
+from stcvision.controllers.buffon.batched import VisitConfig, run_trials
+from stcvision.controllers.buffon.estimate import area_estimates, buffon_area, median_ci95, summarise
+from stcvision.controllers.buffon.nests import BODY_LENGTH_M, parse_nest
+from stcvision.sim_camera.fastworld import StaticGeometry, push_out, ray_cast
+from stcvision.sim_camera.robot import KHEPERA
+from stcvision.sim_camera.world import World
 
 
 def _plus_nest():
@@ -150,7 +150,7 @@ def test_summary_keys_interval_and_corrections():
 def test_batched_path_is_a_model_of_the_pymunk_path():
     """Small version of `stcvision buffon compare`: nBC of 10 pymunk trials vs 120 batched trials
     in a 20 u circle, 1,500-step visits, are not told apart (Mann-Whitney, 1 %), and lengths agree."""
-    from controllers.buffon.pymunk_path import run_trials_pymunk
+    from stcvision.controllers.buffon.pymunk_path import run_trials_pymunk
 
     nest = parse_nest("circle:20")
     cfg = VisitConfig(visit_steps=1500)
@@ -166,7 +166,7 @@ def test_self_crossing_area_on_random_needles_in_a_torus():
     """Poincare's formula for one curve: n random needles of total length L in a torus of area A
     meet each other L^2 / (pi A) times on average (each pair once), so the self-crossing estimate
     hits A."""
-    from controllers.buffon.estimate import self_crossing_area
+    from stcvision.controllers.buffon.estimate import self_crossing_area
 
     rng = np.random.default_rng(1)
     w, h, ell, n = 1.0, 2.0, 0.05, 2000
@@ -186,7 +186,7 @@ def test_self_crossing_area_on_random_needles_in_a_torus():
 
 def test_online_estimate_is_the_weighted_geometric_mean_of_the_two_visits():
     """Both visits' dead-time corrected estimates, in the stated weights."""
-    from controllers.buffon.estimate import (
+    from stcvision.controllers.buffon.estimate import (
         COVERAGE_SLOPE,
         ONLINE_SECOND_WEIGHT,
         REFERENCE_COVERAGE,
@@ -210,7 +210,7 @@ def test_online_estimate_is_brought_back_to_the_reference_coverage():
     """Two trials with the same two raw estimates, read at the reference coverage and 0.05 above
     it: the first is left as it is, the second divided by exp(0.05 kappa); a wider trail reads
     the same count at a higher coverage."""
-    from controllers.buffon.estimate import COVERAGE_SLOPE, REFERENCE_COVERAGE, online_area, reading_coverage
+    from stcvision.controllers.buffon.estimate import COVERAGE_SLOPE, REFERENCE_COVERAGE, online_area, reading_coverage
 
     l1 = np.array([2000.0, 2000.0])
     ns = np.array([REFERENCE_COVERAGE, REFERENCE_COVERAGE + 0.05]) * l1 / (math.pi * 0.1)

@@ -6,10 +6,10 @@ import math
 import numpy as np
 import pytest
 
-from controllers.buffon.batched import VisitConfig, run_trials
-from controllers.buffon.estimate import summarise, trial_intervals
-from controllers.buffon.nests import parse_nest
-from controllers.buffon.stopping import (
+from stcvision.controllers.buffon.batched import VisitConfig, run_trials
+from stcvision.controllers.buffon.estimate import summarise, trial_intervals
+from stcvision.controllers.buffon.nests import parse_nest
+from stcvision.controllers.buffon.stopping import (
     StopParams,
     batch_add,
     batch_rel_se,
@@ -201,7 +201,7 @@ def test_online_trials_are_deterministic_whatever_the_sweep_workers(tmp_path):
 
     params = {"trail_width_u": 0.1, "trials": 2, "visit_steps": "auto", "barrier": None}
     tasks = [
-        Task(experiment="controllers.buffon.experiments:nest_task", params={**params, "spec": s}, seed=21 + i)
+        Task(experiment="stcvision.controllers.buffon.experiments:nest_task", params={**params, "spec": s}, seed=21 + i)
         for i, s in enumerate(("circle:25", "square:22"))
     ]
     one = run_sweep(tasks, tmp_path / "one.jsonl", SweepOptions(workers=1))
@@ -253,7 +253,7 @@ def test_trial_interval_carries_the_coverage_slopes_error():
     that distance, in quadrature: t sqrt(h0^2 / t^2 + (se_kappa d)^2)."""
     from scipy import stats
 
-    from controllers.buffon.estimate import CALIBRATION_DOF, COVERAGE_SLOPE_SE, trial_half_width
+    from stcvision.controllers.buffon.estimate import CALIBRATION_DOF, COVERAGE_SLOPE_SE, trial_half_width
 
     h0, h = trial_half_width(np.array([0.02, 0.02]), coverage_offset=np.array([0.0, 0.05]))
     t = stats.t.ppf(0.975, CALIBRATION_DOF)
@@ -288,8 +288,8 @@ def test_calibration_recovers_a_planted_factor_and_spread():
     """Synthetic trials whose two estimates read c times the true area, the second visit's with a
     log-normal error of 0.06 it does not report: the calibration gives K = 1/c and a per-trial
     extra spread of w * 0.06."""
-    from controllers.buffon.estimate import ONLINE_SECOND_WEIGHT, REFERENCE_COVERAGE
-    from controllers.buffon.online import calibrate_online
+    from stcvision.controllers.buffon.estimate import ONLINE_SECOND_WEIGHT, REFERENCE_COVERAGE
+    from stcvision.controllers.buffon.online import calibrate_online
 
     rng = np.random.default_rng(8)
     c, sigma, trials = 1.08, 0.06, 40
@@ -313,8 +313,8 @@ def test_calibration_recovers_a_planted_coverage_slope():
     2.0 per unit of coverage on top of a factor 1.05 and a 0.02 log-normal scatter: the calibration
     measures the slope within its standard error (times 3), and once the estimates are brought
     back, K = 1 / 1.05 and no extra spread is left beyond the scatter."""
-    from controllers.buffon.estimate import ONLINE_SECOND_WEIGHT, REFERENCE_COVERAGE
-    from controllers.buffon.online import calibrate_online
+    from stcvision.controllers.buffon.estimate import ONLINE_SECOND_WEIGHT, REFERENCE_COVERAGE
+    from stcvision.controllers.buffon.online import calibrate_online
 
     rng = np.random.default_rng(3)
     kappa, c, sigma, trials = 2.0, 1.05, 0.02, 30
@@ -381,7 +381,7 @@ def test_weight_check_rule_keeps_the_shipped_weight_when_a_group_undercovers(tmp
     ellipse as steady as the others every weight is eligible and the lowest RMS error wins."""
     import json
 
-    from controllers.buffon import estimate as est
+    from stcvision.controllers.buffon import estimate as est
 
     mod = _docs_script("buffon_weight_check")
     nests = [(f"circle:{40 + d}", None) for d in range(10)]
@@ -439,7 +439,7 @@ def test_coverage_response_script_prints_a_row_per_forced_coverage(capsys):
 
 def test_the_shipped_calibrated_sizes_are_the_calibration_familys():
     """The range the per-trial intervals say they were calibrated on is the family's own."""
-    from controllers.buffon.estimate import CALIBRATED_AREA_U2
-    from controllers.buffon.online import calibration_area_range
+    from stcvision.controllers.buffon.estimate import CALIBRATED_AREA_U2
+    from stcvision.controllers.buffon.online import calibration_area_range
 
     assert calibration_area_range() == pytest.approx(CALIBRATED_AREA_U2, abs=0.1)

@@ -102,7 +102,7 @@ def test_rrd_and_plot_are_written_and_not_overwritten(tmp_path, capsys):
 
 
 def test_run_trial_is_json_and_deterministic():
-    from controllers.search.experiments import run_trial
+    from stcvision.controllers.search.experiments import run_trial
 
     params = {"pattern": "spiral", "max_steps": 12, "policy": "simple", "obstacles": [[0.4, 0.1, 0.0365]]}
     a = run_trial(params, np.random.SeedSequence(11))
@@ -116,7 +116,7 @@ def test_reproduce_end_to_end_resumes_and_refuses_without_writing(tmp_path, caps
     policy, without the beacon) are two tasks by their row ids and, on the same paired seeds,
     give the same runs; a re-run resumes from the store; a refused run writes nothing; a failure
     after the runs leaves only the store, and the next run completes."""
-    import controllers.search.experiments as ex
+    import stcvision.controllers.search.experiments as ex
 
     out = tmp_path / "SR"
     argv = ["search", "reproduce", "--out", str(out), "--seeds", "2", "--max-steps", "10", "--workers", "1"]
@@ -169,7 +169,7 @@ def test_reproduce_end_to_end_resumes_and_refuses_without_writing(tmp_path, caps
 def test_detours_writes_its_table_with_intervals_and_resumes(tmp_path, capsys, monkeypatch):
     """`search detours` on one size at one place (both patterns, 2 seeds): the table with the
     finish counts and their binomial intervals, the figure, the runs; a re-run reuses them."""
-    import controllers.search.experiments as ex
+    import stcvision.controllers.search.experiments as ex
 
     monkeypatch.setattr(ex, "DETOUR_SIZES_M", (0.2,))
     monkeypatch.setattr(ex, "DETOUR_PLACES", (0.25,))

@@ -7,14 +7,14 @@ import math
 import numpy as np
 import pytest
 
-from controllers.search.beacon import Beacon
-from controllers.search.controller import Phase, Policy, SearchConfig, SearchObs, Stop, initial_state, step
-from controllers.search.metrics import odometry_errors_m, summarise
-from controllers.search.patterns import RadialPattern, SpiralPattern, planned_points, radial_turn_rad
-from controllers.search.run import SearchScene, run_search
-from controllers.search.scenarios import FIG7_OBSTACLE, FIG13_CAN, PAPER_PATCH, paper_spiral
-from sim_camera.robot import TASTI2
+from stcvision.controllers.search.beacon import Beacon
+from stcvision.controllers.search.controller import Phase, Policy, SearchConfig, SearchObs, Stop, initial_state, step
+from stcvision.controllers.search.metrics import odometry_errors_m, summarise
+from stcvision.controllers.search.patterns import RadialPattern, SpiralPattern, planned_points, radial_turn_rad
+from stcvision.controllers.search.run import SearchScene, run_search
+from stcvision.controllers.search.scenarios import FIG7_OBSTACLE, FIG13_CAN, PAPER_PATCH, paper_spiral
 from stcvision.errors import BadInputError
+from stcvision.sim_camera.robot import TASTI2
 
 # ---------------------------------------------------------------------------- patterns
 
@@ -227,7 +227,7 @@ def test_exact_executor_detours_round_every_size_at_every_place(pattern, policy)
     (the ring's can to 0.5 m) at its three places and at 0.1 m either side of them: every run
     finishes its pattern, and every detour ends on the planned path (equation (8)). Before the
     side switch and the try of every move not yet blocked, 121 of these 480 layouts failed."""
-    from controllers.search.experiments import DETOUR_PATTERNS, DETOUR_PLACES, DETOUR_SIZES_M, _pattern
+    from stcvision.controllers.search.experiments import DETOUR_PATTERNS, DETOUR_PLACES, DETOUR_SIZES_M, _pattern
 
     params = dict(DETOUR_PATTERNS)[pattern]
     pat = _pattern(params)
@@ -290,7 +290,7 @@ def test_physics_detours_round_large_obstacles(pattern, radius):
     size at the middle place of the detour check: the pattern (cut at 60 steps) is done, no
     contact. The measured rates over seeds are `stcvision search detours`
     (docs/explanation/search.md)."""
-    from controllers.search.experiments import DETOUR_PATTERNS, detour_obstacle, run_trial
+    from stcvision.controllers.search.experiments import DETOUR_PATTERNS, detour_obstacle, run_trial
 
     params = _cut(dict(DETOUR_PATTERNS)[pattern], 60)
     ob = detour_obstacle(params, radius, 0.5)

@@ -6,9 +6,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from controllers.stc.cellfit import shows_row, shows_tour_row, tour_lines
-from sim_camera.phosphor import LED_OFFSETS_M
+from stcvision.controllers.stc.cellfit import shows_row, shows_tour_row, tour_lines
 from stcvision.observation import MARK_INSET
+from stcvision.sim_camera.phosphor import LED_OFFSETS_M
 from stcvision.stc_geometry import DEFAULT_SUBCELL_M, DIRECTIONS, SUBCELLS
 
 

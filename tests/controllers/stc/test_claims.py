@@ -7,7 +7,7 @@ import dataclasses
 import numpy as np
 import pytest
 
-from controllers.stc.claims import (
+from stcvision.controllers.stc.claims import (
     OutOfSight,
     ahead_claims,
     decision_claims,
@@ -16,10 +16,10 @@ from controllers.stc.claims import (
     read_until_sure,
     return_misread,
 )
-from controllers.stc.fsm import REENTRY_BOXES, NeighbourObs, StcObservation
-from controllers.stc.loop import CoverConfig, run_cover
-from sim_camera.board import Board
-from sim_camera.robot import LEGO_STC_ROBOT
+from stcvision.controllers.stc.fsm import REENTRY_BOXES, NeighbourObs, StcObservation
+from stcvision.controllers.stc.loop import CoverConfig, run_cover
+from stcvision.sim_camera.board import Board
+from stcvision.sim_camera.robot import LEGO_STC_ROBOT
 
 
 def test_claim_distances_follow_the_geometry():
@@ -178,8 +178,8 @@ def test_frames_sized_by_their_own_noise_see_less_far_on_the_webcam():
     frames 32 x 30 s are worth ~12 frames (noise 0.52 DN by the camera's figures, measured 0.54
     in a run; the idealised noise over sqrt(32) says 0.32), a 16-bit cooled camera's ~0.85 of
     them. Sized so, the webcam's longest frame sees a mark 0.45 m away about half as long."""
-    from controllers.stc.frames import Exposures, IdealCamera, RobotCamera
-    from sim_camera.hardware import load_camera
+    from stcvision.controllers.stc.frames import Exposures, IdealCamera, RobotCamera
+    from stcvision.sim_camera.hardware import load_camera
 
     web = Exposures(CoverConfig(exposure="auto"))
     k = next(i for i, (e, _, n) in enumerate(web.ladder) if (e, n) == (30.0, 32))
@@ -197,9 +197,9 @@ def test_an_unlit_box_at_a_return_near_its_frames_reach_is_read_with_the_next_lo
     """At a return the claims size the frames for each dot at ``sizing_snr``; an unlit box whose
     frames do not also reach the clock at the stricter ``return_snr`` is read again with the next
     longer rung, once; where they do, or in a fresh cell (nothing to miss), no frame is added."""
-    from controllers.stc.claims import distance_m
-    from controllers.stc.frames import Exposures
-    from sim_camera.hardware import load_camera
+    from stcvision.controllers.stc.claims import distance_m
+    from stcvision.controllers.stc.frames import Exposures
+    from stcvision.sim_camera.hardware import load_camera
 
     cam = Exposures(CoverConfig(exposure="auto", camera=load_camera("cooled")))
     rho = distance_m("box 2", cam.subcell_m, cam.cfg.position_margin_m)  # the farthest box
@@ -235,8 +235,8 @@ def test_a_box_a_short_frame_reads_lit_and_a_longer_one_unlit_is_read_again():
     read lit is read once more at that frame's rung and taken from it: a row of noise (not there
     again) is dropped, a mark the longer frame missed (there again) is kept. A box every frame
     agrees on, or one only the longer frame reads lit, takes no extra frame."""
-    from controllers.stc.frames import Exposures
-    from sim_camera.hardware import load_camera
+    from stcvision.controllers.stc.frames import Exposures
+    from stcvision.sim_camera.hardware import load_camera
 
     cam = Exposures(CoverConfig(exposure="auto", camera=load_camera("cooled")))
     clock = cam.horizon(0, distance_m("box 2", cam.subcell_m, cam.cfg.position_margin_m)) * 1.5  # needs rung 1

@@ -7,12 +7,12 @@ import json
 import numpy as np
 import pytest
 
-from controllers.stc.belief import Belief
-from controllers.stc.config import CoverConfig
-from controllers.stc.localise import Fix
-from controllers.stc.loop import run_cover
-from sim_camera.board import Board
 from stcvision.cli import main
+from stcvision.controllers.stc.belief import Belief
+from stcvision.controllers.stc.config import CoverConfig
+from stcvision.controllers.stc.localise import Fix
+from stcvision.controllers.stc.loop import run_cover
+from stcvision.sim_camera.board import Board
 
 #: what a summary holds that is not the run itself (its wall time, the command's own keys)
 _NOT_THE_RUN = ("wall_s", "rrd", "exit_code")
@@ -74,8 +74,8 @@ def test_a_small_lean_of_all_rows_trims_the_heading_without_reobserving():
     back by it; the reading stands (it is re-observed only beyond REOBSERVE_RAD)."""
     import math
 
-    from controllers.stc.config import REOBSERVE_RAD
-    from controllers.stc.perception import LEAN_TRIM_RAD, CameraPerception
+    from stcvision.controllers.stc.config import REOBSERVE_RAD
+    from stcvision.controllers.stc.perception import LEAN_TRIM_RAD, CameraPerception
 
     see = CameraPerception(CoverConfig(), Board(np.zeros((4, 4), bool), (3, 1)), np.random.default_rng(0))
     for lean_deg, turned_deg, reobserve in (
@@ -116,7 +116,7 @@ def test_the_cells_own_rows_fix_the_offset_the_median_of_all_rows_misses():
     0.112 sub-cell behind (the truth within 0.01, 1.6 mm), both rows on lines, unambiguously."""
     import numpy as np
 
-    from controllers.stc.cellfit import fit_cell_offset
+    from stcvision.controllers.stc.cellfit import fit_cell_offset
 
     cell_pts, lit = np.array(_DECISION_317), np.ones(len(_DECISION_317), bool)
     at_pipeline = fit_cell_offset(cell_pts, lit, _PIPELINE_OFFSET_317, search=False)
@@ -133,7 +133,7 @@ def test_boxes_read_at_the_fitted_offset_are_the_truth():
     on the cell's edge, its box-4 row on sub-cell 2's bottom edge, no box)."""
     import numpy as np
 
-    from controllers.stc.cellfit import fit_cell_offset
+    from stcvision.controllers.stc.cellfit import fit_cell_offset
     from stcvision.observation import assign_boxes
 
     cell_pts, lit = np.array(_DECISION_317), np.ones(len(_DECISION_317), bool)
@@ -149,8 +149,8 @@ def test_rows_on_no_line_at_any_offset_are_not_decided_on_with_any_camera():
     every shift within reach: 0.5 sub-cell from each) is read once more with a longer frame and
     then stops the robot before deciding, with the reason; on the webcam (no longer frame) at
     once."""
-    from controllers.stc.frames import Exposures
-    from controllers.stc.fsm import NeighbourObs, StcObservation
+    from stcvision.controllers.stc.frames import Exposures
+    from stcvision.controllers.stc.fsm import NeighbourObs, StcObservation
 
     nb = (NeighbourObs(False, False),) * 4
     bad = StcObservation(boxes=(False,) * 5, neighbours=nb, start_mark=None, other_marks=4)
@@ -176,8 +176,8 @@ def test_rows_on_no_line_at_any_offset_are_not_decided_on_with_any_camera():
 def test_a_first_entry_showing_marks_is_not_decided_on():
     """A cell entered as new (its look found no mark) holds none: a box or a start mark read
     there stops the robot before deciding, with the reason; an empty one passes."""
-    from controllers.stc.frames import _check_fresh
-    from controllers.stc.fsm import NeighbourObs, StcObservation
+    from stcvision.controllers.stc.frames import _check_fresh
+    from stcvision.controllers.stc.fsm import NeighbourObs, StcObservation
 
     nb = (NeighbourObs(False, False),) * 4
     empty = StcObservation(boxes=(False,) * 5, neighbours=nb, start_mark=None)
@@ -199,8 +199,8 @@ def test_a_first_entry_showing_marks_is_not_decided_on():
 def test_no_run_of_a_small_sweep_decides_wrongly(cells, fraction, seed, camera):
     """Random boards, camera mode, the default exposure: the low-noise cameras complete; the
     webcam completes or stops with a reason; none decides wrongly or covers a sub-cell twice."""
-    from controllers.stc.experiments import random_board
-    from sim_camera import hardware
+    from stcvision.controllers.stc.experiments import random_board
+    from stcvision.sim_camera import hardware
 
     r = run_cover(
         random_board(cells, cells, fraction, seed), CoverConfig(seed=seed, camera=hardware.load_camera(camera))
@@ -248,12 +248,12 @@ def test_a_row_is_laid_on_its_line_by_a_robot_behind_its_sub_cell_centre():
     it (within 1 mm), and the sideways offset stays for the move to take out."""
     import numpy as np
 
-    from controllers.stc.config import ALIGN_MARK_M, RECENTRE_M
-    from controllers.stc.fsm import Action
-    from controllers.stc.movecount import MoveCount
-    from controllers.stc.plant import Floor, Plant
-    from controllers.stc.robot import Robot, act
-    from sim_camera.robot import LEGO_STC_ROBOT
+    from stcvision.controllers.stc.config import ALIGN_MARK_M, RECENTRE_M
+    from stcvision.controllers.stc.fsm import Action
+    from stcvision.controllers.stc.movecount import MoveCount
+    from stcvision.controllers.stc.plant import Floor, Plant
+    from stcvision.controllers.stc.robot import Robot, act
+    from stcvision.sim_camera.robot import LEGO_STC_ROBOT
     from stcvision.stc_geometry import entry_axes
 
     board = Board(np.zeros((6, 6), bool), (5, 1))
@@ -279,7 +279,7 @@ def test_a_row_is_laid_on_its_line_by_a_robot_behind_its_sub_cell_centre():
 
 def _perception():
     """The camera perception's localisation alone, on a 4x4 open board (no camera)."""
-    from controllers.stc.perception import CameraPerception
+    from stcvision.controllers.stc.perception import CameraPerception
 
     return CameraPerception(CoverConfig(), Board(np.zeros((4, 4), bool), (3, 1)), np.random.default_rng(0))
 
@@ -299,7 +299,7 @@ def test_a_look_takes_its_position_from_the_red_lights_only():
     other times, each where the robot then stood: their offset moved the robot's belief by a
     centimetre and its next row with it. A look's offset comes from the red lights, or stays
     what the robot believed; a decision's still reads the cell's own rows, weighted against the
-    belief (:mod:`controllers.stc.localise`)."""
+    belief (:mod:`stcvision.controllers.stc.localise`)."""
     see = _perception()
     belief = Belief((0, 0), 0, 1.5, np.array([0.001, -0.002]), fix=Fix.placed(0.004))
     marks_only = _fix_reading(marks=(0.05, 0.0))
@@ -318,7 +318,7 @@ def test_an_axis_the_marks_did_not_measure_keeps_the_belief():
     (spiral_stc_test_3, lowlight, seed 821, a safe stop). The measured axis is fused, the other
     keeps its value and its variance."""
 
-    from controllers.stc.perception import entry_offset_to_world
+    from stcvision.controllers.stc.perception import entry_offset_to_world
 
     see = _perception()
     sm = see.board.subcell_m
@@ -342,7 +342,7 @@ def test_red_lights_the_gate_left_out_are_looked_at_again():
     fused (they are the suspects: laid where the robot stood), and the same lights read again
     are taken."""
 
-    from controllers.stc.perception import entry_offset_to_world
+    from stcvision.controllers.stc.perception import entry_offset_to_world
 
     see = _perception()
     sm = see.board.subcell_m
@@ -372,15 +372,15 @@ def test_rows_laid_askew_do_not_turn_back_a_heading_the_lights_set():
 
     import numpy as np
 
-    from controllers.stc.belief import realign
-    from controllers.stc.fsm import Action
-    from controllers.stc.localise import ROWS_LEAN_SIGMA_RAD, Bearing
-    from controllers.stc.movecount import MoveCount
-    from controllers.stc.perception import CameraPerception
-    from controllers.stc.plant import Floor, Plant
-    from controllers.stc.robot import Robot, act
-    from sim_camera.hardware import load_camera
-    from sim_camera.robot import LEGO_STC_ROBOT
+    from stcvision.controllers.stc.belief import realign
+    from stcvision.controllers.stc.fsm import Action
+    from stcvision.controllers.stc.localise import ROWS_LEAN_SIGMA_RAD, Bearing
+    from stcvision.controllers.stc.movecount import MoveCount
+    from stcvision.controllers.stc.perception import CameraPerception
+    from stcvision.controllers.stc.plant import Floor, Plant
+    from stcvision.controllers.stc.robot import Robot, act
+    from stcvision.sim_camera.hardware import load_camera
+    from stcvision.sim_camera.robot import LEGO_STC_ROBOT
     from stcvision.stc_geometry import entry_axes
 
     askew = math.radians(-1.2)
@@ -420,7 +420,7 @@ def test_a_turn_after_the_lights_set_the_heading_keeps_their_correction():
     import math
     from types import SimpleNamespace
 
-    from controllers.stc.belief import lay_row, realign
+    from stcvision.controllers.stc.belief import lay_row, realign
 
     class _Plant:
         heading_rad = 0.0
@@ -456,7 +456,7 @@ class _LandingTruth:
         self.board, self.checked, self.wrong = board, 0, []
 
     def on_reading(self, ev):
-        from controllers.stc.oracle import observe_oracle
+        from stcvision.controllers.stc.oracle import observe_oracle
 
         if ev.kind != "decision" or ev.decision.child is not None or ev.decision.final:
             return  # only a return to the parent lands where the tour may close
@@ -481,7 +481,7 @@ def test_the_landing_by_the_count_of_moves_is_the_floors_truth(cells, fraction, 
     floor's record, and the tours complete."""
     import numpy as np
 
-    from controllers.stc.experiments import random_board
+    from stcvision.controllers.stc.experiments import random_board
 
     board = random_board(cells, cells, fraction, seed)
     if start == "any":  # every start heading: the start anywhere on the board
@@ -499,7 +499,7 @@ def test_the_landing_by_the_count_of_moves_is_the_floors_truth(cells, fraction, 
 
 def _reading(start, *lit):
     """A decision's reading with boxes ``lit`` lit and the start mark in sub-cell ``start``."""
-    from controllers.stc.fsm import NeighbourObs, StcObservation
+    from stcvision.controllers.stc.fsm import NeighbourObs, StcObservation
 
     nb = (NeighbourObs(False, False),) * 4
     return StcObservation(boxes=tuple(b in lit for b in range(1, 6)), neighbours=nb, start_mark=start)
@@ -523,7 +523,7 @@ def test_a_box_one_frame_alone_shows_is_settled_by_two_longer_frames_agreeing():
     it. Now the longer frame's own reading decides when a second frame at its rung reads the
     same boxes; two that disagree, or a longer frame's reading no tour shows, still stop the
     robot before it decides."""
-    from controllers.stc.frames import Exposures
+    from stcvision.controllers.stc.frames import Exposures
 
     short, cam = _reading(None, 2, 3, 4), Exposures(CoverConfig())
     for longer, settled in (([_reading(None, 3, 4)] * 2, (3, 4)), ([_reading(None, 3, 4), _reading(None, 4)], None),
@@ -553,7 +553,7 @@ def test_a_start_mark_away_from_the_start_is_read_again_and_settled_or_stopped_o
     before it decides."""
     import dataclasses
 
-    from controllers.stc.frames import Exposures
+    from stcvision.controllers.stc.frames import Exposures
 
     seen, cam = _reading(3, 2, 4), Exposures(CoverConfig())
     off_lines = dataclasses.replace(_reading(3, 2, 4), other_marks=4)
@@ -578,7 +578,7 @@ def test_dots_with_no_line_within_reach_are_left_out_of_the_cell_fit():
     and they count as no row on no line; a row within reach of a line still counts."""
     import numpy as np
 
-    from controllers.stc.cellfit import NEAR_LINE, fit_cell_offset
+    from stcvision.controllers.stc.cellfit import NEAR_LINE, fit_cell_offset
 
     cell_pts = np.array(_DECISION_317)
     clean = fit_cell_offset(cell_pts, np.ones(len(cell_pts), bool), _PIPELINE_OFFSET_317)
@@ -596,7 +596,7 @@ def test_a_first_entry_read_with_a_box_is_read_again_and_settled_or_stopped_on()
     new" although its look was right (a neighbour's row read in box 5). With a longer frame:
     two at that rung agreeing on no mark settle it; a longer frame showing the box, or two that
     disagree, keep the stop, before any decision."""
-    from controllers.stc.frames import Exposures, _check_fresh
+    from stcvision.controllers.stc.frames import Exposures, _check_fresh
 
     seen, cam = _check_fresh(_reading(None, 5)), Exposures(CoverConfig())
     assert seen.misread
@@ -620,8 +620,8 @@ def test_a_first_entry_read_with_a_box_is_read_again_and_settled_or_stopped_on()
 def test_the_move_log_is_the_count_of_moves():
     """The study switch's log: the start cell, then each cell a forward move lands in; at a
     decision the neighbours read marked outside it are suspect, at a look the cell ahead."""
-    from controllers.stc.fsm import NeighbourObs
-    from controllers.stc.movecount import MoveCount, MoveLog
+    from stcvision.controllers.stc.fsm import NeighbourObs
+    from stcvision.controllers.stc.movecount import MoveCount, MoveLog
 
     count = MoveCount((3, 2))  # cell (1, 1)
     log = MoveLog(count)
@@ -683,10 +683,10 @@ def test_the_move_log_rereads_a_box_whose_row_it_laid():
     second time, the robot decides on it; missed again, it stops with the reason."""
     import dataclasses
 
-    from controllers.stc.fsm import StcObservation
-    from controllers.stc.grid import frame_subcells
-    from controllers.stc.movecount import MoveCount, MoveLog
-    from controllers.stc.robot import Robot
+    from stcvision.controllers.stc.fsm import StcObservation
+    from stcvision.controllers.stc.grid import frame_subcells
+    from stcvision.controllers.stc.movecount import MoveCount, MoveLog
+    from stcvision.controllers.stc.robot import Robot
 
     count = MoveCount((5, 5))
     robot = Robot(None, Belief((5, 5), 0, 1.5), None, None, count, log=MoveLog(count))
@@ -711,11 +711,11 @@ def _look_at(row: str):
     LEDs, on the rear edge of the cell ahead's nearest sub-cell), ``"off line"`` the same row
     across that sub-cell's middle (on no line a tour marks), ``"scatter"`` four dots in no row
     (a stain, a bloom), ``"none"`` nothing."""
-    from controllers.stc.grid import step_from
-    from controllers.stc.perception import CameraPerception
-    from controllers.stc.plant import Floor, Plant
-    from sim_camera.hardware import load_camera
-    from sim_camera.robot import LEGO_STC_ROBOT
+    from stcvision.controllers.stc.grid import step_from
+    from stcvision.controllers.stc.perception import CameraPerception
+    from stcvision.controllers.stc.plant import Floor, Plant
+    from stcvision.sim_camera.hardware import load_camera
+    from stcvision.sim_camera.robot import LEGO_STC_ROBOT
     from stcvision.stc_geometry import entry_axes
 
     board = Board(np.zeros((8, 8), bool), (7, 3))
@@ -744,7 +744,7 @@ def test_a_look_reads_a_row_at_once_and_scattered_dots_again_then_stops():
     on a tour line or off it (the look reads where the robot believes it stands), is read marked
     at once; four dots in no row (a stain, a bloom) are looked at again with a longer frame and,
     still no row, stop the robot before it decides; an empty cell is read unmarked."""
-    from controllers.stc.health import RobotStop
+    from stcvision.controllers.stc.health import RobotStop
 
     for row in ("tour", "off line"):
         see, plant, belief, floor = _look_at(row)
@@ -763,11 +763,11 @@ def test_a_neighbour_read_marked_by_dots_on_no_tour_line_stays_a_candidate():
     are counted as unproven. Two rows of the robot's own cell (box 5's and box 2's lines) pin its
     offset, as the rows of a tour do: a lone row in view would let the marks' offset move the
     robot until even the stray dots lie on a line."""
-    from controllers.stc.grid import frame_compass, step_from
-    from controllers.stc.perception import CameraPerception
-    from controllers.stc.plant import Floor, Plant
-    from sim_camera.hardware import load_camera
-    from sim_camera.robot import LEGO_STC_ROBOT
+    from stcvision.controllers.stc.grid import frame_compass, step_from
+    from stcvision.controllers.stc.perception import CameraPerception
+    from stcvision.controllers.stc.plant import Floor, Plant
+    from stcvision.sim_camera.hardware import load_camera
+    from stcvision.sim_camera.robot import LEGO_STC_ROBOT
     from stcvision.stc_geometry import entry_axes
 
     board = Board(np.zeros((8, 8), bool), (7, 3))

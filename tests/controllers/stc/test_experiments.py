@@ -1,4 +1,4 @@
-"""The STC dependability sweep (controllers.stc.experiments, ``stcvision cover sweep --maps``):
+"""The STC dependability sweep (stcvision.controllers.stc.experiments, ``stcvision cover sweep --maps``):
 maps and random boards of drawn size, obstacles and start; the table's counts against its runs,
 the interval against scipy's binomtest; replay by ``stcvision cover``; bad input in one line."""
 
@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from scipy.stats import binomtest
 
-from controllers.stc import experiments as ex
+from stcvision.controllers.stc import experiments as ex
 
 
 @pytest.fixture

@@ -1,9 +1,9 @@
-"""The fault experiment (controllers.stc.fault_sweep) end to end on a tiny board: the library
+"""The fault experiment (stcvision.controllers.stc.fault_sweep) end to end on a tiny board: the library
 call and ``stcvision cover faults`` give the same table, and its files are written."""
 
 import json
 
-from controllers.stc.fault_sweep import OUTCOMES, sweep_faults
+from stcvision.controllers.stc.fault_sweep import OUTCOMES, sweep_faults
 from stcvision.sweep import SweepOptions
 
 

@@ -10,12 +10,12 @@ import json
 import numpy as np
 import pytest
 
-from controllers.stc.experiments import random_board
-from controllers.stc.fault_sweep import outcome
-from controllers.stc.faults import FAULTS, Faults, FaultyCamera, fault_stream, parse_fault
-from controllers.stc.health import FRAME_RETRIES, RobotStop, frame_fault
-from controllers.stc.loop import CoverConfig, run_cover, streams
 from stcvision.cli import main
+from stcvision.controllers.stc.experiments import random_board
+from stcvision.controllers.stc.fault_sweep import outcome
+from stcvision.controllers.stc.faults import FAULTS, Faults, FaultyCamera, fault_stream, parse_fault
+from stcvision.controllers.stc.health import FRAME_RETRIES, RobotStop, frame_fault
+from stcvision.controllers.stc.loop import CoverConfig, run_cover, streams
 from stcvision.errors import BadInputError
 
 #: the abort reasons a fault may end a run with: each says what the robot found
@@ -97,8 +97,8 @@ def test_frame_fault_names_lost_and_black_frames():
 
 def test_a_dead_camera_stops_the_robot():
     """Every frame lost: FRAME_RETRIES re-takes, then a specific stop, never a reading."""
-    from controllers.stc.frames import RobotCamera
-    from sim_camera.phosphor import PhosphorLayer
+    from stcvision.controllers.stc.frames import RobotCamera
+    from stcvision.sim_camera.phosphor import PhosphorLayer
 
     board = random_board(2, 2, 0.0, 0)
     wrap = Faults((("drop", 0.5),), 0, "camera").camera_wrap(board)
@@ -116,9 +116,9 @@ def test_a_frame_the_pipeline_cannot_trust_stops_the_robot(monkeypatch):
     instead of a decision on it."""
     import dataclasses
 
-    from controllers.stc.frames import RobotCamera
-    from sim_camera.phosphor import PhosphorLayer
+    from stcvision.controllers.stc.frames import RobotCamera
     from stcvision.pipeline import Pipeline
+    from stcvision.sim_camera.phosphor import PhosphorLayer
 
     process = Pipeline.process
 
@@ -170,7 +170,7 @@ def test_recorder_compresses_and_subsamples(tmp_path):
     The budget keeps a 22x22 board's recording to ~300 full readings."""
     import rerun as rr
 
-    from controllers.stc.recorder import READINGS_BUDGET, CoverRecorder, readings_every
+    from stcvision.controllers.stc.recorder import READINGS_BUDGET, CoverRecorder, readings_every
 
     assert readings_every(random_board(2, 2, 0.0, 0)) == 1
     big = random_board(22, 22, 0.1, 0)

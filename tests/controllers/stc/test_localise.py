@@ -1,4 +1,4 @@
-"""The robot's offset belief weighted against each reading (:mod:`controllers.stc.localise`):
+"""The robot's offset belief weighted against each reading (:mod:`stcvision.controllers.stc.localise`):
 the Kalman weights, the gate that leaves a centimetres-off marks reading out, and the recorded
 readings of the run in which one such reading, taken whole, led to a wrong decision; and the
 heading's uncertainty, which decides when the rows' lean may turn the robot."""
@@ -10,7 +10,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from controllers.stc.localise import (
+from stcvision.controllers.stc.localise import (
     GATE,
     LIGHTS_SIGMA_M,
     MARKS_SIGMA_M,

@@ -9,13 +9,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from controllers.stc.frames import AUTO_LONG
-from controllers.stc.loop import CoverConfig, run_cover
-from controllers.stc.loop import is_complete as complete
-from controllers.stc.observers import Observer
-from sim_camera.board import Board
-from sim_camera.camera import SyntheticCamera, visibility_horizon_s
 from stcvision.cli import main
+from stcvision.controllers.stc.frames import AUTO_LONG
+from stcvision.controllers.stc.loop import CoverConfig, run_cover
+from stcvision.controllers.stc.loop import is_complete as complete
+from stcvision.controllers.stc.observers import Observer
+from stcvision.sim_camera.board import Board
+from stcvision.sim_camera.camera import SyntheticCamera, visibility_horizon_s
 
 
 def small_board(seed):
@@ -152,11 +152,11 @@ def _look_frame(marks, *, age_s, exposure_s=2.0, gain=4.0, seed=0):
     """A robot about to leave its cell northwards (front-right sub-cell, heading north) on a
     free 6x6 board, with marks ``(sub-cell, edge direction)`` of age ``age_s``: what
     ``marks_ahead`` counts on one frame."""
-    from calibration.profiles import default_profile
-    from sim_camera.camera import Pose
-    from sim_camera.phosphor import PhosphorLayer, mark_dots_m
+    from stcvision.calibration.profiles import default_profile
     from stcvision.observation import marks_ahead
     from stcvision.pipeline import Pipeline
+    from stcvision.sim_camera.camera import Pose
+    from stcvision.sim_camera.phosphor import PhosphorLayer, mark_dots_m
 
     board = Board(np.zeros((12, 12), bool), (7, 5))
     cam = SyntheticCamera()
@@ -192,7 +192,7 @@ def test_exposure_rungs_follow_the_clock():
     """Auto exposure: the frame taken for a claim is the shortest whose horizon at the claim's
     distance covers the oldest mark there can be (the clock); the horizons grow with the rung
     and shrink with the distance."""
-    from controllers.stc.frames import RobotCamera as _Camera
+    from stcvision.controllers.stc.frames import RobotCamera as _Camera
 
     board = Board.random((3, 3), obstacle_fraction=0.0, rng=np.random.default_rng(0))
     cam = _Camera(board, CoverConfig(exposure="auto"), np.random.default_rng(0))
@@ -232,8 +232,8 @@ def test_ideal_camera_sees_exactly_the_marks_within_the_horizon():
     horizon at its distance (the Rose criterion), so a webcam frame sees a 30 s old mark 0.25 m
     away, not a 200 s old one, and nothing under the robot's body (inside the mirror's blind
     circle); a 30 s frame sees the 200 s old one too."""
-    from controllers.stc.frames import IdealCamera as _Ideal
-    from sim_camera.phosphor import PhosphorLayer
+    from stcvision.controllers.stc.frames import IdealCamera as _Ideal
+    from stcvision.sim_camera.phosphor import PhosphorLayer
 
     board = Board.random((3, 3), obstacle_fraction=0.0, rng=np.random.default_rng(0))
     ph = PhosphorLayer()
@@ -291,7 +291,7 @@ def test_camera_mode_covers_a_12x12_board_with_the_cooled_camera():
     at the start, 0 wrong decisions, in ~3,700 s of robot time (the webcam, exposure control
     on, stops "out of sight" before deciding on its 12x12 boards: it never takes for absent a
     mark its frames could not have shown)."""
-    from sim_camera import hardware
+    from stcvision.sim_camera import hardware
 
     board = Board.random((12, 12), obstacle_fraction=0.15, rng=np.random.default_rng(0))
     r = run_cover(

@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from controllers.stc.fsm import (
+from stcvision.controllers.stc.fsm import (
     REENTRY_BOXES,
     Action,
     NeighbourObs,
@@ -18,9 +18,9 @@ from controllers.stc.fsm import (
     initial_state,
     step,
 )
-from controllers.stc.grid import COMPASS_VEC, start_heading
-from controllers.stc.oracle import MarkFloor, look_oracle, observe_oracle, run_oracle
-from sim_camera.board import Board
+from stcvision.controllers.stc.grid import COMPASS_VEC, start_heading
+from stcvision.controllers.stc.oracle import MarkFloor, look_oracle, observe_oracle, run_oracle
+from stcvision.sim_camera.board import Board
 
 MAPS = Path(__file__).resolve().parents[3] / "datasets" / "peer_data" / "pythonrobotics_maps"
 
@@ -68,7 +68,7 @@ def test_random_boards_random_start_subcell_and_heading():
         patterns |= set(r["box_patterns"])
     assert closed > 10
     # the lit-box sets on (re-)entry: all five boxes occur, nothing else (box_table_violations);
-    # the camera's reading of a return is checked against these (controllers.stc.claims.check_return)
+    # the camera's reading of a return is checked against these (stcvision.controllers.stc.claims.check_return)
     assert patterns == {(), *REENTRY_BOXES}
 
 
@@ -198,8 +198,8 @@ def test_step_start_sequence_and_done_is_absorbing():
 def test_checker_catches_a_wrong_box_rule(monkeypatch):
     """The ground-truth check is not vacuous: drop box 5 from the 'sub-cell 1 visited' rule (in
     the controller's own decision, which run_oracle checks)."""
-    import controllers.stc.fsm as fsm
-    import controllers.stc.oracle as stc
+    import stcvision.controllers.stc.fsm as fsm
+    import stcvision.controllers.stc.oracle as stc
 
     real = fsm.decide
 
@@ -234,7 +234,7 @@ def test_camera_view_oracle_closes_the_tour_from_the_floor(seed):
 def test_a_look_that_finds_marks_moves_the_exit_on():
     """The decision took the forward neighbour for new; the look from sub-cell 1 finds marks
     there, so the robot walks on to the left neighbour, looks again and enters it."""
-    from controllers.stc.fsm import LookObs
+    from stcvision.controllers.stc.fsm import LookObs
 
     s, a, _ = step(StcState(phase=StcPhase.DECIDE), _obs(marks=(0, 0, 0, 1), red=(1, 0, 0, 0)))
     assert a is Action.FORWARD and s.sub == 1 and s.target == 1  # 0 -> 1, towards the exit forward
@@ -251,7 +251,7 @@ def test_a_look_that_finds_marks_moves_the_exit_on():
 
 
 def test_looks_that_find_every_child_marked_return_to_the_parent():
-    from controllers.stc.fsm import LookObs
+    from stcvision.controllers.stc.fsm import LookObs
 
     s, a, _ = step(StcState(phase=StcPhase.DECIDE), _obs(marks=(0, 0, 1, 1)))
     assert a is Action.TURN_RIGHT and s.target == 0  # right looked free: face it
@@ -280,7 +280,7 @@ def test_a_landing_the_decision_could_not_see_is_looked_at_before_the_return(mar
     """The decision's frames could not tell whether the sub-cell a return to the parent lands
     on is marked (``landing_known`` false): at the exit the robot looks at it, from next to it.
     Marked, it is the start sub-cell and the move closes the tour (no decision there)."""
-    from controllers.stc.fsm import LookObs
+    from stcvision.controllers.stc.fsm import LookObs
 
     obs = dataclasses.replace(_obs(marks=(1, 1, 1, 0)), landing_known=(True, True, True, False))
     s, a, _ = step(StcState(phase=StcPhase.DECIDE), obs)

@@ -8,10 +8,10 @@ from pathlib import Path
 
 import pytest
 
-from controllers.stc.experiments import random_board
-from controllers.stc.fsm import Action
-from controllers.stc.loop import CoverConfig, run_cover
-from controllers.stc.robot import act
+from stcvision.controllers.stc.experiments import random_board
+from stcvision.controllers.stc.fsm import Action
+from stcvision.controllers.stc.loop import CoverConfig, run_cover
+from stcvision.controllers.stc.robot import act
 
 ROOM = Path(__file__).resolve().parents[3] / "controllers" / "stc"
 
@@ -55,7 +55,7 @@ def test_the_robots_memory_is_the_same_on_a_small_and_a_large_board():
 @pytest.mark.parametrize("name", ["robot.py", "loop.py", "fsm.py", "movecount.py", "belief.py", "localise.py"])
 def test_the_ant_like_robot_holds_no_container_that_grows_with_the_board(name):
     """The robot's own modules keep no set, dict or list across decisions, apart from the study
-    switch's :class:`controllers.stc.movecount.MoveLog`: no attribute is assigned a container
+    switch's :class:`stcvision.controllers.stc.movecount.MoveLog`: no attribute is assigned a container
     display or constructor outside it."""
     tree = ast.parse((ROOM / name).read_text())
     grown = []
@@ -87,10 +87,10 @@ def test_the_start_cell_takes_its_start_mark_from_the_count_when_the_frames_miss
     """In the start cell the count of moves says which sub-cell is the start sub-cell: a reading
     that missed the start mark (the tour's oldest mark) gets it from the count; one that reads it
     in another sub-cell is not decided on; outside the start cell the reading stands."""
-    from controllers.stc.belief import Belief
-    from controllers.stc.fsm import NeighbourObs, StcObservation, StcPhase, StcState
-    from controllers.stc.movecount import MoveCount
-    from controllers.stc.robot import Robot
+    from stcvision.controllers.stc.belief import Belief
+    from stcvision.controllers.stc.fsm import NeighbourObs, StcObservation, StcPhase, StcState
+    from stcvision.controllers.stc.movecount import MoveCount
+    from stcvision.controllers.stc.robot import Robot
 
     def read(start_mark, moved):
         obs = StcObservation(boxes=(False,) * 5, neighbours=(NeighbourObs(False, False),) * 4, start_mark=start_mark)
@@ -119,11 +119,11 @@ def test_turns_no_row_measured_are_taken_out_at_the_first_measured_turn(turns):
 
     import numpy as np
 
-    from controllers.stc.belief import Belief, finish_turn, turn
-    from controllers.stc.plant import Plant
-    from sim_camera.board import Board
-    from sim_camera.robot import LEGO_STC_ROBOT
     from stcvision.angles import wrap_angle
+    from stcvision.controllers.stc.belief import Belief, finish_turn, turn
+    from stcvision.controllers.stc.plant import Plant
+    from stcvision.sim_camera.board import Board
+    from stcvision.sim_camera.robot import LEGO_STC_ROBOT
 
     board = Board(np.zeros((4, 4), bool), (3, 1))
     plant = Plant(board, LEGO_STC_ROBOT, np.random.default_rng(0))
