@@ -173,6 +173,9 @@ def _cell_truth(camera, pose, board, truth, red_lights_m) -> dict:
         inside = lambda pts, c=nc: (  # noqa: E731
             (np.abs((pts - c) @ right) < D) & (np.abs((pts - c) @ up) < D)
         )
+        if len(xy):
+            for k in np.flatnonzero(inside(xy)):  # which neighbour's marks a dot is, for scoring them
+                lit_dots[k]["neighbour"] = name
         neighbours.append(
             {
                 "direction": name,

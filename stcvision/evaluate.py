@@ -67,16 +67,6 @@ def exposure_key(sensor: dict) -> str:
     return f"{1000 * sensor['exposure_s']:.4g} ms, gain {sensor['gain']:g}"
 
 
-def box_truth(truth: dict, box: int, *, snr_visible=8.0, snr_ambiguous=3.0, min_dots=2) -> bool | None:
-    """True/False if box ``box`` is marked / unmarked in the truth, None if at the edge of
-    visibility (the same rule as :func:`stcvision.scoring.score_frame`)."""
-    snrs = sorted(
-        (t["snr"] for t in truth["dots"] if t["visible"] and t["age_s"] >= 0 and t.get("box") == box), reverse=True
-    )
-    m = snrs[min_dots - 1] if len(snrs) >= min_dots else 0.0
-    return None if snr_ambiguous <= m < snr_visible else m >= snr_visible
-
-
 def recall_by_age(found: list, missed: list) -> list[dict]:
     f, m = np.asarray(found, float), np.asarray(missed, float)
     out = []
@@ -344,8 +334,9 @@ def evaluate_frames(
     """Run and score the pipeline on the frames ``indices`` of ``ds`` (label order): one
     :class:`FrameRecord` per readable frame, and ``{"frame", "reason"}`` per frame that could not
     be decoded (skipped). ``on_frame(1)`` is called after each frame (progress)."""
+    from stcvision.labels import label_from_truth
     from stcvision.pipeline import Pipeline
-    from stcvision.scoring import score_frame
+    from stcvision.scoring import score_label
 
     frames = LabelledFrames(ds, default_profile=default_profile, profile=profile)
     records: list[FrameRecord] = []
@@ -354,35 +345,32 @@ def evaluate_frames(
         cam = lab.get("camera", "cam0")
         pipe = frames.built("pipeline", lab, lambda prof, dark: Pipeline(prof, dark=dark))
         res = pipe.process(img)
-        sc = score_frame(res, lab, pipe.profile)
+        rendered = "pose" in lab  # the simulator's truth, else a person's label
+        label = label_from_truth(lab) if rendered else lab
+        sc = score_label(res, label, pipe.profile)
         rec = FrameRecord(
             index=i,
             frame=lab["frame"],
             group=lab.get("group", ""),
-            exposure=exposure_key(lab["sensor"]),
+            exposure=exposure_key(lab["sensor"]) if rendered else lab.get("exposure", "as labelled"),
             score=sc,
             total_ms=res.total_ms,
             stage_ms=dict(res.stage_ms),
+            boxes=list(sc.box_pairs),
+            obstacles=list(sc.red_pairs),
         )
-        cell = lab.get("cell")
-        if cell is not None:
-            obs = res.observation
-            for b in obs.boxes:
-                t = box_truth(lab, b.box)
-                if t is not None:
-                    rec.boxes.append((t, b.lit))
-            tn = {n["direction"]: n for n in cell["neighbours"]}
-            for name, n in obs.neighbours.items():
-                rec.obstacles.append((tn[name]["has_red"], n.has_red))
+        nb = label.get("neighbours")
+        if nb:
             rec.neighbour_config = " ".join(
-                f"{d}:{'R' if tn[d]['has_red'] else '-'}{'M' if tn[d].get('has_marks') else ''}"
+                f"{d}:{'R' if nb[d].get('red') else '-'}{'M' if nb[d].get('marks') else ''}"
                 for d in ("right", "forward", "left")
-                if d in tn
+                if d in nb
             )
-        rec.visible = visible_detection(res, lab)
+        if rendered:
+            rec.visible = visible_detection(res, lab)
+            rec.floor_err_mm = profile_floor_error_mm(pipe.profile, lab)
         rec.camera = cam
-        rec.floor_err_mm = profile_floor_error_mm(pipe.profile, lab)
-        rec.badness = _badness(sc, cell is not None)
+        rec.badness = _badness(sc, "heading_error_deg" in label)
         records.append(rec)
     return records, skipped
 
@@ -548,7 +536,7 @@ def eval_chunk(params: dict, seed) -> dict:
     from stcvision.datasets import open_dataset
     from stcvision.profile import Profile
 
-    ds = open_dataset(params["dataset"])
+    ds = open_dataset(params["dataset"], dark=params.get("dark"))
     if _sha256(ds.root / "labels.jsonl") != params["labels_sha256"]:
         raise BadInputError(f"dataset {ds.root} changed while it was being evaluated")
     profile = Profile.load(params["profile"]) if params["profile"] else None
@@ -559,14 +547,15 @@ def eval_chunk(params: dict, seed) -> dict:
     return {"records": [r.to_record() for r in records], "skipped": skipped}
 
 
-def sweep_evaluation(ds, *, profile_path=None, default_profile_path=None, options=None, store=None):
+def sweep_evaluation(ds, *, profile_path=None, default_profile_path=None, options=None, store=None, dark_path=None):
     """Every frame of dataset ``ds`` through :func:`eval_chunk` tasks of the sweep runner.
 
     ``profile_path`` is used for every frame; without it each camera's own profile from the
     dataset, else ``default_profile_path``. ``options`` is a
     :class:`stcvision.sweep.SweepOptions` (workers or a Dask scheduler); with ``store`` (a
-    ``.jsonl`` path) an interrupted evaluation resumes. Returns ``(Evaluation, SweepReport)``;
-    frames skipped as unreadable are named on stderr.
+    ``.jsonl`` path) an interrupted evaluation resumes. ``dark_path``: a labelled folder's dark
+    frame for the frames whose label names none (:func:`stcvision.datasets.open_labelled_folder`).
+    Returns ``(Evaluation, SweepReport)``; frames skipped as unreadable are named on stderr.
     """
     import tempfile
 
@@ -581,6 +570,7 @@ def sweep_evaluation(ds, *, profile_path=None, default_profile_path=None, option
         "profile": str(Path(profile_path).resolve()) if profile_path else None,
         "profile_sha256": _sha256(profile_path) if profile_path else None,
         "default_profile": None if profile_path else str(default_profile_path),
+        "dark": str(Path(dark_path).resolve()) if dark_path else None,
     }
     n = len(ds.labels)
     tasks = [

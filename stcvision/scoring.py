@@ -1,15 +1,12 @@
-"""Score pipeline results against ground truth (``stcvision.sim_camera`` truth dicts).
+"""Score pipeline results against a frame's label: a person's (``labels.jsonl`` of real frames)
+or the simulator's ground truth written as one (:func:`stcvision.labels.label_from_truth`).
 
-Used by the tests and by ``stcvision eval``. Only what the camera can see is held against the
-pipeline: a truth dot "should be found" if it is visible and its expected SNR is at least
-``snr_visible`` (8: the detection threshold is 5, and the expected SNR assumes a perfectly
-centred window and a noiseless dark frame). A box counts as marked if ``min_dots`` of its dots
-should be found (the observation needs that many), and is left out (ambiguous) if its
-``min_dots``-th brightest dot lies between ``snr_ambiguous`` and ``snr_visible`` -- at the edge
-of the visibility horizon. ``snr_ambiguous`` is 1.5: the faint-row search reads a row of four
-dots whose SNRs average 3 (sum / 2 >= 6), or, through one found dot, 2.5 for the other three,
-and noise lets it read some a little fainter; such a box is really marked, so reading it either
-way is not held against the pipeline.
+Used by the tests and by ``stcvision eval``. :func:`score_label` is the one scoring; only what a
+label says is held against the pipeline, and what it leaves out (a box at the edge of
+visibility, a field a labeller did not fill) is not scored. From the simulator's truth a dot
+"should be found" if it is visible and its expected SNR is at least
+:data:`stcvision.labels.SNR_VISIBLE`, and a fainter one down to
+:data:`~stcvision.labels.SNR_AMBIGUOUS` is "faint": found or not, it counts neither way.
 """
 
 from __future__ import annotations
@@ -19,7 +16,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-__all__ = ["DotMatch", "FrameScore", "match_dots", "score_frame", "summarize"]
+__all__ = ["DotMatch", "FrameScore", "match_dots", "score_frame", "score_label", "summarize"]
 
 
 @dataclass
@@ -39,6 +36,9 @@ class FrameScore:
     neighbour_marks_correct: int = 0
     neighbour_marks_total: int = 0
     errors: list = field(default_factory=list)
+    box_pairs: list = field(default_factory=list)  # (label lit, read lit)
+    red_pairs: list = field(default_factory=list)  # (label red, read red), per neighbour
+    marks_pairs: list = field(default_factory=list)  # (label marked, read marked), per neighbour
 
 
 @dataclass(frozen=True, eq=False)
@@ -66,13 +66,13 @@ class DotMatch:
         return int(self.matched.sum())
 
 
-def match_dots(xy_m, truth: dict, profile, *, match_m: float = 0.01) -> DotMatch:
+def match_dots(xy_m, truth: dict, profile, *, match_m: float = 0.01, visible_only: bool = True) -> DotMatch:
     """Match detections ``xy_m`` ((N, 2) robot frame, strongest first) to the visible truth
     dots: greedily, each detection to its nearest truth dot if within ``match_m`` and not taken
     already (else it is a false detection). The image error is that of the detection mapped
     through ``profile.robot_to_image`` (none without a profile). Any detector's dots can be scored this way (the
     pipeline's, the plain-OpenCV baseline's)."""
-    tdots = [d for d in truth["dots"] if d["visible"] and d["age_s"] >= 0]
+    tdots = [d for d in truth["dots"] if d["visible"] and d["age_s"] >= 0] if visible_only else list(truth["dots"])
     txy = np.array([d["xy_robot_m"] for d in tdots]).reshape(-1, 2)
     xy = np.asarray(xy_m, float).reshape(-1, 2)
     found = np.full(len(tdots), -1)
@@ -90,61 +90,123 @@ def match_dots(xy_m, truth: dict, profile, *, match_m: float = 0.01) -> DotMatch
     return DotMatch(tdots, found, err_mm, err_px, len(xy))
 
 
-def score_frame(
-    result,
-    truth: dict,
-    profile,
-    *,
-    snr_visible: float = 8.0,
-    snr_ambiguous: float = 1.5,
-    match_m: float = 0.01,
-    min_dots: int = 2,
-) -> FrameScore:
+def _label_dots(label: dict, profile) -> tuple[list, np.ndarray]:
+    """The label's dots as match_dots' truth list and their floor positions (robot frame, m):
+    a dot given by its image position alone is put on the floor through ``profile``."""
+    tdots = []
+    for d in label.get("dots", ()):
+        xy = d.get("xy_m")
+        if xy is None:
+            xy = profile.image_to_robot(np.asarray(d["uv_px"], float)[None])[0].tolist()
+        tdots.append(
+            {"xy_robot_m": xy, "uv_px": d.get("uv_px"), "faint": d.get("faint", False), "age_s": d.get("age_s")}
+        )
+    return tdots
+
+
+def score_label(result, label: dict, profile, *, match_m: float = 0.01) -> FrameScore:
+    """Score one frame's pipeline result against its label.
+
+    Parameters
+    ----------
+    result : stcvision.pipeline.PipelineResult
+        What the pipeline read.
+    label : dict
+        The frame's label (:func:`stcvision.labels.parse_label`'s form); absent fields are not
+        scored.
+    profile : stcvision.profile.Profile
+        The frame's calibration: puts image-labelled dots on the floor and measures the found
+        dots' image error.
+    match_m : float
+        A detection within this distance on the floor of a labelled dot is that dot.
+
+    Returns
+    -------
+    FrameScore
+        Dots expected, found and matched with their errors; the heading error; boxes, neighbour
+        red lights and neighbour marks, each as (label, read) pairs and counts of right readings.
+    """
     sc = FrameScore()
     d = result.dots
-    m = match_dots(d.xy_m[np.flatnonzero(d.lit)], truth, profile, match_m=match_m)
-    tdots = m.truth
-    should = np.array([t["snr"] >= snr_visible for t in tdots], bool)
-    sc.dots_expected = int(should.sum())
-    sc.dots_found = m.n_found
-    sc.dots_true_positive = m.n_true_positive
-    order = np.argsort(m.found, kind="stable")  # in the order the detections were matched
-    for j in order[m.found[order] >= 0]:
-        sc.dot_err_mm.append(float(m.err_mm[j]))
-        if not np.isnan(m.err_px[j]):
-            sc.dot_err_px.append(float(m.err_px[j]))
-    for j, t in enumerate(tdots):
-        if should[j]:
-            (sc.dot_ages_found if m.found[j] >= 0 else sc.dot_ages_missed).append(t["age_s"])
-    cell = truth.get("cell")
-    if cell is not None:
-        true_err = truth["pose"]["heading_rad"] - cell["entry_heading_rad"]
-        if result.heading.ok:
-            sc.heading_err_deg = math.degrees(result.heading.heading_error_rad - true_err)
-
-        def status(sel):
-            snrs = sorted((t["snr"] for t in tdots if sel(t)), reverse=True)
-            m = snrs[min_dots - 1] if len(snrs) >= min_dots else 0.0
-            return None if snr_ambiguous <= m < snr_visible else m >= snr_visible
-
-        obs = result.observation
-        for b in obs.boxes:
-            st = status(lambda t, b=b: t.get("box") == b.box)
-            if st is None:
-                continue
-            sc.boxes_total += 1
-            if b.lit == st:
-                sc.boxes_correct += 1
-            else:
-                sc.errors.append(f"box {b.box}: read {'lit' if b.lit else 'unlit'}")
-        tn = {n["direction"]: n for n in cell["neighbours"]}
-        for name, n in obs.neighbours.items():
+    if "dots" in label:
+        tdots = _label_dots(label, profile)
+        m = match_dots(d.xy_m[np.flatnonzero(d.lit)], {"dots": tdots}, profile, match_m=match_m, visible_only=False)
+        should = np.array([not t["faint"] for t in tdots], bool)
+        sc.dots_expected = int(should.sum())
+        sc.dots_found = m.n_found
+        sc.dots_true_positive = m.n_true_positive
+        order = np.argsort(m.found, kind="stable")  # in the order the detections were matched
+        for j in order[m.found[order] >= 0]:
+            sc.dot_err_mm.append(float(m.err_mm[j]))
+            if not np.isnan(m.err_px[j]):
+                sc.dot_err_px.append(float(m.err_px[j]))
+        for j, t in enumerate(tdots):
+            if should[j]:
+                age = t["age_s"] if t["age_s"] is not None else math.nan
+                (sc.dot_ages_found if m.found[j] >= 0 else sc.dot_ages_missed).append(age)
+    if label.get("heading_error_deg") is not None and result.heading.ok:
+        sc.heading_err_deg = math.degrees(result.heading.heading_error_rad) - label["heading_error_deg"]
+    obs = result.observation
+    for b in obs.boxes:
+        want = label.get("boxes", {}).get(b.box)
+        if want is None:
+            continue
+        sc.box_pairs.append((want, b.lit))
+        sc.boxes_total += 1
+        if b.lit == want:
+            sc.boxes_correct += 1
+        else:
+            sc.errors.append(f"box {b.box}: read {'lit' if b.lit else 'unlit'}")
+    for name, n in obs.neighbours.items():
+        want = label.get("neighbours", {}).get(name, {})
+        if want.get("red") is not None:
+            sc.red_pairs.append((want["red"], n.has_red))
             sc.obstacles_total += 1
-            if n.has_red == tn[name]["has_red"]:
+            if n.has_red == want["red"]:
                 sc.obstacles_correct += 1
             else:
                 sc.errors.append(f"{name}: red read {n.has_red}")
+        if want.get("marks") is not None:
+            sc.marks_pairs.append((want["marks"], n.has_marks))
+            sc.neighbour_marks_total += 1
+            if n.has_marks == want["marks"]:
+                sc.neighbour_marks_correct += 1
+            else:
+                sc.errors.append(f"{name}: marks read {n.has_marks}")
     return sc
+
+
+def score_frame(result, truth: dict, profile, *, match_m: float = 0.01) -> FrameScore:
+    """Score one rendered frame against the simulator's truth: :func:`score_label` on the label
+    the truth makes (:func:`stcvision.labels.label_from_truth`).
+
+    Parameters
+    ----------
+    result : stcvision.pipeline.PipelineResult
+        What the pipeline read.
+    truth : dict
+        The frame's ground truth (``stcvision.sim_camera.truth``).
+    profile : stcvision.profile.Profile
+        The frame's calibration.
+    match_m : float
+        Match distance on the floor.
+
+    Returns
+    -------
+    FrameScore
+        As :func:`score_label`.
+    """
+    from stcvision.labels import label_from_truth
+
+    return score_label(result, label_from_truth(truth), profile, match_m=match_m)
+
+
+def _recall_precision(pairs) -> tuple[float | None, float | None]:
+    """Recall and precision of the positive class (lit, red, marked) over (label, read) pairs."""
+    tp = sum(1 for t, r in pairs if t and r)
+    pos = sum(1 for t, _ in pairs if t)
+    said = sum(1 for _, r in pairs if r)
+    return (tp / pos if pos else None), (tp / said if said else None)
 
 
 def summarize(scores: list[FrameScore]) -> dict:
@@ -158,6 +220,10 @@ def summarize(scores: list[FrameScore]) -> dict:
     head = [s.heading_err_deg for s in scores if s.heading_err_deg is not None]
     bt = sum(s.boxes_total for s in scores)
     ot = sum(s.obstacles_total for s in scores)
+    mt = sum(s.neighbour_marks_total for s in scores)
+    box_r, box_p = _recall_precision([p for s in scores for p in s.box_pairs])
+    red_r, red_p = _recall_precision([p for s in scores for p in s.red_pairs])
+    marks_r, marks_p = _recall_precision([p for s in scores for p in s.marks_pairs])
     return {
         "frames": len(scores),
         "dot_recall": tp_exp / exp if exp else None,
@@ -171,4 +237,12 @@ def summarize(scores: list[FrameScore]) -> dict:
         "boxes_scored": bt,
         "obstacle_accuracy": sum(s.obstacles_correct for s in scores) / ot if ot else None,
         "obstacles_scored": ot,
+        "box_recall": box_r,
+        "box_precision": box_p,
+        "obstacle_recall": red_r,
+        "obstacle_precision": red_p,
+        "neighbour_marks_accuracy": sum(s.neighbour_marks_correct for s in scores) / mt if mt else None,
+        "neighbour_marks_scored": mt,
+        "neighbour_marks_recall": marks_r,
+        "neighbour_marks_precision": marks_p,
     }

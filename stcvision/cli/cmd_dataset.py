@@ -2,6 +2,7 @@
 
   stcvision dataset generate RECIPE.json --out DIR [--seed S] [--workers N | --scheduler tcp://H:P] [--fresh]
   stcvision dataset check DIR
+  stcvision dataset export-labels DIR --out FOLDER [--force]
 
 generate renders a recipe (datasets/recipes/*.json) into DIR: frames/*.png, dark/*.png,
 labels.jsonl (ground truth per frame), manifest.json, and the calibration lights-on frames and
@@ -10,6 +11,10 @@ number of workers or the backend (chunks of frames are tasks of the sweep runner
 docs' Scaling out); re-running skips finished chunks (resume after an interruption), --fresh renders
 everything again; a folder holding another recipe or seed is refused. Generated sets belong in
 the git-ignored datasets/generated/.
+
+export-labels writes a generated dataset as a person's labelled frames (the hand-label format of
+docs/how-to/label-real-frames.md): its frames, dark frames and profiles, and labels.jsonl made
+from the ground truth. 'stcvision eval FOLDER' then gives the numbers 'stcvision eval DIR' gives.
 """
 
 from __future__ import annotations
@@ -47,6 +52,15 @@ def add_parser(p):
     )
     c.add_argument("dir", metavar="DIR")
     c.add_argument("--json", action="store_true", help="print the result as one JSON object")
+    e = sub.add_parser(
+        "export-labels",
+        help="write a dataset as labelled frames (the hand-label format)",
+        description="Write a generated dataset's frames with labels.jsonl in the hand-label format.",
+    )
+    e.add_argument("dir", metavar="DIR", help="a dataset made by 'dataset generate'")
+    e.add_argument("--out", metavar="FOLDER", required=True, help="the folder to write (new or empty)")
+    e.add_argument("--force", action="store_true", help="write into a folder that holds files")
+    e.add_argument("--json", action="store_true", help="print the result as one JSON object")
 
 
 def run(args):
@@ -55,12 +69,20 @@ def run(args):
     from stcvision.errors import BadInputError
 
     if args.step is None:
-        raise BadInputError("dataset needs a step: generate or check (see stcvision dataset --help)")
+        raise BadInputError("dataset needs a step: generate, check or export-labels (see stcvision dataset --help)")
+    if args.step == "export-labels":
+        from stcvision.datasets import open_dataset
+        from stcvision.datasets.export import export_labels
+
+        ds = open_dataset(args.dir)
+        return {"step": "export-labels", **export_labels(ds, args.out, overwrite=args.force)}
     if args.step == "check":
         from stcvision.datasets import open_dataset
 
         ds = open_dataset(args.dir)
         m = ds.manifest
+        if ds.hand_labelled:
+            return {"step": "check", "dir": str(ds.root), "ok": True, "labelled": True, "frames": len(ds.labels)}
         return {
             "step": "check",
             "dir": str(ds.root),
@@ -83,6 +105,10 @@ def run(args):
 
 
 def format_text(r):
+    if r["step"] == "export-labels":
+        return f"{r['out']}: {r['frames']} frames with their labels in the hand-label format ({r['labels']})"
+    if r["step"] == "check" and r.get("labelled"):
+        return f"{r['dir']}: ok, {r['frames']} frames labelled by hand"
     if r["step"] == "check":
         c = r["counts"]
         return (

@@ -2,6 +2,7 @@
 
   stcvision eval DIR [--profile P.json] [--json] [--report OUTDIR] [--rrd R.rrd] [--workers N | --scheduler tcp://H:P]
   stcvision eval --compare A.json B.json
+  stcvision eval LABELLED_FOLDER [--dark D.png | --no-dark] [--profile P.json] [--json] [--report OUTDIR]
   stcvision eval FOLDER_OF_IMAGES (--dark D.png | --no-dark) [--out RESULTS.jsonl] [--rrd R.rrd]
 
 On a dataset (made by 'stcvision dataset generate') every frame is run through the pipeline
@@ -16,6 +17,11 @@ has one, else the shipped default (or --profile for all).
 
 --compare prints, per metric, whether B is better, worse or the same as A (A and B are saved
 '--json' outputs).
+
+On a folder of your own frames with labels.jsonl in the hand-label format
+(docs/how-to/label-real-frames.md: per frame, boxes lit or not, neighbours' red lights and marks,
+the heading error, dots) the same metrics and report are computed against your labels; what a
+label leaves out is not scored.
 
 On a folder of images without labels the pipeline runs on each and writes per-frame results
 (JSONL); there is no truth, so no accuracy.
@@ -112,10 +118,17 @@ def _run_dataset(args, root):
     from stcvision.evaluate import log_worst, sweep_evaluation
     from stcvision.report import write_report
 
-    if args.dark or args.no_dark or args.out:
-        raise BadInputError(f"{root} is a dataset: its dark frames are in the dataset; drop --dark/--no-dark/--out")
-    ds = open_dataset(root)
+    labelled = not (root / "manifest.json").exists()  # a person's labels of real frames
+    if args.out:
+        raise BadInputError(f"{root} has labels: the scores go to --json or --report; drop --out")
+    if not labelled and (args.dark or args.no_dark):
+        raise BadInputError(f"{root} is a dataset: its dark frames are in the dataset; drop --dark/--no-dark")
+    if args.dark and args.no_dark:
+        raise BadInputError("give --dark DARK.png or --no-dark, not both")
+    ds = open_dataset(root, dark=args.dark)
     profile = _load_profile(args.profile)
+    if labelled:
+        _check_labelled(args, ds, profile or _default_profile())
     from stcvision.sweep import sweep_options_from_args
 
     ev, report = sweep_evaluation(
@@ -124,9 +137,10 @@ def _run_dataset(args, root):
         default_profile_path=None if args.profile else _default_profile_path(),
         options=sweep_options_from_args(args),
         store=args.store,
+        dark_path=args.dark,
     )
     r = dict(ev.summary)
-    r["mode"] = "dataset"
+    r["mode"] = "labelled" if labelled else "dataset"
     r["sweep"] = report.summary()
     if args.profile:
         r["profile"] = str(args.profile)
@@ -136,6 +150,27 @@ def _run_dataset(args, root):
         r["rrd"] = str(args.rrd)
         r["rrd_frames"] = log_worst(ev, ds, args.rrd, default_profile=_default_profile(), profile=profile, n=args.worst)
     return r
+
+
+def _check_labelled(args, ds, profile) -> None:
+    """Before any work on a person's labelled frames: each needs its dark frame (or --no-dark),
+    and the first frame's mirror rim, where it shows, must be where the profile has it."""
+    from stcvision.calibration.rim import check_rim_matches
+    from stcvision.errors import BadInputError
+    from stcvision.fileio import read_image
+
+    missing = [lab["frame"] for lab in ds.labels if lab.get("dark") is None]
+    if missing and not args.no_dark:
+        raise BadInputError(
+            f"{ds.root / missing[0]} has no dark frame (its label names none); pass --dark DARK.png (captured "
+            "at the frames' exposure) or --no-dark"
+        )
+    first = ds.labels[0]["frame"]
+    frame = read_image(ds.root / first, what="frame")
+    profile.check_frame(frame.shape, what=str(ds.root / first))
+    check_rim_matches(
+        frame, profile, frame_name=str(ds.root / first), profile_name=f"profile {args.profile or 'default'}"
+    )
 
 
 def _run_images(args, root):
@@ -164,6 +199,12 @@ def _run_images(args, root):
     if args.dark:
         dark = read_image(args.dark, what="dark frame")
         profile.check_frame(dark.shape, what=f"dark frame {args.dark}")
+    if paths:  # where its mirror rim shows (lights on), it must be where the profile has it
+        from stcvision.calibration.rim import check_rim_matches
+
+        first = read_image(paths[0], what="frame")
+        profile.check_frame(first.shape, what=str(paths[0]))
+        check_rim_matches(first, profile, frame_name=str(paths[0]), profile_name=f"profile {args.profile or 'default'}")
     out = Path(args.out) if args.out else root.resolve().parent / f"{root.resolve().name}-results.jsonl"
     if out.exists() and not args.force:
         raise FileExistsRefusedError(f"{out} exists; refusing to overwrite it (use --out or --force)")
@@ -197,16 +238,20 @@ def format_text(r):
     def pct(v):
         return "-" if v is None else f"{100 * v:.2f} %"
 
+    source = "labelled by hand" if r["mode"] == "labelled" else f"recipe {r['recipe']}, seed {r['seed']}"
     out = [
-        f"{r['dataset']} (recipe {r['recipe']}, seed {r['seed']}, profile {r['profile']}): "
-        f"{r['frames']} frames, {r['frames_skipped']} skipped",
+        f"{r['dataset']} ({source}, profile {r['profile']}): {r['frames']} frames, {r['frames_skipped']} skipped",
         f"  dot recall            {pct(r['dot_recall'])}",
         f"  dot precision         {pct(r['dot_precision'])}",
         f"  dot loc. error median {_f(r['dot_loc_err_mm_median'], '.2f')} mm, "
         f"{_f(r['dot_loc_err_px_median'], '.2f')} px",
         f"  heading error RMS     {_f(r['heading_err_deg_rms'], '.3f')} deg ({r['heading_fits']} fits)",
-        f"  box accuracy          {pct(r['box_accuracy'])} of {r['boxes_scored']}",
-        f"  obstacle accuracy     {pct(r['obstacle_accuracy'])} of {r['obstacles_scored']}",
+        f"  box accuracy          {pct(r['box_accuracy'])} of {r['boxes_scored']} "
+        f"(recall {pct(r['box_recall'])}, precision {pct(r['box_precision'])})",
+        f"  obstacle accuracy     {pct(r['obstacle_accuracy'])} of {r['obstacles_scored']} "
+        f"(recall {pct(r['obstacle_recall'])}, precision {pct(r['obstacle_precision'])})",
+        f"  neighbour marks       {pct(r['neighbour_marks_accuracy'])} of {r['neighbour_marks_scored']} "
+        f"(recall {pct(r['neighbour_marks_recall'])}, precision {pct(r['neighbour_marks_precision'])})",
         f"  ms per frame median   {_f(r['ms_per_frame_median'], '.2f')}",
         "  by exposure:",
     ]

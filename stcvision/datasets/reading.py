@@ -13,7 +13,10 @@ from stcvision.datasets.layout import DATASET_SCHEMA_VERSION, IMAGE_SUFFIXES
 from stcvision.errors import BadInputError
 from stcvision.fileio import read_json
 
-__all__ = ["Dataset", "list_images", "open_dataset"]
+#: a labelled folder's manifest kind (a generated dataset's is "stcvision-dataset")
+LABELLED_KIND = "labelled-frames"
+
+__all__ = ["Dataset", "list_images", "open_dataset", "open_labelled_folder"]
 
 
 @dataclass(frozen=True)
@@ -25,6 +28,12 @@ class Dataset:
     labels: list[dict]
 
     @property
+    def hand_labelled(self) -> bool:
+        """True for a person's labelled frames (:func:`open_labelled_folder`), False for a set
+        the simulator rendered with its ground truth."""
+        return self.manifest["kind"] == LABELLED_KIND
+
+    @property
     def image_size_px(self) -> tuple[int, int]:
         return tuple(self.manifest["image_size_px"])
 
@@ -33,8 +42,11 @@ class Dataset:
         return self.root / p if p else None
 
 
-def open_dataset(root: str | Path) -> Dataset:
+def open_dataset(root: str | Path, *, dark: str | Path | None = None) -> Dataset:
     """Read and check a dataset folder; every problem is a one-line :class:`BadInputError`.
+
+    A folder with ``labels.jsonl`` and no ``manifest.json`` is a person's labelled frames
+    (:func:`open_labelled_folder`, which ``dark`` is for).
 
     Checked: the manifest exists (when labels do) and is a complete dataset of a known schema;
     every line of ``labels.jsonl`` is a JSON object naming a frame; the manifest's frame count
@@ -52,10 +64,7 @@ def open_dataset(root: str | Path) -> Dataset:
     if not mpath.exists() and not lpath.exists():
         raise BadInputError(f"{root} is not a dataset (no manifest.json); expected a folder made by 'dataset generate'")
     if not mpath.exists():
-        raise BadInputError(
-            f"dataset {root} has labels.jsonl but no manifest.json; expected a folder made by "
-            "'stcvision dataset generate' (or remove labels.jsonl to run on the images without labels)"
-        )
+        return open_labelled_folder(root, dark=dark)
     m = read_json(mpath, what="dataset manifest")
     if not isinstance(m, dict) or m.get("kind") != "stcvision-dataset":
         raise BadInputError(f'{mpath} is not a dataset manifest (no "kind": "stcvision-dataset")')
@@ -113,6 +122,71 @@ def open_dataset(root: str | Path) -> Dataset:
         if c.get("profile") and not (root / c["profile"]).exists():
             raise BadInputError(f"profile {root / c['profile']} of camera {cid} is missing")
     return Dataset(root, m, labels)
+
+
+def _inside(root: Path, name: str, what: str, where: str) -> Path:
+    """``root / name`` for a name relative to the folder; one that leaves it is refused."""
+    p = Path(name)
+    if p.is_absolute() or ".." in p.parts:
+        raise BadInputError(f"{where}: {what} {name!r} is not a path inside {root}; expected one relative to it")
+    return root / p
+
+
+def open_labelled_folder(root: str | Path, *, dark: str | Path | None = None) -> Dataset:
+    """A folder of a robot's own frames with a person's ``labels.jsonl`` (:mod:`stcvision.labels`).
+
+    Parameters
+    ----------
+    root : str or Path
+        The folder; each label's ``frame``, ``dark`` and ``profile`` are relative to it.
+    dark : str or Path, optional
+        The dark frame of the frames whose label names none (``eval --dark``).
+
+    Returns
+    -------
+    Dataset
+        Its labels as the evaluation reads them: ``camera`` is the label's profile (or
+        ``default``), ``dark`` its dark frame (the label's, else ``dark``, else None); the
+        manifest gives the first frame's size, which every frame must have.
+
+    Raises
+    ------
+    BadInputError
+        A label that is not one, a frame, dark frame or profile that is missing, an image that
+        cannot be read.
+    """
+    from stcvision.fileio import read_image
+    from stcvision.labels import read_labels
+
+    root = Path(root)
+    lpath = root / "labels.jsonl"
+    labels = read_labels(lpath)
+    cameras: dict[str, dict] = {}
+    for i, lab in enumerate(labels, 1):
+        where = f"{lpath} label {i} ({lab['frame']})"
+        if not _inside(root, lab["frame"], "frame", where).is_file():
+            raise BadInputError(f"{where}: the frame {root / lab['frame']} is missing")
+        if lab.get("dark") is not None:
+            if not _inside(root, lab["dark"], "dark", where).is_file():
+                raise BadInputError(f"{where}: its dark frame {root / lab['dark']} is missing")
+        elif dark is not None:
+            lab["dark"] = str(Path(dark).resolve())
+        if lab.get("profile") is not None:
+            if not _inside(root, lab["profile"], "profile", where).is_file():
+                raise BadInputError(f"{where}: its profile {root / lab['profile']} is missing")
+            cameras[lab["profile"]] = {"profile": lab["profile"]}
+        lab["camera"] = lab.get("profile", "default")
+        lab["group"] = ""
+    first = read_image(root / labels[0]["frame"], what="frame")
+    manifest = {
+        "kind": LABELLED_KIND,
+        "cameras": cameras,
+        "image_size_px": [int(first.shape[1]), int(first.shape[0])],
+        "counts": {"frames": len(labels)},
+        "recipe_name": None,
+        "seed": None,
+    }
+    return Dataset(root, manifest, labels)
 
 
 def _png_header(path: Path) -> tuple[int, int] | None:
