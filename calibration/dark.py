@@ -1,10 +1,13 @@
 """Dark frames: check that a frame is one (lens capped or room dark) and median-stack several.
 
-A dark frame holds the sensor's offset, dark current and hot pixels, nothing of the scene. Two
+A dark frame holds the sensor's offset, dark current and hot pixels, nothing of the scene. Three
 things betray a frame that is not dark: a high typical level (the lights are on, the lens is
-open; an all-white frame) and bright *spots* -- connected groups of pixels far above the typical
-level (phosphor marks, a red light, a lamp in view). Hot pixels are far above the level too,
-but one by one: isolated pixels are allowed, spots are not.
+open; an all-white frame); structure over areas larger than a pixel (a room, lit dimly enough
+that its median stays low: :func:`stcvision.stages.frame_structure`); and bright *spots* --
+connected groups of pixels far above the typical level (phosphor marks, a red light, a lamp in
+view). Hot pixels are far above the level too, but one by one: isolated pixels are allowed,
+spots are not. The frames stacked must be of one kind: one size, one depth, one typical level
+(frames of other exposures or gains differ in it).
 """
 
 from __future__ import annotations
@@ -13,6 +16,7 @@ import cv2
 import numpy as np
 
 from stcvision.errors import BadInputError
+from stcvision.stages import DARK_ROOM_MAX_STRUCTURE, frame_structure
 
 __all__ = ["dark_frame_problem", "median_dark"]
 
@@ -38,6 +42,12 @@ def dark_frame_problem(img: np.ndarray) -> str | None:
         return (
             f"its typical level is {med:.0f} of {full:.0f} (over {100 * MAX_MEDIAN_FRAC:.0f} % of full scale): "
             "the lights are on or the lens is open"
+        )
+    structure = frame_structure(img)
+    if structure > DARK_ROOM_MAX_STRUCTURE:
+        return (
+            f"it shows a scene ({100 * structure:.1f} % of full scale of structure over blocks of pixels; "
+            f"a dark frame shows under {100 * DARK_ROOM_MAX_STRUCTURE:g} %): the lights are on or the lens is open"
         )
     sigma = 1.4826 * float(np.median(np.abs(v - med)))
     bright = (level > med + max(K_SIGMA * sigma, MIN_EXCESS_FRAC * full)).astype(np.uint8)
@@ -71,4 +81,25 @@ def median_dark(frames: list[np.ndarray], names: list[str]) -> np.ndarray:
             raise BadInputError(
                 f"{name} is not a dark frame: {why}; expected a frame with the lens capped or the room dark"
             )
+    levels = [_typical_level(img) for img in frames]
+    lo, hi = int(np.argmin([lv[0] for lv in levels])), int(np.argmax([lv[0] for lv in levels]))
+    spread = max(SAME_KIND_K_SIGMA * max(levels[lo][1], levels[hi][1]), 1.0)
+    if levels[hi][0] - levels[lo][0] > spread:
+        raise BadInputError(
+            f"dark frames {names[lo]} and {names[hi]} sit at typical levels {levels[lo][0]:.1f} and "
+            f"{levels[hi][0]:.1f}: frames of other exposures, gains or cameras; expected dark frames of one setting"
+        )
     return np.median(np.stack(frames), axis=0).round().astype(first.dtype)
+
+
+#: two dark frames of one setting differ in their typical level by at most this many of their
+#: pixels' robust sigmas (the level of a frame's median moves by far less than one sigma between
+#: frames of one setting: the median averages hundreds of thousands of pixels)
+SAME_KIND_K_SIGMA = 2.0
+
+
+def _typical_level(img: np.ndarray) -> tuple[float, float]:
+    """(median, robust sigma) of a frame's brightest channel, on every 7th pixel."""
+    v = (img.max(axis=2) if img.ndim == 3 else img).reshape(-1)[::7].astype(np.float32)
+    med = float(np.median(v))
+    return med, 1.4826 * float(np.median(np.abs(v - med)))

@@ -37,6 +37,7 @@ import numpy as np
 from stcvision.observation import CellGeometry, CellObservation, ObservationParams, observe_cell
 from stcvision.profile import Profile
 from stcvision.stages import (
+    DARK_ROOM_MAX_STRUCTURE,
     ChannelParams,
     DotParams,
     Dots,
@@ -53,12 +54,14 @@ from stcvision.stages import (
     find_dots,
     find_rows,
     fit_heading,
+    frame_structure,
     mirror_centroids,
     noise_gain,
     subtract_dark,
     unwarp,
     window_sums,
 )
+from stcvision.stages.dark import STRUCTURE_BLOCK_PX
 from stcvision.stages.front import FrontEnd
 from stcvision.stages.red import read_red
 
@@ -109,6 +112,9 @@ def display_scale(frame: np.ndarray) -> float:
 #: a frame whose background is this many noise sigmas above the dark level is not read as a
 #: dark-room frame (:meth:`Pipeline._lit_frame`, with the measured margins on each side)
 LIT_BACKGROUND_K_SIGMA = 3.0
+#: a background at this share of full scale or more is an overexposed frame (nothing of a dark
+#: floor is left to read marks against)
+SATURATED_BACKGROUND = 0.9
 
 
 @dataclass(frozen=True, eq=False)
@@ -278,7 +284,7 @@ class Pipeline:
         self.profile.check_frame(dark.shape, what="dark frame")
         self.front = self.front.with_dark(dark)
 
-    def _lit_frame(self, bg: float, noise: float) -> str:
+    def _lit_frame(self, bg: float, noise: float, frame: np.ndarray) -> str:
         """Why a frame is not a dark-room frame this pipeline can read ("" when it is): its
         background (the median of the view, where the floor is unmarked and so dark) more than
         :data:`LIT_BACKGROUND_K_SIGMA` noise sigmas above the dark level. With a dark frame that
@@ -286,6 +292,21 @@ class Pipeline:
         lit calibration frames at 16-18. Without one it is zero, and the sensor's own dark signal
         and fixed pattern stay in the frame: webcam, low-light and cooled frames sat at 5.6, 6.3
         and 26 sigma and gave 61-64 dots where the truth had 16."""
+        full = float(np.iinfo(frame.dtype).max)
+        if bg >= SATURATED_BACKGROUND * full:
+            return f"the frame's background is at {bg:.0f} of {full:.0f}: overexposed, not a dark-room frame"
+        # a lit, textured room inflates the noise estimate as much as its level, so the level
+        # test above cannot see it; its structure can. A frame whose pixels spread less than the
+        # limit cannot spread more over blocks (a mean varies less than what it averages), so
+        # the measure is only taken on frames that might fail it
+        if noise >= DARK_ROOM_MAX_STRUCTURE * full:
+            structure = frame_structure(frame)
+            if structure > DARK_ROOM_MAX_STRUCTURE:
+                return (
+                    f"the frame shows a scene ({100 * structure:.1f} % of full scale of structure over "
+                    f"{STRUCTURE_BLOCK_PX}-px blocks, a dark room shows under {100 * DARK_ROOM_MAX_STRUCTURE:g} %): "
+                    "a lit frame (lights on), not a dark-room frame"
+                )
         excess = (bg - self.pedestal) / max(noise, 1e-9)
         if excess <= LIT_BACKGROUND_K_SIGMA:
             return ""
@@ -299,7 +320,7 @@ class Pipeline:
             "or a dark frame of other settings, not a dark-room frame at the dark frame's exposure"
         )
 
-    def _dots_and_rows(self, f, times: StageTimes):
+    def _dots_and_rows(self, f, frame: np.ndarray, times: StageTimes):
         """The dots and rows stages on the front end's output ``f``, each timed under its name:
         (the dots, every dot with the rows' own); a lit room marks the reading untrusted."""
         p, w = self.params, self.params.dots.window_px
@@ -338,7 +359,7 @@ class Pipeline:
                 quantum=q,
                 buffers=self.scratch,
             )
-            lit = self._lit_frame(bg, noise)
+            lit = self._lit_frame(bg, noise, frame)
             if lit and not all_dots.untrusted:
                 all_dots = dataclasses.replace(all_dots, untrusted=lit)
         return dots, all_dots
@@ -373,7 +394,7 @@ class Pipeline:
         times = StageTimes()
         f = self.front.run(frame, self.scratch, times)
         g, r, obstacle, marks = f.green, f.red, f.obstacle, f.marks
-        dots, all_dots = self._dots_and_rows(f, times)
+        dots, all_dots = self._dots_and_rows(f, frame, times)
         with times("red"):
             wide = None if f.wide_obstacle is None else (f.wide_obstacle, self.front.wide_profile.ground_to_robot)
             lights = read_red(

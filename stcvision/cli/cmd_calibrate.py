@@ -314,6 +314,12 @@ def _dark(args):
         raise BadInputError(
             f"--out {out}: a dark frame must be stored losslessly; expected .png (JPEG loses the hot pixels)"
         )
+    lossy = [f for f in args.frames if Path(f).suffix.lower() not in DARK_SUFFIXES]
+    if lossy:
+        raise BadInputError(
+            f"{lossy[0]}: a dark frame must be taken losslessly; expected .png or .tiff frames (JPEG smears the hot "
+            "pixels and the fixed pattern the subtraction removes)"
+        )
     frames, exposures = [], []
     for f in args.frames:
         frames.append(read_image(f, what="dark frame"))

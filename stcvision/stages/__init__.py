@@ -16,8 +16,10 @@ detection is a value (``ok=False`` with a reason), not an exception.
 from stcvision.stages.channels import ChannelParams, filter_channels, separate_channels
 from stcvision.stages.common import FRAME_DTYPES, SUM_DTYPES, Scratch, StageTimes, check_frame, noise_floor
 from stcvision.stages.dark import (
+    DARK_ROOM_MAX_STRUCTURE,
     check_dark_dtype,
     estimate_background,
+    frame_structure,
     hot_pixels,
     quantum_dn,
     robust_sigma,
@@ -47,7 +49,9 @@ __all__ = [
     "SUM_DTYPES",
     "Scratch",
     "StageTimes",
+    "DARK_ROOM_MAX_STRUCTURE",
     "check_dark_dtype",
+    "frame_structure",
     "check_frame",
     "estimate_background",
     "noise_floor",

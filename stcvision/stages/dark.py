@@ -6,7 +6,9 @@ and the display image); :func:`dark_channels` is what the pipeline runs: green a
 part of the frame the ground view reads, with the same arithmetic. :func:`estimate_background`
 measures an image's background and noise; :func:`frame_background` is the pipeline's per-frame
 version of it on a fixed sample, both channels in one compiled pass (:func:`sample_quartiles`).
-:class:`DarkFrame` holds what the stage takes from a dark frame, once.
+:class:`DarkFrame` holds what the stage takes from a dark frame, once. :func:`frame_structure`
+says whether a frame is a dark room's at all: how much scene it shows at a scale larger than a
+pixel.
 """
 
 from __future__ import annotations
@@ -20,6 +22,45 @@ import numpy as np
 
 from stcvision.errors import BadInputError
 from stcvision.stages.common import Scratch, check_frame, check_image, new_arrays, noise_floor
+
+#: a dark room's frame (and a dark frame) shows at most this much structure, as a share of full
+#: scale (:func:`frame_structure`). Measured: dark frames and dark-room frames of the webcam, the
+#: low-light and the cooled cameras at 0.0004-0.0013, rendered lights-on frames at 0.20, a real
+#: catadioptric photograph of a lit room (OpenCV's omnidir sample) at 0.14; the limit sits over
+#: ten times from both
+DARK_ROOM_MAX_STRUCTURE = 0.02
+#: the side (px) of the blocks whose means :func:`frame_structure` spreads: larger than a dot,
+#: smaller than a room's furniture in the mirror
+STRUCTURE_BLOCK_PX = 8
+
+
+def frame_structure(frame: np.ndarray) -> float:
+    """How much of a scene a frame shows, as a share of full scale.
+
+    The robust spread (1.4826 x the median absolute deviation) of the means of
+    :data:`STRUCTURE_BLOCK_PX`-pixel blocks of the frame's brightest channel. A dark room's frame
+    is its sensor's noise and a few sparse marks and lights: averaging over a block shrinks the
+    noise, and a median ignores the sparse marks, so the spread stays near zero. A lit room
+    shows floors, walls and furniture across most blocks, or a lit disc beside the black
+    outside of the mirror: the spread is a good share of full scale.
+
+    Parameters
+    ----------
+    frame : numpy.ndarray
+        (H, W, 3) or (H, W), uint8 or uint16.
+
+    Returns
+    -------
+    float
+        The spread over the full scale of the frame's type; compare with
+        :data:`DARK_ROOM_MAX_STRUCTURE`.
+    """
+    full = float(np.iinfo(frame.dtype).max)
+    b = STRUCTURE_BLOCK_PX
+    small = cv2.resize(frame, (frame.shape[1] // b, frame.shape[0] // b), interpolation=cv2.INTER_AREA)
+    level = (small.max(axis=2) if small.ndim == 3 else small).astype(np.float32)
+    med = float(np.median(level))
+    return 1.4826 * float(np.median(np.abs(level - med))) / full
 
 
 def check_dark_dtype(dark: np.ndarray, frame_dtype) -> None:

@@ -127,3 +127,71 @@ def test_an_interrupted_demo_leaves_no_folder(tmp_path, sig):
     _, err = proc.communicate(timeout=60)
     assert proc.returncode == 128 + sig, err
     assert not (tmp_path / "a").exists()
+
+
+ROOM = Path(__file__).resolve().parents[2] / "datasets" / "peer_data" / "opencv_omnidir" / "catadioptric_sample.jpg"
+
+
+@pytest.fixture(scope="module")
+def room_profile(tmp_path_factory):
+    """The shipped profile with its mirror rim moved to where the real room photograph shows it
+    (centre (315, 218) px, radius 265 px), so that only the frame's content can refuse it."""
+    from stcvision.calibration.profiles import default_profile_path
+
+    d = json.loads(default_profile_path().read_text())
+    d["center_px"], d["rim_radius_px"] = [314.7, 217.7], 264.6
+    p = tmp_path_factory.mktemp("room") / "room_profile.json"
+    p.write_text(json.dumps(d))
+    return p
+
+
+def test_a_real_lit_room_is_untrusted_in_pipeline_and_eval(cli, room_profile, tmp_path):
+    """A real catadioptric photograph of a lit room (OpenCV's omnidir sample) read as a
+    dark-room frame: its texture inflates the noise estimate as much as its level, so only its
+    structure over blocks of pixels gives it away."""
+    r = pipeline_json(cli, ROOM, "--no-dark", "--profile", room_profile)
+    assert "a lit frame" in r["untrusted"] and "shows a scene" in r["untrusted"]
+    frames = tmp_path / "frames"
+    frames.mkdir()
+    (frames / "room.jpg").write_bytes(ROOM.read_bytes())
+    code, out, err = cli(
+        "eval", frames, "--no-dark", "--profile", room_profile, "--out", tmp_path / "r.jsonl", "--json"
+    )
+    assert code == 0, err
+    assert [u["frame"] for u in json.loads(out)["untrusted"]] == [str(frames / "room.jpg")]
+    code, _, err = cli("eval", frames, "--no-dark", "--out", tmp_path / "r2.jsonl")  # the shipped profile's rim
+    assert code == 2 and "shows the mirror's rim" in err and err.count("\n") == 1
+
+
+def test_every_camera_s_rendered_dark_room_frame_is_trusted(cli, tmp_path):
+    from stcvision.sim_camera.scene import EXAMPLE_SCENE
+
+    scene = tmp_path / "scene.json"
+    scene.write_text(json.dumps(EXAMPLE_SCENE))
+    for cam in ("webcam", "lowlight", "cooled"):
+        assert cli("render", "--scene", scene, "--camera", cam, "--out", tmp_path / cam)[0] == 0
+        assert (
+            pipeline_json(cli, tmp_path / cam / "frame.png", "--dark", tmp_path / cam / "dark.png")["untrusted"] == ""
+        )
+
+
+def test_calibrate_dark_takes_only_dark_frames_of_one_kind(cli, rendered, tmp_path):
+    import cv2
+
+    room_png = tmp_path / "room.png"
+    cv2.imwrite(str(room_png), cv2.imread(str(ROOM)))
+    out = tmp_path / "dark.png"
+    for frames, says in [
+        ([ROOM], "taken losslessly"),
+        ([room_png], "it shows a scene"),
+        ([rendered / "webcam" / "lights_on.png"], "it shows a scene"),
+        ([rendered / "webcam" / "dark.png", rendered / "cooled" / "dark.png"], "8-bit"),
+    ]:
+        code, _, err = cli("calibrate", "dark", *frames, "--out", out)
+        assert code == 2 and says in err and err.count("\n") == 1, err
+    bright = cv2.imread(str(rendered / "webcam" / "dark.png"), cv2.IMREAD_UNCHANGED).astype("int32") + 12
+    other = tmp_path / "other.png"
+    cv2.imwrite(str(other), bright.clip(0, 255).astype("uint8"))  # the same pattern at another gain's level
+    code, _, err = cli("calibrate", "dark", rendered / "webcam" / "dark.png", other, "--out", out)
+    assert code == 2 and "typical levels" in err
+    assert cli("calibrate", "dark", rendered / "webcam" / "dark.png", "--out", out)[0] == 0
