@@ -133,13 +133,143 @@ class Board:
         return cls(blocked, start_subcell, subcell_m)
 
     @classmethod
-    def from_file(cls, path: str | Path, *, subcell_m: float = DEFAULT_SUBCELL_M, start_subcell=None) -> Board:
-        """Load a ``.txt`` map or an image map (``.png``, ``.bmp``...)."""
+    def from_occupancy(
+        cls, free_px: np.ndarray, m_per_px: float, *, subcell_m: float = DEFAULT_SUBCELL_M, start_subcell=None,
+        source: str = "map",
+    ) -> Board:  # fmt: skip
+        """Board from an occupancy grid of known resolution: a sub-cell is free iff every map
+        pixel it overlaps is free, so the robot's footprint (``subcell_m``) fits wherever the
+        board says free.
+
+        Parameters
+        ----------
+        free_px : numpy.ndarray
+            (H, W) bool, True where the map is free (row 0 the map's top).
+        m_per_px : float
+            The map's resolution, metres per pixel.
+        subcell_m : float
+            The board's sub-cell side, the robot's footprint.
+        start_subcell : tuple of int, optional
+            (row, column) of the start sub-cell; default: the first free cell's.
+        source : str
+            How a problem names the map.
+
+        Returns
+        -------
+        Board
+            The largest board of whole cells (2 x 2 sub-cells) that fits the map, its lower-left
+            corner at the map's lower-left corner.
+
+        Raises
+        ------
+        MapError
+            A resolution that is not a positive number, or a map smaller than one cell.
+        """
+        free_px = np.asarray(free_px, bool)
+        if not (isinstance(m_per_px, int | float) and np.isfinite(m_per_px) and m_per_px > 0):
+            raise MapError(f"{source}: resolution {m_per_px!r} m per pixel; expected a positive number")
+        h, w = free_px.shape
+        rows = 2 * int(h * m_per_px / subcell_m / 2 + 1e-9)
+        cols = 2 * int(w * m_per_px / subcell_m / 2 + 1e-9)
+        if rows < 2 or cols < 2:
+            raise MapError(
+                f"{source} is {w * m_per_px:.2f} x {h * m_per_px:.2f} m (W x H), smaller than one cell of "
+                f"{2 * subcell_m:.2f} m; expected a map at least a cell wide and high"
+            )
+        # blocked pixels counted over any rectangle in O(1): the integral image
+        blocked = np.zeros((h + 1, w + 1), np.int64)
+        blocked[1:, 1:] = np.cumsum(np.cumsum(~free_px, axis=0), axis=1)
+        step = subcell_m / m_per_px  # pixels per sub-cell side
+        x0 = np.floor(np.arange(cols) * step + 1e-9).astype(int)
+        x1 = np.minimum(np.ceil((np.arange(cols) + 1) * step - 1e-9).astype(int), w)
+        bottom = h - rows * step  # the board's top edge, in pixel rows (lower-left corners aligned)
+        y0 = np.floor(bottom + np.arange(rows) * step + 1e-9).astype(int)
+        y1 = np.minimum(np.ceil(bottom + (np.arange(rows) + 1) * step - 1e-9).astype(int), h)
+        Y0, X0 = np.meshgrid(y0, x0, indexing="ij")
+        Y1, X1 = np.meshgrid(y1, x1, indexing="ij")
+        n_blocked = blocked[Y1, X1] - blocked[Y0, X1] - blocked[Y1, X0] + blocked[Y0, X0]
+        sub_blocked = n_blocked > 0
+        if start_subcell is None:
+            start_subcell = cls._default_start(sub_blocked)
+        return cls(sub_blocked, start_subcell, subcell_m)
+
+    @classmethod
+    def from_map_yaml(cls, path: str | Path, *, subcell_m: float = DEFAULT_SUBCELL_M, start_subcell=None) -> Board:
+        """Board from a ROS ``map_server`` map: its YAML (``image``, ``resolution``, ``origin``,
+        ``negate``, ``occupied_thresh``, ``free_thresh``, optional ``mode``) and its image.
+
+        A pixel's occupancy is ``(255 - v) / 255`` (``v / 255`` when ``negate``), its channels
+        averaged; it is free below ``free_thresh``, and anything else (occupied, or unknown
+        between the thresholds) is not: the robot does not drive where the map does not know.
+        The board keeps the map's scale (:meth:`from_occupancy`); ``origin`` places the map in
+        the lab's frame and does not change which sub-cells are free.
+        """
+        import yaml
+
+        path = Path(path)
+        try:
+            meta = yaml.safe_load(path.read_text(encoding="utf-8"))
+        except (OSError, UnicodeDecodeError, yaml.YAMLError) as exc:
+            raise MapError(f"cannot read map YAML {path}: {str(exc).splitlines()[0]}") from None
+        if not isinstance(meta, dict):
+            raise MapError(f"map YAML {path} is not a mapping; expected map_server's keys (image, resolution, ...)")
+        missing = [k for k in ("image", "resolution", "occupied_thresh", "free_thresh") if k not in meta]
+        if missing:
+            raise MapError(f"map YAML {path} has no {missing[0]!r}; expected map_server's keys")
+
+        def number(key, lo, hi):
+            v = meta[key]
+            if isinstance(v, bool) or not isinstance(v, int | float) or not (lo <= v <= hi):
+                raise MapError(f"map YAML {path}: {key} is {v!r}; expected a number in [{lo}, {hi}]")
+            return float(v)
+
+        res = number("resolution", 1e-6, 1e3)
+        occ, free = number("occupied_thresh", 0, 1), number("free_thresh", 0, 1)
+        if free > occ:
+            raise MapError(f"map YAML {path}: free_thresh {free} is above occupied_thresh {occ}")
+        negate = meta.get("negate", 0)
+        if negate not in (0, 1, True, False):
+            raise MapError(f"map YAML {path}: negate is {negate!r}; expected 0 or 1")
+        if meta.get("mode", "trinary") not in ("trinary", "scale", "raw"):
+            raise MapError(f"map YAML {path}: mode {meta['mode']!r}; expected trinary, scale or raw")
+        if not isinstance(meta["image"], str) or not meta["image"]:
+            raise MapError(f"map YAML {path}: image is {meta['image']!r}; expected the map image's file name")
+        from stcvision.fileio import read_image
+
+        img_path = (path.parent / meta["image"]) if not Path(meta["image"]).is_absolute() else Path(meta["image"])
+        try:
+            img = read_image(img_path, color=False, what="map image")
+        except Exception as exc:  # BadInputError -> MapError with the same message
+            raise MapError(str(exc)) from None
+        v = img.astype(np.float64) / float(np.iinfo(img.dtype).max)
+        occupancy = v if negate else 1.0 - v
+        return cls.from_occupancy(
+            occupancy < free, res, subcell_m=subcell_m, start_subcell=start_subcell, source=f"map {path}"
+        )
+
+    @classmethod
+    def from_file(
+        cls,
+        path: str | Path,
+        *,
+        subcell_m: float = DEFAULT_SUBCELL_M,
+        start_subcell=None,
+        m_per_px: float | None = None,
+    ) -> Board:
+        """Load a ``.txt`` map, a ROS ``map_server`` ``.yaml`` map, or an image map (``.png``,
+        ``.bmp``...). An image map is one pixel per sub-cell, or, given ``m_per_px`` (its
+        resolution), resampled to sub-cells of ``subcell_m`` (:meth:`from_occupancy`)."""
         path = Path(path)
         if path.is_dir():
-            raise MapError(f"map {path} is a folder; expected a .txt or image map file")
+            raise MapError(f"map {path} is a folder; expected a .txt, .yaml or image map file")
         if not path.is_file():
             raise MapError(f"map file {path} does not exist")
+        if path.suffix.lower() in (".yaml", ".yml"):
+            if m_per_px is not None:
+                raise MapError(f"map {path} gives its own resolution; drop --resolution")
+            return cls.from_map_yaml(path, subcell_m=subcell_m, start_subcell=start_subcell)
+        if m_per_px is not None and path.suffix.lower() in (".txt", ".map", ""):
+            raise MapError(f"map {path} is a text map of sub-cells; --resolution is for image maps")
         if path.suffix.lower() in (".txt", ".map", ""):
             try:
                 text = path.read_text(encoding="utf-8")
@@ -155,6 +285,10 @@ class Board:
             img = read_image(path, color=False, what="map image")
         except Exception as exc:  # BadInputError -> MapError with the same message
             raise MapError(str(exc)) from None
+        if m_per_px is not None:
+            return cls.from_occupancy(
+                img >= 128, m_per_px, subcell_m=subcell_m, start_subcell=start_subcell, source=f"map {path}"
+            )
         return cls.from_image(img, subcell_m=subcell_m, start_subcell=start_subcell)
 
     @classmethod

@@ -92,6 +92,27 @@ def check_recording_path(path: str | Path, *, overwrite: bool = False) -> Path:
     return check_output_file(path, overwrite=overwrite, what="recording")
 
 
+def check_display(environ=None, platform: str | None = None) -> None:
+    """Refuse ``--spawn`` at once where no window can open: on Linux and the BSDs with neither
+    ``DISPLAY`` nor ``WAYLAND_DISPLAY`` set, the rerun viewer starts, fails to open its window
+    and leaves the command waiting on its gRPC port (seen: a traceback after about 20 s)."""
+    import os
+    import sys
+
+    from stcvision.errors import StcVisionError
+
+    env = os.environ if environ is None else environ
+    plat = sys.platform if platform is None else platform
+    if plat.startswith(("linux", "freebsd", "openbsd", "netbsd")) and not (
+        env.get("DISPLAY") or env.get("WAYLAND_DISPLAY")
+    ):
+        raise StcVisionError(
+            "--spawn opens the rerun viewer in a window, and this session has no display (DISPLAY and "
+            "WAYLAND_DISPLAY are unset); write a file with --rrd OUT.rrd and open it with 'rerun OUT.rrd' "
+            "where there is one"
+        )
+
+
 def open_recording(
     path: str | Path | None = None,
     *,
@@ -106,6 +127,8 @@ def open_recording(
     from stcvision.errors import StcVisionError
     from stcvision.fileio import discard_temp, output_error, temp_sibling
 
+    if spawn:
+        check_display()
     rec = rr.RecordingStream(app_id)
     bp = default_blueprint or blueprint()
     tmp = None

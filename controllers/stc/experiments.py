@@ -100,7 +100,46 @@ RUN_FIELDS = (
 
 
 # ------------------------------------------------------------------------------------ boards
-def random_board(w: int, h: int, obstacle_fraction: float, seed: int):
+#: a map whose start reaches less than this share of its free cells is worth a word: a photo or
+#: a map read at the wrong scale leaves most of its floor in pieces the robot cannot reach
+REACHABLE_WARN_FRACTION = 0.5
+
+
+def check_map_board(board, source) -> list[str]:
+    """Check a board read from a map: within the cap on cells (as ``--board``), and more than its
+    start cell reachable. Returns the warnings to print (less than
+    :data:`REACHABLE_WARN_FRACTION` of the free cells reachable).
+
+    Raises
+    ------
+    BadInputError
+        Too many cells, or nothing but the start cell reachable (a run would be "complete" after
+        covering one cell: a camera photo passed as a map did that).
+    """
+    import sys
+
+    from stcvision.limits import check_board_cells
+
+    rows, cols = board.shape_cells
+    check_board_cells(cols, rows, flag=f"--map {source} (W x H cells)")
+    reach = int(board.reachable_cells().sum())
+    free = int(board.cell_free.sum())
+    if reach <= 1:
+        raise BadInputError(
+            f"--map {source}: only the start cell of {free} free cells ({cols}x{rows} cells, W x H) is reachable; "
+            "expected a map of free floor (light) and obstacles (dark) at its scale (--resolution, --subcell-m)"
+        )
+    if reach < REACHABLE_WARN_FRACTION * free:
+        msg = (
+            f"--map {source}: the start reaches {reach} of its {free} free cells; the rest lie in pieces the robot "
+            "cannot reach"
+        )
+        print(f"stcvision cover: warning: {msg}", file=sys.stderr)
+        return [msg]
+    return []
+
+
+def random_board(w: int, h: int, obstacle_fraction: float, seed: int, subcell_m: float | None = None):
     """The random board of ``stcvision cover --board WxH --obstacle-fraction F --seed S`` (also
     the sweep's): drawn from the board's own stream of the run's seed
     (:func:`stcvision.controllers.stc.loop.streams`)."""
@@ -111,7 +150,8 @@ def random_board(w: int, h: int, obstacle_fraction: float, seed: int):
     check_board_cells(w, h)
     if not 0 <= obstacle_fraction < 1:
         raise BadInputError(f"--obstacle-fraction must be in [0, 1), got {obstacle_fraction}")
-    return Board.random((h, w), obstacle_fraction=obstacle_fraction, rng=streams(seed)["board"])
+    kw = {} if subcell_m is None else {"subcell_m": subcell_m}
+    return Board.random((h, w), obstacle_fraction=obstacle_fraction, rng=streams(seed)["board"], **kw)
 
 
 @dataclass(frozen=True)
@@ -552,7 +592,7 @@ def replay_command(r: dict) -> str:
     if r["board"] == "map":
         board = f"--map MAP_{r['map']}"
     else:
-        board = f"--board {r['board_cells'][1]}x{r['board_cells'][0]} --obstacle-fraction "
+        board = f"--board {r['board_cells'][0]}x{r['board_cells'][1]} --obstacle-fraction "
         board += f"{r.get('obstacle_fraction_drawn', r['obstacle_fraction'][0]):g}"
     start = f" --start {r['start_subcell'][0]},{r['start_subcell'][1]}" if r["start"] == "random" else ""
     exposure = f"--exposure {r['exposure']}" if isinstance(r["exposure"], str) else f"--exposure-s {r['exposure']}"

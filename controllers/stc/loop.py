@@ -176,7 +176,7 @@ def _summary(board, cfg, robot: Robot, referee, end: LoopEnd, *, wall_s: float) 
         "exposure": cfg.exposure,
         "camera": cfg.camera.name,
         "robot": cfg.robot.name,
-        "board_cells": list(board.shape_cells),
+        "board_cells": list(reversed(board.shape_cells)),  # width x height, as --board takes it
         **{k: cov[k] for k in ("subcells_reachable", "subcells_covered", "subcells_covered_more_than_once")},
         "returned_to_start": cov["returned_to_start"],
         "finished": end.finished,

@@ -414,6 +414,22 @@ def entry_offset_to_world(off_ru, hc: int, subcell_m: float) -> np.ndarray:
     return subcell_m * (off_ru[0] * right + off_ru[1] * up)
 
 
+def check_profile_fits(board) -> None:
+    """Refuse a board whose sub-cell is not the one the camera's profile reads: the profile's
+    five boxes and neighbour corners are calibrated for its own sub-cell side, and read on a
+    board of another they land off the marks (a 0.20 m board read with the 0.16 m profile was
+    lost after 21 decisions)."""
+    from stcvision.calibration.profiles import default_profile
+    from stcvision.errors import BadInputError
+
+    prof = default_profile().subcell_m
+    if abs(board.subcell_m - prof) > 1e-9 * prof:
+        raise BadInputError(
+            f"the board's sub-cell is {board.subcell_m:g} m but the camera's profile reads {prof:g} m sub-cells; "
+            f"expected --subcell-m {prof:g}, or a profile calibrated for this robot's footprint"
+        )
+
+
 def make_perception(
     cfg: CoverConfig, board, *, camera_rng: np.random.Generator, oracle_rng: np.random.Generator, camera_wrap=None
 ) -> Perception:
@@ -421,6 +437,7 @@ def make_perception(
     the oracle and the physics-limited camera their read-out noise from ``oracle_rng``;
     ``camera_wrap`` (the camera's faults) puts the rendering camera inside another."""
     if cfg.perception == "camera":
+        check_profile_fits(board)
         return CameraPerception(cfg, board, camera_rng, camera_wrap=camera_wrap)
     if cfg.perception == "ideal":
         return IdealPerception(cfg, board, oracle_rng)

@@ -59,7 +59,11 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
     for name, module, help_ in COMMANDS:
         mod = importlib.import_module(module)
-        p = sub.add_parser(name, help=help_, description=mod.__doc__)
+        # a command's description is its module's docstring, whose usage lines and paragraphs are
+        # laid out as written: argparse's default formatter would run them into one paragraph
+        p = sub.add_parser(
+            name, help=help_, description=mod.__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+        )
         mod.add_parser(p)
         if not any(a.dest == "json" for a in p._actions) and not getattr(mod, "NESTED", False):
             p.add_argument("--json", action="store_true", help="print the result as one JSON object")

@@ -1,8 +1,11 @@
 """Run the ant-like STC robot on a board until it has covered it (closed loop: camera ->
 pipeline -> finite-state controller -> robot), with honest time and fading marks.
 
-The board comes from --map (text or PNG, one pixel = one sub-cell) or --board WxH (random, with
---obstacle-fraction). --perception camera renders every observation and reads it with the
+The board comes from --map (text: '.', '#', 'S' per sub-cell; a ROS map_server YAML with its
+image at its resolution; an image map at --resolution M_PER_PX, or one pixel per sub-cell without
+it) or --board WxH (random, with --obstacle-fraction). --subcell-m is the robot's footprint, the
+board's sub-cell side (default: the camera profile's); a map's sub-cell is free only where the
+whole footprint is. --perception camera renders every observation and reads it with the
 vision pipeline; oracle reads the floor's ground truth; ideal sees exactly the marks the frames
 could show (the physics-limited camera, no pipeline). --exposure webcam is the STC paper's camera
 (1/30 s); auto adds long frames sized by the robot's clock (2-30 s, then stacked 30 s frames) for
@@ -93,7 +96,9 @@ def _add_board_arguments(p) -> None:
     from stcvision.cli._args import pair
 
     src = p.add_mutually_exclusive_group()
-    src.add_argument("--map", metavar="FILE", help="board map: .txt ('.', '#', 'S') or .png")
+    src.add_argument(
+        "--map", metavar="FILE", help="board map: .txt ('.', '#', 'S'), a ROS map_server .yaml, or an image"
+    )
     src.add_argument(
         "--board",
         type=pair(int, fmt="WxH", example="4x4"),
@@ -107,6 +112,21 @@ def _add_board_arguments(p) -> None:
         "--start", type=pair(int, fmt="I,J", example="1,2"), metavar="I,J", help="start sub-cell (row, column)"
     )
     p.add_argument("--seed", type=seed, default=0, help="seed of the board, the robot and the camera (default 0)")
+    from stcvision.cli._args import positive
+    from stcvision.limits import MAX_CALIBRATION_SUBCELL_M
+
+    p.add_argument(
+        "--subcell-m",
+        type=positive(float, maximum=MAX_CALIBRATION_SUBCELL_M),
+        metavar="M",
+        help="the robot's footprint: the board's sub-cell side in metres (default: the camera profile's, 0.16)",
+    )
+    p.add_argument(
+        "--resolution",
+        type=positive(float),
+        metavar="M_PER_PX",
+        help="an image --map's resolution, metres per pixel (without it one pixel is one sub-cell)",
+    )
 
 
 def _add_hardware_arguments(p) -> None:
@@ -121,17 +141,27 @@ def _add_hardware_arguments(p) -> None:
 
 def load_board(args):
     from stcvision.controllers.stc.experiments import random_board
+    from stcvision.errors import BadInputError
     from stcvision.sim_camera.board import Board
 
+    subcell_m = args.subcell_m
+    if subcell_m is None:  # the footprint the camera's profile is calibrated for
+        from stcvision.calibration.profiles import default_profile
+
+        subcell_m = default_profile().subcell_m
     if args.map:
         if args.obstacle_fraction is not None:
-            from stcvision.errors import BadInputError
-
             raise BadInputError("--obstacle-fraction is for a random --board; a --map has its obstacles drawn in it")
-        return Board.from_file(args.map, start_subcell=args.start)
+        board = Board.from_file(args.map, start_subcell=args.start, subcell_m=subcell_m, m_per_px=args.resolution)
+        from stcvision.controllers.stc.experiments import check_map_board
+
+        check_map_board(board, args.map)
+        return board
+    if args.resolution is not None:
+        raise BadInputError("--resolution is for an image --map; a random --board has no pixels")
     w, h = args.board if args.board else (4, 4)
     fraction = OBSTACLE_FRACTION if args.obstacle_fraction is None else args.obstacle_fraction
-    board = random_board(w, h, fraction, args.seed)
+    board = random_board(w, h, fraction, args.seed, subcell_m)
     if args.start:
         board = Board(board.blocked, args.start, board.subcell_m)
     return board
@@ -230,7 +260,8 @@ def format_text(r):
         sizes = ", ".join(f"{f['frame_s']:g} s x {f['count']}" for f in r["frames"])
         return "\n".join(
             [
-                f"board {r['board_cells'][0]}x{r['board_cells'][1]} cells, camera {r['camera']}, robot {r['robot']}",
+                f"board {r['board_cells'][0]}x{r['board_cells'][1]} cells (W x H), camera {r['camera']}, "
+                f"robot {r['robot']}",
                 f"converges: {r['converges']}" + ("" if r["converges"] else f" ({r['abort_reason'] or 'incomplete'})"),
                 f"sub-cells covered / reachable: {r['subcells_covered']} / {r['subcells_reachable']}",
                 f"tour: {r['tour_s']:.0f} s; oldest mark read: {r['oldest_mark_read_s']:.0f} s; longest frame sees "

@@ -175,9 +175,25 @@ def test_wrong_size_dark_frame_is_named_as_the_dark_frame(capsys, files, tmp_pat
 
 def test_spawn_without_a_viewer_is_one_line(capsys, files, monkeypatch, tmp_path):
     monkeypatch.setenv("PATH", str(tmp_path))  # no rerun viewer on it
+    monkeypatch.setenv("DISPLAY", ":99")  # a display, so that the missing viewer is what fails
     code, _, err = run_cli(capsys, "pipeline", files / "r" / "frame.png", "--no-dark", "--spawn")
     assert code == 2
     assert_one_line(err, "cannot start the rerun viewer", "--rrd")
+
+
+@pytest.mark.parametrize(
+    "argv", [["pipeline", "{f}", "--no-dark", "--spawn"], ["pipeline", "{f}", "--no-dark", "--spawn", "--rrd", "x.rrd"]]
+)
+def test_spawn_without_a_display_is_one_line_at_once(capsys, files, monkeypatch, argv):
+    """No display: one line and exit 2 before any work, not a viewer that fails 20 s later."""
+    import time
+
+    monkeypatch.delenv("DISPLAY", raising=False)
+    monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
+    t0 = time.monotonic()
+    code, _, err = run_cli(capsys, *[a.format(f=files / "r" / "frame.png") for a in argv])
+    assert code == 2 and time.monotonic() - t0 < 10
+    assert_one_line(err, "no display", "--rrd")
 
 
 def test_a_directory_given_as_the_recording_leaves_nothing_at_the_root(capsys, files):
@@ -400,3 +416,21 @@ def test_a_signal_wrapped_by_the_code_it_landed_in_still_reads_interrupted(capsy
     monkeypatch.setattr(cmd, "run", run)
     assert main(["render", "--scene", "x.json", "--out", "y.png"]) == 128 + 15
     assert capsys.readouterr().err == "stcvision render: interrupted\n"
+
+
+def test_every_command_s_help_keeps_its_usage_lines_as_written(capsys):
+    """Each command's help shows its docstring's usage lines one per line, as typed."""
+    import importlib
+
+    from stcvision.cli import COMMANDS
+
+    with_usage = []
+    for name, module, _ in COMMANDS:
+        doc = importlib.import_module(module).__doc__
+        usage = [ln.rstrip() for ln in doc.splitlines() if ln.strip().startswith(f"stcvision {name}")]
+        with pytest.raises(SystemExit):
+            main([name, "--help"])
+        out = capsys.readouterr().out
+        assert all(ln in out.splitlines() for ln in usage), name
+        with_usage += [name] * bool(usage)
+    assert {"pipeline", "eval", "cover", "dataset", "calibrate"} <= set(with_usage)
