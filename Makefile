@@ -5,7 +5,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: demo test fuzz bench lint clean venv docs serve-docs
+.PHONY: demo test fuzz bench lint clean venv docs serve-docs browser-deps test-browser
 
 venv: $(STAMP)
 
@@ -18,8 +18,16 @@ $(STAMP): pyproject.toml
 demo: $(STAMP)
 	$(BIN)/stcvision demo --out out --force  # out/ is make demo's own folder: replace the last run
 
+# everything but the tests that need a real browser (make test-browser)
 test: $(STAMP)
-	$(BIN)/python -m pytest -q -n 2
+	$(BIN)/python -m pytest -q -n 2 -m "not browser"
+
+# the labelling helper's review sheet in headless Chromium (Debian packages; run as root)
+browser-deps:
+	apt-get install -y -q chromium chromium-driver
+
+test-browser: $(STAMP)
+	$(BIN)/python -m pytest -q -m browser tests/browser
 
 # the fuzz tests (tests/fuzz, marked fuzz) with many examples: >= 10,000 cases, counted at the end
 fuzz: $(STAMP)

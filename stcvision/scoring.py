@@ -142,8 +142,8 @@ def score_label(result, label: dict, profile, *, match_m: float = 0.01) -> Frame
                 sc.dot_err_px.append(float(m.err_px[j]))
         for j, t in enumerate(tdots):
             if should[j]:
-                age = t["age_s"] if t["age_s"] is not None else math.nan
-                (sc.dot_ages_found if m.found[j] >= 0 else sc.dot_ages_missed).append(age)
+                # a person's label gives no age (None): its dots count, in no age bin
+                (sc.dot_ages_found if m.found[j] >= 0 else sc.dot_ages_missed).append(t["age_s"])
     if label.get("heading_error_deg") is not None and result.heading.ok:
         sc.heading_err_deg = math.degrees(result.heading.heading_error_rad) - label["heading_error_deg"]
     obs = result.observation

@@ -22,6 +22,19 @@ def pytest_configure(config):
         signal.signal(signal.SIGINT, signal.default_int_handler)
 
 
+SMOKE_RECIPE = ROOT / "datasets" / "recipes" / "smoke.json"
+
+
+@pytest.fixture(scope="session")
+def smoke(tmp_path_factory):
+    """The tiny shipped 'smoke' recipe generated once per session (read-only: copy it before changing it)."""
+    from stcvision.cli import main
+
+    d = tmp_path_factory.mktemp("smoke") / "D"
+    assert main(["dataset", "generate", str(SMOKE_RECIPE), "--out", str(d), "--workers", "1"]) == 0
+    return d
+
+
 @pytest.fixture(scope="session")
 def peer_data() -> Path:
     assert PEER.is_dir(), f"the vendored peer data is missing: {PEER}"

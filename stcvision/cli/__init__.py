@@ -33,6 +33,7 @@ COMMANDS: list[tuple[str, str, str]] = [
     ("calibrate", "stcvision.cli.cmd_calibrate", "calibrate a camera: dark frames, rim, transformation, neighbours"),
     ("dataset", "stcvision.cli.cmd_dataset", "generate and check labelled frame sets from recipes"),
     ("eval", "stcvision.cli.cmd_eval", "evaluate the pipeline on a dataset or your own frames; compare"),
+    ("label", "stcvision.cli.cmd_label", "label your own frames: pipeline proposals on a review sheet"),
     ("bench", "stcvision.cli.cmd_bench", "measure render and pipeline speed on one core"),
 ]
 
