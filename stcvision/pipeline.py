@@ -61,7 +61,7 @@ from stcvision.stages import (
     unwarp,
     window_sums,
 )
-from stcvision.stages.dark import STRUCTURE_BLOCK_PX
+from stcvision.stages.dark import MIN_PROBE_AGREEMENT, STRUCTURE_BLOCK_PX, hot_pixel_probe, probe_agreement
 from stcvision.stages.front import FrontEnd
 from stcvision.stages.red import read_red
 
@@ -265,6 +265,14 @@ class Pipeline:
         else:
             self.set_dark(dark)
 
+    def _probe(self) -> tuple[np.ndarray, np.ndarray]:
+        """The dark frame's hot-pixel probe (:func:`stcvision.stages.dark.hot_pixel_probe`),
+        measured once per dark frame."""
+        dark = self.dark
+        if getattr(self, "_probe_of", None) is not dark:
+            self._probe_of, self._probe_px = dark, hot_pixel_probe(dark)
+        return self._probe_px
+
     @property
     def pedestal(self) -> int:
         return self.front.dark.pedestal
@@ -306,6 +314,13 @@ class Pipeline:
                     f"the frame shows a scene ({100 * structure:.1f} % of full scale of structure over "
                     f"{STRUCTURE_BLOCK_PX}-px blocks, a dark room shows under {100 * DARK_ROOM_MAX_STRUCTURE:g} %): "
                     "a lit frame (lights on), not a dark-room frame"
+                )
+        if self.dark is not None:
+            seen = probe_agreement(frame, self._probe())
+            if seen is not None and seen < MIN_PROBE_AGREEMENT:
+                return (
+                    f"the frame shows {100 * seen:.0f} % of the dark frame's hot pixels (a frame of its camera at "
+                    f"its settings shows them all): a dark frame of another camera or of other settings"
                 )
         excess = (bg - self.pedestal) / max(noise, 1e-9)
         if excess <= LIT_BACKGROUND_K_SIGMA:

@@ -63,6 +63,60 @@ def frame_structure(frame: np.ndarray) -> float:
     return 1.4826 * float(np.median(np.abs(level - med))) / full
 
 
+#: the dark frame's hot pixels a frame is checked at (:func:`hot_pixel_probe`): the strongest
+#: this many, each at least :data:`PROBE_K_SIGMA` robust sigmas above its row neighbour
+PROBE_PIXELS = 64
+PROBE_K_SIGMA = 20.0
+#: fewer probe pixels than this and the dark frame says too little to judge a frame by
+MIN_PROBE_PIXELS = 8
+#: a frame of the dark frame's camera and settings shows at least this share of the probe's hot
+#: pixels at half their dark excess or more. Measured on rendered frames: 1.0 with their own
+#: dark frame, 0.0 with another camera's (another fixed pattern) -- the webcam's 64 probe pixels
+MIN_PROBE_AGREEMENT = 0.5
+
+
+def hot_pixel_probe(dark: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The dark frame's strongest hot pixels in green, to recognise its camera by.
+
+    A hot pixel's dark current is the sensor's own (its fixed pattern): a frame from the same
+    sensor at the same exposure shows it again, one from another sensor does not. Each pixel is
+    measured against its right-hand neighbour in the row, so the check needs no background.
+
+    Parameters
+    ----------
+    dark : numpy.ndarray
+        (H, W, 3) uint8 or uint16 dark frame.
+
+    Returns
+    -------
+    (numpy.ndarray, numpy.ndarray)
+        Flat indices into ``frame.reshape(-1)`` of up to :data:`PROBE_PIXELS` green hot pixels,
+        and their excess over their neighbour (DN); empty when the dark frame has none at
+        :data:`PROBE_K_SIGMA` (a sensor whose dark signal is read noise alone).
+    """
+    w = dark.shape[1]
+    g = dark[:, : w - 1, 1].astype(np.float64)
+    excess = g - dark[:, 1:, 1].astype(np.float64)
+    _, sigma = robust_sigma(excess.reshape(-1)[::7])
+    flat = excess.reshape(-1)
+    top = np.argsort(flat)[::-1][:PROBE_PIXELS]
+    top = top[flat[top] > PROBE_K_SIGMA * max(sigma, 1.0)]
+    rows, cols = top // (w - 1), top % (w - 1)
+    return (rows * w + cols) * 3 + 1, flat[top]
+
+
+def probe_agreement(frame: np.ndarray, probe: tuple[np.ndarray, np.ndarray]) -> float | None:
+    """The share of the probe's hot pixels (:func:`hot_pixel_probe`) that ``frame`` shows at half
+    their dark excess or more over their neighbour; None when the probe is too small to judge
+    (under :data:`MIN_PROBE_PIXELS`)."""
+    idx, excess = probe
+    if len(idx) < MIN_PROBE_PIXELS:
+        return None
+    flat = frame.reshape(-1)
+    seen = flat[idx].astype(np.float64) - flat[idx + 3].astype(np.float64)
+    return float(np.mean(seen >= 0.5 * excess))
+
+
 def check_dark_dtype(dark: np.ndarray, frame_dtype) -> None:
     """A dark frame must come from the same ADC as the frames: the same dtype."""
     if dark.dtype != frame_dtype:

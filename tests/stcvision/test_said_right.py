@@ -195,3 +195,17 @@ def test_calibrate_dark_takes_only_dark_frames_of_one_kind(cli, rendered, tmp_pa
     code, _, err = cli("calibrate", "dark", rendered / "webcam" / "dark.png", other, "--out", out)
     assert code == 2 and "typical levels" in err
     assert cli("calibrate", "dark", rendered / "webcam" / "dark.png", "--out", out)[0] == 0
+
+
+def test_a_dark_frame_of_another_camera_is_untrusted(cli, tmp_path):
+    """The webcam's dark frame holds its hot pixels; a frame of another webcam (another fixed
+    pattern) shows none of them, a frame of its own all."""
+    from stcvision.sim_camera.scene import EXAMPLE_SCENE
+
+    for seed in (0, 7):
+        scene = tmp_path / f"scene{seed}.json"
+        scene.write_text(json.dumps({**EXAMPLE_SCENE, "pattern_seed": seed}))
+        assert cli("render", "--scene", scene, "--camera", "webcam", "--out", tmp_path / f"cam{seed}")[0] == 0
+    own = pipeline_json(cli, tmp_path / "cam0" / "frame.png", "--dark", tmp_path / "cam0" / "dark.png")
+    other = pipeline_json(cli, tmp_path / "cam0" / "frame.png", "--dark", tmp_path / "cam7" / "dark.png")
+    assert own["untrusted"] == "" and "another camera" in other["untrusted"]
