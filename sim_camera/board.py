@@ -242,7 +242,8 @@ class Board:
 
     def red_lights_m(self) -> np.ndarray:
         """(N, 2) world positions of red lights: every obstacle cell's centre plus a ring of
-        virtual obstacle cells one cell outside the border."""
+        virtual obstacle cells one cell outside the border.
+        """
         cr, cc = self.cell_free.shape
         cells = [tuple(c) for c in np.argwhere(~self.cell_free)]
         cells += [(-1, j) for j in range(-1, cc + 1)] + [(cr, j) for j in range(-1, cc + 1)]
@@ -251,7 +252,8 @@ class Board:
 
     def reachable_cells(self, start_cell: tuple[int, int] | None = None) -> np.ndarray:
         """(cells_rows, cells_cols) bool: free cells 4-connected to ``start_cell`` (default: the
-        start sub-cell's cell)."""
+        start sub-cell's cell).
+        """
         start = self.start_cell if start_cell is None else tuple(start_cell)
         cr, cc = self.cell_free.shape
         seen = np.zeros((cr, cc), bool)

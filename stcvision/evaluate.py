@@ -69,7 +69,8 @@ def exposure_key(sensor: dict) -> str:
 
 def box_truth(truth: dict, box: int, *, snr_visible=8.0, snr_ambiguous=3.0, min_dots=2) -> bool | None:
     """True/False if box ``box`` is marked / unmarked in the truth, None if at the edge of
-    visibility (the same rule as :func:`stcvision.scoring.score_frame`)."""
+    visibility (the same rule as :func:`stcvision.scoring.score_frame`).
+    """
     snrs = sorted(
         (t["snr"] for t in truth["dots"] if t["visible"] and t["age_s"] >= 0 and t.get("box") == box), reverse=True
     )
@@ -98,7 +99,8 @@ def recall_by_age(found: list, missed: list) -> list[dict]:
 def visible_detection(result, truth: dict, *, match_m: float = 0.01) -> list[tuple[float, bool]]:
     """(age, found) of every visible truth dot, whatever its SNR: the matching of
     :func:`stcvision.scoring.score_frame`, to show where the visibility horizon cuts detection.
-    ``result``: anything with ``dots.xy_m`` and ``dots.lit`` (the pipeline's or the baseline's)."""
+    ``result``: anything with ``dots.xy_m`` and ``dots.lit`` (the pipeline's or the baseline's).
+    """
     from stcvision.scoring import match_dots
 
     d = result.dots
@@ -114,7 +116,8 @@ def detection_by_age(pairs) -> list[dict]:
 def profile_floor_error_mm(profile, truth: dict, *, max_range_m: float = 0.9) -> list[float]:
     """Floor error (mm) of the profile's image->floor map at every visible truth dot within
     ``max_range_m`` of the robot: how well the profile fits this camera, independent of the
-    dot search (the calibration issue's ground reprojection error, on real dot positions)."""
+    dot search (the calibration issue's ground reprojection error, on real dot positions).
+    """
     pts = [
         (d["uv_px"], d["xy_robot_m"])
         for d in truth["dots"]
@@ -314,7 +317,8 @@ class LabelledFrames:
         """Yield ``(index, label, image)`` of the frames ``indices`` (label order); a frame that
         cannot be decoded is appended to ``skipped`` as ``{"frame", "reason"}``; a frame of the
         wrong size, or of another depth than its dark frame, is an error. ``on_frame(1)`` is called
-        after each frame (progress)."""
+        after each frame (progress).
+        """
         from stcvision.fileio import check_same_depth, read_image
 
         w, h = self.ds.image_size_px
@@ -343,7 +347,8 @@ def evaluate_frames(
 ) -> tuple[list[FrameRecord], list[dict]]:
     """Run and score the pipeline on the frames ``indices`` of ``ds`` (label order): one
     :class:`FrameRecord` per readable frame, and ``{"frame", "reason"}`` per frame that could not
-    be decoded (skipped). ``on_frame(1)`` is called after each frame (progress)."""
+    be decoded (skipped). ``on_frame(1)`` is called after each frame (progress).
+    """
     from stcvision.pipeline import Pipeline
     from stcvision.scoring import score_frame
 
@@ -389,7 +394,8 @@ def evaluate_frames(
 
 def summarize_evaluation(ds, records: list[FrameRecord], skipped: list[dict], *, profile=None) -> Evaluation:
     """The summary of :func:`evaluate_dataset` from the frames' records (in any grouping: the
-    records of several :func:`evaluate_frames` calls, e.g. the tasks of a sweep)."""
+    records of several :func:`evaluate_frames` calls, e.g. the tasks of a sweep).
+    """
     from stcvision.pipeline import STAGES
 
     records = sorted(records, key=lambda r: r.index)
@@ -504,7 +510,8 @@ def log_worst(ev: Evaluation, ds, rrd_path, *, default_profile, profile=None, n:
 
 def evaluate_images(paths: list[Path], *, profile, dark, dark_path=None, progress=None):
     """Run the pipeline on the user's own frames; yields (path, result or None, skip reason).
-    A frame of another depth than ``dark`` (read from ``dark_path``) is refused."""
+    A frame of another depth than ``dark`` (read from ``dark_path``) is refused.
+    """
     from stcvision.fileio import check_same_depth, read_image
     from stcvision.pipeline import Pipeline
 
@@ -544,7 +551,8 @@ def _sha256(path) -> str:
 
 def eval_chunk(params: dict, seed) -> dict:
     """Sweep task: run and score frames ``first`` to ``stop - 1`` of the dataset; their records
-    and the frames skipped as unreadable. ``seed`` is not used (the pipeline draws nothing)."""
+    and the frames skipped as unreadable. ``seed`` is not used (the pipeline draws nothing).
+    """
     from stcvision.datasets import open_dataset
     from stcvision.profile import Profile
 

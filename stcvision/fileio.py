@@ -73,7 +73,8 @@ def output_error(path: str | os.PathLike, exc: OSError) -> OutputError:
 
 def check_output_file(path: str | os.PathLike, *, overwrite: bool = False, what: str = "") -> Path:
     """Check, before any work, that ``path`` can be made as a file: not a directory, its parent a
-    folder (or creatable), and not an existing file unless ``overwrite``. Returns the path."""
+    folder (or creatable), and not an existing file unless ``overwrite``. Returns the path.
+    """
     path = Path(path)
     label = f"{what} {path}".strip()
     if path.is_dir():
@@ -98,7 +99,8 @@ def temp_sibling(path: Path, *, directory: bool = False) -> Path:
     does): a termination signal that lands between making it and registering it would leave an
     unregistered temporary behind, and a run stopped as soon as its recording's file appears
     lands there (seen under load: an ``stcvision cover --rrd`` stopped by SIGTERM kept its
-    ``.run.rrd....tmp``)."""
+    ``.run.rrd....tmp``).
+    """
     _sweep_once(path.parent)
     prefix = f".{path.name}.{os.getpid()}."
     for _ in range(tempfile.TMP_MAX):
@@ -185,7 +187,8 @@ def _writer_pid(name: str) -> int | None:
 
 def remove_stale_temps(folder: str | os.PathLike) -> list[Path]:
     """Remove the temporaries in ``folder`` left by writers that were killed (SIGKILL, power
-    loss): ``.NAME.PID.RANDOM.tmp`` whose process is gone. Returns what was removed."""
+    loss): ``.NAME.PID.RANDOM.tmp`` whose process is gone. Returns what was removed.
+    """
     import shutil
 
     removed = []
@@ -207,7 +210,8 @@ def remove_stale_temps(folder: str | os.PathLike) -> list[Path]:
 
 def remove_live_temps() -> None:
     """Remove this process's temporary files and folders not yet renamed into place (on exit, on
-    an error, on SIGTERM/SIGINT): a run that stops leaves no hidden leftovers."""
+    an error, on SIGTERM/SIGINT): a run that stops leaves no hidden leftovers.
+    """
     for tmp in list(_LIVE_TEMPS):
         discard_temp(tmp)
 
@@ -215,14 +219,16 @@ def remove_live_temps() -> None:
 def remove_own_temps(folder: Path) -> None:
     """Remove this process's temporaries in ``folder`` by their name (``.NAME.PID.RANDOM.tmp``),
     registered or not: a signal that lands between a temporary's creation and its registration
-    (:func:`temp_sibling`) leaves it unregistered, and a folder the run made would then stay."""
+    (:func:`temp_sibling`) leaves it unregistered, and a folder the run made would then stay.
+    """
     for tmp in folder.glob(f".*.{os.getpid()}.*{_TEMP_SUFFIX}"):
         discard_temp(tmp)
 
 
 def commit_temp(tmp: Path, path: Path) -> None:
     """Rename the temporary ``tmp`` over ``path`` (atomic on one file system) and forget it; never
-    after a termination signal (:func:`raise_if_signalled`: the temporary is then removed)."""
+    after a termination signal (:func:`raise_if_signalled`: the temporary is then removed).
+    """
     raise_if_signalled()
     os.replace(tmp, path)
     _LIVE_TEMPS.discard(tmp)
@@ -243,7 +249,8 @@ def discard_temp(tmp: Path | None) -> None:
 
 def _new_file_mode(path: Path) -> int:
     """The mode a new ``path`` gets: an existing file's own mode (replacing keeps it), else
-    0o666 less the umask, as ``open()`` would give (mkstemp alone makes 0600)."""
+    0o666 less the umask, as ``open()`` would give (mkstemp alone makes 0600).
+    """
     try:
         return os.stat(path).st_mode & 0o7777
     except OSError:
@@ -347,7 +354,8 @@ _DEEP_SUFFIXES = (".png", ".tif", ".tiff")
 def write_image(path: str | os.PathLike, image: np.ndarray, *, overwrite: bool = False) -> Path:
     """Encode ``image`` (grey or BGR; uint8, or uint16 as 16-bit PNG/TIFF, the ADC counts kept
     as they are) by the file's extension and write it atomically. A uint16 image is refused for
-    JPEG (8 bits only): it is never scaled down silently."""
+    JPEG (8 bits only): it is never scaled down silently.
+    """
     import cv2
 
     path = Path(path)
@@ -387,7 +395,8 @@ class quiet_opencv:
     """``with quiet_opencv():`` OpenCV's own log (``[ WARN:0@...]``, ``[ERROR:...]`` lines) is
     off and the C libraries' messages (libpng's ``libpng error: ...``, written straight to file
     descriptor 2) go to /dev/null; both are back after. The caller reports a failure itself, in
-    one line. Only around one decode: stderr is away for about a millisecond."""
+    one line. Only around one decode: stderr is away for about a millisecond.
+    """
 
     def __enter__(self):
         import sys
@@ -454,7 +463,8 @@ def read_image(path: str | os.PathLike, *, color: bool = True, what: str = "imag
 
 def check_same_depth(frame: np.ndarray, dark: np.ndarray, dark_path, *, frame_path=None) -> None:
     """A dark frame must have the frames' depth (uint8 with uint8, uint16 ADC counts with
-    uint16): a one-line :class:`BadInputError` naming the dark frame otherwise."""
+    uint16): a one-line :class:`BadInputError` naming the dark frame otherwise.
+    """
     if frame.dtype != dark.dtype:
         of = f" ({frame_path})" if frame_path is not None else ""
         raise BadInputError(
@@ -469,7 +479,8 @@ def _depth(img: np.ndarray) -> str:
 
 def check_output_folder(folder: str | os.PathLike, names, *, overwrite: bool = False) -> Path:
     """Check, before any work, that ``folder`` can hold the files ``names``: a folder or creatable
-    (no file in the way), and none of ``names`` already there unless ``overwrite``."""
+    (no file in the way), and none of ``names`` already there unless ``overwrite``.
+    """
     folder = Path(folder)
     if folder.exists() and not folder.is_dir():
         raise OutputError(f"{folder} is a file; expected a folder for the outputs")

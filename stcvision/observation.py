@@ -67,7 +67,8 @@ _LANDING = np.array(
 
 def _apply(H: np.ndarray, xy) -> np.ndarray:
     """(N, 2) points through the homography ``H``: homogeneous coordinates (the points and a
-    column of ones) times ``H.T``, then divided."""
+    column of ones) times ``H.T``, then divided.
+    """
     p = np.asarray(xy, float).reshape(-1, 2)
     if len(p) >= 2:  # compiled, bit for bit numpy's product (homography)
         return homography(H, np.ascontiguousarray(p))
@@ -107,7 +108,8 @@ class CellGeometry:
 
     def outline_px(self, heading_error_rad: float = 0.0) -> dict[str, np.ndarray]:
         """Ground-view polygons of the cell, its sub-cells, the five boxes and the four
-        neighbours (for drawing), rotated by the heading error."""
+        neighbours (for drawing), rotated by the heading error.
+        """
         polys = {"cell": _sq((0, 0), 1)}
         for k, (sr, su) in SUBCELLS.items():
             polys[f"subcell{k}"] = _sq((0.5 * sr, 0.5 * su), 0.5)
@@ -177,7 +179,8 @@ def mark_offset(cell_pts: np.ndarray, orient: np.ndarray, *, inset: float = MARK
     view: every mark lies ``inset`` inside one edge of its sub-cell, so across its row a dot's
     coordinate should be an integer (an edge) +- ``inset``; the median residual of the rows
     running along 'up' gives the offset to the right, of those along 'right' the offset up.
-    Unambiguous while the robot is less than ``inset`` off (the residual would flip sides)."""
+    Unambiguous while the robot is less than ``inset`` off (the residual would flip sides).
+    """
     if not len(cell_pts):
         return None
     lit = np.ones(len(cell_pts), np.bool_)
@@ -202,7 +205,8 @@ def pattern_rotation(
     3+ dots spanning 0.3..0.7 sub-cells and fitting a line within 0.02 gives one angle. ``None``
     unless ``min_rows`` rows agree (within 1 degree of their median) and the lean is under
     ``max_rad`` (a larger one is a misgrouping, not the floor). Plain Python: rows hold four
-    dots, where numpy's per-call cost would dominate."""
+    dots, where numpy's per-call cost would dominate.
+    """
     angles = []
     for along, across in ((1, 0), (0, 1)):  # rows along 'up' (vary in u), along 'right'
         pts = sorted((float(p[across]), float(p[along])) for p in cell_pts[orient == along])
@@ -250,13 +254,15 @@ def _row_angles(band: list[tuple[float, float]], along: int) -> list[float]:
 
 def group_stats(code: np.ndarray, n: int, lit: np.ndarray, value: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """For codes 0..n-1 (one per dot): how many of the lit dots have each code, and the largest
-    ``value`` among all dots of each code (0.0 where none has it)."""
+    ``value`` among all dots of each code (0.0 where none has it).
+    """
     return group_stats_loop(np.asarray(code, np.int64), n, np.asarray(lit, np.bool_), np.asarray(value, float))
 
 
 def _confidence(value: float, threshold: float, noise: float) -> float:
     """How sure a threshold decision is: logistic in the margin, in units of the noise
-    (0.5 at the threshold, ~0.99 five noise units away)."""
+    (0.5 at the threshold, ~0.99 five noise units away).
+    """
     return float(1.0 / (1.0 + math.exp(-abs(value - threshold) / max(noise, 1e-9))))
 
 
@@ -352,7 +358,8 @@ class CellObservation:
 class ObservationParams:
     """``min_dots``: lit dots needed before a box (or a neighbour) counts as marked. A mark is
     a row of four dots, so two agreeing dots reject a lone noise peak (measured: one lone 5.6-
-    sigma false dot in 300 rendered frames) at the cost of marks with three of four dots lost."""
+    sigma false dot in 300 rendered frames) at the cost of marks with three of four dots lost.
+    """
 
     min_dots: int = 2
     #: shift the cell regions by the robot's offset as the marks show it (within 2 cm)
@@ -431,7 +438,8 @@ def _cell_dots(dots, geometry: CellGeometry, heading_error_rad: float, params: O
     """The dots in cell units, rotated back by the heading error and shifted by the robot's
     offset (``position_offset``, else where the marks say it stands); their row orientation
     (:func:`row_orientation`, lit dots only: rows are made of lit dots; -1 for the rest); and
-    that offset (None: too few rows); and which of its axes the marks measured."""
+    that offset (None: too few rows); and which of its axes the marks measured.
+    """
     if not len(dots):
         return np.zeros((0, 2)), np.zeros(0, np.int64), None, (False, False)
     cell_pts = rotate_about_robot(geometry.to_cell(dots.xy_px), heading_error_rad)
@@ -449,7 +457,8 @@ def _read_boxes(dots, sub: np.ndarray, box: np.ndarray, nb: np.ndarray, params: 
     """The five boxes (lit with ``params.min_dots`` lit dots; confidence from the best
     candidate's SNR), the visited sub-cells, the stray lit dots (in the cell, in no box), the
     start mark's sub-cell (or None), and per neighbour code (``nb + 1``) the lit dots and the
-    best SNR (:func:`box_counts`)."""
+    best SNR (:func:`box_counts`).
+    """
     thr = dots.threshold_snr
     # per box code (-3..5, offset by 3): lit dots and the best candidate's SNR
     n_box, best_box, n_nb, best_nb, stray = box_counts(
@@ -468,7 +477,8 @@ def _read_boxes(dots, sub: np.ndarray, box: np.ndarray, nb: np.ndarray, params: 
 
 def _read_neighbours(nb_stats, rru, red_strength, red_threshold_dn: float, thr: float, params: ObservationParams):
     """The four neighbours: marked (``params.min_dots`` lit dots in the cell: ``nb_stats`` from
-    :func:`_read_boxes`), red (a red light ``rru`` in it), each with a confidence."""
+    :func:`_read_boxes`), red (a red light ``rru`` in it), each with a confidence.
+    """
     _, _, rnb = assign_boxes(rru, np.full(len(rru), -1)) if len(rru) else (None, None, np.zeros(0, np.int64))
     neighbours = {}
     n_lit_nb, best_nb = nb_stats
@@ -493,7 +503,8 @@ def _landmarks(
     (offset, rotation, rotation sigma, offset sigma) of the landmark pose fit
     (:func:`stcvision.localisation.landmark_pose`) over the lights near a cell centre within
     reach (``landmark_px`` out to ``params.landmark_range_m``, else the view's lights ``rru``
-    within 2.6 sub-cells), each None where not fixed."""
+    within 2.6 sub-cells), each None where not fixed.
+    """
     if landmark_px is not None and subcell_m:
         lru = (
             rotate_about_robot(geometry.to_cell(landmark_px), heading_error_rad)
@@ -528,7 +539,8 @@ def marks_landing_ahead(
 ) -> int:
     """Lit dots in the sub-cell just ahead of the robot (where it lands when it drives on; the
     lower-right sub-cell of :func:`marks_ahead`'s cell ahead), 1 cm clear of its borders as
-    :func:`observe_cell`'s landing rule: a row of the next sub-cell must not count."""
+    :func:`observe_cell`'s landing rule: a row of the next sub-cell must not count.
+    """
     if not len(dots):
         return 0
     cell_pts = rotate_about_robot(geometry.to_cell(dots.xy_px[dots.lit]), heading_error_rad)
@@ -541,7 +553,8 @@ def marks_landing_ahead(
 @numba.njit(cache=True)
 def row_orientation_loop(cell_pts, tol, span):
     """Per dot (cell units): 1 if it has more row-mates along 'up' than along 'right', 0 if
-    fewer, -1 if as many (:func:`stcvision.observation.row_orientation`)."""
+    fewer, -1 if as many (:func:`stcvision.observation.row_orientation`).
+    """
     n = len(cell_pts)
     out = np.empty(n, np.int64)
     for i in range(n):
@@ -590,7 +603,8 @@ def mark_offset_loop(cell_pts, orient, lit, inset, min_dots):
     """The median residuals of :func:`stcvision.observation.mark_offset` over the lit dots:
     per axis (0: right, from the rows along 'up'; 1: up, from those along 'right'), whether
     ``min_dots`` rows' dots were there, and minus the median of each dot's coordinate less its
-    nominal one (the nearest integer, half to even, +- ``inset``)."""
+    nominal one (the nearest integer, half to even, +- ``inset``).
+    """
     have = np.zeros(2, np.bool_)
     out = np.zeros(2)
     for axis in range(2):
@@ -612,7 +626,8 @@ def mark_offset_loop(cell_pts, orient, lit, inset, min_dots):
 @numba.njit(cache=True)
 def group_stats_loop(code, n, lit, value):
     """Per code 0..n-1: lit dots with it, and the largest ``value`` of any dot with it (0.0
-    where none has it): the compiled loop of :func:`group_stats`, on arrays of its types."""
+    where none has it): the compiled loop of :func:`group_stats`, on arrays of its types.
+    """
     counts = np.zeros(n, np.int64)
     best = np.full(n, -np.inf)
     seen = np.zeros(n, np.bool_)
@@ -634,7 +649,8 @@ def cell_dots(cell_pts, lit, tol, span, inset, min_dots):
     """Row orientation and mark offset of the dots ``cell_pts`` (cell units, already rotated), in
     one call (:func:`stcvision.observation._cell_dots`): per dot, :func:`row_orientation` among
     the lit dots (-1 for the rest), then :func:`mark_offset` over the lit dots. Returns
-    (orient, have, offset)."""
+    (orient, have, offset).
+    """
     idx = np.flatnonzero(lit)
     sub = np.empty((len(idx), 2))
     for k in range(len(idx)):
@@ -652,7 +668,8 @@ def cell_dots(cell_pts, lit, tol, span, inset, min_dots):
 def box_counts(box, nb, sub, lit, snr):
     """Per box code (box + 3: -3..5) and neighbour code (nb + 1: -1..3): the lit dots and the
     best SNR of any dot (:func:`group_stats_loop`), and the stray lit dots (in a sub-cell, in no
-    box) (:func:`stcvision.observation._read_boxes`)."""
+    box) (:func:`stcvision.observation._read_boxes`).
+    """
     n_box, best_box = group_stats_loop(box + 3, 9, lit, snr)
     n_nb, best_nb = group_stats_loop(nb + 1, 5, lit, snr)
     stray = 0
@@ -680,7 +697,8 @@ def homography(H, p):
     """(N, 2) points ``p`` through the homography ``H`` ((3, 3)): ``[p, 1] @ H.T`` then divided
     by the third coordinate, each row of the product as OpenBLAS's dgemm computes it on this
     machine for N >= 2 (``fma(y, h1, x * h0) + h2``: bit for bit on 100,000 points; numpy takes
-    another path for N = 1, which :func:`stcvision.observation._apply` keeps)."""
+    another path for N = 1, which :func:`stcvision.observation._apply` keeps).
+    """
     n = len(p)
     out = np.empty((n, 2))
     for i in range(n):

@@ -71,7 +71,8 @@ def match_dots(xy_m, truth: dict, profile, *, match_m: float = 0.01) -> DotMatch
     dots: greedily, each detection to its nearest truth dot if within ``match_m`` and not taken
     already (else it is a false detection). The image error is that of the detection mapped
     through ``profile.robot_to_image`` (none without a profile). Any detector's dots can be scored this way (the
-    pipeline's, the plain-OpenCV baseline's)."""
+    pipeline's, the plain-OpenCV baseline's).
+    """
     tdots = [d for d in truth["dots"] if d["visible"] and d["age_s"] >= 0]
     txy = np.array([d["xy_robot_m"] for d in tdots]).reshape(-1, 2)
     xy = np.asarray(xy_m, float).reshape(-1, 2)

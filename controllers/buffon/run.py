@@ -172,7 +172,8 @@ def reproduce(
     out: str | Path, *, trials: int = 100, seed: int = 0, sweep=None, force: bool = False, online_trials: int = 6
 ) -> dict:
     """Every experiment set of sec. 5 plus the absolute-area set, through the sweep runner; then
-    (``online_trials`` > 0) the online rule's experiments (:func:`online`) into ``out/online``."""
+    (``online_trials`` > 0) the online rule's experiments (:func:`online`) into ``out/online``.
+    """
     from stcvision.controllers.buffon import report
     from stcvision.sweep import SweepOptions, Task
 
@@ -241,7 +242,7 @@ def compare(
     sweep=None,
     force: bool = False,
 ) -> dict:
-    """nBC of the pymunk path and the batched path on the same nest: two-sample tests."""
+    """Compare nBC of the pymunk path and the batched path on the same nest: two-sample tests."""
     from scipy import stats
 
     from stcvision.sweep import SweepOptions, Task
@@ -349,7 +350,8 @@ def calibrate(*, trials: int = 100, seed: int = 0) -> dict:
 # ------------------------------------------------------------------------------------- bench
 def bench(*, spec: str = "circle:30", seed: int = 0) -> dict:
     """Robot-steps per second of the batched path and of the pymunk path on the same nest and
-    behaviour, measured one after the other in this process (one core)."""
+    behaviour, measured one after the other in this process (one core).
+    """
     from stcvision.controllers.buffon.pymunk_path import run_trials_pymunk
 
     nest = parse_nest(spec)
@@ -393,7 +395,8 @@ SHAPE_PAIR_AREAS = (2000, 5000, 10000, 20000, 30000)
 def online(out: str | Path, *, trials: int = 12, seed: int = 0, sweep=None, force: bool = False) -> dict:
     """The online rule measured: its calibration family again, the held-out evaluation family
     (coverage of both intervals per family), the size sweep's ends, and error vs robot-steps of
-    fixed lengths beside the rule on the standard circle; CSV, figures, summary."""
+    fixed lengths beside the rule on the standard circle; CSV, figures, summary.
+    """
     from stcvision.controllers.buffon import online as exp
     from stcvision.controllers.buffon import report
     from stcvision.sweep import SweepOptions, Task

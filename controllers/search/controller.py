@@ -117,7 +117,8 @@ class MoveKind(enum.Enum):
 class SearchConfig:
     """``pattern`` (:mod:`stcvision.controllers.search.patterns`), detour ``policy``, the tongue
     ``threshold`` (sensor units; the paper's robot stopped above 296 Hz, Fig. 12) and the loop
-    guard ``max_detour_moves``."""
+    guard ``max_detour_moves``.
+    """
 
     pattern: object
     policy: Policy = Policy.IMPROVED
@@ -206,7 +207,8 @@ def _avoid_heading(s: SearchState) -> tuple[SearchState, int]:
 
 def _unavoid(s: SearchState, j: int) -> Move | None:
     """The unavoid move paying back one avoid move along heading ``j`` (opposite it); None if
-    nothing is owed along it."""
+    nothing is owed along it.
+    """
     a, k = (s.a2, s.k2) if j == 2 else (s.a1, s.k1)
     if k <= 0:
         return None
@@ -252,7 +254,8 @@ def _account(s: SearchState, done: bool) -> SearchState:
 def _untried_side(s: SearchState) -> int | None:
     """The side to go round an obstacle met at search step ``s.i``: right (-1, the paper's) unless
     a detour that way already came back to this step without progress, then left (+1); None when
-    both did."""
+    both did.
+    """
     tried = s.failed_sides if s.failed_i == s.i else 0
     return next((side for side, bit in ((-1, 1), (1, 2)) if not tried & bit), None)
 

@@ -52,7 +52,8 @@ RING_RISE_SIGMAS = 5.0  # the ring must rise this many noise sigmas above its st
 @dataclass(frozen=True, kw_only=True, slots=True)
 class SearchScene:
     """Obstacles (x, y, radius) and the chemical patch (x, y, radius) in metres, relative to the
-    start (heading 0 = +x)."""
+    start (heading 0 = +x).
+    """
 
     obstacles: tuple[tuple[float, float, float], ...] = ()
     patch: tuple[float, float, float] | None = None
@@ -98,7 +99,8 @@ class SearchScene:
 
 def robot_params(odometry_noise: bool):
     """TASTI 2 as in :mod:`stcvision.sim_camera.robot`, or with exact wheels (no Ed, Eb, slip; encoder
-    quantisation stays) for ``odometry_noise=False``."""
+    quantisation stays) for ``odometry_noise=False``.
+    """
     if odometry_noise:
         return TASTI2
     return dataclasses.replace(TASTI2, ed=1.0, eb=1.0, slip_k=0.0)
@@ -126,7 +128,8 @@ class MoveRecord:
 @dataclass(frozen=True, slots=True)
 class SearchRun:
     """Everything a run produced (the metrics are computed from it by
-    :func:`stcvision.controllers.search.metrics.summarise`)."""
+    :func:`stcvision.controllers.search.metrics.summarise`).
+    """
 
     scene: SearchScene
     config: SearchConfig
@@ -152,7 +155,8 @@ class SearchRun:
 
 def execute_move(world: World, robot, move: Move, *, back_off: bool = True) -> str:
     """Turn to ``move.heading_rad`` by the odometry, drive ``move.distance_m`` while the ring
-    watches; "done", or "blocked" (and, with ``back_off``, back at the move's start point)."""
+    watches; "done", or "blocked" (and, with ``back_off``, back at the move's start point).
+    """
     turn = wrap_angle(move.heading_rad - robot.odometry.theta)
     if abs(turn) > 1e-4:
         robot.rotate_by(turn)
@@ -220,7 +224,8 @@ def run_search(
     """Run the search until the controller stops. ``seed`` is split into the world's stream and
     the beacon camera's. ``beacon``: a :class:`stcvision.controllers.search.beacon.Beacon` (or None).
     ``observer``: an object with ``on_move(record, world, robot, fixer=)`` (e.g. the rerun recorder).
-    ``progress``: callable(search_steps) after each move (a progress bar)."""
+    ``progress``: callable(search_steps) after each move (a progress bar).
+    """
     check_reach(config.pattern)
     ss_world, ss_beacon = seed.spawn(2)
     world, robot = build_world(scene, config.pattern, seed=ss_world, odometry_noise=odometry_noise)

@@ -76,7 +76,8 @@ def stc_observation(cell_obs) -> StcObservation:
     """The controller's observation (:class:`stcvision.controllers.stc.fsm.StcObservation`) from the pipeline's
     per-cell reading (:class:`stcvision.observation.CellObservation`): the five boxes lit, per
     neighbour (right, forward, left, back) marked and red, the start mark's sub-cell and the
-    landing sub-cells marked."""
+    landing sub-cells marked.
+    """
     neigh = tuple(NeighbourObs(cell_obs.neighbours[d].has_marks, cell_obs.neighbours[d].has_red) for d in NEIGHBOURS)
     return StcObservation(
         boxes=tuple(b.lit for b in cell_obs.boxes),
@@ -88,7 +89,8 @@ def stc_observation(cell_obs) -> StcObservation:
 
 def _merge(a: StcObservation, b: StcObservation) -> StcObservation:
     """What two exposures of one scene show together: a mark either one sees is there; the red
-    lights come from the first (short) frame, which does not saturate them."""
+    lights come from the first (short) frame, which does not saturate them.
+    """
     return StcObservation(
         boxes=tuple(x or y for x, y in zip(a.boxes, b.boxes, strict=True)),
         neighbours=tuple(
@@ -105,7 +107,8 @@ def _check_fresh(obs: StcObservation) -> StcObservation:
     """A cell entered as a child the look found unmarked holds no mark: a box or a start mark
     read in it means the look or this reading was wrong, and either way the cell's parent and
     visited sub-cells cannot be taken from it: the robot stops before deciding
-    (``StcObservation.misread``), on every camera."""
+    (``StcObservation.misread``), on every camera.
+    """
     lit = [b for b, on in enumerate(obs.boxes, 1) if on]
     if not lit and obs.start_mark is None:
         return obs
@@ -136,7 +139,8 @@ def sensor_gain(sensor, exposure_s: float, n_avg: int, webcam_gain: float) -> fl
     saturates at ``full_well_e / g`` electrons). The STC paper's webcam (an 8-bit ADC, the default
     sensor) keeps the ladder's own gains (``webcam_gain``: the paper's 16x and the long frames' 4x),
     so its frames are exactly what they were. A robot setting from the sensor's figures, not
-    the world."""
+    the world.
+    """
     from stcvision.sim_camera.image_sensor import SensorParams
 
     web = SensorParams()
@@ -149,7 +153,8 @@ def sensor_gain(sensor, exposure_s: float, n_avg: int, webcam_gain: float) -> fl
 
 class Exposures:
     """The frames a robot's camera takes: the ladder of (exposure_s, gain) settings, the short
-    webcam frame first, and which long rung the robot's clock asks for."""
+    webcam frame first, and which long rung the robot's clock asks for.
+    """
 
     def __init__(self, cfg: CoverConfig, subcell_m: float = DEFAULT_SUBCELL_M, *, frame_noise: bool | None = None):
         from stcvision.sim_camera.camera import SyntheticCamera
@@ -192,7 +197,8 @@ class Exposures:
     def _curve(self, k: int, snr: float | None = None) -> np.ndarray:
         """Rung ``k``'s horizon (s) at :data:`RHO`, for a lone dot at ``snr`` (default
         ``CoverConfig.sizing_snr``; the camera's calibration of the phosphor,
-        :func:`stcvision.sim_camera.camera.visibility_horizon_s`)."""
+        :func:`stcvision.sim_camera.camera.visibility_horizon_s`).
+        """
         snr = self.cfg.sizing_snr if snr is None else snr
         if (k, snr) not in self._horizons:
             from stcvision.sim_camera.camera import ROSE_SNR, visibility_horizon_s
@@ -213,14 +219,16 @@ class Exposures:
         (its 64 x 30 s frame sees a mark 0.45 m away for 8,900 s, not 17,100 s: a box 0.13-0.21
         m away, 24,746 s old, read at a dot SNR of 4.6-6.2 in a 32 x 30 s frame where the
         idealised noise promised 9-12, was missed); a 12- or 16-bit camera's, whose gain makes
-        its noise span a DN, 0.8-0.85 of their number."""
+        its noise span a DN, 0.8-0.85 of their number.
+        """
         s, n = self._sensor(k), self.stack(k)
         idealised = (s.dark_current_e_s * s.exposure_s + s.read_noise_e**2 + 1 / (12 * s.dn_per_e**2)) / n
         return n * idealised * s.dn_per_e**2 / self._noise_floor(k) ** 2
 
     def _noise_floor(self, k: int) -> float:
         """Rung ``k``'s noise floor by the camera's figures (:func:`stcvision.controllers.stc.health.noise_floor_dn`),
-        with its dark frame (a median of 8, or a mean of 8n frames for a stack of n)."""
+        with its dark frame (a median of 8, or a mean of 8n frames for a stack of n).
+        """
         from stcvision.controllers.stc.health import noise_floor_dn
 
         n = self.stack(k)
@@ -228,7 +236,8 @@ class Exposures:
 
     def horizon(self, k: int, rho_m: float, snr: float | None = None) -> float:
         """How old (s) a mark ``rho_m`` from the robot may be and still be seen in a frame at rung
-        ``k`` (its deciding dot at ``snr``, default ``CoverConfig.sizing_snr``)."""
+        ``k`` (its deciding dot at ``snr``, default ``CoverConfig.sizing_snr``).
+        """
         i = min(int(np.searchsorted(self.RHO, rho_m - 1e-9)), len(self.RHO) - 1)
         return float(self._curve(k, snr)[i])
 
@@ -243,7 +252,8 @@ class Exposures:
 
     def rung_for(self, t_s: float, rho_m: float) -> int | None:
         """The shortest rung (the short frame included) whose horizon ``rho_m`` away covers marks
-        as old as the clock ``t_s``; None when none does."""
+        as old as the clock ``t_s``; None when none does.
+        """
         return next((k for k in range(len(self.ladder)) if self.horizon(k, rho_m) >= t_s), None)
 
     def decision_claims(self, fresh: bool, at_start: bool):
@@ -266,7 +276,8 @@ class Exposures:
         (:func:`stcvision.controllers.stc.claims.read_until_sure`; raises
         :class:`stcvision.controllers.stc.claims.OutOfSight` when no frame can cover one, unless
         ``CoverConfig.stop_out_of_sight`` is off: then the longest frame is taken and the reading
-        kept); without it (the STC paper's camera) the short frame alone, whatever it misses."""
+        kept); without it (the STC paper's camera) the short frame alone, whatever it misses.
+        """
         from stcvision.controllers.stc.claims import read_until_sure
 
         if not self.controlled:
@@ -280,7 +291,8 @@ class Exposures:
         or a frame taken could have seen one as old as the clock was then. Without exposure
         control the STC paper's robot takes what it sees for sure. ``start_cell``: the robot's count of
         its moves puts it in its start cell (elsewhere a start mark read is not its own:
-        :meth:`_check_start_away`)."""
+        :meth:`_check_start_away`).
+        """
         from stcvision.controllers.stc.claims import landing_claim
 
         seen: list = []  # (rung, reading) of every frame this decision takes
@@ -317,7 +329,8 @@ class Exposures:
 
     def _longer(self, t_s: float, read, obs, dt: float, taken: list):
         """A decision's reading once more with a frame one rung longer than any taken (the
-        longest again at the top), merged: (reading, seconds, the rung, that frame's own reading)."""
+        longest again at the top), merged: (reading, seconds, the rung, that frame's own reading).
+        """
         k = min(max(j for j, _ in taken) + 1, len(self.ladder) - 1)
         more, dk = read(k, t_s + dt)
         taken.append((k, t_s + dt))
@@ -331,7 +344,8 @@ class Exposures:
         control it is read once more with a frame one rung longer than any taken (more rows to
         fit); still so, or on a camera without control, it says why
         (``StcObservation.misread``) and the robot stops before deciding. Returns (reading,
-        seconds)."""
+        seconds).
+        """
         if not obs.other_marks:
             return obs, dt
         label = self.frame_label(max(j for j, _ in taken))
@@ -356,7 +370,8 @@ class Exposures:
         found ~98 % of the time, two of four > 99.99 %) for an unlit box's deciding dot, the
         cell is read again with the next longer frame (the longest again at the top), merged:
         the clock, not a record of where the robot has been, says a mark there may be that old.
-        Returns (reading, seconds)."""
+        Returns (reading, seconds).
+        """
         from stcvision.controllers.stc.claims import distance_m
 
         margin, snr = self.cfg.position_margin_m, self.cfg.return_snr
@@ -378,7 +393,8 @@ class Exposures:
         and at a return the boxes {3,4} for {4} sent the robot into a visited sub-cell. So such a
         box is read once more at the rung that read it lit: a mark there shows again (the longer
         frame's miss was its own), a row of noise does not, and the box is taken from that
-        frame. Returns (reading, seconds)."""
+        frame. Returns (reading, seconds).
+        """
         disputed = []
         for b, lit in enumerate(obs.boxes):
             lit_at = [k for k, o in seen if o.boxes[b]]
@@ -406,7 +422,8 @@ class Exposures:
         reads the same boxes (the longer frame sees every mark the shorter ones could, and
         ``_check_lines`` has held each frame's rows to the cell's lines). Otherwise it says why
         (``StcObservation.misread``: the loop stops rather than decide on it). Returns
-        (reading, seconds)."""
+        (reading, seconds).
+        """
         from stcvision.controllers.stc.claims import return_misread
 
         if return_misread(obs) is None:
@@ -426,7 +443,8 @@ class Exposures:
         """A second frame at rung ``k``: when it reads the boxes and start mark that frame's
         ``more`` read, with every row of the cell on its lines, the reading takes them from
         ``more`` instead of the merge (which keeps any one frame's mark). Returns (the settled
-        reading or None, seconds)."""
+        reading or None, seconds).
+        """
         if more.other_marks:
             return None, dt
         again, dk = read(k, t_s + dt)
@@ -440,7 +458,8 @@ class Exposures:
     def _longer_agreed(self, t_s: float, read, obs, dt: float, taken: list, wanted):
         """:meth:`_longer`, then, when that frame's own reading is ``wanted``, :meth:`_agree` with
         a second frame at its rung: (the settled reading or None, the merged reading, seconds,
-        the rung)."""
+        the rung).
+        """
         merged, dt, k, more = self._longer(t_s, read, obs, dt, taken)
         if wanted(more):
             settled, dt = self._agree(t_s, read, merged, more, dt, taken, k)
@@ -452,7 +471,8 @@ class Exposures:
         """A cell entered as new (its look found no mark) read with a box or a start mark
         (spiral_stc_test lowlight seed 222: box 5 in the short frame, a neighbour's row; the
         look was right): read once more with a frame one rung longer; two frames at that rung
-        agreeing on no mark settle it, otherwise the misread stands. Returns (reading, seconds)."""
+        agreeing on no mark settle it, otherwise the misread stands. Returns (reading, seconds).
+        """
         clean = dataclasses.replace(obs, misread="")
         settled, _, dt, k = self._longer_agreed(
             t_s, read, clean, dt, taken, lambda m: not any(m.boxes) and m.start_mark is None
@@ -475,7 +495,8 @@ class Exposures:
         read on sub-cell 1's start-mark line by the 4 s and the 8 s frame; the robot stood
         0.5 cm off); the boxes read with it face the checks after this one. With rows of the
         cell off the lines it says why (``StcObservation.misread``) and the robot stops before
-        deciding. Returns (reading, seconds)."""
+        deciding. Returns (reading, seconds).
+        """
         settled, merged, dt, k = self._longer_agreed(t_s, read, obs, dt, taken, lambda m: m.start_mark is None)
         if settled is not None:
             return settled, dt
@@ -517,7 +538,8 @@ class IdealCamera(Exposures):
     the marks with a dot whose age is within the frame's visibility horizon at its distance
     (:func:`stcvision.sim_camera.camera.visibility_horizon_s`, the Rose criterion on the camera model; for
     a row of four dots with ``rows``), and nothing else. No pipeline error and no drift beyond
-    the oracle's: what it cannot do, no pipeline on this camera can."""
+    the oracle's: what it cannot do, no pipeline on this camera can.
+    """
 
     def __init__(self, cfg: CoverConfig, board, *, rows: bool = True):
         super().__init__(cfg, board.subcell_m)
@@ -536,7 +558,8 @@ class IdealCamera(Exposures):
     def floor_seen(self, xy, t_s: float, phosphor, marks: list, rungs, dot_mark=None) -> MarkFloor:
         """The marks (``marks``: the (sub-cell, edge) of every four dots laid, in order; or of
         the dots ``dot_mark`` gives the mark of) that frames at ``rungs`` taken from ``xy`` at
-        ``t_s`` see."""
+        ``t_s`` see.
+        """
         seen = MarkFloor(self.board.shape_subcells)
         if not marks:
             return seen
@@ -566,7 +589,8 @@ class IdealCamera(Exposures):
 
     def look(self, xy, t_s, phosphor, marks, sub, hc, *, landing: bool = False, dot_mark=None):
         """(marked, seconds spent): the frames :meth:`RobotCamera.look` takes; ``landing``: the
-        sub-cell ahead (before a return to the parent), else the cell ahead (a child)."""
+        sub-cell ahead (before a return to the parent), else the cell ahead (a child).
+        """
 
         def read(k, t):
             seen, dt = self._seen(xy, phosphor, marks, k, t, dot_mark)
@@ -578,7 +602,8 @@ class IdealCamera(Exposures):
 class RobotCamera(Exposures):
     """Camera + pipeline at the robot: one pipeline per exposure setting, each holding the dark
     frame taken at its exposure (so no dark frame is re-prepared between the short and the long
-    frame of a decision)."""
+    frame of a decision).
+    """
 
     frame_noise = True
 
@@ -606,7 +631,8 @@ class RobotCamera(Exposures):
         """The pipeline of rung ``k``'s exposure and gain (stacked rungs share it), holding the
         dark frame of rung ``k``: for a stack of n frames a master dark of 8n frames at the same
         exposure (taken once, before the run, lens capped), so that its own noise stays well
-        below the stack's."""
+        below the stack's.
+        """
         e, g, _ = self.ladder[k]
         n = self.stack(k)
         if (e, g) not in self.pipes:
@@ -643,7 +669,8 @@ class RobotCamera(Exposures):
         (:meth:`stcvision.pipeline.Pipeline.process`).
         A frame lost or black (:func:`stcvision.controllers.stc.health.frame_fault`) is taken again, up to
         :data:`~stcvision.controllers.stc.health.FRAME_RETRIES` times (their time counts), then the robot
-        stops (:class:`~stcvision.controllers.stc.health.RobotStop`): it never reads a frame it cannot trust."""
+        stops (:class:`~stcvision.controllers.stc.health.RobotStop`): it never reads a frame it cannot trust.
+        """
         from stcvision.controllers.stc.health import FRAME_RETRIES, RobotStop, frame_fault
         from stcvision.sim_camera.camera import Pose
 
@@ -674,7 +701,8 @@ class RobotCamera(Exposures):
         heading fit (the long frame's recent rows all saturate) and, when the red lights in it
         are sure, their offset (the long frame has no far lights, and its many old rows, each
         laid where the robot then stood, may mislead its own offset by more than the rows' 2 cm
-        inset: a row of the cell behind then reads as a start mark)."""
+        inset: a row of the cell behind then reads as a start mark).
+        """
         from stcvision.controllers.stc.config import LANDMARK_OFFSET_SIGMA
 
         o = short.observation
@@ -690,7 +718,8 @@ class RobotCamera(Exposures):
         result or None, seconds spent): the short frame, and with exposure control the long
         frames its claims ask for (:meth:`sure`), what any of them sees of the marks merged. The
         pose comes from the short frame, whose red lights do not saturate; the long ones are
-        read with its heading fit (their recent rows all saturate)."""
+        read with its heading fit (their recent rows all saturate).
+        """
         res: list = []
 
         def read(k, t):
@@ -711,7 +740,8 @@ class RobotCamera(Exposures):
         another neighbour read across the cell's edge, a noise peak, a bloom) is read as
         unmarked: it stays a candidate child, and the look from next to it, 2-3x closer, reads
         it again before the robot enters it or moves on (:meth:`look`). Passed by on such a
-        reading, a new cell would be left uncovered."""
+        reading, a new cell would be left uncovered.
+        """
         from stcvision.controllers.stc.cellfit import shows_tour_row
 
         doubt = [d for d, n in enumerate(obs.neighbours) if n.has_marks and not n.has_red]
@@ -727,7 +757,8 @@ class RobotCamera(Exposures):
 
     def _dots(self, res, offset) -> tuple[np.ndarray, np.ndarray]:
         """A result's dots in cell units, rotated by its heading and shifted by ``offset`` (the
-        robot's offset from its sub-cell centre, cell units; None: not shifted), and which are lit."""
+        robot's offset from its sub-cell centre, cell units; None: not shifted), and which are lit.
+        """
         from stcvision.controllers.stc.cellfit import frame_dots
 
         cell_pts, lit = frame_dots(res, self.pipe.geometry)
@@ -740,7 +771,8 @@ class RobotCamera(Exposures):
         edge, or a noise peak beside a row, makes none), the frame is read again with the offset
         that puts them on the lines. Returns (result, the cell's row dots still on no line: 0
         when the reading is consistent; at least ``min_dots`` when it is not, or when two
-        offsets explain them)."""
+        offsets explain them).
+        """
         from stcvision.controllers.stc.cellfit import fit_cell_offset, frame_dots
         from stcvision.observation import ObservationParams
 
@@ -768,7 +800,8 @@ class RobotCamera(Exposures):
         frame's result or None, seconds spent). ``landing``: marks in the sub-cell just ahead
         (before a return to the parent: does the tour close there?), else in the cell ahead (a
         child). What any frame sees counts (it is never less right); the long frames are read
-        with the short frame's heading fit."""
+        with the short frame's heading fit.
+        """
         from stcvision.controllers.stc.cellfit import shows_row
         from stcvision.observation import LANDING_DOTS, marks_ahead, marks_landing_ahead
 
@@ -804,7 +837,8 @@ class RobotCamera(Exposures):
         in view were laid at many times, so they do not say where it stands), and on open floor,
         beyond the red lights, a visited cell's rows lay 3-4 cm off their lines there
         (spiral_stc_test_3: the robot 1.9 cm off, its rows laid 2 cm off the other way).
-        Returns ((marked, row), seconds)."""
+        Returns ((marked, row), seconds).
+        """
         from stcvision.controllers.stc.health import RobotStop
 
         k = min(max(j for j, _ in taken) + 1, len(self.ladder) - 1)

@@ -104,7 +104,8 @@ REENTRY_BOXES = frozenset({(4,), (2, 4), (3, 4), (2, 4, 5), (3, 4, 5), (1, 2, 4)
 
 class Action(enum.Enum):
     """What the controller asks of the robot at one tick (carried out by
-    :func:`stcvision.controllers.stc.robot.act` on any :class:`stcvision.controllers.stc.robot.Motors`)."""
+    :func:`stcvision.controllers.stc.robot.act` on any :class:`stcvision.controllers.stc.robot.Motors`).
+    """
 
     FORWARD = "forward"  # mark the rear edge of the current sub-cell, then drive one sub-cell
     TURN_LEFT = "turn_left"  # 90 deg counter-clockwise in place
@@ -153,7 +154,8 @@ def initial_state() -> StcState:
 @dataclass(frozen=True, slots=True)
 class NeighbourObs:
     """A neighbour cell as the camera reads it: marks in it, and a red light (an obstacle cell,
-    or beyond the board)."""
+    or beyond the board).
+    """
 
     has_marks: bool  # any mark inside that cell
     has_red: bool  # red light: obstacle cell or beyond the board
@@ -185,7 +187,8 @@ class StcObservation:
 @dataclass(frozen=True, slots=True)
 class LookObs:
     """What the look before leaving a cell reports: into a child, any mark in the cell ahead;
-    back to the parent, any mark in the sub-cell just ahead (where the robot lands)."""
+    back to the parent, any mark in the sub-cell just ahead (where the robot lands).
+    """
 
     marked: bool
 
@@ -195,7 +198,8 @@ class Decision:
     """What a decision made of one observation (:func:`decide`): the visited sub-cells, the
     parent, the child to enter (None: back to the parent, or stop in the start cell), whether
     this is the start cell and whether the tour is done, the sub-cell to go to, and the
-    candidate children."""
+    candidate children.
+    """
 
     visited: tuple[bool, bool, bool]  # sub-cells 1, 2, 3
     parent: int  # entry-frame direction of the parent (virtual parent in the start cell)
@@ -246,7 +250,8 @@ def _free(obs: StcObservation, visited) -> tuple[bool, ...]:
     """Per direction: the neighbour shows no red light and no mark, and its exit can be reached
     through unvisited sub-cells only (the exit to direction ``d`` is from sub-cell ``d``, reached
     through sub-cells ``1..d``). In a correct tour every new neighbour is reachable so; one that
-    looks new beyond a visited sub-cell has marks the camera missed."""
+    looks new beyond a visited sub-cell has marks the camera missed.
+    """
     return tuple(
         not (n.has_red or n.has_marks) and not any(visited[k] for k in range(1, d + 1))
         for d, n in enumerate(obs.neighbours)
@@ -255,7 +260,8 @@ def _free(obs: StcObservation, visited) -> tuple[bool, ...]:
 
 def _next_child(parent: int, free, is_start: bool, after: int | None = None) -> int | None:
     """The first free neighbour counter-clockwise from the parent (the virtual parent last in
-    the start cell), or the first after ``after`` in that order; None if there is none."""
+    the start cell), or the first after ``after`` in that order; None if there is none.
+    """
     order = [(parent + k) % 4 for k in (1, 2, 3)] + ([parent] if is_start else [])
     if after is not None:
         order = order[order.index(after) + 1 :]
@@ -281,7 +287,8 @@ def _plan(
 class Step(NamedTuple):
     """One controller tick's result: the next state, the action, and the :class:`Decision` the
     tick made (a ``DECIDE`` tick that read an observation; None on every other tick), so that
-    nothing downstream (the referee, the observers) decides again."""
+    nothing downstream (the referee, the observers) decides again.
+    """
 
     state: StcState
     action: Action
@@ -356,7 +363,8 @@ def step(state: StcState, obs: StcObservation | LookObs | None) -> Step:
 
 def _walk(state: StcState) -> tuple[StcState, Action]:
     """The ``MOVE`` phase's tick: turn towards the next sub-cell on the way to the exit (counter-
-    clockwise), drive there, look before leaving, leave, or stop in the final sub-cell."""
+    clockwise), drive there, look before leaving, leave, or stop in the final sub-cell.
+    """
     m, r, j = state.sub, state.heading, state.target
     if state.final and m == j:
         return StcState(phase=StcPhase.DONE, sub=m, heading=r, target=j, final=True), Action.DONE

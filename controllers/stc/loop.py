@@ -57,7 +57,8 @@ def streams(seed: int) -> dict[str, np.random.Generator]:
 def is_complete(summary: dict) -> bool:
     """A run of :func:`run_cover` is complete when every reachable sub-cell was covered exactly
     once, the robot finished back in its start cell, and (camera mode) made no decision the
-    oracle would not have made."""
+    oracle would not have made.
+    """
     return bool(
         summary["finished"]
         and summary["returned_to_start"]
@@ -72,7 +73,8 @@ def run_cover(board, cfg: CoverConfig | None = None, *, observers=(), perception
     """Cover ``board`` from its start sub-cell; returns the summary the CLI prints.
     ``observers``: :class:`stcvision.controllers.stc.observers.Observer` s (None entries are skipped);
     ``perception_hook(perception)`` is handed the run's perception (e.g. to read its frames).
-    ``cfg.faults``: hardware faults built into the parts (:mod:`stcvision.controllers.stc.faults`)."""
+    ``cfg.faults``: hardware faults built into the parts (:mod:`stcvision.controllers.stc.faults`).
+    """
     wall0 = time.perf_counter()
     cfg = cfg if cfg is not None else CoverConfig()
     rngs = streams(cfg.seed)
@@ -108,7 +110,8 @@ def run_cover(board, cfg: CoverConfig | None = None, *, observers=(), perception
 class LoopEnd:
     """How the loop went: its decisions and looks, whether the controller finished, why the
     robot stopped (None: it did not), and the most the robot kept between two decisions
-    (:func:`stcvision.controllers.stc.robot.robot_memory`, bytes)."""
+    (:func:`stcvision.controllers.stc.robot.robot_memory`, bytes).
+    """
 
     decisions: int = 0
     looks: int = 0
@@ -119,7 +122,8 @@ class LoopEnd:
 
 def _loop(robot: Robot, max_decisions: int, watch, referee, end: LoopEnd) -> None:
     """Perception -> controller -> motors until the controller is done, the robot stops or
-    ``max_decisions`` is reached; the outcome goes into ``end``."""
+    ``max_decisions`` is reached; the outcome goes into ``end``.
+    """
     state = initial_state()
     while end.decisions < max_decisions:
         try:
@@ -153,7 +157,8 @@ def _loop(robot: Robot, max_decisions: int, watch, referee, end: LoopEnd) -> Non
 
 def _tell(robot: Robot, watch, referee, end: LoopEnd, prev, state, obs, decision) -> None:
     """The observers and the referee hear of a reading and what the controller made of it; the
-    robot's memory is measured between two decisions."""
+    robot's memory is measured between two decisions.
+    """
     plant, belief, floor, frame = robot.plant, robot.belief, robot.floor, robot.see.last_frame
     if isinstance(obs, StcObservation):
         watch.on_reading(Reading("decision", end.decisions, plant, belief, floor, obs=obs, decision=decision,

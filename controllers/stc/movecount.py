@@ -39,7 +39,8 @@ __all__ = ["MoveCount", "MoveLog"]
 @dataclass(slots=True)
 class MoveCount:
     """Sub-cells moved (rows, columns) from the start sub-cell ``start_sub``, counted at every
-    forward move by the robot's own compass heading."""
+    forward move by the robot's own compass heading.
+    """
 
     start_sub: tuple[int, int]
     moved: tuple[int, int] = (0, 0)
@@ -57,7 +58,8 @@ class MoveCount:
 
     def done_away(self) -> str | None:
         """Why a tour the controller calls done is not, or None: a finished tour ends in the
-        start cell."""
+        start cell.
+        """
         if self.in_start_cell():
             return None
         return (
@@ -68,7 +70,8 @@ class MoveCount:
     def start_in_frame(self, hc: int) -> int | None:
         """At a decision (the robot in its entry frame's sub-cell 0, heading ``hc``): the
         entry-frame sub-cell (0-3) that is the start sub-cell, or None outside the start cell
-        (:attr:`stcvision.controllers.stc.fsm.StcObservation.start_mark`)."""
+        (:attr:`stcvision.controllers.stc.fsm.StcObservation.start_mark`).
+        """
         subs = frame_subcells(self.here(), hc)
         start = tuple(self.start_sub)
         return next((m for m, s in enumerate(subs) if tuple(s) == start), None)
@@ -77,7 +80,8 @@ class MoveCount:
         """At a decision (the robot in its entry frame's sub-cell 0, heading ``hc``): per
         entry-frame direction ``d``, the exit towards ``d`` (from sub-cell ``d``) lands on the
         start sub-cell; the sub-cell such a move lands on is marked exactly then
-        (:attr:`stcvision.controllers.stc.fsm.StcObservation.landing_marked`)."""
+        (:attr:`stcvision.controllers.stc.fsm.StcObservation.landing_marked`).
+        """
         subs = frame_subcells(self.here(), hc)
         start = tuple(self.start_sub)
         return tuple(step_from(subs[d], frame_compass(hc, d)) == start for d in range(4))  # type: ignore[return-value]
@@ -87,7 +91,8 @@ class MoveLog:
     """The study switch's map (``CoverConfig.move_log``): the cells the count has put the robot in
     and the rows it says the robot laid (per forward move, the sub-cell left and that sub-cell's
     edge behind it, as :meth:`stcvision.controllers.stc.plant.Plant.lay_mark` lays them), and the three
-    checks of the camera's readings against them. Both grow with the board."""
+    checks of the camera's readings against them. Both grow with the board.
+    """
 
     def __init__(self, count: MoveCount):
         self.count = count
@@ -108,7 +113,8 @@ class MoveLog:
 
     def suspect_neighbours(self, neighbours, hc: int) -> tuple[int, ...]:
         """At a decision (heading ``hc``): the entry-frame directions whose neighbour reads marked
-        without a red light, though the count never entered it."""
+        without a red light, though the count never entered it.
+        """
         ci, cj = cell_of(self.count.here())
         out = []
         for d, n in enumerate(neighbours):

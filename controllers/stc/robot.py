@@ -39,7 +39,8 @@ class Motors(Protocol):
 
     def forward(self) -> str | None:
         """Lay a row on the rear edge of the sub-cell, then drive one sub-cell on; returns why
-        the robot cannot go on, or None."""
+        the robot cannot go on, or None.
+        """
 
     def turn(self, left: bool) -> None:
         """A quarter turn in place (``left``: counter-clockwise)."""
@@ -47,7 +48,8 @@ class Motors(Protocol):
 
 def act(action: Action, motors: Motors) -> str | None:
     """Carry out a controller ``action`` on ``motors``; returns why the robot cannot go on, or
-    None. ``LOOK`` and ``DONE`` move nothing (the look's reading is the next tick's observation)."""
+    None. ``LOOK`` and ``DONE`` move nothing (the look's reading is the next tick's observation).
+    """
     if action is Action.MARK:
         motors.mark()
     elif action is Action.FORWARD:
@@ -64,7 +66,8 @@ class Robot:
     (what it marks), ``see`` (its perception: :mod:`stcvision.controllers.stc.perception`) and ``count``
     (its count of moves). ``log``: the study switch's map of where it has been
     (``CoverConfig.move_log``), None in the ant-like robot. ``watch`` hears of every turn's
-    measurement."""
+    measurement.
+    """
 
     plant: object
     belief: Belief
@@ -107,7 +110,8 @@ class Robot:
     def read(self, state: StcState) -> StcObservation | LookObs | None:
         """What the controller reads in ``state``: a decision's observation, a look's, or
         nothing. May raise :class:`stcvision.controllers.stc.claims.OutOfSight` or
-        :class:`stcvision.controllers.stc.health.RobotStop`."""
+        :class:`stcvision.controllers.stc.health.RobotStop`.
+        """
         if state.phase is StcPhase.DECIDE and not state.closing:
 
             def observe() -> StcObservation:
@@ -134,7 +138,8 @@ class Robot:
         frames missed there (the tour's oldest mark) is the count's, and one read in another
         sub-cell is a row read on a start-mark line that is not the start mark: the robot will not
         decide on it. Outside the start cell a start mark read is checked by the frames
-        (:meth:`stcvision.controllers.stc.frames.Exposures.decision`) and by :meth:`refuses`."""
+        (:meth:`stcvision.controllers.stc.frames.Exposures.decision`) and by :meth:`refuses`.
+        """
         m = self.count.start_in_frame(self.belief.hc)
         if m is None or state.at_start or obs.misread or obs.start_mark == m:
             return obs
@@ -147,7 +152,8 @@ class Robot:
     def refuses(self, obs: StcObservation, state: StcState) -> str | None:
         """Why the robot will not decide on ``obs``, or None: no STC tour shows this reading
         (``obs.misread``), or it shows the start mark where the count says the robot is not in
-        its start cell."""
+        its start cell.
+        """
         if obs.misread:
             return obs.misread
         if obs.start_mark is not None and not state.at_start and not self.count.in_start_cell():
@@ -159,7 +165,8 @@ class Robot:
         """``CoverConfig.move_log``: a neighbour read marked that the count never entered holds no
         mark the robot laid, so it stays a candidate child for the look to read again; a box
         read unlit whose row the count laid is a mark the frames missed, so the cell is read
-        once more, and a second miss is not decided on."""
+        once more, and a second miss is not decided on.
+        """
         log, hc = self.log, self.belief.hc
         suspect = log.suspect_neighbours(obs.neighbours, hc)
         if suspect:
@@ -179,7 +186,8 @@ class Robot:
 
     def _look_by_log(self) -> bool:
         """``CoverConfig.move_log``: a child read marked that the count never entered is looked
-        at once more; marked again, no reading explains both the count and the frames."""
+        at once more; marked again, no reading explains both the count and the frames.
+        """
         if not self.log.never_entered_ahead(self.belief.hc):
             return True
         self.log.relooked += 1
@@ -199,7 +207,8 @@ def robot_memory(robot: Robot, state: StcState) -> bytes:
     floor, the plant or the referee (the world and its judge), nor the camera's calibration
     (dark frames, visibility horizons: measured once before the run, the same on any board).
     The study switch's :class:`stcvision.controllers.stc.movecount.MoveLog` is counted when it is on: it
-    is what the ant-like robot must not need. ``len()`` of the result is ``robot_memory_bytes``."""
+    is what the ant-like robot must not need. ``len()`` of the result is ``robot_memory_bytes``.
+    """
     cam = getattr(robot.see, "cam", None)
     kept = (state, robot.belief, float(robot.plant.t), getattr(cam, "ladder", ()), robot.count, robot.log)
     return pickle.dumps(kept, protocol=5)

@@ -117,7 +117,8 @@ def open_dataset(root: str | Path) -> Dataset:
 
 def _png_header(path: Path) -> tuple[int, int] | None:
     """(bit depth per channel, PNG colour type) from a PNG's IHDR chunk (its first 26 bytes), or
-    None if ``path`` is not a PNG file. Colour type 2 is RGB (a BGR frame), 0 grey."""
+    None if ``path`` is not a PNG file. Colour type 2 is RGB (a BGR frame), 0 grey.
+    """
     with open(path, "rb") as f:
         head = f.read(26)
     if len(head) < 26 or head[:8] != b"\x89PNG\r\n\x1a\n" or head[12:16] != b"IHDR":
@@ -128,7 +129,8 @@ def _png_header(path: Path) -> tuple[int, int] | None:
 def _check_depths(root: Path, labels: list[dict]) -> None:
     """Every labelled PNG frame and its dark frame hold 3 channels at the depth the label's sensor
     digitises (8 bits for an 8-bit ADC, 16 for 9-16 bits: the ADC counts), read from the PNG
-    headers (the frames are not decoded)."""
+    headers (the frames are not decoded).
+    """
     seen: dict[str, int] = {}
     for lab in labels:
         bits = lab["sensor"].get("adc_bits", 8) if isinstance(lab["sensor"], dict) else 8
@@ -152,7 +154,8 @@ def _check_depths(root: Path, labels: list[dict]) -> None:
 
 def list_images(root: str | Path) -> list[Path]:
     """The image files of a folder of the user's own frames (sorted by name; ``frames/`` if the
-    folder itself holds none)."""
+    folder itself holds none).
+    """
     root = Path(root)
     if not root.is_dir():
         raise BadInputError(f"frame folder {root} does not exist")

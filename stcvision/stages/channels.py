@@ -64,7 +64,8 @@ class ChannelParams:
 
     def levels(self, background_dn: float, noise_dn: float) -> tuple[float, float]:
         """(red threshold, dominance tolerance) per pixel in DN, for a red channel of this
-        background and noise."""
+        background and noise.
+        """
         thr = background_dn + self.red_k_sigma * noise_dn if self.red_threshold_dn is None else self.red_threshold_dn
         tol = self.dominance_k_sigma * noise_dn if self.dominance_tol_dn is None else self.dominance_tol_dn
         return float(thr), float(tol)
@@ -153,7 +154,8 @@ _NO_LEAK = 2.0**40
 @functools.lru_cache(maxsize=4)
 def _identity_tables(w: int, h: int) -> GatherTables:
     """The gather tables of the map that reads every pixel where it stands (kept per image size:
-    building them is 8 of a 640x480 call's 10 ms; the compiled loops only read them)."""
+    building them is 8 of a 640x480 call's 10 ms; the compiled loops only read them).
+    """
     my, mx = np.mgrid[0:h, 0:w].astype(np.float32)
     return GatherTables.from_map(UnwarpMap(mx, my, np.ones((h, w), bool), (w, h)))
 
@@ -182,7 +184,8 @@ def separation_rule(channels: ChannelParams, window_area: int, red_levels, leak:
     compiled unwarp takes it: (light threshold, dominance tolerance, the saturation's bottom and
     top, the red fraction's weight and offset, leak level), float32 as OpenCV rounds them:
     ``red_levels`` the red channel's per-pixel background and noise, ``leak`` (in sums) the
-    level above which a red-dominated pixel is blacked out too."""
+    level above which a red-dominated pixel is blacked out too.
+    """
     thr, tol = channels.levels(*red_levels)
     thr_a, tol_a = float(thr * window_area), float(tol * window_area)
     # the red-fraction test as cv2.addWeighted(r, 1, g, -f, -(1 - f) bg) >= 0 takes it
@@ -200,7 +203,8 @@ def separation_rule(channels: ChannelParams, window_area: int, red_levels, leak:
 
 def black_out(marks: np.ndarray, black: np.ndarray, n: int, margin: np.ndarray | None, scratch: Scratch = new_arrays):
     """Zero in ``marks`` the ``n`` pixels :func:`unwarp_separate` marked in ``black``, grown by
-    the structuring element ``margin`` (the red lights' halo; None: not grown), in place."""
+    the structuring element ``margin`` (the red lights' halo; None: not grown), in place.
+    """
     if not n:
         return
     if margin is not None:

@@ -34,7 +34,8 @@ def check_dark_dtype(dark: np.ndarray, frame_dtype) -> None:
 def quantum_dn(values: np.ndarray) -> int:
     """The quantisation step of integer pixel values (DN): the greatest common divisor of their
     differences -- 1 for LSB-aligned data of any depth, 16 for 12-bit counts MSB-aligned in
-    16 bits. Noise floors are fractions of this step, so the alignment does not matter."""
+    16 bits. Noise floors are fractions of this step, so the alignment does not matter.
+    """
     v = np.asarray(values).reshape(-1).astype(np.int64)
     if not len(v):
         return 1
@@ -44,7 +45,8 @@ def quantum_dn(values: np.ndarray) -> int:
 def robust_sigma(values: np.ndarray) -> tuple[float, float]:
     """(median, 1.4826 x median absolute deviation) of pixel values. The MAD of quantised data
     is a whole number of steps: 0 only says the spread is below half a step, i.e. sigma below
-    1.4826 x step / 2 (:data:`UNRESOLVED_SIGMA`)."""
+    1.4826 x step / 2 (:data:`UNRESOLVED_SIGMA`).
+    """
     v = np.asarray(values).reshape(-1).astype(np.float32)
     med = float(np.median(v))
     return med, 1.4826 * float(np.median(np.abs(v - med)))
@@ -95,7 +97,8 @@ def subtract_dark(
 
 def _dark_subtracted(image: np.ndarray, dark: np.ndarray, pedestal_dn: int) -> np.ndarray:
     """``(image + pedestal) - dark``, both saturating (only already-saturated pixels lose), of a
-    colour frame or of one channel: :func:`subtract_dark` and :func:`dark_channels` alike."""
+    colour frame or of one channel: :func:`subtract_dark` and :func:`dark_channels` alike.
+    """
     if pedestal_dn:
         return cv2.subtract(cv2.add(image, (pedestal_dn,) * 3 if image.ndim == 3 else pedestal_dn), dark)
     return cv2.subtract(image, dark)
@@ -109,7 +112,8 @@ def hot_pixels(dark: np.ndarray, *, k_sigma: float = 8.0, quantum: float | None 
     defect-pixel map). Where the dark frame's spread is below one quantisation step
     (``quantum``, default :func:`quantum_dn` of the frame) its MAD is 0 and only bounds sigma
     (:data:`UNRESOLVED_SIGMA`): the excess is then ``k_sigma`` times that bound, in whole steps
-    (6 steps at k = 8)."""
+    (6 steps at k = 8).
+    """
     check_frame(dark, "dark frame")
     v = dark.reshape(-1)
     q = quantum_dn(v[::11]) if quantum is None else quantum
@@ -144,7 +148,8 @@ def estimate_background(image: np.ndarray, sample: np.ndarray | None = None, qua
 def histogram_quartiles(v, lo, quantum, nbins):
     """Quartiles of integer values ``v`` (``lo`` + whole steps of ``quantum``), each value
     spread uniformly over its step (:func:`stcvision.stages.estimate_background`): ``np.interp``
-    of (0.25, 0.5, 0.75) on the cumulative histogram, step by step as numpy computes it."""
+    of (0.25, 0.5, 0.75) on the cumulative histogram, step by step as numpy computes it.
+    """
     counts = np.zeros(nbins, np.int64)  # whole counts: the float sums of 1.0 exactly
     if quantum == 1:  # no integer division per value (the common case, measured 2x faster)
         for x in v:
@@ -198,7 +203,8 @@ def sample_quartiles(flat, idx, dark_g, dark_r, hot_g, hot_r, ped, top, quantum,
     each pixel once), dark-subtracted as the pipeline subtracts them (``max(min(v + ped, top) -
     dark, 0)``, ``ped`` where hot), the values left in ``out_g``, ``out_r``; ``whole_u8``:
     8-bit values in steps of 1 (a histogram of all 256 values, else of the occupied range), as
-    :func:`stcvision.stages.estimate_background` chooses."""
+    :func:`stcvision.stages.estimate_background` chooses.
+    """
     for i in range(len(idx)):
         j = idx[i]
         out_g[i] = ped if hot_g[i] else max(min(np.int64(flat[j]) + ped, top) - np.int64(dark_g[i]), 0)
@@ -240,7 +246,8 @@ class DarkFrame:
     def measure(cls, dark: np.ndarray, crop, sample3: dict, *, pedestal_steps: int, pedestal_k_sigma: float):
         """Split ``dark`` once, map its hot pixels once, and take from it the quantisation step
         and the pedestal: ``pedestal_k_sigma`` times its robust spread (the residual after
-        subtraction is no wider), at least ``pedestal_steps`` steps, in whole steps."""
+        subtraction is no wider), at least ``pedestal_steps`` steps, in whole steps.
+        """
         check_frame(dark, "dark frame")
         sample = sample3[1] // 3
         gr = np.concatenate([cv2.extractChannel(dark, c).reshape(-1)[sample] for c in (1, 2)])
@@ -277,7 +284,8 @@ def dark_channels(frame: np.ndarray, crop, dark: DarkFrame, scratch: Scratch = n
     saturating) and the hot pixels set to the pedestal: two new (h, w) images. One
     ``cv2.split`` of the crop's rows (a contiguous block: OpenCV's vectorised path, ~2x faster
     here than extracting or mixing channels out of the crop), into ``scratch``'s planes: writing
-    fresh memory each frame made the split 3x slower alone here (64 against 20 us)."""
+    fresh memory each frame made the split 3x slower alone here (64 against 20 us).
+    """
     x0, y0, x1, y1 = crop
     rows = frame[y0:y1]
     planes = cv2.split(rows, [scratch(f"plane {c}", rows.shape[:2], rows.dtype) for c in range(3)])
@@ -297,7 +305,8 @@ def frame_background(frame: np.ndarray, sample3: dict, dark: DarkFrame, scratch:
     ``frame``: :func:`estimate_background` of its raw pixels at ``sample3`` (flat indices into
     the BGR frame per channel), dark-subtracted as :func:`dark_channels` does it, in one
     compiled pass over both channels (:func:`sample_quartiles`); the noise never below the
-    rounding noise of one step."""
+    rounding noise of one step.
+    """
     flat = frame.reshape(-1)
     n = len(sample3[1])
     vals = scratch("sample g", (n,), frame.dtype), scratch("sample r", (n,), frame.dtype)

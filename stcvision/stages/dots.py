@@ -129,7 +129,8 @@ def noise_gain(umap: UnwarpMap, window_px: int, *, n: int = 12, seed: int = 0) -
 def _candidate_level(dtype, gain, params: DotParams, area: int, background_dn: float, noise_dn: float, low: float):
     """The dot candidate level for :func:`dot_candidates`: (mode, a, c), the level
     ``gain * a + c`` per pixel in the sums' own units (mode 0: uint16 sums, rounded to whole
-    DN; 1: float32 sums), or the scalar ``c`` (mode 2: a fixed ``threshold_dn``, or no gain map)."""
+    DN; 1: float32 sums), or the scalar ``c`` (mode 2: a fixed ``threshold_dn``, or no gain map).
+    """
     if params.threshold_dn is not None:
         level = np.float32(area * (background_dn + params.threshold_dn * low / params.k_sigma))
     elif gain is not None and dtype == np.uint16:
@@ -254,7 +255,8 @@ def dot_candidates(sums, gain, mode, a, c, e, area, background, noise):
     ``gain[0, 0]`` everywhere), as the numpy version.
 
     Per image row, a branch-free loop (vectorised) marks the pixels at or near the level, and
-    only those marked, eight at a time skipped where none is, are tested exactly."""
+    only those marked, eight at a time skipped where none is, are tested exactly.
+    """
     h, w = sums.shape
     nx = w - 2 * e
     flag, words, idx = row_flags(nx)
@@ -320,7 +322,8 @@ def greedy_black_out(xs, ys, vals, b, tail_sigma, max_dots):
     sorted strongest first: candidate k is kept unless a kept one j has it in its black-out
     square (``|dx|, |dy| <= b``) or its blur explains half of it (``vals[j] exp(-d^2 / (2
     tail_sigma^2)) >= vals[k] / 2``). Each candidate is checked against the kept ones only
-    (at most ``max_dots``), so no pair search is needed. Indices of the kept candidates."""
+    (at most ``max_dots``), so no pair search is needed. Indices of the kept candidates.
+    """
     n = len(vals)
     out = np.empty(min(n, max_dots), np.int64)
     m = 0
@@ -351,9 +354,10 @@ def greedy_black_out(xs, ys, vals, b, tail_sigma, max_dots):
 
 @numba.njit(inline="always")
 def _pairwise_sum(a, n):
-    """numpy's pairwise sum of ``a[:n]`` (n < 128: eight interleaved partial sums, then the
+    """Numpy's pairwise sum of ``a[:n]`` (n < 128: eight interleaved partial sums, then the
     rest in order; below eight, in order), in ``a``'s dtype: the order ``ndarray.sum`` adds a
-    small contiguous block in, so the result is numpy's to the bit."""
+    small contiguous block in, so the result is numpy's to the bit.
+    """
     if n < 8:
         res = a[0] - a[0]
         for i in range(n):
@@ -383,7 +387,8 @@ def window_centroids(marks, xs, ys, r, per_px):
     """Intensity-weighted centroids (:func:`stcvision.stages.find_dots`): over the (2r+1)^2 square about each
     (xs, ys) (coordinates clipped to the image), the float32 values ``max(marks - per_px, 0)``
     and their x- and y-weighted sums (float64), each summed as numpy sums the square; the
-    integer position where the square holds nothing above ``per_px``."""
+    integer position where the square holds nothing above ``per_px``.
+    """
     h, w = marks.shape
     n = len(xs)
     k = 2 * r + 1
@@ -421,7 +426,8 @@ def rank_dots(xs, ys, vals, mean, b, tail_sigma, max_dots, max_candidates, marks
     candidates sorted strongest first (a stable sort, as numpy's ``kind="stable"``), the
     strongest ``max_candidates`` kept, :func:`greedy_black_out`, then :func:`window_centroids`
     of those kept. Returns (number of candidates, centroids (n, 2), SNRs (n,) float64, window
-    means (n,))."""
+    means (n,)).
+    """
     nc = len(vals)
     if nc == 0:
         return 0, np.zeros((0, 2)), np.zeros(0), mean[:0]
@@ -484,7 +490,8 @@ def map_at(map_x, map_y, xy, steps, border):
     ``xy[i]`` plus each of ``steps`` ((K, 2); the points rounded to float32 after the add):
     (N, K, 2) float64 mirror-image positions, as ``cv2.remap`` of each map (``INTER_LINEAR``,
     ``BORDER_CONSTANT`` ``border``) at those points computes them (:func:`remap_lerp`), in one pass
-    instead of two OpenCV calls and the arrays around them."""
+    instead of two OpenCV calls and the arrays around them.
+    """
     h, w = map_x.shape
     n, k = len(xy), len(steps)
     out = np.empty((n, k, 2))
@@ -515,7 +522,8 @@ def mirror_shift(m, c, ok, xy, max_shift2):
     mirror-image centroid ``c`` taken back through the unwarp map's local Jacobian (``m``: the
     map at the dot and +-0.5 px in x and y, (n, 5, 2)); a dot whose centroid could not be
     measured (``ok``), whose Jacobian is singular or whose shift exceeds ``sqrt(max_shift2)``
-    keeps ``xy``. Element by element as the numpy version."""
+    keeps ``xy``. Element by element as the numpy version.
+    """
     n = len(xy)
     out = xy.copy()
     for i in range(n):
@@ -539,7 +547,8 @@ def gauss_centroids(image, uv, background, half, sigma, iters):
     each (u, v) of ``uv`` ((n, 2) float), over the square of half-side ``half + 1`` about its
     nearest pixel, the centroid of ``max(image - background, 0)`` weighted by a Gaussian of
     ``sigma`` centred on the current estimate, ``iters`` times. Returns the centroids ((n, 2))
-    and whether each could be measured (square inside the image, some signal)."""
+    and whether each could be measured (square inside the image, some signal).
+    """
     h, w = image.shape
     n = len(uv)
     out = uv.copy()

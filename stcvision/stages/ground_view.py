@@ -49,7 +49,8 @@ class UnwarpMap:
     @classmethod
     def from_profile(cls, profile) -> UnwarpMap:
         """For every ground-view pixel: robot-frame floor point -> phi (azimuth, preserved) and
-        theta (elevation, from the profile's radial polynomial) -> image pixel."""
+        theta (elevation, from the profile's radial polynomial) -> image pixel.
+        """
         n = profile.ground_size_px
         gy, gx = np.mgrid[0:n, 0:n].astype(float)
         xy = profile.ground_to_robot(np.column_stack([gx.ravel(), gy.ravel()]))
@@ -64,7 +65,8 @@ class UnwarpMap:
 
     def reach_px(self, margin: int = 2) -> tuple[int, int, int, int]:
         """(x0, y0, x1, y1): the part of the mirror image the map reads, with ``margin`` pixels
-        more on every side (a window sum there sees only pixels inside), clipped to the image."""
+        more on every side (a window sum there sees only pixels inside), clipped to the image.
+        """
         w, h = self.image_size_px
         mx, my = self.map_x[self.valid], self.map_y[self.valid]
         if not len(mx):
@@ -75,7 +77,8 @@ class UnwarpMap:
 
     def cropped(self, x0: int, y0: int, x1: int, y1: int) -> UnwarpMap:
         """The same map reading the crop ``image[y0:y1, x0:x1]`` (shifting a map by whole pixels
-        is exact in float32)."""
+        is exact in float32).
+        """
         mx, my = self.map_x - np.float32(x0), self.map_y - np.float32(y0)
         f1, f2 = cv2.convertMaps(mx, my, cv2.CV_16SC2)
         return UnwarpMap(mx, my, self.valid, (x1 - x0, y1 - y0), f1, f2)
@@ -87,7 +90,8 @@ class GatherTables(NamedTuple):
     the float maps does. Per ground pixel (flat, in order): ``base``, the source pixel (flat
     index) at the top left of the four it reads; ``alpha``, ``beta``, the map's fractional parts;
     ``border``: the ground pixels some of whose four source pixels lie outside the image (read
-    as zeros), with their map coordinates ``border_xy``."""
+    as zeros), with their map coordinates ``border_xy``.
+    """
 
     base: np.ndarray
     alpha: np.ndarray
@@ -143,7 +147,8 @@ _U32_GATHERS = True
 def _red_test(gv, rv, use_frac, thr, tol, bottom, top, frac, gamma, leak):
     """The red/green separation of one ground pixel (:func:`unwarp_separate_u16`): (a red
     light, to black out). Pure: the loops store the results themselves (an inlined helper
-    that stored into the output arrays ran the uint16 loop 3x slower, 0.69 vs 0.24 ms)."""
+    that stored into the output arrays ran the uint16 loop 3x slower, 0.69 vs 0.24 ms).
+    """
     dom = min(max(rv + tol, bottom), top) >= gv
     if use_frac:
         dom = dom & (fma32(rv, np.float32(1.0), fma32(gv, frac, gamma)) >= np.float32(0.0))
@@ -155,7 +160,8 @@ def _red_test(gv, rv, use_frac, thr, tol, bottom, top, frac, gamma, leak):
 def unwarp_border(src, w, h, border, border_xy, rnd, rule, obstacle, marks, black):
     """The ground pixels ``border`` some of whose four source pixels lie outside the image
     (zeros there, as ``BORDER_CONSTANT``), from their map coordinates ``border_xy``: the
-    change they make to the black-out count."""
+    change they make to the black-out count.
+    """
     thr, tol, bottom, top, frac, gamma, leak = rule
     dn = 0
     use_frac = frac != np.float32(0.0)
@@ -214,7 +220,8 @@ def unwarp_separate_u16(src32, w, base, alpha, beta, rule, obstacle, marks, blac
     ``beta[i]``; the ``border`` pixels are redone from their map coordinates ``border_xy``
     (:func:`unwarp_border`). Block by block: the gathers into ``scratch``, then the arithmetic
     over contiguous arrays, which LLVM vectorises (measured here: the two remaps and the
-    separation 348 us; this 221 us with a 4-byte load per source pixel, 166 us with these)."""
+    separation 348 us; this 221 us with a 4-byte load per source pixel, 166 us with these).
+    """
     thr, tol, bottom, top, frac, gamma, leak = rule
     zero = np.float32(0.0)
     hi = np.float32(65535.0)
@@ -278,7 +285,8 @@ def unwarp_separate_f32(
     big-endian machine, converted: ``rnd`` rounds and saturates): ``src64``, the (h, w, 2)
     sums as one uint64 per pixel (both channels: green in the low half where ``green_low``),
     four aligned loads per ground pixel; ``scratch`` (4, N) uint64. The separation written
-    out, as there."""
+    out, as there.
+    """
     thr, tol, bottom, top, frac, gamma, leak = rule
     zero = np.float32(0.0)
     hi = np.float32(65535.0)
@@ -331,7 +339,8 @@ def unwarp_separate(tables: GatherTables, sums: np.ndarray, shape, rule: tuple, 
     in one compiled pass: uint16 sums on a little-endian machine by :func:`unwarp_separate_u16`,
     others by :func:`unwarp_separate_f32`, the border pixels by :func:`unwarp_border`.
     ``obstacle`` and ``marks`` are new; ``black`` (scratch, uint8) is 1 at the ``n`` ground
-    pixels of the marks to black out (:func:`black_out`)."""
+    pixels of the marks to black out (:func:`black_out`).
+    """
     src32 = sums.reshape(-1).view(np.uint32) if (sums.dtype == np.uint16 and _LITTLE and _U32_GATHERS) else None
     h, w = sums.shape[:2]
     gather = scratch("gather", (2, 256) if src32 is not None else (4, 256), np.uint64)

@@ -1,6 +1,7 @@
 """The heading: a line through the newest mark row's dots (the ant-like STC paper of Srour &
 Abboud, "Angle Detection"), and the turn-time recalibration from a measured turn ("Rotation and
-Calibration")."""
+Calibration").
+"""
 
 from __future__ import annotations
 
@@ -93,7 +94,8 @@ def heading_row(xy, s, n_dots, radius, max_residual):
     within ``radius`` the one most neighbours lie on (within ``max_residual``; then the
     brightest in sum; then the first), its ``n_dots`` brightest dots (stable order). Returns
     (status, value, picks): status 0 with the picked indices; 1 with the neighbours' count
-    (too few); 2 (no row of ``n_dots``)."""
+    (too few); 2 (no row of ``n_dots``).
+    """
     first = 0
     for i in range(1, len(s)):
         if s[i] > s[first]:
@@ -150,7 +152,8 @@ def tls_line(pts):
     the principal axis of the points' 2 x 2 scatter matrix, and the RMS of the centred points'
     projections on it and across it: the singular values :func:`numpy.linalg.svd` of the
     centred points gave, divided by sqrt(n), without the LAPACK call and its wrapper (which
-    cost ~40 us a frame in the pipeline here)."""
+    cost ~40 us a frame in the pipeline here).
+    """
     n = len(pts)
     cx = 0.0
     cy = 0.0

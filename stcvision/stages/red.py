@@ -41,7 +41,8 @@ class RedLights:
 
 def find_red(obstacle: np.ndarray, params: RedParams = RedParams(), *, window_area: int = 1) -> RedLights:
     """Blobs of the (already thresholded) obstacle image: outer contours and their moments.
-    ``peak_dn`` is per pixel (window sums are divided by ``window_area``)."""
+    ``peak_dn`` is per pixel (window sums are divided by ``window_area``).
+    """
     check_image(obstacle, "obstacle image (uint8, or window sums)", (np.uint8, *SUM_DTYPES), ndims=(2,))
     if min(obstacle.shape) < 2:  # OpenCV takes a 1 x 1 array for a scalar and fails (fuzzing)
         raise BadInputError(f"obstacle image must be at least 2x2 pixels, got {obstacle.shape}")
@@ -64,7 +65,8 @@ def find_red(obstacle: np.ndarray, params: RedParams = RedParams(), *, window_ar
 @numba.njit(cache=True)
 def nonzero_mask(img, out):
     """``out`` (uint8, ``img``'s shape) 255 where ``img`` is above 0, else 0 (``cv2.compare(img,
-    0, CMP_GT)``); returns how many (``cv2.countNonZero``), in one pass."""
+    0, CMP_GT)``); returns how many (``cv2.countNonZero``), in one pass.
+    """
     h, w = img.shape
     n = 0
     for y in range(h):
@@ -86,7 +88,8 @@ def blobs(obstacle, pts, starts, min_area, window_area):
     larger of that and its number of points (a thin blob has none), and those under
     ``min_area`` are dropped; its position the centroid, or the mean of its points where the
     area is 0; its peak the largest value of ``obstacle`` in its bounding box
-    (``cv2.boundingRect``) over ``window_area``. Returns (xy (M, 2), peak (M,), area (M,))."""
+    (``cv2.boundingRect``) over ``window_area``. Returns (xy (M, 2), peak (M,), area (M,)).
+    """
     nc = len(starts) - 1
     xy = np.zeros((nc, 2))
     peak = np.zeros(nc)

@@ -68,7 +68,8 @@ def box3_pair(g, r, h, w, sums, scratch):
     ``cv2.boxFilter(img, CV_16U, (3, 3), normalize=False, borderType=BORDER_CONSTANT)`` of
     each, bit for bit (integers), row by row: each row's sums along it into a ring of three
     rows (``scratch``: 6 w uint16), then the sums of three of those, interleaved, in loops
-    LLVM vectorises."""
+    LLVM vectorises.
+    """
     uw = uidx(w)
     for y in range(h + 1):
         if y < h:

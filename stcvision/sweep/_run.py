@@ -29,7 +29,8 @@ _DASK_MISSING = "--scheduler needs Dask: pip install 'stcvision[dask]' (dask[dis
 def output_folder(out: str | os.PathLike, outputs: Iterable[str], *, store: str, force: bool, what: str) -> Path:
     """Check and create a sweep's output folder: new, holding none of ``outputs``, holding its
     ``store`` (an earlier run of the same command: it resumes and rewrites its outputs), or
-    ``force``. Anything else is a user's folder, refused in one line naming ``what`` runs there."""
+    ``force``. Anything else is a user's folder, refused in one line naming ``what`` runs there.
+    """
     out = Path(out)
     if out.exists() and not out.is_dir():
         raise BadInputError(f"{out} is a file; expected a folder for the {what}'s outputs")
@@ -87,7 +88,8 @@ class SweepOptions:
 class SweepReport:
     """What a sweep did: a plain record, the caller's to keep or change (the store is the
     truth). ``results``: key -> result of every successful task, in task order, those done by
-    earlier runs included; ``failed``: key -> one-line error."""
+    earlier runs included; ``failed``: key -> one-line error.
+    """
 
     desc: str
     total: int
@@ -102,7 +104,8 @@ class SweepReport:
 
     def raise_if_failed(self, what: str = "tasks", name=None) -> None:
         """One line, exit 2, if any task failed: ``N of M <what> failed[, e.g. <name(key)>]:
-        <its error>; re-run to retry them`` (the store keeps every error; a re-run retries)."""
+        <its error>; re-run to retry them`` (the store keeps every error; a re-run retries).
+        """
         if not self.failed:
             return
         key, err = next(iter(self.failed.items()))

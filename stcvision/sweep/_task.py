@@ -91,7 +91,8 @@ class Task:
 
 def seed_sequence(key: str):
     """The task's random stream root: ``SeedSequence`` of the key's 256 bits (never of the
-    scheduling order, so every backend and worker count gives the same numbers)."""
+    scheduling order, so every backend and worker count gives the same numbers).
+    """
     import numpy as np
 
     return np.random.SeedSequence(int(key, 16))
