@@ -1,4 +1,6 @@
-"""The dark stage: the dark frame subtracted (saturating, with a pedestal), hot pixels masked,
+"""The dark stage: dark subtraction, hot pixels, and the frame's background and noise.
+
+The dark stage: the dark frame subtracted (saturating, with a pedestal), hot pixels masked,
 and the frame's background and noise level.
 
 :func:`subtract_dark` is the stage as OpenCV writes it on a whole colour frame (the reference,
@@ -23,7 +25,7 @@ from stcvision.stages.common import Scratch, check_frame, check_image, new_array
 
 
 def check_dark_dtype(dark: np.ndarray, frame_dtype) -> None:
-    """A dark frame must come from the same ADC as the frames: the same dtype."""
+    """Check that a dark frame comes from the same ADC as the frames: the same dtype."""
     if dark.dtype != frame_dtype:
         raise BadInputError(
             f"dark frame has dtype {dark.dtype}, the frame {np.dtype(frame_dtype)}; "
@@ -32,7 +34,9 @@ def check_dark_dtype(dark: np.ndarray, frame_dtype) -> None:
 
 
 def quantum_dn(values: np.ndarray) -> int:
-    """The quantisation step of integer pixel values (DN): the greatest common divisor of their
+    """Return the quantisation step of integer pixel values (DN).
+
+    The quantisation step of integer pixel values (DN): the greatest common divisor of their
     differences -- 1 for LSB-aligned data of any depth, 16 for 12-bit counts MSB-aligned in
     16 bits. Noise floors are fractions of this step, so the alignment does not matter.
     """
@@ -43,7 +47,9 @@ def quantum_dn(values: np.ndarray) -> int:
 
 
 def robust_sigma(values: np.ndarray) -> tuple[float, float]:
-    """(median, 1.4826 x median absolute deviation) of pixel values. The MAD of quantised data
+    """Return the (median, 1.4826 x median absolute deviation) of pixel values.
+
+    (median, 1.4826 x median absolute deviation) of pixel values. The MAD of quantised data
     is a whole number of steps: 0 only says the spread is below half a step, i.e. sigma below
     1.4826 x step / 2 (:data:`UNRESOLVED_SIGMA`).
     """
@@ -76,7 +82,23 @@ def subtract_dark(
 
     Parameters
     ----------
-    frame, dark : (H, W, 3) BGR, both uint8 or both uint16
+    frame, dark : numpy.ndarray
+        (H, W, 3) BGR, both uint8 or both uint16, of the same size.
+    pedestal_dn : int
+        The constant offset kept (DN).
+    frame_exposure_s, dark_exposure_s : float, optional
+        The two exposures, checked against each other when both are given.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``frame - dark + pedestal_dn``, saturating, of the frame's dtype.
+
+    Raises
+    ------
+    BadInputError
+        When either is not a frame, their dtypes or sizes differ, or the exposures differ by
+        more than 1 %.
     """
     check_frame(frame)
     check_frame(dark, "dark frame")
@@ -96,7 +118,9 @@ def subtract_dark(
 
 
 def _dark_subtracted(image: np.ndarray, dark: np.ndarray, pedestal_dn: int) -> np.ndarray:
-    """``(image + pedestal) - dark``, both saturating (only already-saturated pixels lose), of a
+    """Add the pedestal and subtract the dark frame, both saturating.
+
+    ``(image + pedestal) - dark``, both saturating (only already-saturated pixels lose), of a
     colour frame or of one channel: :func:`subtract_dark` and :func:`dark_channels` alike.
     """
     if pedestal_dn:
@@ -105,14 +129,34 @@ def _dark_subtracted(image: np.ndarray, dark: np.ndarray, pedestal_dn: int) -> n
 
 
 def hot_pixels(dark: np.ndarray, *, k_sigma: float = 8.0, quantum: float | None = None) -> np.ndarray:
-    """Flat indices (into ``dark.reshape(-1)`` of an (H, W, 3) frame) of hot pixels: dark-frame
-    values more than ``k_sigma`` robust sigmas above the typical dark level. Their dark
-    current's shot noise is several times the read noise, so they stay noisy after subtraction
+    """Find the hot pixels of a dark frame.
+
+    Hot pixels are dark-frame values more than ``k_sigma`` robust sigmas above the typical dark
+    level. Their dark current's shot noise is several times the read noise, so they stay noisy after subtraction
     and would pass as faint dots; the pipeline replaces them by the background (a standard
     defect-pixel map). Where the dark frame's spread is below one quantisation step
     (``quantum``, default :func:`quantum_dn` of the frame) its MAD is 0 and only bounds sigma
     (:data:`UNRESOLVED_SIGMA`): the excess is then ``k_sigma`` times that bound, in whole steps
     (6 steps at k = 8).
+
+    Parameters
+    ----------
+    dark : numpy.ndarray
+        (H, W, 3) dark frame, uint8 or uint16.
+    k_sigma : float
+        How many robust sigmas above the typical dark level make a pixel hot.
+    quantum : float, optional
+        The quantisation step (DN); default :func:`quantum_dn` of the frame.
+
+    Returns
+    -------
+    numpy.ndarray
+        Flat indices (into ``dark.reshape(-1)``) of the hot pixels.
+
+    Raises
+    ------
+    BadInputError
+        When ``dark`` is not a frame.
     """
     check_frame(dark, "dark frame")
     v = dark.reshape(-1)
@@ -123,13 +167,31 @@ def hot_pixels(dark: np.ndarray, *, k_sigma: float = 8.0, quantum: float | None 
 
 
 def estimate_background(image: np.ndarray, sample: np.ndarray | None = None, quantum: int = 1) -> tuple[float, float]:
-    """(median, robust sigma) of a uint8 or uint16 image's pixels (or of
-    ``image.reshape(-1)[sample]``), whose values are whole multiples of ``quantum`` apart
-    (:func:`quantum_dn`).
+    """Measure an image's background level and noise: (median, robust sigma).
 
     From a histogram of the quantisation steps, each spread uniformly over its step (so noise
     levels below a step are not rounded away): the median, and sigma = interquartile range /
     1.349.
+
+    Parameters
+    ----------
+    image : numpy.ndarray
+        A uint8 or uint16 image, whose values are whole multiples of ``quantum`` apart.
+    sample : numpy.ndarray, optional
+        Flat indices of the pixels to read (``image.reshape(-1)[sample]``); default every
+        seventh pixel.
+    quantum : int
+        The quantisation step (DN, :func:`quantum_dn`).
+
+    Returns
+    -------
+    tuple of float
+        (median, robust sigma), in DN.
+
+    Raises
+    ------
+    BadInputError
+        When ``image`` is not a uint8 or uint16 array.
     """
     check_image(image, "pixel values", (np.uint8, np.uint16), ndims=(1, 2, 3))
     v = image.reshape(-1)[sample] if sample is not None else image.reshape(-1)[::7]
@@ -146,7 +208,9 @@ def estimate_background(image: np.ndarray, sample: np.ndarray | None = None, qua
 
 @numba.njit(cache=True)
 def histogram_quartiles(v, lo, quantum, nbins):
-    """Quartiles of integer values ``v`` (``lo`` + whole steps of ``quantum``), each value
+    """Compute the quartiles of quantised integer values, each spread over its step.
+
+    Quartiles of integer values ``v`` (``lo`` + whole steps of ``quantum``), each value
     spread uniformly over its step (:func:`stcvision.stages.estimate_background`): ``np.interp``
     of (0.25, 0.5, 0.75) on the cumulative histogram, step by step as numpy computes it.
     """
@@ -198,7 +262,9 @@ def _quartiles_of(v, quantum, whole_u8):
 
 @numba.njit(cache=True)
 def sample_quartiles(flat, idx, dark_g, dark_r, hot_g, hot_r, ped, top, quantum, whole_u8, out_g, out_r):
-    """Quartiles (:func:`histogram_quartiles`, one row per channel) of the green and red of a
+    """Compute the quartiles of a frame's green and red at a sample of pixels, in one pass.
+
+    Quartiles (:func:`histogram_quartiles`, one row per channel) of the green and red of a
     flat BGR frame at the flat green indices ``idx`` (red: the next byte, so one pass reads
     each pixel once), dark-subtracted as the pipeline subtracts them (``max(min(v + ped, top) -
     dark, 0)``, ``ped`` where hot), the values left in ``out_g``, ``out_r``; ``whole_u8``:
@@ -221,7 +287,9 @@ def _no_hot() -> np.ndarray:
 
 @dataclass(frozen=True, eq=False)
 class DarkFrame:
-    """What the front end takes from a dark frame, once (the default: none, whose background
+    """What the front end takes from a dark frame, once.
+
+    What the front end takes from a dark frame, once (the default: none, whose background
     sample is then read as it is, without pedestal).
 
     ``frame``: the (H, W, 3) dark frame; ``pedestal``, ``quantum``, ``sigma``: the pedestal kept
@@ -244,7 +312,9 @@ class DarkFrame:
 
     @classmethod
     def measure(cls, dark: np.ndarray, crop, sample3: dict, *, pedestal_steps: int, pedestal_k_sigma: float):
-        """Split ``dark`` once, map its hot pixels once, and take from it the quantisation step
+        """Measure a dark frame once: its channels, hot pixels, quantisation step and pedestal.
+
+        Split ``dark`` once, map its hot pixels once, and take from it the quantisation step
         and the pedestal: ``pedestal_k_sigma`` times its robust spread (the residual after
         subtraction is no wider), at least ``pedestal_steps`` steps, in whole steps.
         """
@@ -279,7 +349,9 @@ class DarkFrame:
 
 
 def dark_channels(frame: np.ndarray, crop, dark: DarkFrame, scratch: Scratch = new_arrays):
-    """Green and red of the crop ``(x0, y0, x1, y1)`` of ``frame``, dark-subtracted as
+    """Return the dark-subtracted green and red of a crop of the frame.
+
+    Green and red of the crop ``(x0, y0, x1, y1)`` of ``frame``, dark-subtracted as
     :func:`subtract_dark` subtracts (the pedestal added, the dark frame subtracted, both
     saturating) and the hot pixels set to the pedestal: two new (h, w) images. One
     ``cv2.split`` of the crop's rows (a contiguous block: OpenCV's vectorised path, ~2x faster
@@ -301,7 +373,9 @@ def dark_channels(frame: np.ndarray, crop, dark: DarkFrame, scratch: Scratch = n
 
 
 def frame_background(frame: np.ndarray, sample3: dict, dark: DarkFrame, scratch: Scratch = new_arrays):
-    """(green background, green noise, red background, red noise, quantisation step) of
+    """Measure a frame's background and noise per channel, and its quantisation step.
+
+    (green background, green noise, red background, red noise, quantisation step) of
     ``frame``: :func:`estimate_background` of its raw pixels at ``sample3`` (flat indices into
     the BGR frame per channel), dark-subtracted as :func:`dark_channels` does it, in one
     compiled pass over both channels (:func:`sample_quartiles`); the noise never below the

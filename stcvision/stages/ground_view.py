@@ -48,7 +48,9 @@ class UnwarpMap:
 
     @classmethod
     def from_profile(cls, profile) -> UnwarpMap:
-        """For every ground-view pixel: robot-frame floor point -> phi (azimuth, preserved) and
+        """Build the map from the profile: for every ground pixel, the image pixel it sees.
+
+        For every ground-view pixel: robot-frame floor point -> phi (azimuth, preserved) and
         theta (elevation, from the profile's radial polynomial) -> image pixel.
         """
         n = profile.ground_size_px
@@ -64,7 +66,9 @@ class UnwarpMap:
         return cls(mx, my, ok.reshape(n, n), tuple(profile.image_size_px), f1, f2)
 
     def reach_px(self, margin: int = 2) -> tuple[int, int, int, int]:
-        """(x0, y0, x1, y1): the part of the mirror image the map reads, with ``margin`` pixels
+        """Return the part of the mirror image the map reads, with a margin.
+
+        (x0, y0, x1, y1): the part of the mirror image the map reads, with ``margin`` pixels
         more on every side (a window sum there sees only pixels inside), clipped to the image.
         """
         w, h = self.image_size_px
@@ -76,7 +80,9 @@ class UnwarpMap:
         return x0, y0, x1, y1
 
     def cropped(self, x0: int, y0: int, x1: int, y1: int) -> UnwarpMap:
-        """The same map reading the crop ``image[y0:y1, x0:x1]`` (shifting a map by whole pixels
+        """Return the same map reading a crop of the image.
+
+        The same map reading the crop ``image[y0:y1, x0:x1]`` (shifting a map by whole pixels
         is exact in float32).
         """
         mx, my = self.map_x - np.float32(x0), self.map_y - np.float32(y0)
@@ -85,7 +91,9 @@ class UnwarpMap:
 
 
 class GatherTables(NamedTuple):
-    """An :class:`UnwarpMap` as gather tables for :func:`unwarp_separate_u16`,
+    """An unwarp map as the gather tables of the compiled unwarp.
+
+    An :class:`UnwarpMap` as gather tables for :func:`unwarp_separate_u16`,
     which unwarps the green and red window sums in one pass, bit for bit as ``cv2.remap`` with
     the float maps does. Per ground pixel (flat, in order): ``base``, the source pixel (flat
     index) at the top left of the four it reads; ``alpha``, ``beta``, the map's fractional parts;
@@ -101,6 +109,7 @@ class GatherTables(NamedTuple):
 
     @classmethod
     def from_map(cls, umap: UnwarpMap) -> GatherTables:
+        """Build the gather tables of an unwarp map."""
         w, h = umap.image_size_px
         mx, my = umap.map_x.reshape(-1), umap.map_y.reshape(-1)
         fx, fy = np.floor(mx), np.floor(my)
@@ -117,11 +126,26 @@ class GatherTables(NamedTuple):
 
 
 def unwarp(image: np.ndarray, umap: UnwarpMap) -> np.ndarray:
-    """Ground view (top-down, robot-centred, forward up) of a mirror image: one ``cv2.remap``.
+    """Unwarp a mirror image to the ground view (top-down, robot-centred, forward up).
+
+    One ``cv2.remap``.
 
     Parameters
     ----------
-    image : (H, W) or (H, W, 3) uint8, the profile's image size.
+    image : numpy.ndarray
+        (H, W) or (H, W, 3), the profile's image size: uint8, or uint16 or float32 (window sums).
+    umap : UnwarpMap
+        The remap tables of the profile's ground view.
+
+    Returns
+    -------
+    numpy.ndarray
+        The ground view, of the image's dtype and channels.
+
+    Raises
+    ------
+    BadInputError
+        When the image is not of the map's image size or a supported dtype.
     """
     check_image(image, "image", (np.uint8, np.uint16, np.float32))
     h, w = image.shape[:2]
@@ -145,7 +169,9 @@ _U32_GATHERS = True
 
 @numba.njit(inline="always")
 def _red_test(gv, rv, use_frac, thr, tol, bottom, top, frac, gamma, leak):
-    """The red/green separation of one ground pixel (:func:`unwarp_separate_u16`): (a red
+    """Apply the red/green separation to one ground pixel.
+
+    The red/green separation of one ground pixel (:func:`unwarp_separate_u16`): (a red
     light, to black out). Pure: the loops store the results themselves (an inlined helper
     that stored into the output arrays ran the uint16 loop 3x slower, 0.69 vs 0.24 ms).
     """
@@ -158,7 +184,9 @@ def _red_test(gv, rv, use_frac, thr, tol, bottom, top, frac, gamma, leak):
 
 @numba.njit(cache=True)
 def unwarp_border(src, w, h, border, border_xy, rnd, rule, obstacle, marks, black):
-    """The ground pixels ``border`` some of whose four source pixels lie outside the image
+    """Correct the black-out count for the ground pixels that read beyond the image.
+
+    The ground pixels ``border`` some of whose four source pixels lie outside the image
     (zeros there, as ``BORDER_CONSTANT``), from their map coordinates ``border_xy``: the
     change they make to the black-out count.
     """
@@ -196,7 +224,9 @@ def unwarp_border(src, w, h, border, border_xy, rnd, rule, obstacle, marks, blac
 
 @numba.njit(cache=True)
 def unwarp_separate_u16(src32, w, base, alpha, beta, rule, obstacle, marks, black, scratch):
-    """The unwarp of the green and red window sums and their red/green separation, in one pass
+    """Unwarp the green and red window sums and separate them, in one pass.
+
+    The unwarp of the green and red window sums and their red/green separation, in one pass
     over the ground view: ``cv2.remap`` (float maps, ``INTER_LINEAR``, ``BORDER_CONSTANT`` 0) of
     each channel as it computes on this machine (:func:`remap_lerp`; rounded half to even and
     saturated for uint16 sums), then the rule and the arithmetic of
@@ -281,7 +311,9 @@ def unwarp_separate_f32(
     black,
     scratch,
 ):
-    """:func:`unwarp_separate_u16` for float32 sums (16-bit frames; and uint16 sums on a
+    """Unwarp and separate float32 window sums, in one pass.
+
+    :func:`unwarp_separate_u16` for float32 sums (16-bit frames; and uint16 sums on a
     big-endian machine, converted: ``rnd`` rounds and saturates): ``src64``, the (h, w, 2)
     sums as one uint64 per pixel (both channels: green in the low half where ``green_low``),
     four aligned loads per ground pixel; ``scratch`` (4, N) uint64. The separation written
@@ -333,7 +365,9 @@ def unwarp_separate_f32(
 
 
 def unwarp_separate(tables: GatherTables, sums: np.ndarray, shape, rule: tuple, scratch: Scratch = new_arrays):
-    """(obstacle, marks, black, n): the ground views (``shape``) of the (h, w, 2) green/red
+    """Unwarp the window sums to the ground views and separate red from green, in one compiled pass.
+
+    (obstacle, marks, black, n): the ground views (``shape``) of the (h, w, 2) green/red
     window sums ``sums`` through ``tables`` and their red/green separation by ``rule``
     (:func:`separation_rule`), the arithmetic of ``cv2.remap`` then :func:`separate_channels`,
     in one compiled pass: uint16 sums on a little-endian machine by :func:`unwarp_separate_u16`,
