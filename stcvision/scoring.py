@@ -24,6 +24,32 @@ __all__ = ["DotMatch", "FrameScore", "match_dots", "score_frame", "summarize"]
 
 @dataclass
 class FrameScore:
+    """One frame's reading held against its truth (:func:`score_frame`).
+
+    Attributes
+    ----------
+    dots_expected : int
+        Truth dots that should be found (visible, expected SNR at least ``snr_visible``).
+    dots_found : int
+        Lit dots the pipeline found.
+    dots_true_positive : int
+        Found dots matched to a visible truth dot.
+    dot_err_mm, dot_err_px : list of float
+        Each matched dot's floor error (mm) and image error (px), in the order matched.
+    dot_ages_found, dot_ages_missed : list of float
+        Ages (s) of the truth dots that should be found, found or missed.
+    heading_err_deg : float or None
+        The heading fit's error (deg); None without a fit or a cell in the truth.
+    boxes_correct, boxes_total : int
+        Boxes read right, of those scored (ambiguous boxes are left out).
+    obstacles_correct, obstacles_total : int
+        Neighbours whose red light was read right, of those scored.
+    neighbour_marks_correct, neighbour_marks_total : int
+        The neighbours' marks read right, of those scored (:func:`score_frame` leaves both 0).
+    errors : list of str
+        What was read wrong, one line each.
+    """
+
     dots_expected: int = 0
     dots_found: int = 0
     dots_true_positive: int = 0
@@ -59,15 +85,19 @@ class DotMatch:
 
     @property
     def matched(self) -> np.ndarray:
+        """(M,) bool: which visible truth dots a found dot matched."""
         return self.found >= 0
 
     @property
     def n_true_positive(self) -> int:
+        """How many found dots matched a visible truth dot."""
         return int(self.matched.sum())
 
 
 def match_dots(xy_m, truth: dict, profile, *, match_m: float = 0.01) -> DotMatch:
-    """Match detections ``xy_m`` ((N, 2) robot frame, strongest first) to the visible truth
+    """Match detections to the visible truth dots.
+
+    Match detections ``xy_m`` ((N, 2) robot frame, strongest first) to the visible truth
     dots: greedily, each detection to its nearest truth dot if within ``match_m`` and not taken
     already (else it is a false detection). The image error is that of the detection mapped
     through ``profile.robot_to_image`` (none without a profile). Any detector's dots can be scored this way (the
@@ -101,6 +131,34 @@ def score_frame(
     match_m: float = 0.01,
     min_dots: int = 2,
 ) -> FrameScore:
+    """Score one frame's pipeline result against its ground truth.
+
+    The module docstring gives the rules: only what the camera can see is held against the
+    pipeline.
+
+    Parameters
+    ----------
+    result : PipelineResult
+        The pipeline's reading of the frame (its dots, heading and observation are scored).
+    truth : dict
+        The frame's truth (``stcvision.sim_camera`` truth dict: dots, pose, cell).
+    profile : Profile
+        The camera's profile (for the dots' image errors).
+    snr_visible : float
+        A truth dot of at least this expected SNR should be found.
+    snr_ambiguous : float
+        A box whose ``min_dots``-th brightest dot lies between this and ``snr_visible`` is left
+        out.
+    match_m : float
+        A found dot matches a truth dot within this distance (m).
+    min_dots : int
+        Dots that make a box marked, as the observation needs them.
+
+    Returns
+    -------
+    FrameScore
+        The dots, heading, boxes and obstacles held against the truth.
+    """
     sc = FrameScore()
     d = result.dots
     m = match_dots(d.xy_m[np.flatnonzero(d.lit)], truth, profile, match_m=match_m)

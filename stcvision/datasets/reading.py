@@ -1,4 +1,6 @@
-"""Reading a dataset folder: its manifest, its labels, and the checks that every file they name
+"""Reading a dataset folder, and the images of a folder of a user's own frames.
+
+Reading a dataset folder: its manifest, its labels, and the checks that every file they name
 is there at the depth its sensor gives (:func:`open_dataset`); and the images of a folder of a
 user's own frames (:func:`list_images`).
 """
@@ -18,7 +20,19 @@ __all__ = ["Dataset", "list_images", "open_dataset"]
 
 @dataclass(frozen=True)
 class Dataset:
-    """A validated dataset folder: its manifest and its labels (in frame order)."""
+    """A validated dataset folder: its manifest and its labels (in frame order).
+
+    Made by :func:`open_dataset`; ``datasets/README.md`` describes the folder's files.
+
+    Attributes
+    ----------
+    root : Path
+        The dataset folder.
+    manifest : dict
+        ``manifest.json``: the image size, the cameras, the dark frames, the frame count.
+    labels : list of dict
+        The lines of ``labels.jsonl``, one per frame, in frame order.
+    """
 
     root: Path
     manifest: dict
@@ -26,15 +40,28 @@ class Dataset:
 
     @property
     def image_size_px(self) -> tuple[int, int]:
+        """The frames' (width, height) in pixels."""
         return tuple(self.manifest["image_size_px"])
 
     def profile_path(self, camera: str) -> Path | None:
+        """Return the calibration profile the dataset holds for a camera.
+
+        Parameters
+        ----------
+        camera : str
+            The camera's id, as the manifest names it.
+
+        Returns
+        -------
+        Path or None
+            The profile's file, or None when the dataset holds none for this camera.
+        """
         p = self.manifest["cameras"].get(camera, {}).get("profile")
         return self.root / p if p else None
 
 
 def open_dataset(root: str | Path) -> Dataset:
-    """Read and check a dataset folder; every problem is a one-line :class:`BadInputError`.
+    """Read and check a dataset folder.
 
     Checked: the manifest exists (when labels do) and is a complete dataset of a known schema;
     every line of ``labels.jsonl`` is a JSON object naming a frame; the manifest's frame count
@@ -43,6 +70,21 @@ def open_dataset(root: str | Path) -> Dataset:
     its sensor's depth (8-bit, or 16-bit for a deeper ADC: from the PNG header). Frames are
     decoded later (by the evaluation), where a corrupt frame is skipped and counted and a wrong
     size is an error.
+
+    Parameters
+    ----------
+    root : str or Path
+        The dataset folder (made by ``stcvision dataset generate``).
+
+    Returns
+    -------
+    Dataset
+        The folder's manifest and labels.
+
+    Raises
+    ------
+    BadInputError
+        For every problem the checks find, in one line.
     """
     root = Path(root)
     if not root.is_dir():
@@ -116,7 +158,9 @@ def open_dataset(root: str | Path) -> Dataset:
 
 
 def _png_header(path: Path) -> tuple[int, int] | None:
-    """(bit depth per channel, PNG colour type) from a PNG's IHDR chunk (its first 26 bytes), or
+    """Read a PNG's bit depth per channel and colour type from its header.
+
+    (bit depth per channel, PNG colour type) from a PNG's IHDR chunk (its first 26 bytes), or
     None if ``path`` is not a PNG file. Colour type 2 is RGB (a BGR frame), 0 grey.
     """
     with open(path, "rb") as f:
@@ -127,7 +171,9 @@ def _png_header(path: Path) -> tuple[int, int] | None:
 
 
 def _check_depths(root: Path, labels: list[dict]) -> None:
-    """Every labelled PNG frame and its dark frame hold 3 channels at the depth the label's sensor
+    """Check that every labelled PNG frame and its dark frame hold 3 channels at their sensor's depth.
+
+    Every labelled PNG frame and its dark frame hold 3 channels at the depth the label's sensor
     digitises (8 bits for an 8-bit ADC, 16 for 9-16 bits: the ADC counts), read from the PNG
     headers (the frames are not decoded).
     """
@@ -153,7 +199,9 @@ def _check_depths(root: Path, labels: list[dict]) -> None:
 
 
 def list_images(root: str | Path) -> list[Path]:
-    """The image files of a folder of the user's own frames (sorted by name; ``frames/`` if the
+    """List the image files of a folder of the user's own frames.
+
+    The image files of a folder of the user's own frames (sorted by name; ``frames/`` if the
     folder itself holds none).
     """
     root = Path(root)
