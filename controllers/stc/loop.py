@@ -70,10 +70,31 @@ def is_complete(summary: dict) -> bool:
 
 
 def run_cover(board, cfg: CoverConfig | None = None, *, observers=(), perception_hook=None) -> dict:
-    """Cover ``board`` from its start sub-cell; returns the summary the CLI prints.
-    ``observers``: :class:`stcvision.controllers.stc.observers.Observer` s (None entries are skipped);
-    ``perception_hook(perception)`` is handed the run's perception (e.g. to read its frames).
-    ``cfg.faults``: hardware faults built into the parts (:mod:`stcvision.controllers.stc.faults`).
+    """Cover a board with the ant-like STC robot, from its start sub-cell.
+
+    The robot reads its cell (perception), the controller decides, the motors act, until the
+    controller is done, a part stops the robot, or ``cfg.max_decisions`` is reached.
+
+    Parameters
+    ----------
+    board : Board
+        The board to cover (:class:`stcvision.sim_camera.board.Board`).
+    cfg : CoverConfig, optional
+        The run's robot, camera, perception, seed and limits (the defaults when None).
+        ``cfg.faults``: hardware faults built into the parts
+        (:mod:`stcvision.controllers.stc.faults`).
+    observers : sequence of Observer
+        :class:`stcvision.controllers.stc.observers.Observer` s, told of every step (None
+        entries are skipped).
+    perception_hook : callable, optional
+        ``perception_hook(perception)`` is handed the run's perception (e.g. to read its frames).
+
+    Returns
+    -------
+    dict
+        The summary the CLI prints: coverage, whether the robot finished and returned to the
+        start, why it stopped, moves, turns, decisions, looks, the referee's errors, times,
+        frames and the floor's checks; with faults, the faults and their events.
     """
     wall0 = time.perf_counter()
     cfg = cfg if cfg is not None else CoverConfig()
@@ -108,8 +129,9 @@ def run_cover(board, cfg: CoverConfig | None = None, *, observers=(), perception
 
 @dataclass(slots=True)
 class LoopEnd:
-    """How the loop went: its decisions and looks, whether the controller finished, why the
-    robot stopped (None: it did not), and the most the robot kept between two decisions
+    """How the loop went.
+
+    Its decisions and looks, whether the controller finished, why the robot stopped (None: it did not), and the most the robot kept between two decisions
     (:func:`stcvision.controllers.stc.robot.robot_memory`, bytes).
     """
 
@@ -121,8 +143,10 @@ class LoopEnd:
 
 
 def _loop(robot: Robot, max_decisions: int, watch, referee, end: LoopEnd) -> None:
-    """Perception -> controller -> motors until the controller is done, the robot stops or
-    ``max_decisions`` is reached; the outcome goes into ``end``.
+    """Run perception, controller and motors in turn until the run ends.
+
+    It ends when the controller is done, the robot stops or ``max_decisions`` is reached; the
+    outcome goes into ``end``.
     """
     state = initial_state()
     while end.decisions < max_decisions:

@@ -13,6 +13,7 @@ a new entry on the page cannot slip past them.
 
 from __future__ import annotations
 
+import enum
 import importlib
 import inspect
 import re
@@ -105,7 +106,12 @@ def documented_names(body: str) -> set[str]:
 
 
 def parameters(obj) -> list[str]:
-    """The parameters a caller passes (not ``self``/``cls``, which the bound method drops)."""
+    """The parameters a caller passes (not ``self``/``cls``, which the bound method drops).
+
+    An enumeration's are its members: nobody calls it with a value it does not name.
+    """
+    if inspect.isclass(obj) and issubclass(obj, enum.Enum):
+        return list(obj.__members__)
     try:
         sig = inspect.signature(obj)
     except (TypeError, ValueError):
