@@ -108,10 +108,13 @@ def documented_names(body: str) -> set[str]:
 def parameters(obj) -> list[str]:
     """The parameters a caller passes (not ``self``/``cls``, which the bound method drops).
 
-    An enumeration's are its members: nobody calls it with a value it does not name.
+    An enumeration's are its members: nobody calls it with a value it does not name. A protocol
+    (a structural type) is never called: it has none.
     """
     if inspect.isclass(obj) and issubclass(obj, enum.Enum):
         return list(obj.__members__)
+    if inspect.isclass(obj) and getattr(obj, "_is_protocol", False):
+        return []
     try:
         sig = inspect.signature(obj)
     except (TypeError, ValueError):
