@@ -1,4 +1,6 @@
-"""Closed-loop ant-like STC coverage: perception -> finite-state controller -> plant, with a
+"""Closed-loop ant-like STC coverage, with a referee and observers watching.
+
+Closed-loop ant-like STC coverage: perception -> finite-state controller -> plant, with a
 referee and observers watching.
 
 The controller (:mod:`stcvision.controllers.stc.fsm`) decides from one observation per cell entry; the
@@ -55,7 +57,9 @@ def streams(seed: int) -> dict[str, np.random.Generator]:
 
 
 def is_complete(summary: dict) -> bool:
-    """A run of :func:`run_cover` is complete when every reachable sub-cell was covered exactly
+    """Say whether a run of :func:`run_cover` is complete.
+
+    A run of :func:`run_cover` is complete when every reachable sub-cell was covered exactly
     once, the robot finished back in its start cell, and (camera mode) made no decision the
     oracle would not have made.
     """
@@ -131,7 +135,8 @@ def run_cover(board, cfg: CoverConfig | None = None, *, observers=(), perception
 class LoopEnd:
     """How the loop went.
 
-    Its decisions and looks, whether the controller finished, why the robot stopped (None: it did not), and the most the robot kept between two decisions
+    Its decisions and looks, whether the controller finished, why the robot stopped (None: it
+    did not), and the most the robot kept between two decisions
     (:func:`stcvision.controllers.stc.robot.robot_memory`, bytes).
     """
 
@@ -180,7 +185,9 @@ def _loop(robot: Robot, max_decisions: int, watch, referee, end: LoopEnd) -> Non
 
 
 def _tell(robot: Robot, watch, referee, end: LoopEnd, prev, state, obs, decision) -> None:
-    """The observers and the referee hear of a reading and what the controller made of it; the
+    """Tell the observers and the referee of a reading and the decision made of it.
+
+    The observers and the referee hear of a reading and what the controller made of it; the
     robot's memory is measured between two decisions.
     """
     plant, belief, floor, frame = robot.plant, robot.belief, robot.floor, robot.see.last_frame
