@@ -101,9 +101,9 @@ def recall_by_age(found: list, missed: list) -> list[dict]:
 def visible_detection(result, truth: dict, *, match_m: float = 0.01) -> list[tuple[float, bool]]:
     """Return (age, found) of every visible truth dot, whatever its SNR.
 
-    (age, found) of every visible truth dot, whatever its SNR: the matching of
-    :func:`stcvision.scoring.score_frame`, to show where the visibility horizon cuts detection.
-    ``result``: anything with ``dots.xy_m`` and ``dots.lit`` (the pipeline's or the baseline's).
+    The matching of :func:`stcvision.scoring.score_frame`, to show where the visibility horizon
+    cuts detection. ``result``: anything with ``dots.xy_m`` and ``dots.lit`` (the pipeline's or
+    the baseline's).
     """
     from stcvision.scoring import match_dots
 

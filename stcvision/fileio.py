@@ -74,8 +74,8 @@ def output_error(path: str | os.PathLike, exc: OSError) -> OutputError:
 def check_output_file(path: str | os.PathLike, *, overwrite: bool = False, what: str = "") -> Path:
     """Check, before any work, that ``path`` can be made as a file.
 
-    Check, before any work, that ``path`` can be made as a file: not a directory, its parent a
-    folder (or creatable), and not an existing file unless ``overwrite``. Returns the path.
+    Not a directory, its parent a folder (or creatable), and not an existing file unless
+    ``overwrite``. Returns the path.
     """
     path = Path(path)
     label = f"{what} {path}".strip()
@@ -540,8 +540,8 @@ def _depth(img: np.ndarray) -> str:
 def check_output_folder(folder: str | os.PathLike, names, *, overwrite: bool = False) -> Path:
     """Check, before any work, that ``folder`` can hold the files ``names``.
 
-    Check, before any work, that ``folder`` can hold the files ``names``: a folder or creatable
-    (no file in the way), and none of ``names`` already there unless ``overwrite``.
+    A folder or creatable (no file in the way), and none of ``names`` already there unless
+    ``overwrite``.
     """
     folder = Path(folder)
     if folder.exists() and not folder.is_dir():
@@ -556,8 +556,7 @@ def check_output_folder(folder: str | os.PathLike, names, *, overwrite: bool = F
 def write_set(folder: str | os.PathLike, files: dict[str, bytes], *, overwrite: bool = False) -> list[Path]:
     """Write a set of files into ``folder`` as one unit.
 
-    Write a set of files into ``folder`` as one unit; the last entry of ``files`` is the set's
-    marker (e.g. its ground truth).
+    The last entry of ``files`` is the set's marker (e.g. its ground truth).
 
     A new or empty ``folder`` is made whole in a temporary sibling folder and renamed into place:
     the set appears complete or not at all. Into a folder that holds other files, each file is

@@ -68,8 +68,7 @@ _LANDING = np.array(
 def _apply(H: np.ndarray, xy) -> np.ndarray:
     """Map (N, 2) points through the homography ``H``.
 
-    (N, 2) points through the homography ``H``: homogeneous coordinates (the points and a
-    column of ones) times ``H.T``, then divided.
+    Homogeneous coordinates (the points and a column of ones) times ``H.T``, then divided.
     """
     p = np.asarray(xy, float).reshape(-1, 2)
     if len(p) >= 2:  # compiled, bit for bit numpy's product (homography)
@@ -279,8 +278,8 @@ def group_stats(code: np.ndarray, n: int, lit: np.ndarray, value: np.ndarray) ->
 def _confidence(value: float, threshold: float, noise: float) -> float:
     """Say how sure a threshold decision is.
 
-    How sure a threshold decision is: logistic in the margin, in units of the noise
-    (0.5 at the threshold, ~0.99 five noise units away).
+    Logistic in the margin, in units of the noise (0.5 at the threshold, ~0.99 five noise units
+    away).
     """
     return float(1.0 / (1.0 + math.exp(-abs(value - threshold) / max(noise, 1e-9))))
 
@@ -593,11 +592,11 @@ def marks_ahead(
 ) -> int:
     """Count the lit dots in the cell just ahead of the robot.
 
-    Lit dots in the cell just ahead of the robot: the cell whose lower-right sub-cell is the
-    one in front of the robot's (where an STC robot lands when it leaves into a child). The
-    robot stands in the front-right sub-cell of its own cell as it leaves, so that cell is
-    ``[-1, 1] x [0, 2]`` in cell units and its own cell lies wholly behind ``up = 0``.
-    ``offset``: the robot's offset from its sub-cell centre (``CellObservation.position_offset``).
+    The cell whose lower-right sub-cell is the one in front of the robot's (where an STC robot
+    lands when it leaves into a child). The robot stands in the front-right sub-cell of its own
+    cell as it leaves, so that cell is ``[-1, 1] x [0, 2]`` in cell units and its own cell lies
+    wholly behind ``up = 0``. ``offset``: the robot's offset from its sub-cell centre
+    (``CellObservation.position_offset``).
     """
     if not len(dots):
         return 0

@@ -1,7 +1,7 @@
 """The Buffon explorer's runs, as the CLI calls them.
 
-The Buffon explorer's runs, as the CLI calls them: measure one nest, reproduce the paper,
-compare the batched path with the pymunk one, recompute the area correction.
+Measure one nest, reproduce the paper, compare the batched path with the pymunk one, recompute
+the area correction.
 
 Each returns a JSON-serialisable dict. Progress bars (tqdm) and files are here, around the
 simulation; nothing in the simulation prints, plots or logs.

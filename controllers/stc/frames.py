@@ -99,8 +99,8 @@ def stc_observation(cell_obs) -> StcObservation:
 def _merge(a: StcObservation, b: StcObservation) -> StcObservation:
     """Merge what two exposures of one scene show together.
 
-    What two exposures of one scene show together: a mark either one sees is there; the red
-    lights come from the first (short) frame, which does not saturate them.
+    A mark either one sees is there; the red lights come from the first (short) frame, which
+    does not saturate them.
     """
     return StcObservation(
         boxes=tuple(x or y for x, y in zip(a.boxes, b.boxes, strict=True)),

@@ -196,8 +196,7 @@ def _identity_tables(w: int, h: int) -> GatherTables:
 def black_out_margin(red_margin_px: int) -> np.ndarray | None:
     """Return the structuring element the black-out grows by.
 
-    The structuring element the black-out grows by: an ellipse reaching ``red_margin_px``
-    beyond a pixel.
+    An ellipse reaching ``red_margin_px`` beyond a pixel.
 
     Parameters
     ----------

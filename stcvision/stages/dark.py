@@ -36,9 +36,9 @@ def check_dark_dtype(dark: np.ndarray, frame_dtype) -> None:
 def quantum_dn(values: np.ndarray) -> int:
     """Return the quantisation step of integer pixel values (DN).
 
-    The quantisation step of integer pixel values (DN): the greatest common divisor of their
-    differences -- 1 for LSB-aligned data of any depth, 16 for 12-bit counts MSB-aligned in
-    16 bits. Noise floors are fractions of this step, so the alignment does not matter.
+    The greatest common divisor of their differences -- 1 for LSB-aligned data of any depth, 16
+    for 12-bit counts MSB-aligned in 16 bits. Noise floors are fractions of this step, so the
+    alignment does not matter.
     """
     v = np.asarray(values).reshape(-1).astype(np.int64)
     if not len(v):

@@ -136,9 +136,9 @@ def noise_gain(umap: UnwarpMap, window_px: int, *, n: int = 12, seed: int = 0) -
 def _candidate_level(dtype, gain, params: DotParams, area: int, background_dn: float, noise_dn: float, low: float):
     """Return the dot candidate level for :func:`dot_candidates`.
 
-    The dot candidate level for :func:`dot_candidates`: (mode, a, c), the level
-    ``gain * a + c`` per pixel in the sums' own units (mode 0: uint16 sums, rounded to whole
-    DN; 1: float32 sums), or the scalar ``c`` (mode 2: a fixed ``threshold_dn``, or no gain map).
+    (mode, a, c), the level ``gain * a + c`` per pixel in the sums' own units (mode 0: uint16
+    sums, rounded to whole DN; 1: float32 sums), or the scalar ``c`` (mode 2: a fixed
+    ``threshold_dn``, or no gain map).
     """
     if params.threshold_dn is not None:
         level = np.float32(area * (background_dn + params.threshold_dn * low / params.k_sigma))
