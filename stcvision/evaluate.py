@@ -299,9 +299,9 @@ def evaluate_dataset(ds, *, default_profile, profile=None, progress=None) -> Eva
 class LabelledFrames:
     """The frames of a dataset with what a detector needs for each, read once and cached.
 
-    The frames of a dataset with what a detector needs for each: its image, its label, its
-    camera's profile and its dark frame, read once and cached (a dataset has a few cameras and
-    dark frames and many frames).
+    For each frame its image, its label, its camera's profile and its dark frame; the profiles
+    and dark frames are read once and cached (a dataset has a few cameras and dark frames and
+    many frames).
 
     ``profile`` (a Profile) is used for every frame if given; otherwise each camera's own profile
     from the dataset (``profiles/CAM.json``) if it has one, else ``default_profile``.
@@ -558,8 +558,8 @@ def log_worst(ev: Evaluation, ds, rrd_path, *, default_profile, profile=None, n:
 def evaluate_images(paths: list[Path], *, profile, dark, dark_path=None, progress=None):
     """Run the pipeline on the user's own frames, one result per frame.
 
-    Run the pipeline on the user's own frames; yields (path, result or None, skip reason).
-    A frame of another depth than ``dark`` (read from ``dark_path``) is refused.
+    Yields (path, result or None, skip reason). A frame of another depth than ``dark`` (read
+    from ``dark_path``) is refused.
     """
     from stcvision.fileio import check_same_depth, read_image
     from stcvision.pipeline import Pipeline
@@ -670,8 +670,8 @@ def sweep_evaluation(ds, *, profile_path=None, default_profile_path=None, option
 def evaluate_image_folder(paths, *, profile, dark, dark_path=None, out, rrd=None) -> dict:
     """Run the pipeline on a user's own frames and write one JSON line per frame.
 
-    Run the pipeline on a user's own frames (no labels) and write one JSON line per frame to
-    ``out`` (atomically, when all are done); with ``rrd`` every frame goes to a rerun recording.
+    No labels: the lines go to ``out`` (atomically, when all are done); with ``rrd`` every frame
+    goes to a rerun recording.
 
     Returns counts and medians (dots per frame, ms per frame, heading fits), the frames skipped
     as unreadable and those whose result is untrusted (a lights-on frame, say). Without ground

@@ -96,8 +96,8 @@ def check_output_file(path: str | os.PathLike, *, overwrite: bool = False, what:
 def temp_sibling(path: Path, *, directory: bool = False) -> Path:
     """Make a new hidden temporary sibling of ``path``, registered for removal on exit.
 
-    A new hidden temporary sibling ``.NAME.PID.RANDOM.tmp`` of ``path`` (file or folder),
-    registered for removal on exit; the first in a folder in this run removes the stale ones.
+    Its name is ``.NAME.PID.RANDOM.tmp``, a file or a folder; the first in a folder in this run
+    removes the stale ones.
 
     The name is registered before the file or folder exists (made with O_EXCL, as mkstemp
     does): a termination signal that lands between making it and registering it would leave an
@@ -192,8 +192,8 @@ def _writer_pid(name: str) -> int | None:
 def remove_stale_temps(folder: str | os.PathLike) -> list[Path]:
     """Remove the temporaries in ``folder`` left by writers that were killed.
 
-    Remove the temporaries in ``folder`` left by writers that were killed (SIGKILL, power
-    loss): ``.NAME.PID.RANDOM.tmp`` whose process is gone. Returns what was removed.
+    Killed by SIGKILL or a power loss: ``.NAME.PID.RANDOM.tmp`` whose process is gone. Returns
+    what was removed.
     """
     import shutil
 
@@ -217,8 +217,8 @@ def remove_stale_temps(folder: str | os.PathLike) -> list[Path]:
 def remove_live_temps() -> None:
     """Remove this process's temporaries not yet renamed into place.
 
-    Remove this process's temporary files and folders not yet renamed into place (on exit, on
-    an error, on SIGTERM/SIGINT): a run that stops leaves no hidden leftovers.
+    Its temporary files and folders go on exit, on an error, on SIGTERM/SIGINT: a run that stops
+    leaves no hidden leftovers.
     """
     for tmp in list(_LIVE_TEMPS):
         discard_temp(tmp)
@@ -227,8 +227,7 @@ def remove_live_temps() -> None:
 def remove_own_temps(folder: Path) -> None:
     """Remove this process's temporaries in ``folder`` by their name, registered or not.
 
-    Remove this process's temporaries in ``folder`` by their name (``.NAME.PID.RANDOM.tmp``),
-    registered or not: a signal that lands between a temporary's creation and its registration
+    The name is ``.NAME.PID.RANDOM.tmp``. A signal that lands between a temporary's creation and its registration
     (:func:`temp_sibling`) leaves it unregistered, and a folder the run made would then stay.
     """
     for tmp in folder.glob(f".*.{os.getpid()}.*{_TEMP_SUFFIX}"):
@@ -238,8 +237,8 @@ def remove_own_temps(folder: Path) -> None:
 def commit_temp(tmp: Path, path: Path) -> None:
     """Rename the temporary ``tmp`` over ``path`` and forget it.
 
-    Rename the temporary ``tmp`` over ``path`` (atomic on one file system) and forget it; never
-    after a termination signal (:func:`raise_if_signalled`: the temporary is then removed).
+    Atomic on one file system; never after a termination signal (:func:`raise_if_signalled`:
+    the temporary is then removed).
     """
     raise_if_signalled()
     os.replace(tmp, path)
@@ -262,8 +261,8 @@ def discard_temp(tmp: Path | None) -> None:
 def _new_file_mode(path: Path) -> int:
     """Return the mode a new ``path`` gets, as ``open()`` would give it.
 
-    The mode a new ``path`` gets: an existing file's own mode (replacing keeps it), else
-    0o666 less the umask, as ``open()`` would give (mkstemp alone makes 0600).
+    An existing file's own mode (replacing keeps it), else 0o666 less the umask (mkstemp alone
+    makes 0600).
     """
     try:
         return os.stat(path).st_mode & 0o7777
@@ -274,8 +273,8 @@ def _new_file_mode(path: Path) -> int:
 def write_bytes_atomic(path: str | os.PathLike, data: bytes, *, overwrite: bool = False) -> Path:
     """Write ``data`` to ``path`` atomically.
 
-    Write ``data`` to ``path`` atomically (temp file + fsync + rename), with the mode ``open()``
-    would give it (0o666 less the umask; a replaced file keeps its mode).
+    Temp file + fsync + rename, with the mode ``open()`` would give it (0o666 less the umask; a
+    replaced file keeps its mode).
 
     Raises
     ------

@@ -1,7 +1,7 @@
 """The evaluation's report, and the text table of a comparison.
 
-The evaluation's report: the markdown summary, the JSON files and the plots of an
-:class:`stcvision.evaluate.Evaluation` (:func:`write_report`), and the text table of a comparison
+The report is the markdown summary, the JSON files and the plots of an
+:class:`stcvision.evaluate.Evaluation` (:func:`write_report`); the comparison's is a text table
 (:func:`format_compare`). The numbers are :mod:`stcvision.evaluate`'s; this module only shows them
 (matplotlib with the Agg backend, imported on first use).
 """

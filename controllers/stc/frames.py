@@ -169,8 +169,8 @@ def sensor_gain(sensor, exposure_s: float, n_avg: int, webcam_gain: float) -> fl
 class Exposures:
     """The frames a robot's camera takes, and which one the robot's clock asks for.
 
-    The frames a robot's camera takes: the ladder of (exposure_s, gain) settings, the short
-    webcam frame first, and which long rung the robot's clock asks for.
+    The frames are a ladder of (exposure_s, gain) settings, the short webcam frame first; the
+    class also says which long rung the robot's clock asks for.
     """
 
     def __init__(self, cfg: CoverConfig, subcell_m: float = DEFAULT_SUBCELL_M, *, frame_noise: bool | None = None):

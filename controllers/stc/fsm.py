@@ -1,8 +1,8 @@
 """Ant-like STC as a pure O(1)-memory finite-state machine (no physics, no camera).
 
-Ant-like STC (Srour & Abboud, "Optimally Covering an Unknown Environment with Ant-like STC
-algorithm") as a pure O(1)-memory finite-state machine (no physics, no camera);
-:mod:`stcvision.controllers.stc.oracle` runs it on a grid against the truth.
+The algorithm is Srour & Abboud's ("Optimally Covering an Unknown Environment with Ant-like STC
+algorithm"); :mod:`stcvision.controllers.stc.oracle` runs this machine on a grid against the
+truth.
 
 The geometry (entry frame, sub-cells 0..3, directions 0 right 1 forward 2 left 3 back) is
 :mod:`stcvision.controllers.stc.grid`'s.

@@ -1,7 +1,6 @@
 """Closed-loop ant-like STC coverage, with a referee and observers watching.
 
-Closed-loop ant-like STC coverage: perception -> finite-state controller -> plant, with a
-referee and observers watching.
+Perception -> finite-state controller -> plant, in turn, until the run ends.
 
 The controller (:mod:`stcvision.controllers.stc.fsm`) decides from one observation per cell entry; the
 loop runs it on a board with honest time and honest marks, from its parts:
@@ -187,8 +186,7 @@ def _loop(robot: Robot, max_decisions: int, watch, referee, end: LoopEnd) -> Non
 def _tell(robot: Robot, watch, referee, end: LoopEnd, prev, state, obs, decision) -> None:
     """Tell the observers and the referee of a reading and the decision made of it.
 
-    The observers and the referee hear of a reading and what the controller made of it; the
-    robot's memory is measured between two decisions.
+    The robot's memory is measured here, between two decisions.
     """
     plant, belief, floor, frame = robot.plant, robot.belief, robot.floor, robot.see.last_frame
     if isinstance(obs, StcObservation):

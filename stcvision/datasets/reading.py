@@ -1,8 +1,8 @@
 """Reading a dataset folder, and the images of a folder of a user's own frames.
 
-Reading a dataset folder: its manifest, its labels, and the checks that every file they name
-is there at the depth its sensor gives (:func:`open_dataset`); and the images of a folder of a
-user's own frames (:func:`list_images`).
+A dataset folder's manifest and labels are read and checked: every file they name is there at
+the depth its sensor gives (:func:`open_dataset`). A folder of a user's own frames is listed by
+:func:`list_images`.
 """
 
 from __future__ import annotations
@@ -201,8 +201,7 @@ def _check_depths(root: Path, labels: list[dict]) -> None:
 def list_images(root: str | Path) -> list[Path]:
     """List the image files of a folder of the user's own frames.
 
-    The image files of a folder of the user's own frames (sorted by name; ``frames/`` if the
-    folder itself holds none).
+    Sorted by name; those of ``frames/`` if the folder itself holds none.
     """
     root = Path(root)
     if not root.is_dir():

@@ -1,7 +1,7 @@
 """The channels stage: the red/green separation into the obstacle and marks images.
 
-The channels stage: the red/green separation into the obstacle image (red lights) and the
-marks image (green phosphor), the red lights blacked out of the marks with a margin.
+The obstacle image holds the red lights, the marks image the green phosphor; the red lights are
+blacked out of the marks with a margin.
 
 :class:`ChannelParams` holds the rule and :func:`separation_rule` turns it into the thresholds
 the compiled pass compares with. :func:`separate_channels` (and :func:`filter_channels` on a
@@ -186,8 +186,8 @@ _NO_LEAK = 2.0**40
 def _identity_tables(w: int, h: int) -> GatherTables:
     """Build the gather tables of the map that reads every pixel where it stands.
 
-    The gather tables of the map that reads every pixel where it stands (kept per image size:
-    building them is 8 of a 640x480 call's 10 ms; the compiled loops only read them).
+    They are kept per image size: building them is 8 of a 640x480 call's 10 ms; the compiled
+    loops only read them.
     """
     my, mx = np.mgrid[0:h, 0:w].astype(np.float32)
     return GatherTables.from_map(UnwarpMap(mx, my, np.ones((h, w), bool), (w, h)))

@@ -1,7 +1,7 @@
 """The dark stage: dark subtraction, hot pixels, and the frame's background and noise.
 
-The dark stage: the dark frame subtracted (saturating, with a pedestal), hot pixels masked,
-and the frame's background and noise level.
+The dark frame is subtracted saturating, with a pedestal; hot pixels are masked; the frame's
+background and noise level are measured.
 
 :func:`subtract_dark` is the stage as OpenCV writes it on a whole colour frame (the reference,
 and the display image); :func:`dark_channels` is what the pipeline runs: green and red of the
@@ -289,8 +289,7 @@ def _no_hot() -> np.ndarray:
 class DarkFrame:
     """What the front end takes from a dark frame, once.
 
-    What the front end takes from a dark frame, once (the default: none, whose background
-    sample is then read as it is, without pedestal).
+    The default is none, whose background sample is then read as it is, without pedestal.
 
     ``frame``: the (H, W, 3) dark frame; ``pedestal``, ``quantum``, ``sigma``: the pedestal kept
     by the subtraction, the quantisation step and the dark frame's robust spread (DN);

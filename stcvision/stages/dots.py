@@ -1,7 +1,6 @@
-"""The dot search: window-mean peaks above the frame's noise, the black-out, and the centroids.
+"""The dot search: window-mean peaks above the frame's noise, the greedy black-out, the centroids.
 
-The dot search: window-mean peaks above the frame's noise, the greedy black-out, and the
-centroids, first on the ground view's window sums, then on the mirror image.
+The search runs first on the ground view's window sums, then on the mirror image.
 
 The ant-like STC paper (Srour & Abboud), "Finding the green dots": the square of a dot's size with
 the highest average, a threshold, then black out and look again.

@@ -82,8 +82,7 @@ class UnwarpMap:
     def cropped(self, x0: int, y0: int, x1: int, y1: int) -> UnwarpMap:
         """Return the same map reading a crop of the image.
 
-        The same map reading the crop ``image[y0:y1, x0:x1]`` (shifting a map by whole pixels
-        is exact in float32).
+        The crop is ``image[y0:y1, x0:x1]``; shifting a map by whole pixels is exact in float32.
         """
         mx, my = self.map_x - np.float32(x0), self.map_y - np.float32(y0)
         f1, f2 = cv2.convertMaps(mx, my, cv2.CV_16SC2)

@@ -1,9 +1,9 @@
 """The red stage: the red lights, white lights told apart, and the far red lights.
 
-The red stage: the red lights, blobs of the obstacle image (red-light pixels after the
-channel separation), their centroids, areas and peaks; white lights told apart from red ones on
-the raw frame; and the far red lights (landmarks) found in the wide ground view and refined on
-the full-resolution mirror image.
+The red lights are blobs of the obstacle image (red-light pixels after the channel
+separation), with their centroids, areas and peaks; white lights are told apart from red ones
+on the raw frame; the far red lights (landmarks) are found in the wide ground view and refined
+on the full-resolution mirror image.
 
 :func:`read_red` is the stage as the pipeline runs it; :func:`find_red` the blob search alone,
 its contour moments computed by the compiled :func:`blobs`, bit for bit ``cv2.moments``.

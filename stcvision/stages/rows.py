@@ -1,7 +1,7 @@
 """The faint-row search: marks whose dots have faded below the single-dot threshold.
 
-The faint-row search: marks whose dots have faded below the single-dot threshold, found as
-rows of dots at the LEDs' spacing (a matched filter), through a found dot or where none was.
+They are found as rows of dots at the LEDs' spacing (a matched filter), through a found dot or
+where none was.
 """
 
 from __future__ import annotations
