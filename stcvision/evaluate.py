@@ -120,9 +120,9 @@ def detection_by_age(pairs) -> list[dict]:
 def profile_floor_error_mm(profile, truth: dict, *, max_range_m: float = 0.9) -> list[float]:
     """Measure the floor error (mm) of the profile's image-to-floor map at the visible truth dots.
 
-    Floor error (mm) of the profile's image->floor map at every visible truth dot within
-    ``max_range_m`` of the robot: how well the profile fits this camera, independent of the
-    dot search (the calibration issue's ground reprojection error, on real dot positions).
+    Every visible truth dot within ``max_range_m`` of the robot counts: how well the profile
+    fits this camera, independent of the dot search (the calibration's ground reprojection
+    error, on real dot positions).
     """
     pts = [
         (d["uv_px"], d["xy_robot_m"])
