@@ -357,10 +357,9 @@ class LabelledFrames:
     def read(self, indices, skipped: list, on_frame=None):
         """Yield ``(index, label, image)`` of the frames ``indices``, skipping the undecodable ones.
 
-        Yield ``(index, label, image)`` of the frames ``indices`` (label order); a frame that
-        cannot be decoded is appended to ``skipped`` as ``{"frame", "reason"}``; a frame of the
-        wrong size, or of another depth than its dark frame, is an error. ``on_frame(1)`` is called
-        after each frame (progress).
+        In label order. A frame that cannot be decoded is appended to ``skipped`` as ``{"frame",
+        "reason"}``; a frame of the wrong size, or of another depth than its dark frame, is an
+        error. ``on_frame(1)`` is called after each frame (progress).
         """
         from stcvision.fileio import check_same_depth, read_image
 
@@ -388,11 +387,10 @@ class LabelledFrames:
 def evaluate_frames(
     ds, indices, *, default_profile, profile=None, on_frame=None
 ) -> tuple[list[FrameRecord], list[dict]]:
-    """Run and score the pipeline on some frames of a dataset.
+    """Run and score the pipeline on the frames ``indices`` of ``ds`` (label order).
 
-    Run and score the pipeline on the frames ``indices`` of ``ds`` (label order): one
-    :class:`FrameRecord` per readable frame, and ``{"frame", "reason"}`` per frame that could not
-    be decoded (skipped). ``on_frame(1)`` is called after each frame (progress).
+    Returns one :class:`FrameRecord` per readable frame, and ``{"frame", "reason"}`` per frame
+    that could not be decoded (skipped). ``on_frame(1)`` is called after each frame (progress).
     """
     from stcvision.pipeline import Pipeline
     from stcvision.scoring import score_frame
