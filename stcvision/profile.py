@@ -437,6 +437,8 @@ class Profile:
         ------
         FileExistsRefusedError
             When ``path`` exists and ``overwrite`` is false.
+        OutputError
+            When the file cannot be written.
         """
         from stcvision.fileio import write_json
 

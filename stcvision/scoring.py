@@ -142,8 +142,9 @@ def score_frame(
         The pipeline's reading of the frame (its dots, heading and observation are scored).
     truth : dict
         The frame's truth (``stcvision.sim_camera`` truth dict: dots, pose, cell).
-    profile : Profile
-        The camera's profile (for the dots' image errors).
+    profile : Profile or None
+        The camera's profile: the matched dots' image errors go through
+        ``profile.robot_to_image`` (none without a profile).
     snr_visible : float
         A truth dot of at least this expected SNR should be found.
     snr_ambiguous : float

@@ -93,8 +93,12 @@ def measure(
     Raises
     ------
     BadInputError
-        For a nest or barrier that cannot be read or measured, a negative seed, a bad
-        ``visit_steps`` or ``threads``, or a recording path that cannot be written.
+        For a nest or barrier that cannot be read or measured, a negative seed, or a bad
+        ``visit_steps`` or ``threads``.
+    OutputError
+        For a recording path that is a folder or does not end in ``.rrd``, or cannot be made.
+    FileExistsRefusedError
+        For an existing recording without ``force``.
     """
     nest = parse_nest(nest_spec, barrier)
     config = VisitConfig(visit_steps=visit_steps, trail_width_u=trail_width_u)
