@@ -410,9 +410,11 @@ class Profile:
 
         Raises
         ------
+        BadInputError
+            When the file is missing, unreadable or not JSON.
         ProfileError
             When a field is missing or invalid (the message names it), or the schema version is
-            newer than this toolkit reads.
+            not one this toolkit reads.
         """
         from stcvision.fileio import read_json
 

@@ -63,8 +63,8 @@ def measure(
     Parameters
     ----------
     nest_spec : str
-        The nest, ``KIND:ARGS`` (e.g. ``circle:100`` or ``ellipse:7854:4``; areas in square body
-        lengths).
+        The nest: ``circle:DIAMETER``, ``square:SIDE``, ``ellipse:AREA:RATIO`` or
+        ``polygon:FILE`` (lengths in body lengths).
     barrier : str, optional
         A centred barrier, ``bar:FRACTION`` (|) or ``plus:FRACTION`` (+).
     trials : int
