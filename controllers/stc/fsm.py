@@ -295,7 +295,8 @@ class Decision:
     target : int
         Sub-cell to go to (and leave from unless ``final``).
     final : bool
-        Stop in ``target`` (the start cell's last sub-cell) instead of leaving.
+        Stop in sub-cell ``target`` instead of leaving the cell (in the start cell, with no child
+        left to enter).
     free : tuple of bool
         Per direction: a candidate child (no red light, no mark, exit reachable); ``child`` is
         the first of them counter-clockwise after the parent, the looks may move on to the next.
