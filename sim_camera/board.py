@@ -44,6 +44,7 @@ MAX_RANDOM_CELLS = 1_000_000
 
 
 def _check_even(shape: tuple[int, int], source: str) -> None:
+    """Refuse a grid of odd rows or columns (a cell is 2x2 sub-cells)."""
     rows, cols = shape
     if rows % 2 or cols % 2:
         raise MapError(f"{source} is {rows}x{cols} sub-cells; expected even rows and columns (a cell is 2x2 sub-cells)")
@@ -61,6 +62,17 @@ class Board:
         The sub-cell the robot starts in; its cell must be free.
     subcell_m : float
         Sub-cell side ``D`` in metres.
+
+    Attributes
+    ----------
+    cell_free : (rows / 2, cols / 2) bool
+        ``True`` for free cells (all four sub-cells free); read-only, like ``blocked``.
+
+    Raises
+    ------
+    MapError
+        When the grid is empty, not 2-D or of odd rows or columns, ``subcell_m`` is not
+        positive, or the start sub-cell is off the board or in an obstacle cell.
     """
 
     blocked: np.ndarray
@@ -92,7 +104,30 @@ class Board:
     # ------------------------------------------------------------------ constructors
     @classmethod
     def from_text(cls, text: str, *, subcell_m: float = DEFAULT_SUBCELL_M, source: str = "map") -> Board:
-        """Parse a text map (``.`` free, ``#`` blocked, ``S`` start)."""
+        """Parse a text map (``.`` free, ``#`` blocked, ``S`` start).
+
+        One character per sub-cell; blank lines and lines starting with ``;`` are ignored.
+
+        Parameters
+        ----------
+        text : str
+            The map's text: a rectangle of even rows and columns, with exactly one ``S``.
+        subcell_m : float
+            Sub-cell side ``D`` in metres.
+        source : str
+            Names the map in error messages.
+
+        Returns
+        -------
+        Board
+            The board, starting in the ``S`` sub-cell.
+
+        Raises
+        ------
+        MapError
+            For an empty map, a line of another width, an unknown character, odd rows or
+            columns, or not exactly one ``S``.
+        """
         lines = [ln.rstrip("\r\n").rstrip() for ln in text.splitlines()]
         lines = [ln for ln in lines if ln and not ln.startswith(";")]
         if not lines:
@@ -121,7 +156,29 @@ class Board:
 
     @classmethod
     def from_image(cls, image: np.ndarray, *, subcell_m: float = DEFAULT_SUBCELL_M, start_subcell=None) -> Board:
-        """Board from a grey or BGR uint8 image: one pixel = one sub-cell, dark (< 128) = blocked."""
+        """Make a board from an image: one pixel = one sub-cell, dark (< 128) = blocked.
+
+        Parameters
+        ----------
+        image : numpy.ndarray
+            A grey or BGR uint8 image (1, 3 or 4 channels are averaged).
+        subcell_m : float
+            Sub-cell side ``D`` in metres.
+        start_subcell : tuple of int, optional
+            The start sub-cell; default the lower-right sub-cell of the first free cell found
+            scanning the cell rows top-down, left to right.
+
+        Returns
+        -------
+        Board
+            The board.
+
+        Raises
+        ------
+        MapError
+            For an image of another shape, odd rows or columns, no free cell, or a start in an
+            obstacle cell.
+        """
         img = np.asarray(image)
         if img.ndim == 3 and img.shape[2] in (1, 3, 4):
             img = img.mean(axis=2)
@@ -137,9 +194,10 @@ class Board:
         cls, free_px: np.ndarray, m_per_px: float, *, subcell_m: float = DEFAULT_SUBCELL_M, start_subcell=None,
         source: str = "map",
     ) -> Board:  # fmt: skip
-        """Board from an occupancy grid of known resolution: a sub-cell is free iff every map
-        pixel it overlaps is free, so the robot's footprint (``subcell_m``) fits wherever the
-        board says free.
+        """Make a board from an occupancy grid of known resolution.
+
+        A sub-cell is free iff every map pixel it overlaps is free, so the robot's footprint
+        (``subcell_m``) fits wherever the board says free.
 
         Parameters
         ----------
@@ -195,14 +253,35 @@ class Board:
 
     @classmethod
     def from_map_yaml(cls, path: str | Path, *, subcell_m: float = DEFAULT_SUBCELL_M, start_subcell=None) -> Board:
-        """Board from a ROS ``map_server`` map: its YAML (``image``, ``resolution``, ``origin``,
-        ``negate``, ``occupied_thresh``, ``free_thresh``, optional ``mode``) and its image.
+        """Make a board from a ROS ``map_server`` map.
 
-        A pixel's occupancy is ``(255 - v) / 255`` (``v / 255`` when ``negate``), its channels
-        averaged; it is free below ``free_thresh``, and anything else (occupied, or unknown
-        between the thresholds) is not: the robot does not drive where the map does not know.
-        The board keeps the map's scale (:meth:`from_occupancy`); ``origin`` places the map in
-        the lab's frame and does not change which sub-cells are free.
+        The map is its YAML (``image``, ``resolution``, ``origin``, ``negate``,
+        ``occupied_thresh``, ``free_thresh``, optional ``mode``) and its image. A pixel's
+        occupancy is ``(255 - v) / 255`` (``v / 255`` when ``negate``), its channels averaged;
+        it is free below ``free_thresh``, and anything else (occupied, or unknown between the
+        thresholds) is not: the robot does not drive where the map does not know. The board
+        keeps the map's scale (:meth:`from_occupancy`); ``origin`` places the map in the lab's
+        frame and does not change which sub-cells are free.
+
+        Parameters
+        ----------
+        path : str or Path
+            The map's YAML; its ``image`` is relative to the YAML's folder.
+        subcell_m : float
+            The board's sub-cell side, the robot's footprint.
+        start_subcell : tuple of int, optional
+            (row, column) of the start sub-cell; default: the first free cell's.
+
+        Returns
+        -------
+        Board
+            The board :meth:`from_occupancy` makes of the map at its resolution.
+
+        Raises
+        ------
+        MapError
+            A YAML that cannot be read or lacks a key, a value out of range, an image that
+            cannot be read.
         """
         import yaml
 
@@ -256,9 +335,34 @@ class Board:
         start_subcell=None,
         m_per_px: float | None = None,
     ) -> Board:
-        """Load a ``.txt`` map, a ROS ``map_server`` ``.yaml`` map, or an image map (``.png``,
-        ``.bmp``...). An image map is one pixel per sub-cell, or, given ``m_per_px`` (its
-        resolution), resampled to sub-cells of ``subcell_m`` (:meth:`from_occupancy`)."""
+        """Load a ``.txt`` map, a ROS ``map_server`` ``.yaml`` map, or an image map.
+
+        An image map (``.png``, ``.bmp``...) is one pixel per sub-cell, or, given ``m_per_px``
+        (its resolution), resampled to sub-cells of ``subcell_m`` (:meth:`from_occupancy`).
+
+        Parameters
+        ----------
+        path : str or Path
+            The map file: ``.txt``, ``.map`` or no suffix for a text map, ``.yaml`` or ``.yml``
+            for a ``map_server`` map, else an image.
+        subcell_m : float
+            Sub-cell side ``D`` in metres.
+        start_subcell : tuple of int, optional
+            The start sub-cell, instead of the text map's ``S`` or the image map's default.
+        m_per_px : float, optional
+            An image map's resolution (metres per pixel); not for text or YAML maps.
+
+        Returns
+        -------
+        Board
+            The board.
+
+        Raises
+        ------
+        MapError
+            A missing file or folder, a map that cannot be read or parsed, a resolution given
+            where the map has its own or has none.
+        """
         path = Path(path)
         if path.is_dir():
             raise MapError(f"map {path} is a folder; expected a .txt, .yaml or image map file")
@@ -300,10 +404,31 @@ class Board:
         rng: np.random.Generator,
         subcell_m: float = DEFAULT_SUBCELL_M,
     ) -> Board:
-        """A random board of ``cells_shape`` cells with about ``obstacle_fraction`` obstacle cells.
+        """Make a random board of ``cells_shape`` cells with about ``obstacle_fraction`` obstacle cells.
 
         The start is the lower-right sub-cell of the first free cell (rows top-down); at least
         one cell is always free.
+
+        Parameters
+        ----------
+        cells_shape : tuple of int
+            (rows, columns) of cells, at most :data:`MAX_RANDOM_CELLS` cells in all.
+        obstacle_fraction : float
+            The chance of each cell being an obstacle cell, in [0, 1).
+        rng : numpy.random.Generator
+            Draws the obstacle cells.
+        subcell_m : float
+            Sub-cell side ``D`` in metres.
+
+        Returns
+        -------
+        Board
+            The board.
+
+        Raises
+        ------
+        MapError
+            For fewer than 1x1 cells, too many cells, or a fraction outside [0, 1).
         """
         cr, cc = (int(v) for v in cells_shape)
         if cr < 1 or cc < 1:
@@ -320,6 +445,7 @@ class Board:
 
     @staticmethod
     def _default_start(blocked: np.ndarray) -> tuple[int, int]:
+        """Return the lower-right sub-cell of the first free cell, scanning the cell rows top-down."""
         _check_even(blocked.shape, "board")
         rows, cols = blocked.shape
         free = ~blocked.reshape(rows // 2, 2, cols // 2, 2).any(axis=(1, 3))
@@ -332,10 +458,12 @@ class Board:
     # ------------------------------------------------------------------ geometry
     @property
     def shape_subcells(self) -> tuple[int, int]:
+        """(rows, columns) of sub-cells."""
         return self.blocked.shape
 
     @property
     def shape_cells(self) -> tuple[int, int]:
+        """(rows, columns) of cells."""
         return self.cell_free.shape
 
     @property
@@ -351,32 +479,36 @@ class Board:
 
     @property
     def start_cell(self) -> tuple[int, int]:
+        """(row, column) of the cell holding the start sub-cell."""
         return (self.start_subcell[0] // 2, self.start_subcell[1] // 2)
 
     def subcell_center_m(self, i: int, j: int) -> np.ndarray:
-        """World (x, y) of the centre of sub-cell (row ``i``, column ``j``)."""
+        """Return the world (x, y) of the centre of sub-cell (row ``i``, column ``j``)."""
         h = self.blocked.shape[0] * self.subcell_m
         return np.array([(j + 0.5) * self.subcell_m, h - (i + 0.5) * self.subcell_m])
 
     def cell_center_m(self, ci: int, cj: int) -> np.ndarray:
-        """World (x, y) of the centre of cell (row ``ci``, column ``cj``); may lie off the board."""
+        """Return the world (x, y) of the centre of cell (row ``ci``, column ``cj``); may lie off the board."""
         h = self.blocked.shape[0] * self.subcell_m
         return np.array([(cj + 0.5) * self.cell_m, h - (ci + 0.5) * self.cell_m])
 
     def subcell_at(self, xy_m) -> tuple[int, int]:
-        """(row, column) of the sub-cell containing world point ``xy_m`` (may be off the board)."""
+        """Return (row, column) of the sub-cell containing world point ``xy_m`` (may be off the board)."""
         x, y = float(xy_m[0]), float(xy_m[1])
         h = self.blocked.shape[0] * self.subcell_m
         return (int(np.floor((h - y) / self.subcell_m)), int(np.floor(x / self.subcell_m)))
 
     def is_cell_free(self, ci: int, cj: int) -> bool:
-        """``True`` for a free cell on the board; cells off the board read as blocked."""
+        """Say whether a cell is free: ``True`` for a free cell on the board; cells off it read as blocked."""
         cr, cc = self.cell_free.shape
         return bool(0 <= ci < cr and 0 <= cj < cc and self.cell_free[ci, cj])
 
     def red_lights_m(self) -> np.ndarray:
-        """(N, 2) world positions of red lights: every obstacle cell's centre plus a ring of
-        virtual obstacle cells one cell outside the border."""
+        """Return the (N, 2) world positions of the red lights.
+
+        Every obstacle cell's centre plus a ring of virtual obstacle cells one cell outside the
+        border.
+        """
         cr, cc = self.cell_free.shape
         cells = [tuple(c) for c in np.argwhere(~self.cell_free)]
         cells += [(-1, j) for j in range(-1, cc + 1)] + [(cr, j) for j in range(-1, cc + 1)]
@@ -384,8 +516,10 @@ class Board:
         return np.array([self.cell_center_m(i, j) for i, j in cells], dtype=float).reshape(-1, 2)
 
     def reachable_cells(self, start_cell: tuple[int, int] | None = None) -> np.ndarray:
-        """(cells_rows, cells_cols) bool: free cells 4-connected to ``start_cell`` (default: the
-        start sub-cell's cell)."""
+        """Return the free cells 4-connected to ``start_cell``, as a (cells_rows, cells_cols) bool array.
+
+        ``start_cell`` defaults to the start sub-cell's cell.
+        """
         start = self.start_cell if start_cell is None else tuple(start_cell)
         cr, cc = self.cell_free.shape
         seen = np.zeros((cr, cc), bool)
@@ -403,7 +537,7 @@ class Board:
         return seen
 
     def to_text(self) -> str:
-        """The board as a text map (round-trips through :meth:`from_text`)."""
+        """Return the board as a text map (round-trips through :meth:`from_text`)."""
         chars = np.where(self.blocked, "#", ".")
         chars[self.start_subcell] = "S"
         return "\n".join("".join(r) for r in chars) + "\n"

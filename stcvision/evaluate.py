@@ -63,7 +63,7 @@ def _median(v) -> float | None:
 
 
 def exposure_key(sensor: dict) -> str:
-    """A readable key of a frame's exposure setting, e.g. ``"33.3 ms, gain 16"``."""
+    """Return a readable key of a frame's exposure setting, e.g. ``"33.3 ms, gain 16"``."""
     return f"{1000 * sensor['exposure_s']:.4g} ms, gain {sensor['gain']:g}"
 
 
@@ -86,9 +86,12 @@ def recall_by_age(found: list, missed: list) -> list[dict]:
 
 
 def visible_detection(result, truth: dict, *, match_m: float = 0.01) -> list[tuple[float, bool]]:
-    """(age, found) of every visible truth dot, whatever its SNR: the matching of
-    :func:`stcvision.scoring.score_frame`, to show where the visibility horizon cuts detection.
-    ``result``: anything with ``dots.xy_m`` and ``dots.lit`` (the pipeline's or the baseline's)."""
+    """Return (age, found) of every visible truth dot, whatever its SNR.
+
+    The matching of :func:`stcvision.scoring.score_frame`, to show where the visibility horizon
+    cuts detection. ``result``: anything with ``dots.xy_m`` and ``dots.lit`` (the pipeline's or
+    the baseline's).
+    """
     from stcvision.scoring import match_dots
 
     d = result.dots
@@ -102,9 +105,12 @@ def detection_by_age(pairs) -> list[dict]:
 
 
 def profile_floor_error_mm(profile, truth: dict, *, max_range_m: float = 0.9) -> list[float]:
-    """Floor error (mm) of the profile's image->floor map at every visible truth dot within
-    ``max_range_m`` of the robot: how well the profile fits this camera, independent of the
-    dot search (the calibration issue's ground reprojection error, on real dot positions)."""
+    """Measure the floor error (mm) of the profile's image-to-floor map at the visible truth dots.
+
+    Every visible truth dot within ``max_range_m`` of the robot counts: how well the profile
+    fits this camera, independent of the dot search (the calibration's ground reprojection
+    error, on real dot positions).
+    """
     pts = [
         (d["uv_px"], d["xy_robot_m"])
         for d in truth["dots"]
@@ -172,6 +178,16 @@ class FrameRecord:
 
 @dataclass
 class Evaluation:
+    """A dataset's evaluation: the summary and every frame's record.
+
+    Attributes
+    ----------
+    summary : dict
+        The metrics over all frames, and by age, exposure, group and camera; the frames skipped.
+    records : list of FrameRecord
+        One record per frame read, in label order.
+    """
+
     summary: dict
     records: list[FrameRecord]
 
@@ -229,12 +245,33 @@ def _progress(total: int, label: str):
 
 
 def evaluate_dataset(ds, *, default_profile, profile=None, progress=None) -> Evaluation:
-    """Run and score the pipeline on every frame of ``ds`` (a :class:`stcvision.datasets.Dataset`)
-    in this process: :func:`evaluate_frames` on all of them, then :func:`summarize_evaluation`.
+    """Run and score the pipeline on every frame of a dataset, in this process.
 
-    ``profile`` (a Profile) is used for every frame if given; otherwise each camera's own
-    profile from the dataset (``profiles/CAM.json``) if it has one, else ``default_profile``.
-    A frame that cannot be decoded is skipped and counted; a frame of the wrong size is an error.
+    :func:`evaluate_frames` on all of them, then :func:`summarize_evaluation`. A frame that
+    cannot be decoded is skipped and counted; a frame of the wrong size is an error.
+
+    Parameters
+    ----------
+    ds : Dataset
+        The dataset (:func:`stcvision.datasets.open_dataset`).
+    default_profile : Profile
+        The profile of a camera the dataset holds none for.
+    profile : Profile, optional
+        Used for every frame if given; otherwise each camera's own profile from the dataset
+        (``profiles/CAM.json``) if it has one, else ``default_profile``.
+    progress : callable, optional
+        ``progress(total, label)`` makes the progress bar, called with each frame done; default
+        a one-line bar on a terminal's stderr.
+
+    Returns
+    -------
+    Evaluation
+        The summary and every frame's record.
+
+    Raises
+    ------
+    BadInputError
+        When a frame has the wrong size, or no frame could be read.
     """
     bar = (progress or _progress)(len(ds.labels), f"eval {ds.root.name}")
     records, skipped = evaluate_frames(
@@ -247,9 +284,11 @@ def evaluate_dataset(ds, *, default_profile, profile=None, progress=None) -> Eva
 
 
 class LabelledFrames:
-    """The frames of a dataset with what a detector needs for each: its image, its label, its
-    camera's profile and its dark frame, read once and cached (a dataset has a few cameras and
-    dark frames and many frames).
+    """The frames of a dataset with what a detector needs for each, read once and cached.
+
+    For each frame its image, its label, its camera's profile and its dark frame; the profiles
+    and dark frames are read once and cached (a dataset has a few cameras and dark frames and
+    many frames).
 
     ``profile`` (a Profile) is used for every frame if given; otherwise each camera's own profile
     from the dataset (``profiles/CAM.json``) if it has one, else ``default_profile``.
@@ -266,6 +305,7 @@ class LabelledFrames:
         self._built: dict[tuple, Any] = {}
 
     def profile_for(self, cam: str):
+        """Return a camera's profile: the one given, the dataset's own, or the default."""
         if self.profile is not None:
             return self.profile
         if cam not in self._profiles:
@@ -276,6 +316,7 @@ class LabelledFrames:
         return self._profiles[cam]
 
     def dark_for(self, dark_name: str | None) -> np.ndarray | None:
+        """Return a dark frame of the dataset by name (None: no dark frame)."""
         if dark_name is None:
             return None
         if dark_name not in self._darks:
@@ -301,10 +342,12 @@ class LabelledFrames:
         return self._built[key]
 
     def read(self, indices, skipped: list, on_frame=None):
-        """Yield ``(index, label, image)`` of the frames ``indices`` (label order); a frame that
-        cannot be decoded is appended to ``skipped`` as ``{"frame", "reason"}``; a frame of the
-        wrong size, or of another depth than its dark frame, is an error. ``on_frame(1)`` is called
-        after each frame (progress)."""
+        """Yield ``(index, label, image)`` of the frames ``indices``, skipping the undecodable ones.
+
+        In label order. A frame that cannot be decoded is appended to ``skipped`` as ``{"frame",
+        "reason"}``; a frame of the wrong size, or of another depth than its dark frame, is an
+        error. ``on_frame(1)`` is called after each frame (progress).
+        """
         from stcvision.fileio import check_same_depth, read_image
 
         w, h = self.ds.image_size_px
@@ -331,9 +374,13 @@ class LabelledFrames:
 def evaluate_frames(
     ds, indices, *, default_profile, profile=None, on_frame=None
 ) -> tuple[list[FrameRecord], list[dict]]:
-    """Run and score the pipeline on the frames ``indices`` of ``ds`` (label order): one
-    :class:`FrameRecord` per readable frame, and ``{"frame", "reason"}`` per frame that could not
-    be decoded (skipped). ``on_frame(1)`` is called after each frame (progress)."""
+    """Run and score the pipeline on the frames ``indices`` of ``ds`` (label order).
+
+    Returns one :class:`FrameRecord` per readable frame, and ``{"frame", "reason"}`` per frame
+    that could not be decoded (skipped). ``on_frame(1)`` is called after each frame (progress).
+    A rendered frame is scored against the label its truth makes, a person's frame against its
+    label (:func:`stcvision.scoring.score_label` for both).
+    """
     from stcvision.labels import label_from_truth
     from stcvision.pipeline import Pipeline
     from stcvision.scoring import score_label
@@ -376,8 +423,11 @@ def evaluate_frames(
 
 
 def summarize_evaluation(ds, records: list[FrameRecord], skipped: list[dict], *, profile=None) -> Evaluation:
-    """The summary of :func:`evaluate_dataset` from the frames' records (in any grouping: the
-    records of several :func:`evaluate_frames` calls, e.g. the tasks of a sweep)."""
+    """Summarise the frames' records as :func:`evaluate_dataset` does.
+
+    The summary of :func:`evaluate_dataset` from the frames' records (in any grouping: the
+    records of several :func:`evaluate_frames` calls, e.g. the tasks of a sweep).
+    """
     from stcvision.pipeline import STAGES
 
     records = sorted(records, key=lambda r: r.index)
@@ -491,8 +541,11 @@ def log_worst(ev: Evaluation, ds, rrd_path, *, default_profile, profile=None, n:
 
 
 def evaluate_images(paths: list[Path], *, profile, dark, dark_path=None, progress=None):
-    """Run the pipeline on the user's own frames; yields (path, result or None, skip reason).
-    A frame of another depth than ``dark`` (read from ``dark_path``) is refused."""
+    """Run the pipeline on the user's own frames, one result per frame.
+
+    Yields (path, result or None, skip reason). A frame of another depth than ``dark`` (read
+    from ``dark_path``) is refused.
+    """
     from stcvision.fileio import check_same_depth, read_image
     from stcvision.pipeline import Pipeline
 
@@ -531,8 +584,11 @@ def _sha256(path) -> str:
 
 
 def eval_chunk(params: dict, seed) -> dict:
-    """Sweep task: run and score frames ``first`` to ``stop - 1`` of the dataset; their records
-    and the frames skipped as unreadable. ``seed`` is not used (the pipeline draws nothing)."""
+    """Run and score a chunk of a dataset's frames: a sweep task.
+
+    Sweep task: run and score frames ``first`` to ``stop - 1`` of the dataset; their records
+    and the frames skipped as unreadable. ``seed`` is not used (the pipeline draws nothing).
+    """
     from stcvision.datasets import open_dataset
     from stcvision.profile import Profile
 
@@ -599,8 +655,10 @@ def sweep_evaluation(ds, *, profile_path=None, default_profile_path=None, option
 
 
 def evaluate_image_folder(paths, *, profile, dark, dark_path=None, out, rrd=None) -> dict:
-    """Run the pipeline on a user's own frames (no labels) and write one JSON line per frame to
-    ``out`` (atomically, when all are done); with ``rrd`` every frame goes to a rerun recording.
+    """Run the pipeline on a user's own frames and write one JSON line per frame.
+
+    No labels: the lines go to ``out`` (atomically, when all are done); with ``rrd`` every frame
+    goes to a rerun recording.
 
     Returns counts and medians (dots per frame, ms per frame, heading fits), the frames skipped
     as unreadable and those whose result is untrusted (a lights-on frame, say). Without ground

@@ -50,7 +50,7 @@ _LIVE_TEMPS: set[Path] = set()
 
 
 def _umask() -> int:
-    """The process's umask, without changing it (Linux: /proc; elsewhere set-and-restore)."""
+    """Return the process's umask, without changing it (Linux: /proc; elsewhere set-and-restore)."""
     try:
         for line in Path("/proc/self/status").read_text().splitlines():
             if line.startswith("Umask:"):
@@ -63,7 +63,7 @@ def _umask() -> int:
 
 
 def output_error(path: str | os.PathLike, exc: OSError) -> OutputError:
-    """A one-line :class:`OutputError` for an ``OSError`` met while making ``path``."""
+    """Return a one-line :class:`OutputError` for an ``OSError`` met while making ``path``."""
     where = (
         exc.filename if exc.filename not in (None, str(path)) and not str(exc.filename).endswith(_TEMP_SUFFIX) else None
     )
@@ -72,8 +72,11 @@ def output_error(path: str | os.PathLike, exc: OSError) -> OutputError:
 
 
 def check_output_file(path: str | os.PathLike, *, overwrite: bool = False, what: str = "") -> Path:
-    """Check, before any work, that ``path`` can be made as a file: not a directory, its parent a
-    folder (or creatable), and not an existing file unless ``overwrite``. Returns the path."""
+    """Check, before any work, that ``path`` can be made as a file.
+
+    Not a directory, its parent a folder (or creatable), and not an existing file unless
+    ``overwrite``. Returns the path.
+    """
     path = Path(path)
     label = f"{what} {path}".strip()
     if path.is_dir():
@@ -91,14 +94,17 @@ def check_output_file(path: str | os.PathLike, *, overwrite: bool = False, what:
 
 
 def temp_sibling(path: Path, *, directory: bool = False) -> Path:
-    """A new hidden temporary sibling ``.NAME.PID.RANDOM.tmp`` of ``path`` (file or folder),
-    registered for removal on exit; the first in a folder in this run removes the stale ones.
+    """Make a new hidden temporary sibling of ``path``, registered for removal on exit.
+
+    Its name is ``.NAME.PID.RANDOM.tmp``, a file or a folder; the first in a folder in this run
+    removes the stale ones.
 
     The name is registered before the file or folder exists (made with O_EXCL, as mkstemp
     does): a termination signal that lands between making it and registering it would leave an
     unregistered temporary behind, and a run stopped as soon as its recording's file appears
     lands there (seen under load: an ``stcvision cover --rrd`` stopped by SIGTERM kept its
-    ``.run.rrd....tmp``)."""
+    ``.run.rrd....tmp``).
+    """
     _sweep_once(path.parent)
     prefix = f".{path.name}.{os.getpid()}."
     for _ in range(tempfile.TMP_MAX):
@@ -153,7 +159,7 @@ def signal_received(signum: int) -> None:
 
 
 def forget_signals() -> None:
-    """The run is over (the CLI calls it last): a later write in this process is not refused."""
+    """End the run (the CLI calls it last): a later write in this process is not refused."""
     _SIGNALS.clear()
 
 
@@ -176,7 +182,7 @@ def _alive(pid: int) -> bool:
 
 
 def _writer_pid(name: str) -> int | None:
-    """The PID in a temporary's name ``.NAME.PID.RANDOM.tmp`` (None if it is not one of ours)."""
+    """Return the PID in a temporary's name ``.NAME.PID.RANDOM.tmp`` (None if it is not one of ours)."""
     if not (name.startswith(".") and name.endswith(_TEMP_SUFFIX)):
         return None
     parts = name[1 : -len(_TEMP_SUFFIX)].rsplit(".", 2)  # RANDOM has no dots; NAME may
@@ -184,8 +190,11 @@ def _writer_pid(name: str) -> int | None:
 
 
 def remove_stale_temps(folder: str | os.PathLike) -> list[Path]:
-    """Remove the temporaries in ``folder`` left by writers that were killed (SIGKILL, power
-    loss): ``.NAME.PID.RANDOM.tmp`` whose process is gone. Returns what was removed."""
+    """Remove the temporaries in ``folder`` left by writers that were killed.
+
+    Killed by SIGKILL or a power loss: ``.NAME.PID.RANDOM.tmp`` whose process is gone. Returns
+    what was removed.
+    """
     import shutil
 
     removed = []
@@ -206,23 +215,31 @@ def remove_stale_temps(folder: str | os.PathLike) -> list[Path]:
 
 
 def remove_live_temps() -> None:
-    """Remove this process's temporary files and folders not yet renamed into place (on exit, on
-    an error, on SIGTERM/SIGINT): a run that stops leaves no hidden leftovers."""
+    """Remove this process's temporaries not yet renamed into place.
+
+    Its temporary files and folders go on exit, on an error, on SIGTERM/SIGINT: a run that stops
+    leaves no hidden leftovers.
+    """
     for tmp in list(_LIVE_TEMPS):
         discard_temp(tmp)
 
 
 def remove_own_temps(folder: Path) -> None:
-    """Remove this process's temporaries in ``folder`` by their name (``.NAME.PID.RANDOM.tmp``),
-    registered or not: a signal that lands between a temporary's creation and its registration
-    (:func:`temp_sibling`) leaves it unregistered, and a folder the run made would then stay."""
+    """Remove this process's temporaries in ``folder`` by their name, registered or not.
+
+    The name is ``.NAME.PID.RANDOM.tmp``. A signal that lands between a temporary's creation and its registration
+    (:func:`temp_sibling`) leaves it unregistered, and a folder the run made would then stay.
+    """
     for tmp in folder.glob(f".*.{os.getpid()}.*{_TEMP_SUFFIX}"):
         discard_temp(tmp)
 
 
 def commit_temp(tmp: Path, path: Path) -> None:
-    """Rename the temporary ``tmp`` over ``path`` (atomic on one file system) and forget it; never
-    after a termination signal (:func:`raise_if_signalled`: the temporary is then removed)."""
+    """Rename the temporary ``tmp`` over ``path`` and forget it.
+
+    Atomic on one file system; never after a termination signal (:func:`raise_if_signalled`:
+    the temporary is then removed).
+    """
     raise_if_signalled()
     os.replace(tmp, path)
     _LIVE_TEMPS.discard(tmp)
@@ -242,8 +259,11 @@ def discard_temp(tmp: Path | None) -> None:
 
 
 def _new_file_mode(path: Path) -> int:
-    """The mode a new ``path`` gets: an existing file's own mode (replacing keeps it), else
-    0o666 less the umask, as ``open()`` would give (mkstemp alone makes 0600)."""
+    """Return the mode a new ``path`` gets, as ``open()`` would give it.
+
+    An existing file's own mode (replacing keeps it), else 0o666 less the umask (mkstemp alone
+    makes 0600).
+    """
     try:
         return os.stat(path).st_mode & 0o7777
     except OSError:
@@ -251,8 +271,10 @@ def _new_file_mode(path: Path) -> int:
 
 
 def write_bytes_atomic(path: str | os.PathLike, data: bytes, *, overwrite: bool = False) -> Path:
-    """Write ``data`` to ``path`` atomically (temp file + fsync + rename), with the mode ``open()``
-    would give it (0o666 less the umask; a replaced file keeps its mode).
+    """Write ``data`` to ``path`` atomically.
+
+    Temp file + fsync + rename, with the mode ``open()`` would give it (0o666 less the umask; a
+    replaced file keeps its mode).
 
     Raises
     ------
@@ -345,9 +367,34 @@ _DEEP_SUFFIXES = (".png", ".tif", ".tiff")
 
 
 def write_image(path: str | os.PathLike, image: np.ndarray, *, overwrite: bool = False) -> Path:
-    """Encode ``image`` (grey or BGR; uint8, or uint16 as 16-bit PNG/TIFF, the ADC counts kept
-    as they are) by the file's extension and write it atomically. A uint16 image is refused for
-    JPEG (8 bits only): it is never scaled down silently."""
+    """Encode an image by the file's extension and write it atomically.
+
+    A uint16 image is refused for JPEG (8 bits only): it is never scaled down silently.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The file to write: .png, .jpg/.jpeg or .tif/.tiff.
+    image : numpy.ndarray
+        Grey or BGR; uint8, or uint16 as 16-bit PNG/TIFF (the ADC counts kept as they are).
+    overwrite : bool
+        Replace an existing file; without it an existing file is refused.
+
+    Returns
+    -------
+    Path
+        The path written.
+
+    Raises
+    ------
+    BadInputError
+        For an unknown suffix, a uint16 image for JPEG, another dtype, or an image OpenCV
+        cannot encode.
+    FileExistsRefusedError
+        When ``path`` exists and ``overwrite`` is false.
+    OutputError
+        When the file cannot be written.
+    """
     import cv2
 
     path = Path(path)
@@ -367,7 +414,7 @@ def write_image(path: str | os.PathLike, image: np.ndarray, *, overwrite: bool =
 
 
 def figure_png(fig, *, dpi: int = 110, **savefig_kw) -> bytes:
-    """A matplotlib figure as PNG bytes; the figure is closed (plots are made once, then saved)."""
+    """Render a matplotlib figure as PNG bytes; the figure is closed (plots are made once, then saved)."""
     import io
 
     import matplotlib.pyplot as plt
@@ -384,10 +431,13 @@ def write_figure(path: str | os.PathLike, fig, *, overwrite: bool = False, dpi: 
 
 
 class quiet_opencv:
-    """``with quiet_opencv():`` OpenCV's own log (``[ WARN:0@...]``, ``[ERROR:...]`` lines) is
+    """Silence OpenCV's log and the C libraries' messages within a ``with`` block.
+
+    ``with quiet_opencv():`` OpenCV's own log (``[ WARN:0@...]``, ``[ERROR:...]`` lines) is
     off and the C libraries' messages (libpng's ``libpng error: ...``, written straight to file
     descriptor 2) go to /dev/null; both are back after. The caller reports a failure itself, in
-    one line. Only around one decode: stderr is away for about a millisecond."""
+    one line. Only around one decode: stderr is away for about a millisecond.
+    """
 
     def __enter__(self):
         import sys
@@ -419,12 +469,28 @@ class quiet_opencv:
 
 
 def read_image(path: str | os.PathLike, *, color: bool = True, what: str = "image") -> np.ndarray:
-    """Read an image file: with ``color`` a frame, (H, W, 3) BGR as stored -- uint8, or uint16
-    for a 16-bit PNG (the sensor's ADC counts, never divided by 256); else (H, W) uint8 grey
-    (a map).
+    """Read an image file: a frame, or with ``color=False`` a grey map.
 
-    Raises :class:`BadInputError` for a missing, empty or undecodable file, and with ``color``
-    for an image that is not 3-channel BGR (greyscale, alpha) or not 8/16-bit.
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The image file (PNG or JPEG; 16-bit PNG for ADC counts).
+    color : bool
+        Read a frame, (H, W, 3) BGR as stored; else (H, W) uint8 grey (a map).
+    what : str
+        Names the file in error messages (e.g. ``"dark frame"``).
+
+    Returns
+    -------
+    numpy.ndarray
+        With ``color``, (H, W, 3) BGR -- uint8, or uint16 for a 16-bit PNG (the sensor's ADC
+        counts, never divided by 256); else (H, W) uint8.
+
+    Raises
+    ------
+    BadInputError
+        For a missing, empty or undecodable file, and with ``color`` for an image that is not
+        3-channel BGR (greyscale, alpha) or not 8/16-bit.
     """
     import cv2
 
@@ -453,8 +519,11 @@ def read_image(path: str | os.PathLike, *, color: bool = True, what: str = "imag
 
 
 def check_same_depth(frame: np.ndarray, dark: np.ndarray, dark_path, *, frame_path=None) -> None:
-    """A dark frame must have the frames' depth (uint8 with uint8, uint16 ADC counts with
-    uint16): a one-line :class:`BadInputError` naming the dark frame otherwise."""
+    """Check that a dark frame has the frames' depth.
+
+    A dark frame must have the frames' depth (uint8 with uint8, uint16 ADC counts with
+    uint16): a one-line :class:`BadInputError` naming the dark frame otherwise.
+    """
     if frame.dtype != dark.dtype:
         of = f" ({frame_path})" if frame_path is not None else ""
         raise BadInputError(
@@ -468,8 +537,11 @@ def _depth(img: np.ndarray) -> str:
 
 
 def check_output_folder(folder: str | os.PathLike, names, *, overwrite: bool = False) -> Path:
-    """Check, before any work, that ``folder`` can hold the files ``names``: a folder or creatable
-    (no file in the way), and none of ``names`` already there unless ``overwrite``."""
+    """Check, before any work, that ``folder`` can hold the files ``names``.
+
+    A folder or creatable (no file in the way), and none of ``names`` already there unless
+    ``overwrite``.
+    """
     folder = Path(folder)
     if folder.exists() and not folder.is_dir():
         raise OutputError(f"{folder} is a file; expected a folder for the outputs")
@@ -481,8 +553,9 @@ def check_output_folder(folder: str | os.PathLike, names, *, overwrite: bool = F
 
 
 def write_set(folder: str | os.PathLike, files: dict[str, bytes], *, overwrite: bool = False) -> list[Path]:
-    """Write a set of files into ``folder`` as one unit; the last entry of ``files`` is the set's
-    marker (e.g. its ground truth).
+    """Write a set of files into ``folder`` as one unit.
+
+    The last entry of ``files`` is the set's marker (e.g. its ground truth).
 
     A new or empty ``folder`` is made whole in a temporary sibling folder and renamed into place:
     the set appears complete or not at all. Into a folder that holds other files, each file is

@@ -66,8 +66,10 @@ _LANDING = np.array(
 
 
 def _apply(H: np.ndarray, xy) -> np.ndarray:
-    """(N, 2) points through the homography ``H``: homogeneous coordinates (the points and a
-    column of ones) times ``H.T``, then divided."""
+    """Map (N, 2) points through the homography ``H``.
+
+    Homogeneous coordinates (the points and a column of ones) times ``H.T``, then divided.
+    """
     p = np.asarray(xy, float).reshape(-1, 2)
     if len(p) >= 2:  # compiled, bit for bit numpy's product (homography)
         return homography(H, np.ascontiguousarray(p))
@@ -87,6 +89,7 @@ class CellGeometry:
 
     @classmethod
     def from_profile(cls, profile) -> CellGeometry:
+        """Fit the ground-view-to-cell homography to the profile's 12 neighbour corners."""
         src = profile.corners_px().astype(np.float64)
         dst = np.array(CORNER_ORDER, np.float64)
         H, _ = cv2.findHomography(src, dst, 0)
@@ -100,14 +103,19 @@ class CellGeometry:
         return cls(H, np.linalg.inv(H))
 
     def to_cell(self, xy_px: np.ndarray) -> np.ndarray:
+        """Map ground-view pixels to cell units."""
         return _apply(self.H, xy_px)
 
     def to_ground(self, cell_pts: np.ndarray) -> np.ndarray:
+        """Map cell units to ground-view pixels."""
         return _apply(self.H_inv, cell_pts)
 
     def outline_px(self, heading_error_rad: float = 0.0) -> dict[str, np.ndarray]:
-        """Ground-view polygons of the cell, its sub-cells, the five boxes and the four
-        neighbours (for drawing), rotated by the heading error."""
+        """Return the ground-view polygons of the cell and its neighbours, for drawing.
+
+        Ground-view polygons of the cell, its sub-cells, the five boxes and the four
+        neighbours (for drawing), rotated by the heading error.
+        """
         polys = {"cell": _sq((0, 0), 1)}
         for k, (sr, su) in SUBCELLS.items():
             polys[f"subcell{k}"] = _sq((0.5 * sr, 0.5 * su), 0.5)
@@ -134,7 +142,9 @@ ROW_SPAN = 0.6
 
 
 def row_orientation(cell_pts: np.ndarray) -> np.ndarray:
-    """For each dot: 1 if it lies in a row running along 'up' (a mark on a right/left edge),
+    """Tell, per dot, which way its row runs.
+
+    For each dot: 1 if it lies in a row running along 'up' (a mark on a right/left edge),
     0 if along 'right' (top/bottom edge), -1 if it has no row-mate (an isolated dot).
 
     A mark is a row of four dots parallel to one edge of its sub-cell; near a corner the end
@@ -147,7 +157,9 @@ def row_orientation(cell_pts: np.ndarray) -> np.ndarray:
 
 
 def assign_boxes(cell_pts: np.ndarray, orient: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """For dots in cell units: sub-cell index (-1 outside the cell), box (0 = none) and
+    """Assign each dot (cell units) its sub-cell, box and neighbour.
+
+    For dots in cell units: sub-cell index (-1 outside the cell), box (0 = none) and
     neighbour index (0..3 in :data:`NEIGHBOURS` order, -1 = none).
 
     The edge of a dot is the nearer of its sub-cell's two edges across its row (see
@@ -173,11 +185,14 @@ MARK_MIN_DOTS = 4
 
 
 def mark_offset(cell_pts: np.ndarray, orient: np.ndarray, *, inset: float = MARK_INSET, min_dots: int = MARK_MIN_DOTS):
-    """The robot's offset from its sub-cell centre (right, up; cell units) from the marks in
+    """Measure the robot's offset from its sub-cell centre from the marks in view.
+
+    The robot's offset from its sub-cell centre (right, up; cell units) from the marks in
     view: every mark lies ``inset`` inside one edge of its sub-cell, so across its row a dot's
     coordinate should be an integer (an edge) +- ``inset``; the median residual of the rows
     running along 'up' gives the offset to the right, of those along 'right' the offset up.
-    Unambiguous while the robot is less than ``inset`` off (the residual would flip sides)."""
+    Unambiguous while the robot is less than ``inset`` off (the residual would flip sides).
+    """
     if not len(cell_pts):
         return None
     lit = np.ones(len(cell_pts), np.bool_)
@@ -197,12 +212,15 @@ def _offset_of(have: np.ndarray, off: np.ndarray):
 def pattern_rotation(
     cell_pts: np.ndarray, orient: np.ndarray, *, min_rows: int = 2, max_rad: float = 0.06
 ) -> float | None:
-    """Median lean (rad, counter-clockwise) of the mark rows in view. Dots are grouped into rows
+    """Measure the median lean of the mark rows in view.
+
+    Median lean (rad, counter-clockwise) of the mark rows in view. Dots are grouped into rows
     (same coordinate across the row within ``ROW_TOL``, no gap over 0.35 along it); each row of
     3+ dots spanning 0.3..0.7 sub-cells and fitting a line within 0.02 gives one angle. ``None``
     unless ``min_rows`` rows agree (within 1 degree of their median) and the lean is under
     ``max_rad`` (a larger one is a misgrouping, not the floor). Plain Python: rows hold four
-    dots, where numpy's per-call cost would dominate."""
+    dots, where numpy's per-call cost would dominate.
+    """
     angles = []
     for along, across in ((1, 0), (0, 1)):  # rows along 'up' (vary in u), along 'right'
         pts = sorted((float(p[across]), float(p[along])) for p in cell_pts[orient == along])
@@ -249,14 +267,20 @@ def _row_angles(band: list[tuple[float, float]], along: int) -> list[float]:
 
 
 def group_stats(code: np.ndarray, n: int, lit: np.ndarray, value: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """For codes 0..n-1 (one per dot): how many of the lit dots have each code, and the largest
-    ``value`` among all dots of each code (0.0 where none has it)."""
+    """Count lit dots per code and take each code's largest value.
+
+    For codes 0..n-1 (one per dot): how many of the lit dots have each code, and the largest
+    ``value`` among all dots of each code (0.0 where none has it).
+    """
     return group_stats_loop(np.asarray(code, np.int64), n, np.asarray(lit, np.bool_), np.asarray(value, float))
 
 
 def _confidence(value: float, threshold: float, noise: float) -> float:
-    """How sure a threshold decision is: logistic in the margin, in units of the noise
-    (0.5 at the threshold, ~0.99 five noise units away)."""
+    """Say how sure a threshold decision is.
+
+    Logistic in the margin, in units of the noise (0.5 at the threshold, ~0.99 five noise units
+    away).
+    """
     return float(1.0 / (1.0 + math.exp(-abs(value - threshold) / max(noise, 1e-9))))
 
 
@@ -270,6 +294,8 @@ class BoxReading:
 
 @dataclass(frozen=True)
 class NeighbourReading:
+    """What the camera says about one neighbour cell: marked, red, and how sure of each."""
+
     direction: str
     has_marks: bool
     has_red: bool
@@ -281,12 +307,49 @@ class NeighbourReading:
 class CellObservation:
     """What the camera says about the current cell and its neighbours (entry frame).
 
-    ``boxes``: the five mark boxes; ``visited``: sub-cells 1-3 from the box rule;
-    ``neighbours``: right, forward, left, back; ``heading_error_rad``: the rotation applied;
-    ``stray_dots``: lit dots in the current cell outside any box (a sign of a bad pose);
-    ``start_mark``: the sub-cell (1-3) holding the STC start mark, if this is the start cell;
-    ``landing_marked``: per neighbour direction (right, forward, left, back), whether the sub-cell
-    the robot would land on when leaving that way already carries a mark.
+    Attributes
+    ----------
+    boxes : tuple of BoxReading
+        The five mark boxes.
+    visited : dict of int to bool
+        Sub-cells 1-3 from the box rule.
+    neighbours : dict of str to NeighbourReading
+        Right, forward, left, back.
+    heading_error_rad : float
+        The rotation applied.
+    stray_dots : int
+        Lit dots in the current cell outside any box (a sign of a bad pose).
+    start_mark : int or None
+        The sub-cell (1-3) holding the STC start mark, if this is the start cell.
+    landing_marked : tuple of bool
+        Per neighbour direction (right, forward, left, back), whether the sub-cell the robot
+        would land on when leaving that way already carries a mark.
+    position_offset : tuple of float or None
+        Where the marks say the robot stands, off its sub-cell centre, in the entry frame (right,
+        up; cell units = sub-cell sides); None with too few rows in view. An axis with no rows
+        across it reads 0 here (the boxes are read unshifted along it): which axes the marks did
+        measure is ``position_offset_axes``.
+    pattern_rotation_rad : float or None
+        How far all the rows in view still lean (counter-clockwise, rad) after the rotation by
+        ``heading_error_rad``: the consensus of every mark, not just the newest row.
+    landmark_offset : tuple of float or None
+        The robot's offset (right, up; cell units) from the red lights in view, which stand at
+        cell centres: an absolute reference, unlike the marks it laid itself; None unless two or
+        more lights at distinct cells are well in view (one light cannot tell an offset from a
+        turn).
+    landmark_rotation_rad : float or None
+        How far those lights are still turned about their centroid (rad, counter-clockwise)
+        after the rotation by ``heading_error_rad`` (2-D Procrustes); None when
+        ``landmark_offset`` is.
+    landmark_rotation_sigma_rad, landmark_offset_sigma : float or None
+        1-sigma uncertainties of ``landmark_rotation_rad`` (rad) and ``landmark_offset`` (cell
+        units), from the lights' centroid-error model and their spread.
+    untrusted : str
+        Why this reading cannot be trusted ("" when it can): the dot search hit a cap
+        (:attr:`stcvision.stages.Dots.untrusted`); a controller must not decide on it.
+    position_offset_axes : tuple of bool
+        Which axes of ``position_offset`` (right, up) this frame's marks measured; both False
+        when the caller gave the offset (it is then no reading of the marks).
     """
 
     boxes: tuple[BoxReading, ...]
@@ -296,36 +359,39 @@ class CellObservation:
     stray_dots: int
     start_mark: int | None = None
     landing_marked: tuple[bool, bool, bool, bool] = (False, False, False, False)
-    #: where the marks say the robot stands, off its sub-cell centre, in the entry frame
-    #: (right, up; cell units = sub-cell sides); None with too few rows in view. An axis with
-    #: no rows across it reads 0 here (the boxes are read unshifted along it): which axes the
-    #: marks did measure is :attr:`position_offset_axes`
     position_offset: tuple[float, float] | None = None
-    #: how far all the rows in view still lean (counter-clockwise, rad) after the rotation by
-    #: ``heading_error_rad``: the consensus of every mark, not just the newest row
     pattern_rotation_rad: float | None = None
-    #: the robot's offset (right, up; cell units) from the red lights in view, which stand at
-    #: cell centres: an absolute reference, unlike the marks it laid itself; None unless two or
-    #: more lights at distinct cells are well in view (one light cannot tell an offset from a turn)
     landmark_offset: tuple[float, float] | None = None
-    #: how far those lights are still turned about their centroid (rad, counter-clockwise) after
-    #: the rotation by ``heading_error_rad`` (2-D Procrustes); None when ``landmark_offset`` is
     landmark_rotation_rad: float | None = None
-    #: 1-sigma uncertainties of ``landmark_rotation_rad`` (rad) and ``landmark_offset`` (cell
-    #: units), from the lights' centroid-error model and their spread
     landmark_rotation_sigma_rad: float | None = None
     landmark_offset_sigma: float | None = None
-    #: why this reading cannot be trusted ("" when it can): the dot search hit a cap
-    #: (:attr:`stcvision.stages.Dots.untrusted`); a controller must not decide on it
     untrusted: str = ""
-    #: which axes of ``position_offset`` (right, up) this frame's marks measured; both False
-    #: when the caller gave the offset (it is then no reading of the marks)
     position_offset_axes: tuple[bool, bool] = (False, False)
 
     def lit(self, box: int) -> bool:
+        """Say whether a box is lit (marked).
+
+        Parameters
+        ----------
+        box : int
+            The box, 1-5.
+
+        Returns
+        -------
+        bool
+            Whether the box reads as marked.
+        """
         return self.boxes[box - 1].lit
 
     def to_dict(self) -> dict:
+        """Return the reading as plain JSON-ready values.
+
+        Returns
+        -------
+        dict
+            The boxes, the visited sub-cells, the neighbours, the heading error (deg), the start
+            mark, the landing marks, the stray dots and the untrusted reason.
+        """
         return {
             "boxes": {
                 b.box: {"lit": b.lit, "confidence": round(b.confidence, 4), "n_dots": b.n_dots} for b in self.boxes
@@ -350,9 +416,12 @@ class CellObservation:
 
 @dataclass(frozen=True, kw_only=True, slots=True)
 class ObservationParams:
-    """``min_dots``: lit dots needed before a box (or a neighbour) counts as marked. A mark is
+    """Parameters of the cell observation.
+
+    ``min_dots``: lit dots needed before a box (or a neighbour) counts as marked. A mark is
     a row of four dots, so two agreeing dots reject a lone noise peak (measured: one lone 5.6-
-    sigma false dot in 300 rendered frames) at the cost of marks with three of four dots lost."""
+    sigma false dot in 300 rendered frames) at the cost of marks with three of four dots lost.
+    """
 
     min_dots: int = 2
     #: shift the cell regions by the robot's offset as the marks show it (within 2 cm)
@@ -428,10 +497,13 @@ def observe_cell(
 
 
 def _cell_dots(dots, geometry: CellGeometry, heading_error_rad: float, params: ObservationParams, position_offset):
-    """The dots in cell units, rotated back by the heading error and shifted by the robot's
+    """Return the dots in cell units, their row orientation and the robot's offset.
+
+    The dots in cell units, rotated back by the heading error and shifted by the robot's
     offset (``position_offset``, else where the marks say it stands); their row orientation
     (:func:`row_orientation`, lit dots only: rows are made of lit dots; -1 for the rest); and
-    that offset (None: too few rows); and which of its axes the marks measured."""
+    that offset (None: too few rows); and which of its axes the marks measured.
+    """
     if not len(dots):
         return np.zeros((0, 2)), np.zeros(0, np.int64), None, (False, False)
     cell_pts = rotate_about_robot(geometry.to_cell(dots.xy_px), heading_error_rad)
@@ -446,10 +518,13 @@ def _cell_dots(dots, geometry: CellGeometry, heading_error_rad: float, params: O
 
 
 def _read_boxes(dots, sub: np.ndarray, box: np.ndarray, nb: np.ndarray, params: ObservationParams):
-    """The five boxes (lit with ``params.min_dots`` lit dots; confidence from the best
+    """Read the five boxes, the visited sub-cells, the stray dots and the start mark.
+
+    The five boxes (lit with ``params.min_dots`` lit dots; confidence from the best
     candidate's SNR), the visited sub-cells, the stray lit dots (in the cell, in no box), the
     start mark's sub-cell (or None), and per neighbour code (``nb + 1``) the lit dots and the
-    best SNR (:func:`box_counts`)."""
+    best SNR (:func:`box_counts`).
+    """
     thr = dots.threshold_snr
     # per box code (-3..5, offset by 3): lit dots and the best candidate's SNR
     n_box, best_box, n_nb, best_nb, stray = box_counts(
@@ -467,8 +542,11 @@ def _read_boxes(dots, sub: np.ndarray, box: np.ndarray, nb: np.ndarray, params: 
 
 
 def _read_neighbours(nb_stats, rru, red_strength, red_threshold_dn: float, thr: float, params: ObservationParams):
-    """The four neighbours: marked (``params.min_dots`` lit dots in the cell: ``nb_stats`` from
-    :func:`_read_boxes`), red (a red light ``rru`` in it), each with a confidence."""
+    """Read the four neighbours: marked, red, each with a confidence.
+
+    The four neighbours: marked (``params.min_dots`` lit dots in the cell: ``nb_stats`` from
+    :func:`_read_boxes`), red (a red light ``rru`` in it), each with a confidence.
+    """
     _, _, rnb = assign_boxes(rru, np.full(len(rru), -1)) if len(rru) else (None, None, np.zeros(0, np.int64))
     neighbours = {}
     n_lit_nb, best_nb = nb_stats
@@ -489,11 +567,14 @@ def _read_neighbours(nb_stats, rru, red_strength, red_threshold_dn: float, thr: 
 def _landmarks(
     rru, landmark_px, geometry: CellGeometry, heading_error_rad: float, params: ObservationParams, subcell_m
 ):
-    """Red lights stand at cell centres (even coordinates in cell units): absolute landmarks.
+    """Fit the robot's pose to the red lights in view, which stand at cell centres.
+
+    Red lights stand at cell centres (even coordinates in cell units): absolute landmarks.
     (offset, rotation, rotation sigma, offset sigma) of the landmark pose fit
     (:func:`stcvision.localisation.landmark_pose`) over the lights near a cell centre within
     reach (``landmark_px`` out to ``params.landmark_range_m``, else the view's lights ``rru``
-    within 2.6 sub-cells), each None where not fixed."""
+    within 2.6 sub-cells), each None where not fixed.
+    """
     if landmark_px is not None and subcell_m:
         lru = (
             rotate_about_robot(geometry.to_cell(landmark_px), heading_error_rad)
@@ -509,11 +590,13 @@ def _landmarks(
 def marks_ahead(
     dots, geometry: CellGeometry, *, heading_error_rad: float = 0.0, offset: tuple[float, float] | None = None
 ) -> int:
-    """Lit dots in the cell just ahead of the robot: the cell whose lower-right sub-cell is the
-    one in front of the robot's (where an STC robot lands when it leaves into a child). The
-    robot stands in the front-right sub-cell of its own cell as it leaves, so that cell is
-    ``[-1, 1] x [0, 2]`` in cell units and its own cell lies wholly behind ``up = 0``.
-    ``offset``: the robot's offset from its sub-cell centre (``CellObservation.position_offset``).
+    """Count the lit dots in the cell just ahead of the robot.
+
+    The cell whose lower-right sub-cell is the one in front of the robot's (where an STC robot
+    lands when it leaves into a child). The robot stands in the front-right sub-cell of its own
+    cell as it leaves, so that cell is ``[-1, 1] x [0, 2]`` in cell units and its own cell lies
+    wholly behind ``up = 0``. ``offset``: the robot's offset from its sub-cell centre
+    (``CellObservation.position_offset``).
     """
     if not len(dots):
         return 0
@@ -526,9 +609,12 @@ def marks_ahead(
 def marks_landing_ahead(
     dots, geometry: CellGeometry, *, heading_error_rad: float = 0.0, offset: tuple[float, float] | None = None
 ) -> int:
-    """Lit dots in the sub-cell just ahead of the robot (where it lands when it drives on; the
+    """Count the lit dots in the sub-cell just ahead of the robot.
+
+    Lit dots in the sub-cell just ahead of the robot (where it lands when it drives on; the
     lower-right sub-cell of :func:`marks_ahead`'s cell ahead), 1 cm clear of its borders as
-    :func:`observe_cell`'s landing rule: a row of the next sub-cell must not count."""
+    :func:`observe_cell`'s landing rule: a row of the next sub-cell must not count.
+    """
     if not len(dots):
         return 0
     cell_pts = rotate_about_robot(geometry.to_cell(dots.xy_px[dots.lit]), heading_error_rad)
@@ -540,8 +626,11 @@ def marks_landing_ahead(
 # --------------------------------------------------------------------------- compiled loops
 @numba.njit(cache=True)
 def row_orientation_loop(cell_pts, tol, span):
-    """Per dot (cell units): 1 if it has more row-mates along 'up' than along 'right', 0 if
-    fewer, -1 if as many (:func:`stcvision.observation.row_orientation`)."""
+    """Tell, per dot, which way its row runs (the compiled loop).
+
+    Per dot (cell units): 1 if it has more row-mates along 'up' than along 'right', 0 if
+    fewer, -1 if as many (:func:`stcvision.observation.row_orientation`).
+    """
     n = len(cell_pts)
     out = np.empty(n, np.int64)
     for i in range(n):
@@ -587,10 +676,13 @@ def assign_boxes_loop(cell_pts, orient, sub_of_quadrant, box_of, neighbours):
 
 @numba.njit(cache=True)
 def mark_offset_loop(cell_pts, orient, lit, inset, min_dots):
-    """The median residuals of :func:`stcvision.observation.mark_offset` over the lit dots:
+    """Return the median residuals of the marks' rows (the compiled loop of the mark offset).
+
+    The median residuals of :func:`stcvision.observation.mark_offset` over the lit dots:
     per axis (0: right, from the rows along 'up'; 1: up, from those along 'right'), whether
     ``min_dots`` rows' dots were there, and minus the median of each dot's coordinate less its
-    nominal one (the nearest integer, half to even, +- ``inset``)."""
+    nominal one (the nearest integer, half to even, +- ``inset``).
+    """
     have = np.zeros(2, np.bool_)
     out = np.zeros(2)
     for axis in range(2):
@@ -611,8 +703,11 @@ def mark_offset_loop(cell_pts, orient, lit, inset, min_dots):
 
 @numba.njit(cache=True)
 def group_stats_loop(code, n, lit, value):
-    """Per code 0..n-1: lit dots with it, and the largest ``value`` of any dot with it (0.0
-    where none has it): the compiled loop of :func:`group_stats`, on arrays of its types."""
+    """Count lit dots per code and take each code's largest value (the compiled loop).
+
+    Per code 0..n-1: lit dots with it, and the largest ``value`` of any dot with it (0.0
+    where none has it): the compiled loop of :func:`group_stats`, on arrays of its types.
+    """
     counts = np.zeros(n, np.int64)
     best = np.full(n, -np.inf)
     seen = np.zeros(n, np.bool_)
@@ -631,10 +726,13 @@ def group_stats_loop(code, n, lit, value):
 
 @numba.njit(cache=True)
 def cell_dots(cell_pts, lit, tol, span, inset, min_dots):
-    """Row orientation and mark offset of the dots ``cell_pts`` (cell units, already rotated), in
+    """Return the row orientation and mark offset of the dots in one call.
+
+    Row orientation and mark offset of the dots ``cell_pts`` (cell units, already rotated), in
     one call (:func:`stcvision.observation._cell_dots`): per dot, :func:`row_orientation` among
     the lit dots (-1 for the rest), then :func:`mark_offset` over the lit dots. Returns
-    (orient, have, offset)."""
+    (orient, have, offset).
+    """
     idx = np.flatnonzero(lit)
     sub = np.empty((len(idx), 2))
     for k in range(len(idx)):
@@ -650,9 +748,12 @@ def cell_dots(cell_pts, lit, tol, span, inset, min_dots):
 
 @numba.njit(cache=True)
 def box_counts(box, nb, sub, lit, snr):
-    """Per box code (box + 3: -3..5) and neighbour code (nb + 1: -1..3): the lit dots and the
+    """Count lit dots and the best SNR per box and neighbour code, and the stray lit dots.
+
+    Per box code (box + 3: -3..5) and neighbour code (nb + 1: -1..3): the lit dots and the
     best SNR of any dot (:func:`group_stats_loop`), and the stray lit dots (in a sub-cell, in no
-    box) (:func:`stcvision.observation._read_boxes`)."""
+    box) (:func:`stcvision.observation._read_boxes`).
+    """
     n_box, best_box = group_stats_loop(box + 3, 9, lit, snr)
     n_nb, best_nb = group_stats_loop(nb + 1, 5, lit, snr)
     stray = 0
@@ -677,10 +778,13 @@ def landing_counts(cell_pts, lit, centres, half):
 
 @numba.njit(cache=True)
 def homography(H, p):
-    """(N, 2) points ``p`` through the homography ``H`` ((3, 3)): ``[p, 1] @ H.T`` then divided
+    """Map (N, 2) points through a homography, bit for bit as the matrix product does.
+
+    (N, 2) points ``p`` through the homography ``H`` ((3, 3)): ``[p, 1] @ H.T`` then divided
     by the third coordinate, each row of the product as OpenBLAS's dgemm computes it on this
     machine for N >= 2 (``fma(y, h1, x * h0) + h2``: bit for bit on 100,000 points; numpy takes
-    another path for N = 1, which :func:`stcvision.observation._apply` keeps)."""
+    another path for N = 1, which :func:`stcvision.observation._apply` keeps).
+    """
     n = len(p)
     out = np.empty((n, 2))
     for i in range(n):

@@ -79,6 +79,27 @@ class PipelineParams:
     dark frame's robust spread (its fixed pattern and noise; the residual after subtraction is
     no wider), and at least ``pedestal_steps`` quantisation steps (10 DN on the webcam, whose
     dark frame spreads by ~1.5 DN), in whole steps.
+
+    Attributes
+    ----------
+    pedestal_steps : int
+        The pedestal's least size, in quantisation steps.
+    pedestal_k_sigma : float
+        The pedestal in multiples of the dark frame's robust spread.
+    channels, dots, rows, red, heading, observation
+        The parameters of the stage of that name (:class:`~stcvision.stages.ChannelParams`,
+        :class:`~stcvision.stages.DotParams`, :class:`~stcvision.stages.RowParams`,
+        :class:`~stcvision.stages.RedParams`, :class:`~stcvision.stages.HeadingParams`,
+        :class:`~stcvision.observation.ObservationParams`).
+    use_heading : bool
+        Rotate the cell regions by the measured heading error before reading the boxes.
+    white_blue_ratio : float or None
+        A "red" blob whose blue is at least this fraction of its red (dark-subtracted, 9x9 px
+        around it in the camera frame) is white light, not a red LED: not an obstacle light nor a
+        landmark. None: off. Measured on the webcam's short frame (1/30 s, gain 16): a red light
+        0.12-1.0 m away reads 0.84-0.13 (its blue is 2 % of its red, but it saturates), a white
+        lamp 0.99-1.0 at every distance. In long frames every red light saturates white: use it
+        on short frames only.
     """
 
     pedestal_steps: int = 10
@@ -89,21 +110,16 @@ class PipelineParams:
     red: RedParams = field(default_factory=RedParams)
     heading: HeadingParams = field(default_factory=HeadingParams)
     observation: ObservationParams = field(default_factory=ObservationParams)
-    #: rotate the cell regions by the measured heading error before reading the boxes
     use_heading: bool = True
-    #: a "red" blob whose blue is at least this fraction of its red (dark-subtracted, 9x9 px
-    #: around it in the camera frame) is white light, not a red LED: not an obstacle light nor a
-    #: landmark. None: off. Measured on the webcam's short frame (1/30 s, gain 16): a red light
-    #: 0.12-1.0 m away reads 0.84-0.13 (its blue is 2 % of its red, but it saturates), a white
-    #: lamp 0.99-1.0 at every distance. In long frames every red light saturates white: use it
-    #: on short frames only.
     white_blue_ratio: float | None = None
 
 
 def display_scale(frame: np.ndarray) -> float:
-    """Factor taking ``frame``'s values (or window means of them) to 8 bits for display: 1 for
-    a uint8 frame; for a 16-bit one, whatever its ADC depth and alignment, its brightest pixel
-    maps to 255."""
+    """Return the factor taking ``frame``'s values (or window means of them) to 8 bits for display.
+
+    1 for a uint8 frame; for a 16-bit one, whatever its ADC depth and alignment, its brightest
+    pixel maps to 255.
+    """
     if frame.dtype == np.uint8:
         return 1.0
     return 255.0 / max(float(frame.max()), 1.0)
@@ -127,6 +143,34 @@ class PipelineResult:
     8-bit frame, float32 from a 16-bit one). Display images (8-bit window means, the colour
     dark-subtracted frame) are made on demand. ``untrusted``: why this frame's reading cannot
     be trusted ("" when it can).
+
+    Attributes
+    ----------
+    frame : numpy.ndarray
+        The (H, W, 3) BGR frame as it came in.
+    dark : numpy.ndarray or None
+        The dark frame subtracted from it (None: none).
+    pedestal_dn : int
+        The pedestal the dark subtraction kept (DN).
+    green, red_raw : numpy.ndarray
+        The dark-subtracted green and red of the mirror image's crop.
+    obstacle, marks : numpy.ndarray
+        The ground-view images of window sums: red lights and obstacles, phosphor marks.
+    dots : Dots
+        Every dot found, with the rows' own.
+    red : RedLights
+        The red lights (obstacles) found.
+    heading : HeadingFit
+        The line fit through the newest mark row.
+    observation : CellObservation
+        The cell's reading: boxes, visited sub-cells, neighbours.
+    stage_ms : dict of str to float
+        Each stage's time (ms), under its name, in the order they ran (:data:`STAGES`).
+    window_area : int
+        Pixels per window sum (the dot window's side squared).
+    white_lights_m : numpy.ndarray
+        (N, 2) robot-frame positions (m) of the white lights (not red:
+        :attr:`PipelineParams.white_blue_ratio`) this frame showed.
     """
 
     frame: np.ndarray
@@ -142,8 +186,6 @@ class PipelineResult:
     observation: CellObservation
     stage_ms: dict[str, float]
     window_area: int = 9
-    #: (N, 2) robot-frame positions (m) of the white lights (not red:
-    #: :attr:`PipelineParams.white_blue_ratio`) this frame showed
     white_lights_m: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
 
     @property
@@ -157,20 +199,50 @@ class PipelineResult:
         return cv2.convertScaleAbs(img, alpha=display_scale(self.frame) / self.window_area)
 
     def obstacle_u8(self) -> np.ndarray:
+        """Return the obstacle image as 8-bit window means, for display.
+
+        Returns
+        -------
+        numpy.ndarray
+            The ground view's obstacle image, uint8.
+        """
         return self._u8(self.obstacle)
 
     def marks_u8(self) -> np.ndarray:
+        """Return the marks image as 8-bit window means, for display.
+
+        Returns
+        -------
+        numpy.ndarray
+            The ground view's marks image, uint8.
+        """
         return self._u8(self.marks)
 
     @property
     def untrusted(self) -> str:
+        """Why this frame's reading cannot be trusted ("" when it can)."""
         return self.dots.untrusted
 
     @property
     def total_ms(self) -> float:
+        """The time of every stage together (ms)."""
         return float(sum(self.stage_ms.values()))
 
     def to_dict(self, profile: Profile | None = None) -> dict:
+        """Return the frame's reading as plain JSON-ready values.
+
+        Parameters
+        ----------
+        profile : Profile, optional
+            Not read: the reading carries its own robot-frame positions.
+
+        Returns
+        -------
+        dict
+            The lit dots (pixel and robot-frame positions, strength, SNR), the dot threshold,
+            noise and background, the heading fit, the obstacles, the cell observation, the
+            untrusted reason and the stage times (ms).
+        """
         d = self.dots
         out = {
             "dots": [
@@ -204,14 +276,16 @@ class PipelineResult:
 
 
 class Pipeline:
-    """Build once per profile, then ``process`` frames.
+    """The vision pipeline: build once per profile, then ``process`` frames.
 
     Parameters
     ----------
     profile : Profile
-    params : PipelineParams
-    dark : (H, W, 3) uint8 or uint16 (the frames' dtype), optional -- the dark frame for every
-        ``process`` call.
+        The camera's profile: the mirror's geometry, the ground view, the cell homography.
+    params : PipelineParams, optional
+        Every stage's parameters (the defaults when None).
+    dark : numpy.ndarray, optional
+        (H, W, 3) uint8 or uint16 (the frames' dtype): the dark frame for every ``process`` call.
     """
 
     def __init__(
@@ -254,8 +328,10 @@ class Pipeline:
 
     @property
     def dark(self) -> np.ndarray | None:
-        """The dark frame every ``process`` call subtracts (None: none); setting it is
-        :meth:`set_dark`, or with None forgets it."""
+        """The dark frame every ``process`` call subtracts (None: none).
+
+        Setting it is :meth:`set_dark`, or with None forgets it.
+        """
         return self.front.dark.frame
 
     @dark.setter
@@ -266,8 +342,10 @@ class Pipeline:
             self.set_dark(dark)
 
     def _probe(self) -> tuple[np.ndarray, np.ndarray]:
-        """The dark frame's hot-pixel probe (:func:`stcvision.stages.dark.hot_pixel_probe`),
-        measured once per dark frame."""
+        """Return the dark frame's hot-pixel probe, measured once per dark frame.
+
+        See :func:`stcvision.stages.dark.hot_pixel_probe`.
+        """
         dark = self.dark
         if getattr(self, "_probe_of", None) is not dark:
             self._probe_of, self._probe_px = dark, hot_pixel_probe(dark)
@@ -275,31 +353,51 @@ class Pipeline:
 
     @property
     def pedestal(self) -> int:
+        """The pedestal the dark subtraction keeps (DN; 0 without a dark frame)."""
         return self.front.dark.pedestal
 
     @property
     def quantum(self) -> int:
+        """The frames' quantisation step (DN), taken from the dark frame."""
         return self.front.dark.quantum
 
     @property
     def dark_sigma(self) -> float:
+        """The dark frame's robust spread (DN)."""
         return self.front.dark.sigma
 
     def set_dark(self, dark: np.ndarray) -> None:
-        """Use ``dark`` (H, W, 3) uint8 or uint16 from now on: split it once, map its hot pixels
-        once, and take from it the quantisation step and the pedestal."""
+        """Use ``dark`` as the dark frame from now on.
+
+        Split it once, map its hot pixels once, and take from it the quantisation step and the
+        pedestal.
+
+        Parameters
+        ----------
+        dark : numpy.ndarray
+            (H, W, 3) uint8 or uint16, the frames' dtype and shape.
+
+        Raises
+        ------
+        BadInputError
+            When ``dark`` is not a frame of the profile's shape and a frame dtype.
+        """
         check_frame(dark, "dark frame")
         self.profile.check_frame(dark.shape, what="dark frame")
         self.front = self.front.with_dark(dark)
 
     def _lit_frame(self, bg: float, noise: float, frame: np.ndarray) -> str:
-        """Why a frame is not a dark-room frame this pipeline can read ("" when it is): its
+        """Say why a frame is not a dark-room frame this pipeline can read ("" when it is).
+
+        Overexposed; showing a scene (:func:`stcvision.stages.frame_structure`); not showing the
+        dark frame's hot pixels (another camera); or its
         background (the median of the view, where the floor is unmarked and so dark) more than
         :data:`LIT_BACKGROUND_K_SIGMA` noise sigmas above the dark level. With a dark frame that
         level is the pedestal: measured, dark-room frames of every camera sit at 0.0 sigma and
         lit calibration frames at 16-18. Without one it is zero, and the sensor's own dark signal
         and fixed pattern stay in the frame: webcam, low-light and cooled frames sat at 5.6, 6.3
-        and 26 sigma and gave 61-64 dots where the truth had 16."""
+        and 26 sigma and gave 61-64 dots where the truth had 16.
+        """
         full = float(np.iinfo(frame.dtype).max)
         if bg >= SATURATED_BACKGROUND * full:
             return f"the frame's background is at {bg:.0f} of {full:.0f}: overexposed, not a dark-room frame"
@@ -336,8 +434,11 @@ class Pipeline:
         )
 
     def _dots_and_rows(self, f, frame: np.ndarray, times: StageTimes):
-        """The dots and rows stages on the front end's output ``f``, each timed under its name:
-        (the dots, every dot with the rows' own); a lit room marks the reading untrusted."""
+        """Run the dots and rows stages on the front end's output ``f``, each timed under its name.
+
+        Returns (the dots, every dot with the rows' own); a frame that is not a dark room's
+        (``frame``, the raw frame: :meth:`_lit_frame`) marks the reading untrusted.
+        """
         p, w = self.params, self.params.dots.window_px
         marks, g, bg, noise, q = f.marks, f.green, f.bg, f.noise, f.quantum
         g2r = self.profile.ground_to_robot
@@ -387,16 +488,36 @@ class Pipeline:
         heading_error_rad: float | None = None,
         position_offset: tuple[float, float] | None = None,
     ) -> PipelineResult:
-        """Run every stage on one (H, W, 3) uint8 or uint16 BGR frame (a uint16 frame holds an
-        ADC's counts; the dark frame must have the frame's dtype).
+        """Run every stage on one frame.
 
-        ``heading_error_rad``: read the cell with this heading error instead of this frame's own
-        fit -- e.g. the fit of a short frame taken at the same pose, for a long one in which
-        every recent row saturates (the newest row is then no longer the brightest).
-        ``position_offset``: read the cell with the robot this far off its sub-cell centre
-        (:func:`stcvision.observation.observe_cell`) instead of where this frame's marks say.
+        Not re-entrant: one ``Pipeline`` per thread (the front end's scratch images are its own).
 
-        Not re-entrant: one ``Pipeline`` per thread (the front end's scratch images are its own)."""
+        Parameters
+        ----------
+        frame : numpy.ndarray
+            (H, W, 3) uint8 or uint16 BGR frame (a uint16 frame holds an ADC's counts; the dark
+            frame must have the frame's dtype).
+        dark : numpy.ndarray, optional
+            A dark frame to use from now on (:meth:`set_dark`) before reading this one.
+        heading_error_rad : float, optional
+            Read the cell with this heading error instead of this frame's own fit -- e.g. the fit
+            of a short frame taken at the same pose, for a long one in which every recent row
+            saturates (the newest row is then no longer the brightest).
+        position_offset : tuple of float, optional
+            Read the cell with the robot this far off its sub-cell centre
+            (:func:`stcvision.observation.observe_cell`) instead of where this frame's marks say.
+
+        Returns
+        -------
+        PipelineResult
+            Everything the frame gave, with each stage's time.
+
+        Raises
+        ------
+        BadInputError
+            When the frame (or the dark frame) is not a frame of the profile's shape, or their
+            dtypes differ.
+        """
         check_frame(frame)
         self.profile.check_frame(frame.shape)
         if dark is not None and dark is not self.dark:
@@ -463,14 +584,26 @@ class Pipeline:
         )
 
     def ground_view(self, image: np.ndarray) -> np.ndarray:
-        """8-bit colour ground view of an image, as the stages see it (window means; a 16-bit
-        image scaled by :func:`display_scale`)."""
+        """Return the 8-bit colour ground view of an image, as the stages see it.
+
+        Window means; a 16-bit image scaled by :func:`display_scale`.
+
+        Parameters
+        ----------
+        image : numpy.ndarray
+            (H, W, 3) uint8 or uint16 image of the camera.
+
+        Returns
+        -------
+        numpy.ndarray
+            The ground view, uint8.
+        """
         w = self.params.dots.window_px
         return cv2.convertScaleAbs(unwarp(window_sums(image, w), self.umap), alpha=display_scale(image) / (w * w))
 
 
 def bench_pipeline(camera, board, layer, pose, *, frames: int, rng, profile: Profile) -> dict:
-    """Median per-frame and per-stage times of the pipeline on rendered frames (one core)."""
+    """Measure the median per-frame and per-stage times of the pipeline on rendered frames (one core)."""
     dark = camera.median_dark(8, rng=rng)
     lights = board.red_lights_m()
     imgs = [camera.render(pose, rng=rng, phosphor=layer, red_lights_m=lights).image for _ in range(8)]

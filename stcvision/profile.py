@@ -83,8 +83,10 @@ ROBOT_IN_CELL = (0.5, -0.5)
 
 
 def nominal_corners_px(subcell_m: float, px_per_m: float, size_px: int) -> np.ndarray:
-    """Where the 12 corners fall in an ideal ground view (robot exactly at the centre of
-    sub-cell 0, heading exactly up)."""
+    """Return where the 12 corners fall in an ideal ground view.
+
+    The robot stands exactly at the centre of sub-cell 0, heading exactly up.
+    """
     c = (size_px - 1) / 2.0
     pts = []
     for r, u in CORNER_ORDER:
@@ -119,7 +121,48 @@ def _vec(d: dict, key: str, n: int | None, *, where: str = "profile") -> list[fl
 
 @dataclass(frozen=True, kw_only=True)
 class Profile:
-    """A calibration profile (see the module docstring for every field's meaning)."""
+    """A calibration profile: the pipeline's model of one robot's camera and mirror.
+
+    The module docstring tells each part of the model at length.
+
+    Attributes
+    ----------
+    image_size_px : tuple of int
+        (width, height) of the frames the profile was calibrated for.
+    center_px : tuple of float
+        Where the mirror's axis is in the image (u, v).
+    rim_radius_px : float
+        The mirror's rim radius (the model's field of view when ``rim_measured`` is false).
+    forward_angle_rad : float
+        The image angle ``atan2(v - cv, u - cu)`` at which robot-forward appears.
+    mirrored : bool
+        The image is a mirror view (robot-left appears clockwise of forward).
+    ellipse_ratio, ellipse_angle_rad : float
+        The rim's ellipticity under a tilted mirror, and the ellipse's angle.
+    axis_tilt_rad : tuple of float
+        The mirror axis's lean against the floor's normal: (tilt about the robot's x axis, tilt
+        about its y axis).
+    decentering : tuple of float
+        Brown's decentering terms of an imported lens model, (p1, p2[, g1, g2, g3]); zero for
+        the toolkit's own calibration.
+    rim_measured : bool
+        Whether ``rim_radius_px`` is the mirror's rim as seen in a frame.
+    viewpoint_height_m : float
+        Height of the effective viewpoint above the floor.
+    theta_poly : tuple of float
+        The depression angle (rad) as a polynomial of ``r / rim_radius_px``, ascending powers.
+    ground_px_per_m : float
+        The ground view's scale.
+    ground_size_px : int
+        The ground view's side (square).
+    subcell_m : float
+        The board's sub-cell side.
+    neighbour_corners_px : tuple of (float, float), optional
+        The 12 corners of the five cells in ground-view pixels, order :data:`CORNER_ORDER`
+        (None: the nominal ones).
+    provenance : dict
+        Where the profile came from (the calibration's inputs and settings).
+    """
 
     image_size_px: tuple[int, int]
     center_px: tuple[float, float]
@@ -154,8 +197,10 @@ class Profile:
         return ry @ rx
 
     def robot_to_image(self, xy_m) -> np.ndarray:
-        """(N, 2) robot-frame floor points (x forward, y left) -> (N, 2) image (u, v);
-        NaN where the model does not reach."""
+        """Map (N, 2) robot-frame floor points (x forward, y left) to (N, 2) image points (u, v).
+
+        NaN where the model does not reach.
+        """
         xy = np.asarray(xy_m, float).reshape(-1, 2)
         theta, psi = self._floor_to_angles(xy)
         r_tab, th_tab = self._theta_table()
@@ -191,8 +236,10 @@ class Profile:
         return out
 
     def image_to_robot(self, uv_px) -> np.ndarray:
-        """(N, 2) image points -> (N, 2) robot-frame floor points (inverse of
-        :meth:`robot_to_image`); NaN for rays at or above the horizon."""
+        """Map (N, 2) image points to (N, 2) robot-frame floor points.
+
+        The inverse of :meth:`robot_to_image`; NaN for rays at or above the horizon.
+        """
         uv = np.asarray(uv_px, float).reshape(-1, 2)
         d2 = self._ellipse(uv - self.center_px, inverse=True)
         if any(self.decentering):
@@ -210,8 +257,10 @@ class Profile:
         return d[:, :2] * t[:, None]
 
     def _decenter(self, q: np.ndarray) -> np.ndarray:
-        """Radial-model points (ellipse-corrected px) -> where the decentering puts them (Brown
-        1966; the tangential terms of OpenCV's and Kalibr's radial-tangential model)."""
+        """Move radial-model points (ellipse-corrected px) to where the decentering puts them.
+
+        Brown 1966; the tangential terms of OpenCV's and Kalibr's radial-tangential model.
+        """
         p1, p2, *g = self.decentering
         s = self.rim_radius_px
         x, y = q[:, 0] / s, q[:, 1] / s
@@ -221,8 +270,10 @@ class Profile:
         return q + t * (k[:, None] if g else k)
 
     def _undecenter(self, d: np.ndarray) -> np.ndarray:
-        """Inverse of :meth:`_decenter` by fixed-point iteration (as OpenCV's undistortPoints);
-        the terms are under a few per cent of the radius (validated), so it converges to ~1e-12 px."""
+        """Invert :meth:`_decenter` by fixed-point iteration (as OpenCV's undistortPoints).
+
+        The terms are under a few per cent of the radius (validated), so it converges to ~1e-12 px.
+        """
         q = d.copy()
         for _ in range(DECENTER_ITERATIONS):
             q = d - (self._decenter(q) - q)
@@ -239,7 +290,7 @@ class Profile:
 
     # ------------------------------------------------------------------ ground view
     def ground_to_robot(self, gxy_px) -> np.ndarray:
-        """Ground-view pixels (x right, y down) -> robot frame metres (x forward, y left)."""
+        """Map ground-view pixels (x right, y down) to robot-frame metres (x forward, y left)."""
         g = np.asarray(gxy_px, float).reshape(-1, 2)
         c = (self.ground_size_px - 1) / 2.0
         out = np.empty((len(g), 2))  # (c - g) / px_per_m per column, without column_stack's copies
@@ -249,18 +300,20 @@ class Profile:
         return out
 
     def robot_to_ground(self, xy_m) -> np.ndarray:
+        """Map robot-frame metres (x forward, y left) to ground-view pixels (x right, y down)."""
         xy = np.asarray(xy_m, float).reshape(-1, 2)
         c = (self.ground_size_px - 1) / 2.0
         return np.column_stack([c - xy[:, 1] * self.ground_px_per_m, c - xy[:, 0] * self.ground_px_per_m])
 
     def corners_px(self) -> np.ndarray:
-        """The 12 neighbour corners (ground px): calibrated if present, else nominal."""
+        """Return the 12 neighbour corners (ground px): calibrated if present, else nominal."""
         if self.neighbour_corners_px is not None:
             return np.asarray(self.neighbour_corners_px, float)
         return nominal_corners_px(self.subcell_m, self.ground_px_per_m, self.ground_size_px)
 
     # ------------------------------------------------------------------ I/O
     def to_dict(self) -> dict:
+        """Return the profile as the JSON a profile file holds (with its schema version)."""
         d = asdict(self)
         d = {k: (list(v) if isinstance(v, tuple) else v) for k, v in d.items()}
         if self.neighbour_corners_px is not None:
@@ -269,7 +322,10 @@ class Profile:
 
     @classmethod
     def from_dict(cls, d: Any, *, where: str = "profile") -> Profile:
-        """Validate every field; a bad one raises :class:`ProfileError` naming it."""
+        """Read a profile from its JSON dict, validating every field.
+
+        A bad field raises :class:`ProfileError` naming it.
+        """
         if not isinstance(d, dict):
             raise ProfileError(f"{where} must be a JSON object")
         d = _migrate(dict(d), where)
@@ -340,22 +396,86 @@ class Profile:
 
     @classmethod
     def load(cls, path: str | Path) -> Profile:
+        """Read and validate a profile file.
+
+        Parameters
+        ----------
+        path : str or Path
+            The profile's JSON file.
+
+        Returns
+        -------
+        Profile
+            The profile, every field validated.
+
+        Raises
+        ------
+        BadInputError
+            When the file is missing, unreadable or not JSON.
+        ProfileError
+            When a field is missing or invalid (the message names it), or the schema version is
+            not one this toolkit reads.
+        """
         from stcvision.fileio import read_json
 
         return cls.from_dict(read_json(path, what="profile"), where=f"profile {path}")
 
     def save(self, path: str | Path, *, overwrite: bool = False) -> Path:
-        """Write atomically (temp file + rename); refuses to overwrite unless asked."""
+        """Write the profile as JSON, atomically (temp file + rename).
+
+        Parameters
+        ----------
+        path : str or Path
+            Where to write it.
+        overwrite : bool
+            Replace an existing file; without it an existing file is refused.
+
+        Returns
+        -------
+        Path
+            The path written.
+
+        Raises
+        ------
+        FileExistsRefusedError
+            When ``path`` exists and ``overwrite`` is false.
+        OutputError
+            When the file cannot be written.
+        """
         from stcvision.fileio import write_json
 
         return write_json(path, self.to_dict(), overwrite=overwrite)
 
     def replace(self, **kw) -> Profile:
+        """Return a copy with some fields changed (:func:`dataclasses.replace`).
+
+        Parameters
+        ----------
+        **kw
+            The fields to change, by name.
+
+        Returns
+        -------
+        Profile
+            The new profile.
+        """
         return replace(self, **kw)
 
     def check_frame(self, shape, *, what: str = "frame") -> None:
-        """Raise if a frame's (H, W) does not match the profile's image size; ``what`` names the
-        image in the message (e.g. ``"dark frame d.png"``)."""
+        """Raise if a frame's (H, W) does not match the profile's image size.
+
+        Parameters
+        ----------
+        shape : tuple of int
+            The frame's shape, (H, W, ...).
+        what : str
+            Names the image in the message (e.g. ``"dark frame d.png"``).
+
+        Raises
+        ------
+        ProfileError
+            When the frame's size is not the one the profile was calibrated for.
+        """
         h, w = shape[:2]
         if (w, h) != tuple(self.image_size_px):
             raise ProfileError(
@@ -365,9 +485,11 @@ class Profile:
 
 
 def _check_corners(prof: Profile, where: str) -> None:
-    """The 12 corners must outline the five cells: a plus shape of at least a tenth of its
-    nominal area (found by fuzzing: 12 coinciding or collinear corners gave no homography and a
-    numpy error in the pipeline)."""
+    """Check that the 12 corners outline the five cells.
+
+    They must make a plus shape of at least a tenth of its nominal area (found by fuzzing: 12
+    coinciding or collinear corners gave no homography and a numpy error in the pipeline).
+    """
     p = np.asarray(prof.neighbour_corners_px, float)
     area = 0.5 * abs(float(np.dot(p[:, 0], np.roll(p[:, 1], -1)) - np.dot(p[:, 1], np.roll(p[:, 0], -1))))
     side_px = prof.subcell_m * prof.ground_px_per_m

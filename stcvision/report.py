@@ -1,5 +1,7 @@
-"""The evaluation's report: the markdown summary, the JSON files and the plots of an
-:class:`stcvision.evaluate.Evaluation` (:func:`write_report`), and the text table of a comparison
+"""The evaluation's report, and the text table of a comparison.
+
+The report is the markdown summary, the JSON files and the plots of an
+:class:`stcvision.evaluate.Evaluation` (:func:`write_report`); the comparison's is a text table
 (:func:`format_compare`). The numbers are :mod:`stcvision.evaluate`'s; this module only shows them
 (matplotlib with the Agg backend, imported on first use).
 """
@@ -117,7 +119,7 @@ def _report_folder(outdir: str | Path, overwrite: bool) -> Path:
 
 
 def _report_figures(s: dict, recs) -> dict:
-    """The report's plots by file name."""
+    """Make the report's plots, by file name."""
     figs = {
         "recall_vs_age.png": _plot_recall_vs_age(s),
         "heading_error_hist.png": _plot_heading_errors(s, recs),

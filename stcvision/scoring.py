@@ -1,5 +1,7 @@
-"""Score pipeline results against a frame's label: a person's (``labels.jsonl`` of real frames)
-or the simulator's ground truth written as one (:func:`stcvision.labels.label_from_truth`).
+"""Score pipeline results against a frame's label.
+
+The label is a person's (``labels.jsonl`` of real frames) or the simulator's ground truth
+written as one (:func:`stcvision.labels.label_from_truth`).
 
 Used by the tests and by ``stcvision eval``. :func:`score_label` is the one scoring; only what a
 label says is held against the pipeline, and what it leaves out (a box at the edge of
@@ -21,6 +23,32 @@ __all__ = ["DotMatch", "FrameScore", "match_dots", "score_frame", "score_label",
 
 @dataclass
 class FrameScore:
+    """One frame's reading held against its truth (:func:`score_frame`).
+
+    Attributes
+    ----------
+    dots_expected : int
+        Truth dots that should be found (visible, expected SNR at least ``snr_visible``).
+    dots_found : int
+        Lit dots the pipeline found.
+    dots_true_positive : int
+        Found dots matched to a visible truth dot.
+    dot_err_mm, dot_err_px : list of float
+        Each matched dot's floor error (mm) and image error (px), in the order matched.
+    dot_ages_found, dot_ages_missed : list of float
+        Ages (s) of the truth dots that should be found, found or missed.
+    heading_err_deg : float or None
+        The heading fit's error (deg); None without a fit or a cell in the truth.
+    boxes_correct, boxes_total : int
+        Boxes read right, of those scored (ambiguous boxes are left out).
+    obstacles_correct, obstacles_total : int
+        Neighbours whose red light was read right, of those scored.
+    neighbour_marks_correct, neighbour_marks_total : int
+        The neighbours' marks read right, of those scored (:func:`score_frame` leaves both 0).
+    errors : list of str
+        What was read wrong, one line each.
+    """
+
     dots_expected: int = 0
     dots_found: int = 0
     dots_true_positive: int = 0
@@ -59,19 +87,25 @@ class DotMatch:
 
     @property
     def matched(self) -> np.ndarray:
+        """(M,) bool: which visible truth dots a found dot matched."""
         return self.found >= 0
 
     @property
     def n_true_positive(self) -> int:
+        """How many found dots matched a visible truth dot."""
         return int(self.matched.sum())
 
 
 def match_dots(xy_m, truth: dict, profile, *, match_m: float = 0.01, visible_only: bool = True) -> DotMatch:
-    """Match detections ``xy_m`` ((N, 2) robot frame, strongest first) to the visible truth
-    dots: greedily, each detection to its nearest truth dot if within ``match_m`` and not taken
+    """Match detections to the visible truth dots.
+
+    Match detections ``xy_m`` ((N, 2) robot frame, strongest first) to the visible truth
+    dots (every dot given, with ``visible_only`` False: a label's): greedily, each detection to
+    its nearest truth dot if within ``match_m`` and not taken
     already (else it is a false detection). The image error is that of the detection mapped
     through ``profile.robot_to_image`` (none without a profile). Any detector's dots can be scored this way (the
-    pipeline's, the plain-OpenCV baseline's)."""
+    pipeline's, the plain-OpenCV baseline's).
+    """
     tdots = [d for d in truth["dots"] if d["visible"] and d["age_s"] >= 0] if visible_only else list(truth["dots"])
     txy = np.array([d["xy_robot_m"] for d in tdots]).reshape(-1, 2)
     xy = np.asarray(xy_m, float).reshape(-1, 2)
@@ -91,8 +125,11 @@ def match_dots(xy_m, truth: dict, profile, *, match_m: float = 0.01, visible_onl
 
 
 def _label_dots(label: dict, profile) -> tuple[list, np.ndarray]:
-    """The label's dots as match_dots' truth list and their floor positions (robot frame, m):
-    a dot given by its image position alone is put on the floor through ``profile``."""
+    """Return the label's dots as :func:`match_dots`' truth list.
+
+    Each with its floor position (robot frame, m): a dot given by its image position alone is
+    put on the floor through ``profile``.
+    """
     tdots = []
     for d in label.get("dots", ()):
         xy = d.get("xy_m")
@@ -177,8 +214,9 @@ def score_label(result, label: dict, profile, *, match_m: float = 0.01) -> Frame
 
 
 def score_frame(result, truth: dict, profile, *, match_m: float = 0.01) -> FrameScore:
-    """Score one rendered frame against the simulator's truth: :func:`score_label` on the label
-    the truth makes (:func:`stcvision.labels.label_from_truth`).
+    """Score one rendered frame against the simulator's truth.
+
+    :func:`score_label` on the label the truth makes (:func:`stcvision.labels.label_from_truth`).
 
     Parameters
     ----------

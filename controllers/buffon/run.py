@@ -1,5 +1,7 @@
-"""The Buffon explorer's runs, as the CLI calls them: measure one nest, reproduce the paper,
-compare the batched path with the pymunk one, recompute the area correction.
+"""The Buffon explorer's runs, as the CLI calls them.
+
+Measure one nest, reproduce the paper, compare the batched path with the pymunk one, recompute
+the area correction.
 
 Each returns a JSON-serialisable dict. Progress bars (tqdm) and files are here, around the
 simulation; nothing in the simulation prints, plots or logs.
@@ -52,7 +54,52 @@ def measure(
     force: bool = False,
     threads: int | None = None,
 ) -> dict:
-    """Run ``trials`` trials in one nest; the nest's nBC and area figures."""
+    """Measure one nest with Buffon's method: run the trials, return the nest's nBC and area figures.
+
+    Each trial is one robot making the two visits of the Buffon's needle paper (Girgin &
+    Sahin): the first lays a pheromone trail, the second counts its crossings; nBC is the
+    crossings per body length of the second visit, and the nest's area follows from it.
+
+    Parameters
+    ----------
+    nest_spec : str
+        The nest: ``circle:DIAMETER``, ``square:SIDE``, ``ellipse:AREA:RATIO`` or
+        ``polygon:FILE`` (lengths in body lengths).
+    barrier : str, optional
+        A centred barrier, ``bar:FRACTION`` (|) or ``plus:FRACTION`` (+).
+    trials : int
+        Trials (robots), each its own world and random stream.
+    visit_steps : int or str
+        Steps of each visit (the paper's 50,000), or ``"auto"``: each visit ends when the
+        robot's online rule says so.
+    trail_width_u : float
+        Pheromone trail width in body lengths (the paper's 0.1).
+    seed : int
+        The trials' seed, >= 0.
+    rrd : str, optional
+        A rerun recording of the first trial's trails, written to this path.
+    force : bool
+        Replace an existing recording.
+    threads : int, optional
+        Threads for the trials (default: one per core).
+
+    Returns
+    -------
+    dict
+        JSON-serialisable: the nest, the settings, the nBC and area figures
+        (:func:`stcvision.controllers.buffon.estimate.summarise`), the robot-steps and their
+        rate per wall and CPU second, and the recording's path.
+
+    Raises
+    ------
+    BadInputError
+        For a nest or barrier that cannot be read or measured, a negative seed, or a bad
+        ``visit_steps`` or ``threads``.
+    OutputError
+        For a recording path that is a folder or does not end in ``.rrd``, or cannot be made.
+    FileExistsRefusedError
+        For an existing recording without ``force``.
+    """
     nest = parse_nest(nest_spec, barrier)
     config = VisitConfig(visit_steps=visit_steps, trail_width_u=trail_width_u)
     if seed < 0:
@@ -94,6 +141,7 @@ def measure(
 
 
 def format_text(r: dict) -> str:
+    """Format a run's result as the text the CLI prints."""
     if "claims" in r:
         return r["summary_text"] + ("\n" + r["online_summary_text"] if r.get("online_summary_text") else "")
     if "paths" in r:
@@ -171,8 +219,11 @@ REPRODUCE_FILES = (
 def reproduce(
     out: str | Path, *, trials: int = 100, seed: int = 0, sweep=None, force: bool = False, online_trials: int = 6
 ) -> dict:
-    """Every experiment set of sec. 5 plus the absolute-area set, through the sweep runner; then
-    (``online_trials`` > 0) the online rule's experiments (:func:`online`) into ``out/online``."""
+    """Reproduce the paper: every experiment set of sec. 5 plus the absolute-area set.
+
+    Every experiment set of sec. 5 plus the absolute-area set, through the sweep runner; then
+    (``online_trials`` > 0) the online rule's experiments (:func:`online`) into ``out/online``.
+    """
     from stcvision.controllers.buffon import report
     from stcvision.sweep import SweepOptions, Task
 
@@ -205,7 +256,7 @@ def reproduce(
 
 
 def _online_part(out: Path, trials: int, seed: int, sweep) -> dict:
-    """The online rule's experiments beside the paper's, in their own folder (and store)."""
+    """Run the online rule's experiments beside the paper's, in their own folder (and store)."""
     if not trials:
         return {}
     r = online(out / "online", trials=trials, seed=seed, sweep=sweep)
@@ -241,7 +292,7 @@ def compare(
     sweep=None,
     force: bool = False,
 ) -> dict:
-    """nBC of the pymunk path and the batched path on the same nest: two-sample tests."""
+    """Compare nBC of the pymunk path and the batched path on the same nest: two-sample tests."""
     from scipy import stats
 
     from stcvision.sweep import SweepOptions, Task
@@ -322,7 +373,7 @@ def _compare_outputs(out: Path, res: dict, nbc_p, nbc_b) -> None:
 
 # --------------------------------------------------------------------------------- calibrate
 def calibrate(*, trials: int = 100, seed: int = 0) -> dict:
-    """The area correction measured on the reference nest (the shipped one stays fixed)."""
+    """Measure the area correction on the reference nest (the shipped one stays fixed)."""
     from stcvision.controllers.buffon.estimate import area_estimates, median_ci95
 
     nest = parse_nest(CORRECTION_REFERENCE)
@@ -348,8 +399,11 @@ def calibrate(*, trials: int = 100, seed: int = 0) -> dict:
 
 # ------------------------------------------------------------------------------------- bench
 def bench(*, spec: str = "circle:30", seed: int = 0) -> dict:
-    """Robot-steps per second of the batched path and of the pymunk path on the same nest and
-    behaviour, measured one after the other in this process (one core)."""
+    """Measure the robot-steps per second of the batched and the pymunk paths.
+
+    Robot-steps per second of the batched path and of the pymunk path on the same nest and
+    behaviour, measured one after the other in this process (one core).
+    """
     from stcvision.controllers.buffon.pymunk_path import run_trials_pymunk
 
     nest = parse_nest(spec)
@@ -391,9 +445,12 @@ SHAPE_PAIR_AREAS = (2000, 5000, 10000, 20000, 30000)
 
 
 def online(out: str | Path, *, trials: int = 12, seed: int = 0, sweep=None, force: bool = False) -> dict:
-    """The online rule measured: its calibration family again, the held-out evaluation family
+    """Measure the online rule: its calibration and evaluation families, the size sweep's ends.
+
+    The online rule measured: its calibration family again, the held-out evaluation family
     (coverage of both intervals per family), the size sweep's ends, and error vs robot-steps of
-    fixed lengths beside the rule on the standard circle; CSV, figures, summary."""
+    fixed lengths beside the rule on the standard circle; CSV, figures, summary.
+    """
     from stcvision.controllers.buffon import online as exp
     from stcvision.controllers.buffon import report
     from stcvision.sweep import SweepOptions, Task
@@ -455,7 +512,7 @@ def online(out: str | Path, *, trials: int = 12, seed: int = 0, sweep=None, forc
 
 
 def _write_tables(out: Path, texts: dict, figures: dict) -> None:
-    """A folder run's text files and figures, each written atomically (its store says it is ours)."""
+    """Write a folder run's text files and figures, each atomically (its store says it is ours)."""
     for name, text in texts.items():
         write_bytes_atomic(out / name, text.encode(), overwrite=True)
     for name, fig in figures.items():

@@ -94,6 +94,8 @@ ALIGN_RAD = math.radians(45.0)  # TASTI 2 paper sec. III-B: "within +-45 degrees
 
 
 class Phase(enum.Enum):
+    """The four circled phases of the TASTI 2 paper's Fig. 5 (module docstring), and the end."""
+
     SEARCH = 1
     AVOID = 2
     DETOUR_STEP = 3
@@ -102,12 +104,16 @@ class Phase(enum.Enum):
 
 
 class Policy(enum.Enum):
+    """How the robot gets round an obstacle: not at all, one avoid heading, or two (module docstring)."""
+
     NONE = "none"
     SIMPLE = "simple"
     IMPROVED = "improved"
 
 
 class MoveKind(enum.Enum):
+    """A step of the search path, an avoid move, or an unavoid move paying one back."""
+
     SEARCH = "search"
     AVOID = "avoid"
     UNAVOID = "unavoid"
@@ -115,9 +121,28 @@ class MoveKind(enum.Enum):
 
 @dataclass(frozen=True, kw_only=True, slots=True)
 class SearchConfig:
-    """``pattern`` (:mod:`stcvision.controllers.search.patterns`), detour ``policy``, the tongue
-    ``threshold`` (sensor units; the paper's robot stopped above 296 Hz, Fig. 12) and the loop
-    guard ``max_detour_moves``."""
+    """How the TASTI 2 search runs: its pattern, its detour policy, its stop rule.
+
+    Attributes
+    ----------
+    pattern : object
+        The search pattern (:mod:`stcvision.controllers.search.patterns`): the search path's
+        headings and step.
+    policy : Policy
+        The detour policy: ``none`` stops at the first blocked step (the baseline), ``simple``
+        uses one avoid heading, ``improved`` (the paper's "Improved Obstacle Avoidance") a
+        second one where the first cannot track round the obstacle.
+    threshold : float
+        The tongue reading that stops the search (sensor units; the paper's robot stopped
+        above 296 Hz, Fig. 12).
+    max_detour_moves : int
+        The loop guard: moves since the last search step before a detour gives up.
+
+    Raises
+    ------
+    BadInputError
+        When ``policy`` is not a :class:`Policy` or ``max_detour_moves`` is below 1.
+    """
 
     pattern: object
     policy: Policy = Policy.IMPROVED
@@ -143,6 +168,8 @@ class SearchObs:
 
 @dataclass(frozen=True, slots=True)
 class Move:
+    """An action: turn on the spot to an absolute heading of the odometric frame, drive, sense."""
+
     heading_rad: float  # absolute heading in the odometric frame
     distance_m: float
     kind: MoveKind
@@ -152,6 +179,8 @@ class Move:
 
 @dataclass(frozen=True, slots=True)
 class Stop:
+    """An action: the search is over, and why."""
+
     reason: str  # "found", "pattern done", "blocked (policy none)", "trapped: ...", "detour did not rejoin ..."
 
 
@@ -178,10 +207,12 @@ class SearchState:
 
     @property
     def in_detour(self) -> bool:
+        """A detour is outstanding: some avoid moves are not paid back."""
         return self.k1 != 0 or self.k2 != 0
 
 
 def initial_state(config: SearchConfig) -> SearchState:
+    """Return the state before the first move: searching, no step taken."""
     return SearchState(config=config)
 
 
@@ -205,8 +236,10 @@ def _avoid_heading(s: SearchState) -> tuple[SearchState, int]:
 
 
 def _unavoid(s: SearchState, j: int) -> Move | None:
-    """The unavoid move paying back one avoid move along heading ``j`` (opposite it); None if
-    nothing is owed along it."""
+    """Return the unavoid move paying back one avoid move along heading ``j``.
+
+    It runs opposite the avoid heading; None if nothing is owed along it.
+    """
     a, k = (s.a2, s.k2) if j == 2 else (s.a1, s.k1)
     if k <= 0:
         return None
@@ -214,7 +247,7 @@ def _unavoid(s: SearchState, j: int) -> Move | None:
 
 
 def _avoid(s: SearchState, j: int) -> Move | None:
-    """An avoid move along heading ``j`` (None for ``a2`` before the improved policy set it)."""
+    """Return an avoid move along heading ``j`` (None for ``a2`` before the improved policy set it)."""
     a = s.a2 if j == 2 else s.a1
     if a is None:
         return None
@@ -222,14 +255,14 @@ def _avoid(s: SearchState, j: int) -> Move | None:
 
 
 def _bit(m: Move) -> int:
-    """A move's bit in :attr:`SearchState.tried`: search 1, avoid 2 / 4, unavoid 8 / 16 (heading 1 / 2)."""
+    """Return a move's bit in :attr:`SearchState.tried`: search 1, avoid 2 / 4, unavoid 8 / 16 (heading 1 / 2)."""
     if m.kind is MoveKind.SEARCH:
         return 1
     return (2 if m.kind is MoveKind.AVOID else 8) * m.heading_index
 
 
 def _try(s: SearchState, moves: list[Move | None]) -> tuple[SearchState, Move | Stop]:
-    """The first of ``moves`` not yet blocked from this point; a stop when every one was."""
+    """Take the first of ``moves`` not yet blocked from this point; stop when every one was."""
     for m in moves:
         if m is not None and not s.tried & _bit(m):
             return _go(s, m)
@@ -250,9 +283,11 @@ def _account(s: SearchState, done: bool) -> SearchState:
 
 
 def _untried_side(s: SearchState) -> int | None:
-    """The side to go round an obstacle met at search step ``s.i``: right (-1, the paper's) unless
-    a detour that way already came back to this step without progress, then left (+1); None when
-    both did."""
+    """Return the side to go round an obstacle met at search step ``s.i``.
+
+    Right (-1, the paper's) unless a detour that way already came back to this step without
+    progress, then left (+1); None when both did.
+    """
     tried = s.failed_sides if s.failed_i == s.i else 0
     return next((side for side, bit in ((-1, 1), (1, 2)) if not tried & bit), None)
 
@@ -272,7 +307,7 @@ def _stop(s: SearchState, reason: str) -> tuple[SearchState, Stop]:
 
 
 def step(state: SearchState, obs: SearchObs) -> tuple[SearchState, Move | Stop]:
-    """One decision after a move (or at the start). Pure: ``state`` is not changed."""
+    """Make one decision after a move (or at the start). Pure: ``state`` is not changed."""
     if state.phase is Phase.DONE:
         return state, Stop(state.reason)
     cfg = state.config

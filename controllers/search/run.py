@@ -1,6 +1,8 @@
-"""One search run: the world moves TASTI 2 truly (pymunk, :class:`stcvision.sim_camera.world.World` +
-:data:`stcvision.sim_camera.robot.TASTI2`), the controller (:mod:`stcvision.controllers.search.controller`) navigates
-by dead reckoning.
+"""One search run: the world moves TASTI 2 truly, the controller navigates by dead reckoning.
+
+The world is pymunk's (:class:`stcvision.sim_camera.world.World` +
+:data:`stcvision.sim_camera.robot.TASTI2`); the controller is
+:mod:`stcvision.controllers.search.controller`.
 
 Executor of a :class:`Move` (TASTI 2's motion layer, the TASTI 2 paper by Russell):
 turn on the spot to the move's heading by the odometry (``rotate_by``), drive the step with the
@@ -51,8 +53,24 @@ RING_RISE_SIGMAS = 5.0  # the ring must rise this many noise sigmas above its st
 
 @dataclass(frozen=True, kw_only=True, slots=True)
 class SearchScene:
-    """Obstacles (x, y, radius) and the chemical patch (x, y, radius) in metres, relative to the
-    start (heading 0 = +x)."""
+    """The search's world: obstacles and the chemical patch, relative to the start (heading 0 = +x).
+
+    Attributes
+    ----------
+    obstacles : tuple of (float, float, float)
+        Circular obstacles, (x, y, radius) in metres; none may overlap the robot at the start.
+    patch : (float, float, float) or None
+        The chemical patch the robot searches for, (x, y, radius) in metres; its centre outside
+        every obstacle. None: no patch.
+
+    Raises
+    ------
+    BadInputError
+        For more obstacles than :data:`stcvision.limits.MAX_SEARCH_OBSTACLES`, a value that is
+        not three finite numbers, anything reaching beyond
+        :data:`stcvision.limits.MAX_SEARCH_REACH_M` from the start, a radius that is not
+        positive, an obstacle over the start, or the patch's centre inside an obstacle.
+    """
 
     obstacles: tuple[tuple[float, float, float], ...] = ()
     patch: tuple[float, float, float] | None = None
@@ -93,12 +111,22 @@ class SearchScene:
                     raise BadInputError(f"the patch centre ({px}, {py}) lies inside the obstacle at ({x}, {y})")
 
     def circle_obstacles(self) -> tuple[CircleObstacle, ...]:
+        """Return the obstacles as the simulator's circles.
+
+        Returns
+        -------
+        tuple of CircleObstacle
+            One :class:`stcvision.sim_camera.arenas.CircleObstacle` per obstacle.
+        """
         return tuple(CircleObstacle(center_m=(float(x), float(y)), radius_m=float(r)) for x, y, r in self.obstacles)
 
 
 def robot_params(odometry_noise: bool):
-    """TASTI 2 as in :mod:`stcvision.sim_camera.robot`, or with exact wheels (no Ed, Eb, slip; encoder
-    quantisation stays) for ``odometry_noise=False``."""
+    """Return TASTI 2's parameters, with or without the odometry's errors.
+
+    TASTI 2 as in :mod:`stcvision.sim_camera.robot`, or with exact wheels (no Ed, Eb, slip;
+    encoder quantisation stays) for ``odometry_noise=False``.
+    """
     if odometry_noise:
         return TASTI2
     return dataclasses.replace(TASTI2, ed=1.0, eb=1.0, slip_k=0.0)
@@ -125,8 +153,10 @@ class MoveRecord:
 
 @dataclass(frozen=True, slots=True)
 class SearchRun:
-    """Everything a run produced (the metrics are computed from it by
-    :func:`stcvision.controllers.search.metrics.summarise`)."""
+    """Everything a run produced.
+
+    The metrics are computed from it by :func:`stcvision.controllers.search.metrics.summarise`.
+    """
 
     scene: SearchScene
     config: SearchConfig
@@ -143,16 +173,20 @@ class SearchRun:
 
     @property
     def found(self) -> bool:
+        """The search stopped because it found the patch."""
         return self.reason == "found"
 
     def planned(self) -> np.ndarray:
-        """The undisturbed pattern's sampling points up to the steps taken (equation (5))."""
+        """Return the undisturbed pattern's sampling points up to the steps taken (equation (5))."""
         return planned_points(self.config.pattern, self.search_steps)
 
 
 def execute_move(world: World, robot, move: Move, *, back_off: bool = True) -> str:
-    """Turn to ``move.heading_rad`` by the odometry, drive ``move.distance_m`` while the ring
-    watches; "done", or "blocked" (and, with ``back_off``, back at the move's start point)."""
+    """Execute one move: turn by the odometry, then drive while the capacitive ring watches.
+
+    Turn to ``move.heading_rad`` by the odometry, drive ``move.distance_m`` while the ring
+    watches; "done", or "blocked" (and, with ``back_off``, back at the move's start point).
+    """
     turn = wrap_angle(move.heading_rad - robot.odometry.theta)
     if abs(turn) > 1e-4:
         robot.rotate_by(turn)
@@ -191,7 +225,7 @@ def check_reach(pattern) -> None:
 
 
 def build_world(scene: SearchScene, pattern, *, seed: np.random.SeedSequence, odometry_noise: bool = True):
-    """The world (open square arena, obstacles, chemical layer) and TASTI 2 at the origin."""
+    """Build the world (open square arena, obstacles, chemical layer) and TASTI 2 at the origin."""
     pts = planned_points(pattern)
     reach = float(np.abs(pts).max()) + 1.0
     for x, y, r in scene.obstacles:
@@ -217,10 +251,37 @@ def run_search(
     observer=None,
     progress=None,
 ) -> SearchRun:
-    """Run the search until the controller stops. ``seed`` is split into the world's stream and
-    the beacon camera's. ``beacon``: a :class:`stcvision.controllers.search.beacon.Beacon` (or None).
-    ``observer``: an object with ``on_move(record, world, robot, fixer=)`` (e.g. the rerun recorder).
-    ``progress``: callable(search_steps) after each move (a progress bar)."""
+    """Run the TASTI 2 search until the controller stops.
+
+    Parameters
+    ----------
+    scene : SearchScene
+        The obstacles and the chemical patch.
+    config : SearchConfig
+        The search pattern, the obstacle policy and the stop rule.
+    seed : numpy.random.SeedSequence
+        Split into the world's stream and the beacon camera's.
+    odometry_noise : bool
+        TASTI 2's odometry errors; False: exact wheels (encoder quantisation stays).
+    beacon : Beacon, optional
+        A :class:`stcvision.controllers.search.beacon.Beacon` fixing the odometry after each
+        move (None: dead reckoning alone).
+    observer : object, optional
+        An object with ``on_move(record, world, robot, fixer=)`` (e.g. the rerun recorder).
+    progress : callable, optional
+        ``progress(search_steps)`` after each move (a progress bar).
+
+    Returns
+    -------
+    SearchRun
+        Every move and the sensing after it, why the search stopped, the true trail and the
+        run's times and distances.
+
+    Raises
+    ------
+    BadInputError
+        When the pattern's planned points reach beyond the search's cap.
+    """
     check_reach(config.pattern)
     ss_world, ss_beacon = seed.spawn(2)
     world, robot = build_world(scene, config.pattern, seed=ss_world, odometry_noise=odometry_noise)

@@ -73,10 +73,20 @@ AUTO_REACH_M = 0.45
 
 
 def stc_observation(cell_obs) -> StcObservation:
-    """The controller's observation (:class:`stcvision.controllers.stc.fsm.StcObservation`) from the pipeline's
-    per-cell reading (:class:`stcvision.observation.CellObservation`): the five boxes lit, per
-    neighbour (right, forward, left, back) marked and red, the start mark's sub-cell and the
-    landing sub-cells marked."""
+    """Turn the pipeline's per-cell reading into the controller's observation.
+
+    Parameters
+    ----------
+    cell_obs : CellObservation
+        The pipeline's reading of the cell (:class:`stcvision.observation.CellObservation`).
+
+    Returns
+    -------
+    StcObservation
+        The controller's observation (:class:`stcvision.controllers.stc.fsm.StcObservation`):
+        the five boxes lit, per neighbour (right, forward, left, back) marked and red, the start
+        mark's sub-cell and the landing sub-cells marked.
+    """
     neigh = tuple(NeighbourObs(cell_obs.neighbours[d].has_marks, cell_obs.neighbours[d].has_red) for d in NEIGHBOURS)
     return StcObservation(
         boxes=tuple(b.lit for b in cell_obs.boxes),
@@ -87,8 +97,11 @@ def stc_observation(cell_obs) -> StcObservation:
 
 
 def _merge(a: StcObservation, b: StcObservation) -> StcObservation:
-    """What two exposures of one scene show together: a mark either one sees is there; the red
-    lights come from the first (short) frame, which does not saturate them."""
+    """Merge what two exposures of one scene show together.
+
+    A mark either one sees is there; the red lights come from the first (short) frame, which
+    does not saturate them.
+    """
     return StcObservation(
         boxes=tuple(x or y for x, y in zip(a.boxes, b.boxes, strict=True)),
         neighbours=tuple(
@@ -102,10 +115,13 @@ def _merge(a: StcObservation, b: StcObservation) -> StcObservation:
 
 
 def _check_fresh(obs: StcObservation) -> StcObservation:
-    """A cell entered as a child the look found unmarked holds no mark: a box or a start mark
+    """Refuse a reading of marks in a cell the look found unmarked.
+
+    A cell entered as a child the look found unmarked holds no mark: a box or a start mark
     read in it means the look or this reading was wrong, and either way the cell's parent and
     visited sub-cells cannot be taken from it: the robot stops before deciding
-    (``StcObservation.misread``), on every camera."""
+    (``StcObservation.misread``), on every camera.
+    """
     lit = [b for b, on in enumerate(obs.boxes, 1) if on]
     if not lit and obs.start_mark is None:
         return obs
@@ -129,14 +145,17 @@ NOISE_DN = 1.0
 
 
 def sensor_gain(sensor, exposure_s: float, n_avg: int, webcam_gain: float) -> float:
-    """The gain of a frame of ``exposure_s`` (``n_avg`` frames averaged) on ``sensor``: the lowest
+    """Return the gain of a frame of ``exposure_s`` on ``sensor``.
+
+    The gain of a frame of ``exposure_s`` (``n_avg`` frames averaged) on ``sensor``: the lowest
     gain >= 1 at which the frame's temporal dark noise (read noise and the dark current's shot
     noise, ``sqrt(read^2 + dark * t / n)`` electrons) spans :data:`NOISE_DN` DN, so that no faint
     mark is quantised away, and no higher, so that the ADC clips as late as it can (at gain g it
     saturates at ``full_well_e / g`` electrons). The STC paper's webcam (an 8-bit ADC, the default
     sensor) keeps the ladder's own gains (``webcam_gain``: the paper's 16x and the long frames' 4x),
     so its frames are exactly what they were. A robot setting from the sensor's figures, not
-    the world."""
+    the world.
+    """
     from stcvision.sim_camera.image_sensor import SensorParams
 
     web = SensorParams()
@@ -148,8 +167,11 @@ def sensor_gain(sensor, exposure_s: float, n_avg: int, webcam_gain: float) -> fl
 
 
 class Exposures:
-    """The frames a robot's camera takes: the ladder of (exposure_s, gain) settings, the short
-    webcam frame first, and which long rung the robot's clock asks for."""
+    """The frames a robot's camera takes, and which one the robot's clock asks for.
+
+    The frames are a ladder of (exposure_s, gain) settings, the short webcam frame first; the
+    class also says which long rung the robot's clock asks for.
+    """
 
     def __init__(self, cfg: CoverConfig, subcell_m: float = DEFAULT_SUBCELL_M, *, frame_noise: bool | None = None):
         from stcvision.sim_camera.camera import SyntheticCamera
@@ -190,9 +212,12 @@ class Exposures:
     frame_noise = False
 
     def _curve(self, k: int, snr: float | None = None) -> np.ndarray:
-        """Rung ``k``'s horizon (s) at :data:`RHO`, for a lone dot at ``snr`` (default
+        """Return rung ``k``'s visibility horizon (s) at :data:`RHO`.
+
+        Rung ``k``'s horizon (s) at :data:`RHO`, for a lone dot at ``snr`` (default
         ``CoverConfig.sizing_snr``; the camera's calibration of the phosphor,
-        :func:`stcvision.sim_camera.camera.visibility_horizon_s`)."""
+        :func:`stcvision.sim_camera.camera.visibility_horizon_s`).
+        """
         snr = self.cfg.sizing_snr if snr is None else snr
         if (k, snr) not in self._horizons:
             from stcvision.sim_camera.camera import ROSE_SNR, visibility_horizon_s
@@ -204,7 +229,9 @@ class Exposures:
         return self._horizons[(k, snr)]
 
     def stack_equivalent(self, k: int) -> float:
-        """The frames rung ``k`` is worth in the horizon: :func:`stcvision.sim_camera.camera.visibility_horizon_s`
+        """Return the frames rung ``k`` is worth in the visibility horizon.
+
+        The frames rung ``k`` is worth in the horizon: :func:`stcvision.sim_camera.camera.visibility_horizon_s`
         divides a frame's noise by the square root of the frames stacked, rounding included, but a
         stack arrives digitised once at the ADC's depth and is read against a dark frame digitised
         too, so its noise is :func:`stcvision.controllers.stc.health.noise_floor_dn` (the figure the noise
@@ -213,27 +240,34 @@ class Exposures:
         (its 64 x 30 s frame sees a mark 0.45 m away for 8,900 s, not 17,100 s: a box 0.13-0.21
         m away, 24,746 s old, read at a dot SNR of 4.6-6.2 in a 32 x 30 s frame where the
         idealised noise promised 9-12, was missed); a 12- or 16-bit camera's, whose gain makes
-        its noise span a DN, 0.8-0.85 of their number."""
+        its noise span a DN, 0.8-0.85 of their number.
+        """
         s, n = self._sensor(k), self.stack(k)
         idealised = (s.dark_current_e_s * s.exposure_s + s.read_noise_e**2 + 1 / (12 * s.dn_per_e**2)) / n
         return n * idealised * s.dn_per_e**2 / self._noise_floor(k) ** 2
 
     def _noise_floor(self, k: int) -> float:
-        """Rung ``k``'s noise floor by the camera's figures (:func:`stcvision.controllers.stc.health.noise_floor_dn`),
-        with its dark frame (a median of 8, or a mean of 8n frames for a stack of n)."""
+        """Return rung ``k``'s noise floor by the camera's figures.
+
+        Rung ``k``'s noise floor by the camera's figures (:func:`stcvision.controllers.stc.health.noise_floor_dn`),
+        with its dark frame (a median of 8, or a mean of 8n frames for a stack of n).
+        """
         from stcvision.controllers.stc.health import noise_floor_dn
 
         n = self.stack(k)
         return noise_floor_dn(self._sensor(k), n_avg=n, n_dark=8 * n)
 
     def horizon(self, k: int, rho_m: float, snr: float | None = None) -> float:
-        """How old (s) a mark ``rho_m`` from the robot may be and still be seen in a frame at rung
-        ``k`` (its deciding dot at ``snr``, default ``CoverConfig.sizing_snr``)."""
+        """Return how old (s) a mark may be and still be seen in a frame at rung ``k``.
+
+        How old (s) a mark ``rho_m`` from the robot may be and still be seen in a frame at rung
+        ``k`` (its deciding dot at ``snr``, default ``CoverConfig.sizing_snr``).
+        """
         i = min(int(np.searchsorted(self.RHO, rho_m - 1e-9)), len(self.RHO) - 1)
         return float(self._curve(k, snr)[i])
 
     def horizons(self, reach_m: float = AUTO_REACH_M) -> tuple[float, ...]:
-        """The long rungs' visibility horizons (s) for a dot ``reach_m`` from the robot."""
+        """Return the long rungs' visibility horizons (s) for a dot ``reach_m`` from the robot."""
         return tuple(self.horizon(k, reach_m) for k in range(1, len(self.ladder)))
 
     @property
@@ -242,31 +276,40 @@ class Exposures:
         return len(self.ladder) > 1
 
     def rung_for(self, t_s: float, rho_m: float) -> int | None:
-        """The shortest rung (the short frame included) whose horizon ``rho_m`` away covers marks
-        as old as the clock ``t_s``; None when none does."""
+        """Return the shortest rung that sees marks as old as the clock.
+
+        The shortest rung (the short frame included) whose horizon ``rho_m`` away covers marks
+        as old as the clock ``t_s``; None when none does.
+        """
         return next((k for k in range(len(self.ladder)) if self.horizon(k, rho_m) >= t_s), None)
 
     def decision_claims(self, fresh: bool, at_start: bool):
-        """What a decision's reading takes for absent (:func:`stcvision.controllers.stc.claims.decision_claims`)."""
+        """Return what a decision's reading takes for absent.
+
+        See :func:`stcvision.controllers.stc.claims.decision_claims`.
+        """
         from stcvision.controllers.stc.claims import decision_claims
 
         kw = dict(fresh=fresh, at_start=at_start, subcell_m=self.subcell_m, margin_m=self.cfg.position_margin_m)
         return lambda obs: decision_claims(obs, **kw)
 
     def look_claims(self, landing: bool):
-        """What a look's reading takes for absent: the sub-cell ahead (``landing``) or the cell ahead."""
+        """Return what a look's reading takes for absent: the sub-cell ahead (``landing``) or the cell ahead."""
         from stcvision.controllers.stc.claims import ahead_claims, landing_claims
 
         f = landing_claims if landing else ahead_claims
         return lambda marked: f(marked, subcell_m=self.subcell_m, margin_m=self.cfg.position_margin_m)
 
     def sure(self, t_s: float, read, merge, claims):
-        """(reading, seconds, the (rung, clock) of each frame taken): with exposure control,
+        """Take frames until every claim of the reading is covered.
+
+        (reading, seconds, the (rung, clock) of each frame taken): with exposure control,
         frames until every claim of the reading is covered
         (:func:`stcvision.controllers.stc.claims.read_until_sure`; raises
         :class:`stcvision.controllers.stc.claims.OutOfSight` when no frame can cover one, unless
         ``CoverConfig.stop_out_of_sight`` is off: then the longest frame is taken and the reading
-        kept); without it (the STC paper's camera) the short frame alone, whatever it misses."""
+        kept); without it (the STC paper's camera) the short frame alone, whatever it misses.
+        """
         from stcvision.controllers.stc.claims import read_until_sure
 
         if not self.controlled:
@@ -275,12 +318,15 @@ class Exposures:
         return read_until_sure(self, t_s, read, merge, claims, strict=self.cfg.stop_out_of_sight)
 
     def decision(self, t_s: float, read, fresh: bool, at_start: bool, start_cell: bool = True):
-        """(StcObservation, seconds): a decision's frames (:meth:`sure`), and per direction
+        """Read a decision: its frames, and whether each landing reading is sure.
+
+        (StcObservation, seconds): a decision's frames (:meth:`sure`), and per direction
         whether its landing reading is sure (``StcObservation.landing_known``): a mark was seen,
         or a frame taken could have seen one as old as the clock was then. Without exposure
         control the STC paper's robot takes what it sees for sure. ``start_cell``: the robot's count of
         its moves puts it in its start cell (elsewhere a start mark read is not its own:
-        :meth:`_check_start_away`)."""
+        :meth:`_check_start_away`).
+        """
         from stcvision.controllers.stc.claims import landing_claim
 
         seen: list = []  # (rung, reading) of every frame this decision takes
@@ -316,22 +362,28 @@ class Exposures:
         return dataclasses.replace(obs, landing_known=known), dt
 
     def _longer(self, t_s: float, read, obs, dt: float, taken: list):
-        """A decision's reading once more with a frame one rung longer than any taken (the
-        longest again at the top), merged: (reading, seconds, the rung, that frame's own reading)."""
+        """Read a decision once more with a frame one rung longer than any taken.
+
+        A decision's reading once more with a frame one rung longer than any taken (the
+        longest again at the top), merged: (reading, seconds, the rung, that frame's own reading).
+        """
         k = min(max(j for j, _ in taken) + 1, len(self.ladder) - 1)
         more, dk = read(k, t_s + dt)
         taken.append((k, t_s + dt))
         return _merge(obs, more), dt + dk, k, more
 
     def _check_lines(self, t_s: float, read, obs, dt: float, taken: list):
-        """At a decision the cell's marks lie on the box and start-mark lines only; a reading
+        """Check that the cell's lit rows lie on its box and start-mark lines.
+
+        At a decision the cell's marks lie on the box and start-mark lines only; a reading
         with lit rows of the cell on none (``StcObservation.other_marks``: no offset of the
         robot puts them there, :mod:`stcvision.controllers.stc.cellfit`) reads the boxes from regions
         the marks do not fill, so a box may be missed or taken from a neighbour. With exposure
         control it is read once more with a frame one rung longer than any taken (more rows to
         fit); still so, or on a camera without control, it says why
         (``StcObservation.misread``) and the robot stops before deciding. Returns (reading,
-        seconds)."""
+        seconds).
+        """
         if not obs.other_marks:
             return obs, dt
         label = self.frame_label(max(j for j, _ in taken))
@@ -347,7 +399,9 @@ class Exposures:
         return obs, dt
 
     def _check_old_boxes(self, t_s: float, read, obs, dt: float, taken: list):
-        """At a return, a box read unlit decides the parent, and a tour may show the set left
+        """Check, at a return, that a box read unlit was read by frames that could see it.
+
+        At a return, a box read unlit decides the parent, and a tour may show the set left
         without it ({4} for {2,4}: a wrong parent no cross-check of the boxes sees). The claims
         size the frames so that a mark as old as the clock still shows each dot ~84 % of the
         time (``CoverConfig.sizing_snr``): two of a row's four are then read 98.6 % of the time,
@@ -356,7 +410,8 @@ class Exposures:
         found ~98 % of the time, two of four > 99.99 %) for an unlit box's deciding dot, the
         cell is read again with the next longer frame (the longest again at the top), merged:
         the clock, not a record of where the robot has been, says a mark there may be that old.
-        Returns (reading, seconds)."""
+        Returns (reading, seconds).
+        """
         from stcvision.controllers.stc.claims import distance_m
 
         margin, snr = self.cfg.position_margin_m, self.cfg.return_snr
@@ -369,7 +424,9 @@ class Exposures:
         return obs, dt
 
     def _check_disputed(self, t_s: float, read, obs, dt: float, taken: list, seen: list):
-        """A box read lit only by frames shorter than one that read it unlit. At one pose a longer
+        """Settle a box read lit only by frames shorter than one that read it unlit.
+
+        A box read lit only by frames shorter than one that read it unlit. At one pose a longer
         frame sees every mark a shorter one can, with more signal, so the two cannot both be
         right; the merge (any frame's mark counts) would keep the lit one. On a cooled camera the
         faint-row search of a short frame, summing four windows on the noise, found a row
@@ -378,7 +435,8 @@ class Exposures:
         and at a return the boxes {3,4} for {4} sent the robot into a visited sub-cell. So such a
         box is read once more at the rung that read it lit: a mark there shows again (the longer
         frame's miss was its own), a row of noise does not, and the box is taken from that
-        frame. Returns (reading, seconds)."""
+        frame. Returns (reading, seconds).
+        """
         disputed = []
         for b, lit in enumerate(obs.boxes):
             lit_at = [k for k, o in seen if o.boxes[b]]
@@ -397,7 +455,9 @@ class Exposures:
         return dataclasses.replace(obs, boxes=tuple(boxes)), dt
 
     def _check_return(self, t_s: float, read, obs, dt: float, taken: list):
-        """A return's reading that no STC tour shows (:func:`stcvision.controllers.stc.claims.return_misread`)
+        """Read again a return's reading that no STC tour shows.
+
+        A return's reading that no STC tour shows (:func:`stcvision.controllers.stc.claims.return_misread`)
         is read once more with a frame one rung longer than any taken (the longest again at the
         top), merged. Still wrong merged, the frames disagree: a mark one frame alone shows (a
         short frame's noise or a neighbour's fresh row read into a box) is kept by the merge
@@ -406,7 +466,8 @@ class Exposures:
         reads the same boxes (the longer frame sees every mark the shorter ones could, and
         ``_check_lines`` has held each frame's rows to the cell's lines). Otherwise it says why
         (``StcObservation.misread``: the loop stops rather than decide on it). Returns
-        (reading, seconds)."""
+        (reading, seconds).
+        """
         from stcvision.controllers.stc.claims import return_misread
 
         if return_misread(obs) is None:
@@ -423,10 +484,13 @@ class Exposures:
         return dataclasses.replace(merged, misread=f"{why}, also with a {self.frame_label(k)} frame"), dt
 
     def _agree(self, t_s: float, read, merged, more, dt: float, taken: list, k: int):
-        """A second frame at rung ``k``: when it reads the boxes and start mark that frame's
+        """Take a second frame at rung ``k`` to confirm what a longer frame read.
+
+        A second frame at rung ``k``: when it reads the boxes and start mark that frame's
         ``more`` read, with every row of the cell on its lines, the reading takes them from
         ``more`` instead of the merge (which keeps any one frame's mark). Returns (the settled
-        reading or None, seconds)."""
+        reading or None, seconds).
+        """
         if more.other_marks:
             return None, dt
         again, dk = read(k, t_s + dt)
@@ -438,9 +502,12 @@ class Exposures:
         return dataclasses.replace(merged, boxes=more.boxes, start_mark=more.start_mark), dt
 
     def _longer_agreed(self, t_s: float, read, obs, dt: float, taken: list, wanted):
-        """:meth:`_longer`, then, when that frame's own reading is ``wanted``, :meth:`_agree` with
+        """Read once more with a longer frame, and confirm it when it reads what is wanted.
+
+        :meth:`_longer`, then, when that frame's own reading is ``wanted``, :meth:`_agree` with
         a second frame at its rung: (the settled reading or None, the merged reading, seconds,
-        the rung)."""
+        the rung).
+        """
         merged, dt, k, more = self._longer(t_s, read, obs, dt, taken)
         if wanted(more):
             settled, dt = self._agree(t_s, read, merged, more, dt, taken, k)
@@ -449,10 +516,13 @@ class Exposures:
         return None, merged, dt, k
 
     def _settle_fresh(self, t_s: float, read, obs, dt: float, taken: list):
-        """A cell entered as new (its look found no mark) read with a box or a start mark
+        """Settle a cell entered as new that reads with a box or a start mark.
+
+        A cell entered as new (its look found no mark) read with a box or a start mark
         (spiral_stc_test lowlight seed 222: box 5 in the short frame, a neighbour's row; the
         look was right): read once more with a frame one rung longer; two frames at that rung
-        agreeing on no mark settle it, otherwise the misread stands. Returns (reading, seconds)."""
+        agreeing on no mark settle it, otherwise the misread stands. Returns (reading, seconds).
+        """
         clean = dataclasses.replace(obs, misread="")
         settled, _, dt, k = self._longer_agreed(
             t_s, read, clean, dt, taken, lambda m: not any(m.boxes) and m.start_mark is None
@@ -462,7 +532,9 @@ class Exposures:
         return dataclasses.replace(obs, misread=f"{obs.misread}, also with a {self.frame_label(k)} frame"), dt
 
     def _check_start_away(self, t_s: float, read, obs, dt: float, taken: list):
-        """A start mark read where the robot's count of its moves says it is not in its start
+        """Settle a start mark read where the count says the robot is not in its start cell.
+
+        A start mark read where the robot's count of its moves says it is not in its start
         cell is a row read at a start-mark line that is not its own (spiral_stc_test_2 lowlight
         seed 209: the short and the 4 s frame, read at the pipeline's offset 1 cm off the truth,
         put a row on sub-cell 3's start-mark line; the 4 s frame read again against the cell's
@@ -475,7 +547,8 @@ class Exposures:
         read on sub-cell 1's start-mark line by the 4 s and the 8 s frame; the robot stood
         0.5 cm off); the boxes read with it face the checks after this one. With rows of the
         cell off the lines it says why (``StcObservation.misread``) and the robot stops before
-        deciding. Returns (reading, seconds)."""
+        deciding. Returns (reading, seconds).
+        """
         settled, merged, dt, k = self._longer_agreed(t_s, read, obs, dt, taken, lambda m: m.start_mark is None)
         if settled is not None:
             return settled, dt
@@ -504,7 +577,7 @@ class Exposures:
         return self.ladder[k][2] * self.cfg.n_stack
 
     def frame_s(self, k: int) -> float:
-        """Counts a frame at rung ``k``; returns the seconds it takes (all its exposures)."""
+        """Count a frame at rung ``k``; return the seconds it takes (all its exposures)."""
         self.frames += 1
         self.long_frames += k > 0
         self.per_rung[k] += 1
@@ -512,12 +585,15 @@ class Exposures:
 
 
 class IdealCamera(Exposures):
-    """The physics-limited camera (``--perception ideal``): it takes the same frames as the
+    """The physics-limited camera: the camera's frames and time, but the marks seen exactly.
+
+    The physics-limited camera (``--perception ideal``): it takes the same frames as the
     camera and spends the same time, but instead of rendering and reading them it sees exactly
     the marks with a dot whose age is within the frame's visibility horizon at its distance
     (:func:`stcvision.sim_camera.camera.visibility_horizon_s`, the Rose criterion on the camera model; for
     a row of four dots with ``rows``), and nothing else. No pipeline error and no drift beyond
-    the oracle's: what it cannot do, no pipeline on this camera can."""
+    the oracle's: what it cannot do, no pipeline on this camera can.
+    """
 
     def __init__(self, cfg: CoverConfig, board, *, rows: bool = True):
         super().__init__(cfg, board.subcell_m)
@@ -534,9 +610,12 @@ class IdealCamera(Exposures):
                 c[c > 0] *= cfg.ideal_horizon_factor
 
     def floor_seen(self, xy, t_s: float, phosphor, marks: list, rungs, dot_mark=None) -> MarkFloor:
-        """The marks (``marks``: the (sub-cell, edge) of every four dots laid, in order; or of
+        """Return the marks that frames at ``rungs`` taken from ``xy`` at ``t_s`` see.
+
+        The marks (``marks``: the (sub-cell, edge) of every four dots laid, in order; or of
         the dots ``dot_mark`` gives the mark of) that frames at ``rungs`` taken from ``xy`` at
-        ``t_s`` see."""
+        ``t_s`` see.
+        """
         seen = MarkFloor(self.board.shape_subcells)
         if not marks:
             return seen
@@ -549,7 +628,7 @@ class IdealCamera(Exposures):
         return seen
 
     def _seen(self, xy, phosphor, marks, k: int, t_s: float, dot_mark=None) -> tuple[MarkFloor, float]:
-        """(what a frame at rung ``k`` from ``xy`` at clock ``t_s`` sees, its seconds)."""
+        """Return what a frame at rung ``k`` from ``xy`` at clock ``t_s`` sees, and its seconds."""
         return self.floor_seen(xy, t_s, phosphor, marks, [k], dot_mark), self.frame_s(k)
 
     def observe(self, xy, t_s, phosphor, marks, sub, hc, *, fresh: bool = False, at_start: bool = False,
@@ -565,8 +644,11 @@ class IdealCamera(Exposures):
         return self.decision(t_s, read, fresh, at_start, start_cell)
 
     def look(self, xy, t_s, phosphor, marks, sub, hc, *, landing: bool = False, dot_mark=None):
-        """(marked, seconds spent): the frames :meth:`RobotCamera.look` takes; ``landing``: the
-        sub-cell ahead (before a return to the parent), else the cell ahead (a child)."""
+        """Look ahead as :meth:`RobotCamera.look` does: (marked, seconds spent).
+
+        (marked, seconds spent): the frames :meth:`RobotCamera.look` takes; ``landing``: the
+        sub-cell ahead (before a return to the parent), else the cell ahead (a child).
+        """
 
         def read(k, t):
             seen, dt = self._seen(xy, phosphor, marks, k, t, dot_mark)
@@ -576,9 +658,12 @@ class IdealCamera(Exposures):
 
 
 class RobotCamera(Exposures):
-    """Camera + pipeline at the robot: one pipeline per exposure setting, each holding the dark
+    """Camera and pipeline at the robot: one pipeline per exposure setting.
+
+    Camera + pipeline at the robot: one pipeline per exposure setting, each holding the dark
     frame taken at its exposure (so no dark frame is re-prepared between the short and the long
-    frame of a decision)."""
+    frame of a decision).
+    """
 
     frame_noise = True
 
@@ -603,10 +688,13 @@ class RobotCamera(Exposures):
         self.noise_check = NoiseCheck()
 
     def _pipeline(self, k: int):
-        """The pipeline of rung ``k``'s exposure and gain (stacked rungs share it), holding the
+        """Return the pipeline of rung ``k``, holding its dark frame.
+
+        The pipeline of rung ``k``'s exposure and gain (stacked rungs share it), holding the
         dark frame of rung ``k``: for a stack of n frames a master dark of 8n frames at the same
         exposure (taken once, before the run, lens capped), so that its own noise stays well
-        below the stack's."""
+        below the stack's.
+        """
         e, g, _ = self.ladder[k]
         n = self.stack(k)
         if (e, g) not in self.pipes:
@@ -637,13 +725,16 @@ class RobotCamera(Exposures):
     def shoot(
         self, pose, t_s: float, phosphor, k: int = 0, *, heading_error_rad: float | None = None, position_offset=None
     ):
-        """Returns (pipeline result, capture seconds). A stacked rung is the average of its
+        """Take and read a frame at rung ``k``: (pipeline result, capture seconds).
+
+        Returns (pipeline result, capture seconds). A stacked rung is the average of its
         frames (:meth:`stcvision.sim_camera.camera.SyntheticCamera.render`, ``n_avg``); the frame is read
         with ``heading_error_rad`` and ``position_offset`` when given
         (:meth:`stcvision.pipeline.Pipeline.process`).
         A frame lost or black (:func:`stcvision.controllers.stc.health.frame_fault`) is taken again, up to
         :data:`~stcvision.controllers.stc.health.FRAME_RETRIES` times (their time counts), then the robot
-        stops (:class:`~stcvision.controllers.stc.health.RobotStop`): it never reads a frame it cannot trust."""
+        stops (:class:`~stcvision.controllers.stc.health.RobotStop`): it never reads a frame it cannot trust.
+        """
         from stcvision.controllers.stc.health import FRAME_RETRIES, RobotStop, frame_fault
         from stcvision.sim_camera.camera import Pose
 
@@ -670,11 +761,14 @@ class RobotCamera(Exposures):
         return res, dt
 
     def _as_short(self, short) -> dict:
-        """How a long frame is read after the short one at the same pose: with the short frame's
+        """Read a long frame as after the short one at the same pose.
+
+        How a long frame is read after the short one at the same pose: with the short frame's
         heading fit (the long frame's recent rows all saturate) and, when the red lights in it
         are sure, their offset (the long frame has no far lights, and its many old rows, each
         laid where the robot then stood, may mislead its own offset by more than the rows' 2 cm
-        inset: a row of the cell behind then reads as a start mark)."""
+        inset: a row of the cell behind then reads as a start mark).
+        """
         from stcvision.controllers.stc.config import LANDMARK_OFFSET_SIGMA
 
         o = short.observation
@@ -686,11 +780,14 @@ class RobotCamera(Exposures):
         return {"heading_error_rad": _fit(short), "position_offset": o.landmark_offset if sure else None}
 
     def observe(self, pose, t_s, phosphor, *, fresh: bool = False, at_start: bool = False, start_cell: bool = True):
-        """One observation: (StcObservation, the short frame's result, the last long frame's
+        """Make one observation: the short frame, and the long frames its claims ask for.
+
+        One observation: (StcObservation, the short frame's result, the last long frame's
         result or None, seconds spent): the short frame, and with exposure control the long
         frames its claims ask for (:meth:`sure`), what any of them sees of the marks merged. The
         pose comes from the short frame, whose red lights do not saturate; the long ones are
-        read with its heading fit (their recent rows all saturate)."""
+        read with its heading fit (their recent rows all saturate).
+        """
         res: list = []
 
         def read(k, t):
@@ -706,12 +803,15 @@ class RobotCamera(Exposures):
         return obs, res[0], (res[-1] if len(res) > 1 else None), dt
 
     def _neighbour_rows(self, res, obs: StcObservation) -> StcObservation:
-        """A neighbour read marked (lit dots in it, no red light) whose dots show no row an STC
+        """Check that a neighbour read marked shows a row an STC tour lays there.
+
+        A neighbour read marked (lit dots in it, no red light) whose dots show no row an STC
         tour lays there (:func:`stcvision.controllers.stc.cellfit.shows_tour_row`: a row of this cell or of
         another neighbour read across the cell's edge, a noise peak, a bloom) is read as
         unmarked: it stays a candidate child, and the look from next to it, 2-3x closer, reads
         it again before the robot enters it or moves on (:meth:`look`). Passed by on such a
-        reading, a new cell would be left uncovered."""
+        reading, a new cell would be left uncovered.
+        """
         from stcvision.controllers.stc.cellfit import shows_tour_row
 
         doubt = [d for d, n in enumerate(obs.neighbours) if n.has_marks and not n.has_red]
@@ -726,21 +826,27 @@ class RobotCamera(Exposures):
         return dataclasses.replace(obs, neighbours=tuple(neigh))
 
     def _dots(self, res, offset) -> tuple[np.ndarray, np.ndarray]:
-        """A result's dots in cell units, rotated by its heading and shifted by ``offset`` (the
-        robot's offset from its sub-cell centre, cell units; None: not shifted), and which are lit."""
+        """Return a result's dots in cell units, and which are lit.
+
+        A result's dots in cell units, rotated by its heading and shifted by ``offset`` (the
+        robot's offset from its sub-cell centre, cell units; None: not shifted), and which are lit.
+        """
         from stcvision.controllers.stc.cellfit import frame_dots
 
         cell_pts, lit = frame_dots(res, self.pipe.geometry)
         return (cell_pts + np.asarray(offset) if offset is not None else cell_pts), lit
 
     def _on_cell_lines(self, res):
-        """Localisation against the cell's own marks (:mod:`stcvision.controllers.stc.cellfit`): where the
+        """Localise the robot against the cell's own marks.
+
+        Localisation against the cell's own marks (:mod:`stcvision.controllers.stc.cellfit`): where the
         pipeline's offset leaves lit row dots of the cell on no box or start-mark line, as many
         as make a mark (``ObservationParams.min_dots``: a lone dot of a row crossing the cell's
         edge, or a noise peak beside a row, makes none), the frame is read again with the offset
         that puts them on the lines. Returns (result, the cell's row dots still on no line: 0
         when the reading is consistent; at least ``min_dots`` when it is not, or when two
-        offsets explain them)."""
+        offsets explain them).
+        """
         from stcvision.controllers.stc.cellfit import fit_cell_offset, frame_dots
         from stcvision.observation import ObservationParams
 
@@ -764,11 +870,14 @@ class RobotCamera(Exposures):
         return res, max(fit.off_line, need)
 
     def look(self, pose, t_s, phosphor, *, landing: bool = False):
-        """The look ahead: (marked, the short frame's result (for the pose), the last long
+        """Look ahead before leaving a cell.
+
+        The look ahead: (marked, the short frame's result (for the pose), the last long
         frame's result or None, seconds spent). ``landing``: marks in the sub-cell just ahead
         (before a return to the parent: does the tour close there?), else in the cell ahead (a
         child). What any frame sees counts (it is never less right); the long frames are read
-        with the short frame's heading fit."""
+        with the short frame's heading fit.
+        """
         from stcvision.controllers.stc.cellfit import shows_row
         from stcvision.observation import LANDING_DOTS, marks_ahead, marks_landing_ahead
 
@@ -776,7 +885,7 @@ class RobotCamera(Exposures):
         res: list = []
 
         def read(k, t):
-            """(marked, shows a tour's row), seconds: a frame at rung ``k``."""
+            """Read a frame at rung ``k``: ((marked, shows a tour's row), seconds)."""
             how = self._as_short(res[0]) if res else {}
             herr = how.get("heading_error_rad")
             r, dt = self.shoot(pose, t, phosphor, k, **how)
@@ -793,7 +902,9 @@ class RobotCamera(Exposures):
         return marked, res[0], (res[-1] if len(res) > 1 else None), dt
 
     def _look_again(self, t_s: float, read, dt: float, taken: list):
-        """A child read marked by lit dots in the cell ahead that show no row of the robot's LEDs
+        """Look again at a child read marked by dots that show no row of the robot's LEDs.
+
+        A child read marked by lit dots in the cell ahead that show no row of the robot's LEDs
         (:func:`stcvision.controllers.stc.cellfit.shows_row`: a noise peak, two dots of a faint row, a
         bloom): a mark the tour laid there shows its row once a frame sees most of its dots, so
         it is looked at once more with a frame one rung longer than any taken (the longest again
@@ -804,7 +915,8 @@ class RobotCamera(Exposures):
         in view were laid at many times, so they do not say where it stands), and on open floor,
         beyond the red lights, a visited cell's rows lay 3-4 cm off their lines there
         (spiral_stc_test_3: the robot 1.9 cm off, its rows laid 2 cm off the other way).
-        Returns ((marked, row), seconds)."""
+        Returns ((marked, row), seconds).
+        """
         from stcvision.controllers.stc.health import RobotStop
 
         k = min(max(j for j, _ in taken) + 1, len(self.ladder) - 1)
@@ -824,10 +936,10 @@ AHEAD_CENTRE = (0.0, 1.0)
 
 
 def _either(a: tuple[bool, bool], b: tuple[bool, bool]) -> tuple[bool, bool]:
-    """What two frames of a look show together: dots either saw, a row either saw."""
+    """Merge what two frames of a look show together: dots either saw, a row either saw."""
     return a[0] or b[0], a[1] or b[1]
 
 
 def _fit(res) -> float | None:
-    """A frame's heading fit (None if it failed)."""
+    """Return a frame's heading fit (None if it failed)."""
     return res.heading.heading_error_rad if res.heading.ok else None

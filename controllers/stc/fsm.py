@@ -1,6 +1,8 @@
-"""Ant-like STC (Srour & Abboud, "Optimally Covering an Unknown Environment with Ant-like STC
-algorithm") as a pure O(1)-memory finite-state machine (no physics, no camera);
-:mod:`stcvision.controllers.stc.oracle` runs it on a grid against the truth.
+"""Ant-like STC as a pure O(1)-memory finite-state machine (no physics, no camera).
+
+The algorithm is Srour & Abboud's ("Optimally Covering an Unknown Environment with Ant-like STC
+algorithm"); :mod:`stcvision.controllers.stc.oracle` runs this machine on a grid against the
+truth.
 
 The geometry (entry frame, sub-cells 0..3, directions 0 right 1 forward 2 left 3 back) is
 :mod:`stcvision.controllers.stc.grid`'s.
@@ -103,18 +105,38 @@ REENTRY_BOXES = frozenset({(4,), (2, 4), (3, 4), (2, 4, 5), (3, 4, 5), (1, 2, 4)
 
 
 class Action(enum.Enum):
-    """What the controller asks of the robot at one tick (carried out by
-    :func:`stcvision.controllers.stc.robot.act` on any :class:`stcvision.controllers.stc.robot.Motors`)."""
+    """What the controller asks of the robot at one tick.
 
-    FORWARD = "forward"  # mark the rear edge of the current sub-cell, then drive one sub-cell
-    TURN_LEFT = "turn_left"  # 90 deg counter-clockwise in place
-    TURN_RIGHT = "turn_right"  # 90 deg clockwise in place
-    MARK = "mark"  # rear LEDs on without moving (only to lay the start mark)
-    LOOK = "look"  # before leaving a cell: look ahead (the next tick gets a LookObs)
+    Carried out by :func:`stcvision.controllers.stc.robot.act` on any
+    :class:`stcvision.controllers.stc.robot.Motors`.
+
+    Attributes
+    ----------
+    FORWARD
+        Mark the rear edge of the current sub-cell, then drive one sub-cell.
+    TURN_LEFT
+        Turn 90 deg counter-clockwise in place.
+    TURN_RIGHT
+        Turn 90 deg clockwise in place.
+    MARK
+        Rear LEDs on without moving (only to lay the start mark).
+    LOOK
+        Before leaving a cell: look ahead (the next tick gets a :class:`LookObs`).
+    DONE
+        The tour is over.
+    """
+
+    FORWARD = "forward"
+    TURN_LEFT = "turn_left"
+    TURN_RIGHT = "turn_right"
+    MARK = "mark"
+    LOOK = "look"
     DONE = "done"
 
 
 class StcPhase(enum.Enum):
+    """Where the controller is in its tour: the start mark, a decision, a walk, a look, the end."""
+
     INIT = 0  # about to turn left to lay the start mark
     START_MARK = 1  # facing left of the start heading: lay the start mark
     START_FACE = 2  # turn back to the start heading
@@ -126,91 +148,172 @@ class StcPhase(enum.Enum):
 
 @dataclass(frozen=True, slots=True)
 class StcState:
-    """Constant-size controller state (no map, no history)."""
+    """Constant-size controller state (no map, no history).
+
+    ``parent`` to ``child`` keep what the decision found, so that a look at the exit can revise
+    the exit.
+
+    Attributes
+    ----------
+    phase : StcPhase
+        Where the controller is in its tour.
+    sub : int
+        Current sub-cell, entry frame (0..3).
+    heading : int
+        Current heading as an entry-frame direction (0 right, 1 up, 2 left, 3 down).
+    target : int
+        Exit direction = index of the sub-cell to leave from (0..3).
+    final : bool
+        Stop in sub-cell ``target`` instead of leaving the cell.
+    closing : bool
+        This exit lands on a marked sub-cell: the tour closes there.
+    at_start : bool
+        The first decision, on the start sub-cell.
+    parent : int
+        Entry-frame direction of the parent.
+    free : int
+        Bit d: neighbour d looked free (no mark, no red light) at the decision.
+    is_start : bool
+        This is the start cell (its virtual parent is the last candidate).
+    land_parent : bool
+        The sub-cell beyond the exit to the parent is marked.
+    land_known : bool
+        ... and the decision's frames could tell (else: a look at the exit).
+    child : bool
+        The exit ``target`` leads into a child (not back to the parent).
+    fresh : bool
+        DECIDE: this cell was just entered as a child the look found unmarked.
+    """
 
     phase: StcPhase = StcPhase.INIT
-    sub: int = 0  # current sub-cell, entry frame (0..3)
-    heading: int = 1  # current heading as an entry-frame direction (0 right, 1 up, 2 left, 3 down)
-    target: int = 0  # exit direction = index of the sub-cell to leave from (0..3)
-    final: bool = False  # stop in sub-cell ``target`` instead of leaving the cell
-    closing: bool = False  # this exit lands on a marked sub-cell: the tour closes there
-    at_start: bool = False  # the first decision, on the start sub-cell
-    # what the decision found, kept so that a look at the exit can revise the exit
-    parent: int = 3  # entry-frame direction of the parent
-    free: int = 0  # bit d: neighbour d looked free (no mark, no red light) at the decision
-    is_start: bool = False  # this is the start cell (its virtual parent is the last candidate)
-    land_parent: bool = False  # the sub-cell beyond the exit to the parent is marked
-    land_known: bool = True  # ... and the decision's frames could tell (else: a look at the exit)
-    child: bool = False  # the exit ``target`` leads into a child (not back to the parent)
-    fresh: bool = False  # DECIDE: this cell was just entered as a child the look found unmarked
+    sub: int = 0
+    heading: int = 1
+    target: int = 0
+    final: bool = False
+    closing: bool = False
+    at_start: bool = False
+    parent: int = 3
+    free: int = 0
+    is_start: bool = False
+    land_parent: bool = False
+    land_known: bool = True
+    child: bool = False
+    fresh: bool = False
 
 
 def initial_state() -> StcState:
-    """The state before the first tick: about to turn left and lay the start mark."""
+    """Return the state before the first tick: about to turn left and lay the start mark."""
     return StcState()
 
 
 @dataclass(frozen=True, slots=True)
 class NeighbourObs:
-    """A neighbour cell as the camera reads it: marks in it, and a red light (an obstacle cell,
-    or beyond the board)."""
+    """A neighbour cell as the camera reads it: marks in it, and a red light.
 
-    has_marks: bool  # any mark inside that cell
-    has_red: bool  # red light: obstacle cell or beyond the board
+    Attributes
+    ----------
+    has_marks : bool
+        Any mark inside that cell.
+    has_red : bool
+        A red light: an obstacle cell, or beyond the board.
+    """
+
+    has_marks: bool
+    has_red: bool
 
 
 @dataclass(frozen=True, slots=True)
 class StcObservation:
-    """What the camera reports in the entry frame (robot heading up, in sub-cell 0)."""
+    """What the camera reports in the entry frame (robot heading up, in sub-cell 0).
+
+    Attributes
+    ----------
+    boxes : tuple of bool
+        The five boxes, lit or not (box 1 first).
+    neighbours : tuple of NeighbourObs
+        Right, forward, left, back.
+    start_mark : int or None
+        Entry-frame sub-cell holding the start mark, None if not this cell.
+    other_marks : int
+        Marks of this cell at none of the box / start-mark positions (checks).
+    landing_marked : tuple of bool
+        Per direction d: the sub-cell the robot lands on when it leaves towards d (neighbour d's
+        sub-cell next to our sub-cell d) already carries a mark. A return to the parent normally
+        lands on a fresh sub-cell; landing on a marked one is the tour closing on the start
+        sub-cell -- read from the floor, before the move, since the start mark under the robot
+        is hidden from its own camera.
+    landing_known : tuple of bool
+        Per direction: ``landing_marked`` is sure -- a mark was seen, or the frames could have
+        seen one as old as any can be (:mod:`stcvision.controllers.stc.claims`); where it is
+        not, the robot looks at that sub-cell from next to it before it leaves that way.
+    misread : str
+        Why no STC tour can show this reading ("" when one can:
+        :func:`stcvision.controllers.stc.claims.return_misread`); the loop stops before deciding
+        on it.
+    """
 
     boxes: tuple[bool, bool, bool, bool, bool]
-    neighbours: tuple[NeighbourObs, NeighbourObs, NeighbourObs, NeighbourObs]  # right, fwd, left, back
-    start_mark: int | None  # entry-frame sub-cell holding the start mark, None if not this cell
-    other_marks: int = 0  # marks of this cell at none of the box / start-mark positions (checks)
-    #: per direction d: the sub-cell the robot lands on when it leaves towards d (neighbour d's
-    #: sub-cell next to our sub-cell d) already carries a mark. A return to the parent normally
-    #: lands on a fresh sub-cell; landing on a marked one is the tour closing on the start sub-cell
-    #: -- read from the floor, before the move, since the start mark under the robot is hidden
-    #: from its own camera.
+    neighbours: tuple[NeighbourObs, NeighbourObs, NeighbourObs, NeighbourObs]
+    start_mark: int | None
+    other_marks: int = 0
     landing_marked: tuple[bool, bool, bool, bool] = (False, False, False, False)
-    #: per direction: ``landing_marked`` is sure -- a mark was seen, or the frames could have
-    #: seen one as old as any can be (:mod:`stcvision.controllers.stc.claims`); where it is not, the
-    #: robot looks at that sub-cell from next to it before it leaves that way
     landing_known: tuple[bool, bool, bool, bool] = (True, True, True, True)
-    #: why no STC tour can show this reading ("" when one can: :func:`stcvision.controllers.stc.claims.return_misread`);
-    #: the loop stops before deciding on it
     misread: str = ""
 
 
 @dataclass(frozen=True, slots=True)
 class LookObs:
-    """What the look before leaving a cell reports: into a child, any mark in the cell ahead;
-    back to the parent, any mark in the sub-cell just ahead (where the robot lands)."""
+    """What the look before leaving a cell reports.
+
+    Attributes
+    ----------
+    marked : bool
+        Into a child, any mark in the cell ahead; back to the parent, any mark in the sub-cell
+        just ahead (where the robot lands).
+    """
 
     marked: bool
 
 
 @dataclass(frozen=True, slots=True)
 class Decision:
-    """What a decision made of one observation (:func:`decide`): the visited sub-cells, the
-    parent, the child to enter (None: back to the parent, or stop in the start cell), whether
-    this is the start cell and whether the tour is done, the sub-cell to go to, and the
-    candidate children."""
+    """What a decision made of one observation (:func:`decide`).
 
-    visited: tuple[bool, bool, bool]  # sub-cells 1, 2, 3
-    parent: int  # entry-frame direction of the parent (virtual parent in the start cell)
-    child: int | None  # direction of the new neighbour to enter, None = none
+    Attributes
+    ----------
+    visited : tuple of bool
+        Sub-cells 1, 2, 3 visited.
+    parent : int
+        Entry-frame direction of the parent (the virtual parent in the start cell).
+    child : int or None
+        Direction of the new neighbour to enter; None: back to the parent, or stop in the start
+        cell.
+    is_start : bool
+        This is the start cell.
+    done : bool
+        Back on the start sub-cell with the whole cell covered: the tour is done.
+    target : int
+        Sub-cell to go to (and leave from unless ``final``).
+    final : bool
+        Stop in sub-cell ``target`` instead of leaving the cell (in the start cell, with no child
+        left to enter).
+    free : tuple of bool
+        Per direction: a candidate child (no red light, no mark, exit reachable); ``child`` is
+        the first of them counter-clockwise after the parent, the looks may move on to the next.
+    """
+
+    visited: tuple[bool, bool, bool]
+    parent: int
+    child: int | None
     is_start: bool
-    done: bool  # back on the start sub-cell with the whole cell covered
-    target: int  # sub-cell to go to (and leave from unless ``final``)
+    done: bool
+    target: int
     final: bool
-    #: per direction: a candidate child (no red light, no mark, exit reachable); ``child`` is the
-    #: first of them counter-clockwise after the parent, the looks may move on to the next
     free: tuple[bool, bool, bool, bool] = (False, False, False, False)
 
 
 def decide(obs: StcObservation, *, at_start: bool = False) -> Decision:
-    """The ant-like STC decision from one observation (pure, no memory).
+    """Make the ant-like STC decision from one observation (pure, no memory).
 
     Parameters
     ----------
@@ -243,10 +346,13 @@ def decide(obs: StcObservation, *, at_start: bool = False) -> Decision:
 
 
 def _free(obs: StcObservation, visited) -> tuple[bool, ...]:
-    """Per direction: the neighbour shows no red light and no mark, and its exit can be reached
-    through unvisited sub-cells only (the exit to direction ``d`` is from sub-cell ``d``, reached
+    """Tell, per direction, whether the neighbour is a candidate child.
+
+    It is when it shows no red light and no mark, and its exit can be reached through unvisited
+    sub-cells only (the exit to direction ``d`` is from sub-cell ``d``, reached
     through sub-cells ``1..d``). In a correct tour every new neighbour is reachable so; one that
-    looks new beyond a visited sub-cell has marks the camera missed."""
+    looks new beyond a visited sub-cell has marks the camera missed.
+    """
     return tuple(
         not (n.has_red or n.has_marks) and not any(visited[k] for k in range(1, d + 1))
         for d, n in enumerate(obs.neighbours)
@@ -254,8 +360,11 @@ def _free(obs: StcObservation, visited) -> tuple[bool, ...]:
 
 
 def _next_child(parent: int, free, is_start: bool, after: int | None = None) -> int | None:
-    """The first free neighbour counter-clockwise from the parent (the virtual parent last in
-    the start cell), or the first after ``after`` in that order; None if there is none."""
+    """Return the next free neighbour counter-clockwise from the parent (None if there is none).
+
+    The virtual parent comes last in the start cell; with ``after``, the first after it in that
+    order.
+    """
     order = [(parent + k) % 4 for k in (1, 2, 3)] + ([parent] if is_start else [])
     if after is not None:
         order = order[order.index(after) + 1 :]
@@ -265,7 +374,7 @@ def _next_child(parent: int, free, is_start: bool, after: int | None = None) -> 
 def _plan(
     dec_parent: int, free, is_start: bool, land_parent: bool, child: int | None, land_known: bool = True, **kw
 ) -> StcState:
-    """The MOVE state towards ``child``, or back to the parent when there is none."""
+    """Return the MOVE state towards ``child``, or back to the parent when there is none."""
     mask = sum(1 << d for d in range(4) if free[d])
     if child is not None:
         target, final, closing = child, False, False
@@ -279,9 +388,19 @@ def _plan(
 
 
 class Step(NamedTuple):
-    """One controller tick's result: the next state, the action, and the :class:`Decision` the
-    tick made (a ``DECIDE`` tick that read an observation; None on every other tick), so that
-    nothing downstream (the referee, the observers) decides again."""
+    """One controller tick's result: the next state, the action, and the decision it made.
+
+    The decision is kept so that nothing downstream (the referee, the observers) decides again.
+
+    Attributes
+    ----------
+    state : StcState
+        The next state.
+    action : Action
+        What the robot does now.
+    decision : Decision or None
+        The decision of a ``DECIDE`` tick that read an observation; None on every other tick.
+    """
 
     state: StcState
     action: Action
@@ -289,8 +408,10 @@ class Step(NamedTuple):
 
 
 def step(state: StcState, obs: StcObservation | LookObs | None) -> Step:
-    """One controller tick. ``obs`` is read in the ``DECIDE`` phase (a :class:`StcObservation`)
-    and the ``LOOK`` phase (a :class:`LookObs`).
+    """Run one controller tick.
+
+    ``obs`` is read in the ``DECIDE`` phase (a :class:`StcObservation`) and the ``LOOK`` phase
+    (a :class:`LookObs`).
 
     Before leaving into a child the robot looks at it once more, from the sub-cell next to it
     (``Action.LOOK``): from there a visited neighbour's marks are 2-3x closer than from the
@@ -310,6 +431,12 @@ def step(state: StcState, obs: StcObservation | LookObs | None) -> Step:
     -------
     Step
         The next state, the action, and the :class:`Decision` when this tick decided.
+
+    Raises
+    ------
+    ValueError
+        When the ``DECIDE`` phase gets no :class:`StcObservation`, or the ``LOOK`` phase no
+        :class:`LookObs`.
 
     Examples
     --------
@@ -355,8 +482,11 @@ def step(state: StcState, obs: StcObservation | LookObs | None) -> Step:
 
 
 def _walk(state: StcState) -> tuple[StcState, Action]:
-    """The ``MOVE`` phase's tick: turn towards the next sub-cell on the way to the exit (counter-
-    clockwise), drive there, look before leaving, leave, or stop in the final sub-cell."""
+    """Run the ``MOVE`` phase's tick.
+
+    Turn towards the next sub-cell on the way to the exit (counter-clockwise), drive there, look
+    before leaving, leave, or stop in the final sub-cell.
+    """
     m, r, j = state.sub, state.heading, state.target
     if state.final and m == j:
         return StcState(phase=StcPhase.DONE, sub=m, heading=r, target=j, final=True), Action.DONE

@@ -1,5 +1,6 @@
-"""Closed-loop ant-like STC coverage: perception -> finite-state controller -> plant, with a
-referee and observers watching.
+"""Closed-loop ant-like STC coverage, with a referee and observers watching.
+
+Perception -> finite-state controller -> plant, in turn, until the run ends.
 
 The controller (:mod:`stcvision.controllers.stc.fsm`) decides from one observation per cell entry; the
 loop runs it on a board with honest time and honest marks, from its parts:
@@ -55,9 +56,12 @@ def streams(seed: int) -> dict[str, np.random.Generator]:
 
 
 def is_complete(summary: dict) -> bool:
-    """A run of :func:`run_cover` is complete when every reachable sub-cell was covered exactly
+    """Say whether a run of :func:`run_cover` is complete.
+
+    A run of :func:`run_cover` is complete when every reachable sub-cell was covered exactly
     once, the robot finished back in its start cell, and (camera mode) made no decision the
-    oracle would not have made."""
+    oracle would not have made.
+    """
     return bool(
         summary["finished"]
         and summary["returned_to_start"]
@@ -69,10 +73,32 @@ def is_complete(summary: dict) -> bool:
 
 
 def run_cover(board, cfg: CoverConfig | None = None, *, observers=(), perception_hook=None) -> dict:
-    """Cover ``board`` from its start sub-cell; returns the summary the CLI prints.
-    ``observers``: :class:`stcvision.controllers.stc.observers.Observer` s (None entries are skipped);
-    ``perception_hook(perception)`` is handed the run's perception (e.g. to read its frames).
-    ``cfg.faults``: hardware faults built into the parts (:mod:`stcvision.controllers.stc.faults`)."""
+    """Cover a board with the ant-like STC robot, from its start sub-cell.
+
+    The robot reads its cell (perception), the controller decides, the motors act, until the
+    controller is done, a part stops the robot, or ``cfg.max_decisions`` is reached.
+
+    Parameters
+    ----------
+    board : Board
+        The board to cover (:class:`stcvision.sim_camera.board.Board`).
+    cfg : CoverConfig, optional
+        The run's robot, camera, perception, seed and limits (the defaults when None).
+        ``cfg.faults``: hardware faults built into the parts
+        (:mod:`stcvision.controllers.stc.faults`).
+    observers : sequence of Observer
+        :class:`stcvision.controllers.stc.observers.Observer` s, told of every step (None
+        entries are skipped).
+    perception_hook : callable, optional
+        ``perception_hook(perception)`` is handed the run's perception (e.g. to read its frames).
+
+    Returns
+    -------
+    dict
+        The summary the CLI prints: coverage, whether the robot finished and returned to the
+        start, why it stopped, moves, turns, decisions, looks, the referee's errors, times,
+        frames and the floor's checks; with faults, the faults and their events.
+    """
     wall0 = time.perf_counter()
     cfg = cfg if cfg is not None else CoverConfig()
     rngs = streams(cfg.seed)
@@ -106,9 +132,12 @@ def run_cover(board, cfg: CoverConfig | None = None, *, observers=(), perception
 
 @dataclass(slots=True)
 class LoopEnd:
-    """How the loop went: its decisions and looks, whether the controller finished, why the
-    robot stopped (None: it did not), and the most the robot kept between two decisions
-    (:func:`stcvision.controllers.stc.robot.robot_memory`, bytes)."""
+    """How the loop went.
+
+    Its decisions and looks, whether the controller finished, why the robot stopped (None: it
+    did not), and the most the robot kept between two decisions
+    (:func:`stcvision.controllers.stc.robot.robot_memory`, bytes).
+    """
 
     decisions: int = 0
     looks: int = 0
@@ -118,8 +147,11 @@ class LoopEnd:
 
 
 def _loop(robot: Robot, max_decisions: int, watch, referee, end: LoopEnd) -> None:
-    """Perception -> controller -> motors until the controller is done, the robot stops or
-    ``max_decisions`` is reached; the outcome goes into ``end``."""
+    """Run perception, controller and motors in turn until the run ends.
+
+    It ends when the controller is done, the robot stops or ``max_decisions`` is reached; the
+    outcome goes into ``end``.
+    """
     state = initial_state()
     while end.decisions < max_decisions:
         try:
@@ -152,8 +184,10 @@ def _loop(robot: Robot, max_decisions: int, watch, referee, end: LoopEnd) -> Non
 
 
 def _tell(robot: Robot, watch, referee, end: LoopEnd, prev, state, obs, decision) -> None:
-    """The observers and the referee hear of a reading and what the controller made of it; the
-    robot's memory is measured between two decisions."""
+    """Tell the observers and the referee of a reading and the decision made of it.
+
+    The robot's memory is measured here, between two decisions.
+    """
     plant, belief, floor, frame = robot.plant, robot.belief, robot.floor, robot.see.last_frame
     if isinstance(obs, StcObservation):
         watch.on_reading(Reading("decision", end.decisions, plant, belief, floor, obs=obs, decision=decision,

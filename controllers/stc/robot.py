@@ -1,5 +1,7 @@
-"""The STC robot as parts with public seams, so that a real robot's camera and motors can take
-the simulator's place: what the controller's actions drive (:class:`Motors`, :func:`act`), the
+"""The STC robot as parts with public seams, so that a real robot can take the simulator's place.
+
+A real robot's camera and motors can stand in for the simulated ones: what the controller's
+actions drive (:class:`Motors`, :func:`act`), the
 robot in the closed loop (:class:`Robot`: the plant, what it believes, the floor, its
 perception, its count of moves), and what it keeps between two decisions
 (:func:`robot_memory`).
@@ -32,22 +34,50 @@ __all__ = ["Motors", "Robot", "act", "robot_memory"]
 
 
 class Motors(Protocol):
-    """What the controller's actions drive."""
+    """What the controller's actions drive: the simulated robot, the oracle's grid, a real robot.
+
+    Any object with these three methods will do (a structural type: no base class needed).
+    """
 
     def mark(self) -> None:
         """Switch the rear LEDs on without moving (the start mark)."""
 
     def forward(self) -> str | None:
-        """Lay a row on the rear edge of the sub-cell, then drive one sub-cell on; returns why
-        the robot cannot go on, or None."""
+        """Lay a row on the rear edge of the sub-cell, then drive one sub-cell on.
+
+        Returns
+        -------
+        str or None
+            Why the robot cannot go on, or None.
+        """
 
     def turn(self, left: bool) -> None:
-        """A quarter turn in place (``left``: counter-clockwise)."""
+        """Make a quarter turn in place.
+
+        Parameters
+        ----------
+        left : bool
+            Turn counter-clockwise; else clockwise.
+        """
 
 
 def act(action: Action, motors: Motors) -> str | None:
-    """Carry out a controller ``action`` on ``motors``; returns why the robot cannot go on, or
-    None. ``LOOK`` and ``DONE`` move nothing (the look's reading is the next tick's observation)."""
+    """Carry out a controller action on any motors.
+
+    ``LOOK`` and ``DONE`` move nothing (the look's reading is the next tick's observation).
+
+    Parameters
+    ----------
+    action : Action
+        What the controller asked for.
+    motors : Motors
+        What carries it out.
+
+    Returns
+    -------
+    str or None
+        Why the robot cannot go on (from ``Motors.forward``), or None.
+    """
     if action is Action.MARK:
         motors.mark()
     elif action is Action.FORWARD:
@@ -59,12 +89,29 @@ def act(action: Action, motors: Motors) -> str | None:
 
 @dataclass(eq=False)
 class Robot:
-    """The robot in the closed loop: ``plant`` (its body, clock and motors: the simulator's
-    :class:`stcvision.controllers.stc.plant.Plant`), ``belief`` (what it believes of itself), ``floor``
-    (what it marks), ``see`` (its perception: :mod:`stcvision.controllers.stc.perception`) and ``count``
-    (its count of moves). ``log``: the study switch's map of where it has been
-    (``CoverConfig.move_log``), None in the ant-like robot. ``watch`` hears of every turn's
-    measurement."""
+    """The robot in the closed loop: its motors (a :class:`Motors`) and its readings.
+
+    Attributes
+    ----------
+    plant : object
+        Its body, clock and motors: the simulator's
+        :class:`stcvision.controllers.stc.plant.Plant`.
+    belief : Belief
+        What it believes of itself.
+    floor : object
+        What it marks.
+    see : object
+        Its perception (:mod:`stcvision.controllers.stc.perception`).
+    count : MoveCount
+        Its count of moves.
+    watch : Observer
+        Hears of every turn's measurement.
+    log : MoveLog or None
+        The study switch's map of where it has been (``CoverConfig.move_log``), None in the
+        ant-like robot.
+    start_marks_by_count : int
+        Decisions in the start cell whose frames missed the start mark, taken from the count.
+    """
 
     plant: object
     belief: Belief
@@ -73,14 +120,24 @@ class Robot:
     count: MoveCount
     watch: Observer = field(default_factory=Observer)
     log: MoveLog | None = None
-    #: decisions in the start cell whose frames missed the start mark, taken from the count
     start_marks_by_count: int = 0
 
     # ------------------------------------------------------------------ the motors
     def mark(self) -> None:
+        """Lay the start mark: the rear LEDs on without moving."""
         lay_row(self.plant, self.belief, self.floor)
 
     def forward(self) -> str | None:
+        """Lay a row on the rear edge of the sub-cell, then drive one sub-cell on.
+
+        A robot too far off its sub-cell centre drives back to it first, and one standing ahead
+        of or behind it along its heading drives to it, so that the row lies on its box line.
+
+        Returns
+        -------
+        str or None
+            Why the robot cannot go on, or None.
+        """
         plant, belief = self.plant, self.belief
         if self.log is not None:
             self.log.forward(belief.hc)
@@ -97,7 +154,13 @@ class Robot:
         return drive_forward(plant, belief)
 
     def turn(self, left: bool) -> None:
-        """The turn, then the perception measures the heading for the recalibration."""
+        """Make a quarter turn, then measure the heading for the turn-time recalibration.
+
+        Parameters
+        ----------
+        left : bool
+            Turn counter-clockwise; else clockwise.
+        """
         turn(self.plant, self.belief, left)
         err = self.see.heading_after_turn(self.plant, self.belief, self.floor)  # (takes frames, does not turn)
         self.watch.on_turn(self.plant, self.belief, err)
@@ -105,9 +168,27 @@ class Robot:
 
     # ------------------------------------------------------------------ the readings
     def read(self, state: StcState) -> StcObservation | LookObs | None:
-        """What the controller reads in ``state``: a decision's observation, a look's, or
-        nothing. May raise :class:`stcvision.controllers.stc.claims.OutOfSight` or
-        :class:`stcvision.controllers.stc.health.RobotStop`."""
+        """Read what the controller needs in ``state``: a decision's observation, a look's, or nothing.
+
+        Parameters
+        ----------
+        state : StcState
+            The controller's state: ``DECIDE`` reads the cell, ``LOOK`` looks ahead.
+
+        Returns
+        -------
+        StcObservation, LookObs or None
+            The reading for the controller's next tick.
+
+        Raises
+        ------
+        OutOfSight
+            When no frame of the camera can rule out what the reading must
+            (:class:`stcvision.controllers.stc.claims.OutOfSight`).
+        RobotStop
+            When a part finds the robot cannot go on
+            (:class:`stcvision.controllers.stc.health.RobotStop`).
+        """
         if state.phase is StcPhase.DECIDE and not state.closing:
 
             def observe() -> StcObservation:
@@ -130,11 +211,14 @@ class Robot:
         return None
 
     def _start_by_count(self, obs: StcObservation, state: StcState) -> StcObservation:
-        """In the start cell the count says which sub-cell is the start sub-cell: a start mark the
+        """Take the start sub-cell from the count of moves, in the start cell.
+
+        In the start cell the count says which sub-cell is the start sub-cell: a start mark the
         frames missed there (the tour's oldest mark) is the count's, and one read in another
         sub-cell is a row read on a start-mark line that is not the start mark: the robot will not
         decide on it. Outside the start cell a start mark read is checked by the frames
-        (:meth:`stcvision.controllers.stc.frames.Exposures.decision`) and by :meth:`refuses`."""
+        (:meth:`stcvision.controllers.stc.frames.Exposures.decision`) and by :meth:`refuses`.
+        """
         m = self.count.start_in_frame(self.belief.hc)
         if m is None or state.at_start or obs.misread or obs.start_mark == m:
             return obs
@@ -145,9 +229,21 @@ class Robot:
         return dataclasses.replace(obs, misread=why)
 
     def refuses(self, obs: StcObservation, state: StcState) -> str | None:
-        """Why the robot will not decide on ``obs``, or None: no STC tour shows this reading
-        (``obs.misread``), or it shows the start mark where the count says the robot is not in
-        its start cell."""
+        """Say why the robot will not decide on an observation, or None.
+
+        Parameters
+        ----------
+        obs : StcObservation
+            The decision's observation.
+        state : StcState
+            The controller's state.
+
+        Returns
+        -------
+        str or None
+            Why: no STC tour shows this reading (``obs.misread``), or it shows the start mark
+            where the count says the robot is not in its start cell. None when it may decide.
+        """
         if obs.misread:
             return obs.misread
         if obs.start_mark is not None and not state.at_start and not self.count.in_start_cell():
@@ -156,10 +252,13 @@ class Robot:
 
     # ------------------------------------------------------------------ the study switch
     def _checked_by_log(self, obs: StcObservation, observe) -> StcObservation:
-        """``CoverConfig.move_log``: a neighbour read marked that the count never entered holds no
+        """Check a reading against the map of where the robot has been.
+
+        ``CoverConfig.move_log``: a neighbour read marked that the count never entered holds no
         mark the robot laid, so it stays a candidate child for the look to read again; a box
         read unlit whose row the count laid is a mark the frames missed, so the cell is read
-        once more, and a second miss is not decided on."""
+        once more, and a second miss is not decided on.
+        """
         log, hc = self.log, self.belief.hc
         suspect = log.suspect_neighbours(obs.neighbours, hc)
         if suspect:
@@ -178,8 +277,11 @@ class Robot:
         return dataclasses.replace(again, misread=why)
 
     def _look_by_log(self) -> bool:
-        """``CoverConfig.move_log``: a child read marked that the count never entered is looked
-        at once more; marked again, no reading explains both the count and the frames."""
+        """Look again at a child read marked that the count never entered.
+
+        ``CoverConfig.move_log``: a child read marked that the count never entered is looked at
+        once more; marked again, no reading explains both the count and the frames.
+        """
         if not self.log.never_entered_ahead(self.belief.hc):
             return True
         self.log.relooked += 1
@@ -192,14 +294,29 @@ class Robot:
 
 
 def robot_memory(robot: Robot, state: StcState) -> bytes:
-    """Everything the robot keeps between two decisions, serialised with :mod:`pickle` (protocol
-    5): its controller state, its pose belief (the sub-cell, the compass heading, the offset
-    from the sub-cell's centre and the heading's drift with their variances, the turn time),
-    its clock, its camera's settings (the exposure ladder) and its count of moves. Not the
-    floor, the plant or the referee (the world and its judge), nor the camera's calibration
-    (dark frames, visibility horizons: measured once before the run, the same on any board).
-    The study switch's :class:`stcvision.controllers.stc.movecount.MoveLog` is counted when it is on: it
-    is what the ant-like robot must not need. ``len()`` of the result is ``robot_memory_bytes``."""
+    """Serialise everything the robot keeps between two decisions.
+
+    Serialised with :mod:`pickle` (protocol 5): its controller state, its pose belief (the
+    sub-cell, the compass heading, the offset from the sub-cell's centre and the heading's drift
+    with their variances, the turn time), its clock, its camera's settings (the exposure ladder)
+    and its count of moves. Not the floor, the plant or the referee (the world and its judge),
+    nor the camera's calibration (dark frames, visibility horizons: measured once before the
+    run, the same on any board). The study switch's
+    :class:`stcvision.controllers.stc.movecount.MoveLog` is counted when it is on: it is what
+    the ant-like robot must not need.
+
+    Parameters
+    ----------
+    robot : Robot
+        The robot in the loop.
+    state : StcState
+        The controller's state.
+
+    Returns
+    -------
+    bytes
+        The pickle; its ``len()`` is the summary's ``robot_memory_bytes``.
+    """
     cam = getattr(robot.see, "cam", None)
     kept = (state, robot.belief, float(robot.plant.t), getattr(cam, "ladder", ()), robot.count, robot.log)
     return pickle.dumps(kept, protocol=5)

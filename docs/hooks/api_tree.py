@@ -15,7 +15,13 @@ import shutil
 import tomllib
 from pathlib import Path
 
+from mkdocs.plugins import event_priority
 
+
+# First of every on_config: mkdocstrings' own on_config sets its handler up and keeps only the
+# search paths that exist then, so on a fresh checkout (no build/ yet) the tree must be laid out
+# before it, or griffe finds the source folder without the mapped packages.
+@event_priority(100)
 def on_config(config, **_):
     root = Path(config.config_file_path).resolve().parent
     mapping = tomllib.loads((root / "pyproject.toml").read_text(encoding="utf-8"))["tool"]["setuptools"]["package-dir"]

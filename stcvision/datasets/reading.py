@@ -1,6 +1,8 @@
-"""Reading a dataset folder: its manifest, its labels, and the checks that every file they name
-is there at the depth its sensor gives (:func:`open_dataset`); and the images of a folder of a
-user's own frames (:func:`list_images`).
+"""Reading a dataset folder, and the images of a folder of a user's own frames.
+
+A dataset folder's manifest and labels are read and checked: every file they name is there at
+the depth its sensor gives (:func:`open_dataset`). A folder of a user's own frames is listed by
+:func:`list_images`.
 """
 
 from __future__ import annotations
@@ -21,7 +23,19 @@ __all__ = ["Dataset", "list_images", "open_dataset", "open_labelled_folder"]
 
 @dataclass(frozen=True)
 class Dataset:
-    """A validated dataset folder: its manifest and its labels (in frame order)."""
+    """A validated dataset folder: its manifest and its labels (in frame order).
+
+    Made by :func:`open_dataset`; ``datasets/README.md`` describes the folder's files.
+
+    Attributes
+    ----------
+    root : Path
+        The dataset folder.
+    manifest : dict
+        ``manifest.json``: the image size, the cameras, the dark frames, the frame count.
+    labels : list of dict
+        The lines of ``labels.jsonl``, one per frame, in frame order.
+    """
 
     root: Path
     manifest: dict
@@ -29,15 +43,31 @@ class Dataset:
 
     @property
     def hand_labelled(self) -> bool:
-        """True for a person's labelled frames (:func:`open_labelled_folder`), False for a set
-        the simulator rendered with its ground truth."""
+        """Say whether these are a person's labelled frames.
+
+        True for a folder :func:`open_labelled_folder` read, False for a set the simulator
+        rendered with its ground truth.
+        """
         return self.manifest["kind"] == LABELLED_KIND
 
     @property
     def image_size_px(self) -> tuple[int, int]:
+        """The frames' (width, height) in pixels."""
         return tuple(self.manifest["image_size_px"])
 
     def profile_path(self, camera: str) -> Path | None:
+        """Return the calibration profile the dataset holds for a camera.
+
+        Parameters
+        ----------
+        camera : str
+            The camera's id, as the manifest names it.
+
+        Returns
+        -------
+        Path or None
+            The profile's file, or None when the dataset holds none for this camera.
+        """
         p = self.manifest["cameras"].get(camera, {}).get("profile")
         return self.root / p if p else None
 
@@ -55,6 +85,24 @@ def open_dataset(root: str | Path, *, dark: str | Path | None = None) -> Dataset
     its sensor's depth (8-bit, or 16-bit for a deeper ADC: from the PNG header). Frames are
     decoded later (by the evaluation), where a corrupt frame is skipped and counted and a wrong
     size is an error.
+
+    Parameters
+    ----------
+    root : str or Path
+        The dataset folder (made by ``stcvision dataset generate``), or a folder of a person's
+        labelled frames (``labels.jsonl`` without ``manifest.json``).
+    dark : str or Path, optional
+        A labelled folder's dark frame for the frames whose label names none.
+
+    Returns
+    -------
+    Dataset
+        The folder's manifest and labels.
+
+    Raises
+    ------
+    BadInputError
+        For every problem the checks find, in one line.
     """
     root = Path(root)
     if not root.is_dir():
@@ -133,7 +181,9 @@ def _inside(root: Path, name: str, what: str, where: str) -> Path:
 
 
 def open_labelled_folder(root: str | Path, *, dark: str | Path | None = None) -> Dataset:
-    """A folder of a robot's own frames with a person's ``labels.jsonl`` (:mod:`stcvision.labels`).
+    """Open a folder of a robot's own frames with a person's ``labels.jsonl``.
+
+    The labels are in the hand-label format of :mod:`stcvision.labels`.
 
     Parameters
     ----------
@@ -190,8 +240,11 @@ def open_labelled_folder(root: str | Path, *, dark: str | Path | None = None) ->
 
 
 def _png_header(path: Path) -> tuple[int, int] | None:
-    """(bit depth per channel, PNG colour type) from a PNG's IHDR chunk (its first 26 bytes), or
-    None if ``path`` is not a PNG file. Colour type 2 is RGB (a BGR frame), 0 grey."""
+    """Read a PNG's bit depth per channel and colour type from its header.
+
+    (bit depth per channel, PNG colour type) from a PNG's IHDR chunk (its first 26 bytes), or
+    None if ``path`` is not a PNG file. Colour type 2 is RGB (a BGR frame), 0 grey.
+    """
     with open(path, "rb") as f:
         head = f.read(26)
     if len(head) < 26 or head[:8] != b"\x89PNG\r\n\x1a\n" or head[12:16] != b"IHDR":
@@ -200,9 +253,12 @@ def _png_header(path: Path) -> tuple[int, int] | None:
 
 
 def _check_depths(root: Path, labels: list[dict]) -> None:
-    """Every labelled PNG frame and its dark frame hold 3 channels at the depth the label's sensor
+    """Check that every labelled PNG frame and its dark frame hold 3 channels at their sensor's depth.
+
+    Every labelled PNG frame and its dark frame hold 3 channels at the depth the label's sensor
     digitises (8 bits for an 8-bit ADC, 16 for 9-16 bits: the ADC counts), read from the PNG
-    headers (the frames are not decoded)."""
+    headers (the frames are not decoded).
+    """
     seen: dict[str, int] = {}
     for lab in labels:
         bits = lab["sensor"].get("adc_bits", 8) if isinstance(lab["sensor"], dict) else 8
@@ -225,8 +281,10 @@ def _check_depths(root: Path, labels: list[dict]) -> None:
 
 
 def list_images(root: str | Path) -> list[Path]:
-    """The image files of a folder of the user's own frames (sorted by name; ``frames/`` if the
-    folder itself holds none)."""
+    """List the image files of a folder of the user's own frames.
+
+    Sorted by name; those of ``frames/`` if the folder itself holds none.
+    """
     root = Path(root)
     if not root.is_dir():
         raise BadInputError(f"frame folder {root} does not exist")

@@ -1,4 +1,6 @@
-"""Dataset recipes (``datasets/recipes/*.json``, format in ``datasets/README.md``): parsing and
+"""Dataset recipes: parsing and checking.
+
+Dataset recipes (``datasets/recipes/*.json``, format in ``datasets/README.md``): parsing and
 checking, every problem a one-line :class:`~stcvision.errors.BadInputError`.
 
 The scene parameters a recipe may set are the keyword arguments of the simulator's scene function
@@ -26,7 +28,9 @@ RECIPE_SCHEMA_VERSION = 1
 
 @functools.cache
 def scene_keys() -> dict[str, str]:
-    """The scene parameters a recipe may set: the keyword-only arguments of
+    """Return the scene parameters a recipe may set, each with the JSON it takes.
+
+    The scene parameters a recipe may set: the keyword-only arguments of
     :func:`stcvision.sim_camera.scenarios.cell_scene`, each with the JSON it takes, from its annotation:
     ``"pair"`` (a tuple: a list of two numbers), ``"number"``, or ``"number_or_pair"`` (either).
 
@@ -84,6 +88,26 @@ class Group:
 
 @dataclass(frozen=True, kw_only=True)
 class Recipe:
+    """A validated dataset recipe (``datasets/README.md`` describes each key).
+
+    Attributes
+    ----------
+    name : str
+        The recipe's name (used in the default output folder and in reports).
+    seed : int
+        The default seed.
+    dark_frames : int
+        Frames median-stacked into each dark frame.
+    lights_on_frames : int
+        Lights-on frames of the calibration board per camera.
+    profiles : bool
+        Make each camera's profile with the calibration workflow.
+    groups : tuple of Group
+        The groups of frames, each from one camera at one sensor setting.
+    raw : dict
+        The recipe's JSON as read.
+    """
+
     name: str
     seed: int
     dark_frames: int
@@ -94,6 +118,7 @@ class Recipe:
 
     @property
     def n_frames(self) -> int:
+        """The frames of every group together."""
         return sum(g.n for g in self.groups)
 
 
@@ -105,7 +130,7 @@ def _int(v: Any, what: str, *, lo: int = 0, hi: int | None = None) -> int:
 
 
 def _plain_name(name: Any) -> bool:
-    """A non-empty name of letters, digits, '-' and '_' (safe as a file or folder name)."""
+    """Say whether a name is non-empty, of letters, digits, '-' and '_' (safe as a file or folder name)."""
     return (
         isinstance(name, str)
         and bool(name)
@@ -246,4 +271,21 @@ def parse_recipe(d: Any, *, where: str = "recipe") -> Recipe:
 
 
 def load_recipe(path: str | Path) -> Recipe:
+    """Read and validate a dataset recipe file.
+
+    Parameters
+    ----------
+    path : str or Path
+        The recipe's JSON file (``datasets/recipes/*.json``).
+
+    Returns
+    -------
+    Recipe
+        The recipe, every key checked.
+
+    Raises
+    ------
+    BadInputError
+        For a missing or unreadable file and for every problem of its content, in one line.
+    """
     return parse_recipe(read_json(path, what="recipe"), where=f"recipe {path}")

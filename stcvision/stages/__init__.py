@@ -1,5 +1,4 @@
-"""The pipeline's stages, one module each, each a pure function with frozen, documented
-parameters.
+"""The pipeline's stages, one module each, each a pure function with frozen, documented parameters.
 
 ``dark`` (dark frame, background and noise), ``window`` (window sums), ``ground_view`` (the
 unwarp to the ground view), ``channels`` (red/green separation), ``dots``, ``rows``, ``red`` and

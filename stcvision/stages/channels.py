@@ -1,5 +1,7 @@
-"""The channels stage: the red/green separation into the obstacle image (red lights) and the
-marks image (green phosphor), the red lights blacked out of the marks with a margin.
+"""The channels stage: the red/green separation into the obstacle and marks images.
+
+The obstacle image holds the red lights, the marks image the green phosphor; the red lights are
+blacked out of the marks with a margin.
 
 :class:`ChannelParams` holds the rule and :func:`separation_rule` turns it into the thresholds
 the compiled pass compares with. :func:`separate_channels` (and :func:`filter_channels` on a
@@ -28,7 +30,9 @@ from stcvision.stages.ground_view import GatherTables, UnwarpMap, unwarp_separat
 
 @dataclass(frozen=True, kw_only=True, slots=True)
 class ChannelParams:
-    """Red/green separation (ant-like STC paper: "In the obstacle image, we keep all the pixels that
+    """Red/green separation: which pixels are red light, which are marks.
+
+    Red/green separation (ant-like STC paper: "In the obstacle image, we keep all the pixels that
     the red color is bigger than a threshold. And in the visited cells, we keep the colors that the
     red colors is less than a threshold").
 
@@ -63,8 +67,11 @@ class ChannelParams:
     red_min_fraction: float = 0.5
 
     def levels(self, background_dn: float, noise_dn: float) -> tuple[float, float]:
-        """(red threshold, dominance tolerance) per pixel in DN, for a red channel of this
-        background and noise."""
+        """Return the (red threshold, dominance tolerance) per pixel in DN.
+
+        (red threshold, dominance tolerance) per pixel in DN, for a red channel of this
+        background and noise.
+        """
         thr = background_dn + self.red_k_sigma * noise_dn if self.red_threshold_dn is None else self.red_threshold_dn
         tol = self.dominance_k_sigma * noise_dn if self.dominance_tol_dn is None else self.dominance_tol_dn
         return float(thr), float(tol)
@@ -81,13 +88,36 @@ def filter_channels(
 ) -> tuple[np.ndarray, np.ndarray]:
     """Split a dark-subtracted BGR image into (obstacle, marks) single-channel images.
 
-    ``image`` is uint8, or window sums (see :func:`window_sums`) with ``window_area`` pixels per
-    sum; the thresholds are per pixel and scale with it. The outputs keep the input dtype.
-    ``background_dn``, ``noise_dn``: the red channel's per-pixel background and noise (default:
-    measured on a uint8 ``image``). ``leak_threshold`` (same units as ``image``; default: none)
-    is the lower red level above which a red-dominated pixel is still kept out of the marks
-    image: a bright light's faint halo (lens glare, blooming) carries green by crosstalk far
-    beyond the pixels bright enough to count as the light itself.
+    The thresholds are per pixel and scale with ``window_area``. The outputs keep the input dtype.
+
+    Parameters
+    ----------
+    image : numpy.ndarray
+        (H, W, 3) uint8, or window sums (see :func:`window_sums`) with ``window_area`` pixels
+        per sum.
+    params : ChannelParams
+        The red and dominance thresholds.
+    window_area : int
+        Pixels per sum (1 for a plain image).
+    leak_threshold : float, optional
+        Same units as ``image``; default none. The lower red level above which a red-dominated
+        pixel is still kept out of the marks image: a bright light's faint halo (lens glare,
+        blooming) carries green by crosstalk far beyond the pixels bright enough to count as the
+        light itself.
+    background_dn, noise_dn : float, optional
+        The red channel's per-pixel background and noise (default: measured on a uint8
+        ``image``; window sums need them given).
+
+    Returns
+    -------
+    tuple of numpy.ndarray
+        (obstacle, marks), single-channel images of the input dtype.
+
+    Raises
+    ------
+    BadInputError
+        When ``image`` is not a 3-channel uint8 image or window sums, or window sums come without
+        ``background_dn`` and ``noise_dn``.
     """
     check_image(image, "image", (np.uint8, *SUM_DTYPES), ndims=(3,))
     if image.shape[2] != 3:
@@ -118,7 +148,9 @@ def separate_channels(
     background_dn: float,
     noise_dn: float,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`filter_channels` on a green and a red image already split apart: the rule the
+    """Separate a green and a red image already split apart, as the pipeline does.
+
+    :func:`filter_channels` on a green and a red image already split apart: the rule the
     pipeline runs (:func:`separation_rule`, the compiled loops of :func:`unwarp_separate` over the
     identity map, :func:`black_out`), so what it shows is what the pipeline computes.
 
@@ -152,15 +184,19 @@ _NO_LEAK = 2.0**40
 
 @functools.lru_cache(maxsize=4)
 def _identity_tables(w: int, h: int) -> GatherTables:
-    """The gather tables of the map that reads every pixel where it stands (kept per image size:
-    building them is 8 of a 640x480 call's 10 ms; the compiled loops only read them)."""
+    """Build the gather tables of the map that reads every pixel where it stands.
+
+    They are kept per image size: building them is 8 of a 640x480 call's 10 ms; the compiled
+    loops only read them.
+    """
     my, mx = np.mgrid[0:h, 0:w].astype(np.float32)
     return GatherTables.from_map(UnwarpMap(mx, my, np.ones((h, w), bool), (w, h)))
 
 
 def black_out_margin(red_margin_px: int) -> np.ndarray | None:
-    """The structuring element the black-out grows by: an ellipse reaching ``red_margin_px``
-    beyond a pixel.
+    """Return the structuring element the black-out grows by.
+
+    An ellipse reaching ``red_margin_px`` beyond a pixel.
 
     Parameters
     ----------
@@ -178,11 +214,14 @@ def black_out_margin(red_margin_px: int) -> np.ndarray | None:
 
 
 def separation_rule(channels: ChannelParams, window_area: int, red_levels, leak: float, dtype) -> tuple:
-    """The red/green separation of :func:`separate_channels` for window sums of ``dtype`` as the
+    """Turn the channel parameters into the levels the compiled unwarp compares with.
+
+    The red/green separation of :func:`separate_channels` for window sums of ``dtype`` as the
     compiled unwarp takes it: (light threshold, dominance tolerance, the saturation's bottom and
     top, the red fraction's weight and offset, leak level), float32 as OpenCV rounds them:
     ``red_levels`` the red channel's per-pixel background and noise, ``leak`` (in sums) the
-    level above which a red-dominated pixel is blacked out too."""
+    level above which a red-dominated pixel is blacked out too.
+    """
     thr, tol = channels.levels(*red_levels)
     thr_a, tol_a = float(thr * window_area), float(tol * window_area)
     # the red-fraction test as cv2.addWeighted(r, 1, g, -f, -(1 - f) bg) >= 0 takes it
@@ -199,8 +238,11 @@ def separation_rule(channels: ChannelParams, window_area: int, red_levels, leak:
 
 
 def black_out(marks: np.ndarray, black: np.ndarray, n: int, margin: np.ndarray | None, scratch: Scratch = new_arrays):
-    """Zero in ``marks`` the ``n`` pixels :func:`unwarp_separate` marked in ``black``, grown by
-    the structuring element ``margin`` (the red lights' halo; None: not grown), in place."""
+    """Black out the red lights' pixels of the marks image, in place.
+
+    Zero in ``marks`` the ``n`` pixels :func:`unwarp_separate` marked in ``black``, grown by
+    the structuring element ``margin`` (the red lights' halo; None: not grown), in place.
+    """
     if not n:
         return
     if margin is not None:

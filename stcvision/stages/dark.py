@@ -1,5 +1,7 @@
-"""The dark stage: the dark frame subtracted (saturating, with a pedestal), hot pixels masked,
-and the frame's background and noise level.
+"""The dark stage: dark subtraction, hot pixels, and the frame's background and noise.
+
+The dark frame is subtracted saturating, with a pedestal; hot pixels are masked; the frame's
+background and noise level are measured.
 
 :func:`subtract_dark` is the stage as OpenCV writes it on a whole colour frame (the reference,
 and the display image); :func:`dark_channels` is what the pipeline runs: green and red of the
@@ -76,7 +78,7 @@ MIN_PROBE_AGREEMENT = 0.5
 
 
 def hot_pixel_probe(dark: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The dark frame's strongest hot pixels in green, to recognise its camera by.
+    """Find the dark frame's strongest hot pixels in green, to recognise its camera by.
 
     A hot pixel's dark current is the sensor's own (its fixed pattern): a frame from the same
     sensor at the same exposure shows it again, one from another sensor does not. Each pixel is
@@ -106,9 +108,12 @@ def hot_pixel_probe(dark: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def probe_agreement(frame: np.ndarray, probe: tuple[np.ndarray, np.ndarray]) -> float | None:
-    """The share of the probe's hot pixels (:func:`hot_pixel_probe`) that ``frame`` shows at half
+    """Measure how many of the dark frame's hot pixels a frame shows.
+
+    The share of the probe's hot pixels (:func:`hot_pixel_probe`) that ``frame`` shows at half
     their dark excess or more over their neighbour; None when the probe is too small to judge
-    (under :data:`MIN_PROBE_PIXELS`)."""
+    (under :data:`MIN_PROBE_PIXELS`).
+    """
     idx, excess = probe
     if len(idx) < MIN_PROBE_PIXELS:
         return None
@@ -118,7 +123,7 @@ def probe_agreement(frame: np.ndarray, probe: tuple[np.ndarray, np.ndarray]) -> 
 
 
 def check_dark_dtype(dark: np.ndarray, frame_dtype) -> None:
-    """A dark frame must come from the same ADC as the frames: the same dtype."""
+    """Check that a dark frame comes from the same ADC as the frames: the same dtype."""
     if dark.dtype != frame_dtype:
         raise BadInputError(
             f"dark frame has dtype {dark.dtype}, the frame {np.dtype(frame_dtype)}; "
@@ -127,9 +132,12 @@ def check_dark_dtype(dark: np.ndarray, frame_dtype) -> None:
 
 
 def quantum_dn(values: np.ndarray) -> int:
-    """The quantisation step of integer pixel values (DN): the greatest common divisor of their
-    differences -- 1 for LSB-aligned data of any depth, 16 for 12-bit counts MSB-aligned in
-    16 bits. Noise floors are fractions of this step, so the alignment does not matter."""
+    """Return the quantisation step of integer pixel values (DN).
+
+    The greatest common divisor of their differences -- 1 for LSB-aligned data of any depth, 16
+    for 12-bit counts MSB-aligned in 16 bits. Noise floors are fractions of this step, so the
+    alignment does not matter.
+    """
     v = np.asarray(values).reshape(-1).astype(np.int64)
     if not len(v):
         return 1
@@ -137,9 +145,12 @@ def quantum_dn(values: np.ndarray) -> int:
 
 
 def robust_sigma(values: np.ndarray) -> tuple[float, float]:
-    """(median, 1.4826 x median absolute deviation) of pixel values. The MAD of quantised data
+    """Return the (median, 1.4826 x median absolute deviation) of pixel values.
+
+    (median, 1.4826 x median absolute deviation) of pixel values. The MAD of quantised data
     is a whole number of steps: 0 only says the spread is below half a step, i.e. sigma below
-    1.4826 x step / 2 (:data:`UNRESOLVED_SIGMA`)."""
+    1.4826 x step / 2 (:data:`UNRESOLVED_SIGMA`).
+    """
     v = np.asarray(values).reshape(-1).astype(np.float32)
     med = float(np.median(v))
     return med, 1.4826 * float(np.median(np.abs(v - med)))
@@ -169,7 +180,23 @@ def subtract_dark(
 
     Parameters
     ----------
-    frame, dark : (H, W, 3) BGR, both uint8 or both uint16
+    frame, dark : numpy.ndarray
+        (H, W, 3) BGR, both uint8 or both uint16, of the same size.
+    pedestal_dn : int
+        The constant offset kept (DN).
+    frame_exposure_s, dark_exposure_s : float, optional
+        The two exposures, checked against each other when both are given.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``frame - dark + pedestal_dn``, saturating, of the frame's dtype.
+
+    Raises
+    ------
+    BadInputError
+        When either is not a frame, their dtypes or sizes differ, or the exposures differ by
+        more than 1 %.
     """
     check_frame(frame)
     check_frame(dark, "dark frame")
@@ -189,22 +216,46 @@ def subtract_dark(
 
 
 def _dark_subtracted(image: np.ndarray, dark: np.ndarray, pedestal_dn: int) -> np.ndarray:
-    """``(image + pedestal) - dark``, both saturating (only already-saturated pixels lose), of a
-    colour frame or of one channel: :func:`subtract_dark` and :func:`dark_channels` alike."""
+    """Add the pedestal and subtract the dark frame, both saturating.
+
+    ``(image + pedestal) - dark``, both saturating (only already-saturated pixels lose), of a
+    colour frame or of one channel: :func:`subtract_dark` and :func:`dark_channels` alike.
+    """
     if pedestal_dn:
         return cv2.subtract(cv2.add(image, (pedestal_dn,) * 3 if image.ndim == 3 else pedestal_dn), dark)
     return cv2.subtract(image, dark)
 
 
 def hot_pixels(dark: np.ndarray, *, k_sigma: float = 8.0, quantum: float | None = None) -> np.ndarray:
-    """Flat indices (into ``dark.reshape(-1)`` of an (H, W, 3) frame) of hot pixels: dark-frame
-    values more than ``k_sigma`` robust sigmas above the typical dark level. Their dark
-    current's shot noise is several times the read noise, so they stay noisy after subtraction
+    """Find the hot pixels of a dark frame.
+
+    Hot pixels are dark-frame values more than ``k_sigma`` robust sigmas above the typical dark
+    level. Their dark current's shot noise is several times the read noise, so they stay noisy after subtraction
     and would pass as faint dots; the pipeline replaces them by the background (a standard
     defect-pixel map). Where the dark frame's spread is below one quantisation step
     (``quantum``, default :func:`quantum_dn` of the frame) its MAD is 0 and only bounds sigma
     (:data:`UNRESOLVED_SIGMA`): the excess is then ``k_sigma`` times that bound, in whole steps
-    (6 steps at k = 8)."""
+    (6 steps at k = 8).
+
+    Parameters
+    ----------
+    dark : numpy.ndarray
+        (H, W, 3) dark frame, uint8 or uint16.
+    k_sigma : float
+        How many robust sigmas above the typical dark level make a pixel hot.
+    quantum : float, optional
+        The quantisation step (DN); default :func:`quantum_dn` of the frame.
+
+    Returns
+    -------
+    numpy.ndarray
+        Flat indices (into ``dark.reshape(-1)``) of the hot pixels.
+
+    Raises
+    ------
+    BadInputError
+        When ``dark`` is not a frame.
+    """
     check_frame(dark, "dark frame")
     v = dark.reshape(-1)
     q = quantum_dn(v[::11]) if quantum is None else quantum
@@ -214,13 +265,31 @@ def hot_pixels(dark: np.ndarray, *, k_sigma: float = 8.0, quantum: float | None 
 
 
 def estimate_background(image: np.ndarray, sample: np.ndarray | None = None, quantum: int = 1) -> tuple[float, float]:
-    """(median, robust sigma) of a uint8 or uint16 image's pixels (or of
-    ``image.reshape(-1)[sample]``), whose values are whole multiples of ``quantum`` apart
-    (:func:`quantum_dn`).
+    """Measure an image's background level and noise: (median, robust sigma).
 
     From a histogram of the quantisation steps, each spread uniformly over its step (so noise
     levels below a step are not rounded away): the median, and sigma = interquartile range /
     1.349.
+
+    Parameters
+    ----------
+    image : numpy.ndarray
+        A uint8 or uint16 image, whose values are whole multiples of ``quantum`` apart.
+    sample : numpy.ndarray, optional
+        Flat indices of the pixels to read (``image.reshape(-1)[sample]``); default every
+        seventh pixel.
+    quantum : int
+        The quantisation step (DN, :func:`quantum_dn`).
+
+    Returns
+    -------
+    tuple of float
+        (median, robust sigma), in DN.
+
+    Raises
+    ------
+    BadInputError
+        When ``image`` is not a uint8 or uint16 array.
     """
     check_image(image, "pixel values", (np.uint8, np.uint16), ndims=(1, 2, 3))
     v = image.reshape(-1)[sample] if sample is not None else image.reshape(-1)[::7]
@@ -237,9 +306,12 @@ def estimate_background(image: np.ndarray, sample: np.ndarray | None = None, qua
 
 @numba.njit(cache=True)
 def histogram_quartiles(v, lo, quantum, nbins):
-    """Quartiles of integer values ``v`` (``lo`` + whole steps of ``quantum``), each value
+    """Compute the quartiles of quantised integer values, each spread over its step.
+
+    Quartiles of integer values ``v`` (``lo`` + whole steps of ``quantum``), each value
     spread uniformly over its step (:func:`stcvision.stages.estimate_background`): ``np.interp``
-    of (0.25, 0.5, 0.75) on the cumulative histogram, step by step as numpy computes it."""
+    of (0.25, 0.5, 0.75) on the cumulative histogram, step by step as numpy computes it.
+    """
     counts = np.zeros(nbins, np.int64)  # whole counts: the float sums of 1.0 exactly
     if quantum == 1:  # no integer division per value (the common case, measured 2x faster)
         for x in v:
@@ -288,12 +360,15 @@ def _quartiles_of(v, quantum, whole_u8):
 
 @numba.njit(cache=True)
 def sample_quartiles(flat, idx, dark_g, dark_r, hot_g, hot_r, ped, top, quantum, whole_u8, out_g, out_r):
-    """Quartiles (:func:`histogram_quartiles`, one row per channel) of the green and red of a
+    """Compute the quartiles of a frame's green and red at a sample of pixels, in one pass.
+
+    Quartiles (:func:`histogram_quartiles`, one row per channel) of the green and red of a
     flat BGR frame at the flat green indices ``idx`` (red: the next byte, so one pass reads
     each pixel once), dark-subtracted as the pipeline subtracts them (``max(min(v + ped, top) -
     dark, 0)``, ``ped`` where hot), the values left in ``out_g``, ``out_r``; ``whole_u8``:
     8-bit values in steps of 1 (a histogram of all 256 values, else of the occupied range), as
-    :func:`stcvision.stages.estimate_background` chooses."""
+    :func:`stcvision.stages.estimate_background` chooses.
+    """
     for i in range(len(idx)):
         j = idx[i]
         out_g[i] = ped if hot_g[i] else max(min(np.int64(flat[j]) + ped, top) - np.int64(dark_g[i]), 0)
@@ -310,8 +385,9 @@ def _no_hot() -> np.ndarray:
 
 @dataclass(frozen=True, eq=False)
 class DarkFrame:
-    """What the front end takes from a dark frame, once (the default: none, whose background
-    sample is then read as it is, without pedestal).
+    """What the front end takes from a dark frame, once.
+
+    The default is none, whose background sample is then read as it is, without pedestal.
 
     ``frame``: the (H, W, 3) dark frame; ``pedestal``, ``quantum``, ``sigma``: the pedestal kept
     by the subtraction, the quantisation step and the dark frame's robust spread (DN);
@@ -333,9 +409,12 @@ class DarkFrame:
 
     @classmethod
     def measure(cls, dark: np.ndarray, crop, sample3: dict, *, pedestal_steps: int, pedestal_k_sigma: float):
-        """Split ``dark`` once, map its hot pixels once, and take from it the quantisation step
+        """Measure a dark frame once: its channels, hot pixels, quantisation step and pedestal.
+
+        Split ``dark`` once, map its hot pixels once, and take from it the quantisation step
         and the pedestal: ``pedestal_k_sigma`` times its robust spread (the residual after
-        subtraction is no wider), at least ``pedestal_steps`` steps, in whole steps."""
+        subtraction is no wider), at least ``pedestal_steps`` steps, in whole steps.
+        """
         check_frame(dark, "dark frame")
         sample = sample3[1] // 3
         gr = np.concatenate([cv2.extractChannel(dark, c).reshape(-1)[sample] for c in (1, 2)])
@@ -367,12 +446,15 @@ class DarkFrame:
 
 
 def dark_channels(frame: np.ndarray, crop, dark: DarkFrame, scratch: Scratch = new_arrays):
-    """Green and red of the crop ``(x0, y0, x1, y1)`` of ``frame``, dark-subtracted as
+    """Return the dark-subtracted green and red of a crop of the frame.
+
+    Green and red of the crop ``(x0, y0, x1, y1)`` of ``frame``, dark-subtracted as
     :func:`subtract_dark` subtracts (the pedestal added, the dark frame subtracted, both
     saturating) and the hot pixels set to the pedestal: two new (h, w) images. One
     ``cv2.split`` of the crop's rows (a contiguous block: OpenCV's vectorised path, ~2x faster
     here than extracting or mixing channels out of the crop), into ``scratch``'s planes: writing
-    fresh memory each frame made the split 3x slower alone here (64 against 20 us)."""
+    fresh memory each frame made the split 3x slower alone here (64 against 20 us).
+    """
     x0, y0, x1, y1 = crop
     rows = frame[y0:y1]
     planes = cv2.split(rows, [scratch(f"plane {c}", rows.shape[:2], rows.dtype) for c in range(3)])
@@ -388,11 +470,14 @@ def dark_channels(frame: np.ndarray, crop, dark: DarkFrame, scratch: Scratch = n
 
 
 def frame_background(frame: np.ndarray, sample3: dict, dark: DarkFrame, scratch: Scratch = new_arrays):
-    """(green background, green noise, red background, red noise, quantisation step) of
+    """Measure a frame's background and noise per channel, and its quantisation step.
+
+    (green background, green noise, red background, red noise, quantisation step) of
     ``frame``: :func:`estimate_background` of its raw pixels at ``sample3`` (flat indices into
     the BGR frame per channel), dark-subtracted as :func:`dark_channels` does it, in one
     compiled pass over both channels (:func:`sample_quartiles`); the noise never below the
-    rounding noise of one step."""
+    rounding noise of one step.
+    """
     flat = frame.reshape(-1)
     n = len(sample3[1])
     vals = scratch("sample g", (n,), frame.dtype), scratch("sample r", (n,), frame.dtype)

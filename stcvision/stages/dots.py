@@ -1,5 +1,6 @@
-"""The dot search: window-mean peaks above the frame's noise, the greedy black-out, and the
-centroids, first on the ground view's window sums, then on the mirror image.
+"""The dot search: window-mean peaks above the frame's noise, the greedy black-out, the centroids.
+
+The search runs first on the ground view's window sums, then on the mirror image.
 
 The ant-like STC paper (Srour & Abboud), "Finding the green dots": the square of a dot's size with
 the highest average, a threshold, then black out and look again.
@@ -23,7 +24,9 @@ from stcvision.stages.ground_view import UnwarpMap
 
 @dataclass(frozen=True, kw_only=True, slots=True)
 class DotParams:
-    """Dot search (ant-like STC paper, "Finding the green dots": the square of a dot's size with the
+    """Parameters of the dot search.
+
+    Dot search (ant-like STC paper, "Finding the green dots": the square of a dot's size with the
     highest average, a threshold, then black out and look again).
 
     ``window_px``: side of the averaging square in mirror-image pixels (3 px: about a UV dot
@@ -100,11 +103,14 @@ class Dots:
 
     @property
     def n_lit(self) -> int:
+        """How many dots are lit."""
         return int(self.lit.sum())
 
 
 def noise_gain(umap: UnwarpMap, window_px: int, *, n: int = 12, seed: int = 0) -> np.ndarray:
-    """Standard deviation, per ground pixel, of the unwarped window mean of unit white noise.
+    """Map the noise of the unwarped window mean per ground pixel.
+
+    Standard deviation, per ground pixel, of the unwarped window mean of unit white noise.
 
     The unwarp interpolates between window means, which lowers their noise by an amount that
     varies across the ground view; this map, computed once, turns the raw image's per-pixel
@@ -127,9 +133,12 @@ def noise_gain(umap: UnwarpMap, window_px: int, *, n: int = 12, seed: int = 0) -
 
 
 def _candidate_level(dtype, gain, params: DotParams, area: int, background_dn: float, noise_dn: float, low: float):
-    """The dot candidate level for :func:`dot_candidates`: (mode, a, c), the level
-    ``gain * a + c`` per pixel in the sums' own units (mode 0: uint16 sums, rounded to whole
-    DN; 1: float32 sums), or the scalar ``c`` (mode 2: a fixed ``threshold_dn``, or no gain map)."""
+    """Return the dot candidate level for :func:`dot_candidates`.
+
+    (mode, a, c), the level ``gain * a + c`` per pixel in the sums' own units (mode 0: uint16
+    sums, rounded to whole DN; 1: float32 sums), or the scalar ``c`` (mode 2: a fixed
+    ``threshold_dn``, or no gain map).
+    """
     if params.threshold_dn is not None:
         level = np.float32(area * (background_dn + params.threshold_dn * low / params.k_sigma))
     elif gain is not None and dtype == np.uint16:
@@ -153,20 +162,40 @@ def find_dots(
     ground_to_robot=None,
     quantum: float = 1.0,
 ) -> Dots:
-    """Find dots in a ground-view marks image: filter once (window mean), keep local maxima
-    above the candidate level, accept them strongest first while blacking out a square around
-    each.
+    """Find dots in a ground-view marks image.
+
+    Filter once (window mean), keep local maxima above the candidate level, accept them
+    strongest first while blacking out a square around each.
 
     Parameters
     ----------
-    marks : (S, S) uint8 image, or window sums (uint16 or float32: :func:`window_sums`, then unwarped)
-    gain : (S, S) float32 :func:`noise_gain` map (noise of a window mean per unit raw noise);
+    marks : numpy.ndarray
+        (S, S) uint8 image, or window sums (uint16 or float32: :func:`window_sums`, then
+        unwarped).
+    params : DotParams
+        The window, the thresholds, the black-out and the caps.
+    gain : numpy.ndarray, optional
+        (S, S) float32 :func:`noise_gain` map (noise of a window mean per unit raw noise);
         default: white noise, ``1 / window_px``.
-    background_dn, noise_dn : background level and raw per-pixel noise; default: measured on
-        ``marks`` (median, IQR).
-    ground_to_robot : callable (N, 2) px -> (N, 2) m, optional (``Profile.ground_to_robot``).
-    quantum : the raw pixels' quantisation step (DN, :func:`quantum_dn`); the noise is never
-        taken below its rounding noise (:func:`noise_floor`).
+    background_dn, noise_dn : float, optional
+        Background level and raw per-pixel noise; default: measured on ``marks`` (median, IQR);
+        window sums need them given.
+    ground_to_robot : callable, optional
+        (N, 2) px -> (N, 2) m (``Profile.ground_to_robot``).
+    quantum : float
+        The raw pixels' quantisation step (DN, :func:`quantum_dn`); the noise is never taken
+        below its rounding noise (:func:`noise_floor`).
+
+    Returns
+    -------
+    Dots
+        The dots found, strongest first.
+
+    Raises
+    ------
+    BadInputError
+        When ``marks`` is not a 2-D uint8 image or window sums, or window sums come without
+        ``background_dn`` and ``noise_dn``.
     """
     check_image(marks, "marks image (uint8, or window sums)", (np.uint8, *SUM_DTYPES), ndims=(2,))
     w = params.window_px
@@ -241,7 +270,9 @@ def find_dots(
 
 @numba.njit(cache=True)
 def dot_candidates(sums, gain, mode, a, c, e, area, background, noise):
-    """Candidates of :func:`stcvision.stages.find_dots` in one pass over the window sums: the
+    """Find the dot candidates in one pass over the window sums.
+
+    Candidates of :func:`stcvision.stages.find_dots` in one pass over the window sums: the
     pixels at least ``e`` inside the border that reach the candidate level and are a 3x3 local
     maximum (``>=`` all eight neighbours, as ``sums >= cv2.dilate(sums, 3x3)``), in row-major
     order (``cv2.findNonZero``'s); with their SNR and window mean above the background.
@@ -254,7 +285,8 @@ def dot_candidates(sums, gain, mode, a, c, e, area, background, noise):
     ``gain[0, 0]`` everywhere), as the numpy version.
 
     Per image row, a branch-free loop (vectorised) marks the pixels at or near the level, and
-    only those marked, eight at a time skipped where none is, are tested exactly."""
+    only those marked, eight at a time skipped where none is, are tested exactly.
+    """
     h, w = sums.shape
     nx = w - 2 * e
     flag, words, idx = row_flags(nx)
@@ -315,12 +347,15 @@ def dot_candidates(sums, gain, mode, a, c, e, area, background, noise):
 
 @numba.njit(cache=True)
 def greedy_black_out(xs, ys, vals, b, tail_sigma, max_dots):
-    """The black-out of :func:`stcvision.stages.find_dots` (plateaus and chains of maxima that the
+    """Black out the weaker candidates around the stronger ones, greedily.
+
+    The black-out of :func:`stcvision.stages.find_dots` (plateaus and chains of maxima that the
     3x3 maximum left) as one greedy loop over candidates
     sorted strongest first: candidate k is kept unless a kept one j has it in its black-out
     square (``|dx|, |dy| <= b``) or its blur explains half of it (``vals[j] exp(-d^2 / (2
     tail_sigma^2)) >= vals[k] / 2``). Each candidate is checked against the kept ones only
-    (at most ``max_dots``), so no pair search is needed. Indices of the kept candidates."""
+    (at most ``max_dots``), so no pair search is needed. Indices of the kept candidates.
+    """
     n = len(vals)
     out = np.empty(min(n, max_dots), np.int64)
     m = 0
@@ -351,9 +386,12 @@ def greedy_black_out(xs, ys, vals, b, tail_sigma, max_dots):
 
 @numba.njit(inline="always")
 def _pairwise_sum(a, n):
-    """numpy's pairwise sum of ``a[:n]`` (n < 128: eight interleaved partial sums, then the
+    """Sum ``a[:n]`` pairwise, in the order numpy does.
+
+    Numpy's pairwise sum of ``a[:n]`` (n < 128: eight interleaved partial sums, then the
     rest in order; below eight, in order), in ``a``'s dtype: the order ``ndarray.sum`` adds a
-    small contiguous block in, so the result is numpy's to the bit."""
+    small contiguous block in, so the result is numpy's to the bit.
+    """
     if n < 8:
         res = a[0] - a[0]
         for i in range(n):
@@ -380,10 +418,13 @@ def _pairwise_sum(a, n):
 
 @numba.njit(cache=True)
 def window_centroids(marks, xs, ys, r, per_px):
-    """Intensity-weighted centroids (:func:`stcvision.stages.find_dots`): over the (2r+1)^2 square about each
+    """Compute intensity-weighted centroids about the given pixels.
+
+    Intensity-weighted centroids (:func:`stcvision.stages.find_dots`): over the (2r+1)^2 square about each
     (xs, ys) (coordinates clipped to the image), the float32 values ``max(marks - per_px, 0)``
     and their x- and y-weighted sums (float64), each summed as numpy sums the square; the
-    integer position where the square holds nothing above ``per_px``."""
+    integer position where the square holds nothing above ``per_px``.
+    """
     h, w = marks.shape
     n = len(xs)
     k = 2 * r + 1
@@ -417,11 +458,14 @@ def window_centroids(marks, xs, ys, r, per_px):
 
 @numba.njit(cache=True)
 def rank_dots(xs, ys, vals, mean, b, tail_sigma, max_dots, max_candidates, marks, r, per_px):
-    """The rest of :func:`stcvision.stages.find_dots` after the candidates, in one call: the
+    """Rank the candidates, black out, and take the centroids of those kept, in one call.
+
+    The rest of :func:`stcvision.stages.find_dots` after the candidates, in one call: the
     candidates sorted strongest first (a stable sort, as numpy's ``kind="stable"``), the
     strongest ``max_candidates`` kept, :func:`greedy_black_out`, then :func:`window_centroids`
     of those kept. Returns (number of candidates, centroids (n, 2), SNRs (n,) float64, window
-    means (n,))."""
+    means (n,)).
+    """
     nc = len(vals)
     if nc == 0:
         return 0, np.zeros((0, 2)), np.zeros(0), mean[:0]
@@ -445,7 +489,9 @@ def mirror_centroids(
     ground_to_robot=None,
     params: DotParams = DotParams(),
 ) -> Dots:
-    """``dots`` with positions measured again in the mirror image ``image`` ((H, W), the
+    """Measure the dots' positions again in the mirror image.
+
+    ``dots`` with positions measured again in the mirror image ``image`` ((H, W), the
     dark-subtracted green channel, background ``background_dn`` per pixel).
 
     The window sums and the unwarp each blur a dot (a 3x3 box in the mirror image, then bilinear
@@ -480,11 +526,14 @@ def mirror_centroids(
 
 @numba.njit(cache=True)
 def map_at(map_x, map_y, xy, steps, border):
-    """The unwarp map (``map_x``, ``map_y``: (S, S) float32) read at each ground-view point
+    """Read the unwarp map at ground-view points and steps about them.
+
+    The unwarp map (``map_x``, ``map_y``: (S, S) float32) read at each ground-view point
     ``xy[i]`` plus each of ``steps`` ((K, 2); the points rounded to float32 after the add):
     (N, K, 2) float64 mirror-image positions, as ``cv2.remap`` of each map (``INTER_LINEAR``,
     ``BORDER_CONSTANT`` ``border``) at those points computes them (:func:`remap_lerp`), in one pass
-    instead of two OpenCV calls and the arrays around them."""
+    instead of two OpenCV calls and the arrays around them.
+    """
     h, w = map_x.shape
     n, k = len(xy), len(steps)
     out = np.empty((n, k, 2))
@@ -511,11 +560,14 @@ def map_at(map_x, map_y, xy, steps, border):
 
 @numba.njit(cache=True, error_model="numpy")
 def mirror_shift(m, c, ok, xy, max_shift2):
-    """The ground-view positions of :func:`stcvision.stages.mirror_centroids`: per dot, the
+    """Take the mirror-image centroids back to the ground view.
+
+    The ground-view positions of :func:`stcvision.stages.mirror_centroids`: per dot, the
     mirror-image centroid ``c`` taken back through the unwarp map's local Jacobian (``m``: the
     map at the dot and +-0.5 px in x and y, (n, 5, 2)); a dot whose centroid could not be
     measured (``ok``), whose Jacobian is singular or whose shift exceeds ``sqrt(max_shift2)``
-    keeps ``xy``. Element by element as the numpy version."""
+    keeps ``xy``. Element by element as the numpy version.
+    """
     n = len(xy)
     out = xy.copy()
     for i in range(n):
@@ -535,11 +587,14 @@ def mirror_shift(m, c, ok, xy, max_shift2):
 
 @numba.njit(cache=True)
 def gauss_centroids(image, uv, background, half, sigma, iters):
-    """Iterated Gaussian-weighted centroids (:func:`stcvision.stages.mirror_centroids`): around
+    """Compute iterated Gaussian-weighted centroids in the mirror image.
+
+    Iterated Gaussian-weighted centroids (:func:`stcvision.stages.mirror_centroids`): around
     each (u, v) of ``uv`` ((n, 2) float), over the square of half-side ``half + 1`` about its
     nearest pixel, the centroid of ``max(image - background, 0)`` weighted by a Gaussian of
     ``sigma`` centred on the current estimate, ``iters`` times. Returns the centroids ((n, 2))
-    and whether each could be measured (square inside the image, some signal)."""
+    and whether each could be measured (square inside the image, some signal).
+    """
     h, w = image.shape
     n = len(uv)
     out = uv.copy()

@@ -48,8 +48,11 @@ class UnwarpMap:
 
     @classmethod
     def from_profile(cls, profile) -> UnwarpMap:
-        """For every ground-view pixel: robot-frame floor point -> phi (azimuth, preserved) and
-        theta (elevation, from the profile's radial polynomial) -> image pixel."""
+        """Build the map from the profile: for every ground pixel, the image pixel it sees.
+
+        For every ground-view pixel: robot-frame floor point -> phi (azimuth, preserved) and
+        theta (elevation, from the profile's radial polynomial) -> image pixel.
+        """
         n = profile.ground_size_px
         gy, gx = np.mgrid[0:n, 0:n].astype(float)
         xy = profile.ground_to_robot(np.column_stack([gx.ravel(), gy.ravel()]))
@@ -63,8 +66,11 @@ class UnwarpMap:
         return cls(mx, my, ok.reshape(n, n), tuple(profile.image_size_px), f1, f2)
 
     def reach_px(self, margin: int = 2) -> tuple[int, int, int, int]:
-        """(x0, y0, x1, y1): the part of the mirror image the map reads, with ``margin`` pixels
-        more on every side (a window sum there sees only pixels inside), clipped to the image."""
+        """Return the part of the mirror image the map reads, with a margin.
+
+        (x0, y0, x1, y1): the part of the mirror image the map reads, with ``margin`` pixels
+        more on every side (a window sum there sees only pixels inside), clipped to the image.
+        """
         w, h = self.image_size_px
         mx, my = self.map_x[self.valid], self.map_y[self.valid]
         if not len(mx):
@@ -74,20 +80,25 @@ class UnwarpMap:
         return x0, y0, x1, y1
 
     def cropped(self, x0: int, y0: int, x1: int, y1: int) -> UnwarpMap:
-        """The same map reading the crop ``image[y0:y1, x0:x1]`` (shifting a map by whole pixels
-        is exact in float32)."""
+        """Return the same map reading a crop of the image.
+
+        The crop is ``image[y0:y1, x0:x1]``; shifting a map by whole pixels is exact in float32.
+        """
         mx, my = self.map_x - np.float32(x0), self.map_y - np.float32(y0)
         f1, f2 = cv2.convertMaps(mx, my, cv2.CV_16SC2)
         return UnwarpMap(mx, my, self.valid, (x1 - x0, y1 - y0), f1, f2)
 
 
 class GatherTables(NamedTuple):
-    """An :class:`UnwarpMap` as gather tables for :func:`unwarp_separate_u16`,
+    """An unwarp map as the gather tables of the compiled unwarp.
+
+    An :class:`UnwarpMap` as gather tables for :func:`unwarp_separate_u16`,
     which unwarps the green and red window sums in one pass, bit for bit as ``cv2.remap`` with
     the float maps does. Per ground pixel (flat, in order): ``base``, the source pixel (flat
     index) at the top left of the four it reads; ``alpha``, ``beta``, the map's fractional parts;
     ``border``: the ground pixels some of whose four source pixels lie outside the image (read
-    as zeros), with their map coordinates ``border_xy``."""
+    as zeros), with their map coordinates ``border_xy``.
+    """
 
     base: np.ndarray
     alpha: np.ndarray
@@ -97,6 +108,7 @@ class GatherTables(NamedTuple):
 
     @classmethod
     def from_map(cls, umap: UnwarpMap) -> GatherTables:
+        """Build the gather tables of an unwarp map."""
         w, h = umap.image_size_px
         mx, my = umap.map_x.reshape(-1), umap.map_y.reshape(-1)
         fx, fy = np.floor(mx), np.floor(my)
@@ -113,11 +125,26 @@ class GatherTables(NamedTuple):
 
 
 def unwarp(image: np.ndarray, umap: UnwarpMap) -> np.ndarray:
-    """Ground view (top-down, robot-centred, forward up) of a mirror image: one ``cv2.remap``.
+    """Unwarp a mirror image to the ground view (top-down, robot-centred, forward up).
+
+    One ``cv2.remap``.
 
     Parameters
     ----------
-    image : (H, W) or (H, W, 3) uint8, the profile's image size.
+    image : numpy.ndarray
+        (H, W) or (H, W, 3), the profile's image size: uint8, or uint16 or float32 (window sums).
+    umap : UnwarpMap
+        The remap tables of the profile's ground view.
+
+    Returns
+    -------
+    numpy.ndarray
+        The ground view, of the image's dtype and channels.
+
+    Raises
+    ------
+    BadInputError
+        When the image is not of the map's image size or a supported dtype.
     """
     check_image(image, "image", (np.uint8, np.uint16, np.float32))
     h, w = image.shape[:2]
@@ -141,9 +168,12 @@ _U32_GATHERS = True
 
 @numba.njit(inline="always")
 def _red_test(gv, rv, use_frac, thr, tol, bottom, top, frac, gamma, leak):
-    """The red/green separation of one ground pixel (:func:`unwarp_separate_u16`): (a red
+    """Apply the red/green separation to one ground pixel.
+
+    The red/green separation of one ground pixel (:func:`unwarp_separate_u16`): (a red
     light, to black out). Pure: the loops store the results themselves (an inlined helper
-    that stored into the output arrays ran the uint16 loop 3x slower, 0.69 vs 0.24 ms)."""
+    that stored into the output arrays ran the uint16 loop 3x slower, 0.69 vs 0.24 ms).
+    """
     dom = min(max(rv + tol, bottom), top) >= gv
     if use_frac:
         dom = dom & (fma32(rv, np.float32(1.0), fma32(gv, frac, gamma)) >= np.float32(0.0))
@@ -153,9 +183,12 @@ def _red_test(gv, rv, use_frac, thr, tol, bottom, top, frac, gamma, leak):
 
 @numba.njit(cache=True)
 def unwarp_border(src, w, h, border, border_xy, rnd, rule, obstacle, marks, black):
-    """The ground pixels ``border`` some of whose four source pixels lie outside the image
+    """Correct the black-out count for the ground pixels that read beyond the image.
+
+    The ground pixels ``border`` some of whose four source pixels lie outside the image
     (zeros there, as ``BORDER_CONSTANT``), from their map coordinates ``border_xy``: the
-    change they make to the black-out count."""
+    change they make to the black-out count.
+    """
     thr, tol, bottom, top, frac, gamma, leak = rule
     dn = 0
     use_frac = frac != np.float32(0.0)
@@ -190,7 +223,9 @@ def unwarp_border(src, w, h, border, border_xy, rnd, rule, obstacle, marks, blac
 
 @numba.njit(cache=True)
 def unwarp_separate_u16(src32, w, base, alpha, beta, rule, obstacle, marks, black, scratch):
-    """The unwarp of the green and red window sums and their red/green separation, in one pass
+    """Unwarp the green and red window sums and separate them, in one pass.
+
+    The unwarp of the green and red window sums and their red/green separation, in one pass
     over the ground view: ``cv2.remap`` (float maps, ``INTER_LINEAR``, ``BORDER_CONSTANT`` 0) of
     each channel as it computes on this machine (:func:`remap_lerp`; rounded half to even and
     saturated for uint16 sums), then the rule and the arithmetic of
@@ -214,7 +249,8 @@ def unwarp_separate_u16(src32, w, base, alpha, beta, rule, obstacle, marks, blac
     ``beta[i]``; the ``border`` pixels are redone from their map coordinates ``border_xy``
     (:func:`unwarp_border`). Block by block: the gathers into ``scratch``, then the arithmetic
     over contiguous arrays, which LLVM vectorises (measured here: the two remaps and the
-    separation 348 us; this 221 us with a 4-byte load per source pixel, 166 us with these)."""
+    separation 348 us; this 221 us with a 4-byte load per source pixel, 166 us with these).
+    """
     thr, tol, bottom, top, frac, gamma, leak = rule
     zero = np.float32(0.0)
     hi = np.float32(65535.0)
@@ -274,11 +310,14 @@ def unwarp_separate_f32(
     black,
     scratch,
 ):
-    """:func:`unwarp_separate_u16` for float32 sums (16-bit frames; and uint16 sums on a
+    """Unwarp and separate float32 window sums, in one pass.
+
+    :func:`unwarp_separate_u16` for float32 sums (16-bit frames; and uint16 sums on a
     big-endian machine, converted: ``rnd`` rounds and saturates): ``src64``, the (h, w, 2)
     sums as one uint64 per pixel (both channels: green in the low half where ``green_low``),
     four aligned loads per ground pixel; ``scratch`` (4, N) uint64. The separation written
-    out, as there."""
+    out, as there.
+    """
     thr, tol, bottom, top, frac, gamma, leak = rule
     zero = np.float32(0.0)
     hi = np.float32(65535.0)
@@ -325,13 +364,16 @@ def unwarp_separate_f32(
 
 
 def unwarp_separate(tables: GatherTables, sums: np.ndarray, shape, rule: tuple, scratch: Scratch = new_arrays):
-    """(obstacle, marks, black, n): the ground views (``shape``) of the (h, w, 2) green/red
+    """Unwarp the window sums to the ground views and separate red from green, in one compiled pass.
+
+    (obstacle, marks, black, n): the ground views (``shape``) of the (h, w, 2) green/red
     window sums ``sums`` through ``tables`` and their red/green separation by ``rule``
     (:func:`separation_rule`), the arithmetic of ``cv2.remap`` then :func:`separate_channels`,
     in one compiled pass: uint16 sums on a little-endian machine by :func:`unwarp_separate_u16`,
     others by :func:`unwarp_separate_f32`, the border pixels by :func:`unwarp_border`.
     ``obstacle`` and ``marks`` are new; ``black`` (scratch, uint8) is 1 at the ``n`` ground
-    pixels of the marks to black out (:func:`black_out`)."""
+    pixels of the marks to black out (:func:`black_out`).
+    """
     src32 = sums.reshape(-1).view(np.uint32) if (sums.dtype == np.uint16 and _LITTLE and _U32_GATHERS) else None
     h, w = sums.shape[:2]
     gather = scratch("gather", (2, 256) if src32 is not None else (4, 256), np.uint64)

@@ -1,6 +1,9 @@
-"""The heading: a line through the newest mark row's dots (the ant-like STC paper of Srour &
+"""The heading stage: a line through the newest mark row, and the turn-time recalibration.
+
+The heading: a line through the newest mark row's dots (the ant-like STC paper of Srour &
 Abboud, "Angle Detection"), and the turn-time recalibration from a measured turn ("Rotation and
-Calibration")."""
+Calibration").
+"""
 
 from __future__ import annotations
 
@@ -16,7 +19,9 @@ from stcvision.stages.dots import Dots
 
 @dataclass(frozen=True, kw_only=True, slots=True)
 class HeadingParams:
-    """Heading fit (ant-like STC paper, "Angle Detection": the newest three dots, a line through
+    """Parameters of the heading fit.
+
+    Heading fit (ant-like STC paper, "Angle Detection": the newest three dots, a line through
     them).
 
     The newest mark is the brightest; its dots are the brightest dot and its lit neighbours
@@ -52,7 +57,20 @@ class HeadingFit:
 
 
 def fit_heading(dots: Dots, params: HeadingParams = HeadingParams()) -> HeadingFit:
-    """Total-least-squares line through the newest (brightest) dots of the last mark row."""
+    """Fit a total-least-squares line through the newest (brightest) dots of the last mark row.
+
+    Parameters
+    ----------
+    dots : Dots
+        The dots found (robot-frame positions and strengths of the lit ones are read).
+    params : HeadingParams
+        How many dots make the row, the row's radius, the largest residual and the least span.
+
+    Returns
+    -------
+    HeadingFit
+        The line and the heading error; ``ok=False`` with a reason when no row fits.
+    """
     lit = np.flatnonzero(dots.lit)
     if len(lit) < params.n_dots:
         return HeadingFit(False, reason=f"fewer than {params.n_dots} dots ({len(lit)} lit)")
@@ -88,12 +106,15 @@ def fit_heading(dots: Dots, params: HeadingParams = HeadingParams()) -> HeadingF
 
 @numba.njit(cache=True, error_model="numpy")
 def heading_row(xy, s, n_dots, radius, max_residual):
-    """The dots :func:`stcvision.stages.fit_heading` fits, among lit dots at ``xy`` (robot
+    """Pick the dots the heading fit goes through.
+
+    The dots :func:`stcvision.stages.fit_heading` fits, among lit dots at ``xy`` (robot
     frame, m) of strengths ``s``: the brightest, and of the lines from it to each neighbour
     within ``radius`` the one most neighbours lie on (within ``max_residual``; then the
     brightest in sum; then the first), its ``n_dots`` brightest dots (stable order). Returns
     (status, value, picks): status 0 with the picked indices; 1 with the neighbours' count
-    (too few); 2 (no row of ``n_dots``)."""
+    (too few); 2 (no row of ``n_dots``).
+    """
     first = 0
     for i in range(1, len(s)):
         if s[i] > s[first]:
@@ -145,12 +166,15 @@ def heading_row(xy, s, n_dots, radius, max_residual):
 
 @numba.njit(cache=True)
 def tls_line(pts):
-    """Total-least-squares line through the points ``pts`` ((n, 2), n >= 2): (angle of its
+    """Fit a total-least-squares line through points, in closed form.
+
+    Total-least-squares line through the points ``pts`` ((n, 2), n >= 2): (angle of its
     direction in (-pi/2, pi/2], RMS spread along it, RMS distance from it), in closed form --
     the principal axis of the points' 2 x 2 scatter matrix, and the RMS of the centred points'
     projections on it and across it: the singular values :func:`numpy.linalg.svd` of the
     centred points gave, divided by sqrt(n), without the LAPACK call and its wrapper (which
-    cost ~40 us a frame in the pipeline here)."""
+    cost ~40 us a frame in the pipeline here).
+    """
     n = len(pts)
     cx = 0.0
     cy = 0.0
@@ -203,14 +227,40 @@ def recalibrate_turn(
     max_ratio: float = 1.25,
     tolerance_rad: float = math.radians(1.0),
 ) -> Recalibration:
-    """The ant-like STC paper, "Rotation and Calibration": in time T the robot turned d instead
-    of 90 degrees, so the next turn gets ``T' = 90/d * T``, and a correction finishes this one.
+    """Recalibrate the turn time from a measured turn.
+
+    The ant-like STC paper, "Rotation and Calibration": in time T the robot turned d instead of
+    90 degrees, so the next turn gets ``T' = 90/d * T``, and a correction finishes this one.
 
     Robust to a wild measurement: a non-positive or non-finite ``d`` is rejected (T kept), and
     ``T'/T`` is bounded to ``[1/max_ratio, max_ratio]`` (a Lego robot's rate drifts by a few
     per cent per turn, so a larger jump is a misreading, not the robot). Within
     ``tolerance_rad`` no calibration is needed (the paper: "If the robot has done the rotation
     accurate enough, no calibration is needed").
+
+    Parameters
+    ----------
+    turn_time_s : float
+        T, the time the turn took (s).
+    measured_turn_rad : float
+        d, the angle the robot turned (rad).
+    target_rad : float
+        The turn asked for (90 degrees).
+    max_ratio : float
+        The bound on ``T'/T``.
+    tolerance_rad : float
+        Within this of the target no calibration is needed.
+
+    Returns
+    -------
+    Recalibration
+        The next turn's time, the correction for this one, and whether the measurement was
+        accepted (with the reason when not, or when clipped).
+
+    Raises
+    ------
+    BadInputError
+        When ``turn_time_s`` is not a positive finite time.
     """
     if not (turn_time_s > 0 and math.isfinite(turn_time_s)):
         raise BadInputError(f"turn_time_s must be > 0, got {turn_time_s}")

@@ -1,7 +1,9 @@
-"""The red stage: the red lights, blobs of the obstacle image (red-light pixels after the
-channel separation), their centroids, areas and peaks; white lights told apart from red ones on
-the raw frame; and the far red lights (landmarks) found in the wide ground view and refined on
-the full-resolution mirror image.
+"""The red stage: the red lights, white lights told apart, and the far red lights.
+
+The red lights are blobs of the obstacle image (red-light pixels after the channel
+separation), with their centroids, areas and peaks; white lights are told apart from red ones
+on the raw frame; the far red lights (landmarks) are found in the wide ground view and refined
+on the full-resolution mirror image.
 
 :func:`read_red` is the stage as the pipeline runs it; :func:`find_red` the blob search alone,
 its contour moments computed by the compiled :func:`blobs`, bit for bit ``cv2.moments``.
@@ -40,8 +42,27 @@ class RedLights:
 
 
 def find_red(obstacle: np.ndarray, params: RedParams = RedParams(), *, window_area: int = 1) -> RedLights:
-    """Blobs of the (already thresholded) obstacle image: outer contours and their moments.
-    ``peak_dn`` is per pixel (window sums are divided by ``window_area``)."""
+    """Find the blobs of the (already thresholded) obstacle image: outer contours and their moments.
+
+    Parameters
+    ----------
+    obstacle : numpy.ndarray
+        2-D obstacle image, uint8 or window sums, at least 2 x 2.
+    params : RedParams
+        The least blob area (px).
+    window_area : int
+        Pixels per sum: ``peak_dn`` is per pixel (window sums are divided by it).
+
+    Returns
+    -------
+    RedLights
+        Each blob's position (px), peak (DN per pixel) and area (px).
+
+    Raises
+    ------
+    BadInputError
+        When ``obstacle`` is not a 2-D uint8 image or window sums of at least 2 x 2.
+    """
     check_image(obstacle, "obstacle image (uint8, or window sums)", (np.uint8, *SUM_DTYPES), ndims=(2,))
     if min(obstacle.shape) < 2:  # OpenCV takes a 1 x 1 array for a scalar and fails (fuzzing)
         raise BadInputError(f"obstacle image must be at least 2x2 pixels, got {obstacle.shape}")
@@ -63,8 +84,11 @@ def find_red(obstacle: np.ndarray, params: RedParams = RedParams(), *, window_ar
 
 @numba.njit(cache=True)
 def nonzero_mask(img, out):
-    """``out`` (uint8, ``img``'s shape) 255 where ``img`` is above 0, else 0 (``cv2.compare(img,
-    0, CMP_GT)``); returns how many (``cv2.countNonZero``), in one pass."""
+    """Mark the pixels above 0 and count them, in one pass.
+
+    ``out`` (uint8, ``img``'s shape) 255 where ``img`` is above 0, else 0 (``cv2.compare(img,
+    0, CMP_GT)``); returns how many (``cv2.countNonZero``), in one pass.
+    """
     h, w = img.shape
     n = 0
     for y in range(h):
@@ -78,7 +102,9 @@ def nonzero_mask(img, out):
 
 @numba.njit(cache=True)
 def blobs(obstacle, pts, starts, min_area, window_area):
-    """:func:`stcvision.stages.find_red`'s blobs from their contours (contour ``k``: the points
+    """Measure the blobs of :func:`stcvision.stages.find_red` from their contours.
+
+    :func:`stcvision.stages.find_red`'s blobs from their contours (contour ``k``: the points
     ``pts[starts[k]:starts[k + 1]]``, (T, 2) integers, as ``cv2.findContours`` gives them):
     the area ``m00`` and first moments of each (``cv2.moments`` of the polygon: OpenCV's
     contour sums, exact in float64 for integer points, then scaled by +-1/2 and +-1/6 by the
@@ -86,7 +112,8 @@ def blobs(obstacle, pts, starts, min_area, window_area):
     larger of that and its number of points (a thin blob has none), and those under
     ``min_area`` are dropped; its position the centroid, or the mean of its points where the
     area is 0; its peak the largest value of ``obstacle`` in its bounding box
-    (``cv2.boundingRect``) over ``window_area``. Returns (xy (M, 2), peak (M,), area (M,))."""
+    (``cv2.boundingRect``) over ``window_area``. Returns (xy (M, 2), peak (M,), area (M,)).
+    """
     nc = len(starts) - 1
     xy = np.zeros((nc, 2))
     peak = np.zeros(nc)
@@ -164,7 +191,9 @@ def read_red(
     white_blue_ratio: float | None = None,
     wide: tuple[np.ndarray, Callable] | None = None,
 ) -> RedReading:
-    """The red stage: the red lights of the ground view, white lights removed, and the far ones.
+    """Read the red lights of the ground view, white lights removed, and the far ones.
+
+    The red stage: the red lights of the ground view, white lights removed, and the far ones.
 
     Parameters
     ----------
@@ -221,7 +250,9 @@ def read_red(
 def white_lights(
     frame: np.ndarray, dark: np.ndarray | None, uv: np.ndarray, blue_ratio: float, *, half: int = 4
 ) -> np.ndarray:
-    """Which lights at image points ``uv`` (N, 2) are white, not red: the blue of the
+    """Tell which lights are white, not red.
+
+    Which lights at image points ``uv`` (N, 2) are white, not red: the blue of the
     (2 ``half`` + 1)-pixel square around each, dark-subtracted, at least ``blue_ratio`` times
     its red (a red LED's blue is a few per cent of its red; a white lamp's is about equal).
 
@@ -257,7 +288,9 @@ def far_lights(
     red_channel: np.ndarray,
     white_blue_ratio: float | None,
 ) -> np.ndarray:
-    """Red lights out to the landmark range, for the landmark fit, as ground-view pixels of the
+    """Find the red lights out to the landmark range, for the landmark fit.
+
+    Red lights out to the landmark range, for the landmark fit, as ground-view pixels of the
     main view (beyond its edges too): found in the wide, coarse view's obstacle image
     ``wide_obstacle`` (its pixels to robot frame by ``wide_to_robot``) and refined on the
     dark-subtracted red channel ``red_channel`` (:func:`refine_lights`), white ones removed
@@ -275,7 +308,9 @@ def far_lights(
 
 
 def refine_lights(red: np.ndarray, pedestal: float, xy_m: np.ndarray, profile, *, half: int = 6) -> np.ndarray:
-    """Robot-frame positions of red lights found in the coarse wide view, refined on the
+    """Refine the positions of red lights found in the wide view on the mirror image.
+
+    Robot-frame positions of red lights found in the coarse wide view, refined on the
     full-resolution mirror image ``red`` (dark-subtracted, ``pedestal`` kept): the centroid of
     the pixels above half the peak in a patch around each (a far light covers a few pixels there,
     each ~2 cm of floor at 0.85 m, so the coarse view alone is off by up to a centimetre). Lights

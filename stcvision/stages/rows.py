@@ -1,5 +1,8 @@
-"""The faint-row search: marks whose dots have faded below the single-dot threshold, found as
-rows of dots at the LEDs' spacing (a matched filter), through a found dot or where none was."""
+"""The faint-row search: marks whose dots have faded below the single-dot threshold.
+
+They are found as rows of dots at the LEDs' spacing (a matched filter), through a found dot or
+where none was.
+"""
 
 from __future__ import annotations
 
@@ -22,7 +25,9 @@ _DOT_DEFAULTS = DotParams()
 
 @dataclass(frozen=True, kw_only=True, slots=True)
 class RowParams:
-    """Faint-row search: a mark is a row of ``n_dots`` UV dots ``spacing_m`` apart (the robot's
+    """Parameters of the faint-row search.
+
+    Faint-row search: a mark is a row of ``n_dots`` UV dots ``spacing_m`` apart (the robot's
     rear LEDs; ``stcvision.sim_camera.phosphor.LED_OFFSETS_M``: 4 LEDs 3 cm apart) parallel to a grid axis.
     Old marks fade below the single-dot threshold well before all four of their dots are lost
     in the noise: summing the four window SNRs at the row's spacing (a matched filter for the
@@ -74,11 +79,9 @@ def find_rows(
     quantum: float = 1.0,
     buffers=None,
 ) -> Dots:
-    """Rows of ``params.n_dots`` faint dots along either ground-view axis that the dot search
-    missed; returns ``dots`` with the rows' dots appended (``lit=True``, ``from_row=True``,
-    ``snr`` the row's SNR). ``marks``: the window sums the dot search ran on; ``quantum`` as
-    for :func:`find_dots`; ``buffers``: ``buffers(name, shape, dtype)`` gives the search's
-    scratch images (a caller reusing them from frame to frame: the pipeline), default new ones.
+    """Find rows of ``params.n_dots`` faint dots that the dot search missed.
+
+    The rows run along either ground-view axis.
 
     Two searches. *Anchored rows*: a fading mark's brightest dot often passes the dot threshold
     while its other three do not (each dot's SNR scatters by +-1 about the mark's), and a row
@@ -86,8 +89,41 @@ def find_rows(
     within 1.5 spacings, none at the row's other places or one spacing beyond its ends) is
     tried as one dot of a row: 4 places x 2 axes, 8 hypotheses, where the free search tries
     every pixel; with so few trials the other three need less (``anchor_min_snr`` each,
-    ``anchor_mean_snr`` on average). *Free rows*: where the dot search found nothing, the
-    matched filter below."""
+    ``anchor_mean_snr`` on average). *Free rows*: where the dot search found nothing, a
+    matched filter.
+
+    Parameters
+    ----------
+    marks : numpy.ndarray
+        The window sums the dot search ran on (a plain uint8 image is returned unsearched).
+    dots : Dots
+        The dot search's result.
+    gain : numpy.ndarray
+        The :func:`noise_gain` map, as for :func:`find_dots`.
+    background_dn, noise_dn : float
+        Background level and raw per-pixel noise.
+    px_per_m : float
+        The ground view's scale (the rows' spacing is in metres).
+    window_px : int
+        The window sums' side.
+    params : RowParams
+        The row's dots, spacing and thresholds (``enabled=False``: no search).
+    dot_params : DotParams
+        The dot search's parameters (its threshold bounds the rows' dots).
+    ground_to_robot : callable, optional
+        (N, 2) px -> (N, 2) m (``Profile.ground_to_robot``).
+    quantum : float
+        As for :func:`find_dots`.
+    buffers : callable, optional
+        ``buffers(name, shape, dtype)`` gives the search's scratch images (a caller reusing
+        them from frame to frame: the pipeline), default new ones.
+
+    Returns
+    -------
+    Dots
+        ``dots`` with the rows' dots appended (``lit=True``, ``from_row=True``, ``snr`` the
+        row's SNR).
+    """
     area = window_px * window_px
     if not params.enabled or marks.dtype not in SUM_DTYPES:
         return dots
@@ -119,9 +155,12 @@ def find_rows(
 
 @functools.lru_cache(maxsize=64)
 def _row_offsets(step: float, n: int) -> tuple[np.ndarray, np.ndarray, int]:
-    """(offsets of a row's ``n`` dots from its centre, of the floor one spacing beyond either
+    """Return the offsets of a row's dots and of the floor beyond its ends, in whole pixels.
+
+    (offsets of a row's ``n`` dots from its centre, of the floor one spacing beyond either
     end, the larger reach) in whole pixels for a dot spacing of ``step`` px: the same for every
-    frame of a profile, so made once (read-only arrays)."""
+    frame of a profile, so made once (read-only arrays).
+    """
     offs = np.round((np.arange(n) - (n - 1) / 2) * step).astype(np.int64)
     # one spacing beyond either end: a row shifted along a real one by a dot has a dot there
     ends = np.round(np.array([-1, 1]) * ((n + 1) / 2) * step).astype(np.int64)
@@ -133,9 +172,12 @@ def _row_offsets(step: float, n: int) -> tuple[np.ndarray, np.ndarray, int]:
 def _row_snr(
     marks: np.ndarray, gain: np.ndarray, area: int, background_dn: float, noise_dn: float, clip: float, out: np.ndarray
 ):
-    """Per-pixel SNR of the window sums ``marks`` (float32), clipped at the dot threshold
+    """Compute the per-pixel SNR of the window sums, clipped at the dot threshold.
+
+    Per-pixel SNR of the window sums ``marks`` (float32), clipped at the dot threshold
     ``clip``: a single bright dot must not make a row. One compiled pass
-    (:func:`row_snr`) for uint16 sums; float32 ones (16-bit frames) through OpenCV."""
+    (:func:`row_snr`) for uint16 sums; float32 ones (16-bit frames) through OpenCV.
+    """
     if marks.dtype == np.uint16 and gain.dtype == np.float32:
         return row_snr(marks, gain, area, float(background_dn), float(noise_dn), float(clip), out)
     z = cv2.addWeighted(marks, 1.0 / area, marks, 0.0, -background_dn, dtype=cv2.CV_32F)
@@ -145,12 +187,15 @@ def _row_snr(
 
 @numba.njit(cache=True, error_model="numpy")
 def row_snr(marks, gain, area, background, noise, clip, out):
-    """Per-pixel SNR of window sums, clipped (:func:`_row_snr`), in one pass:
+    """Compute the per-pixel SNR of window sums, clipped, in one pass.
+
+    Per-pixel SNR of window sums, clipped (:func:`_row_snr`), in one pass:
     ``min(fma(marks, 1 / area, -background) * (1 / noise) / gain, clip)`` in float32
     (:func:`stcvision.stages.compiled._fma32`), the arithmetic of ``cv2.addWeighted(...,
     dtype=CV_32F)``, ``cv2.divide(..., scale)`` and ``cv2.min`` it replaced (to the bit; numpy's
     error model: no zero-division check per pixel, which would keep the loop from being
-    vectorised). Into ``out`` ((h, w) float32), returned."""
+    vectorised). Into ``out`` ((h, w) float32), returned.
+    """
     h, w = marks.shape
     a = np.float32(1.0 / area)
     g = np.float32(-background)
@@ -165,10 +210,13 @@ def row_snr(marks, gain, area, background, noise, clip, out):
 
 
 def _taken_floor(marks: np.ndarray, dots: Dots, dot_params: DotParams, out: np.ndarray) -> np.ndarray:
-    """uint8 image, non-zero where no row may run nor end: within each lit dot's blur (as far as
+    """Mark the floor where no row may run nor end.
+
+    uint8 image, non-zero where no row may run nor end: within each lit dot's blur (as far as
     it still shows above 1 sigma, at least the black-out square), and within the black-out
     square of a red light blacked out of the marks image (zero there): the edge of its glare,
-    just below the black-out level, runs along the light as a column of faint "dots"."""
+    just below the black-out level, runs along the light as a column of faint "dots".
+    """
     b = dot_params.blackout_px
     occ = zero_ring(marks, b, out)
     blur_squares(occ, dots.xy_px.reshape(-1, 2), dots.snr, dots.lit, float(dot_params.tail_sigma_px), b)
@@ -177,12 +225,15 @@ def _taken_floor(marks: np.ndarray, dots: Dots, dot_params: DotParams, out: np.n
 
 @numba.njit(cache=True)
 def zero_ring(marks, b, out):
-    """uint8 image: 1 within ``b`` pixels (along both axes) of a pixel where ``marks`` is 0 --
+    """Mark the pixels near a zero of the marks image.
+
+    uint8 image: 1 within ``b`` pixels (along both axes) of a pixel where ``marks`` is 0 --
     ``cv2.dilate(marks == 0, (2b+1)^2 square)``, pixels beyond the border not counted. Zeros
     are few (the red lights' black-out), so: a vectorised scan finds the rows holding any;
     each such row's zeros are grown along it into a row buffer, which is OR-ed into the
     2b + 1 output rows about it (earlier: two OR-doubling passes over a padded copy of the
-    whole image: 31 us here for the bench scene's lights; this 22 us)."""
+    whole image: 31 us here for the bench scene's lights; this 22 us).
+    """
     h, w = marks.shape
     out[:] = 0  # out: (h, w) uint8, returned
     row = np.zeros(w, np.uint8)
@@ -207,10 +258,13 @@ def zero_ring(marks, b, out):
 
 @numba.njit(cache=True)
 def blur_squares(img, xy, snr, lit, tail_sigma, b):
-    """Set to 1 in ``img`` (uint8) the square about each lit dot (its position rounded half to
+    """Mark the square about each lit dot as far as its blur shows.
+
+    Set to 1 in ``img`` (uint8) the square about each lit dot (its position rounded half to
     even, clipped to the image) as far as its blur still shows above 1 sigma:
     half-side ``max(ceil(tail_sigma sqrt(2 ln max(snr, 1))) + 1, b)``
-    (:func:`_taken_floor`)."""
+    (:func:`_taken_floor`).
+    """
     h, w = img.shape
     for i in range(len(xy)):
         if not lit[i]:
@@ -225,9 +279,12 @@ def blur_squares(img, xy, snr, lit, tail_sigma, b):
 
 
 def _anchored_rows(z, occ, dots: Dots, step: float, n: int, params: RowParams):
-    """Rows through one found dot (:func:`find_rows`): the added points ((R, n - 1, 2) float
+    """Find rows through one found dot.
+
+    Rows through one found dot (:func:`find_rows`): the added points ((R, n - 1, 2) float
     ground px) and the rows' SNRs (R,). ``z``: per-pixel SNR clipped at the dot threshold, before
-    the black-out; ``occ``: the lit dots' blur masks; ``step``: the dot spacing (px)."""
+    the black-out; ``occ``: the lit dots' blur masks; ``step``: the dot spacing (px).
+    """
     xy_lit = np.ascontiguousarray(dots.xy_px[dots.lit].reshape(-1, 2), np.float64)
     if not len(xy_lit):
         return np.zeros((0, n - 1, 2)), np.zeros(0)
@@ -266,9 +323,12 @@ def _anchored_rows(z, occ, dots: Dots, step: float, n: int, params: RowParams):
 
 @numba.njit(cache=True)
 def crowded_dots(xy, near):
-    """Per point: another point within ``near`` (all pairs: for the few hundred lit dots a frame
+    """Tell, per point, whether another point lies within ``near``.
+
+    Per point: another point within ``near`` (all pairs: for the few hundred lit dots a frame
     holds at most, ``DotParams.max_dots``; :func:`_anchored_rows` uses a k-d
-    tree beyond that)."""
+    tree beyond that).
+    """
     n = len(xy)
     out = np.zeros(n, np.bool_)
     lim = near * near
@@ -284,10 +344,13 @@ def crowded_dots(xy, near):
 
 @numba.njit(cache=True)
 def anchored_rows(z, occ, xy, snr, crowded, max_snr, reach, step, n, min_snr, mean_snr, end_max, k_sigma):
-    """Rows through one lone found dot (:func:`_anchored_rows`): for each lone
+    """Find the rows through lone found dots.
+
+    Rows through one lone found dot (:func:`_anchored_rows`): for each lone
     dot (not ``crowded``, SNR at most ``max_snr``, ``reach`` inside the image), the best of its
     ``2 n`` row hypotheses; a row within 2 px of an accepted one is skipped. Returns the
-    accepted rows' points ((R, n - 1, 2) float) and SNRs (R,)."""
+    accepted rows' points ((R, n - 1, 2) float) and SNRs (R,).
+    """
     h, w = z.shape
     lone = np.empty(len(xy), np.bool_)
     for i in range(len(xy)):
@@ -370,7 +433,9 @@ def _taken(img, px, py):
 def _free_rows(
     z: np.ndarray, occ: np.ndarray, offs: np.ndarray, ends: np.ndarray, e: int, params: RowParams, ok: np.ndarray
 ):
-    """Free-row candidates of :func:`find_rows`: (x, y, row SNR, axis) where the row sum of the
+    """Find the free-row candidates.
+
+    Free-row candidates of :func:`find_rows`: (x, y, row SNR, axis) where the row sum of the
     SNRs ``z`` at ``offs`` along either axis reaches ``k_sigma * sqrt(n)``, every dot is at least
     ``min_dot_snr`` and within ``spread_snr`` of the row's mean, and the floor at ``ends`` is
     free (``occ`` 0) and below ``end_max_snr``; no dot on a taken pixel. Axis 0 (rows along x)
@@ -380,7 +445,8 @@ def _free_rows(
     spread_snr)`` with the mean at least ``k_sigma / sqrt(n)``: that bound prunes almost every
     pixel after a dot or two, and only where all dots pass are the row sums and the rest
     computed, in one compiled pass per axis (:func:`free_rows`; earlier about twenty
-    OpenCV passes over shifted masks, then numpy on the few pixels left: the same rows)."""
+    OpenCV passes over shifted masks, then numpy on the few pixels left: the same rows).
+    """
     n = len(offs)
     gate = max(params.min_dot_snr, params.k_sigma / math.sqrt(n) - params.spread_snr) - 1e-3
     return free_rows(
@@ -400,7 +466,9 @@ def _free_rows(
 
 @numba.njit(cache=True, error_model="numpy")
 def free_rows(z, occ, offs, ends, e, gate, thr, min_dot, spread, end_max, ok):
-    """Free-row candidates of :func:`_free_rows`: where every dot of the row
+    """Find the free-row candidates in compiled passes.
+
+    Free-row candidates of :func:`_free_rows`: where every dot of the row
     at ``offs`` (along x for axis 0, along y for axis 1) has ``z >= gate`` on a free pixel
     (``occ`` 0) -- a mask, then per image row the AND of its shifted rows, both loops the
     compiler vectorises, scanned eight pixels at a time -- the float32 row sum (added dot by
@@ -408,7 +476,8 @@ def free_rows(z, occ, offs, ends, e, gate, thr, min_dot, spread, end_max, ok):
     ``low >= mean - spread``) and the floor at ``ends`` is free and below ``end_max``. All
     comparisons in float32, as numpy makes them against Python floats. Returns (xs, ys, row SNR
     = sum / sqrt(n), axis) over the interior (``e`` from the border): axis 0 first, each in
-    row-major order."""
+    row-major order.
+    """
     h, w = z.shape
     n = len(offs)
     g = np.float32(gate)
@@ -466,10 +535,13 @@ def free_rows(z, occ, offs, ends, e, gate, thr, min_dot, spread, end_max, ok):
 
 
 def _accept_free_rows(shape, xs, ys, st, ax, offs, rows_xy: np.ndarray, b: int, max_rows: int):
-    """The free rows accepted strongest first, after the anchored rows ``rows_xy`` ((R, n - 1,
+    """Accept the free rows strongest first, after the anchored rows.
+
+    The free rows accepted strongest first, after the anchored rows ``rows_xy`` ((R, n - 1,
     2)): a row may not share a dot with one already accepted (within ``b`` along both axes;
     :func:`accept_rows`), at most ``max_rows`` rows in all. Returns their points ((A,
-    n, 2) float) and SNRs (A,), in the order accepted."""
+    n, 2) float) and SNRs (A,), in the order accepted.
+    """
     if not len(xs):
         return np.zeros((0, len(offs), 2)), np.zeros(0, np.float32)
     return accept_free_rows(shape, rows_xy, xs, ys, st, ax, offs, b, max_rows - len(rows_xy))
@@ -477,10 +549,13 @@ def _accept_free_rows(shape, xs, ys, st, ax, offs, rows_xy: np.ndarray, b: int, 
 
 @numba.njit(cache=True)
 def accept_free_rows(shape, rows_xy, xs, ys, st, axis, offs, half, room):
-    """The free rows of :func:`_accept_free_rows`, strongest first (stable):
+    """Accept the free rows strongest first (the compiled loop).
+
+    The free rows of :func:`_accept_free_rows`, strongest first (stable):
     the anchored rows' dots ``rows_xy`` ((R, n - 1, 2)) and each accepted row's dots grown by
     ``half`` are taken, a row with a dot on a taken pixel is skipped, at most ``room`` rows
-    (:func:`accept_rows`). Returns the accepted rows' points ((A, n, 2) float) and SNRs (A,)."""
+    (:func:`accept_rows`). Returns the accepted rows' points ((A, n, 2) float) and SNRs (A,).
+    """
     taken = np.zeros(shape, np.uint8)
     h, w = shape
     for r in range(rows_xy.shape[0]):
@@ -503,9 +578,12 @@ def accept_free_rows(shape, rows_xy, xs, ys, st, axis, offs, half, room):
 
 @numba.njit(cache=True)
 def accept_rows(taken, xs, ys, axis, order, offs, half, room):
-    """Free rows strongest first (:func:`stcvision.stages.find_rows`): a row whose dots fall in
+    """Accept free rows strongest first, skipping those on taken pixels.
+
+    Free rows strongest first (:func:`stcvision.stages.find_rows`): a row whose dots fall in
     ``taken`` (the accepted rows' dots grown by ``half``) is skipped; at most ``room`` rows.
-    Returns the indices of the accepted candidates."""
+    Returns the indices of the accepted candidates.
+    """
     out = np.empty(min(len(order), max(room, 0)), np.int64)
     m = 0
     n = len(offs)
@@ -528,9 +606,12 @@ def accept_rows(taken, xs, ys, axis, order, offs, half, room):
 
 
 def _with_rows(dots, marks, z, gain, pts, snr, area, background_dn, noise_dn, dot_params, ground_to_robot):
-    """``dots`` with the rows' dots at ``pts`` (SNR ``snr``) appended: centroids as
+    """Append the rows' dots to the found dots.
+
+    ``dots`` with the rows' dots at ``pts`` (SNR ``snr``) appended: centroids as
     :func:`find_dots` takes them, strength the window mean above background, ``lit`` and
-    ``from_row`` set."""
+    ``from_row`` set.
+    """
     # centroids and strengths at the rows' pixels (row_dots: one call)
     xy, strength = row_dots(marks, z, gain, pts, dot_params.centroid_px, float(background_dn * area), noise_dn)
     xy_m = ground_to_robot(xy) if ground_to_robot is not None else np.zeros((len(xy), 2))
@@ -552,10 +633,13 @@ def _with_rows(dots, marks, z, gain, pts, snr, area, background_dn, noise_dn, do
 
 @numba.njit(cache=True)
 def row_dots(marks, z, gain, pts, r, per_px, noise):
-    """The rows' dots of :func:`_with_rows` at ``pts`` ((n, 2) float): their
+    """Measure the rows' dots: pixels, centroids and strengths.
+
+    The rows' dots of :func:`_with_rows` at ``pts`` ((n, 2) float): their
     pixels (rounded half to even), :func:`window_centroids` there, and their strength
     ``z * gain * noise`` at those pixels in float32 (numpy's arithmetic for float32 images
-    and a Python scalar). Returns (xy (n, 2), strength (n,) float32)."""
+    and a Python scalar). Returns (xy (n, 2), strength (n,) float32).
+    """
     n = len(pts)
     xs = np.empty(n, np.int64)
     ys = np.empty(n, np.int64)

@@ -16,17 +16,38 @@ from stcvision.stages.compiled import uidx
 
 
 def window_sums(image, window_px: int, *, scratch: Scratch = new_arrays) -> np.ndarray:
-    """Sum over the dot-sized square around every pixel, no rounding: uint16 for a uint8 image,
-    float32 for a uint16 one (exact: 9 x 65535 < 2^24). ``image``: an image, or a pair (green,
-    red) of 2-D images, whose sums come as one (h, w, 2) image, green first; 3 x 3 windows of a
-    pair of 8-bit images by a compiled pass (:func:`box3_pair`, bit for bit OpenCV's box filter
-    and faster), into ``scratch`` (the next call lending the same scratch overwrites them).
+    """Sum over the dot-sized square around every pixel, no rounding.
+
+    The sums are uint16 for a uint8 image, float32 for a uint16 one (exact: 9 x 65535 < 2^24).
+    3 x 3 windows of a pair of 8-bit images are summed by a compiled pass (:func:`box3_pair`,
+    bit for bit OpenCV's box filter and faster), into ``scratch`` (the next call lending the
+    same scratch overwrites them).
 
     The ant-like STC paper (Srour & Abboud), "Finding the green dots": "we look for the square of
     pixels (of a dot's size) that has the highest average value". Filtering once, in the mirror
     image where the pixels are, and unwarping the sums keeps every photon of a dot and the noise of
     exactly ``window_px**2`` pixels, wherever the dot lies (the unwarp would otherwise skip pixels
     near the robot, where the ground view is coarser than the mirror image).
+
+    Parameters
+    ----------
+    image : numpy.ndarray or tuple of numpy.ndarray
+        An image (uint8 or uint16), or a pair (green, red) of 2-D images of one shape and dtype,
+        whose sums come as one (h, w, 2) image, green first.
+    window_px : int
+        The side of the square (px), a dot's size.
+    scratch : Scratch
+        Lends the compiled pass's output and buffers; default new arrays.
+
+    Returns
+    -------
+    numpy.ndarray
+        The window sums, of the image's (or the pair's) shape.
+
+    Raises
+    ------
+    BadInputError
+        When ``image`` is not a uint8 or uint16 image, or the pair's images differ.
     """
     if isinstance(image, tuple):
         if len(image) != 2:
@@ -63,12 +84,15 @@ def _row3(src, o, w, hs, oh):
 
 @numba.njit(cache=True)
 def box3_pair(g, r, h, w, sums, scratch):
-    """3 x 3 window sums of the (h, w) uint8 images ``g`` and ``r`` (flat) into the (h, w, 2)
+    """Sum 3 x 3 windows of two uint8 images into one two-channel uint16 image.
+
+    3 x 3 window sums of the (h, w) uint8 images ``g`` and ``r`` (flat) into the (h, w, 2)
     uint16 image ``sums`` (flat, green first; exact), zeros beyond their edges:
     ``cv2.boxFilter(img, CV_16U, (3, 3), normalize=False, borderType=BORDER_CONSTANT)`` of
     each, bit for bit (integers), row by row: each row's sums along it into a ring of three
     rows (``scratch``: 6 w uint16), then the sums of three of those, interleaved, in loops
-    LLVM vectorises."""
+    LLVM vectorises.
+    """
     uw = uidx(w)
     for y in range(h + 1):
         if y < h:

@@ -27,9 +27,12 @@ _DASK_MISSING = "--scheduler needs Dask: pip install 'stcvision[dask]' (dask[dis
 
 
 def output_folder(out: str | os.PathLike, outputs: Iterable[str], *, store: str, force: bool, what: str) -> Path:
-    """Check and create a sweep's output folder: new, holding none of ``outputs``, holding its
-    ``store`` (an earlier run of the same command: it resumes and rewrites its outputs), or
-    ``force``. Anything else is a user's folder, refused in one line naming ``what`` runs there."""
+    """Check and create a sweep's output folder.
+
+    The folder may be new, hold none of ``outputs``, hold its ``store`` (an earlier run of the
+    same command: it resumes and rewrites its outputs), or be taken with ``force``. Anything
+    else is a user's folder, refused in one line naming ``what`` runs there.
+    """
     out = Path(out)
     if out.exists() and not out.is_dir():
         raise BadInputError(f"{out} is a file; expected a folder for the {what}'s outputs")
@@ -46,7 +49,7 @@ def output_folder(out: str | os.PathLike, outputs: Iterable[str], *, store: str,
 
 
 def machine_workers() -> int:
-    """The CPUs this process may run on (the default size of the local pool)."""
+    """Count the CPUs this process may run on (the default size of the local pool)."""
     try:
         return len(os.sched_getaffinity(0))
     except AttributeError:  # not on Linux
@@ -57,10 +60,20 @@ def machine_workers() -> int:
 class SweepOptions:
     """Where and how a sweep runs (``SweepOptions(workers, scheduler, fresh)``, all optional).
 
-    workers : processes of the local pool (None: one per CPU of the machine; 1 runs in this
-        process). Ignored with ``scheduler``.
-    scheduler : address of an existing Dask scheduler, ``tcp://HOST:PORT`` (None: local pool).
-    fresh : forget the store's results and run every task again.
+    Attributes
+    ----------
+    workers : int or None
+        Processes of the local pool (None: one per CPU of the machine; 1 runs in this process).
+        Ignored with ``scheduler``.
+    scheduler : str or None
+        Address of an existing Dask scheduler, ``tcp://HOST:PORT`` (None: local pool).
+    fresh : bool
+        Forget the store's results and run every task again.
+
+    Raises
+    ------
+    BadInputError
+        When ``workers`` is not an integer >= 1 or ``scheduler`` is not an address.
     """
 
     workers: int | None = None
@@ -77,6 +90,7 @@ class SweepOptions:
 
     @property
     def backend(self) -> str:
+        """Where the tasks run, in words: in-process, a local pool of N, or dask and its address."""
         if self.scheduler:
             return f"dask {self.scheduler}"
         n = self.workers or machine_workers()
@@ -85,9 +99,11 @@ class SweepOptions:
 
 @dataclass(kw_only=True, slots=True)
 class SweepReport:
-    """What a sweep did: a plain record, the caller's to keep or change (the store is the
-    truth). ``results``: key -> result of every successful task, in task order, those done by
-    earlier runs included; ``failed``: key -> one-line error."""
+    """What a sweep did: a plain record, the caller's to keep or change (the store is the truth).
+
+    ``results``: key -> result of every successful task, in task order, those done by earlier
+    runs included; ``failed``: key -> one-line error.
+    """
 
     desc: str
     total: int
@@ -101,8 +117,11 @@ class SweepReport:
     store: str = ""
 
     def raise_if_failed(self, what: str = "tasks", name=None) -> None:
-        """One line, exit 2, if any task failed: ``N of M <what> failed[, e.g. <name(key)>]:
-        <its error>; re-run to retry them`` (the store keeps every error; a re-run retries)."""
+        """Raise a one-line error (exit 2) if any task failed.
+
+        The line reads ``N of M <what> failed[, e.g. <name(key)>]: <its error>; re-run to retry
+        them`` (the store keeps every error; a re-run retries).
+        """
         if not self.failed:
             return
         key, err = next(iter(self.failed.items()))
@@ -111,9 +130,11 @@ class SweepReport:
 
     @property
     def tasks_per_s(self) -> float | None:
+        """Tasks run now per second of wall time (None when none ran)."""
         return self.ran / self.wall_s if self.ran and self.wall_s > 0 else None
 
     def summary(self, *, max_errors: int = 10) -> str:
+        """Say what the sweep did, in lines of text: counts, time, backend, store, the first failures."""
         rate = self.tasks_per_s
         lines = [
             f"{self.desc}: {self.total} tasks, {len(self.results)} done ({self.skipped} skipped as done by an "
@@ -195,8 +216,10 @@ STOP_GRACE_S = 0.5
 
 
 def _stop_pool(ex) -> None:
-    """Stop a pool now: drop the tasks not started and end the workers running one (their tasks
-    are lost; every finished one is already in the store). Without this, an interrupted sweep
+    """Stop a pool now.
+
+    Drop the tasks not started and end the workers running one (their tasks are lost; every
+    finished one is already in the store). Without this, an interrupted sweep
     would wait for each running task to end (a closed-loop run: tens of seconds) before exiting.
     """
     procs = list((getattr(ex, "_processes", None) or {}).values())  # CPython's own table of workers
@@ -286,6 +309,28 @@ def run_sweep(
 
     Progress: one tqdm bar on stderr (done/total, failures, ETA; off when stderr is not a
     terminal). A task's failure is recorded with its error and does not stop the others.
+
+    Parameters
+    ----------
+    tasks : iterable of Task
+        The tasks, each listed once.
+    store_path : str or os.PathLike
+        The store: the results of every task run so far (an earlier run's are not run again).
+    opts : SweepOptions
+        Where and how the tasks run: in this process, a local pool, or a Dask cluster.
+    desc : str
+        The progress bar's and the report's label.
+
+    Returns
+    -------
+    SweepReport
+        What the sweep did: every result in task order, the failures, the counts and the time.
+
+    Raises
+    ------
+    BadInputError
+        When an item is not a :class:`Task`, a task is listed twice, or an experiment cannot be
+        imported.
     """
     from tqdm import tqdm
 

@@ -29,7 +29,7 @@ def _plain(obj: Any) -> Any:
 
 
 def canonical_json(obj: Any) -> str:
-    """The one JSON text of ``obj``: sorted keys, no spaces, no NaN (the input of every key)."""
+    """Return the one JSON text of ``obj``: sorted keys, no spaces, no NaN (the input of every key)."""
     return json.dumps(_plain(obj), sort_keys=True, separators=(",", ":"), allow_nan=False, ensure_ascii=True)
 
 
@@ -54,10 +54,25 @@ def _check_experiment(experiment: Any) -> None:
 class Task:
     """One unit of work: ``experiment(params, seed_sequence)`` -> a JSON-serialisable dict.
 
-    ``experiment`` is ``"package.module:function"`` (importable on every worker); ``params`` a
-    JSON-serialisable dict (kept as a read-only copy: later changes to the caller's dict do not
-    reach the task); ``seed`` an integer that, with the two others, makes the task's key.
     Tasks are equal when their keys are.
+
+    Attributes
+    ----------
+    experiment : str
+        ``"package.module:function"``, importable on every worker.
+    params : Mapping
+        A JSON-serialisable dict, kept as a read-only copy: later changes to the caller's dict
+        do not reach the task.
+    seed : int
+        An integer >= 0 that, with the two others, makes the task's key.
+    key : str
+        The SHA-256 (hex) of the canonical JSON of the experiment, the parameters and the seed.
+
+    Raises
+    ------
+    BadInputError
+        When the experiment is not ``package.module:function``, the seed is not an integer
+        >= 0, or the parameters are not a JSON-serialisable dict.
     """
 
     experiment: str
@@ -85,13 +100,21 @@ class Task:
         return hash(self.key)
 
     def params_json(self) -> str:
-        """The parameters as canonical JSON (what a worker receives)."""
+        """Return the parameters as canonical JSON (what a worker receives).
+
+        Returns
+        -------
+        str
+            Sorted keys, no spaces, no NaN.
+        """
         return canonical_json(self.params)
 
 
 def seed_sequence(key: str):
-    """The task's random stream root: ``SeedSequence`` of the key's 256 bits (never of the
-    scheduling order, so every backend and worker count gives the same numbers)."""
+    """Return the task's random stream root: ``SeedSequence`` of the key's 256 bits.
+
+    Never of the scheduling order, so every backend and worker count gives the same numbers.
+    """
     import numpy as np
 
     return np.random.SeedSequence(int(key, 16))
@@ -112,7 +135,7 @@ def resolve_experiment(experiment: str) -> Callable[[dict, Any], dict]:
 
 
 def _jsonable(obj: Any) -> Any:
-    """The result as it will be stored (numpy scalars/arrays to lists); NaN/inf refused."""
+    """Return the result as it will be stored (numpy scalars/arrays to lists); NaN/inf refused."""
     from stcvision.fileio import dumps
 
     return json.loads(dumps(obj, indent=None))
