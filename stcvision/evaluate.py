@@ -142,6 +142,7 @@ class FrameRecord:
     visible: list = field(default_factory=list)  # (age, found) of every visible dot
     camera: str = "cam0"
     floor_err_mm: list = field(default_factory=list)  # profile image->floor error at the truth dots
+    untrusted: str = ""  # why the pipeline did not trust its reading ("" when it did)
 
     def to_dict(self) -> dict:
         s = self.score
@@ -417,6 +418,7 @@ def evaluate_frames(
             rec.visible = visible_detection(res, lab)
             rec.floor_err_mm = profile_floor_error_mm(pipe.profile, lab)
         rec.camera = cam
+        rec.untrusted = res.untrusted
         rec.badness = _badness(sc, "heading_error_deg" in label)
         records.append(rec)
     return records, skipped
@@ -442,6 +444,10 @@ def summarize_evaluation(ds, records: list[FrameRecord], skipped: list[dict], *,
     }
     summary.update(_summarize(records))
     summary["frames_skipped"] = len(skipped)
+    # readings the pipeline itself marked untrusted (a lit frame, a dark frame of another camera):
+    # scored like the rest, and counted, so that a set of real frames shows how many it refused
+    summary["frames_untrusted"] = sum(1 for r in records if r.untrusted)
+    summary["untrusted"] = [{"frame": r.frame, "reason": r.untrusted} for r in records if r.untrusted][:10]
     summary["skipped"] = skipped
     summary["stage_ms_median"] = {s: _median([r.stage_ms[s] for r in records]) for s in STAGES}
     found = [a for r in records for a in r.score.dot_ages_found]

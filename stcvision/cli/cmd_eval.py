@@ -240,7 +240,8 @@ def format_text(r):
 
     source = "labelled by hand" if r["mode"] == "labelled" else f"recipe {r['recipe']}, seed {r['seed']}"
     out = [
-        f"{r['dataset']} ({source}, profile {r['profile']}): {r['frames']} frames, {r['frames_skipped']} skipped",
+        f"{r['dataset']} ({source}, profile {r['profile']}): {r['frames']} frames, {r['frames_skipped']} skipped, "
+        f"{r['frames_untrusted']} untrusted",
         f"  dot recall            {pct(r['dot_recall'])}",
         f"  dot precision         {pct(r['dot_precision'])}",
         f"  dot loc. error median {_f(r['dot_loc_err_mm_median'], '.2f')} mm, "

@@ -209,3 +209,15 @@ def test_a_dark_frame_of_another_camera_is_untrusted(cli, tmp_path):
     own = pipeline_json(cli, tmp_path / "cam0" / "frame.png", "--dark", tmp_path / "cam0" / "dark.png")
     other = pipeline_json(cli, tmp_path / "cam0" / "frame.png", "--dark", tmp_path / "cam7" / "dark.png")
     assert own["untrusted"] == "" and "another camera" in other["untrusted"]
+
+
+def test_eval_counts_the_frames_it_does_not_trust(cli, room_profile, tmp_path):
+    """A labelled folder holding the real room photograph: scored, and counted untrusted."""
+    d = tmp_path / "labelled"
+    d.mkdir()
+    (d / "room.jpg").write_bytes(ROOM.read_bytes())
+    (d / "labels.jsonl").write_text(json.dumps({"frame": "room.jpg", "boxes": {"1": False}}) + "\n")
+    code, out, err = cli("eval", d, "--no-dark", "--profile", room_profile, "--json")
+    assert code == 0, err
+    r = json.loads(out)
+    assert r["frames_untrusted"] == 1 and "lit frame" in r["untrusted"][0]["reason"]
