@@ -172,8 +172,22 @@ def main(argv: Sequence[str] | None = None) -> int:
     from stcvision.fileio import forget_signals, new_run, raise_if_signalled, remove_live_temps
 
     new_run()
-    parser = build_parser()
-    args = parser.parse_args(argv)
+    # the signals are turned into exceptions before the commands' modules are imported: under
+    # load their imports take seconds, and a Ctrl-C or SIGTERM then must end the command as one
+    # later would, in one line, not with a traceback or the default action's silent death
+    previous = _install_signal_handlers()
+    try:
+        parser = build_parser()
+        args = parser.parse_args(argv)
+    except KeyboardInterrupt as exc:
+        _restore_signal_handlers(previous)
+        forget_signals()
+        print("stcvision: interrupted", file=sys.stderr)
+        return 128 + (exc.signum if isinstance(exc, Terminated) else 2)
+    except BaseException:
+        _restore_signal_handlers(previous)
+        raise
+    _restore_signal_handlers(previous)
     if args.command is None:
         parser.print_help()
         return EXIT_BAD_INPUT
