@@ -32,8 +32,9 @@ import numpy as np
 from stcvision.controllers.stc.belief import Belief
 from stcvision.controllers.stc.claims import OutOfSight
 from stcvision.controllers.stc.config import CoverConfig
+from stcvision.controllers.stc.controller import make_controller
 from stcvision.controllers.stc.faults import Faults
-from stcvision.controllers.stc.fsm import Action, StcObservation, StcPhase, initial_state, step
+from stcvision.controllers.stc.fsm import Action, StcObservation, StcPhase, initial_state
 from stcvision.controllers.stc.health import RobotStop
 from stcvision.controllers.stc.movecount import MoveCount, MoveLog
 from stcvision.controllers.stc.observers import Observers, Reading, Trace
@@ -92,10 +93,13 @@ def run_cover(board, cfg: CoverConfig | None = None, *, observers=(), perception
                   MoveLog(count) if cfg.move_log else None)  # fmt: skip
     referee = Referee(board, active=see.refereed, report=watch.on_referee)
     end = LoopEnd()
+    controller = make_controller(cfg.fsm, mcu=cfg.mcu)  # the part that decides: Python, host C or the firmware
     try:
-        _loop(robot, cfg.max_decisions, watch, referee, end)
+        _loop(robot, controller, cfg.max_decisions, watch, referee, end)
     except RobotStop as stop:  # a part found that the robot cannot go on (stcvision.controllers.stc.health)
         end.abort = f"{stop} (decision {end.decisions})"
+    finally:
+        controller.close()
     watch.on_end(plant, robot.floor)
     out = _summary(board, cfg, robot, referee, end, wall_s=time.perf_counter() - wall0)
     if faults:
@@ -117,8 +121,9 @@ class LoopEnd:
     memory_bytes: int = 0
 
 
-def _loop(robot: Robot, max_decisions: int, watch, referee, end: LoopEnd) -> None:
-    """Perception -> controller -> motors until the controller is done, the robot stops or
+def _loop(robot: Robot, controller, max_decisions: int, watch, referee, end: LoopEnd) -> None:
+    """Perception -> ``controller`` (:mod:`stcvision.controllers.stc.controller`) -> motors until
+    the controller is done, the robot stops or
     ``max_decisions`` is reached; the outcome goes into ``end``."""
     state = initial_state()
     while end.decisions < max_decisions:
@@ -136,7 +141,7 @@ def _loop(robot: Robot, max_decisions: int, watch, referee, end: LoopEnd) -> Non
             end.abort = f"{why} (at sub-cell {robot.belief.sub}, decision {end.decisions})"
             return
         prev = state
-        state, action, decision = step(state, obs)
+        state, action, decision = controller.step(state, obs)
         _tell(robot, watch, referee, end, prev, state, obs, decision)
         referee.step(prev, state, action, robot.plant, robot.belief, end.decisions)
         watch.on_step(robot.plant, robot.belief, state, action)

@@ -79,6 +79,14 @@ def add_parser(p):
         help="inject a hardware fault (repeatable): rate, led, drop, stray, noise, bump, slip; --list-faults for "
         "what each LEVEL means, its default and range",
     )
+    p.add_argument(
+        "--fsm",
+        choices=("python", "c", "firmware"),
+        default="python",
+        help="the controller that decides: python (the reference), c (the portable C built here by cc), firmware "
+        "(that C built for a microcontroller, in its emulator, over the serial protocol; --mcu)",
+    )
+    p.add_argument("--mcu", default=None, metavar="NAME", help="--fsm firmware: the microcontroller")
     p.add_argument("--move-log", action="store_true",
                    help="a study switch: keep beside the count of moves a map of every cell entered and row laid, "
                    "and check the camera's readings against it (the ant-like robot keeps no such map)")  # fmt: skip
@@ -181,7 +189,7 @@ def run(args):
     faults = tuple(parse_fault(f) for f in args.fault)
     Faults(faults, args.seed, args.perception)  # a fault twice or one the perception has no frames for: exit 2
     cfg = CoverConfig(perception=args.perception, exposure=exposure, seed=args.seed, camera=camera, robot=robot,
-                      faults=faults, move_log=args.move_log)  # fmt: skip
+                      faults=faults, move_log=args.move_log, fsm=args.fsm, mcu=args.mcu)  # fmt: skip
     result = run_recorded(board, cfg, args.rrd)
     result["rrd"] = args.rrd
     return result
