@@ -49,10 +49,10 @@ def add_parser(p):
         description="Does the tour converge with this camera and robot, how long does it take, the oldest mark "
         "it must read, the frame lengths it uses (the physics-limited camera, exposure auto; seconds).",
     )
-    _add_board_arguments(plan)
+    add_board_arguments(plan)
     _add_hardware_arguments(plan)
     plan.add_argument("--json", action="store_true", help="print the result as one JSON object")
-    _add_board_arguments(p)
+    add_board_arguments(p)
     p.add_argument(
         "--perception",
         choices=("camera", "oracle", "ideal"),
@@ -97,7 +97,7 @@ def add_parser(p):
     p.add_argument("--force", action="store_true", help="overwrite --rrd")
 
 
-def _add_board_arguments(p) -> None:
+def add_board_arguments(p) -> None:
     from stcvision.cli._args import pair
 
     src = p.add_mutually_exclusive_group()
