@@ -5,7 +5,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: demo test fuzz bench lint clean venv docs serve-docs
+.PHONY: demo test test-emulator cross-tools fuzz bench lint clean venv docs serve-docs
 
 venv: $(STAMP)
 
@@ -18,8 +18,23 @@ $(STAMP): pyproject.toml
 demo: $(STAMP)
 	$(BIN)/stcvision demo --out out --force  # out/ is make demo's own folder: replace the last run
 
+# everything but the emulator's tests: a machine with Python and cc runs it whole, none skipped
 test: $(STAMP)
-	$(BIN)/python -m pytest -q -n 2
+	$(BIN)/python -m pytest -q -n 2 -m "not emulator"
+
+# the STC controller's firmware for the ATmega328P (avr-gcc) run in QEMU's uno machine
+# (tests/emulator; needs make cross-tools). A target of its own rather than skips inside make
+# test: what make test runs never depends on what happens to be installed
+test-emulator: $(STAMP)
+	$(BIN)/python -m pytest -q -n 2 -m emulator tests/emulator
+
+# the cross compiler and the emulator, from Debian/Ubuntu packages (root or sudo)
+CROSS_PACKAGES := gcc-avr avr-libc binutils-avr qemu-system-misc
+cross-tools:
+	@if command -v avr-gcc >/dev/null && command -v qemu-system-avr >/dev/null; then echo "cross tools present"; \
+	else $$(command -v sudo || true) apt-get update -qq && \
+	     $$(command -v sudo || true) env DEBIAN_FRONTEND=noninteractive \
+	       apt-get install -y -qq --no-install-recommends $(CROSS_PACKAGES); fi
 
 # the fuzz tests (tests/fuzz, marked fuzz) with many examples: >= 10,000 cases, counted at the end
 fuzz: $(STAMP)

@@ -7,6 +7,8 @@ with :meth:`Controller.step` ``(StcState, reading) -> Step`` and :meth:`Controll
 * :class:`stcvision.controllers.stc.firmware.FirmwareController`: the same C built for a
   microcontroller, running in its emulator, asked over the serial protocol.
 
+:func:`stcvision.controllers.stc.choose.make_controller` makes the one a run names.
+
 Each returns the state as :class:`~stcvision.controllers.stc.fsm.StcState` (the C state's three
 bytes read back, :mod:`stcvision.controllers.stc.wire`), so the loop, the referee and the
 observers see one kind of state whichever controller decides.
@@ -39,7 +41,7 @@ __all__ = [
     "HostC",
     "PythonController",
     "build_host_library",
-    "make_controller",
+    "compile_cached",
 ]
 
 #: the portable C controller's folder (installed with the package)
@@ -85,35 +87,43 @@ def _cache_dir() -> Path:
     return Path(base) / "stcvision"
 
 
-def build_host_library(cc: str | None = None) -> Path:
-    """The host's shared library of the C controller: built once by ``cc`` (or ``$CC``) into the
-    user's cache folder, named by the hash of its sources and flags, so an edited source builds
-    anew and an unchanged one loads at once. Raises BadInputError when there is no compiler or
-    it rejects the sources."""
+def compile_cached(cc: str, flags, sources, *, name: str, suffix: str, what: str) -> Path:
+    """Compile ``sources`` (file names in :data:`FIRMWARE_DIR`) with ``cc`` and ``flags`` once
+    into the user's cache folder, under ``name``, the hash of the compiler, the flags and every
+    source and header, and ``suffix``: an edited source builds anew, an unchanged one is reused.
+    Raises BadInputError when there is no such compiler or it rejects the sources."""
     from stcvision.fileio import commit_temp, discard_temp, temp_sibling
 
-    cc = cc or os.environ.get("CC") or "cc"
     exe = shutil.which(cc)
     if exe is None:
-        raise BadInputError(f"no C compiler '{cc}' on PATH: the C controller is built by one (set CC or install cc)")
-    h = hashlib.sha256(" ".join((cc, *C_FLAGS)).encode())
-    for name in (*HOST_SOURCES, "stc_fsm.h"):
-        h.update((FIRMWARE_DIR / name).read_bytes())
-    lib = _cache_dir() / f"stc_fsm-{h.hexdigest()[:16]}{'.dll' if sys.platform == 'win32' else '.so'}"
-    if lib.exists():
-        return lib
-    lib.parent.mkdir(parents=True, exist_ok=True)
-    tmp = temp_sibling(lib)
+        raise BadInputError(f"no C compiler '{cc}' on PATH: {what} is built by one")
+    h = hashlib.sha256(" ".join((cc, *flags, *sources)).encode())
+    for f in sorted(FIRMWARE_DIR.glob("*.[ch]")):
+        h.update(f.name.encode() + f.read_bytes())
+    out = _cache_dir() / f"{name}-{h.hexdigest()[:16]}{suffix}"
+    if out.exists():
+        return out
+    out.parent.mkdir(parents=True, exist_ok=True)
+    tmp = temp_sibling(out)
     try:
-        srcs = [str(FIRMWARE_DIR / s) for s in HOST_SOURCES]
-        r = subprocess.run([exe, *C_FLAGS, "-shared", "-fPIC", "-o", str(tmp), *srcs], capture_output=True, text=True)
+        srcs = [str(FIRMWARE_DIR / s) for s in sources]
+        r = subprocess.run([exe, *flags, "-o", str(tmp), *srcs], capture_output=True, text=True)
         if r.returncode != 0:
             first = (r.stderr.strip().splitlines() or ["(no message)"])[0]
-            raise BadInputError(f"{cc} could not build the C controller: {first}")
-        commit_temp(tmp, lib)
+            raise BadInputError(f"{cc} could not build {what}: {first}")
+        commit_temp(tmp, out)
     finally:
         discard_temp(tmp if tmp.exists() else None)
-    return lib
+    return out
+
+
+def build_host_library(cc: str | None = None) -> Path:
+    """The host's shared library of the C controller, built by ``cc`` (or ``$CC``) once
+    (:func:`compile_cached`)."""
+    cc = cc or os.environ.get("CC") or "cc"
+    suffix = ".dll" if sys.platform == "win32" else ".so"
+    return compile_cached(cc, (*C_FLAGS, "-shared", "-fPIC"), HOST_SOURCES, name="stc_fsm", suffix=suffix,
+                          what="the C controller (set CC or install cc)")  # fmt: skip
 
 
 class HostC:
@@ -162,16 +172,3 @@ def decode_out(out: bytes) -> Step:
         raise ValueError(wire.STATUS_ERRORS.get(status, f"status {status}"))
     s = wire.decode_state(out[2 : 2 + wire.STATE_BYTES])
     return Step(s, wire.decode_action(out[1]), wire.decode_decision(out[2 + wire.STATE_BYTES :]))
-
-
-def make_controller(name: str, *, mcu: str | None = None) -> Controller:
-    """The controller named ``name`` (:data:`CONTROLLERS`); ``mcu``: the firmware's chip."""
-    if name == "python":
-        return PythonController()
-    if name == "c":
-        return HostC()
-    if name == "firmware":
-        from stcvision.controllers.stc.firmware import FirmwareController
-
-        return FirmwareController(mcu)
-    raise BadInputError(f"unknown controller '{name}': one of {', '.join(CONTROLLERS)}")

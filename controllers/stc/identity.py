@@ -26,7 +26,6 @@ __all__ = [
     "check_boards",
     "check_random",
     "field_values",
-    "identity_report",
     "oracle_boards",
     "random_pairs",
 ]
@@ -193,22 +192,3 @@ def check_boards(boards, controller) -> dict:
         if twin.first_difference and out["first_difference"] is None:
             out["first_difference"] = {"board": str(name), **twin.first_difference}
     return out
-
-
-def identity_report(fsm: str, *, boards: int, pairs: int, maps=(), seed: int = 0, mcu: str | None = None) -> dict:
-    """``stcvision firmware check``: the controller ``fsm`` against the Python step on every tick
-    of ``boards`` oracle tours (:func:`oracle_boards` from ``seed``) and of the map files
-    ``maps`` (their own start), and on ``pairs`` random pairs (:func:`random_pairs`; the
-    firmware answers one tick per frame, so its pairs are stepped one by one)."""
-    from stcvision.controllers.stc.controller import make_controller
-    from stcvision.sim_camera.board import Board
-
-    ctrl = make_controller(fsm, mcu=mcu)
-    try:
-        tours = check_boards(oracle_boards(boards, seed), ctrl)
-        peers = check_boards(((str(m), Board.from_file(m)) for m in maps), ctrl)
-        rand = check_random(pairs, seed, ctrl) if pairs else None
-    finally:
-        ctrl.close()
-    same = tours["different"] == 0 and peers["different"] == 0 and (rand is None or rand["different"] == 0)
-    return {"fsm": fsm, "seed": seed, "identical": same, "oracle_boards": tours, "maps": peers, "random_pairs": rand}

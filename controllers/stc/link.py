@@ -17,6 +17,8 @@ move, so no command is carried out twice.
 from __future__ import annotations
 
 import binascii
+import os
+import select
 import struct
 import time
 
@@ -24,11 +26,13 @@ from stcvision.errors import StcVisionError
 
 __all__ = [
     "MAX_PAYLOAD",
+    "POLL_S",
     "NAK",
     "NAK_CODES",
     "REQUESTS",
     "SYNC",
     "VERSION",
+    "FdPort",
     "Link",
     "LinkError",
     "crc16",
@@ -59,12 +63,21 @@ REQUESTS = {
     "LEDS": 0x13,  # uint16 ms: rear UV LEDs on without moving -> ack
     "ODOM": 0x14,  # -> moves, turns (uint16 each), clock (uint32 ms)
     "REPORT": 0x15,  # -> reachable, covered, covered twice (uint16 each), flags (finished, back)
+    "STATS": 0x05,  # -> the stack's high-water mark (uint16 bytes; 0: not measured)
     "STOP": 0x1F,  # motors off, LEDs off -> ack
 }
 _NAMES = {t: n for n, t in REQUESTS.items()}
 #: the reply to a request that cannot be carried out: code (1 byte) + one line of text
 NAK = 0x7F
+#: how often (s) a wait on a port looks up (Ctrl-C, SIGTERM)
+POLL_S = 0.1
 NAK_CODES = {1: "bad checksum", 2: "unknown request", 3: "bad length", 4: "wrong version", 5: "robot stopped"}
+
+
+try:  # a terminal's drain fails with termios.error (not an OSError) when the far side hangs up
+    from termios import error as _TermiosError
+except ImportError:  # no terminals on this platform
+    _TermiosError = OSError
 
 
 class LinkError(StcVisionError):
@@ -133,7 +146,10 @@ class Link:
         self.seq = (self.seq + 1) & 0xFF
         try:
             self.port.write(frame(kind, self.seq, payload))
-            self.port.flush()
+            try:
+                self.port.flush()  # waits for the bytes to leave; a port that is gone shows at the read
+            except (serial.SerialException, OSError, _TermiosError):
+                pass
             rtype, rseq, body = read_frame(self.port, timeout_s or self.timeout_s, what=f"the reply to {name}")
         except (serial.SerialException, OSError) as e:
             raise LinkError(f"{self.name} is gone ({' '.join(str(e).split())})") from None
@@ -162,3 +178,28 @@ def nak(seq: int, code: int, text: str = "") -> bytes:
 
 def request_name(kind: int) -> str:
     return _NAMES.get(kind, f"0x{kind:02x}")
+
+
+class FdPort:
+    """A file descriptor as a port: ``read(n)`` returns what arrives within :data:`POLL_S`."""
+
+    def __init__(self, fd: int):
+        self.fd = fd
+
+    def read(self, n: int) -> bytes:
+        r, _, _ = select.select([self.fd], [], [], POLL_S)
+        if not r:
+            return b""
+        try:
+            return os.read(self.fd, n)
+        except OSError:  # the other side closed
+            return b""
+
+    def readable(self, timeout_s: float) -> bool:
+        return bool(select.select([self.fd], [], [], timeout_s)[0])
+
+    def write(self, data: bytes) -> None:
+        os.write(self.fd, data)
+
+    def flush(self) -> None:
+        pass

@@ -30,12 +30,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from stcvision.controllers.stc.belief import Belief
+from stcvision.controllers.stc.choose import make_controller
 from stcvision.controllers.stc.claims import OutOfSight
 from stcvision.controllers.stc.config import CoverConfig
-from stcvision.controllers.stc.controller import make_controller
 from stcvision.controllers.stc.faults import Faults
 from stcvision.controllers.stc.fsm import Action, StcObservation, StcPhase, initial_state
 from stcvision.controllers.stc.health import RobotStop
+from stcvision.controllers.stc.link import LinkError
 from stcvision.controllers.stc.movecount import MoveCount, MoveLog
 from stcvision.controllers.stc.observers import Observers, Reading, Trace
 from stcvision.controllers.stc.oracle import coverage
@@ -81,7 +82,7 @@ def run_cover(board, cfg: CoverConfig | None = None, *, observers=(), perception
     controller = make_controller(cfg.fsm, mcu=cfg.mcu)  # the part that decides: Python, host C or the firmware
     try:
         _loop(robot, controller, cfg.max_decisions, watch, referee, end)
-    except RobotStop as stop:  # a part found that the robot cannot go on (stcvision.controllers.stc.health)
+    except (RobotStop, LinkError) as stop:  # a part found the robot cannot go on, or the firmware's link failed
         end.abort = f"{stop} (decision {end.decisions})"
     finally:
         controller.close()

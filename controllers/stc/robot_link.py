@@ -15,7 +15,7 @@ import struct
 import time
 
 from stcvision.controllers.stc import wire
-from stcvision.controllers.stc.controller import make_controller
+from stcvision.controllers.stc.choose import make_controller
 from stcvision.controllers.stc.fsm import Action, StcPhase, initial_state
 from stcvision.controllers.stc.link import Link, LinkError
 from stcvision.errors import BadInputError

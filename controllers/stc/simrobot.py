@@ -13,16 +13,17 @@ to test that the other side stops safely.
 from __future__ import annotations
 
 import os
-import select
 import struct
+import time
 import tty
 
 from stcvision.controllers.stc import link, wire
+from stcvision.controllers.stc.link import POLL_S, FdPort
 from stcvision.controllers.stc.loop import LoopEnd, build_parts, read_tick
 from stcvision.controllers.stc.oracle import coverage
 from stcvision.errors import BadInputError
 
-__all__ = ["LINK_FAULTS", "FdPort", "SimRobot", "parse_link_fault", "serve_pty"]
+__all__ = ["LINK_FAULTS", "SimRobot", "parse_link_fault", "serve_pty"]
 
 #: faults of the link, injected at the Nth request: a byte of the reply dropped, the reply's
 #: checksum flipped, no reply at all, the port closed (a robot unplugged)
@@ -31,8 +32,6 @@ LINK_FAULTS = ("drop", "corrupt", "mute", "hangup")
 FRAME_S = 0.5
 #: the robot waits this long (s) between requests before it stops by itself (a host that is gone)
 IDLE_S = 60.0
-#: how often (s) a wait looks up from the port (Ctrl-C, SIGTERM)
-POLL_S = 0.1
 
 
 def parse_link_fault(text: str | None) -> tuple[str, int] | None:
@@ -43,31 +42,6 @@ def parse_link_fault(text: str | None) -> tuple[str, int] | None:
     if kind not in LINK_FAULTS or not n.isdigit() or int(n) < 1:
         raise BadInputError(f"--link-fault {text!r}: expected KIND@N, KIND one of {', '.join(LINK_FAULTS)}, N >= 1")
     return kind, int(n)
-
-
-class FdPort:
-    """A file descriptor as a port: ``read(n)`` returns what arrives within :data:`POLL_S`."""
-
-    def __init__(self, fd: int):
-        self.fd = fd
-
-    def read(self, n: int) -> bytes:
-        r, _, _ = select.select([self.fd], [], [], POLL_S)
-        if not r:
-            return b""
-        try:
-            return os.read(self.fd, n)
-        except OSError:  # the other side closed
-            return b""
-
-    def readable(self, timeout_s: float) -> bool:
-        return bool(select.select([self.fd], [], [], timeout_s)[0])
-
-    def write(self, data: bytes) -> None:
-        os.write(self.fd, data)
-
-    def flush(self) -> None:
-        pass
 
 
 class SimRobot:
@@ -183,6 +157,7 @@ def serve_pty(board, cfg, *, ready=None, link_fault: tuple[str, int] | None = No
                 reply = reply[:3] + reply[4:] if fault == "drop" else reply[:-1] + bytes((reply[-1] ^ 1,))
             port.write(reply)
             if kind == link.REQUESTS["STOP"]:
+                time.sleep(FRAME_S)  # the reply is read before the terminal goes
                 break
     finally:
         os.close(master)

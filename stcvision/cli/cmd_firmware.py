@@ -71,7 +71,7 @@ def _count(cap: int, why: str):
 
 def run(args):
     if args.action == "check":
-        from stcvision.controllers.stc.identity import identity_report
+        from stcvision.controllers.stc.firmware_report import identity_report
 
         maps = [m for m in args.maps.split(",") if m] if args.maps else []
         r = identity_report(args.fsm, boards=args.boards, pairs=args.pairs, maps=maps, seed=args.seed, mcu=args.mcu)
@@ -79,7 +79,7 @@ def run(args):
 
         r["exit_code"] = EXIT_OK if r["identical"] else EXIT_INCOMPLETE
         return r
-    from stcvision.controllers.stc.firmware import build_firmware
+    from stcvision.controllers.stc.firmware_report import build_firmware
 
     return build_firmware(args.mcu, args.out, overwrite=args.force)
 

@@ -9,13 +9,13 @@ import numpy as np
 import pytest
 
 from stcvision.controllers.stc import wire
+from stcvision.controllers.stc.choose import make_controller
 from stcvision.controllers.stc.controller import (
     CONTROLLERS,
     OUT_BYTES,
     HostC,
     PythonController,
     build_host_library,
-    make_controller,
 )
 from stcvision.controllers.stc.fsm import Action, StcPhase, StcState, initial_state, step
 from stcvision.controllers.stc.identity import (

@@ -1,0 +1,141 @@
+"""The firmware's own protocol code (``stc_link.c``) built for this machine by ``cc`` and run as
+a process whose standard input and output are its serial line: the same firmware the emulator
+runs, with only a C compiler installed (the emulator's own tests: tests/emulator)."""
+
+import json
+import subprocess
+import time
+
+import pytest
+
+from stcvision.controllers.stc import link, wire
+from stcvision.controllers.stc.firmware import FirmwareController, compile_firmware
+from stcvision.controllers.stc.fsm import initial_state
+from stcvision.controllers.stc.identity import check_boards, check_random, oracle_boards
+from stcvision.controllers.stc.link import FdPort, LinkError, frame, read_frame
+
+
+@pytest.fixture
+def host_firmware():
+    c = FirmwareController("host")
+    yield c
+    c.close()
+
+
+def test_the_host_firmware_says_hello_and_equals_python(host_firmware):
+    assert host_firmware.state_bytes == wire.STATE_BYTES
+    assert host_firmware.held == wire.encode_state(initial_state())
+    tours = check_boards(oracle_boards(3, 40), host_firmware)
+    assert tours["different"] == 0 and tours["complete"] == 3 and tours["ticks"] > 30
+    pairs = check_random(1500, 5, host_firmware)
+    assert pairs["different"] == 0 and pairs["refused_by_both"] > 0
+    assert host_firmware.stack_bytes() == 0  # the host does not measure its stack
+
+
+@pytest.fixture
+def raw_port():
+    p = subprocess.Popen([str(compile_firmware("host"))], stdin=subprocess.PIPE, stdout=subprocess.PIPE)
+
+    class Port(FdPort):
+        def write(self, data):
+            p.stdin.write(data)
+            p.stdin.flush()
+
+    yield Port(p.stdout.fileno())
+    p.kill()
+    p.wait()
+
+
+@pytest.mark.parametrize(
+    "sent,code",
+    [
+        (lambda: frame(link.REQUESTS["HELLO"], 9)[:-1] + b"\x00", 1),  # bad checksum
+        (lambda: frame(0x33, 9), 2),  # unknown request
+        (lambda: frame(link.REQUESTS["STEP"], 9, b"\x01"), 3),  # a STEP without its reading
+        (lambda: _other_version(frame(link.REQUESTS["HELLO"], 9)), 4),
+    ],
+)
+def test_the_firmware_refuses_what_it_cannot_answer(raw_port, sent, code):
+    raw_port.write(sent())
+    kind, _, payload = read_frame(raw_port, 2.0)
+    assert kind == link.NAK and payload[0] == code
+    raw_port.write(frame(link.REQUESTS["HELLO"], 10))  # and answers the next good frame
+    assert read_frame(raw_port, 2.0)[:2] == (link.REQUESTS["HELLO"] | link.REPLY, 10)
+
+
+def _other_version(f: bytes) -> bytes:
+    body = bytes((link.VERSION + 1,)) + f[2:-2]
+    return f[:1] + body + link.crc16(body).to_bytes(2, "big")
+
+
+def test_cover_fsm_firmware_on_the_host_equals_python(cli):
+    runs = {}
+    for fsm in ("python", "firmware"):
+        code, out, _ = cli("cover", "--board", "3x3", "--perception", "oracle", "--fsm", fsm, "--mcu", "host", "--json")
+        assert code == 0
+        runs[fsm] = json.loads(out)
+        runs[fsm].pop("wall_s")
+    assert runs["firmware"] == runs["python"]
+
+
+def test_a_firmware_that_dies_mid_run_is_one_line_and_a_stop(monkeypatch):
+    from stcvision.controllers.stc import choose as controller_module
+    from stcvision.controllers.stc.loop import CoverConfig, run_cover
+    from stcvision.sim_camera.board import Board
+
+    made = []
+    real = controller_module.make_controller
+
+    def dying(name, **kw):
+        made.append(real(name, **kw))
+        return made[-1]
+
+    import stcvision.controllers.stc.loop as loop
+
+    monkeypatch.setattr(loop, "make_controller", dying)
+
+    class Killer:
+        ticks = 0
+
+        def on_step(self, *a):
+            self.ticks += 1
+            if self.ticks == 20:
+                made[0].proc.kill()
+                made[0].proc.wait()
+
+        def __getattr__(self, name):
+            return lambda *a, **k: None
+
+    board = Board.random((3, 3), obstacle_fraction=0.0, rng=__import__("numpy").random.default_rng(1))
+    t0 = time.monotonic()
+    r = run_cover(board, CoverConfig(perception="oracle", fsm="firmware", mcu="host"), observers=[Killer()])
+    assert time.monotonic() - t0 < 10 and not r["complete"]
+    assert "the host-built firmware is gone" in r["abort_reason"] or "never came" in r["abort_reason"]
+    assert "\n" not in r["abort_reason"]
+
+
+def test_firmware_build_refuses_the_host(cli, tmp_path):
+    code, _, err = cli("firmware", "build", "--mcu", "host", "--out", tmp_path / "fw")
+    assert code == 2 and "not a microcontroller" in err
+
+
+def test_an_unknown_chip_is_one_line(cli, tmp_path):
+    code, _, err = cli("cover", "--board", "2x2", "--perception", "oracle", "--fsm", "firmware", "--mcu", "z80")
+    assert code == 2 and "unknown microcontroller 'z80'" in err
+
+
+def test_a_link_error_names_the_firmware(host_firmware):
+    host_firmware.proc.kill()
+    host_firmware.proc.wait()
+    with pytest.raises(LinkError, match="the host-built firmware is gone|never came"):
+        host_firmware.step(initial_state(), None)
+
+
+def test_make_cross_tools_installs_the_packages_the_firmware_names():
+    import re
+    from pathlib import Path
+
+    from stcvision.controllers.stc.firmware import APT_PACKAGES
+
+    makefile = (Path(__file__).resolve().parents[3] / "Makefile").read_text()
+    assert tuple(re.search(r"^CROSS_PACKAGES := (.*)$", makefile, re.M).group(1).split()) == APT_PACKAGES
