@@ -15,7 +15,7 @@ def make_controller(name: str, *, mcu: str | None = None) -> Controller:
     if name == "c":
         return HostC()
     if name == "firmware":
-        from stcvision.controllers.stc.firmware import FirmwareController
+        from stcvision.controllers.stc.mcu import FirmwareController
 
         return FirmwareController(mcu)
     raise BadInputError(f"unknown controller '{name}': one of {', '.join(CONTROLLERS)}")

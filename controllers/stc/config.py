@@ -103,7 +103,7 @@ class CoverConfig:
     #: Python step, the portable C built for this machine, or that C as firmware in an emulator
     fsm: str = "python"
     #: ``fsm="firmware"``: the microcontroller it is built for (None: the default,
-    #: :data:`stcvision.controllers.stc.firmware.DEFAULT_MCU`)
+    #: :data:`stcvision.controllers.stc.mcu.DEFAULT_MCU`)
     mcu: str | None = None
 
 

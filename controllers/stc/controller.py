@@ -4,7 +4,7 @@ with :meth:`Controller.step` ``(StcState, reading) -> Step`` and :meth:`Controll
 * :class:`PythonController`: :func:`stcvision.controllers.stc.fsm.step` itself;
 * :class:`HostC`: the portable C controller (``firmware/stc_fsm.c``) built for this machine by
   its C compiler (``cc``) and called through :mod:`ctypes`;
-* :class:`stcvision.controllers.stc.firmware.FirmwareController`: the same C built for a
+* :class:`stcvision.controllers.stc.mcu.FirmwareController`: the same C built for a
   microcontroller, running in its emulator, asked over the serial protocol.
 
 :func:`stcvision.controllers.stc.choose.make_controller` makes the one a run names.

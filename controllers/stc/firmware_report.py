@@ -11,8 +11,8 @@ import tempfile
 from pathlib import Path
 
 from stcvision.controllers.stc.choose import make_controller
-from stcvision.controllers.stc.firmware import MCUS, FirmwareController, Mcu, compile_firmware, mcu_named, need_tool
 from stcvision.controllers.stc.identity import check_boards, check_random, oracle_boards
+from stcvision.controllers.stc.mcu import MCUS, FirmwareController, Mcu, compile_firmware, mcu_named, need_tool
 from stcvision.errors import BadInputError
 
 __all__ = ["MEASURE_BOARDS", "MEASURE_PAIRS", "build_firmware", "identity_report"]

@@ -63,3 +63,23 @@ def test_robot_run_with_the_firmware_deciding(cli):
         if p.poll() is None:
             p.terminate()
         p.wait(timeout=10)
+
+
+def test_the_how_to_commands_that_need_the_emulator_run(tmp_path):
+    """The how-to's ``sh-emulator`` blocks (not run by make test), each line as written but the
+    check's sizes."""
+    import os
+    import re
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[2]
+    page = (root / "docs" / "how-to" / "controller-on-your-robot.md").read_text()
+    blocks = re.findall(r"^```sh-emulator\n(.*?)^```", page, re.M | re.S)
+    assert len(blocks) == 2
+    env = dict(os.environ, PATH=f"{Path(sys.executable).parent}{os.pathsep}{os.environ['PATH']}")
+    for block in blocks:
+        code = block.replace("--boards 20 --pairs 20000", "--boards 3 --pairs 2000")
+        done = subprocess.run(["bash", "-euo", "pipefail", "-c", code], cwd=tmp_path, env=env, capture_output=True,
+                              text=True)  # fmt: skip
+        assert done.returncode == 0, done.stderr
+    assert json.loads((tmp_path / "fw" / "build.json").read_text())["state_bytes"] == 3

@@ -9,10 +9,10 @@ import time
 import pytest
 
 from stcvision.controllers.stc import link, wire
-from stcvision.controllers.stc.firmware import FirmwareController, compile_firmware
 from stcvision.controllers.stc.fsm import initial_state
 from stcvision.controllers.stc.identity import check_boards, check_random, oracle_boards
 from stcvision.controllers.stc.link import FdPort, LinkError, frame, read_frame
+from stcvision.controllers.stc.mcu import FirmwareController, compile_firmware
 
 
 @pytest.fixture
@@ -135,7 +135,7 @@ def test_make_cross_tools_installs_the_packages_the_firmware_names():
     import re
     from pathlib import Path
 
-    from stcvision.controllers.stc.firmware import APT_PACKAGES
+    from stcvision.controllers.stc.mcu import APT_PACKAGES
 
     makefile = (Path(__file__).resolve().parents[3] / "Makefile").read_text()
     assert tuple(re.search(r"^CROSS_PACKAGES := (.*)$", makefile, re.M).group(1).split()) == APT_PACKAGES
