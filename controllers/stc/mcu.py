@@ -79,6 +79,24 @@ DEFAULT_MCU = "atmega328p"
 _PORTABLE_FLAGS = tuple(f for f in C_FLAGS if f != "-O2")  # each chip sets its own optimisation
 
 
+#: prctl(2)'s "signal me when my parent dies" (<linux/prctl.h>)
+_PR_SET_PDEATHSIG = 1
+
+
+def _die_with_parent() -> None:
+    """In the emulator's process before it starts: the Linux kernel kills it when its parent
+    dies (elsewhere nothing happens; close() and the process group still end it)."""
+    import ctypes
+    import signal
+    import sys
+
+    if sys.platform.startswith("linux"):
+        try:
+            ctypes.CDLL(None).prctl(_PR_SET_PDEATHSIG, int(signal.SIGKILL), 0, 0, 0)
+        except (OSError, AttributeError):
+            pass
+
+
 def mcu_named(name: str | None) -> Mcu:
     name = name or DEFAULT_MCU
     if name not in MCUS:
@@ -132,8 +150,12 @@ class FirmwareController:
         elf = elf or compile_firmware(self.mcu.name)
         cmd = [need_tool(self.mcu.emulator[0]), *self.mcu.emulator[1:], str(elf)] if self.mcu.emulator else [str(elf)]
         self._err = tempfile.TemporaryFile()
-        # the emulator stays in this process group: a Ctrl-C reaches it too; close() ends it
-        self.proc = subprocess.Popen(cmd, stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=self._err)
+        # the emulator stays in this process group: a Ctrl-C reaches it too; close() ends it, and
+        # the kernel ends it if this process is killed (an emulator reading a closed input runs on)
+        self.proc = subprocess.Popen(cmd, stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=self._err,
+                                     preexec_fn=_die_with_parent)  # fmt: skip
+        #: ticks sent with their state (STEP_FROM): none in a run, where the firmware keeps its own
+        self.sent_state = 0
         where = f"the firmware in {self.mcu.emulator[0]}" if self.mcu.emulator else "the host-built firmware"
         self.link = Link(_PipePort(self.proc), timeout_s=REPLY_S, name=where)
         try:
@@ -157,6 +179,7 @@ class FirmwareController:
         if state_bytes == self.held:
             out = self.link.request("STEP", obs_bytes)
         else:
+            self.sent_state += 1
             out = self.link.request("STEP_FROM", state_bytes + obs_bytes)
         if len(out) != OUT_BYTES:
             raise LinkError(f"the firmware's step reply has {len(out)} bytes, expected {OUT_BYTES}")

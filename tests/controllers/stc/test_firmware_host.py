@@ -139,3 +139,80 @@ def test_make_cross_tools_installs_the_packages_the_firmware_names():
 
     makefile = (Path(__file__).resolve().parents[3] / "Makefile").read_text()
     assert tuple(re.search(r"^CROSS_PACKAGES := (.*)$", makefile, re.M).group(1).split()) == APT_PACKAGES
+
+
+def test_in_a_run_the_firmware_keeps_its_own_state(monkeypatch):
+    import stcvision.controllers.stc.loop as loop
+    from stcvision.controllers.stc.choose import make_controller
+    from stcvision.controllers.stc.loop import CoverConfig, run_cover
+    from stcvision.sim_camera.board import Board
+
+    made = []
+    monkeypatch.setattr(
+        loop, "make_controller", lambda name, **kw: made.append(make_controller(name, **kw)) or made[-1]
+    )
+    board = Board.random((3, 4), obstacle_fraction=0.1, rng=__import__("numpy").random.default_rng(2))
+    r = run_cover(board, CoverConfig(perception="oracle", fsm="firmware", mcu="host"))
+    assert r["complete"] and made[0].sent_state == 0  # every tick a STEP: the state lives in the firmware
+    assert made[0].proc.poll() is not None  # and the run ended it
+
+
+@pytest.mark.parametrize("sig,status", [("SIGTERM", 143), ("SIGINT", 130)])
+def test_a_signal_stops_a_firmware_run_and_its_firmware(sig, status):
+    import signal
+
+    p = subprocess.Popen(
+        [__import__("sys").executable, "-m", "stcvision", "cover", "--board", "30x30", "--perception", "oracle",
+         "--fsm", "firmware", "--mcu", "host"], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
+    )  # fmt: skip
+    fw = _child_named(p.pid, "stc_firmware-host")
+    time.sleep(0.3)
+    t0 = time.monotonic()
+    p.send_signal(getattr(signal, sig))
+    p.wait(timeout=10)
+    assert p.returncode == status and time.monotonic() - t0 < 2
+    assert not _alive(fw)
+
+
+def _child_named(pid: int, name: str, timeout_s: float = 20.0) -> int:
+    """The pid of ``pid``'s child whose command line holds ``name``, once it has started."""
+    from pathlib import Path
+
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        for d in Path("/proc").iterdir():
+            if d.name.isdigit():
+                try:
+                    stat = (d / "stat").read_text()
+                    cmd = (d / "cmdline").read_bytes()
+                except OSError:
+                    continue
+                if int(stat.rsplit(")", 1)[1].split()[1]) == pid and name.encode() in cmd:
+                    return int(d.name)
+        time.sleep(0.05)
+    raise AssertionError(f"no child {name} of {pid}")
+
+
+def _alive(pid: int) -> bool:
+    import os
+
+    deadline = time.monotonic() + 2
+    while time.monotonic() < deadline:
+        try:
+            os.kill(pid, 0)
+        except ProcessLookupError:
+            return False
+        try:  # a zombie of a child reaped late counts as gone
+            if open(f"/proc/{pid}/stat").read().rsplit(")", 1)[1].split()[0] == "Z":
+                return False
+        except OSError:
+            return False
+        time.sleep(0.05)
+    return True
+
+
+def test_firmware_build_without_the_cross_compiler_is_one_line(cli, tmp_path, monkeypatch):
+    monkeypatch.setenv("PATH", str(tmp_path))  # no avr-gcc, no emulator
+    code, _, err = cli("firmware", "build", "--mcu", "atmega328p", "--out", tmp_path / "fw")
+    assert code == 2 and "'avr-gcc' is not installed: 'make cross-tools'" in err and err.count("\n") == 1
+    assert not (tmp_path / "fw").exists()

@@ -139,3 +139,28 @@ def test_robot_run_refuses_a_camera_it_cannot_read(cli):
 def test_a_bad_link_fault_is_one_line(cli):
     code, _, err = cli("robot", "sim", "--link-fault", "boom@1")
     assert code == 2 and "KIND@N" in err
+
+
+def test_sigterm_stops_robot_run_and_the_robot(sim):
+    import signal
+
+    p, port = sim("--board", "50x50")
+    run = subprocess.Popen([sys.executable, "-m", "stcvision", "robot", "run", "--port", port],
+                           stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)  # fmt: skip
+    time.sleep(2.5)  # started, and driving
+    t0 = time.monotonic()
+    run.send_signal(signal.SIGTERM)
+    run.wait(timeout=10)
+    assert run.returncode == 143 and time.monotonic() - t0 < 2
+    robot = _sim_result(p)
+    assert robot["ended"] == "stopped" and robot["carried_out"][-1] == "STOP" and robot["moves"] > 0
+
+
+def test_sigterm_stops_the_simulated_robot(sim):
+    import signal
+
+    p, _ = sim()
+    t0 = time.monotonic()
+    p.send_signal(signal.SIGTERM)
+    p.wait(timeout=10)
+    assert p.returncode == 143 and time.monotonic() - t0 < 2
