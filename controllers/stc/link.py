@@ -133,13 +133,27 @@ class Link:
     """The requesting side: one request, one reply, each within ``timeout_s``. ``port`` is a
     pyserial port (``serial.Serial`` or ``serial.serial_for_url``) with a short read timeout."""
 
-    def __init__(self, port, *, timeout_s: float = 5.0, name: str = "the link"):
+    def __init__(self, port, *, timeout_s: float = 5.0, name: str = "the link", listener=None):
         self.port, self.timeout_s, self.name = port, timeout_s, name
         self.seq = 0
+        #: told of every request: ``listener(name, payload, reply)``, the reply a LinkError when
+        #: it failed
+        self.listener = listener
 
     def request(self, name: str, payload: bytes = b"", *, timeout_s: float | None = None) -> bytes:
         """Send request ``name`` and return its reply's payload; :class:`LinkError` on any
         failure, including a NAK (its code and text)."""
+        try:
+            reply = self._request(name, payload, timeout_s)
+        except LinkError as e:
+            if self.listener is not None:
+                self.listener(name, payload, e)
+            raise
+        if self.listener is not None:
+            self.listener(name, payload, reply)
+        return reply
+
+    def _request(self, name: str, payload: bytes, timeout_s: float | None) -> bytes:
         import serial
 
         kind = REQUESTS[name]

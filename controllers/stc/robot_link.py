@@ -20,7 +20,7 @@ from stcvision.controllers.stc.fsm import Action, StcPhase, initial_state
 from stcvision.controllers.stc.link import Link, LinkError
 from stcvision.errors import BadInputError
 
-__all__ = ["BAUD", "CAMERAS", "run_robot"]
+__all__ = ["BAUD", "CAMERAS", "LinkRecorder", "run_robot"]
 
 #: the link's speed (bits/s): what an Arduino-class board's USB serial runs at
 BAUD = 115_200
@@ -41,10 +41,65 @@ def _command(link: Link, action: Action, profile) -> None:
         link.request("LEDS", struct.pack(">H", round(profile.led_on_s * 1000)))
 
 
+class LinkRecorder:
+    """A rerun recording of a robot run: every request on the link with its reply (or how it
+    failed) on the ``request`` timeline, and every controller tick (the state, the reading, the
+    action, the decision) on the ``tick`` timeline. Committed by :meth:`close`, removed by
+    :meth:`abort` (:class:`stcvision.rr.Recordings`)."""
+
+    def __init__(self, path):
+        import rerun.blueprint as rrb
+
+        from stcvision.rr import open_recording
+
+        bp = rrb.Blueprint(rrb.Horizontal(rrb.TextLogView(origin="link", name="link"),
+                                          rrb.TextDocumentView(origin="tick", name="tick")))  # fmt: skip
+        self.path = path
+        self.rec, self.tmp = open_recording(path, app_id="stcvision-robot", default_blueprint=bp)
+        self.requests = self.ticks = 0
+
+    def on_request(self, name: str, payload: bytes, reply) -> None:
+        import rerun as rr
+
+        self.requests += 1
+        self.rec.set_time("request", sequence=self.requests)
+        failed = isinstance(reply, Exception)
+        said = f"failed: {reply}" if failed else f"-> {bytes(reply).hex(' ')}"
+        self.rec.log("link", rr.TextLog(f"{name} {payload.hex(' ')} {said}", level="ERROR" if failed else "INFO"))
+
+    def on_tick(self, state, obs, action, decision) -> None:
+        import rerun as rr
+
+        self.ticks += 1
+        self.rec.set_time("tick", sequence=self.ticks)
+        self.rec.set_time("request", sequence=self.requests)
+        text = f"state: {state}\n\nreading: {obs}\n\naction: {action.name}\n\ndecision: {decision}"
+        self.rec.log("tick", rr.TextDocument(text))
+
+    def close(self) -> None:
+        from stcvision.rr import finish_recording
+
+        finish_recording(self.rec, self.tmp, self.path)
+
+    def abort(self) -> None:
+        from stcvision.rr import abort_recording
+
+        abort_recording(self.rec, self.tmp)
+
+
 def run_robot(port: str, *, camera: str, profile, fsm: str = "python", mcu: str | None = None,
-              timeout_s: float = 10.0, max_decisions: int = 20_000) -> dict:  # fmt: skip
+              timeout_s: float = 10.0, max_decisions: int = 20_000, rrd=None) -> dict:  # fmt: skip
     """Drive the robot on ``port`` with controller ``fsm`` until it is done, it stops, or the
-    link fails; returns what happened and the robot's own report of its cover."""
+    link fails; returns what happened and the robot's own report of its cover. ``rrd``: a
+    rerun recording of every request and tick (:class:`LinkRecorder`)."""
+    from stcvision.rr import Recordings
+
+    with Recordings() as recs:
+        recorder = recs.add(LinkRecorder(rrd)) if rrd else None
+        return _run(port, camera, profile, fsm, mcu, timeout_s, max_decisions, recorder)
+
+
+def _run(port, camera, profile, fsm, mcu, timeout_s, max_decisions, recorder) -> dict:
     import serial
 
     if camera not in CAMERAS:
@@ -54,7 +109,8 @@ def run_robot(port: str, *, camera: str, profile, fsm: str = "python", mcu: str 
     except (serial.SerialException, ValueError) as e:
         raise BadInputError(f"cannot open the port {port}: {' '.join(str(e).split())}") from None
     wall0 = time.perf_counter()
-    link = Link(ser, timeout_s=timeout_s, name=f"the port {port}")
+    link = Link(ser, timeout_s=timeout_s, name=f"the port {port}",
+                listener=recorder.on_request if recorder else None)  # fmt: skip
     out = {"port": port, "fsm": fsm, "camera": camera, "profile": profile.name, "finished": False,
            "abort_reason": None, "decisions": 0, "looks": 0, "commands": 0}  # fmt: skip
     controller = None
@@ -67,7 +123,10 @@ def run_robot(port: str, *, camera: str, profile, fsm: str = "python", mcu: str 
             if state.phase is StcPhase.LOOK or (state.phase is StcPhase.DECIDE and not state.closing):
                 obs = wire.decode_obs(link.request("READ", wire.encode_state(state)))
                 out["decisions" if state.phase is StcPhase.DECIDE else "looks"] += 1
-            state, action, _ = controller.step(state, obs)
+            prev = state
+            state, action, decision = controller.step(state, obs)
+            if recorder is not None:
+                recorder.on_tick(prev, obs, action, decision)
             if action is Action.DONE:
                 out["finished"] = True
                 break

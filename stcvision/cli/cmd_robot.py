@@ -1,7 +1,7 @@
 """Drive an ant-like STC robot over a serial link, or be one: the simulated robot on a
 pseudo-terminal that ``robot run`` is tested against.
 
-  stcvision robot run --port /dev/ttyUSB0 --camera robot --profile lego [--fsm python|c|firmware]
+  stcvision robot run --port /dev/ttyUSB0 --camera robot --profile lego [--fsm python|c|firmware] [--rrd R.rrd]
   stcvision robot sim --board 3x3 [--seed S] [--perception oracle|camera] [--link-fault KIND@N]
 
 run drives the robot on --port (a serial device, or any pyserial URL) with the chosen
@@ -42,6 +42,8 @@ def add_parser(p):
         metavar="S",
         help="seconds to wait for each reply (default 10)",
     )
+    r.add_argument("--rrd", metavar="OUT.rrd", help="rerun recording of every request on the link and every tick")
+    r.add_argument("--force", action="store_true", help="overwrite --rrd")
     r.add_argument("--json", action="store_true", help="print the result as one JSON object")
     s = sub.add_parser("sim", help="a simulated robot on a pseudo-terminal")
     add_board_arguments(s)
@@ -56,8 +58,13 @@ def run(args):
     if args.action == "run":
         from stcvision.controllers.stc.robot_link import run_robot
 
+        if args.rrd:
+            from stcvision.rr import check_recording_path
+
+            check_recording_path(args.rrd, overwrite=args.force)
         r = run_robot(args.port, camera=args.camera, profile=hardware.load_robot(args.profile), fsm=args.fsm,
-                      mcu=args.mcu, timeout_s=args.timeout)  # fmt: skip
+                      mcu=args.mcu, timeout_s=args.timeout, rrd=args.rrd)  # fmt: skip
+        r["rrd"] = args.rrd
         from stcvision.cli import EXIT_INCOMPLETE, EXIT_OK
 
         r["exit_code"] = EXIT_OK if r["complete"] else EXIT_INCOMPLETE
@@ -82,4 +89,6 @@ def format_text(r) -> str:
     rows.append(f"complete: {r['complete']}; decisions {r['decisions']}, looks {r['looks']}, commands {r['commands']}")
     if r["abort_reason"]:
         rows.append(f"stopped: {r['abort_reason']}")
+    if r.get("rrd"):
+        rows.append(f"wrote {r['rrd']}")
     return "\n".join(rows)

@@ -145,15 +145,24 @@ def test_sigterm_stops_robot_run_and_the_robot(sim):
     import signal
 
     p, port = sim("--board", "50x50")
+    read0 = _bytes_read(p.pid)
     run = subprocess.Popen([sys.executable, "-m", "stcvision", "robot", "run", "--port", port],
                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)  # fmt: skip
-    time.sleep(2.5)  # started, and driving
+    deadline = time.monotonic() + 60
+    while _bytes_read(p.pid) < read0 + 2000 and time.monotonic() < deadline:  # driving: requests arrive
+        time.sleep(0.05)
     t0 = time.monotonic()
     run.send_signal(signal.SIGTERM)
     run.wait(timeout=10)
     assert run.returncode == 143 and time.monotonic() - t0 < 2
     robot = _sim_result(p)
     assert robot["ended"] == "stopped" and robot["carried_out"][-1] == "STOP" and robot["moves"] > 0
+
+
+def _bytes_read(pid: int) -> int:
+    """What process ``pid`` has read so far (bytes, /proc/PID/io's rchar)."""
+    with open(f"/proc/{pid}/io") as f:
+        return int(next(line for line in f if line.startswith("rchar:")).split()[1])
 
 
 def test_sigterm_stops_the_simulated_robot(sim):
@@ -164,3 +173,20 @@ def test_sigterm_stops_the_simulated_robot(sim):
     p.send_signal(signal.SIGTERM)
     p.wait(timeout=10)
     assert p.returncode == 143 and time.monotonic() - t0 < 2
+
+
+def test_robot_run_records_every_request_and_tick(cli, sim, tmp_path):
+    import shutil
+    from pathlib import Path
+
+    _, port = sim()
+    out = tmp_path / "robot.rrd"
+    code, text, _ = cli("robot", "run", "--port", port, "--rrd", out, "--json")
+    r = json.loads(text)
+    assert code == 0 and r["rrd"] == str(out) and out.stat().st_size > 0
+    rerun = shutil.which("rerun", path=str(Path(sys.executable).parent))
+    assert subprocess.run([rerun, "rrd", "verify", str(out)], capture_output=True).returncode == 0
+    printed = subprocess.run([rerun, "rrd", "print", "-v", str(out)], capture_output=True, text=True).stdout
+    assert "- /link - data columns" in printed and "- /tick - data columns" in printed
+    code, _, err = cli("robot", "run", "--port", port, "--rrd", out)  # no overwrite without --force
+    assert code == 2 and "exists" in err
