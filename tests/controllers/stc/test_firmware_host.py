@@ -216,3 +216,48 @@ def test_firmware_build_without_the_cross_compiler_is_one_line(cli, tmp_path, mo
     code, _, err = cli("firmware", "build", "--mcu", "atmega328p", "--out", tmp_path / "fw")
     assert code == 2 and "'avr-gcc' is not installed: 'make cross-tools'" in err and err.count("\n") == 1
     assert not (tmp_path / "fw").exists()
+
+
+def _defines(name: str) -> dict[str, int]:
+    """The integer #defines of a firmware source file."""
+    import re
+
+    from stcvision.controllers.stc.controller import FIRMWARE_DIR
+
+    text = (FIRMWARE_DIR / name).read_text()
+    return {k: int(v, 0) for k, v in re.findall(r"^#define (\w+) \(?(0x[0-9A-Fa-f]+|\d+)[uU]?[lL]{0,2}\b", text, re.M)}
+
+
+def test_the_c_protocol_constants_are_the_python_ones():
+    """Written on both sides of the line: held equal here."""
+    from stcvision.controllers.stc.robot_link import BAUD
+
+    d = _defines("stc_link.h")
+    assert (d["STC_LINK_SYNC"], d["STC_LINK_VERSION"], d["STC_LINK_MAX_PAYLOAD"]) == (
+        link.SYNC, link.VERSION, link.MAX_PAYLOAD)  # fmt: skip
+    assert (d["STC_LINK_REPLY"], d["STC_LINK_NAK"]) == (link.REPLY, link.NAK)
+    for name in ("HELLO", "STEP", "STEP_FROM", "RESET", "STATS"):
+        assert d[f"STC_REQ_{name}"] == link.REQUESTS[name]
+    for code, what in link.NAK_CODES.items():
+        key = {"bad checksum": "CHECKSUM", "unknown request": "UNKNOWN", "bad length": "LENGTH",
+               "wrong version": "VERSION"}.get(what)  # fmt: skip
+        assert key is None or d[f"STC_NAK_{key}"] == code
+    assert _defines("main_avr.c")["BAUD"] == BAUD
+    assert _defines("stc_fsm.h")["STC_NONE"] == wire.NONE
+
+
+def test_the_command_lines_offer_the_controllers_there_are():
+    from stcvision.cli import build_parser
+    from stcvision.controllers.stc.controller import CONTROLLERS
+
+    parser = build_parser()
+    sub = next(a for a in parser._actions if a.dest == "command").choices
+
+    def choices(p, dest):
+        return tuple(next(a for a in p._actions if a.dest == dest).choices)
+
+    assert choices(sub["cover"], "fsm") == CONTROLLERS
+    robot = next(a for a in sub["robot"]._actions if a.dest == "action").choices
+    assert choices(robot["run"], "fsm") == CONTROLLERS
+    firmware = next(a for a in sub["firmware"]._actions if a.dest == "action").choices
+    assert choices(firmware["check"], "fsm") == CONTROLLERS[1:]  # python against itself is no check
