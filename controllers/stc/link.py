@@ -195,7 +195,8 @@ def request_name(kind: int) -> str:
 
 
 class FdPort:
-    """A file descriptor as a port: ``read(n)`` returns what arrives within :data:`POLL_S`."""
+    """A file descriptor as a port: ``read(n)`` returns what arrives within :data:`POLL_S`, and
+    raises OSError once the other side has closed (a process that died, a terminal hung up)."""
 
     def __init__(self, fd: int):
         self.fd = fd
@@ -204,10 +205,10 @@ class FdPort:
         r, _, _ = select.select([self.fd], [], [], POLL_S)
         if not r:
             return b""
-        try:
-            return os.read(self.fd, n)
-        except OSError:  # the other side closed
-            return b""
+        got = os.read(self.fd, n)
+        if not got:  # readable, yet nothing: the other side has closed
+            raise ConnectionResetError("the other side closed the line")
+        return got
 
     def readable(self, timeout_s: float) -> bool:
         return bool(select.select([self.fd], [], [], timeout_s)[0])
