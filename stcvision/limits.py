@@ -185,3 +185,6 @@ MIN_VIEWPOINT_M = 0.1
 MAX_CHECK_BOARDS = 100_000
 #: random (state, reading) pairs of one check (``--pairs``): ~20 s per million on one core
 MAX_CHECK_PAIRS = 100_000_000
+#: seconds ``robot run`` waits for one reply (``--timeout``): a reply that never comes must end
+#: the run, and a robot that takes longer than ten minutes to answer is not answering
+MAX_LINK_TIMEOUT_S = 600

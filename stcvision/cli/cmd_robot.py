@@ -26,6 +26,7 @@ def add_parser(p):
 
     from stcvision.cli._args import positive
     from stcvision.cli.cmd_cover import add_board_arguments
+    from stcvision.limits import MAX_LINK_TIMEOUT_S
 
     p.formatter_class = argparse.RawDescriptionHelpFormatter
     sub = p.add_subparsers(dest="action", metavar="{run,sim}", parser_class=type(p), required=True)
@@ -37,7 +38,7 @@ def add_parser(p):
     r.add_argument("--mcu", default=None, metavar="NAME", help="--fsm firmware: the microcontroller")
     r.add_argument(
         "--timeout",
-        type=positive(float, maximum=600, why="a reply that never comes must end the run"),
+        type=positive(float, maximum=MAX_LINK_TIMEOUT_S, why="MAX_LINK_TIMEOUT_S"),
         default=10.0,
         metavar="S",
         help="seconds to wait for each reply (default 10)",
