@@ -149,6 +149,8 @@ def _run(port, camera, profile, fsm, mcu, timeout_s, max_decisions, recorder) ->
             reach, covered, twice, flags = struct.unpack(">HHHB", link.request("REPORT", bytes((out["finished"],))))
             out |= {"subcells_reachable": reach, "subcells_covered": covered, "subcells_covered_more_than_once": twice,
                     "returned_to_start": bool(flags & 1), "robot_complete": bool(flags & 2)}  # fmt: skip
+            moves, turns, clock_ms = struct.unpack(">HHI", link.request("ODOM"))
+            out |= {"moves": moves, "turns": turns, "robot_clock_s": clock_ms / 1000}
         except LinkError as e:
             out["report_failed"] = str(e)
     stop_failed = link.safe_stop()  # whatever happened: motors off, LEDs off

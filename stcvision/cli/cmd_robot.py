@@ -88,6 +88,8 @@ def format_text(r) -> str:
         rows.append(f"sub-cells covered / reachable: {r['subcells_covered']} / {r['subcells_reachable']}, "
                     f"twice {r['subcells_covered_more_than_once']}")  # fmt: skip
     rows.append(f"complete: {r['complete']}; decisions {r['decisions']}, looks {r['looks']}, commands {r['commands']}")
+    if "moves" in r:
+        rows.append(f"the robot's odometry: {r['moves']} moves, {r['turns']} turns, {r['robot_clock_s']:.0f} s")
     if r["abort_reason"]:
         rows.append(f"stopped: {r['abort_reason']}")
     if r.get("rrd"):

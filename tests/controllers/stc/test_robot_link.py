@@ -91,6 +91,8 @@ def test_robot_run_completes_the_board_as_the_loop_does(cli, sim):
     loop = json.loads(out)
     assert (robot["moves"], robot["turns"], r["decisions"], r["looks"]) == (
         loop["moves"], loop["turns"], loop["decisions"], loop["looks"])  # fmt: skip
+    assert (r["moves"], r["turns"]) == (loop["moves"], loop["turns"])  # the robot's odometry says so too
+    assert r["robot_clock_s"] == pytest.approx(loop["sim_time_s"], abs=1e-3)
 
 
 @pytest.mark.parametrize(
