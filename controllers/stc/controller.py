@@ -29,7 +29,7 @@ import numpy as np
 
 from stcvision.controllers.stc import wire
 from stcvision.controllers.stc.fsm import LookObs, StcObservation, StcState, Step, step
-from stcvision.errors import BadInputError
+from stcvision.errors import BadInputError, OutputError
 
 __all__ = [
     "CONTROLLERS",
@@ -103,8 +103,11 @@ def compile_cached(cc: str, flags, sources, *, name: str, suffix: str, what: str
     out = _cache_dir() / f"{name}-{h.hexdigest()[:16]}{suffix}"
     if out.exists():
         return out
-    out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = temp_sibling(out)
+    try:
+        out.parent.mkdir(parents=True, exist_ok=True)
+        tmp = temp_sibling(out)
+    except OSError as e:
+        raise OutputError(f"cannot write the build cache {out.parent} ({e.strerror}): set XDG_CACHE_HOME") from None
     try:
         srcs = [str(FIRMWARE_DIR / s) for s in sources]
         r = subprocess.run([exe, *flags, "-o", str(tmp), *srcs], capture_output=True, text=True)

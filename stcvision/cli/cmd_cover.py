@@ -186,6 +186,10 @@ def run(args):
         check_recording_path(args.rrd, overwrite=args.force)
     from stcvision.controllers.stc.faults import Faults, parse_fault
 
+    if args.mcu and args.fsm != "firmware":
+        from stcvision.errors import BadInputError
+
+        raise BadInputError("--mcu names the chip of --fsm firmware")
     faults = tuple(parse_fault(f) for f in args.fault)
     Faults(faults, args.seed, args.perception)  # a fault twice or one the perception has no frames for: exit 2
     cfg = CoverConfig(perception=args.perception, exposure=exposure, seed=args.seed, camera=camera, robot=robot,

@@ -73,6 +73,10 @@ def run(args):
     if args.action == "check":
         from stcvision.controllers.stc.firmware_report import identity_report
 
+        if args.mcu and args.fsm != "firmware":
+            from stcvision.errors import BadInputError
+
+            raise BadInputError("--mcu names the chip of --fsm firmware")
         maps = [m for m in args.maps.split(",") if m] if args.maps else []
         r = identity_report(args.fsm, boards=args.boards, pairs=args.pairs, maps=maps, seed=args.seed, mcu=args.mcu)
         from stcvision.cli import EXIT_INCOMPLETE, EXIT_OK

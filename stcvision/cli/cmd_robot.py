@@ -59,6 +59,10 @@ def run(args):
     if args.action == "run":
         from stcvision.controllers.stc.robot_link import run_robot
 
+        if args.mcu and args.fsm != "firmware":
+            from stcvision.errors import BadInputError
+
+            raise BadInputError("--mcu names the chip of --fsm firmware")
         if args.rrd:
             from stcvision.rr import check_recording_path
 

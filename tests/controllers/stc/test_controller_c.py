@@ -177,3 +177,23 @@ def test_firmware_check_refuses_a_count_over_its_cap(cli, capsys):
     with pytest.raises(SystemExit) as e:
         cli("firmware", "check", "--pairs", 10**12)
     assert e.value.code == 2 and "MAX_CHECK_PAIRS" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ("cover", "--board", "2x2", "--mcu", "host"),
+        ("firmware", "check", "--mcu", "host", "--boards", "0", "--pairs", "0"),
+        ("robot", "run", "--port", "loop://", "--mcu", "host"),
+    ],
+)
+def test_mcu_without_the_firmware_is_one_line(cli, argv):
+    code, _, err = cli(*argv)
+    assert code == 2 and "--mcu names the chip of --fsm firmware" in err
+
+
+def test_an_unwritable_build_cache_is_one_line(cli, tmp_path, monkeypatch):
+    (tmp_path / "file").write_text("")
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "file"))  # a file where the folder would be
+    code, _, err = cli("cover", "--board", "2x2", "--perception", "oracle", "--fsm", "c")
+    assert code == 2 and "cannot write the build cache" in err and err.count("\n") == 1
