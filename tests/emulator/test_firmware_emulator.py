@@ -83,3 +83,13 @@ def test_the_how_to_commands_that_need_the_emulator_run(tmp_path):
                               text=True)  # fmt: skip
         assert done.returncode == 0, done.stderr
     assert json.loads((tmp_path / "fw" / "build.json").read_text())["state_bytes"] == 3
+
+
+def test_the_avr_firmware_links_no_floating_point_or_heap_routine():
+    from stcvision.controllers.stc.mcu import compile_firmware
+
+    names = subprocess.run(["avr-nm", str(compile_firmware("atmega328p"))], capture_output=True, text=True,
+                           check=True).stdout.split()  # fmt: skip
+    assert "stc_step" in names and "main" in names
+    soft = [n for n in names if n.endswith(("sf3", "sf2", "sfsi", "sisf", "df3")) or n in ("malloc", "free")]
+    assert soft == []

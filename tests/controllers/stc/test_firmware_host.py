@@ -261,3 +261,34 @@ def test_the_command_lines_offer_the_controllers_there_are():
     assert choices(robot["run"], "fsm") == CONTROLLERS
     firmware = next(a for a in sub["firmware"]._actions if a.dest == "action").choices
     assert choices(firmware["check"], "fsm") == CONTROLLERS[1:]  # python against itself is no check
+
+
+def _functions(text: str) -> dict[str, str]:
+    """The function definitions of a C source (name -> body), for one written as these are:
+    the return type and name on one line at column 0, the body's braces closing at column 0."""
+    import re
+
+    out = {}
+    for m in re.finditer(r"^[A-Za-z_][\w \*]*?\b(\w+)\(([^;{]*?)\)\s*\n\{\n(.*?)^\}", text, re.M | re.S):
+        out[m.group(1)] = m.group(3)
+    return out
+
+
+def test_the_firmware_has_no_heap_no_floating_point_and_no_recursion():
+    import re
+
+    from stcvision.controllers.stc.controller import FIRMWARE_DIR
+
+    sources = {f.name: f.read_text() for f in FIRMWARE_DIR.glob("*.[ch]")}
+    code = "\n".join(re.sub(r"/\*.*?\*/", "", t, flags=re.S) for t in sources.values())  # comments out
+    assert not re.search(r"\b(float|double)\b|\b(malloc|calloc|realloc|free|alloca)\s*\(", code)
+    funcs = {}
+    for name in ("stc_fsm.c", "stc_link.c", "main_avr.c"):
+        funcs |= _functions(re.sub(r"/\*.*?\*/", "", sources[name], flags=re.S))
+    assert {"stc_step", "decide", "walk", "plan", "next_child", "stc_link_feed", "answer", "main"} <= set(funcs)
+    calls = {f: {g for g in funcs if re.search(rf"\b{g}\(", body)} for f, body in funcs.items()}
+
+    def reaches(start, target, seen=()):
+        return any(g == target or (g not in seen and reaches(g, target, (*seen, g))) for g in calls[start])
+
+    assert [f for f in funcs if reaches(f, f)] == []  # no function calls itself, directly or not
