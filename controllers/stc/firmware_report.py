@@ -37,7 +37,9 @@ def identity_report(fsm: str, *, boards: int, pairs: int, maps=(), seed: int = 0
     finally:
         ctrl.close()
     same = tours["different"] == 0 and peers["different"] == 0 and (rand is None or rand["different"] == 0)
-    return {"fsm": fsm, "seed": seed, "identical": same, "oracle_boards": tours, "maps": peers, "random_pairs": rand}
+    # sizeof the C state as the controller's compiler laid it out (cc, or the chip's)
+    return {"fsm": fsm, "seed": seed, "state_bytes": ctrl.state_bytes, "identical": same, "oracle_boards": tours,
+            "maps": peers, "random_pairs": rand}  # fmt: skip
 
 
 def _sections(m: Mcu, elf: Path) -> dict[str, int]:

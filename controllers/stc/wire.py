@@ -20,6 +20,7 @@ from stcvision.controllers.stc.fsm import (
     Action,
     Decision,
     LookObs,
+    NeighbourObs,
     StcObservation,
     StcPhase,
     StcState,
@@ -98,8 +99,6 @@ def encode_obs(obs: StcObservation | LookObs | None) -> bytes:
 
 
 def decode_obs(b: bytes) -> StcObservation | LookObs | None:
-    from stcvision.controllers.stc.fsm import NeighbourObs
-
     kind, boxes, neigh, start, landing = b[:OBS_BYTES]
     if kind == OBS_NONE:
         return None

@@ -99,7 +99,8 @@ def format_text(r) -> str:
                 f"controller state: {r['state_bytes']} bytes",
             ]
         )
-    rows = [f"{r['fsm']} against python: {'identical' if r['identical'] else 'DIFFERENT'}"]
+    rows = [f"{r['fsm']} against python: {'identical' if r['identical'] else 'DIFFERENT'} "
+            f"(the C state: {r['state_bytes']} bytes)"]  # fmt: skip
     for key, what in (("oracle_boards", "random oracle boards"), ("maps", "map files")):
         t = r[key]
         if t["boards"]:

@@ -167,10 +167,10 @@ def test_firmware_check_command(cli, peer_data):
     spiral = peer_data / "pythonrobotics_maps" / PEER_MAPS[0]
     code, out, _ = cli("firmware", "check", "--boards", 3, "--pairs", 2000, "--maps", spiral, "--json")
     r = json.loads(out)
-    assert code == 0 and r["identical"] and r["random_pairs"]["pairs"] == 2000
+    assert code == 0 and r["identical"] and r["random_pairs"]["pairs"] == 2000 and r["state_bytes"] == 3
     assert r["oracle_boards"]["boards"] == 3 and r["maps"]["boards"] == 1
     code, out, _ = cli("firmware", "check", "--boards", 1, "--pairs", 10)
-    assert code == 0 and "identical" in out
+    assert code == 0 and "identical (the C state: 3 bytes)" in out
 
 
 def test_firmware_check_refuses_a_count_over_its_cap(cli, capsys):
