@@ -27,6 +27,7 @@ __all__ = [
     "check_random",
     "field_values",
     "oracle_boards",
+    "python_out",
     "random_pairs",
 ]
 
@@ -74,7 +75,7 @@ def field_values(states: np.ndarray, obs: np.ndarray) -> dict[str, int]:
     return {name: int(len(np.unique(read(both)))) for name, (_, read) in FIELDS.items()}
 
 
-def _python_out(state_bytes: bytes, obs_bytes: bytes) -> bytes:
+def python_out(state_bytes: bytes, obs_bytes: bytes) -> bytes:
     """The Python step's result in the C batch's output layout."""
     state, obs = wire.decode_state(state_bytes), wire.decode_obs(obs_bytes)
     try:
@@ -97,7 +98,7 @@ def check_random(n: int, seed: int, controller, *, progress=None) -> dict:
         for k, vals in field_values(states, obs).items():
             seen[k] = max(seen[k], vals)
         for i in range(len(states)):
-            want = _python_out(states[i].tobytes(), obs[i].tobytes())
+            want = python_out(states[i].tobytes(), obs[i].tobytes())
             got = out[i].tobytes()
             if got[0] and want[0]:  # refused: the same refusal, the state untouched
                 ok = got[:1] == want[:1] and got[2 : 2 + wire.STATE_BYTES] == want[2 : 2 + wire.STATE_BYTES]

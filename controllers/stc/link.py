@@ -27,6 +27,7 @@ from stcvision.errors import StcVisionError
 __all__ = [
     "MAX_PAYLOAD",
     "POLL_S",
+    "RESYNC_BYTES",
     "NAK",
     "NAK_CODES",
     "REQUESTS",
@@ -49,6 +50,10 @@ VERSION = 1
 MAX_PAYLOAD = 64
 #: header bytes after the sync byte (version, type, seq, length) and the checksum's
 HEADER, CRC_BYTES = 4, 2
+#: zero bytes that fill any frame a reader may be in the middle of (:meth:`Link.resync`), and
+#: how long (s) the line must then stay quiet
+RESYNC_BYTES = 1 + HEADER + MAX_PAYLOAD + CRC_BYTES
+RESYNC_QUIET_S = 0.2
 #: reply type = request type | REPLY
 REPLY = 0x80
 #: the requests (name -> type): the controller's (HELLO, STEP, STEP_FROM, RESET) and the robot's
@@ -105,12 +110,12 @@ def _read_exact(port, n: int, deadline: float) -> bytes:
     return got
 
 
-def read_frame(port, timeout_s: float, *, what: str = "a frame") -> tuple[int, int, bytes]:
+def read_frame(port, timeout_s: float, *, what: str = "a frame", synced: bool = False) -> tuple[int, int, bytes]:
     """The next frame on ``port``: (type, seq, payload). Raises :class:`LinkError` when none
     starts within ``timeout_s``, when it is cut short, out of frame, of another version or its
-    checksum is wrong."""
+    checksum is wrong. ``synced``: the sync byte has been read already."""
     deadline = time.monotonic() + timeout_s
-    first = _read_exact(port, 1, deadline)
+    first = bytes((SYNC,)) if synced else _read_exact(port, 1, deadline)
     if not first:
         raise LinkError(f"no {what} within {timeout_s:g} s (a reply that never came)")
     if first[0] != SYNC:
@@ -174,6 +179,23 @@ class Link:
         if rtype != kind | REPLY or rseq != self.seq:
             raise LinkError(f"the reply to {name} is 0x{rtype:02x} #{rseq}, expected 0x{kind | REPLY:02x} #{self.seq}")
         return body
+
+    def resync(self) -> None:
+        """Bring the far side's frame reader back to waiting for a frame, whatever it was in the
+        middle of (a frame cut short by a lost byte, noise on the line): zero bytes enough to
+        fill any frame, whose checksum then fails, then what it answered is read and dropped.
+        A reader waiting for a frame skips the zeros (none is a sync byte)."""
+        import serial
+
+        try:
+            self.port.write(bytes(RESYNC_BYTES))
+            self.port.flush()
+            quiet_until = time.monotonic() + RESYNC_QUIET_S
+            while time.monotonic() < quiet_until:
+                if self.port.read(MAX_PAYLOAD):
+                    quiet_until = time.monotonic() + RESYNC_QUIET_S
+        except (serial.SerialException, OSError, _TermiosError) as e:
+            raise LinkError(f"{self.name} is gone ({' '.join(str(e).split())})") from None
 
     def safe_stop(self) -> str | None:
         """Ask the robot to stop (motors off, LEDs off) once, briefly; returns why that failed

@@ -115,6 +115,7 @@ def _run(port, camera, profile, fsm, mcu, timeout_s, max_decisions, recorder) ->
            "abort_reason": None, "decisions": 0, "looks": 0, "commands": 0}  # fmt: skip
     controller = None
     try:
+        link.resync()  # a robot left in the middle of a frame by an earlier run waits for a frame again
         out["robot_says"] = link.request("HELLO")[2:].decode(errors="replace")
         controller = make_controller(fsm, mcu=mcu)
         state = initial_state()

@@ -138,8 +138,10 @@ def serve_pty(board, cfg, *, ready=None, link_fault: tuple[str, int] | None = No
             if not _wait(port, idle_s):
                 ended = f"no request for {idle_s:g} s"
                 break
+            if port.read(1) != bytes((link.SYNC,)):  # between frames: anything but a sync byte is skipped
+                continue
             try:
-                kind, seq, payload = link.read_frame(port, FRAME_S, what="a request")
+                kind, seq, payload = link.read_frame(port, FRAME_S, what="a request", synced=True)
             except link.LinkError as e:  # a garbled request: refused, nothing carried out
                 sim.log.append(f"refused: {e}")
                 if "checksum" in str(e):
