@@ -5,7 +5,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: demo test fuzz bench lint clean venv docs serve-docs browser-deps test-browser
+.PHONY: demo test test-emulator cross-tools fuzz bench lint clean venv docs serve-docs browser-deps test-browser
 
 venv: $(STAMP)
 
@@ -18,13 +18,32 @@ $(STAMP): pyproject.toml
 demo: $(STAMP)
 	$(BIN)/stcvision demo --out out --force  # out/ is make demo's own folder: replace the last run
 
-# everything but the tests that need a real browser (make test-browser)
+# everything but the emulator's and the browser's tests: a machine with Python and cc runs it
+# whole, none skipped (make test-emulator, make test-browser run those)
 test: $(STAMP)
-	$(BIN)/python -m pytest -q -n 2 -m "not browser"
+	$(BIN)/python -m pytest -q -n 2 -m "not emulator and not browser"
+
+# the STC controller's firmware for the ATmega328P (avr-gcc) run in QEMU's uno machine
+# (tests/emulator; needs make cross-tools). A target of its own rather than skips inside make
+# test: what make test runs never depends on what happens to be installed
+test-emulator: $(STAMP)
+	$(BIN)/python -m pytest -q -n 2 -m emulator tests/emulator
+
+# the cross compiler and the emulator, from Debian/Ubuntu packages (root or sudo)
+CROSS_PACKAGES := gcc-avr avr-libc binutils-avr qemu-system-misc
+cross-tools:
+	@if command -v avr-gcc >/dev/null && command -v qemu-system-avr >/dev/null; then echo "cross tools present"; \
+	else $$(command -v sudo || true) apt-get update -qq && \
+	     $$(command -v sudo || true) env DEBIAN_FRONTEND=noninteractive \
+	       apt-get install -y -qq --no-install-recommends $(CROSS_PACKAGES); fi
 
 # the labelling helper's review sheet in headless Chromium (Debian packages; run as root)
+BROWSER_PACKAGES := chromium chromium-driver
 browser-deps:
-	apt-get install -y -q chromium chromium-driver
+	@if command -v chromium >/dev/null && command -v chromedriver >/dev/null; then echo "browser present"; \
+	else $$(command -v sudo || true) apt-get update -qq && \
+	     $$(command -v sudo || true) env DEBIAN_FRONTEND=noninteractive \
+	       apt-get install -y -qq --no-install-recommends $(BROWSER_PACKAGES); fi
 
 test-browser: $(STAMP)
 	$(BIN)/python -m pytest -q -m browser tests/browser

@@ -177,3 +177,14 @@ MIN_CALIBRATION_SUBCELL_M = 0.04
 #: model sees no grid line at all (measured: 0 line points at 0.05 m, a good fit at 0.1 m)
 MAX_VIEWPOINT_M = 2.0
 MIN_VIEWPOINT_M = 0.1
+
+
+# ---------------------------------------------------------------- the STC controller's firmware
+#: oracle tours of one ``stcvision firmware check`` (``--boards``): ~0.1 s each beside the Python
+#: step on the host, ~1 s each through the emulator; 100,000 is hours
+MAX_CHECK_BOARDS = 100_000
+#: random (state, reading) pairs of one check (``--pairs``): ~20 s per million on one core
+MAX_CHECK_PAIRS = 100_000_000
+#: seconds ``robot run`` waits for one reply (``--timeout``): a reply that never comes must end
+#: the run, and a robot that takes longer than ten minutes to answer is not answering
+MAX_LINK_TIMEOUT_S = 600

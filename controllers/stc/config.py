@@ -150,6 +150,12 @@ class CoverConfig:
     move_log: bool = False
     trace: bool = False
     faults: tuple[tuple[str, float], ...] = ()
+    #: the controller that decides (:data:`stcvision.controllers.stc.controller.CONTROLLERS`): the
+    #: Python step, the portable C built for this machine, or that C as firmware in an emulator
+    fsm: str = "python"
+    #: ``fsm="firmware"``: the microcontroller it is built for (None: the default,
+    #: :data:`stcvision.controllers.stc.mcu.DEFAULT_MCU`)
+    mcu: str | None = None
 
 
 #: the red lights' estimates are used as long as they are this sure (1 sigma): the offset within

@@ -31,11 +31,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from stcvision.controllers.stc.belief import Belief
+from stcvision.controllers.stc.choose import make_controller
 from stcvision.controllers.stc.claims import OutOfSight
 from stcvision.controllers.stc.config import CoverConfig
 from stcvision.controllers.stc.faults import Faults
-from stcvision.controllers.stc.fsm import Action, StcObservation, StcPhase, initial_state, step
+from stcvision.controllers.stc.fsm import Action, StcObservation, StcPhase, initial_state
 from stcvision.controllers.stc.health import RobotStop
+from stcvision.controllers.stc.link import LinkError
 from stcvision.controllers.stc.movecount import MoveCount, MoveLog
 from stcvision.controllers.stc.observers import Observers, Reading, Trace
 from stcvision.controllers.stc.oracle import coverage
@@ -44,7 +46,7 @@ from stcvision.controllers.stc.plant import Floor, Plant
 from stcvision.controllers.stc.referee import Referee
 from stcvision.controllers.stc.robot import Robot, act, robot_memory
 
-__all__ = ["CoverConfig", "LoopEnd", "is_complete", "run_cover", "streams"]
+__all__ = ["CoverConfig", "LoopEnd", "build_parts", "is_complete", "read_tick", "run_cover", "streams", "summarise"]
 
 STREAMS = ("motion", "camera", "oracle", "board")
 
@@ -101,6 +103,28 @@ def run_cover(board, cfg: CoverConfig | None = None, *, observers=(), perception
     """
     wall0 = time.perf_counter()
     cfg = cfg if cfg is not None else CoverConfig()
+    robot, referee, watch, faults = build_parts(board, cfg, observers=observers, perception_hook=perception_hook)
+    end = LoopEnd()
+    controller = make_controller(cfg.fsm, mcu=cfg.mcu)  # the part that decides: Python, host C or the firmware
+    try:
+        _loop(robot, controller, cfg.max_decisions, watch, referee, end)
+    except (RobotStop, LinkError) as stop:  # a part found the robot cannot go on, or the firmware's link failed
+        end.abort = f"{stop} (decision {end.decisions})"
+    finally:
+        controller.close()
+    watch.on_end(robot.plant, robot.floor)
+    out = summarise(board, cfg, robot, referee, end, wall_s=time.perf_counter() - wall0)
+    if faults:
+        out["faults"] = faults.labels()
+        out["fault_events"] = dict(faults.events)
+    return out
+
+
+def build_parts(board, cfg: CoverConfig, *, observers=(), perception_hook=None):
+    """The parts of one run of ``board``: the robot (plant, belief, floor, perception, count of
+    moves), the referee, the observers and the faults built into them; the run's loop, or a
+    simulated robot behind a serial link (:mod:`stcvision.controllers.stc.simrobot`), drives
+    them."""
     rngs = streams(cfg.seed)
     faults = Faults(cfg.faults, cfg.seed, cfg.perception)  # each fault draws from its own stream
     plant = Plant(board, cfg.robot, rngs["motion"], rate_factor=faults.rate_factor(),
@@ -117,17 +141,7 @@ def run_cover(board, cfg: CoverConfig | None = None, *, observers=(), perception
     robot = Robot(plant, belief, Floor(board, lay_filter=faults.lay_filter()), see, count, watch,
                   MoveLog(count) if cfg.move_log else None)  # fmt: skip
     referee = Referee(board, active=see.refereed, report=watch.on_referee)
-    end = LoopEnd()
-    try:
-        _loop(robot, cfg.max_decisions, watch, referee, end)
-    except RobotStop as stop:  # a part found that the robot cannot go on (stcvision.controllers.stc.health)
-        end.abort = f"{stop} (decision {end.decisions})"
-    watch.on_end(plant, robot.floor)
-    out = _summary(board, cfg, robot, referee, end, wall_s=time.perf_counter() - wall0)
-    if faults:
-        out["faults"] = faults.labels()
-        out["fault_events"] = dict(faults.events)
-    return out
+    return robot, referee, watch, faults
 
 
 @dataclass(slots=True)
@@ -146,29 +160,21 @@ class LoopEnd:
     memory_bytes: int = 0
 
 
-def _loop(robot: Robot, max_decisions: int, watch, referee, end: LoopEnd) -> None:
-    """Run perception, controller and motors in turn until the run ends.
+def _loop(robot: Robot, controller, max_decisions: int, watch, referee, end: LoopEnd) -> None:
+    """Run perception, ``controller`` and motors in turn until the run ends.
 
-    It ends when the controller is done, the robot stops or ``max_decisions`` is reached; the
-    outcome goes into ``end``.
+    The controller is :mod:`stcvision.controllers.stc.controller`'s part. The run ends when the
+    controller is done, the robot stops or ``max_decisions`` is reached; the outcome goes into
+    ``end``.
     """
     state = initial_state()
     while end.decisions < max_decisions:
-        try:
-            obs = robot.read(state)
-        except OutOfSight as e:  # what the reading must rule out, no frame of its camera can
-            at = end.decisions + (state.phase is StcPhase.DECIDE)
-            end.abort = f"{e} (at sub-cell {robot.belief.sub}, decision {at})"
-            return
-        deciding = isinstance(obs, StcObservation)
-        end.decisions += deciding
-        end.looks += obs is not None and not deciding
-        why = robot.refuses(obs, state) if deciding else None
-        if why is not None:  # no STC tour shows this reading: stop before deciding on it
-            end.abort = f"{why} (at sub-cell {robot.belief.sub}, decision {end.decisions})"
+        obs, why = read_tick(robot, state, end)
+        if why is not None:
+            end.abort = why
             return
         prev = state
-        state, action, decision = step(state, obs)
+        state, action, decision = controller.step(state, obs)
         _tell(robot, watch, referee, end, prev, state, obs, decision)
         referee.step(prev, state, action, robot.plant, robot.belief, end.decisions)
         watch.on_step(robot.plant, robot.belief, state, action)
@@ -181,6 +187,23 @@ def _loop(robot: Robot, max_decisions: int, watch, referee, end: LoopEnd) -> Non
             end.abort = f"{why} (decision {end.decisions})" if why.startswith("drove") else why
             return
     end.abort = f"gave up after {max_decisions} decisions"
+
+
+def read_tick(robot: Robot, state, end: LoopEnd):
+    """The reading of one tick in ``state`` (counted in ``end``), and why the robot stops
+    instead of deciding on it (None: it goes on): (reading, why)."""
+    try:
+        obs = robot.read(state)
+    except OutOfSight as e:  # what the reading must rule out, no frame of its camera can
+        at = end.decisions + (state.phase is StcPhase.DECIDE)
+        return None, f"{e} (at sub-cell {robot.belief.sub}, decision {at})"
+    deciding = isinstance(obs, StcObservation)
+    end.decisions += deciding
+    end.looks += obs is not None and not deciding
+    why = robot.refuses(obs, state) if deciding else None
+    if why is not None:  # no STC tour shows this reading: stop before deciding on it
+        return obs, f"{why} (at sub-cell {robot.belief.sub}, decision {end.decisions})"
+    return obs, None
 
 
 def _tell(robot: Robot, watch, referee, end: LoopEnd, prev, state, obs, decision) -> None:
@@ -199,7 +222,7 @@ def _tell(robot: Robot, watch, referee, end: LoopEnd, prev, state, obs, decision
         watch.on_reading(Reading("look", end.decisions, plant, belief, floor, marked=obs.marked, frame=frame))
 
 
-def _summary(board, cfg, robot: Robot, referee, end: LoopEnd, *, wall_s: float) -> dict:
+def summarise(board, cfg, robot: Robot, referee, end: LoopEnd, *, wall_s: float) -> dict:
     # the sub-cell the robot ended in: the one it believes, checked within 0.45 sub-cell of the
     # truth after every move (Plant.check_lost), so the two agree
     plant, belief, see = robot.plant, robot.belief, robot.see

@@ -94,8 +94,11 @@ def landing_oracle(floor: MarkFloor, robot_subcell: tuple[int, int], heading: in
     return LookObs(bool(floor.edges.get(step_from(robot_subcell, heading))))
 
 
-def run_oracle(board, *, max_steps: int = 1_000_000, keep_mismatches: int = 20, camera_view: bool = False) -> dict:
-    """Run :func:`step` against :func:`observe_oracle` on ``board``.
+def run_oracle(
+    board, *, max_steps: int = 1_000_000, keep_mismatches: int = 20, camera_view: bool = False, controller=None
+) -> dict:
+    """Run :func:`step` (or ``controller.step``: a part of
+    :mod:`stcvision.controllers.stc.controller`) against :func:`observe_oracle` on ``board``.
 
     The true visit history and spanning tree are kept here, outside the controller, only to
     check every decision (box inference, parent, chosen neighbour, start/done recognition).
@@ -115,6 +118,7 @@ def run_oracle(board, *, max_steps: int = 1_000_000, keep_mismatches: int = 20, 
     cell_visited = np.zeros(board.shape_cells, bool)
     cell_visited[start_cell] = True
     state = initial_state()
+    tick = step if controller is None else controller.step
     grid = _GridMotors(board, floor, s, h, visits, parent_of, cell_visited)
     steps = decisions = box_violations = looks = 0
     mismatches: list[dict] = []
@@ -128,7 +132,7 @@ def run_oracle(board, *, max_steps: int = 1_000_000, keep_mismatches: int = 20, 
         obs = observe_oracle(floor, board, s, h, camera_view=camera_view) if deciding else None
         if state.phase is StcPhase.LOOK:
             obs = (look_oracle if state.child else landing_oracle)(floor, s, h)
-        state, action, dec = step(state, obs)
+        state, action, dec = tick(state, obs)
         if deciding:
             decisions += 1
             bad = _check_decision(dec, obs, board, s, h, visits, parent_of, cell_visited, start_cell, grid.moves)

@@ -28,6 +28,8 @@ COMMANDS: list[tuple[str, str, str]] = [
     ("render", "stcvision.cli.cmd_render", "render a synthetic catadioptric frame with ground truth"),
     ("pipeline", "stcvision.cli.cmd_pipeline", "run the vision pipeline on frames from disk"),
     ("cover", "stcvision.cli.cmd_cover", "run the ant-like STC robot until it has covered a board"),
+    ("firmware", "stcvision.cli.cmd_firmware", "check the STC controller's C firmware; build it for a microcontroller"),
+    ("robot", "stcvision.cli.cmd_robot", "drive an STC robot over a serial link; or be a simulated one on a pty"),
     ("buffon", "stcvision.cli.cmd_buffon", "measure a nest's area blind with Buffon's needle; reproduce the paper"),
     ("search", "stcvision.cli.cmd_search", "run the TASTI 2 chemical-search robot (radial/spiral, obstacle detours)"),
     ("calibrate", "stcvision.cli.cmd_calibrate", "calibrate a camera: dark frames, rim, transformation, neighbours"),

@@ -52,10 +52,10 @@ def add_parser(p):
         description="Does the tour converge with this camera and robot, how long does it take, the oldest mark "
         "it must read, the frame lengths it uses (the physics-limited camera, exposure auto; seconds).",
     )
-    _add_board_arguments(plan)
+    add_board_arguments(plan)
     _add_hardware_arguments(plan)
     plan.add_argument("--json", action="store_true", help="print the result as one JSON object")
-    _add_board_arguments(p)
+    add_board_arguments(p)
     p.add_argument(
         "--perception",
         choices=("camera", "oracle", "ideal"),
@@ -82,6 +82,14 @@ def add_parser(p):
         help="inject a hardware fault (repeatable): rate, led, drop, stray, noise, bump, slip; --list-faults for "
         "what each LEVEL means, its default and range",
     )
+    p.add_argument(
+        "--fsm",
+        choices=("python", "c", "firmware"),
+        default="python",
+        help="the controller that decides: python (the reference), c (the portable C built here by cc), firmware "
+        "(that C built for a microcontroller, in its emulator, over the serial protocol; --mcu)",
+    )
+    p.add_argument("--mcu", default=None, metavar="NAME", help="--fsm firmware: the microcontroller")
     p.add_argument("--move-log", action="store_true",
                    help="a study switch: keep beside the count of moves a map of every cell entered and row laid, "
                    "and check the camera's readings against it (the ant-like robot keeps no such map)")  # fmt: skip
@@ -92,7 +100,7 @@ def add_parser(p):
     p.add_argument("--force", action="store_true", help="overwrite --rrd")
 
 
-def _add_board_arguments(p) -> None:
+def add_board_arguments(p) -> None:
     from stcvision.cli._args import pair
 
     src = p.add_mutually_exclusive_group()
@@ -208,10 +216,14 @@ def run(args):
         check_recording_path(args.rrd, overwrite=args.force)
     from stcvision.controllers.stc.faults import Faults, parse_fault
 
+    if args.mcu and args.fsm != "firmware":
+        from stcvision.errors import BadInputError
+
+        raise BadInputError("--mcu names the chip of --fsm firmware")
     faults = tuple(parse_fault(f) for f in args.fault)
     Faults(faults, args.seed, args.perception)  # a fault twice or one the perception has no frames for: exit 2
     cfg = CoverConfig(perception=args.perception, exposure=exposure, seed=args.seed, camera=camera, robot=robot,
-                      faults=faults, move_log=args.move_log)  # fmt: skip
+                      faults=faults, move_log=args.move_log, fsm=args.fsm, mcu=args.mcu)  # fmt: skip
     result = run_recorded(board, cfg, args.rrd)
     result["rrd"] = args.rrd
     return result

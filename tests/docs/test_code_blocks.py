@@ -56,6 +56,8 @@ SMALLER: list[tuple[str, str, str]] = [
     ("--seeds 8", "--seeds 1 --max-steps 5 --workers 1", "TASTI 2 reproduce: one seed, patterns cut at 5 steps"),
     ("--board 8x8", "--board 2x2", "STC: a 2x2-cell board instead of 8x8"),
     ("--sizes 4,6 --runs 3", "--sizes 2 --runs 1 --workers 1", "STC sweep: one 2x2 board per camera, in-process"),
+    ("--boards 500 --pairs 1000000", "--boards 2 --pairs 2000", "the C check: 2 boards, 2,000 pairs"),
+    ("--boards 20 --pairs 100000", "--boards 2 --pairs 5000", "the C check's short form: 2 boards, 5,000 pairs"),
 ]
 
 

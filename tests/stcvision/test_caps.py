@@ -29,6 +29,9 @@ CASES = [
     (["bench", "--labelled-frames", "1000000000"], f"over the cap of {limits.MAX_BENCH_LABELLED_FRAMES:,}"),
     (["world", "--board", "10x10", "--steps", "100000000", "--out", "{d}/w.png"], "over the cap"),
     (["render", "--dark-frames", "100000", "--out", "{d}/r"], "over the cap"),
+    (["firmware", "check", "--boards", "1000000000"], f"must be 0 to {limits.MAX_CHECK_BOARDS:,}"),
+    (["firmware", "check", "--pairs", "1000000000000"], f"must be 0 to {limits.MAX_CHECK_PAIRS:,}"),
+    (["robot", "run", "--port", "loop://", "--timeout", "1e9"], f"over the cap of {limits.MAX_LINK_TIMEOUT_S:,}"),
 ]
 
 

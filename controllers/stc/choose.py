@@ -1,0 +1,21 @@
+"""The controller a run names (``CoverConfig.fsm``, ``--fsm``): :func:`make_controller`."""
+
+from __future__ import annotations
+
+from stcvision.controllers.stc.controller import CONTROLLERS, Controller, HostC, PythonController
+from stcvision.errors import BadInputError
+
+__all__ = ["make_controller"]
+
+
+def make_controller(name: str, *, mcu: str | None = None) -> Controller:
+    """The controller named ``name`` (:data:`CONTROLLERS`); ``mcu``: the firmware's chip."""
+    if name == "python":
+        return PythonController()
+    if name == "c":
+        return HostC()
+    if name == "firmware":
+        from stcvision.controllers.stc.mcu import FirmwareController
+
+        return FirmwareController(mcu)
+    raise BadInputError(f"unknown controller '{name}': one of {', '.join(CONTROLLERS)}")
