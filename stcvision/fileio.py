@@ -322,6 +322,44 @@ def write_json(path: str | os.PathLike, obj: Any, *, overwrite: bool = False) ->
     return write_bytes_atomic(path, (dumps(obj) + "\n").encode(), overwrite=overwrite)
 
 
+def json_lines(path: str | os.PathLike, *, cap: int, what: str = "line"):
+    """Yield ``(line number, decoded object)`` for each non-blank line of a JSON-lines file.
+
+    Parameters
+    ----------
+    path : str or PathLike
+        The file.
+    cap : int
+        At most this many objects; one more is refused.
+    what : str
+        What a line holds, for the message of the cap.
+
+    Yields
+    ------
+    (int, object)
+        The 1-based line number and the line's JSON value.
+
+    Raises
+    ------
+    BadInputError
+        A line that is not JSON, or more than ``cap`` of them.
+    """
+    n = 0
+    with open(path, encoding="utf-8") as f:
+        for i, line in enumerate(f, 1):
+            if not line.strip():
+                continue
+            n += 1
+            if n > cap:
+                raise BadInputError(f"{path} has more than {cap} {what}s")
+            try:
+                yield i, json.loads(line)
+            except json.JSONDecodeError as exc:
+                raise BadInputError(
+                    f"{path} line {i} is not valid JSON ({exc.msg}); expected one object per line"
+                ) from None
+
+
 def read_json(path: str | os.PathLike, *, what: str = "JSON file") -> Any:
     """Read a JSON file, turning every failure into a one-line :class:`BadInputError`."""
     path = Path(path)

@@ -28,7 +28,6 @@ by the same function (:func:`stcvision.scoring.score_label`) and give the same n
 
 from __future__ import annotations
 
-import json
 import math
 from pathlib import Path
 from typing import Any
@@ -186,25 +185,16 @@ def read_labels(path: str | Path) -> list[dict]:
         A line that is not JSON or not a label, a frame labelled twice, more lines than
         :data:`stcvision.limits.MAX_DATASET_FRAMES`.
     """
+    from stcvision.fileio import json_lines
+
     path = Path(path)
     labels, seen = [], set()
-    with path.open(encoding="utf-8") as f:
-        for i, line in enumerate(f, 1):
-            if not line.strip():
-                continue
-            if len(labels) >= MAX_DATASET_FRAMES:
-                raise BadInputError(f"{path} has more than {MAX_DATASET_FRAMES} labels")
-            try:
-                d = json.loads(line)
-            except json.JSONDecodeError as exc:
-                raise BadInputError(
-                    f"{path} line {i} is not valid JSON ({exc.msg}); expected one object per line"
-                ) from None
-            lab = parse_label(d, where=f"{path} line {i}")
-            if lab["frame"] in seen:
-                raise BadInputError(f"{path} line {i} labels {lab['frame']} a second time")
-            seen.add(lab["frame"])
-            labels.append(lab)
+    for i, d in json_lines(path, cap=MAX_DATASET_FRAMES, what="label"):
+        lab = parse_label(d, where=f"{path} line {i}")
+        if lab["frame"] in seen:
+            raise BadInputError(f"{path} line {i} labels {lab['frame']} a second time")
+        seen.add(lab["frame"])
+        labels.append(lab)
     if not labels:
         raise BadInputError(f"{path} has no labels; expected one JSON object per frame")
     return labels

@@ -185,32 +185,33 @@ def score_label(result, label: dict, profile, *, match_m: float = 0.01) -> Frame
         sc.heading_err_deg = math.degrees(result.heading.heading_error_rad) - label["heading_error_deg"]
     obs = result.observation
     for b in obs.boxes:
-        want = label.get("boxes", {}).get(b.box)
-        if want is None:
-            continue
-        sc.box_pairs.append((want, b.lit))
-        sc.boxes_total += 1
-        if b.lit == want:
-            sc.boxes_correct += 1
-        else:
-            sc.errors.append(f"box {b.box}: read {'lit' if b.lit else 'unlit'}")
+        _tally(sc, "box", label.get("boxes", {}).get(b.box), b.lit, f"box {b.box}: read {'lit' if b.lit else 'unlit'}")
     for name, n in obs.neighbours.items():
         want = label.get("neighbours", {}).get(name, {})
-        if want.get("red") is not None:
-            sc.red_pairs.append((want["red"], n.has_red))
-            sc.obstacles_total += 1
-            if n.has_red == want["red"]:
-                sc.obstacles_correct += 1
-            else:
-                sc.errors.append(f"{name}: red read {n.has_red}")
-        if want.get("marks") is not None:
-            sc.marks_pairs.append((want["marks"], n.has_marks))
-            sc.neighbour_marks_total += 1
-            if n.has_marks == want["marks"]:
-                sc.neighbour_marks_correct += 1
-            else:
-                sc.errors.append(f"{name}: marks read {n.has_marks}")
+        _tally(sc, "red", want.get("red"), n.has_red, f"{name}: red read {n.has_red}")
+        _tally(sc, "marks", want.get("marks"), n.has_marks, f"{name}: marks read {n.has_marks}")
     return sc
+
+
+#: what :func:`_tally` counts per kind of reading: its (label, read) pairs, total and right counts
+_TALLIES = {
+    "box": ("box_pairs", "boxes_total", "boxes_correct"),
+    "red": ("red_pairs", "obstacles_total", "obstacles_correct"),
+    "marks": ("marks_pairs", "neighbour_marks_total", "neighbour_marks_correct"),
+}
+
+
+def _tally(sc: FrameScore, kind: str, want: bool | None, read: bool, error: str) -> None:
+    """Count one reading against its label (none when the label leaves it out)."""
+    if want is None:
+        return
+    pairs, total, correct = _TALLIES[kind]
+    getattr(sc, pairs).append((want, read))
+    setattr(sc, total, getattr(sc, total) + 1)
+    if read == want:
+        setattr(sc, correct, getattr(sc, correct) + 1)
+    else:
+        sc.errors.append(error)
 
 
 def score_frame(result, truth: dict, profile, *, match_m: float = 0.01) -> FrameScore:

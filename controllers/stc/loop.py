@@ -124,7 +124,8 @@ def build_parts(board, cfg: CoverConfig, *, observers=(), perception_hook=None):
     """The parts of one run of ``board``: the robot (plant, belief, floor, perception, count of
     moves), the referee, the observers and the faults built into them; the run's loop, or a
     simulated robot behind a serial link (:mod:`stcvision.controllers.stc.simrobot`), drives
-    them."""
+    them.
+    """
     rngs = streams(cfg.seed)
     faults = Faults(cfg.faults, cfg.seed, cfg.perception)  # each fault draws from its own stream
     plant = Plant(board, cfg.robot, rngs["motion"], rate_factor=faults.rate_factor(),
@@ -191,7 +192,8 @@ def _loop(robot: Robot, controller, max_decisions: int, watch, referee, end: Loo
 
 def read_tick(robot: Robot, state, end: LoopEnd):
     """The reading of one tick in ``state`` (counted in ``end``), and why the robot stops
-    instead of deciding on it (None: it goes on): (reading, why)."""
+    instead of deciding on it (None: it goes on): (reading, why).
+    """
     try:
         obs = robot.read(state)
     except OutOfSight as e:  # what the reading must rule out, no frame of its camera can

@@ -7,13 +7,13 @@ the depth its sensor gives (:func:`open_dataset`). A folder of a user's own fram
 
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass
 from pathlib import Path
 
 from stcvision.datasets.layout import DATASET_SCHEMA_VERSION, IMAGE_SUFFIXES
 from stcvision.errors import BadInputError
 from stcvision.fileio import read_json
+from stcvision.limits import MAX_DATASET_FRAMES
 
 #: a labelled folder's manifest kind (a generated dataset's is "stcvision-dataset")
 LABELLED_KIND = "labelled-frames"
@@ -131,16 +131,10 @@ def open_dataset(root: str | Path, *, dark: str | Path | None = None) -> Dataset
         )
     if not lpath.exists():
         raise BadInputError(f"dataset {root} has a manifest but no labels.jsonl")
+    from stcvision.fileio import json_lines
+
     labels = []
-    for i, line in enumerate(lpath.read_text(encoding="utf-8").splitlines(), 1):
-        if not line.strip():
-            continue
-        try:
-            lab = json.loads(line)
-        except json.JSONDecodeError as exc:
-            raise BadInputError(
-                f"{lpath} line {i} is not valid JSON ({exc.msg}); expected one object per line"
-            ) from None
+    for i, lab in json_lines(lpath, cap=MAX_DATASET_FRAMES, what="label"):
         if not isinstance(lab, dict) or not isinstance(lab.get("frame"), str):
             raise BadInputError(f'{lpath} line {i} has no "frame" (the frame\'s file name)')
         for key in ("dots", "pose", "sensor"):
