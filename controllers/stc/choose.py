@@ -9,7 +9,21 @@ __all__ = ["make_controller"]
 
 
 def make_controller(name: str, *, mcu: str | None = None) -> Controller:
-    """The controller named ``name`` (:data:`CONTROLLERS`); ``mcu``: the firmware's chip."""
+    """Make the controller a run names.
+
+    Parameters
+    ----------
+    name : str
+        The controller (:data:`~stcvision.controllers.stc.controller.CONTROLLERS`): "python",
+        "c" or "firmware".
+    mcu : str or None
+        The firmware's chip (:data:`stcvision.controllers.stc.mcu.MCUS`; None: the default).
+
+    Returns
+    -------
+    Controller
+        The controller, to be closed when the run ends. An unknown name raises BadInputError.
+    """
     if name == "python":
         return PythonController()
     if name == "c":

@@ -124,6 +124,13 @@ class CoverConfig:
     faults : tuple of (str, float)
         Hardware faults injected into the run: (name, level) pairs
         (:mod:`stcvision.controllers.stc.faults`).
+    fsm : str
+        The controller that decides (:data:`stcvision.controllers.stc.controller.CONTROLLERS`):
+        "python", the Python step; "c", the portable C built for this machine; or "firmware",
+        that C as firmware in an emulator.
+    mcu : str or None
+        ``fsm="firmware"``: the microcontroller it is built for (None: the default,
+        :data:`stcvision.controllers.stc.mcu.DEFAULT_MCU`).
     """
 
     perception: str = "camera"
@@ -150,11 +157,7 @@ class CoverConfig:
     move_log: bool = False
     trace: bool = False
     faults: tuple[tuple[str, float], ...] = ()
-    #: the controller that decides (:data:`stcvision.controllers.stc.controller.CONTROLLERS`): the
-    #: Python step, the portable C built for this machine, or that C as firmware in an emulator
     fsm: str = "python"
-    #: ``fsm="firmware"``: the microcontroller it is built for (None: the default,
-    #: :data:`stcvision.controllers.stc.mcu.DEFAULT_MCU`)
     mcu: str | None = None
 
 

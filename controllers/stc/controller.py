@@ -1,5 +1,7 @@
-"""The controller as a part of the closed loop, chosen as the loop's other parts are: anything
-with :meth:`Controller.step` ``(StcState, reading) -> Step`` and :meth:`Controller.close`.
+"""The controller as a part of the closed loop, chosen as the loop's other parts are.
+
+Anything with :meth:`Controller.step` ``(StcState, reading) -> Step`` and
+:meth:`Controller.close` will do:
 
 * :class:`PythonController`: :func:`stcvision.controllers.stc.fsm.step` itself;
 * :class:`HostC`: the portable C controller (``firmware/stc_fsm.c``) built for this machine by
@@ -64,7 +66,21 @@ class Controller(Protocol):
     name: str
 
     def step(self, state: StcState, obs: StcObservation | LookObs | None) -> Step:
-        """One tick (:func:`stcvision.controllers.stc.fsm.step`'s contract)."""
+        """Make one tick (:func:`stcvision.controllers.stc.fsm.step`'s contract).
+
+        Parameters
+        ----------
+        state : StcState
+            The controller's state before the tick.
+        obs : StcObservation or LookObs or None
+            The reading the state asks for: a cell's at a decision, a neighbour's at a look,
+            None where the state reads nothing.
+
+        Returns
+        -------
+        Step
+            The state after the tick, the action and the decision taken.
+        """
 
     def close(self) -> None:
         """Release what the controller holds (a library, an emulator)."""
@@ -76,10 +92,11 @@ class PythonController:
     name = "python"
 
     def step(self, state: StcState, obs) -> Step:
+        """Make one tick: :func:`stcvision.controllers.stc.fsm.step` itself."""
         return step(state, obs)
 
     def close(self) -> None:
-        pass
+        """Release nothing: the Python step holds nothing."""
 
 
 def _cache_dir() -> Path:
@@ -88,10 +105,13 @@ def _cache_dir() -> Path:
 
 
 def compile_cached(cc: str, flags, sources, *, name: str, suffix: str, what: str) -> Path:
-    """Compile ``sources`` (file names in :data:`FIRMWARE_DIR`) with ``cc`` and ``flags`` once
-    into the user's cache folder, under ``name``, the hash of the compiler, the flags and every
-    source and header, and ``suffix``: an edited source builds anew, an unchanged one is reused.
-    Raises BadInputError when there is no such compiler or it rejects the sources."""
+    """Compile ``sources`` with ``cc`` and ``flags`` once into the user's cache folder.
+
+    ``sources`` are file names in :data:`FIRMWARE_DIR`. The build is cached under ``name``, the
+    hash of the compiler, the flags and every source and header, and ``suffix``: an edited
+    source builds anew, an unchanged one is reused. ``what`` names the build in the messages.
+    Raises BadInputError when there is no such compiler or it rejects the sources.
+    """
     from stcvision.fileio import commit_temp, discard_temp, temp_sibling
 
     exe = shutil.which(cc)
@@ -121,8 +141,10 @@ def compile_cached(cc: str, flags, sources, *, name: str, suffix: str, what: str
 
 
 def build_host_library(cc: str | None = None) -> Path:
-    """The host's shared library of the C controller, built by ``cc`` (or ``$CC``) once
-    (:func:`compile_cached`)."""
+    """Return the host's shared library of the C controller.
+
+    It is built by ``cc`` (or ``$CC``) once (:func:`compile_cached`).
+    """
     cc = cc or os.environ.get("CC") or "cc"
     suffix = ".dll" if sys.platform == "win32" else ".so"
     return compile_cached(cc, (*C_FLAGS, "-shared", "-fPIC"), HOST_SOURCES, name="stc_fsm", suffix=suffix,
@@ -130,8 +152,15 @@ def build_host_library(cc: str | None = None) -> Path:
 
 
 class HostC:
-    """The portable C controller built for this machine (:func:`build_host_library`), one tick
-    per :meth:`step` or many per :meth:`step_batch`."""
+    """The portable C controller built for this machine (:func:`build_host_library`).
+
+    One tick per :meth:`step` or many per :meth:`step_batch`.
+
+    Parameters
+    ----------
+    cc : str or None
+        The C compiler that builds it (None: ``$CC``, else ``cc``).
+    """
 
     name = "c"
 
@@ -145,9 +174,21 @@ class HostC:
         self.state_bytes = int(self._lib.stc_state_size())
 
     def step_batch(self, states: np.ndarray, obs: np.ndarray) -> np.ndarray:
-        """Ticks of independent (state, reading) pairs: ``states`` (n, 3) and ``obs`` (n, 5)
-        uint8 in the :mod:`~stcvision.controllers.stc.wire` layouts; returns (n, 8) uint8:
-        status, action, the state after, the decision."""
+        """Make ticks of independent (state, reading) pairs.
+
+        Parameters
+        ----------
+        states : numpy.ndarray
+            The states before, (n, 3) uint8 in the :mod:`~stcvision.controllers.stc.wire`
+            layout.
+        obs : numpy.ndarray
+            The readings, (n, 5) uint8 in the :mod:`~stcvision.controllers.stc.wire` layout.
+
+        Returns
+        -------
+        numpy.ndarray
+            (n, 8) uint8: status, action, the state after, the decision.
+        """
         states = np.ascontiguousarray(states, np.uint8)
         obs = np.ascontiguousarray(obs, np.uint8)
         n = len(states)
@@ -159,17 +200,34 @@ class HostC:
         return out
 
     def step(self, state: StcState, obs) -> Step:
+        """Make one tick in the C controller.
+
+        Parameters
+        ----------
+        state : StcState
+            The controller's state before the tick.
+        obs : StcObservation or LookObs or None
+            The reading the state asks for (None where it reads nothing).
+
+        Returns
+        -------
+        Step
+            The state after the tick (read back from the C state's bytes), the action and the
+            decision; a status other than 0 raises ValueError, as the Python step does.
+        """
         s = np.frombuffer(wire.encode_state(state), np.uint8)[None]
         o = np.frombuffer(wire.encode_obs(obs), np.uint8)[None]
         return decode_out(self.step_batch(s, o)[0].tobytes())
 
     def close(self) -> None:
-        pass
+        """Release nothing: the library stays loaded for the process."""
 
 
 def decode_out(out: bytes) -> Step:
-    """A C tick's output bytes (status, action, state, decision) as the Python step's result;
-    a status other than 0 raises ValueError, as the Python step does."""
+    """Read a C tick's output bytes (status, action, state, decision) as the Python step's result.
+
+    A status other than 0 raises ValueError, as the Python step does.
+    """
     status = out[0]
     if status:
         raise ValueError(wire.STATUS_ERRORS.get(status, f"status {status}"))

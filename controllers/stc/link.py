@@ -1,6 +1,8 @@
-"""The serial protocol between a robot and the computer (or chip) that decides for it: framing,
-a checksum and a version, carrying the controller's readings and actions and the robot's own
-commands, so that either half can live on the robot (docs/reference/serial-protocol.md).
+"""The serial protocol between a robot and the computer (or chip) that decides for it.
+
+Framing, a checksum and a version, carrying the controller's readings and actions and the
+robot's own commands, so that either half can live on the robot
+(docs/reference/serial-protocol.md).
 
 A frame::
 
@@ -90,6 +92,7 @@ class LinkError(StcVisionError):
 
 
 def crc16(data: bytes) -> int:
+    """Return the CRC-16/CCITT-FALSE of ``data`` (polynomial 0x1021, start 0xFFFF)."""
     return binascii.crc_hqx(data, 0xFFFF)
 
 
@@ -102,8 +105,11 @@ def frame(kind: int, seq: int, payload: bytes = b"") -> bytes:
 
 
 def _read_exact(port, n: int, deadline: float) -> bytes:
-    """``n`` bytes from ``port`` (a pyserial port or anything with ``read(n)`` returning what
-    arrived within its own short timeout) before ``deadline``; fewer if it passes."""
+    """Read ``n`` bytes from ``port`` before ``deadline``; fewer if it passes.
+
+    ``port`` is a pyserial port or anything with ``read(n)`` returning what arrived within its
+    own short timeout.
+    """
     got = b""
     while len(got) < n and time.monotonic() < deadline:
         got += port.read(n - len(got))
@@ -111,9 +117,12 @@ def _read_exact(port, n: int, deadline: float) -> bytes:
 
 
 def read_frame(port, timeout_s: float, *, what: str = "a frame", synced: bool = False) -> tuple[int, int, bytes]:
-    """The next frame on ``port``: (type, seq, payload). Raises :class:`LinkError` when none
-    starts within ``timeout_s``, when it is cut short, out of frame, of another version or its
-    checksum is wrong. ``synced``: the sync byte has been read already."""
+    """Read the next frame on ``port``: (type, seq, payload).
+
+    Raises :class:`LinkError` when none starts within ``timeout_s``, when it is cut short, out
+    of frame, of another version or its checksum is wrong. ``what`` names the frame in those
+    messages. ``synced``: the sync byte has been read already.
+    """
     deadline = time.monotonic() + timeout_s
     first = bytes((SYNC,)) if synced else _read_exact(port, 1, deadline)
     if not first:
@@ -135,8 +144,22 @@ def read_frame(port, timeout_s: float, *, what: str = "a frame", synced: bool = 
 
 
 class Link:
-    """The requesting side: one request, one reply, each within ``timeout_s``. ``port`` is a
-    pyserial port (``serial.Serial`` or ``serial.serial_for_url``) with a short read timeout."""
+    """The requesting side: one request, one reply, each within ``timeout_s``.
+
+    Parameters
+    ----------
+    port : serial.Serial
+        A pyserial port (``serial.Serial`` or ``serial.serial_for_url``) with a short read
+        timeout, or anything with its ``read``, ``write`` and ``flush``
+        (:class:`FdPort`).
+    timeout_s : float
+        How long (s) a reply may take.
+    name : str
+        What the link is, for its messages ("the port /dev/ttyACM0": "... is gone").
+    listener : callable or None
+        Told of every request: ``listener(name, payload, reply)``, the reply a
+        :class:`LinkError` when it failed (None: no one is told).
+    """
 
     def __init__(self, port, *, timeout_s: float = 5.0, name: str = "the link", listener=None):
         self.port, self.timeout_s, self.name = port, timeout_s, name
@@ -146,8 +169,23 @@ class Link:
         self.listener = listener
 
     def request(self, name: str, payload: bytes = b"", *, timeout_s: float | None = None) -> bytes:
-        """Send request ``name`` and return its reply's payload; :class:`LinkError` on any
-        failure, including a NAK (its code and text)."""
+        """Send request ``name`` and return its reply's payload.
+
+        Parameters
+        ----------
+        name : str
+            The request (:data:`REQUESTS`).
+        payload : bytes
+            Its payload (at most :data:`MAX_PAYLOAD` bytes).
+        timeout_s : float or None
+            How long (s) its reply may take (None: the link's own).
+
+        Returns
+        -------
+        bytes
+            The reply's payload. Any failure, including a NAK (its code and text), raises
+            :class:`LinkError`.
+        """
         try:
             reply = self._request(name, payload, timeout_s)
         except LinkError as e:
@@ -181,10 +219,13 @@ class Link:
         return body
 
     def resync(self) -> None:
-        """Bring the far side's frame reader back to waiting for a frame, whatever it was in the
-        middle of (a frame cut short by a lost byte, noise on the line): zero bytes enough to
-        fill any frame, whose checksum then fails, then what it answered is read and dropped.
-        A reader waiting for a frame skips the zeros (none is a sync byte)."""
+        """Bring the far side's frame reader back to waiting for a frame.
+
+        Whatever the reader was in the middle of (a frame cut short by a lost byte, noise on the
+        line), zero bytes enough to fill any frame end it, its checksum then failing; what it
+        answered is read and dropped. A reader waiting for a frame skips the zeros (none is a
+        sync byte).
+        """
         import serial
 
         try:
@@ -198,8 +239,15 @@ class Link:
             raise LinkError(f"{self.name} is gone ({' '.join(str(e).split())})") from None
 
     def safe_stop(self) -> str | None:
-        """Ask the robot to stop (motors off, LEDs off) once, briefly; returns why that failed
-        too, or None. A robot that hears nothing more stops by itself (its own watchdog)."""
+        """Ask the robot to stop (motors off, LEDs off) once, briefly.
+
+        A robot that hears nothing more stops by itself (its own watchdog).
+
+        Returns
+        -------
+        str or None
+            Why the stop failed too, or None.
+        """
         try:
             self.request("STOP", timeout_s=min(self.timeout_s, 1.0))
         except LinkError as e:
@@ -208,22 +256,27 @@ class Link:
 
 
 def nak(seq: int, code: int, text: str = "") -> bytes:
-    """A NAK frame: ``code`` (:data:`NAK_CODES`) and one line of text, cut to fit."""
+    """Make a NAK frame: ``code`` (:data:`NAK_CODES`) and one line of text, cut to fit."""
     return frame(NAK, seq, bytes((code,)) + " ".join(text.split()).encode()[: MAX_PAYLOAD - 1])
 
 
 def request_name(kind: int) -> str:
+    """Return the name of request type ``kind`` (its hex for a type no request has)."""
     return _NAMES.get(kind, f"0x{kind:02x}")
 
 
 class FdPort:
-    """A file descriptor as a port: ``read(n)`` returns what arrives within :data:`POLL_S`, and
-    raises OSError once the other side has closed (a process that died, a terminal hung up)."""
+    """A file descriptor as a port.
+
+    ``read(n)`` returns what arrives within :data:`POLL_S`, and raises OSError once the other
+    side has closed (a process that died, a terminal hung up).
+    """
 
     def __init__(self, fd: int):
         self.fd = fd
 
     def read(self, n: int) -> bytes:
+        """Return up to ``n`` bytes that arrive within :data:`POLL_S` (none: empty)."""
         r, _, _ = select.select([self.fd], [], [], POLL_S)
         if not r:
             return b""
@@ -233,10 +286,12 @@ class FdPort:
         return got
 
     def readable(self, timeout_s: float) -> bool:
+        """Say whether there is something to read within ``timeout_s`` (s)."""
         return bool(select.select([self.fd], [], [], timeout_s)[0])
 
     def write(self, data: bytes) -> None:
+        """Write ``data`` to the descriptor."""
         os.write(self.fd, data)
 
     def flush(self) -> None:
-        pass
+        """Do nothing: a write reaches the descriptor at once."""

@@ -121,10 +121,11 @@ def run_cover(board, cfg: CoverConfig | None = None, *, observers=(), perception
 
 
 def build_parts(board, cfg: CoverConfig, *, observers=(), perception_hook=None):
-    """The parts of one run of ``board``: the robot (plant, belief, floor, perception, count of
-    moves), the referee, the observers and the faults built into them; the run's loop, or a
-    simulated robot behind a serial link (:mod:`stcvision.controllers.stc.simrobot`), drives
-    them.
+    """Build the parts of one run of ``board``.
+
+    The robot (plant, belief, floor, perception, count of moves), the referee, the observers
+    and the faults built into them; the run's loop, or a simulated robot behind a serial link
+    (:mod:`stcvision.controllers.stc.simrobot`), drives them.
     """
     rngs = streams(cfg.seed)
     faults = Faults(cfg.faults, cfg.seed, cfg.perception)  # each fault draws from its own stream
@@ -191,8 +192,10 @@ def _loop(robot: Robot, controller, max_decisions: int, watch, referee, end: Loo
 
 
 def read_tick(robot: Robot, state, end: LoopEnd):
-    """The reading of one tick in ``state`` (counted in ``end``), and why the robot stops
-    instead of deciding on it (None: it goes on): (reading, why).
+    """Read one tick in ``state``, counted in ``end``.
+
+    Returns (reading, why): the reading, and why the robot stops instead of deciding on it
+    (None: it goes on).
     """
     try:
         obs = robot.read(state)
@@ -225,6 +228,13 @@ def _tell(robot: Robot, watch, referee, end: LoopEnd, prev, state, obs, decision
 
 
 def summarise(board, cfg, robot: Robot, referee, end: LoopEnd, *, wall_s: float) -> dict:
+    """Sum up a run of ``board``: the result :func:`run_cover` returns (its faults aside).
+
+    The settings, the cover (from where the plant truly went), how the loop went (``end``), the
+    robot's counts and the floor's checks, ``wall_s`` the run's wall time (s), and whether the
+    run is complete (the referee's verdict: the robot's own ``finished`` says only that it
+    believes it is done).
+    """
     # the sub-cell the robot ended in: the one it believes, checked within 0.45 sub-cell of the
     # truth after every move (Plant.check_lost), so the two agree
     plant, belief, see = robot.plant, robot.belief, robot.see

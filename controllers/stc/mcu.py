@@ -1,11 +1,12 @@
-"""The portable C controller as firmware: built for a microcontroller by its cross compiler,
-run in an emulator of that chip, and asked over the serial protocol
-(:mod:`stcvision.controllers.stc.link`), so that every decision of a closed-loop run can be the
-firmware's (:class:`FirmwareController`, ``stcvision cover --fsm firmware``); and measured
-(:func:`stcvision.controllers.stc.firmware_report.build_firmware`, ``stcvision firmware
-build``): flash and static RAM from the ELF's sections, the stack's high-water mark from the
-firmware itself after it has run tours in the emulator (it paints its free RAM at start and
-reports how deep the stack reached).
+"""The portable C controller as firmware on a microcontroller, asked over the serial protocol.
+
+It is built for the chip by its cross compiler, run in an emulator of that chip, and asked over
+the serial protocol (:mod:`stcvision.controllers.stc.link`), so that every decision of a
+closed-loop run can be the firmware's (:class:`FirmwareController`, ``stcvision cover --fsm
+firmware``); and measured (:func:`stcvision.controllers.stc.firmware_report.build_firmware`,
+``stcvision firmware build``): flash and static RAM from the ELF's sections, the stack's
+high-water mark from the firmware itself after it has run tours in the emulator (it paints its
+free RAM at start and reports how deep the stack reached).
 
 The chips (:data:`MCUS`): the ATmega328P of the Arduino Uno (avr-gcc, QEMU's ``uno`` machine)
 and ``host``: the same firmware built for this machine by ``cc``, its serial line the process's
@@ -52,9 +53,12 @@ REPLY_S = 5.0
 
 @dataclass(frozen=True)
 class Mcu:
-    """A chip the firmware is built for: its compiler and flags, its main, its size tool, its
-    flash and RAM (bytes; None on the host) and how its emulator runs an ELF (the command
-    before the ELF's path; empty: the ELF runs itself)."""
+    """A chip the firmware is built for.
+
+    Its compiler and flags, its main, its size tool, its flash and RAM (bytes; None on the host)
+    and how its emulator runs an ELF (the command before the ELF's path; empty: the ELF runs
+    itself).
+    """
 
     name: str
     cc: str
@@ -84,8 +88,11 @@ _PR_SET_PDEATHSIG = 1
 
 
 def _die_with_parent() -> None:
-    """In the emulator's process before it starts: the Linux kernel kills it when its parent
-    dies (elsewhere nothing happens; close() and the process group still end it)."""
+    """Have the Linux kernel kill the emulator's process when its parent dies.
+
+    Runs in the emulator's process before it starts (elsewhere than Linux nothing happens;
+    close() and the process group still end it).
+    """
     import ctypes
     import signal
     import sys
@@ -98,6 +105,10 @@ def _die_with_parent() -> None:
 
 
 def mcu_named(name: str | None) -> Mcu:
+    """Return the chip named ``name`` (:data:`MCUS`; None: :data:`DEFAULT_MCU`).
+
+    An unknown name raises BadInputError naming the chips there are.
+    """
     name = name or DEFAULT_MCU
     if name not in MCUS:
         raise BadInputError(f"unknown microcontroller '{name}': one of {', '.join(MCUS)}")
@@ -105,6 +116,11 @@ def mcu_named(name: str | None) -> Mcu:
 
 
 def need_tool(tool: str) -> str:
+    """Return the path of ``tool`` on PATH.
+
+    A tool that is not installed raises BadInputError saying that ``make cross-tools`` installs
+    the cross compiler and the emulator (:data:`APT_PACKAGES`).
+    """
     exe = shutil.which(tool)
     if exe is None:
         raise BadInputError(
@@ -115,7 +131,10 @@ def need_tool(tool: str) -> str:
 
 
 def compile_firmware(mcu: str | None = None) -> Path:
-    """The firmware's ELF for ``mcu`` (cached, :func:`stcvision.controllers.stc.controller.compile_cached`)."""
+    """Return the firmware's ELF for ``mcu``.
+
+    It is built once and cached (:func:`stcvision.controllers.stc.controller.compile_cached`).
+    """
     m = mcu_named(mcu)
     need_tool(m.cc)
     return compile_cached(m.cc, (*_PORTABLE_FLAGS, *m.flags), (*FIRMWARE_SOURCES, m.main),
@@ -139,9 +158,18 @@ class _PipePort:
 
 
 class FirmwareController:
-    """The firmware in its emulator as the loop's controller. It keeps its own state: a tick
-    from the state it returned last sends the reading alone (``STEP``), any other sends the
-    state too (``STEP_FROM``)."""
+    """The firmware in its emulator as the loop's controller.
+
+    It keeps its own state: a tick from the state it returned last sends the reading alone
+    (``STEP``), any other sends the state too (``STEP_FROM``).
+
+    Parameters
+    ----------
+    mcu : str or None
+        The chip (:data:`MCUS`; None: :data:`DEFAULT_MCU`).
+    elf : pathlib.Path or None
+        The firmware to run (None: built for ``mcu`` by :func:`compile_firmware`).
+    """
 
     name = "firmware"
 
@@ -187,10 +215,40 @@ class FirmwareController:
         return out
 
     def step(self, state: StcState, obs) -> Step:
+        """Make one tick in the firmware.
+
+        Parameters
+        ----------
+        state : StcState
+            The controller's state before the tick: the one the firmware returned last sends
+            the reading alone (``STEP``), any other the state too (``STEP_FROM``).
+        obs : StcObservation or LookObs or None
+            The reading the state asks for (None where it reads nothing).
+
+        Returns
+        -------
+        Step
+            The state after the tick, the action and the decision. A link that fails raises
+            :class:`LinkError`.
+        """
         return decode_out(self._tick(wire.encode_state(state), wire.encode_obs(obs)))
 
     def step_batch(self, states: np.ndarray, obs: np.ndarray) -> np.ndarray:
-        """One tick per pair, each from its own state (``STEP_FROM``)."""
+        """Make one tick per pair, each from its own state (``STEP_FROM``).
+
+        Parameters
+        ----------
+        states : numpy.ndarray
+            The states before, (n, 3) uint8 in the :mod:`~stcvision.controllers.stc.wire`
+            layout.
+        obs : numpy.ndarray
+            The readings, (n, 5) uint8 in the :mod:`~stcvision.controllers.stc.wire` layout.
+
+        Returns
+        -------
+        numpy.ndarray
+            (n, 8) uint8: status, action, the state after, the decision.
+        """
         out = np.zeros((len(states), OUT_BYTES), np.uint8)
         for i in range(len(states)):
             self.held = None
@@ -198,11 +256,18 @@ class FirmwareController:
         return out
 
     def stack_bytes(self) -> int:
-        """The stack's high-water mark so far (bytes; 0 where the chip does not measure it)."""
+        """Ask the firmware for its stack's high-water mark so far (``STATS``).
+
+        Returns
+        -------
+        int
+            The mark in bytes; 0 where the chip does not measure it.
+        """
         b = self.link.request("STATS")
         return b[0] << 8 | b[1]
 
     def close(self) -> None:
+        """End the emulator and close its pipes."""
         if self.proc.poll() is None:
             self.proc.kill()
         self.proc.wait()

@@ -1,8 +1,10 @@
-"""``stcvision robot run``: the ant-like STC robot driven over a serial link (the protocol of
-:mod:`stcvision.controllers.stc.link`, through pyserial). The controller (Python, the host-built
-C or the firmware in its emulator) decides on this computer; the robot reads its floor where its
-camera is and carries out the commands: a row and one sub-cell forward, a quarter turn by the
-profile's turn time, the LEDs on for the profile's time.
+"""``stcvision robot run``: the ant-like STC robot driven over a serial link.
+
+The link speaks the protocol of :mod:`stcvision.controllers.stc.link`, through pyserial. The
+controller (Python, the host-built C or the firmware in its emulator) decides on this computer;
+the robot reads its floor where its camera is and carries out the commands: a row and one
+sub-cell forward, a quarter turn by the profile's turn time, the LEDs on for the profile's
+time.
 
 Any failure of the link (a lost byte, a bad checksum, a reply that never comes, a port that
 disappears) ends the run with one line (``abort_reason``) after a safe stop: no command is sent
@@ -31,7 +33,7 @@ READ_POLL_S = 0.05
 
 
 def _command(link: Link, action: Action, profile) -> None:
-    """The robot's command(s) for a controller action (LOOK and DONE send none)."""
+    """Send the robot's command(s) for a controller action (LOOK and DONE send none)."""
     if action is Action.FORWARD:
         link.request("DRIVE", struct.pack(">H", 0))  # 0: one sub-cell, the robot's own
     elif action in (Action.TURN_LEFT, Action.TURN_RIGHT):
@@ -42,10 +44,13 @@ def _command(link: Link, action: Action, profile) -> None:
 
 
 class LinkRecorder:
-    """A rerun recording of a robot run: every request on the link with its reply (or how it
-    failed) on the ``request`` timeline, and every controller tick (the state, the reading, the
-    action, the decision) on the ``tick`` timeline. Committed by :meth:`close`, removed by
-    :meth:`abort` (:class:`stcvision.rr.Recordings`)."""
+    """A rerun recording of a robot run.
+
+    Every request on the link with its reply (or how it failed) on the ``request`` timeline,
+    and every controller tick (the state, the reading, the action, the decision) on the
+    ``tick`` timeline. Committed by :meth:`close`, removed by :meth:`abort`
+    (:class:`stcvision.rr.Recordings`).
+    """
 
     def __init__(self, path):
         import rerun.blueprint as rrb
@@ -59,6 +64,7 @@ class LinkRecorder:
         self.requests = self.ticks = 0
 
     def on_request(self, name: str, payload: bytes, reply) -> None:
+        """Log request ``name`` with ``payload`` and its reply (a LinkError when it failed)."""
         import rerun as rr
 
         self.requests += 1
@@ -68,6 +74,7 @@ class LinkRecorder:
         self.rec.log("link", rr.TextLog(f"{name} {payload.hex(' ')} {said}", level="ERROR" if failed else "INFO"))
 
     def on_tick(self, state, obs, action, decision) -> None:
+        """Log one controller tick: the state before, the reading, the action, the decision."""
         import rerun as rr
 
         self.ticks += 1
@@ -77,11 +84,13 @@ class LinkRecorder:
         self.rec.log("tick", rr.TextDocument(text))
 
     def close(self) -> None:
+        """Commit the recording."""
         from stcvision.rr import finish_recording
 
         finish_recording(self.rec, self.tmp, self.path)
 
     def abort(self) -> None:
+        """Remove the recording."""
         from stcvision.rr import abort_recording
 
         abort_recording(self.rec, self.tmp)
@@ -89,9 +98,36 @@ class LinkRecorder:
 
 def run_robot(port: str, *, camera: str, profile, fsm: str = "python", mcu: str | None = None,
               timeout_s: float = 10.0, max_decisions: int = 20_000, rrd=None) -> dict:  # fmt: skip
-    """Drive the robot on ``port`` with controller ``fsm`` until it is done, it stops, or the
-    link fails; returns what happened and the robot's own report of its cover. ``rrd``: a
-    rerun recording of every request and tick (:class:`LinkRecorder`)."""
+    """Drive the robot on ``port`` with controller ``fsm`` until it is done, it stops, or the link fails.
+
+    Parameters
+    ----------
+    port : str
+        The serial port, or a pyserial URL (``serial.serial_for_url``).
+    camera : str
+        Where the readings come from (:data:`CAMERAS`): "robot", its own camera.
+    profile : MarkingRobot
+        The robot's figures: its quarter turn's time (``turn_90_s``) and its LEDs' time on
+        (``led_on_s``) set the TURN and LEDS commands.
+    fsm : str
+        The controller that decides on this computer
+        (:func:`stcvision.controllers.stc.choose.make_controller`): "python", "c" or
+        "firmware".
+    mcu : str or None
+        ``fsm="firmware"``: its chip (None: the default).
+    timeout_s : float
+        How long (s) each reply may take, and each write.
+    max_decisions : int
+        The run gives up after this many decisions.
+    rrd : str or pathlib.Path or None
+        A rerun recording of every request and tick (:class:`LinkRecorder`; None: none).
+
+    Returns
+    -------
+    dict
+        What happened (finished, ``abort_reason``, decisions, looks, commands, wall time) and
+        the robot's own report of its cover and its odometry.
+    """
     from stcvision.rr import Recordings
 
     with Recordings() as recs:
