@@ -72,6 +72,10 @@ WHITE_BLUE_RATIO = 0.92
 AUTO_REACH_M = 0.45
 
 
+#: dots in the cell ahead that make a look read it marked (a row shows at least two)
+LOOK_AHEAD_DOTS = 2
+
+
 def stc_observation(cell_obs) -> StcObservation:
     """Turn the pipeline's per-cell reading into the controller's observation.
 
@@ -881,7 +885,7 @@ class RobotCamera(Exposures):
         from stcvision.controllers.stc.cellfit import shows_row
         from stcvision.observation import LANDING_DOTS, marks_ahead, marks_landing_ahead
 
-        count, need = (marks_landing_ahead, LANDING_DOTS) if landing else (marks_ahead, 2)
+        count, need = (marks_landing_ahead, LANDING_DOTS) if landing else (marks_ahead, LOOK_AHEAD_DOTS)
         res: list = []
 
         def read(k, t):

@@ -22,14 +22,107 @@ from stcvision.controllers.stc.fsm import Action, StcPhase, initial_state
 from stcvision.controllers.stc.link import Link, LinkError
 from stcvision.errors import BadInputError
 
-__all__ = ["BAUD", "CAMERAS", "LinkRecorder", "run_robot"]
+__all__ = ["BAUD", "CAMERAS", "CameraStop", "LinkRecorder", "PcCamera", "run_robot"]
 
 #: the link's speed (bits/s): what an Arduino-class board's USB serial runs at
 BAUD = 115_200
-#: where the readings come from: the robot's own camera (it answers READ)
+#: where the readings come from: the robot's own camera (it answers READ); else a camera on this
+#: computer (a device number) or a recorded video, read by the pipeline here (:class:`PcCamera`)
 CAMERAS = ("robot",)
 #: how long one read of the port waits (s): short, so Ctrl-C and SIGTERM stop the run at once
 READ_POLL_S = 0.05
+
+
+class CameraStop(Exception):
+    """Stop the robot before it decides: the camera here gave no frame, or one not to trust."""
+
+
+class PcCamera:
+    """Read the floor with a camera on this computer (or a recorded video of one).
+
+    Each frame goes through the vision pipeline; a decision's reading is the cell's observation,
+    a look's the marks ahead counted as the closed loop's camera counts them.
+
+    Parameters
+    ----------
+    source : stcvision.video.VideoSource
+        The open camera or video.
+    pipeline : stcvision.pipeline.Pipeline
+        The pipeline with the camera's calibration profile and its dark frame.
+    """
+
+    def __init__(self, source, pipeline) -> None:
+        self.source, self.pipeline = source, pipeline
+        self.frames = source.frames()
+        self.read_frames = 0
+
+    def read(self, state):
+        """Take the next frame and read it for the controller in ``state``.
+
+        Parameters
+        ----------
+        state : StcState
+            The controller's state: a DECIDE reads the cell, a LOOK the marks ahead (the cell
+            ahead before entering a child, the sub-cell ahead before a return to the parent).
+
+        Returns
+        -------
+        StcObservation or LookObs
+            The controller's reading of the frame (for a decision:
+            :func:`stcvision.controllers.stc.frames.stc_observation`).
+
+        Raises
+        ------
+        CameraStop
+            No frame came (the camera stopped, the video ended), or the pipeline does not trust
+            the frame (a lit room, a dark frame of another camera, ...): the robot never decides
+            on a reading it cannot trust.
+        """
+        from stcvision.controllers.stc.frames import LOOK_AHEAD_DOTS, stc_observation
+        from stcvision.controllers.stc.fsm import LookObs
+        from stcvision.observation import LANDING_DOTS, marks_ahead, marks_landing_ahead
+
+        frame = next(self.frames, None)
+        if frame is None:
+            raise CameraStop(f"camera: {self.source.name} gave no frame after {self.read_frames}")
+        self.read_frames += 1
+        res = self.pipeline.process(frame[1])
+        if res.untrusted:
+            raise CameraStop(f"camera: frame {self.read_frames} cannot be trusted ({res.untrusted})")
+        if state.phase is not StcPhase.LOOK:
+            return stc_observation(res.observation)
+        landing = not state.child
+        count, need = (marks_landing_ahead, LANDING_DOTS) if landing else (marks_ahead, LOOK_AHEAD_DOTS)
+        herr = res.heading.heading_error_rad if res.heading.ok else 0.0
+        return LookObs(count(res.dots, self.pipeline.geometry, heading_error_rad=herr) >= need)
+
+    def close(self) -> None:
+        """Release the camera."""
+        self.source.close()
+
+
+def open_pc_camera(camera: str, calibration, dark):
+    """Open ``--camera N`` (a device number) or ``--camera VIDEO`` (a file) as a :class:`PcCamera`.
+
+    Parameters
+    ----------
+    camera : str
+        A device number, or a video file's path.
+    calibration : stcvision.profile.Profile
+        The camera's calibration profile.
+    dark : numpy.ndarray or None
+        The dark frame at the camera's exposure (None: read without one).
+
+    Returns
+    -------
+    PcCamera
+        The open camera with its pipeline.
+    """
+    from stcvision.pipeline import Pipeline
+    from stcvision.video import open_device, open_video
+
+    source = open_device(int(camera)) if camera.isdigit() else open_video(camera)
+    return PcCamera(source, Pipeline(calibration, dark=dark))
 
 
 def _command(link: Link, action: Action, profile) -> None:
@@ -97,7 +190,8 @@ class LinkRecorder:
 
 
 def run_robot(port: str, *, camera: str, profile, fsm: str = "python", mcu: str | None = None,
-              timeout_s: float = 10.0, max_decisions: int = 20_000, rrd=None) -> dict:  # fmt: skip
+              timeout_s: float = 10.0, max_decisions: int = 20_000, rrd=None, calibration=None,
+              dark=None) -> dict:  # fmt: skip
     """Drive the robot on ``port`` with controller ``fsm`` until it is done, it stops, or the link fails.
 
     Parameters
@@ -105,7 +199,9 @@ def run_robot(port: str, *, camera: str, profile, fsm: str = "python", mcu: str 
     port : str
         The serial port, or a pyserial URL (``serial.serial_for_url``).
     camera : str
-        Where the readings come from (:data:`CAMERAS`): "robot", its own camera.
+        Where the readings come from: "robot", its own camera (it answers READ); a device
+        number, a camera on this computer; or a video file recorded by one (a replay): frames
+        read here by the pipeline (:class:`PcCamera`).
     profile : MarkingRobot
         The robot's figures: its quarter turn's time (``turn_90_s``) and its LEDs' time on
         (``led_on_s``) set the TURN and LEDS commands.
@@ -121,6 +217,10 @@ def run_robot(port: str, *, camera: str, profile, fsm: str = "python", mcu: str 
         The run gives up after this many decisions.
     rrd : str or pathlib.Path or None
         A rerun recording of every request and tick (:class:`LinkRecorder`; None: none).
+    calibration : stcvision.profile.Profile or None
+        A camera on this computer: its calibration profile (required then).
+    dark : numpy.ndarray or None
+        A camera on this computer: its dark frame at its exposure (None: read without one).
 
     Returns
     -------
@@ -132,14 +232,21 @@ def run_robot(port: str, *, camera: str, profile, fsm: str = "python", mcu: str 
 
     with Recordings() as recs:
         recorder = recs.add(LinkRecorder(rrd)) if rrd else None
-        return _run(port, camera, profile, fsm, mcu, timeout_s, max_decisions, recorder)
+        eye = None
+        if camera not in CAMERAS:
+            if calibration is None:
+                raise BadInputError(f"--camera {camera}: a camera on this computer needs its calibration --profile")
+            eye = open_pc_camera(camera, calibration, dark)
+        try:
+            return _run(port, camera, profile, fsm, mcu, timeout_s, max_decisions, recorder, eye)
+        finally:
+            if eye is not None:
+                eye.close()
 
 
-def _run(port, camera, profile, fsm, mcu, timeout_s, max_decisions, recorder) -> dict:
+def _run(port, camera, profile, fsm, mcu, timeout_s, max_decisions, recorder, eye=None) -> dict:
     import serial
 
-    if camera not in CAMERAS:
-        raise BadInputError(f"--camera {camera!r}: this version reads the robot's own camera only (--camera robot)")
     try:
         ser = serial.serial_for_url(port, baudrate=BAUD, timeout=READ_POLL_S, write_timeout=timeout_s)
     except (serial.SerialException, ValueError) as e:
@@ -158,7 +265,10 @@ def _run(port, camera, profile, fsm, mcu, timeout_s, max_decisions, recorder) ->
         while out["decisions"] < max_decisions:
             obs = None
             if state.phase is StcPhase.LOOK or (state.phase is StcPhase.DECIDE and not state.closing):
-                obs = wire.decode_obs(link.request("READ", wire.encode_state(state)))
+                if eye is None:  # the robot reads its floor with its own camera
+                    obs = wire.decode_obs(link.request("READ", wire.encode_state(state)))
+                else:
+                    obs = eye.read(state)
                 out["decisions" if state.phase is StcPhase.DECIDE else "looks"] += 1
             prev = state
             state, action, decision = controller.step(state, obs)
@@ -171,7 +281,7 @@ def _run(port, camera, profile, fsm, mcu, timeout_s, max_decisions, recorder) ->
             out["commands"] += action is not Action.LOOK
         else:
             out["abort_reason"] = f"gave up after {max_decisions} decisions"
-    except LinkError as e:
+    except (LinkError, CameraStop) as e:
         out["abort_reason"] = str(e)
     except BaseException:  # Ctrl-C, SIGTERM: the robot stops too
         link.safe_stop()

@@ -1,12 +1,16 @@
 """Drive an ant-like STC robot over a serial link, or be one: the simulated robot on a
 pseudo-terminal that ``robot run`` is tested against.
 
-  stcvision robot run --port /dev/ttyUSB0 --camera robot --profile lego [--fsm python|c|firmware] [--rrd R.rrd]
+  stcvision robot run --port /dev/ttyUSB0 [--camera robot] [--robot lego] [--fsm python|c|firmware] [--rrd R.rrd]
+  stcvision robot run --port /dev/ttyUSB0 --camera 0 --profile P.json (--dark D.png | --no-dark) [--robot lego]
   stcvision robot sim --board 3x3 [--seed S] [--perception oracle|camera] [--link-fault KIND@N]
 
 run drives the robot on --port (a serial device, or any pyserial URL) with the chosen
 controller: the robot answers the protocol's requests (docs: Serial protocol), reading its floor
-with its camera, laying rows, driving one sub-cell, turning by the profile's turn time. Exit 0
+with its camera, laying rows, driving one sub-cell, turning by the robot's turn time. With
+--camera N (a camera on this computer) or --camera VIDEO (a recording of one) the frames are read
+here by the vision pipeline with the camera's calibration --profile and --dark frame, and a frame
+it cannot trust stops the robot before any decision. Exit 0
 when the robot reports the board complete, 3 when it stopped (a link failure is one line: a
 lost byte, a bad checksum, a reply that never came, a port that is gone), 2 for bad input.
 
@@ -32,8 +36,16 @@ def add_parser(p):
     sub = p.add_subparsers(dest="action", metavar="{run,sim}", parser_class=type(p), required=True)
     r = sub.add_parser("run", help="drive a robot over a serial link")
     r.add_argument("--port", required=True, metavar="DEVICE", help="the robot's serial port (or a pyserial URL)")
-    r.add_argument("--camera", default="robot", metavar="robot", help="where the readings come from (robot)")
-    r.add_argument("--profile", default="lego", metavar="NAME|FILE.json", help="robot profile: turn and LED times")
+    r.add_argument(
+        "--camera",
+        default="robot",
+        metavar="robot|N|VIDEO",
+        help="where the readings come from: the robot's own camera (default), camera device N here, or a video",
+    )
+    r.add_argument("--robot", default="lego", metavar="NAME|FILE.json", help="robot preset: turn and LED times")
+    r.add_argument("--profile", metavar="PROFILE.json", help="--camera N|VIDEO: the camera's calibration profile")
+    r.add_argument("--dark", metavar="DARK.png", help="--camera N|VIDEO: the dark frame at the camera's exposure")
+    r.add_argument("--no-dark", action="store_true", help="--camera N|VIDEO: read without a dark frame")
     r.add_argument("--fsm", choices=("python", "c", "firmware"), default="python", help="the controller")
     r.add_argument("--mcu", default=None, metavar="NAME", help="--fsm firmware: the microcontroller")
     r.add_argument(
@@ -67,8 +79,10 @@ def run(args):
             from stcvision.rr import check_recording_path
 
             check_recording_path(args.rrd, overwrite=args.force)
-        r = run_robot(args.port, camera=args.camera, profile=hardware.load_robot(args.profile), fsm=args.fsm,
-                      mcu=args.mcu, timeout_s=args.timeout, rrd=args.rrd)  # fmt: skip
+        calibration, dark = _pc_camera_inputs(args)
+        r = run_robot(args.port, camera=args.camera, profile=hardware.load_robot(args.robot), fsm=args.fsm,
+                      mcu=args.mcu, timeout_s=args.timeout, rrd=args.rrd, calibration=calibration,
+                      dark=dark)  # fmt: skip
         r["rrd"] = args.rrd
         from stcvision.cli import EXIT_INCOMPLETE, EXIT_OK
 
@@ -82,6 +96,29 @@ def run(args):
     board = load_board(args)
     cfg = CoverConfig(perception=args.perception, seed=args.seed)
     return serve_pty(board, cfg, ready=lambda path: print(path, flush=True), link_fault=fault)
+
+
+def _pc_camera_inputs(args):
+    """The calibration profile and dark frame of ``--camera N|VIDEO`` (None, None for the
+    robot's own camera, which needs neither)."""
+    from stcvision.errors import BadInputError
+
+    if args.camera == "robot":
+        if args.profile or args.dark or args.no_dark:
+            raise BadInputError("--profile, --dark and --no-dark are for a camera on this computer (--camera N|VIDEO)")
+        return None, None
+    if not args.profile:
+        raise BadInputError(f"--camera {args.camera}: give the camera's calibration --profile PROFILE.json")
+    if bool(args.dark) == bool(args.no_dark):
+        raise BadInputError(f"--camera {args.camera}: give --dark DARK.png (at the camera's exposure) or --no-dark")
+    from stcvision.fileio import read_image
+    from stcvision.profile import Profile
+
+    profile = Profile.load(args.profile)
+    dark = read_image(args.dark, what="dark frame") if args.dark else None
+    if dark is not None:
+        profile.check_frame(dark.shape, what=f"dark frame {args.dark}")
+    return profile, dark
 
 
 def format_text(r) -> str:

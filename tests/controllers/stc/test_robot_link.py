@@ -133,9 +133,78 @@ def test_robot_run_on_a_missing_port_is_one_line(cli):
     assert code == 2 and "cannot open the port /dev/no-such-port" in err and err.count("\n") == 1
 
 
-def test_robot_run_refuses_a_camera_it_cannot_read(cli):
+def test_robot_run_refuses_a_camera_it_cannot_read(cli, tmp_path):
     code, _, err = cli("robot", "run", "--port", "loop://", "--camera", "0")
-    assert code == 2 and "--camera '0'" in err
+    assert code == 2 and "calibration --profile" in err and err.count("\n") == 1
+    code, _, err = cli("robot", "run", "--port", "loop://", "--camera", "0", "--profile", "x.json")
+    assert code == 2 and "--no-dark" in err
+    code, _, err = cli("robot", "run", "--port", "loop://", "--profile", "x.json")
+    assert code == 2 and "camera on this computer" in err
+    from stcvision.calibration.profiles import default_profile_path
+
+    code, _, err = cli("robot", "run", "--port", "loop://", "--camera", str(tmp_path / "no.mkv"),
+                       "--profile", default_profile_path(), "--no-dark")  # fmt: skip
+    assert code == 2 and "does not exist" in err and err.count("\n") == 1
+
+
+@pytest.fixture(scope="module")
+def camera_videos(tmp_path_factory):
+    """The example scene as a camera on the computer would film it (lossless video): five
+    dark-room frames, and five lights-on frames; with the camera's dark frame."""
+    import cv2
+
+    from stcvision.cli import main
+    from stcvision.sim_camera.scene import EXAMPLE_SCENE
+
+    d = tmp_path_factory.mktemp("camera")
+    (d / "scene.json").write_text(json.dumps(EXAMPLE_SCENE))
+    assert main(["render", "--scene", str(d / "scene.json"), "--camera", "webcam", "--out", str(d / "r")]) == 0
+    for name in ("frame", "lights_on"):
+        img = cv2.imread(str(d / "r" / f"{name}.png"))
+        vw = cv2.VideoWriter(str(d / f"{name}.mkv"), cv2.VideoWriter_fourcc(*"FFV1"), 10, img.shape[1::-1])
+        for _ in range(5):
+            vw.write(img)
+        vw.release()
+    return d
+
+
+def test_a_camera_on_the_computer_is_read_by_the_pipeline(camera_videos):
+    """Each frame of a camera here goes through the pipeline into the controller's reading."""
+    from stcvision.calibration.profiles import default_profile
+    from stcvision.controllers.stc.frames import stc_observation
+    from stcvision.controllers.stc.fsm import initial_state
+    from stcvision.controllers.stc.robot_link import CameraStop, open_pc_camera
+    from stcvision.fileio import read_image
+    from stcvision.pipeline import Pipeline
+
+    dark = read_image(camera_videos / "r" / "dark.png")
+    eye = open_pc_camera(str(camera_videos / "frame.mkv"), default_profile(), dark)
+    res = Pipeline(default_profile(), dark=dark).process(read_image(camera_videos / "r" / "frame.png"))
+    decide = initial_state()  # the first tick decides
+    assert [eye.read(decide) for _ in range(5)] == [stc_observation(res.observation)] * 5
+    with pytest.raises(CameraStop, match="gave no frame after 5"):
+        eye.read(decide)
+    eye.close()
+
+
+def test_robot_run_with_a_camera_here_decides_on_its_frames_and_stops_on_an_untrusted_one(cli, sim, camera_videos):
+    from stcvision.calibration.profiles import default_profile_path
+
+    here = ("--profile", str(default_profile_path()), "--dark", str(camera_videos / "r" / "dark.png"))
+    p, port = sim()
+    code, out, err = cli("robot", "run", "--port", port, "--camera", camera_videos / "frame.mkv", *here, "--json")
+    r = json.loads(out)
+    # the video shows one cell whatever the robot does, so the controller decides on it, acts,
+    # and the robot's own report (not the controller's belief) says the board is not covered
+    assert code == 3 and r["decisions"] >= 1 and r["commands"] > 0 and not r["complete"], err
+    assert r["subcells_covered"] < r["subcells_reachable"]
+    robot = _sim_result(p)
+    assert robot["carried_out"][-1] == "STOP" and "READ" not in robot["carried_out"]  # read here, not there
+    p, port = sim()
+    code, out, _ = cli("robot", "run", "--port", port, "--camera", camera_videos / "lights_on.mkv", *here, "--json")
+    r = json.loads(out)
+    assert code == 3 and r["decisions"] == r["looks"] == 0 and "cannot be trusted" in r["abort_reason"]
+    assert _sim_result(p)["moves"] == 0  # no move on a reading it cannot trust (only the start's own acts)
 
 
 def test_a_bad_link_fault_is_one_line(cli):
