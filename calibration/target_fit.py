@@ -136,18 +136,61 @@ def unproject_pixels(model: str, p, uv: np.ndarray, size) -> np.ndarray:
     return r / np.linalg.norm(r, axis=1, keepdims=True)
 
 
+@dataclass(frozen=True)
+class PolyModel:
+    """The polynomial model with its decentering, as a lens model a profile can be made from
+    (the interface of :mod:`stcvision.calibration.lens_models`: pixels <-> rays in the
+    image-aligned camera frame)."""
+
+    params: tuple[float, ...]
+    width: int
+    height: int
+
+    kind = "poly"
+
+    @property
+    def image_size_px(self) -> tuple[int, int]:
+        return (self.width, self.height)
+
+    @property
+    def center_px(self) -> tuple[float, float]:
+        return (self.params[0], self.params[1])
+
+    def linear_part(self) -> np.ndarray:
+        return _poly_parts(self.params)[1]
+
+    def tangential(self) -> bool:
+        return any(self.params[8:])
+
+    def radial(self) -> PolyModel:
+        """The same model without its tangential (decentering) terms."""
+        return PolyModel((*self.params[:8], 0.0, 0.0), self.width, self.height)
+
+    def unproject(self, uv) -> tuple[np.ndarray, np.ndarray]:
+        rays = unproject_pixels("poly", self.params, uv, self.image_size_px)
+        return rays, np.isfinite(rays).all(axis=1)
+
+    def project(self, rays) -> np.ndarray:
+        return _poly_project(self.params, np.asarray(rays, float).reshape(-1, 3), self.image_size_px)
+
+
 def lens_model(model: str, p, size):
-    """The fit as one of the toolkit's lens models (for a profile): a Kalibr/OpenCV-style
-    :class:`CentralModel` or an OCamCalib :class:`OcamModel` in OCamCalib's pixel units."""
+    """The fit as a lens model (for a profile): a Kalibr/OpenCV-style :class:`CentralModel` for
+    the unified model, a :class:`PolyModel` for the polynomial."""
     if model == "mei":
         return _mei_model(p, size)
-    pu, pv, c, d, e, a0, a2, a3, a4 = map(float, p)
+    return PolyModel(tuple(map(float, p)), int(size[0]), int(size[1]))
+
+
+def ocam_model(p, size) -> OcamModel:
+    """The polynomial fit without its decentering as OCamCalib's model, in its pixel units."""
+    pu, pv, c, e, a0, a2, a3, a4 = map(float, p[:8])
     k = POLY_RADIUS_UNIT_PX
     # OCamCalib's rays are (y, x, -f) in its own row/column frame with f(rho) in raw pixels: the
     # same ray scaled by k, so a_i -> a_i k^(1 - i)
     ss = (a0 * k, 0.0, a2 / k, a3 / k**2, a4 / k**3)
     return OcamModel(
-        ss=ss, invpol=_invpol(ss, size, pu, pv), xc=pv, yc=pu, c=c, d=d, e=e, width=size[0], height=size[1]
+        ss=ss, invpol=_invpol(ss, size, pu, pv), xc=pv, yc=pu, c=c, d=e, e=e, width=size[0], height=size[1]
     )
 
 
@@ -186,7 +229,7 @@ def _pose_from_rays(obj: np.ndarray, rays: np.ndarray) -> tuple[np.ndarray, np.n
     A = np.vstack(rows)
     if not np.isfinite(A).all():
         return None
-    Hm = np.linalg.svd(A)[2][-1].reshape(3, 3)
+    Hm = np.linalg.svd(A, full_matrices=False)[2][-1].reshape(3, 3)
     if np.einsum("ij,ij->i", (P @ Hm.T), rays).mean() < 0:
         Hm = -Hm
     s = 2.0 / (np.linalg.norm(Hm[:, 0]) + np.linalg.norm(Hm[:, 1]))
@@ -227,6 +270,11 @@ class TargetFit:
     @property
     def names(self) -> tuple[str, ...]:
         return MODELS[self.model]
+
+    @property
+    def center_px(self) -> tuple[float, float]:
+        i = self.names.index("pu")
+        return float(self.params[i]), float(self.params[i + 1])
 
     @property
     def std(self) -> np.ndarray:
@@ -329,8 +377,9 @@ def _solve(model, views: TargetViews, intr0, poses0, should_stop=None, fixed_int
         fun,
         x0,
         jac=lambda x: _jacobian(fun, x, n_intr, len(views), rows, dense),
+        method="lm" if dense else "trf",
         x_scale="jac",
-        tr_solver="exact" if dense else "lsmr",
+        **({} if dense else {"tr_solver": "lsmr"}),
         xtol=FIT_TOL,
         ftol=FIT_TOL,
         gtol=FIT_TOL,
