@@ -66,8 +66,8 @@ def _params(fit: TargetFit) -> dict:
 def calibrate_target(
     views: TargetViews, *, model: str | None = None, folds: int = DEFAULT_FOLDS, should_stop=None
 ) -> TargetResult:
-    """Fit every model, test each by k-fold over the views, take ``model`` (default: the lowest
-    held-out RMS), and measure its uncertainty."""
+    """Fit every model (or only ``model``), test each by k-fold over the views, take the one with
+    the lowest held-out RMS (or ``model``), and measure its uncertainty."""
     from stcvision.fileio import figure_png
 
     if model is not None and model not in MODELS:
@@ -76,7 +76,7 @@ def calibrate_target(
     if k < 2:
         raise BadInputError(f"--folds {folds}: expected at least 2")
     fits, rows = {}, {}
-    for name in MODELS:
+    for name in MODELS if model is None else (model,):
         start = fits["mei"][0] if "mei" in fits else None
         f = fit_target(views, name, start=start, should_stop=should_stop)
         held, per_view = heldout_rms(views, f, k, should_stop)
@@ -134,6 +134,7 @@ def target_profile(
     provenance: dict,
     n_views: int,
     heldout_ratio: float,
+    cv_ratio: float,
 ):
     """The profile of the fit (as ``calibrate import`` makes one), its mount from a lights-on
     frame when given (the intrinsics kept), the floor uncertainty at the distances the robot reads,
@@ -165,7 +166,9 @@ def target_profile(
     floor = floor_uncertainty(fit, prof.viewpoint_height_m)
     corners = prof.ground_to_robot(prof.corners_px())
     reach = float(np.hypot(corners[:, 0], corners[:, 1]).max())
-    v = verdict(floor, subcell_m=subcell_m, reach_m=reach, n_views=n_views, heldout_ratio=heldout_ratio)
+    v = verdict(
+        floor, subcell_m=subcell_m, reach_m=reach, n_views=n_views, heldout_ratio=heldout_ratio, cv_ratio=cv_ratio
+    )
     if mount is None:
         v["advice"].append("no lights-on frame: the mount (forward angle, mirror flip, height) is as given, not fitted")
         v["ok"] = False

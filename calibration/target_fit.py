@@ -34,7 +34,7 @@ import cv2
 import numpy as np
 from scipy.optimize import least_squares
 
-from stcvision.calibration.lens_models import CentralModel, OcamModel
+from stcvision.calibration.lens_models import CentralModel
 from stcvision.calibration.target_views import TargetViews
 from stcvision.errors import BadInputError
 
@@ -180,38 +180,6 @@ def lens_model(model: str, p, size):
     if model == "mei":
         return _mei_model(p, size)
     return PolyModel(tuple(map(float, p)), int(size[0]), int(size[1]))
-
-
-def ocam_model(p, size) -> OcamModel:
-    """The polynomial fit without its decentering as OCamCalib's model, in its pixel units."""
-    pu, pv, c, e, a0, a2, a3, a4 = map(float, p[:8])
-    k = POLY_RADIUS_UNIT_PX
-    # OCamCalib's rays are (y, x, -f) in its own row/column frame with f(rho) in raw pixels: the
-    # same ray scaled by k, so a_i -> a_i k^(1 - i)
-    ss = (a0 * k, 0.0, a2 / k, a3 / k**2, a4 / k**3)
-    return OcamModel(
-        ss=ss, invpol=_invpol(ss, size, pu, pv), xc=pv, yc=pu, c=c, d=e, e=e, width=size[0], height=size[1]
-    )
-
-
-def _invpol(ss, size, pu, pv) -> tuple[float, ...]:
-    """OCamCalib's inverse polynomial rho(theta) fitted to the direct one over the image."""
-    w, h = size
-    r_max = max(math.hypot(pu, pv), math.hypot(w - pu, pv), math.hypot(pu, h - pv), math.hypot(w - pu, h - pv))
-    rr = np.linspace(0.0, r_max, 2000)
-    th = np.arctan(-np.polynomial.polynomial.polyval(rr, ss) / np.where(rr > 0, rr, 1e-9))
-    good = np.concatenate([[True], np.diff(th) < 0])
-    good &= np.cumprod(good).astype(bool)
-    th, rr = th[good], rr[good]
-    best = None
-    for deg in range(4, 16):
-        coef = np.polynomial.polynomial.polyfit(th, rr, deg)
-        err = float(np.abs(np.polynomial.polynomial.polyval(th, coef) - rr).max())
-        if best is None or err < best[0]:
-            best = (err, coef)
-        if err < 0.01:
-            break
-    return tuple(float(c) for c in best[1])
 
 
 # ---------------------------------------------------------------------------- poses

@@ -162,7 +162,11 @@ def _image_size(fs, where: str, given) -> tuple[int, int]:
         if given is None:
             raise BadInputError(f"{where} has no imageSize; give it with --image-size WxH")
         return tuple(int(v) for v in given)
-    vals = [node.at(i).real() for i in range(node.size())] if node.isSeq() else list(np.ravel(node.mat() or []))
+    if node.isSeq():
+        vals = [node.at(i).real() for i in range(node.size())]
+    else:
+        m = node.mat()
+        vals = [] if m is None else [float(x) for x in np.ravel(m)]
     if len(vals) != 2 or not all(math.isfinite(v) and v == int(v) and v > 0 for v in vals):
         raise BadInputError(f"{where}: imageSize must be two positive integers (width height), got {vals}")
     return int(vals[0]), int(vals[1])
@@ -203,9 +207,13 @@ def read_points_file(path, *, camera: int | None = None, image_size=None) -> Tar
                 views = _read_storage(fs, where, camera, image_size)
             finally:
                 fs.release()
-    except cv2.error as exc:
-        msg = str(exc).strip().splitlines()[-1] if str(exc).strip() else "parse error"
-        raise BadInputError(f"{where} is not readable OpenCV FileStorage ({msg[:120]})") from None
+    except (cv2.error, SystemError) as exc:  # OpenCV's parser reports some errors as SystemError
+        cause = exc.__cause__ if isinstance(exc, SystemError) and exc.__cause__ is not None else exc
+        text = str(cause).strip()
+        msg = text.splitlines()[-1] if text else "parse error"
+        if "error: (" in msg:
+            msg = msg[msg.index("error: (") + len("error: ") :]
+        raise BadInputError(f"{where} is not readable OpenCV FileStorage: {msg[:140]}") from None
     return check_views(views, where)
 
 

@@ -212,7 +212,9 @@ def _add_target_parsers(sub):
         help="inner corners (or circles) per row and per column",
     )
     g.add_argument("--spacing", type=positive(float), metavar="S", help="distance between neighbouring points (m)")
-    g.add_argument("--model", choices=tuple(MODELS), help="the model to report (default: the lowest held-out RMS)")
+    g.add_argument(
+        "--model", choices=tuple(MODELS), help="fit this model only (default: all, the lowest held-out RMS chosen)"
+    )
     g.add_argument(
         "--folds", type=int, default=DEFAULT_FOLDS, metavar="K", help=f"k-fold over views (default {DEFAULT_FOLDS})"
     )
@@ -380,6 +382,7 @@ def _target(args):
             },
             n_views=len(views),
             heldout_ratio=rep["heldout_rms_px"] / rep["rms_px"],
+            cv_ratio=rep["cross_validation"]["diff_over_predicted"],
         )
         prof.save(args.out, overwrite=args.force)
         rep.update(out=str(args.out), **floor)
