@@ -88,10 +88,11 @@ def calibrate_target(
             "n_params": len(f.params),
             "params": _params(f),
         }
+    for name, (f, _, _) in fits.items():
+        rows[name]["cross_validation"] = cross_validation_diff(views, f, should_stop=should_stop)
     chosen = model or min(fits, key=lambda n: fits[n][1])
     fit, held, per_view = fits[chosen]
-    cv = cross_validation_diff(views, fit, should_stop=should_stop)
-    rows[chosen]["cross_validation"] = cv
+    cv = rows[chosen]["cross_validation"]
     pmap = projection_uncertainty(fit, views)
     title = (
         f"{chosen} model, {len(views)} views: projection uncertainty (colour: 1 sigma; contours: "
