@@ -228,6 +228,9 @@ class TargetFit:
     view_rms_px: np.ndarray
     image_size_px: tuple[int, int]
     sigma_px: float  # the residuals' measured noise per coordinate, over the degrees of freedom
+    #: the joint covariance of the intrinsics and the first view's pose (that view can stand for a
+    #: plane of the world, such as the floor, whose uncertainty then includes its pose's)
+    cov_first_view: np.ndarray | None = None
 
     @property
     def rms_px(self) -> float:
@@ -412,11 +415,15 @@ def _make_fit(model, views, sol, n_intr) -> TargetFit:
     r = sol.fun
     dof = max(1, len(r) - len(sol.x))
     s2 = float(r @ r) / dof
-    JtJ = J.T @ J
+    # (J^T J)^-1 with the columns scaled to unit length first: the parameters' units differ by
+    # many orders (a pixel, a polynomial coefficient), and unscaled the inverse loses them
+    scale = np.linalg.norm(J, axis=0)
+    scale[scale == 0] = 1.0
+    Js = J / scale
     try:
-        cov_all = np.linalg.inv(JtJ) * s2
+        cov_all = np.linalg.inv(Js.T @ Js) / np.outer(scale, scale) * s2
     except np.linalg.LinAlgError:
-        cov_all = np.linalg.pinv(JtJ) * s2
+        cov_all = np.linalg.pinv(Js.T @ Js) / np.outer(scale, scale) * s2
     res = r.reshape(-1, 2)
     view_rms, k = [], 0
     for img in views.image_points:
@@ -427,6 +434,7 @@ def _make_fit(model, views, sol, n_intr) -> TargetFit:
         model=model,
         params=np.asarray(sol.x[:n_intr], float),
         cov=cov_all[:n_intr, :n_intr],
+        cov_first_view=cov_all[: n_intr + 6, : n_intr + 6],
         poses=np.asarray(sol.x[n_intr:], float).reshape(-1, 6),
         residuals=res,
         view_rms_px=np.array(view_rms),
