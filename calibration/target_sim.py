@@ -136,8 +136,9 @@ def main(argv=None) -> None:
         r = simulator_coverage(range(a.first_seed, a.first_seed + a.seeds), model=a.model)
         print(
             f"{a.seeds} calibrations of the simulator's camera ({a.model}, 12 views each, median RMS "
-            f"{r['rms_px_median']:.3f} px): the 95 % floor bound holds the truth at {100 * r['floor_coverage']:.1f} % of "
-            f"{r['floor_points']:,} floor points (0.1-0.9 m); median floor error {r['error_mm_median']:.2f} mm"
+            f"{r['rms_px_median']:.3f} px): the 95 % floor bound holds the truth at "
+            f"{100 * r['floor_coverage']:.1f} % of {r['floor_points']:,} floor points (0.1-0.9 m); "
+            f"median floor error {r['error_mm_median']:.2f} mm"
         )
         return
     r = coverage(range(a.first_seed, a.first_seed + a.seeds), n_views=a.views, model=a.model)
@@ -146,10 +147,6 @@ def main(argv=None) -> None:
         f"{100 * r['image_coverage']:.1f} % of {r['image_points']:,} image points and "
         f"{100 * r['floor_coverage']:.1f} % of {r['floor_points']:,} floor points"
     )
-
-
-if __name__ == "__main__":
-    main()
 
 
 # ---------------------------------------------------------------------------- the simulator's camera
@@ -257,3 +254,7 @@ def simulator_coverage(seeds, *, model: str = "mei", n_views: int = 12) -> dict:
         "error_mm_median": float(np.median(errs)),
         "rms_px_median": float(np.median(rms)),
     }
+
+
+if __name__ == "__main__":
+    main()
