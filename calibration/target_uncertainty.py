@@ -125,7 +125,7 @@ def draw_uncertainty(m: ProjectionMap, fit: TargetFit, title: str):
     if len(levels) >= 1:
         cs = ax.contour(m.u, m.v, m.r95_px, levels=levels, colors="white", linewidths=0.8)
         ax.clabel(cs, fmt="%.2f px (95 %%)", fontsize=7)
-    ax.plot(m.observed[:, 0], m.observed[:, 1], ",", color="red", alpha=0.6)
+    ax.plot(m.observed[:, 0], m.observed[:, 1], ".", color="red", markersize=1.5, alpha=0.7)
     ax.set_xlim(-0.5, w - 0.5)
     ax.set_ylim(h - 0.5, -0.5)
     ax.set_title(title, fontsize=9)
