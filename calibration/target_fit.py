@@ -261,17 +261,43 @@ class TargetFit:
         return unproject_pixels(self.model, self.params, uv, self.image_size_px)
 
 
+def _rotations(rvecs: np.ndarray) -> np.ndarray:
+    """Rodrigues' formula for many rotation vectors at once: (V, 3) -> (V, 3, 3)."""
+    th = np.linalg.norm(rvecs, axis=1)
+    safe = np.where(th > 1e-12, th, 1.0)
+    k = rvecs / safe[:, None]
+    K = np.zeros((len(rvecs), 3, 3))
+    K[:, 0, 1], K[:, 0, 2], K[:, 1, 2] = -k[:, 2], k[:, 1], -k[:, 0]
+    K = K - K.transpose(0, 2, 1)
+    s, c = np.sin(th)[:, None, None], np.cos(th)[:, None, None]
+    small = (th <= 1e-12)[:, None, None]
+    R = np.eye(3) + s * K + (1 - c) * (K @ K)
+    return np.where(small, np.eye(3) + _skew(rvecs), R)
+
+
+def _skew(v: np.ndarray) -> np.ndarray:
+    S = np.zeros((len(v), 3, 3))
+    S[:, 0, 1], S[:, 0, 2], S[:, 1, 2] = -v[:, 2], v[:, 1], -v[:, 0]
+    return S - S.transpose(0, 2, 1)
+
+
 def _residuals(model, size, views: TargetViews, x: np.ndarray, n_intr: int, fixed_intr=None) -> np.ndarray:
+    """All views' reprojection errors (u, v interleaved, view by view), in one projection."""
     intr = x[:n_intr] if fixed_intr is None else fixed_intr
     off = 0 if fixed_intr is not None else n_intr
-    out = []
-    for i, (obj, img) in enumerate(zip(views.object_points, views.image_points, strict=True)):
-        pose = x[off + 6 * i : off + 6 * i + 6]
-        uv = project_points(model, intr, _transform(pose, obj), size)
-        r = uv - img
-        r[~np.isfinite(r)] = 1e3  # a point the model cannot reach: a large, finite residual
-        out.append(r.ravel())
-    return np.concatenate(out)
+    poses = np.asarray(x[off:], float).reshape(-1, 6)
+    key = "_stacked"
+    stacked = views.__dict__.get(key)
+    if stacked is None:  # the views' points stacked once, with each point's view
+        idx = np.concatenate([np.full(len(o), i) for i, o in enumerate(views.object_points)])
+        stacked = (np.vstack(views.object_points), np.vstack(views.image_points), idx)
+        object.__setattr__(views, key, stacked)
+    obj, img, idx = stacked
+    R = _rotations(poses[:, :3])
+    pc = np.einsum("nij,nj->ni", R[idx], obj) + poses[idx, 3:]
+    r = project_points(model, intr, pc, size) - img
+    r[~np.isfinite(r)] = 1e3  # a point the model cannot reach: a large, finite residual
+    return r.ravel()
 
 
 #: the Jacobian is held dense (and the trust-region steps solved exactly) up to this many
