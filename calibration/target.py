@@ -164,11 +164,17 @@ def target_profile(
             "line_err_mm_median": rep.line_err_mm_median,
             "line_err_mm_max": rep.line_err_mm_max,
         }
-    floor = floor_uncertainty(fit, prof.viewpoint_height_m)
+    floor = floor_uncertainty(fit, prof.viewpoint_height_m, mount_fitted=lights_on is not None)
     corners = prof.ground_to_robot(prof.corners_px())
     reach = float(np.hypot(corners[:, 0], corners[:, 1]).max())
     v = verdict(
-        floor, subcell_m=subcell_m, reach_m=reach, n_views=n_views, heldout_ratio=heldout_ratio, cv_ratio=cv_ratio
+        floor,
+        subcell_m=subcell_m,
+        reach_m=reach,
+        n_views=n_views,
+        heldout_ratio=heldout_ratio,
+        cv_ratio=cv_ratio,
+        mount_line_err_mm=mount["line_err_mm_median"] if mount else None,
     )
     if mount is None:
         v["advice"].append("no lights-on frame: the mount (forward angle, mirror flip, height) is as given, not fitted")

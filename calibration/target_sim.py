@@ -30,6 +30,7 @@ from stcvision.calibration.target_uncertainty import (
     observed_mask,
     pixel_covariances,
     projection_uncertainty,
+    remove_similarity,
 )
 from stcvision.calibration.target_views import TargetViews, board_points
 
@@ -81,7 +82,7 @@ def simulated_views(seed: int, n_views: int = 8, *, params=TRUE_MEI, noise_px: f
 def coverage(seeds, *, n_views: int = 8, model: str = "mei") -> dict:
     """Over the simulated calibrations of ``seeds``: the share of image points (fixed rays where
     the board was seen) and of floor points whose true error lies within the 95 % bounds."""
-    img_in, img_n, floor_in, floor_n = 0, 0, 0, 0
+    img_in, img_n, floor_in, floor_n, mount_in = 0, 0, 0, 0, 0
     psi = np.linspace(-math.pi, math.pi, 12, endpoint=False)
     for seed in seeds:
         views = simulated_views(seed, n_views)
@@ -107,12 +108,18 @@ def coverage(seeds, *, n_views: int = 8, model: str = "mei") -> dict:
         d2 = np.einsum("ni,nij,nj->n", e, np.linalg.inv(Sf), e)
         floor_in += int((d2 <= K95**2).sum())
         floor_n += int(ok.sum())
+        # with the mount fitted to the floor (height and forward angle): what it leaves
+        e = remove_similarity(e, P[ok, :2])
+        Sf = floor_covariances(fit, uvf[ok], FLOOR_HEIGHT, mount_fitted=True)
+        d2 = np.einsum("ni,nij,nj->n", e, np.linalg.inv(Sf), e)
+        mount_in += int((d2 <= K95**2).sum())
     return {
         "seeds": len(list(seeds)),
         "image_points": img_n,
         "image_coverage": img_in / img_n,
         "floor_points": floor_n,
         "floor_coverage": floor_in / floor_n,
+        "floor_coverage_mount_fitted": mount_in / floor_n,
     }
 
 
@@ -131,7 +138,20 @@ def main(argv=None) -> None:
     ap.add_argument(
         "--simulator", action="store_true", help="views of the simulator's spherical-mirror camera (12 a calibration)"
     )
+    ap.add_argument(
+        "--write-points",
+        metavar="FILE.xml",
+        help="write one calibration's views of the simulator's camera (seed --first-seed) as a points file",
+    )
+    ap.add_argument("--force", action="store_true", help="overwrite --write-points")
     a = ap.parse_args(argv)
+    if a.write_points:
+        from stcvision.calibration.target_views import write_points_file
+
+        views, _ = simulator_views(a.first_seed)
+        write_points_file(a.write_points, views, overwrite=a.force)
+        print(f"wrote {a.write_points}: {len(views)} views, {views.n_points} points of the simulator's camera")
+        return
     if a.simulator:
         r = simulator_coverage(range(a.first_seed, a.first_seed + a.seeds), model=a.model)
         print(
@@ -145,7 +165,8 @@ def main(argv=None) -> None:
     print(
         f"{r['seeds']} simulated calibrations ({a.model}, {a.views} views each): the 95 % bound holds the truth at "
         f"{100 * r['image_coverage']:.1f} % of {r['image_points']:,} image points and "
-        f"{100 * r['floor_coverage']:.1f} % of {r['floor_points']:,} floor points"
+        f"{100 * r['floor_coverage']:.1f} % of {r['floor_points']:,} floor points ("
+        f"{100 * r['floor_coverage_mount_fitted']:.1f} % with the mount fitted to the floor)"
     )
 
 

@@ -161,8 +161,8 @@ def floor_points(fit: TargetFit, uv: np.ndarray, height_m: float, params=None) -
     return d[:, :2] * t[:, None]
 
 
-def floor_covariances(fit: TargetFit, uv: np.ndarray, height_m: float) -> np.ndarray:
-    """(N, 2, 2) covariance (m^2) of the floor points of fixed pixels."""
+def floor_jacobian(fit: TargetFit, uv: np.ndarray, height_m: float) -> np.ndarray:
+    """(N, 2, n) derivative of fixed pixels' floor points (m) by the intrinsics."""
     n = len(fit.params)
     J = np.empty((len(uv), 2, n))
     std = np.where(fit.std > 0, fit.std, 1e-9)
@@ -172,6 +172,33 @@ def floor_covariances(fit: TargetFit, uv: np.ndarray, height_m: float) -> np.nda
         p1[j] += hstep
         p0[j] -= hstep
         J[:, :, j] = (floor_points(fit, uv, height_m, p1) - floor_points(fit, uv, height_m, p0)) / (2 * hstep)
+    return J
+
+
+def remove_mount(J: np.ndarray, xy: np.ndarray) -> np.ndarray:
+    """What of the floor displacements ``J`` (N, 2, n) at floor points ``xy`` (N, 2) the mount's
+    fit to a lights-on frame leaves: that fit sets the viewpoint's height (which scales every
+    floor distance alike, rho = H tan(angle)) and the forward angle (a turn about the robot), so
+    each parameter's displacement field loses its least-squares scale and turn."""
+    perp = np.column_stack([-xy[:, 1], xy[:, 0]])
+    A = np.column_stack([xy.ravel(), perp.ravel()])  # (2N, 2): scale, turn
+    D = J.transpose(0, 1, 2).reshape(2 * len(xy), -1)  # (2N, n)
+    coef = np.linalg.lstsq(A, D, rcond=None)[0]
+    return (D - A @ coef).reshape(J.shape)
+
+
+def remove_similarity(err: np.ndarray, xy: np.ndarray) -> np.ndarray:
+    """The floor errors (N, 2) at ``xy`` after the least-squares scale and turn (as the mount's
+    fit removes them)."""
+    return remove_mount(err[:, :, None], xy)[:, :, 0]
+
+
+def floor_covariances(fit: TargetFit, uv: np.ndarray, height_m: float, *, mount_fitted: bool = False) -> np.ndarray:
+    """(N, 2, 2) covariance (m^2) of the floor points of fixed pixels; with ``mount_fitted``, of
+    what is left after the mount's fit (see :func:`remove_mount`)."""
+    J = floor_jacobian(fit, uv, height_m)
+    if mount_fitted:
+        J = remove_mount(J, floor_points(fit, uv, height_m))
     return np.einsum("nij,jk,nlk->nil", J, fit.cov, J)
 
 
@@ -186,18 +213,26 @@ def floor_pixels(fit: TargetFit, rho_m: np.ndarray, psi: np.ndarray, height_m: f
     return uv
 
 
-def floor_uncertainty(fit: TargetFit, height_m: float, distances_m=FLOOR_DISTANCES_M) -> list[dict]:
+def floor_uncertainty(
+    fit: TargetFit, height_m: float, distances_m=FLOOR_DISTANCES_M, *, mount_fitted: bool = True
+) -> list[dict]:
     """At each distance: the worst azimuth's 1-sigma (major semi-axis) and 95 % radius in mm, and
-    the share of azimuths the image sees there."""
+    the share of azimuths the image sees there. With ``mount_fitted`` (a profile whose height and
+    forward angle were fitted to a lights-on frame), what that fit absorbs is left out."""
     psi = np.linspace(-math.pi, math.pi, FLOOR_AZIMUTHS, endpoint=False)
+    rho = np.repeat(np.asarray(distances_m, float), len(psi))
+    uv = floor_pixels(fit, rho, np.tile(psi, len(distances_m)), height_m)
+    ok = np.isfinite(uv).all(axis=1)
+    sig = np.full(len(rho), np.nan)
+    if ok.any():
+        sig[ok] = 1000 * _major_sigma(floor_covariances(fit, uv[ok], height_m, mount_fitted=mount_fitted))
     out = []
-    for rho in distances_m:
-        uv = floor_pixels(fit, np.full(len(psi), rho), psi, height_m)
-        ok = np.isfinite(uv).all(axis=1)
-        row = {"distance_m": float(rho), "seen_fraction": float(ok.mean())}
-        if ok.any():
-            s = 1000 * _major_sigma(floor_covariances(fit, uv[ok], height_m))
-            row.update(sigma_mm=float(s.max()), r95_mm=float(K95 * s.max()))
+    for k, d in enumerate(distances_m):
+        s = sig[k * len(psi) : (k + 1) * len(psi)]
+        seen = np.isfinite(s)
+        row = {"distance_m": float(d), "seen_fraction": float(seen.mean())}
+        if seen.any():
+            row.update(sigma_mm=float(s[seen].max()), r95_mm=float(K95 * s[seen].max()))
         else:
             row.update(sigma_mm=None, r95_mm=None)
         out.append(row)
@@ -234,7 +269,14 @@ def cross_validation_diff(views: TargetViews, fit: TargetFit, grid: int = 24, sh
 
 
 def verdict(
-    floor: list[dict], *, subcell_m: float, reach_m: float, n_views: int, heldout_ratio: float, cv_ratio: float
+    floor: list[dict],
+    *,
+    subcell_m: float,
+    reach_m: float,
+    n_views: int,
+    heldout_ratio: float,
+    cv_ratio: float,
+    mount_line_err_mm: float | None = None,
 ) -> dict:
     """Whether the floor uncertainty lets the STC robot place marks in their rows: the 95 % floor
     bound must stay inside the row band (a row's dots share a band ROW_TOL sub-cells wide on each
@@ -242,7 +284,9 @@ def verdict(
     must not say the model overfits. When two calibrations on halves of the views differ by more
     than their covariances predict (``cv_ratio`` > 1: model error, not the corners' noise,
     dominates), the bound is scaled up by that ratio: the covariance alone would flatter the
-    calibration. If not good enough, what to add."""
+    calibration. The mount's fit to the lights-on frame is a test of its own: the grid's tape
+    lines must land on the model's lines to within half the band (``mount_line_err_mm``, the
+    median). If not good enough, what to add."""
     from stcvision.observation import ROW_TOL
 
     limit_mm = 1000 * ROW_TOL * subcell_m
@@ -265,6 +309,13 @@ def verdict(
             f"the 95 % floor bound reaches {worst:.1f} mm (over {limit_mm:.1f} mm) at {min(far):g}-{max(far):g} m: "
             f"add views with the target near the image's rim, where those distances appear, or about {need} views "
             "in all (the bound shrinks as one over the square root of the views)"
+        )
+    if mount_line_err_mm is not None and mount_line_err_mm > limit_mm / 2:
+        advice.append(
+            f"the lights-on frame's grid lines lie {mount_line_err_mm:.1f} mm (median) off the calibrated model "
+            f"(over {limit_mm / 2:.1f} mm): the intrinsics do not hold on the floor; add views tilted every way "
+            "(views all parallel to the floor leave the axis's tilt and the mirror's scale unresolved) or check "
+            "that the robot stood at the calibration pose"
         )
     if heldout_ratio > HELDOUT_RATIO_MAX:
         advice.append(

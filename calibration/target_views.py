@@ -30,6 +30,7 @@ __all__ = [
     "TargetViews",
     "detect_views",
     "read_points_file",
+    "write_points_file",
 ]
 
 #: views one calibration takes (each adds six pose parameters to the fit: 200 views are ~1,200)
@@ -234,6 +235,30 @@ def _read_storage(fs, where: str, camera: int | None, image_size) -> TargetViews
     size = _image_size(fs, where, image_size)
     names = tuple(f"view {i}" for i in range(len(obj)))
     return TargetViews(tuple(obj), tuple(img), size, names)
+
+
+def points_file_text(views: TargetViews) -> str:
+    """The views in OpenCV's FileStorage XML layout, as OpenCV's omnidirectional sample has it."""
+    import cv2
+
+    fs = cv2.FileStorage(".xml", cv2.FILE_STORAGE_WRITE | cv2.FILE_STORAGE_MEMORY)
+    for key, pts, k in (("objectPoints", views.object_points, 3), ("imagePoints", views.image_points, 2)):
+        fs.startWriteStruct(key, cv2.FileNode_SEQ)
+        for p in pts:
+            fs.write("", np.asarray(p, np.float64).reshape(-1, 1, k))
+        fs.endWriteStruct()
+    fs.startWriteStruct("imageSize", cv2.FileNode_SEQ | cv2.FileNode_FLOW)
+    for x in views.image_size_px:
+        fs.write("", int(x))
+    fs.endWriteStruct()
+    return fs.releaseAndGetString()
+
+
+def write_points_file(path, views: TargetViews, *, overwrite: bool = False) -> Path:
+    """Write the views as an OpenCV FileStorage XML points file, atomically."""
+    from stcvision.fileio import write_bytes_atomic
+
+    return write_bytes_atomic(path, points_file_text(views).encode(), overwrite=overwrite)
 
 
 # ---------------------------------------------------------------------------- images
