@@ -305,8 +305,9 @@ def verdict(
     if worst > limit_mm:
         far = [r["distance_m"] for r in rows if r["r95_mm"] is not None and scale * r["r95_mm"] > limit_mm]
         need = math.ceil(n_views * (worst / limit_mm) ** 2)
+        span = f"{min(far):g}" if min(far) == max(far) else f"{min(far):g}-{max(far):g}"
         advice.append(
-            f"the 95 % floor bound reaches {worst:.1f} mm (over {limit_mm:.1f} mm) at {min(far):g}-{max(far):g} m: "
+            f"the 95 % floor bound reaches {worst:.1f} mm (over {limit_mm:.1f} mm) at {span} m: "
             f"add views with the target near the image's rim, where those distances appear, or about {need} views "
             "in all (the bound shrinks as one over the square root of the views)"
         )

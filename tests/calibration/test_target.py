@@ -162,6 +162,7 @@ def test_the_95_percent_bounds_hold_the_truth_over_simulated_calibrations():
     assert r["image_points"] > 400 and r["floor_points"] > 500
     assert 0.90 <= r["image_coverage"] <= 0.99, r
     assert 0.90 <= r["floor_coverage"] <= 0.99, r
+    assert 0.90 <= r["floor_coverage_mount_fitted"] <= 0.99, r
 
 
 def _render_checkerboard(params, size, R, t, squares, spacing):
@@ -340,3 +341,28 @@ def test_the_floor_bound_holds_on_the_simulators_own_camera():
     assert r["rms_px_median"] < 1.1 * math.sqrt(2) * SIM_NOISE_PX
     assert r["floor_points"] > 400
     assert 0.90 <= r["floor_coverage"] <= 0.99, r
+
+
+def test_verdict_follows_the_row_band_and_says_what_to_add():
+    """The verdict's rule, from the STC geometry: the 95 % floor bound within ROW_TOL sub-cells
+    (9.6 mm at 16 cm) out to the reach; the views needed scale as the bound squared; a
+    cross-validation ratio over 1 scales the bound; the tape lines within half the band."""
+    from stcvision.calibration.target_uncertainty import verdict
+    from stcvision.observation import ROW_TOL
+
+    limit = 1000 * ROW_TOL * 0.16
+
+    def floor(r95_at):
+        return [{"distance_m": d, "seen_fraction": 1.0, "sigma_mm": r / 2.45, "r95_mm": r} for d, r in r95_at]
+
+    kw = dict(subcell_m=0.16, reach_m=0.6, n_views=10, heldout_ratio=1.05, cv_ratio=0.9)
+    good = verdict(floor([(0.3, 3.0), (0.6, 0.9 * limit), (0.9, 5 * limit)]), **kw)
+    assert good["ok"] and good["advice"] == [] and good["worst_r95_mm"] == pytest.approx(0.9 * limit)
+    bad = verdict(floor([(0.3, 3.0), (0.6, 2 * limit)]), **kw)
+    assert not bad["ok"] and "about 40 views" in bad["advice"][0] and "at 0.6 m:" in bad["advice"][0]
+    scaled = verdict(floor([(0.3, 0.4 * limit)]), **{**kw, "cv_ratio": 3.0})
+    assert not scaled["ok"] and scaled["worst_r95_mm"] == pytest.approx(1.2 * limit) and scaled["bound_scale"] == 3.0
+    lines = verdict(floor([(0.3, 3.0)]), **kw, mount_line_err_mm=0.6 * limit)
+    assert not lines["ok"] and "tilted every way" in lines["advice"][0]
+    over = verdict(floor([(0.3, 3.0)]), **{**kw, "heldout_ratio": 1.4})
+    assert not over["ok"] and "held-out" in over["advice"][0]
