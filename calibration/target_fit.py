@@ -13,6 +13,12 @@ pose with the intrinsics, the reprojection error in pixels minimised with
   ``[1 e; d c]`` about the centre. Its elevation is a free function of the radius, which is what
   a webcam behind a curved mirror needs: the mirror's profile, not a conic's, sets it.
 
+OpenCV's own fit of the unified model (``cv2.omnidir.calibrate``) lives in opencv-contrib, not in
+the opencv-python-headless the toolkit depends on (the two wheels install the same ``cv2`` and
+cannot be installed side by side), and it does not return the Jacobian at its optimum, which the
+covariance needs; the second model and the held-out refits need the same machinery. So the fit
+is made here, and tested against OpenCV's on OpenCV's own sample (the same RMS to 0.0005 px).
+
 The uncertainty is the covariance of the parameters at the optimum, ``s^2 (J^T J)^-1`` with ``J``
 the Jacobian of the residuals and ``s^2`` their measured variance (the sum of squares over the
 degrees of freedom), marginalised over the poses. It is chosen over a bootstrap over views
