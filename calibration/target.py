@@ -78,8 +78,14 @@ def calibrate_target(
     fits, rows = {}, {}
     for name in MODELS if model is None else (model,):
         start = fits["mei"][0] if "mei" in fits else None
-        f = fit_target(views, name, start=start, should_stop=should_stop)
-        held, per_view = heldout_rms(views, f, k, should_stop)
+        try:
+            f = fit_target(views, name, start=start, should_stop=should_stop)
+            held, per_view = heldout_rms(views, f, k, should_stop)
+        except (np.linalg.LinAlgError, FloatingPointError, ValueError) as exc:
+            if model is not None or not fits:  # the one asked for, or the first: the user must know
+                raise BadInputError(f"the {name} model could not be fitted to these views: {exc}") from None
+            rows[name] = {"failed": str(exc)}  # the others are compared without it
+            continue
         fits[name] = (f, held, per_view)
         rows[name] = {
             "rms_px": f.rms_px,

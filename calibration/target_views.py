@@ -125,12 +125,36 @@ def check_views(views: TargetViews, where: str) -> TargetViews:
 
 
 # ---------------------------------------------------------------------------- points files
+def _flat_reals(node, budget: int) -> list[float]:
+    """The numbers of a (nested) FileStorage sequence, in order; at most ``budget`` of them."""
+    out: list[float] = []
+    stack = [node]
+    while stack:
+        n = stack.pop()
+        if n.isSeq():
+            stack.extend(n.at(i) for i in reversed(range(n.size())))
+        elif n.isReal() or n.isInt():
+            out.append(n.real())
+        else:
+            raise ValueError("not a number")
+        if len(out) > budget:
+            break
+    return out
+
+
 def _node_points(node, k: int, where: str, key: str) -> np.ndarray:
-    """One view's points from a FileStorage node: a matrix of k-channel points, or of k columns."""
-    m = node.mat()
-    if m is None:
-        raise BadInputError(f"{where}: {key} holds an entry that is not a matrix; expected an OpenCV matrix")
-    a = np.asarray(m, float)
+    """One view's points from a FileStorage node: a matrix of k-channel points, or of k columns,
+    or a sequence of k-number points (as OpenCV writes a vector of points in YAML)."""
+    if node.isSeq():
+        try:
+            a = np.asarray(_flat_reals(node, k * MAX_POINTS_PER_VIEW), float)
+        except ValueError:
+            raise BadInputError(f"{where}: {key} holds an entry that is not a list of numbers") from None
+    else:
+        m = node.mat()
+        if m is None:
+            raise BadInputError(f"{where}: {key} holds an entry that is not a matrix; expected an OpenCV matrix")
+        a = np.asarray(m, float)
     if a.size % k:
         raise BadInputError(f"{where}: {key} holds a matrix of {a.size} numbers; expected {k}-vectors")
     return a.reshape(-1, k)

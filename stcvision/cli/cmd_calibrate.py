@@ -671,6 +671,9 @@ def _target_text(r) -> str:
     lines += [f"  refused {x['view']}: {x['reason']}" for x in r["refused_views"]]
     lines.append(f"model            in-sample RMS   held-out RMS ({r['folds']}-fold)")
     for name, m in r["models"].items():
+        if "failed" in m:
+            lines.append(f"{name:<16} not fitted: {m['failed']}")
+            continue
         mark = " <- chosen" if name == r["model"] else ""
         lines.append(f"{name:<16} {m['rms_px']:.3f} px       {m['heldout_rms_px']:.3f} px{mark}")
     cv = r["cross_validation"]

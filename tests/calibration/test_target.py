@@ -366,3 +366,28 @@ def test_verdict_follows_the_row_band_and_says_what_to_add():
     assert not lines["ok"] and "tilted every way" in lines["advice"][0]
     over = verdict(floor([(0.3, 3.0)]), **{**kw, "heldout_ratio": 1.4})
     assert not over["ok"] and "held-out" in over["advice"][0]
+
+
+def test_yaml_of_nested_point_lists_reads_as_the_matrices_do(tmp_path):
+    """A points file whose views are lists of [x, y(, z)] lists (as a YAML writer of a vector of
+    points makes it) reads the same points as the matrix layout."""
+    from stcvision.calibration.target_sim import simulated_views
+
+    views = simulated_views(3, 5)
+    fs = cv2.FileStorage(str(tmp_path / "nested.yml"), cv2.FILE_STORAGE_WRITE)
+    for key, pts in (("objectPoints", views.object_points), ("imagePoints", views.image_points)):
+        fs.startWriteStruct(key, cv2.FileNode_SEQ)
+        for p in pts:
+            fs.startWriteStruct("", cv2.FileNode_SEQ)
+            for q in p:
+                fs.startWriteStruct("", cv2.FileNode_SEQ | cv2.FileNode_FLOW)
+                for x in q:
+                    fs.write("", float(x))
+                fs.endWriteStruct()
+            fs.endWriteStruct()
+        fs.endWriteStruct()
+    fs.release()
+    got = read_points_file(tmp_path / "nested.yml", image_size=views.image_size_px)
+    assert got.image_size_px == views.image_size_px
+    assert np.array_equal(np.vstack(got.image_points), np.vstack(views.image_points))
+    assert np.array_equal(np.vstack(got.object_points), np.vstack(views.object_points))
