@@ -315,8 +315,8 @@ def verdict(
         advice.append(
             f"the lights-on frame's grid lines lie {mount_line_err_mm:.1f} mm (median) off the calibrated model "
             f"(over {limit_mm / 2:.1f} mm): the intrinsics do not hold on the floor; add views tilted every way "
-            "(views all parallel to the floor leave the axis's tilt and the mirror's scale unresolved) or check "
-            "that the robot stood at the calibration pose"
+            "(views all parallel to the floor leave the axis's tilt and the mirror's scale unresolved), check that "
+            "the robot stood at the calibration pose, or fit the mount to a second lights-on frame"
         )
     if heldout_ratio > HELDOUT_RATIO_MAX:
         advice.append(
