@@ -420,14 +420,11 @@ def _initial_mei(views: TargetViews, should_stop=None):
 
 
 def _initial_poly(views: TargetViews, mei: TargetFit):
-    """The polynomial fitted (linear least squares) to the unified model's rays over the views'
-    pixels, with the same poses."""
+    """The polynomial fitted (linear least squares) to the unified model's rays at the views'
+    points, with the same poses."""
     pu, pv = mei.params[3], mei.params[4]
     fu, fv = mei.params[1], mei.params[2]
-    uv = np.vstack(views.image_points)
-    w, h = views.image_size_px
-    grid = np.stack(np.meshgrid(np.linspace(0, w - 1, 40), np.linspace(0, h - 1, 30)), -1).reshape(-1, 2)
-    uv = np.vstack([uv, grid])
+    uv = np.vstack(views.image_points)  # where the data are: a quartic may not follow the rest
     rays = mei.unproject(uv)
     c = fv / fu
     X, Y = (uv[:, 0] - pu) / POLY_RADIUS_UNIT_PX, (uv[:, 1] - pv) / (c * POLY_RADIUS_UNIT_PX)
