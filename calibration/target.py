@@ -95,7 +95,10 @@ def calibrate_target(
             "params": _params(f),
         }
     for name, (f, _, _) in fits.items():
-        rows[name]["cross_validation"] = cross_validation_diff(views, f, should_stop=should_stop)
+        try:
+            rows[name]["cross_validation"] = cross_validation_diff(views, f, should_stop=should_stop)
+        except (np.linalg.LinAlgError, FloatingPointError, ValueError) as exc:  # a half too weak to fit
+            rows[name]["cross_validation"] = {"failed": str(exc)}
     chosen = model or min(fits, key=lambda n: fits[n][1])
     fit, held, per_view = fits[chosen]
     cv = rows[chosen]["cross_validation"]

@@ -382,7 +382,7 @@ def _target(args):
             },
             n_views=len(views),
             heldout_ratio=rep["heldout_rms_px"] / rep["rms_px"],
-            cv_ratio=rep["cross_validation"]["diff_over_predicted"],
+            cv_ratio=rep["cross_validation"].get("diff_over_predicted", 1.0),
         )
         prof.save(args.out, overwrite=args.force)
         rep.update(out=str(args.out), **floor)
@@ -677,10 +677,13 @@ def _target_text(r) -> str:
         mark = " <- chosen" if name == r["model"] else ""
         lines.append(f"{name:<16} {m['rms_px']:.3f} px       {m['heldout_rms_px']:.3f} px{mark}")
     cv = r["cross_validation"]
-    lines.append(
-        f"two halves of the views differ by {cv['diff_px_median']:.2f} px (median) where their uncertainties "
-        f"predict {cv['predicted_px_median']:.2f} px; {100 * cv['within_95_fraction']:.0f} % within the 95 % bound"
-    )
+    if "failed" in cv:
+        lines.append(f"two halves of the views could not be calibrated apart: {cv['failed']}")
+    else:
+        lines.append(
+            f"two halves of the views differ by {cv['diff_px_median']:.2f} px (median) where their uncertainties "
+            f"predict {cv['predicted_px_median']:.2f} px; {100 * cv['within_95_fraction']:.0f} % within the 95 % bound"
+        )
     u = r["uncertainty"]
     lines.append(
         f"projection uncertainty where the target was seen: {u['sigma_px_median_where_observed']:.2f} px "
