@@ -322,7 +322,8 @@ def board_points(pattern: str, cols: int, rows: int, spacing: float) -> np.ndarr
 
 def view_problem(pts: np.ndarray | None, shift: float, size, pattern: str, cols: int, rows: int) -> str | None:
     """Why a detection is not taken, or None: not found, cut by the border, refined too far, or
-    folded (the grid's rows crossing each other)."""
+    mis-ordered (a row that repeats a point or turns back: OpenCV's circle-grid search can give
+    one dot twice when far dots blur together)."""
     w, h = size
     if pts is None:
         return f"no {cols}x{rows} {pattern} found"
@@ -338,7 +339,7 @@ def view_problem(pts: np.ndarray | None, shift: float, size, pattern: str, cols:
     grid = pts.reshape(rows, cols, 2)
     along = np.diff(grid, axis=1)
     if cols > 2 and (np.einsum("rck,rck->rc", along[:, 1:], along[:, :-1]) <= 0).any():
-        return "the detected rows fold back on themselves (a mis-ordered detection)"
+        return "the detected rows repeat a point or fold back (a mis-ordered detection)"
     return None
 
 

@@ -391,3 +391,62 @@ def test_yaml_of_nested_point_lists_reads_as_the_matrices_do(tmp_path):
     assert got.image_size_px == views.image_size_px
     assert np.array_equal(np.vstack(got.image_points), np.vstack(views.image_points))
     assert np.array_equal(np.vstack(got.object_points), np.vstack(views.object_points))
+
+
+def _render_circles(params, size, R, t, cols, rows, spacing):
+    """A symmetric grid of black dots (0.3 spacing in radius) on white, seen through the unified
+    model without distortion (the lift written out as in :func:`_render_checkerboard`)."""
+    xi, fu, fv, pu, pv = params[:5]
+    w, h = size
+    ss = 2
+    uu, vv = np.meshgrid((np.arange(w * ss) + 0.5) / ss - 0.5, (np.arange(h * ss) + 0.5) / ss - 0.5)
+    mx, my = ((uu - pu) / fu).ravel(), ((vv - pv) / fv).ravel()
+    r2 = mx * mx + my * my
+    fac = (xi + np.sqrt(1 + (1 - xi * xi) * r2)) / (r2 + 1)
+    d = np.column_stack([fac * mx, fac * my, fac - xi]) @ R
+    o = -R.T @ t
+    with np.errstate(divide="ignore", invalid="ignore"):
+        s = -o[2] / d[:, 2]
+        p = o[:2] + s[:, None] * d[:, :2]
+    i = np.clip(np.round(p[:, 0] / spacing), 0, cols - 1)
+    j = np.clip(np.round(p[:, 1] / spacing), 0, rows - 1)
+    dist = np.hypot(p[:, 0] - i * spacing, p[:, 1] - j * spacing)
+    inside = (s > 0) & (np.abs(p[:, 0] / spacing - (cols - 1) / 2) < cols / 2 + 0.5)
+    inside &= np.abs(p[:, 1] / spacing - (rows - 1) / 2) < rows / 2 + 0.5
+    val = np.where(inside, 235.0, 128.0)
+    val[inside & (dist < 0.3 * spacing)] = 20.0
+    img = val.reshape(h * ss, w * ss).reshape(h, ss, w, ss).mean(axis=(1, 3))
+    return cv2.cvtColor(np.clip(img, 0, 255).astype(np.uint8), cv2.COLOR_GRAY2BGR)
+
+
+def test_circle_grid_centres_are_found_where_the_dots_project(tmp_path):
+    """Rendered 7x5 dot grids: each centre found within 0.5 px of where its dot's centre projects,
+    in the board's order or one of its symmetries (a half turn in the plane, or about either of
+    its axes: each a rigid turn of the same dots, which a pose takes up), so object and image
+    points correspond; a mis-ordered detection is refused with its reason."""
+    from stcvision.calibration.target_views import board_points, detect_views
+
+    true = (1.0, 210.0, 210.0, 318.0, 242.0, 0.0, 0.0, 0.0, 0.0)
+    obj = board_points("circles", 7, 5, 0.04)
+    truth = []
+    for k, (rv, tv) in enumerate(
+        [
+            ((0.2, -0.1, 0.05), (-0.12, -0.08, 0.28)),
+            ((-0.3, 0.2, 0.4), (-0.05, -0.1, 0.25)),
+            ((0.1, 0.35, -0.3), (-0.15, 0.0, 0.3)),
+            ((0.0, 0.0, 1.2), (0.02, -0.12, 0.27)),
+            ((0.0, 0.1, 0.3), (-0.1, -0.05, 0.26)),
+        ]
+    ):
+        R = cv2.Rodrigues(np.array(rv))[0]
+        cv2.imwrite(str(tmp_path / f"v{k}.png"), _render_circles(true, (640, 480), R, np.array(tv), 7, 5, 0.04))
+        truth.append(project_points("mei", true, obj @ R.T + tv, (640, 480)))
+    views = detect_views(tmp_path, pattern="circles", cols=7, rows=5, spacing=0.04)
+    # the third view's far dots blur together and OpenCV gives one dot twice: refused, and why
+    assert views.refused == (("v2.png", "the detected rows repeat a point or fold back (a mis-ordered detection)"),)
+    assert views.names == ("v0.png", "v1.png", "v3.png", "v4.png")
+    for found, want in zip(views.image_points, [truth[i] for i in (0, 1, 3, 4)], strict=True):
+        g = found.reshape(5, 7, 2)
+        orders = (g, g[::-1, ::-1], g[::-1], g[:, ::-1])
+        err = min(np.abs(o.reshape(-1, 2) - want).max() for o in orders)
+        assert err < 0.5, err
