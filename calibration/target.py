@@ -162,10 +162,11 @@ def target_profile(
     prof = prof.replace(subcell_m=subcell_m)
     mount = None
     if lights_on is not None:
-        from stcvision.calibration.transform import calibrate_mount
+        from stcvision.calibration.transform import calibrate_mount, mount_uncertainty
 
         prof, rep = calibrate_mount(lights_on, prof, subcell_m=subcell_m)
         mount = {
+            **mount_uncertainty(lights_on, prof),
             "forward_angle_deg": math.degrees(prof.forward_angle_rad),
             "viewpoint_height_m": prof.viewpoint_height_m,
             "mirrored": prof.mirrored,

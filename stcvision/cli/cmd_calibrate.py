@@ -689,6 +689,14 @@ def _target_text(r) -> str:
         f"projection uncertainty where the target was seen: {u['sigma_px_median_where_observed']:.2f} px "
         f"(1 sigma, median), {u['r95_px_max_where_observed']:.2f} px (95 %, worst); map {r['uncertainty_png']}"
     )
+    if r.get("mount"):
+        m = r["mount"]
+        lines.append(
+            f"mount from the lights-on frame: forward {m['forward_angle_deg']:.2f} +- {m['forward_angle_deg_std']:.2f} "
+            f"deg, height {1000 * m['viewpoint_height_m']:.1f} +- {m['viewpoint_height_mm_std']:.1f} mm, "
+            f"{'mirrored' if m['mirrored'] else 'not mirrored'}; tape lines {m['line_err_mm_median']:.2f} mm off the "
+            "model (median)"
+        )
     if "floor" in r:
         fl = ", ".join(f"{x['distance_m']:g} m {x['r95_mm']:.1f}" for x in r["floor"] if x["r95_mm"] is not None)
         lines.append(f"floor, 95 % bound (mm): {fl}")

@@ -276,7 +276,11 @@ def test_target_to_profile_with_a_lights_on_frame_and_a_verdict(cli, tmp_path, m
     assert set(floor) == {round(0.1 * k, 1) for k in range(1, 10)}
     assert 0 < floor[0.3]["r95_mm"] < floor[0.9]["r95_mm"]
     assert r["verdict"]["limit_mm"] == pytest.approx(0.06 * 160) and isinstance(r["verdict"]["ok"], bool)
-    assert r["mount"]["line_points"] > 100
+    assert r["mount"]["line_points"] > 100 and r["mount"]["lines"] >= 8
+    # the mount's own uncertainty: the height within 3 sigma of the simulator's 0.25 m (the
+    # intrinsics' error adds to it: a millimetre's margin)
+    assert 0 < r["mount"]["viewpoint_height_mm_std"] < 5 and 0 < r["mount"]["forward_angle_deg_std"] < 1
+    assert abs(1000 * prof.viewpoint_height_m - 250) < 3 * r["mount"]["viewpoint_height_mm_std"] + 1.0
 
 
 def _views_of(params, size, n=10, seed=7):
