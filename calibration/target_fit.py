@@ -529,14 +529,19 @@ def heldout_rms(views: TargetViews, fit: TargetFit, folds: int, should_stop=None
     return float(np.sqrt(sq.sum() / counts.sum())), np.sqrt(sq / counts)
 
 
-def ray_to_pixel_jacobian(fit: TargetFit, rays: np.ndarray, step: float = 1e-6) -> np.ndarray:
-    """d(pixel)/d(intrinsics) for fixed camera-frame rays (N, 3): (N, 2, 9), central differences
-    with steps relative to each parameter's standard deviation."""
+#: finite-difference steps for propagating the covariance: this fraction of each parameter's
+#: standard deviation (the model is close to linear over it, and far above rounding)
+COV_STEP_OF_STD = 1e-3
+
+
+def ray_to_pixel_jacobian(fit: TargetFit, rays: np.ndarray) -> np.ndarray:
+    """d(pixel)/d(intrinsics) for fixed camera-frame rays (N, 3): (N, 2, n), central differences
+    with steps of :data:`COV_STEP_OF_STD` of each parameter's standard deviation."""
     n = len(fit.params)
     out = np.empty((len(rays), 2, n))
-    std = np.where(fit.std > 0, fit.std, 1e-6)
+    std = np.where(fit.std > 0, fit.std, 1e-9)
     for j in range(n):
-        h = std[j] * 1e-3 if step is None else max(std[j] * 1e-3, step * max(1.0, abs(fit.params[j])))
+        h = COV_STEP_OF_STD * std[j]
         p1, p0 = fit.params.copy(), fit.params.copy()
         p1[j] += h
         p0[j] -= h

@@ -22,7 +22,7 @@ import math
 
 import numpy as np
 
-from stcvision.calibration.target_fit import fit_target, project_points
+from stcvision.calibration.target_fit import COV_STEP_OF_STD, fit_target, project_points
 from stcvision.calibration.target_uncertainty import (
     K95,
     floor_covariances,
@@ -256,7 +256,7 @@ def simulator_coverage(seeds, *, model: str = "mei", n_views: int = 12) -> dict:
         J = np.empty((len(uv), 2, len(x0)))
         sd = np.sqrt(np.diag(fit.cov_first_view))
         for j in range(len(x0)):
-            h = 1e-3 * max(sd[j], 1e-12)
+            h = COV_STEP_OF_STD * max(sd[j], 1e-12)
             xp, xm = x0.copy(), x0.copy()
             xp[j] += h
             xm[j] -= h

@@ -20,7 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.stats import chi2
 
-from stcvision.calibration.target_fit import TargetFit, fit_target, ray_to_pixel_jacobian
+from stcvision.calibration.target_fit import COV_STEP_OF_STD, TargetFit, fit_target, ray_to_pixel_jacobian
 from stcvision.calibration.target_views import TargetViews
 
 __all__ = [
@@ -167,7 +167,7 @@ def floor_jacobian(fit: TargetFit, uv: np.ndarray, height_m: float) -> np.ndarra
     J = np.empty((len(uv), 2, n))
     std = np.where(fit.std > 0, fit.std, 1e-9)
     for j in range(n):
-        hstep = 1e-3 * std[j]
+        hstep = COV_STEP_OF_STD * std[j]
         p1, p0 = fit.params.copy(), fit.params.copy()
         p1[j] += hstep
         p0[j] -= hstep
