@@ -57,6 +57,9 @@ IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff")
 MAX_SUBPIX_SHIFT_PX = 3.0
 #: corners nearer the image's border than this (px) are cut by it
 BORDER_PX = 3.0
+#: how far outside the image (px from the outermost pixel centres) a points file's point may lie:
+#: a detector's sub-pixel estimate at the edge; further means the image size is wrong
+OFF_IMAGE_TOLERANCE_PX = 2.0
 
 
 @dataclass(frozen=True)
@@ -114,13 +117,11 @@ def check_views(views: TargetViews, where: str) -> TargetViews:
         span = np.ptp(obj[:, :2], axis=0)
         if min(span) <= 0:
             raise BadInputError(f"{where}: view {name}'s object points lie on a line; expected a planar grid")
-        if (
-            (img[:, 0] < -0.5).any()
-            or (img[:, 1] < -0.5).any()
-            or (img[:, 0] > w - 0.5).any()
-            or (img[:, 1] > h - 0.5).any()
-        ):
-            raise BadInputError(f"{where}: view {name} has image points outside the {w}x{h} image")
+        m = OFF_IMAGE_TOLERANCE_PX
+        if (img < -m).any() or (img[:, 0] > w - 1 + m).any() or (img[:, 1] > h - 1 + m).any():
+            raise BadInputError(
+                f"{where}: view {name} has image points outside the {w}x{h} image (is the image size width x height?)"
+            )
     return views
 
 

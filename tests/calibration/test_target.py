@@ -20,7 +20,9 @@ import numpy as np
 import pytest
 
 from stcvision.calibration.target_fit import fit_target, heldout_rms, project_points
+from stcvision.calibration.target_uncertainty import FLOOR_DISTANCES_M, K95
 from stcvision.calibration.target_views import TargetViews, read_points_file
+from stcvision.observation import ROW_TOL
 
 #: cv2.omnidir.calibrate's RMS on the sample, and the margin of its rounding
 OMNIDIR_RMS_PX = 0.814
@@ -273,9 +275,9 @@ def test_target_to_profile_with_a_lights_on_frame_and_a_verdict(cli, tmp_path, m
     bound = np.interp(rho, [x["distance_m"] for x in r["floor"]], [x["r95_mm"] for x in r["floor"]])
     assert np.mean(diff <= bound) >= 0.9, (diff, bound)
     floor = {row["distance_m"]: row for row in r["floor"]}
-    assert set(floor) == {round(0.1 * k, 1) for k in range(1, 10)}
+    assert tuple(floor) == FLOOR_DISTANCES_M and min(floor) == 0.1 and max(floor) == 0.9
     assert 0 < floor[0.3]["r95_mm"] < floor[0.9]["r95_mm"]
-    assert r["verdict"]["limit_mm"] == pytest.approx(0.06 * 160) and isinstance(r["verdict"]["ok"], bool)
+    assert r["verdict"]["limit_mm"] == pytest.approx(1000 * ROW_TOL * 0.16) and isinstance(r["verdict"]["ok"], bool)
     assert r["mount"]["line_points"] > 100 and r["mount"]["lines"] >= 8
     # the mount's own uncertainty: the height within 3 sigma of the simulator's 0.25 m (the
     # intrinsics' error adds to it: a millimetre's margin)
@@ -352,12 +354,11 @@ def test_verdict_follows_the_row_band_and_says_what_to_add():
     (9.6 mm at 16 cm) out to the reach; the views needed scale as the bound squared; a
     cross-validation ratio over 1 scales the bound; the tape lines within half the band."""
     from stcvision.calibration.target_uncertainty import verdict
-    from stcvision.observation import ROW_TOL
 
     limit = 1000 * ROW_TOL * 0.16
 
     def floor(r95_at):
-        return [{"distance_m": d, "seen_fraction": 1.0, "sigma_mm": r / 2.45, "r95_mm": r} for d, r in r95_at]
+        return [{"distance_m": d, "seen_fraction": 1.0, "sigma_mm": r / K95, "r95_mm": r} for d, r in r95_at]
 
     kw = dict(subcell_m=0.16, reach_m=0.6, n_views=10, heldout_ratio=1.05, cv_ratio=0.9)
     good = verdict(floor([(0.3, 3.0), (0.6, 0.9 * limit), (0.9, 5 * limit)]), **kw)
@@ -454,3 +455,11 @@ def test_circle_grid_centres_are_found_where_the_dots_project(tmp_path):
         orders = (g, g[::-1, ::-1], g[::-1], g[:, ::-1])
         err = min(np.abs(o.reshape(-1, 2) - want).max() for o in orders)
         assert err < 0.5, err
+
+
+def test_a_points_file_with_the_image_size_swapped_is_refused(cli, tmp_path, sample, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    f = tmp_path / "swapped.xml"
+    f.write_text(sample.read_text().replace("1280 960", "960 1280"))
+    code, out, err = cli("calibrate", "target", f)
+    assert code == 2 and out == "" and "outside the 960x1280 image" in err and len(err.strip().splitlines()) == 1
