@@ -350,6 +350,7 @@ def _target(args):
         if args.viewpoint_height_m is None:
             raise BadInputError("--out needs --viewpoint-height-m (the first guess the lights-on frame refines)")
         check_output_file(args.out, overwrite=args.force, what="profile")
+        _check_mount_ranges(args.subcell_m, args.viewpoint_height_m)
     elif args.lights_on or args.viewpoint_height_m:
         raise BadInputError("--lights-on and --viewpoint-height-m make a profile: give --out PROFILE.json too")
     frame = read_image(args.lights_on, what="lights-on frame") if args.lights_on else None
@@ -549,6 +550,25 @@ def _write_preview(preview: str, image) -> None:
     write_bytes_atomic(preview, _preview_png(image), overwrite=True)  # checked by _check_outputs
 
 
+def _check_mount_ranges(subcell_m: float, viewpoint_m: float, *, flag: str = "--viewpoint-height-m") -> None:
+    """The board's sub-cell and the viewpoint's height within what the grid fits sample."""
+    from stcvision.errors import BadInputError
+    from stcvision.limits import (
+        MAX_CALIBRATION_SUBCELL_M,
+        MAX_VIEWPOINT_M,
+        MIN_CALIBRATION_SUBCELL_M,
+        MIN_VIEWPOINT_M,
+    )
+
+    if not MIN_CALIBRATION_SUBCELL_M <= subcell_m <= MAX_CALIBRATION_SUBCELL_M:
+        raise BadInputError(
+            f"--subcell-m must be in [{MIN_CALIBRATION_SUBCELL_M:g}, {MAX_CALIBRATION_SUBCELL_M:g}] m (the fit "
+            f"samples grid lines every cm out to 1 m), got {subcell_m:g}"
+        )
+    if not MIN_VIEWPOINT_M <= viewpoint_m <= MAX_VIEWPOINT_M:
+        raise BadInputError(f"{flag} must be in [{MIN_VIEWPOINT_M:g}, {MAX_VIEWPOINT_M:g}] m, got {viewpoint_m:g}")
+
+
 def _transform(args):
     from pathlib import Path
 
@@ -558,22 +578,7 @@ def _transform(args):
 
     preview = args.preview or str(Path(args.out).with_suffix(".preview.png"))
     _check_outputs(args, args.out, preview, out_force=args.force)
-    from stcvision.limits import (
-        MAX_CALIBRATION_SUBCELL_M,
-        MAX_VIEWPOINT_M,
-        MIN_CALIBRATION_SUBCELL_M,
-        MIN_VIEWPOINT_M,
-    )
-
-    if not MIN_CALIBRATION_SUBCELL_M <= args.subcell_m <= MAX_CALIBRATION_SUBCELL_M:
-        raise BadInputError(
-            f"--subcell-m must be in [{MIN_CALIBRATION_SUBCELL_M:g}, {MAX_CALIBRATION_SUBCELL_M:g}] m (the fit "
-            f"samples grid lines every cm out to 1 m), got {args.subcell_m:g}"
-        )
-    if not MIN_VIEWPOINT_M <= args.viewpoint_m <= MAX_VIEWPOINT_M:
-        raise BadInputError(
-            f"--viewpoint-m must be in [{MIN_VIEWPOINT_M:g}, {MAX_VIEWPOINT_M:g}] m, got {args.viewpoint_m:g}"
-        )
+    _check_mount_ranges(args.subcell_m, args.viewpoint_m, flag="--viewpoint-m")
     frame = read_image(args.frame, what="lights-on frame")
     prof, rep = calibrate_transform(
         frame, subcell_m=args.subcell_m, center_px=args.center, viewpoint_height_m=args.viewpoint_m

@@ -463,3 +463,14 @@ def test_a_points_file_with_the_image_size_swapped_is_refused(cli, tmp_path, sam
     f.write_text(sample.read_text().replace("1280 960", "960 1280"))
     code, out, err = cli("calibrate", "target", f)
     assert code == 2 and out == "" and "outside the 960x1280 image" in err and len(err.strip().splitlines()) == 1
+
+
+def test_a_profile_needs_its_height_in_range_and_an_out(cli, tmp_path, sample, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    code, _, err = cli("calibrate", "target", sample, "--out", "p.json", "--viewpoint-height-m", "5")
+    assert code == 2 and "--viewpoint-height-m must be in" in err
+    code, _, err = cli("calibrate", "target", sample, "--out", "p.json")
+    assert code == 2 and "--viewpoint-height-m" in err
+    code, _, err = cli("calibrate", "target", sample, "--lights-on", "x.png")
+    assert code == 2 and "--out" in err
+    assert not list(tmp_path.iterdir())
