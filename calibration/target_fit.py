@@ -135,8 +135,9 @@ def unproject_pixels(model: str, p, uv: np.ndarray, size) -> np.ndarray:
     centre, A, ss, (p1, p2) = _poly_parts(p)
     XYd = (uv - centre) @ np.linalg.inv(A).T / POLY_RADIUS_UNIT_PX
     XY = XYd.copy()
-    for _ in range(UNDECENTER_ITERATIONS):
-        XY = XYd - (_decenter(XY, p1, p2) - XY)
+    with np.errstate(over="ignore", invalid="ignore"):  # where it diverges: NaN, no ray
+        for _ in range(UNDECENTER_ITERATIONS):
+            XY = XYd - (_decenter(XY, p1, p2) - XY)
     rho = np.hypot(XY[:, 0], XY[:, 1])
     r = np.column_stack([XY, -np.polynomial.polynomial.polyval(rho, ss)])
     return r / np.linalg.norm(r, axis=1, keepdims=True)
@@ -421,10 +422,13 @@ def _initial_mei(views: TargetViews, should_stop=None):
 
 def _initial_poly(views: TargetViews, mei: TargetFit):
     """The polynomial fitted (linear least squares) to the unified model's rays at the views'
-    points, with the same poses."""
+    points and over the image, with the same poses."""
     pu, pv = mei.params[3], mei.params[4]
     fu, fv = mei.params[1], mei.params[2]
-    uv = np.vstack(views.image_points)  # where the data are: a quartic may not follow the rest
+    uv = np.vstack(views.image_points)
+    w, h = views.image_size_px
+    grid = np.stack(np.meshgrid(np.linspace(0, w - 1, 40), np.linspace(0, h - 1, 30)), -1).reshape(-1, 2)
+    uv = np.vstack([uv, grid])  # the views' points and the whole image: a curve that holds beyond them
     rays = mei.unproject(uv)
     c = fv / fu
     X, Y = (uv[:, 0] - pu) / POLY_RADIUS_UNIT_PX, (uv[:, 1] - pv) / (c * POLY_RADIUS_UNIT_PX)
