@@ -335,6 +335,37 @@ def test_rescaled_profile_reads_a_rescaled_frame_as_the_original(cli, tmp_path):
     assert code == 2 and "aspect" in err
 
 
+def test_rescaled_profile_finds_the_dots_where_the_original_does(cli, tmp_path):
+    """The example scene's dark-room frame and dark frame resized to 960x720 and read with the
+    rescaled profile: every dot the original reading finds lit in the image is found at the same
+    floor point to 3 mm (the geometry is the profile's; the pipeline's pixel-scale settings -- window, dot size --
+    are the camera's, so an enlarged frame's noise can add dots of its own)."""
+    from stcvision.calibration.profiles import default_profile_path
+    from stcvision.pipeline import Pipeline
+    from stcvision.profile import Profile
+    from stcvision.sim_camera.scene import EXAMPLE_SCENE, Scene
+
+    code, _, err = cli(
+        "calibrate", "rescale", default_profile_path(), "--size", "960x720", "--out", tmp_path / "r.json"
+    )
+    assert code == 0, err
+    scene = Scene.from_dict(EXAMPLE_SCENE)
+    cam = scene.camera()
+    rng = np.random.default_rng(0)
+    frame = cam.render(scene.pose, rng=rng, phosphor=scene.phosphor, red_lights_m=scene.red_lights_m).image
+    dark = cam.median_dark(16, rng=rng)
+    a = Pipeline(Profile.load(default_profile_path())).process(frame, dark=dark)
+    size = (960, 720)
+    big = [cv2.resize(x, size, interpolation=cv2.INTER_LINEAR) for x in (frame, dark)]
+    b = Pipeline(Profile.load(tmp_path / "r.json")).process(big[0], dark=big[1])
+    # the dots found in the image (not those a row's faint-dot filter infers)
+    A = a.dots.xy_m[a.dots.lit & ~a.dots.from_row]
+    B = b.dots.xy_m[b.dots.lit]
+    assert len(A) >= 10
+    nearest = np.linalg.norm(A[:, None] - B[None], axis=2).min(axis=1)
+    assert (nearest < 0.003).all(), 1000 * nearest
+
+
 def test_the_floor_bound_holds_on_the_simulators_own_camera():
     """Four calibrations of the simulator's ray-traced spherical-mirror camera (a webcam looking
     up into the mirror: not central) from a board on the floor and raised on blocks: the unified
