@@ -444,19 +444,20 @@ def _initial_poly(views: TargetViews, mei: TargetFit):
 
 def _make_fit(model, views, sol, n_intr) -> TargetFit:
     J = sol.jac
-    J = J.toarray() if hasattr(J, "toarray") else np.asarray(J)
+    # J^T J only (parameters x parameters): a sparse Jacobian of many views is never made dense
+    JtJ = (J.T @ J).toarray() if hasattr(J, "toarray") else J.T @ J
     r = sol.fun
     dof = max(1, len(r) - len(sol.x))
     s2 = float(r @ r) / dof
     # (J^T J)^-1 with the columns scaled to unit length first: the parameters' units differ by
     # many orders (a pixel, a polynomial coefficient), and unscaled the inverse loses them
-    scale = np.linalg.norm(J, axis=0)
+    scale = np.sqrt(np.diag(JtJ))
     scale[scale == 0] = 1.0
-    Js = J / scale
+    N = JtJ / np.outer(scale, scale)
     try:
-        cov_all = np.linalg.inv(Js.T @ Js) / np.outer(scale, scale) * s2
+        cov_all = np.linalg.inv(N) / np.outer(scale, scale) * s2
     except np.linalg.LinAlgError:
-        cov_all = np.linalg.pinv(Js.T @ Js) / np.outer(scale, scale) * s2
+        cov_all = np.linalg.pinv(N) / np.outer(scale, scale) * s2
     res = r.reshape(-1, 2)
     view_rms, k = [], 0
     for img in views.image_points:

@@ -505,3 +505,16 @@ def test_a_profile_needs_its_height_in_range_and_an_out(cli, tmp_path, sample, m
     code, _, err = cli("calibrate", "target", sample, "--lights-on", "x.png")
     assert code == 2 and "--out" in err
     assert not list(tmp_path.iterdir())
+
+
+def test_many_views_take_the_sparse_path_to_the_same_fit(sample, monkeypatch):
+    """Past DENSE_JACOBIAN_ENTRIES the Jacobian stays sparse (iterative steps): forced here on
+    the real sample, the same RMS to 1e-5 px and the same standard deviations to 2 %."""
+    from stcvision.calibration import target_fit
+
+    views = read_points_file(sample)
+    dense = fit_target(views, "mei")
+    monkeypatch.setattr(target_fit, "DENSE_JACOBIAN_ENTRIES", 1000)
+    sparse = fit_target(views, "mei")
+    assert abs(sparse.rms_px - dense.rms_px) < 1e-5
+    assert np.allclose(sparse.std, dense.std, rtol=0.02)
