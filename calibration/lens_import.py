@@ -36,7 +36,7 @@ from stcvision.calibration.lens_models import CentralModel, OcamModel
 from stcvision.errors import BadInputError
 from stcvision.profile import MAX_DECENTERING, MAX_DECENTERING_RADIAL, Profile
 
-__all__ = ["Fidelity", "fidelity", "model_from_profile", "profile_from_model"]
+__all__ = ["Fidelity", "axis_basis", "fidelity", "model_from_profile", "profile_from_model"]
 
 #: the part of the image the profile must match the model on: rays within this angle of the axis
 #: (beyond, the floor is more than 3.7 viewpoint heights away and the dots too small to read)
@@ -73,7 +73,7 @@ def _grid(w: int, h: int, n: int = GRID) -> np.ndarray:
     return np.column_stack([uu.ravel(), vv.ravel()]) - 0.5  # pixel centres, 0-based
 
 
-def _basis(model) -> np.ndarray:
+def axis_basis(model) -> np.ndarray:
     """Rows e1, e2, e3: e3 = the centre pixel's ray (down to the floor), e1 along the image's u."""
     d0, ok = model.unproject(np.array([model.center_px]))
     if not ok[0]:
@@ -132,7 +132,7 @@ def fidelity(
     w, h = model.image_size_px
     uv = _grid(w, h, grid)
     rays, ok = model.unproject(uv)
-    basis = _basis(model)
+    basis = axis_basis(model)
     alpha, beta = _angles(rays, basis)
     _, _, M = _ellipse_of(model.linear_part())
     q = (uv - np.asarray(model.center_px)) @ np.linalg.inv(M).T
@@ -186,7 +186,7 @@ def profile_from_model(
         raise BadInputError(f"--viewpoint-height-m must be > 0, got {viewpoint_height_m}")
     w, h = model.image_size_px
     c = np.asarray(model.center_px, float)
-    basis = _basis(model)
+    basis = axis_basis(model)
     ratio, ell_angle, M = _ellipse_of(model.linear_part())
     if not 0.8 <= ratio <= 1.25:
         raise BadInputError(f"the model's pixels are {1 / ratio:.3f}:1 non-square; expected within 0.8..1.25")
@@ -241,11 +241,9 @@ def profile_from_model(
         viewpoint_height_m=float(viewpoint_height_m),
     )
     prov = dict(provenance or {})
-    non_radial = isinstance(model, CentralModel) and model.distortion == "radtan" and any(model.coeffs[2:])
+    non_radial = _radial_part(model) is not None
     if non_radial:  # the polynomial's degree from the model without its tangential terms
-        from dataclasses import replace
-
-        radial = replace(model, coeffs=(*model.coeffs[:2], 0.0, 0.0))
+        radial = _radial_part(model)
         r_al = _angles(radial.unproject(uv[fit])[0], basis)[0]
         prof = _fit_theta(fields, base, prov, r[fit], math.pi / 2 - r_al, rim)
     else:
@@ -259,6 +257,20 @@ def profile_from_model(
             f"{fid.elevation_err_deg_max:.3f}, azimuth {fid.azimuth_err_deg_max:.3f} degrees"
         )
     return prof.replace(axis_tilt_rad=tuple(float(t) for t in axis_tilt_rad)), fid
+
+
+def _radial_part(model):
+    """The model without its tangential terms, or None when it has none (a radial-tangential
+    central model's p1, p2; a model that says so itself with ``tangential()`` and ``radial()``)."""
+    from dataclasses import replace
+
+    if isinstance(model, CentralModel):
+        if model.distortion == "radtan" and any(model.coeffs[2:]):
+            return replace(model, coeffs=(*model.coeffs[:2], 0.0, 0.0))
+        return None
+    if hasattr(model, "tangential") and model.tangential():
+        return model.radial()
+    return None
 
 
 def _fit_theta(fields, base, prov, r, theta_t, rim) -> Profile:

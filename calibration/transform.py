@@ -35,7 +35,14 @@ from stcvision.errors import BadInputError
 from stcvision.profile import CORNER_ORDER, Profile, nominal_corners_px
 from stcvision.stc_geometry import DEFAULT_SUBCELL_M
 
-__all__ = ["TransformReport", "calibrate_neighbors", "calibrate_transform", "draw_preview", "grid_corners_m"]
+__all__ = [
+    "TransformReport",
+    "calibrate_neighbors",
+    "calibrate_transform",
+    "draw_preview",
+    "grid_corners_m",
+    "mount_uncertainty",
+]
 
 
 def grid_lines_m(subcell_m: float, reach_m: float = 1.2) -> tuple[np.ndarray, np.ndarray]:
@@ -528,3 +535,43 @@ def calibrate_mount(
     )
     prof, _ = calibrate_neighbors(frame, prof)
     return prof, report
+
+
+def mount_uncertainty(frame: np.ndarray, profile: Profile) -> dict:
+    """The standard deviations of a fitted mount's forward angle (degrees) and viewpoint height
+    (mm) from its lights-on frame, at the fit's optimum, from the tape lines' centres measured
+    across the model's lines. Points of one tape line share its errors (its width, its straightness,
+    the model's error along it), so the covariance is the cluster-robust sandwich with one cluster
+    a line, ``(J^T J)^-1 (sum_l J_l^T r_l r_l^T J_l) (J^T J)^-1`` (Liang & Zeger, Biometrika 1986),
+    not ``s^2 (J^T J)^-1``, which would count every point as news. The intrinsics' part is in the
+    floor bound."""
+    frame = geometry_frame(frame)
+    grey = cv2.cvtColor(frame, cv2.COLOR_BGR2GRAY)
+    bh = _line_image(grey)
+    lpts, laxis, loff = _line_points(profile.subcell_m)
+    l_uv, keep = _measure_line_centres(profile, bh, lpts, laxis, profile.center_px, profile.rim_radius_px)
+    ax, off = laxis[keep], loff[keep]
+
+    def res(x):
+        p = profile.replace(forward_angle_rad=float(x[0]), viewpoint_height_m=float(x[1]))
+        return _line_residuals_m(p, l_uv, ax, off)
+
+    x0 = np.array([profile.forward_angle_rad, profile.viewpoint_height_m])
+    steps = np.array([1e-5, 1e-5 * profile.viewpoint_height_m])
+    J = np.column_stack([(res(x0 + e) - res(x0 - e)) / (2 * e[i]) for i, e in enumerate(np.diag(steps))])
+    r = res(x0)
+    ok = np.isfinite(r) & np.isfinite(J).all(axis=1)
+    J, r, line = J[ok], r[ok], np.column_stack([ax[ok], np.round(off[ok], 6)])
+    bread = np.linalg.inv(J.T @ J)
+    meat = np.zeros((2, 2))
+    lines = np.unique(line, axis=0)
+    for g in lines:
+        sel = (line == g).all(axis=1)
+        v = J[sel].T @ r[sel]
+        meat += np.outer(v, v)
+    sd = np.sqrt(np.diag(bread @ meat @ bread))
+    return {
+        "forward_angle_deg_std": math.degrees(sd[0]),
+        "viewpoint_height_mm_std": 1000 * sd[1],
+        "lines": int(len(lines)),
+    }

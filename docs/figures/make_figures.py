@@ -3,6 +3,8 @@
 ``docs/frame_and_lights_on.png``: a rendered dark-room frame beside the lights-on frame of the same
 pose (the README's picture). ``docs/figures/pipeline_stages.png``: the same frame through the
 pipeline's stages (the explanation page "The vision pipeline, stage by stage").
+``docs/figures/target_uncertainty.png``: the projection-uncertainty map of ``calibrate target`` on
+OpenCV's omnidirectional sample (the how-to "Calibrate from a checkerboard").
 """
 
 from pathlib import Path
@@ -30,6 +32,16 @@ def main() -> None:
     cv2.imwrite(str(DOCS / "frame_and_lights_on.png"), pair)
     print("wrote", DOCS / "frame_and_lights_on.png")
     stages_figure(frame, dark, FIGURES / "pipeline_stages.png")
+    target_figure(FIGURES / "target_uncertainty.png")
+
+
+def target_figure(path: Path) -> None:
+    """The uncertainty map ``calibrate target`` writes for OpenCV's real omnidirectional sample."""
+    from stcvision.calibration.target import calibrate_target, load_views
+
+    views, _ = load_views(DOCS.parent / "datasets" / "peer_data" / "opencv_omnidir" / "omni_calib_data.xml")
+    path.write_bytes(calibrate_target(views).png)
+    print("wrote", path)
 
 
 def stages_figure(frame: np.ndarray, dark: np.ndarray, path: Path) -> None:

@@ -10,6 +10,10 @@ versioned profile.
   stcvision calibrate import FILE --viewpoint-height-m H --out PROFILE.json [--format F] [--camera camN]
                              [--forward-angle-deg A] [--mirrored] [--rim-px R] [--lights-on FRAME] [--force]
   stcvision calibrate export PROFILE.json --format ocamcalib|omnidir|kalibr --out FILE [--force]
+  stcvision calibrate target POINTS.xml|FOLDER [--camera 1|2] [--pattern P --board COLSxROWS --spacing S]
+                             [--model mei|poly] [--folds K] [--uncertainty-png U.png]
+                             [--out PROFILE.json --viewpoint-height-m H --lights-on FRAME] [--force]
+  stcvision calibrate rescale PROFILE.json --size WxH --out PROFILE.json [--force]
 
 For transform and neighbors the robot stands on the board with the room lights on, at the
 centre of a sub-cell and facing along the grid (as when it enters a cell).
@@ -85,7 +89,8 @@ def add_parser(p):
     n.add_argument("--yes", action="store_true", help="accept without asking")
     n.add_argument("--force", action="store_true", help="overwrite an existing --out or preview")
     i, e = _add_lens_file_parsers(sub)
-    for q in (d, r, t, n, i, e):
+    g, s = _add_target_parsers(sub)
+    for q in (d, r, t, n, i, e, g, s):
         q.add_argument("--json", action="store_true", help="print the result as one JSON object")
 
 
@@ -178,6 +183,65 @@ def _add_lens_file_parsers(sub):
     return i, e
 
 
+def _add_target_parsers(sub):
+    """The ``target`` and ``rescale`` steps."""
+    from stcvision.calibration.target import DEFAULT_FOLDS
+    from stcvision.calibration.target_fit import MODELS
+    from stcvision.calibration.target_views import PATTERNS
+    from stcvision.cli._args import pair, positive
+    from stcvision.sim_camera.board import DEFAULT_SUBCELL_M
+
+    g = sub.add_parser(
+        "target",
+        help="intrinsics from planar targets (checkerboard / circle-grid images or OpenCV points files)",
+        description="Fit Mei's unified model and OCamCalib's polynomial to views of a planar target, test each "
+        "by k-fold over the views (held-out RMS) and by two calibrations on disjoint halves, and map the chosen "
+        "model's projection uncertainty. With --out, the profile: its mount from a lights-on frame, its floor "
+        "uncertainty (mm at 0.1-0.9 m) and a verdict on whether the STC robot can work with it.",
+    )
+    g.add_argument("source", metavar="POINTS|FOLDER", help="an OpenCV FileStorage points file or a folder of images")
+    g.add_argument("--camera", type=int, choices=(1, 2), help="the camera of a stereo points file")
+    g.add_argument(
+        "--image-size", type=pair(int, fmt="WxH", example="1280x960"), metavar="WxH", help="for a file without one"
+    )
+    g.add_argument("--pattern", choices=PATTERNS, help="the target in the images")
+    g.add_argument(
+        "--board",
+        type=pair(int, fmt="COLSxROWS", example="9x6"),
+        metavar="COLSxROWS",
+        help="inner corners (or circles) per row and per column",
+    )
+    g.add_argument("--spacing", type=positive(float), metavar="S", help="distance between neighbouring points (m)")
+    g.add_argument(
+        "--model", choices=tuple(MODELS), help="fit this model only (default: all, the lowest held-out RMS chosen)"
+    )
+    g.add_argument(
+        "--folds", type=int, default=DEFAULT_FOLDS, metavar="K", help=f"k-fold over views (default {DEFAULT_FOLDS})"
+    )
+    g.add_argument(
+        "--uncertainty-png", metavar="PNG", help="the uncertainty map (default: SOURCE's name + .uncertainty.png here)"
+    )
+    g.add_argument("--out", metavar="PROFILE.json", help="also write the profile (needs --viewpoint-height-m)")
+    g.add_argument("--viewpoint-height-m", type=positive(float), metavar="H", help="the viewpoint's height (m)")
+    g.add_argument("--lights-on", metavar="FRAME", help="fit the mount to this lights-on frame of the grid")
+    g.add_argument("--forward-angle-deg", type=float, default=-90.0, metavar="A", help="as for import (default -90)")
+    g.add_argument("--mirrored", action="store_true", help="as for import")
+    g.add_argument("--rim-px", type=positive(float), metavar="R", help="as for import")
+    g.add_argument("--subcell-m", type=positive(float), default=DEFAULT_SUBCELL_M, help="the board's sub-cell side")
+    g.add_argument("--force", action="store_true", help="overwrite --out and the map")
+    s = sub.add_parser(
+        "rescale",
+        help="a profile for the same camera run at another resolution",
+        description="Scale a profile's pixel quantities to a camera run at another resolution (same sensor area, "
+        "scaled: a binned or resized mode); the aspect ratio must be kept.",
+    )
+    s.add_argument("profile", metavar="PROFILE.json")
+    s.add_argument("--size", required=True, type=pair(int, fmt="WxH", example="640x480"), metavar="WxH")
+    s.add_argument("--out", required=True, metavar="PROFILE.json")
+    s.add_argument("--force", action="store_true", help="overwrite --out")
+    return g, s
+
+
 def _confirm(preview: str, yes: bool) -> None:
     from stcvision.errors import BadInputError
 
@@ -200,9 +264,12 @@ def run(args):
     from stcvision.errors import BadInputError
 
     if args.step is None:
-        raise BadInputError("calibrate needs a step: dark, rim, transform, neighbors, import or export (see --help)")
+        raise BadInputError(
+            "calibrate needs a step: dark, rim, transform, neighbors, import, export, target or rescale (see --help)"
+        )
     steps = {"dark": _dark, "rim": _rim, "transform": _transform, "neighbors": _neighbors}
-    r = {**steps, "import": _import, "export": _export}[args.step](args)
+    more = {"import": _import, "export": _export, "target": _target, "rescale": _rescale}
+    r = {**steps, **more}[args.step](args)
     return {"step": args.step, **r}
 
 
@@ -265,7 +332,83 @@ def _import(args):
     }
 
 
+def _target(args):
+    import math
+    from pathlib import Path
+
+    from stcvision.calibration.target import calibrate_target, load_views, target_profile
+    from stcvision.errors import BadInputError, OutputError
+    from stcvision.fileio import check_output_file, raise_if_signalled, read_image, write_bytes_atomic
+
+    png = args.uncertainty_png or f"{Path(args.source).name}.uncertainty.png"
+    if Path(png).suffix.lower() != ".png":
+        raise OutputError(f"uncertainty map {png} does not end in .png; expected a .png file name")
+    check_output_file(png, overwrite=args.force or _own_preview(png), what="uncertainty map")
+    if args.out is not None:
+        if not str(args.out).lower().endswith(".json"):
+            raise OutputError(f"profile {args.out} does not end in .json; expected a .json file name")
+        if args.viewpoint_height_m is None:
+            raise BadInputError("--out needs --viewpoint-height-m (the first guess the lights-on frame refines)")
+        check_output_file(args.out, overwrite=args.force, what="profile")
+        _check_mount_ranges(args.subcell_m, args.viewpoint_height_m)
+    elif args.lights_on or args.viewpoint_height_m:
+        raise BadInputError("--lights-on and --viewpoint-height-m make a profile: give --out PROFILE.json too")
+    frame = read_image(args.lights_on, what="lights-on frame") if args.lights_on else None
+    views, kind = load_views(
+        args.source,
+        camera=args.camera,
+        image_size=args.image_size,
+        pattern=args.pattern,
+        board=args.board,
+        spacing=args.spacing,
+        should_stop=raise_if_signalled,
+    )
+    res = calibrate_target(views, model=args.model, folds=args.folds, should_stop=raise_if_signalled)
+    rep = {"source": str(args.source), "source_kind": kind, **res.report}
+    if args.out is not None:
+        prof, floor = target_profile(
+            res.fit,
+            viewpoint_height_m=args.viewpoint_height_m,
+            forward_angle_rad=math.radians(args.forward_angle_deg),
+            mirrored=args.mirrored,
+            rim_px=args.rim_px,
+            subcell_m=args.subcell_m,
+            lights_on=frame,
+            provenance={
+                "method": f"calibrate target ({rep['model']} model on {len(views)} views of a planar target)",
+                "source": str(args.source),
+                "rms_px": rep["rms_px"],
+                "heldout_rms_px": rep["heldout_rms_px"],
+                **({"lights_on_frame": str(args.lights_on)} if args.lights_on else {}),
+            },
+            n_views=len(views),
+            heldout_ratio=rep["heldout_rms_px"] / rep["rms_px"],
+            cv_ratio=rep["cross_validation"].get("diff_over_predicted", 1.0),
+        )
+        prof.save(args.out, overwrite=args.force)
+        rep.update(out=str(args.out), **floor)
+    write_bytes_atomic(png, _tag_png(res.png), overwrite=True)  # checked above
+    rep["uncertainty_png"] = png
+    return rep
+
+
+def _rescale(args):
+    from stcvision.calibration.rescale import rescale_profile
+    from stcvision.errors import OutputError
+    from stcvision.fileio import check_output_file
+    from stcvision.profile import Profile
+
+    if not str(args.out).lower().endswith(".json"):
+        raise OutputError(f"profile {args.out} does not end in .json; expected a .json file name")
+    check_output_file(args.out, overwrite=args.force, what="profile")
+    prof = rescale_profile(Profile.load(args.profile), tuple(args.size))
+    prof.save(args.out, overwrite=args.force)
+    return {"out": str(args.out), "image_size_px": list(prof.image_size_px), "scale": prof.provenance["rescaled"]}
+
+
 def _model_name(model) -> str:
+    if model.kind == "poly":
+        return "polynomial with decentering"
     if model.kind == "ocamcalib":
         return f"ocamcalib ({len(model.ss)} ss terms)"
     return f"{model.projection}-{model.distortion}"
@@ -367,12 +510,16 @@ PREVIEW_TAG = b"Software\x00stcvision calibrate preview"
 
 def _preview_png(image) -> bytes:
     """``image`` as PNG bytes with :data:`PREVIEW_TAG` as a tEXt chunk before IEND."""
+    from stcvision.fileio import image_bytes
+
+    return _tag_png(image_bytes(image, ".png"))
+
+
+def _tag_png(png: bytes) -> bytes:
+    """PNG bytes with :data:`PREVIEW_TAG` as a tEXt chunk before IEND."""
     import struct
     import zlib
 
-    from stcvision.fileio import image_bytes
-
-    png = image_bytes(image, ".png")
     chunk = b"tEXt" + PREVIEW_TAG
     text = struct.pack(">I", len(PREVIEW_TAG)) + chunk + struct.pack(">I", zlib.crc32(chunk))
     return png[:-12] + text + png[-12:]  # IEND is the last 12 bytes
@@ -409,6 +556,25 @@ def _write_preview(preview: str, image) -> None:
     write_bytes_atomic(preview, _preview_png(image), overwrite=True)  # checked by _check_outputs
 
 
+def _check_mount_ranges(subcell_m: float, viewpoint_m: float, *, flag: str = "--viewpoint-height-m") -> None:
+    """The board's sub-cell and the viewpoint's height within what the grid fits sample."""
+    from stcvision.errors import BadInputError
+    from stcvision.limits import (
+        MAX_CALIBRATION_SUBCELL_M,
+        MAX_VIEWPOINT_M,
+        MIN_CALIBRATION_SUBCELL_M,
+        MIN_VIEWPOINT_M,
+    )
+
+    if not MIN_CALIBRATION_SUBCELL_M <= subcell_m <= MAX_CALIBRATION_SUBCELL_M:
+        raise BadInputError(
+            f"--subcell-m must be in [{MIN_CALIBRATION_SUBCELL_M:g}, {MAX_CALIBRATION_SUBCELL_M:g}] m (the fit "
+            f"samples grid lines every cm out to 1 m), got {subcell_m:g}"
+        )
+    if not MIN_VIEWPOINT_M <= viewpoint_m <= MAX_VIEWPOINT_M:
+        raise BadInputError(f"{flag} must be in [{MIN_VIEWPOINT_M:g}, {MAX_VIEWPOINT_M:g}] m, got {viewpoint_m:g}")
+
+
 def _transform(args):
     from pathlib import Path
 
@@ -418,22 +584,7 @@ def _transform(args):
 
     preview = args.preview or str(Path(args.out).with_suffix(".preview.png"))
     _check_outputs(args, args.out, preview, out_force=args.force)
-    from stcvision.limits import (
-        MAX_CALIBRATION_SUBCELL_M,
-        MAX_VIEWPOINT_M,
-        MIN_CALIBRATION_SUBCELL_M,
-        MIN_VIEWPOINT_M,
-    )
-
-    if not MIN_CALIBRATION_SUBCELL_M <= args.subcell_m <= MAX_CALIBRATION_SUBCELL_M:
-        raise BadInputError(
-            f"--subcell-m must be in [{MIN_CALIBRATION_SUBCELL_M:g}, {MAX_CALIBRATION_SUBCELL_M:g}] m (the fit "
-            f"samples grid lines every cm out to 1 m), got {args.subcell_m:g}"
-        )
-    if not MIN_VIEWPOINT_M <= args.viewpoint_m <= MAX_VIEWPOINT_M:
-        raise BadInputError(
-            f"--viewpoint-m must be in [{MIN_VIEWPOINT_M:g}, {MAX_VIEWPOINT_M:g}] m, got {args.viewpoint_m:g}"
-        )
+    _check_mount_ranges(args.subcell_m, args.viewpoint_m, flag="--viewpoint-m")
     frame = read_image(args.frame, what="lights-on frame")
     prof, rep = calibrate_transform(
         frame, subcell_m=args.subcell_m, center_px=args.center, viewpoint_height_m=args.viewpoint_m
@@ -519,4 +670,52 @@ def format_text(r):
         if step == "import":
             return f"wrote {r['out']} ({r['lens_model']}){fit}"
         return f"wrote {r['out']}{fit}\nimport it back with: {r['import_command']}"
+    if step == "target":
+        return _target_text(r)
+    if step == "rescale":
+        return f"wrote {r['out']}: the profile at {r['image_size_px'][0]}x{r['image_size_px'][1]} (x{r['scale']:.4g})"
     return f"wrote {r['out']}: {len(r['corners_px'])} neighbour corners (preview {r['preview']})"
+
+
+def _target_text(r) -> str:
+    lines = [f"{r['views']} views, {r['points']} points ({r['source_kind']} {r['source']})"]
+    lines += [f"  refused {x['view']}: {x['reason']}" for x in r["refused_views"]]
+    lines.append(f"model            in-sample RMS   held-out RMS ({r['folds']}-fold)")
+    for name, m in r["models"].items():
+        if "failed" in m:
+            lines.append(f"{name:<16} not fitted: {m['failed']}")
+            continue
+        mark = " <- chosen" if name == r["model"] else ""
+        lines.append(f"{name:<16} {m['rms_px']:.3f} px       {m['heldout_rms_px']:.3f} px{mark}")
+    cv = r["cross_validation"]
+    if "failed" in cv:
+        lines.append(f"two halves of the views could not be calibrated apart: {cv['failed']}")
+    else:
+        lines.append(
+            f"two halves of the views differ by {cv['diff_px_median']:.2f} px (median) where their uncertainties "
+            f"predict {cv['predicted_px_median']:.2f} px; {100 * cv['within_95_fraction']:.0f} % within the 95 % bound"
+        )
+    u = r["uncertainty"]
+    lines.append(
+        f"projection uncertainty where the target was seen: {u['sigma_px_median_where_observed']:.2f} px "
+        f"(1 sigma, median), {u['r95_px_max_where_observed']:.2f} px (95 %, worst); map {r['uncertainty_png']}"
+    )
+    if r.get("mount"):
+        m = r["mount"]
+        lines.append(
+            f"mount from the lights-on frame: forward {m['forward_angle_deg']:.2f} +- {m['forward_angle_deg_std']:.2f} "
+            f"deg, height {1000 * m['viewpoint_height_m']:.1f} +- {m['viewpoint_height_mm_std']:.1f} mm, "
+            f"{'mirrored' if m['mirrored'] else 'not mirrored'}; tape lines {m['line_err_mm_median']:.2f} mm off the "
+            "model (median)"
+        )
+    if "floor" in r:
+        fl = ", ".join(f"{x['distance_m']:g} m {x['r95_mm']:.1f}" for x in r["floor"] if x["r95_mm"] is not None)
+        lines.append(f"floor, 95 % bound (mm): {fl}")
+        v = r["verdict"]
+        lines.append(
+            "verdict: good enough for the STC robot"
+            if v["ok"]
+            else "verdict: not yet good enough for the STC robot: " + "; ".join(v["advice"])
+        )
+        lines.append(f"wrote {r['out']}")
+    return "\n".join(lines)
