@@ -283,22 +283,23 @@ def verdict(
     side) at every distance up to the farthest neighbour corner it reads; and the held-out error
     must not say the model overfits. When two calibrations on halves of the views differ by more
     than their covariances predict (``cv_ratio`` > 1: model error, not the corners' noise,
-    dominates), the bound is scaled up by that ratio: the covariance alone would flatter the
-    calibration. The mount's fit to the lights-on frame is a test of its own: the grid's tape
-    lines must land on the model's lines to within half the band (``mount_line_err_mm``, the
-    median). If not good enough, what to add."""
+    dominates), the floor bounds passed in already carry that ratio (the fit's covariance was
+    widened by it: :func:`stcvision.calibration.target.model_error_inflation`), and above
+    :data:`CV_RATIO_MAX` the verdict says so. The mount's fit to the lights-on frame is a test of
+    its own: the grid's tape lines must land on the model's lines to within half the band
+    (``mount_line_err_mm``, the median). If not good enough, what to add."""
     from stcvision.observation import ROW_TOL
 
     limit_mm = 1000 * ROW_TOL * subcell_m
-    scale = max(1.0, cv_ratio)
+    scale = 1.0  # the model error is in the covariance already
     rows = [r for r in floor if r["distance_m"] <= reach_m + 1e-9]
     unseen = [r["distance_m"] for r in rows if r["r95_mm"] is None or r["seen_fraction"] < 1.0]
     worst = scale * max((r["r95_mm"] for r in rows if r["r95_mm"] is not None), default=math.inf)
     advice = []
-    if scale > CV_RATIO_MAX:
+    if cv_ratio > CV_RATIO_MAX:
         advice.append(
-            f"two calibrations on halves of the views differ by {cv_ratio:.1f}x what their uncertainties predict: "
-            "the model does not follow this camera to its noise (the floor bound is scaled by that ratio)"
+            f"two calibrations on halves of the views differ by {cv_ratio:.1f}x what the views' noise predicts: "
+            "the model does not follow this camera to its noise (every uncertainty is widened by that ratio)"
         )
     if unseen:
         advice.append(f"the image does not see all around at {', '.join(f'{d:g}' for d in unseen)} m")
@@ -328,7 +329,7 @@ def verdict(
         "limit_mm": limit_mm,
         "reach_m": reach_m,
         "worst_r95_mm": None if math.isinf(worst) else worst,
-        "bound_scale": scale,
+        "model_error_ratio": cv_ratio,
         "advice": advice,
     }
 
