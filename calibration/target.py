@@ -70,8 +70,10 @@ def model_error_inflation(cv: dict) -> float:
     disjoint halves of the views differ by more than their covariances predict, the model does
     not follow the camera down to that noise, and the covariance alone would flatter the
     calibration (OpenCV's real omnidirectional sample: halves 8.6-9.1 px apart where 2.1 px was
-    predicted). The measured ratio of the two (never below 1) widens every standard deviation
-    alike, as a Birge ratio does; with an adequate model it is about 1 and changes nothing.
+    predicted). Above :data:`~stcvision.calibration.target_uncertainty.CV_RATIO_MAX` (where the
+    verdict says the model does not follow the camera; below it the ratio is within what the
+    halves' own sampling gives an adequate model) the measured ratio widens every standard
+    deviation alike, as a Birge ratio does; otherwise nothing changes.
 
     Parameters
     ----------
@@ -84,8 +86,11 @@ def model_error_inflation(cv: dict) -> float:
     float
         The factor on the standard deviations, at least 1.
     """
+    from stcvision.calibration.target_uncertainty import CV_RATIO_MAX
+
     ratio = cv.get("diff_over_predicted")
-    return max(1.0, float(ratio)) if ratio is not None and np.isfinite(ratio) else 1.0
+    ok = ratio is not None and np.isfinite(ratio) and ratio > CV_RATIO_MAX
+    return float(ratio) if ok else 1.0
 
 
 def inflate(fit: TargetFit, factor: float) -> TargetFit:

@@ -537,5 +537,6 @@ def test_model_error_widens_the_uncertainty_to_what_the_halves_show(peer_data):
     raw = r.report["models"]["mei"]["params"]
     assert r.report["params"]["fu"]["std"] == pytest.approx(k * raw["fu"]["std"], rel=1e-9)
     assert model_error_inflation({"diff_over_predicted": 0.7}) == 1.0
+    assert model_error_inflation({"diff_over_predicted": 1.6}) == 1.0  # within the halves' own sampling
     assert model_error_inflation({"failed": "a half could not be fitted"}) == 1.0
     assert inflate(r.fit, 1.0) is r.fit
