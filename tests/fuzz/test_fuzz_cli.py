@@ -72,6 +72,13 @@ def _stubs():
         stack.enter_context(mock.patch("stcvision.sim_camera.scene.Scene.camera", _reached))
         for name in ("reproduce", "compare", "calibrate"):
             stack.enter_context(mock.patch.object(buffon_run, name, _reached))
+        # the simulated robot serves a pseudo-terminal until told to stop (a minute without a
+        # word), a robot run drives a port, the firmware's checks and build compile and emulate:
+        # past their arguments, none is what a fuzz case tests
+        stack.enter_context(mock.patch("stcvision.controllers.stc.simrobot.serve_pty", _reached))
+        stack.enter_context(mock.patch("stcvision.controllers.stc.robot_link.run_robot", _reached))
+        stack.enter_context(mock.patch("stcvision.controllers.stc.firmware_report.identity_report", _reached))
+        stack.enter_context(mock.patch("stcvision.controllers.stc.firmware_report.build_firmware", _reached))
         yield
 
 
