@@ -181,11 +181,11 @@ class CoverRecorder(Observer):
         abort_recording(self.rec, self.tmp)
 
 
-def run_cover_recorded(board, cfg, rrd=None, observers=()) -> dict:
+def run_cover_recorded(board, cfg, rrd=None, observers=(), perception_hook=None) -> dict:
     """:func:`stcvision.controllers.stc.loop.run_cover` with a rerun recording to ``rrd`` (when given),
     renamed into place only when the run ends: an error or a signal removes it."""
     from stcvision.controllers.stc.loop import run_cover
 
     with Recordings() as recs:
         recorder = recs.add(CoverRecorder(rrd, board)) if rrd else None
-        return run_cover(board, cfg, observers=[recorder, *observers])
+        return run_cover(board, cfg, observers=[recorder, *observers], perception_hook=perception_hook)
