@@ -1,6 +1,7 @@
-"""A coverage run's paths and readings as files: the true and believed paths in the TUM
-trajectory format (what ``evo`` reads, :class:`PathLog`) and one JSON line per decision and
-per look (:class:`JsonTrace`).
+"""A coverage run's paths and readings as files.
+
+The true and believed paths in the TUM trajectory format (what ``evo`` reads,
+:class:`PathLog`) and one JSON line per decision and per look (:class:`JsonTrace`).
 
 Both are observers (:class:`stcvision.controllers.stc.observers.Observer`): they read the plant
 and the belief as the loop tells them of a reading or a move and keep copies; the controller
@@ -70,6 +71,11 @@ class PathLog(Observer):
     moves the robot after the move's own check: the pose before it is not in the paths, and
     their largest distance may then fall short of the figure.
 
+    Parameters
+    ----------
+    board : Board
+        The run's board (the believed position is its sub-cell's centre plus the offset).
+
     Attributes
     ----------
     true : list of tuple
@@ -94,15 +100,37 @@ class PathLog(Observer):
         self.believed.append((t_s, float(c[0]), float(c[1]), compass_to_rad(belief.hc)))
 
     def on_reading(self, ev: Reading) -> None:
+        """Keep the start pose at the first reading.
+
+        Parameters
+        ----------
+        ev : Reading
+            A decision or a look.
+        """
         # nothing moves the robot before its first decision: its start pose, at the clock's zero
         if not self.true:
             self._keep(ev.plant, _AtStart(ev.belief), 0.0)
 
     def on_move(self, plant, belief) -> None:
+        """Keep the poses after a forward move.
+
+        Parameters
+        ----------
+        plant : Plant
+            The physical robot: the true pose.
+        belief : Belief
+            What the robot believes: the believed pose.
+        """
         self._keep(plant, belief, plant.t)
 
     def tum(self) -> dict[str, str]:
-        """The two TUM files' text, by file name (:data:`TUM_FILES`)."""
+        """Return the two TUM files' text.
+
+        Returns
+        -------
+        dict of str to str
+            By file name (:data:`TUM_FILES`): the true path's, then the believed path's.
+        """
         return {
             name: "".join(tum_line(*p) + "\n" for p in poses)
             for name, poses in zip(TUM_FILES, (self.true, self.believed), strict=True)
@@ -129,7 +157,7 @@ class _AtStart:
 
 
 def _plain(obj):
-    """A dataclass, tuple or numpy value as JSON's plain types."""
+    """Return a dataclass, tuple or numpy value as JSON's plain types."""
     if dataclasses.is_dataclass(obj) and not isinstance(obj, type):
         return {f.name: _plain(getattr(obj, f.name)) for f in dataclasses.fields(obj)}
     if isinstance(obj, (tuple, list, np.ndarray)):
@@ -148,6 +176,11 @@ class JsonTrace(Observer):
     verdict on a decision can come after the looks that follow it (a decision is judged when the
     robot leaves its cell), so the lines are kept until the run ends. Their number is bounded by
     the run's own cap (``CoverConfig.max_decisions``, each decision followed by a few looks).
+
+    Parameters
+    ----------
+    board : Board
+        The run's board (the believed position is its sub-cell's centre plus the offset).
     """
 
     def __init__(self, board) -> None:
@@ -160,7 +193,13 @@ class JsonTrace(Observer):
         self._last_decision: dict | None = None
 
     def attach(self, perception) -> None:
-        """Read ``perception``'s frames and whether the referee judges it (a perception hook)."""
+        """Read a perception's frames and whether the referee judges it.
+
+        Parameters
+        ----------
+        perception : Perception
+            The run's perception (``run_cover``'s ``perception_hook`` hands it over).
+        """
         self.refereed = bool(getattr(perception, "refereed", False))
         self._cam = getattr(perception, "cam", None)
         self._seen = self._counts()
@@ -169,7 +208,7 @@ class JsonTrace(Observer):
         return list(getattr(self._cam, "per_rung", []))
 
     def _frames(self) -> list[dict] | None:
-        """The frames taken since the last reading or turn, by rung (None: no camera)."""
+        """Return the frames taken since the last reading or turn, by rung (None: no camera)."""
         if self._cam is None or not hasattr(self._cam, "ladder"):
             return None
         now = self._counts()
@@ -191,9 +230,11 @@ class JsonTrace(Observer):
         return used
 
     def on_turn(self, plant, belief, measured_rad) -> None:
+        """Leave a turn's frames out of the next reading's."""
         self._frames()  # a turn's frames measure the heading, not the next reading
 
     def on_reading(self, ev: Reading) -> None:
+        """Keep one line for a decision or a look."""
         p, b = ev.plant, ev.belief
         centre = np.asarray(self.board.subcell_center_m(*b.sub), float)
         line = {
@@ -228,6 +269,7 @@ class JsonTrace(Observer):
         self.lines.append(line)
 
     def on_referee(self, kind: str, text: str) -> None:
+        """Put the referee's finding on the line it is about."""
         finding = {"kind": kind, "text": text}
         if kind == "look error":
             self._look_findings.append(finding)
@@ -236,19 +278,55 @@ class JsonTrace(Observer):
             self._last_decision["verdict"]["findings"].append(finding)
 
     def jsonl(self) -> str:
-        """The trace's text: one compact JSON object a line."""
+        """Return the trace's text.
+
+        Returns
+        -------
+        str
+            One compact JSON object a line, in the order of the readings.
+        """
         return "".join(json.dumps(line, allow_nan=False) + "\n" for line in self.lines)
 
 
 def write_paths(folder: str | Path, paths: PathLog, *, overwrite: bool = False) -> list[Path]:
-    """Write ``paths``' TUM files into ``folder`` as one set (:func:`stcvision.fileio.write_set`)."""
+    """Write the TUM files into a folder as one set (:func:`stcvision.fileio.write_set`).
+
+    Parameters
+    ----------
+    folder : str or Path
+        Where ``true.tum`` and ``believed.tum`` go (made if missing).
+    paths : PathLog
+        The run's paths.
+    overwrite : bool
+        Replace existing files; else they are refused.
+
+    Returns
+    -------
+    list of Path
+        The files written.
+    """
     from stcvision.fileio import write_set
 
     return write_set(folder, {k: v.encode() for k, v in paths.tum().items()}, overwrite=overwrite)
 
 
 def write_trace(path: str | Path, trace: JsonTrace, *, overwrite: bool = False) -> Path:
-    """Write ``trace`` to ``path`` atomically (:func:`stcvision.fileio.write_bytes_atomic`)."""
+    """Write the trace to a file atomically (:func:`stcvision.fileio.write_bytes_atomic`).
+
+    Parameters
+    ----------
+    path : str or Path
+        The JSON-lines file.
+    trace : JsonTrace
+        The run's trace.
+    overwrite : bool
+        Replace an existing file; else it is refused.
+
+    Returns
+    -------
+    Path
+        The file written.
+    """
     from stcvision.fileio import write_bytes_atomic
 
     return write_bytes_atomic(path, trace.jsonl().encode(), overwrite=overwrite)
