@@ -26,6 +26,7 @@ __all__ = [
     "TUM_FILES",
     "JsonTrace",
     "PathLog",
+    "tum_files",
     "tum_line",
     "write_paths",
     "write_trace",
@@ -59,6 +60,25 @@ def tum_line(t_s: float, x_m: float, y_m: float, yaw_rad: float) -> str:
     """
     qz, qw = math.sin(yaw_rad / 2), math.cos(yaw_rad / 2)
     return " ".join(f"{v:.{_DECIMALS}f}" for v in (t_s, x_m, y_m, 0.0, 0.0, 0.0, qz, qw))
+
+
+def tum_files(true, believed) -> dict[str, str]:
+    """Return the TUM files' text of two paths sampled at the same times.
+
+    Parameters
+    ----------
+    true, believed : sequence of tuple
+        (t_s, x_m, y_m, heading_rad) each, the same times in both.
+
+    Returns
+    -------
+    dict of str to str
+        By file name (:data:`TUM_FILES`): the true path's, then the believed path's.
+    """
+    return {
+        name: "".join(tum_line(*p) + "\n" for p in poses)
+        for name, poses in zip(TUM_FILES, (true, believed), strict=True)
+    }
 
 
 class PathLog(Observer):
@@ -131,10 +151,7 @@ class PathLog(Observer):
         dict of str to str
             By file name (:data:`TUM_FILES`): the true path's, then the believed path's.
         """
-        return {
-            name: "".join(tum_line(*p) + "\n" for p in poses)
-            for name, poses in zip(TUM_FILES, (self.true, self.believed), strict=True)
-        }
+        return tum_files(self.true, self.believed)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -288,15 +305,15 @@ class JsonTrace(Observer):
         return "".join(json.dumps(line, allow_nan=False) + "\n" for line in self.lines)
 
 
-def write_paths(folder: str | Path, paths: PathLog, *, overwrite: bool = False) -> list[Path]:
+def write_paths(folder: str | Path, paths, *, overwrite: bool = False) -> list[Path]:
     """Write the TUM files into a folder as one set (:func:`stcvision.fileio.write_set`).
 
     Parameters
     ----------
     folder : str or Path
         Where ``true.tum`` and ``believed.tum`` go (made if missing).
-    paths : PathLog
-        The run's paths.
+    paths : PathLog or dict
+        The run's paths, or the files' text by name (:func:`tum_files`).
     overwrite : bool
         Replace existing files; else they are refused.
 
@@ -307,7 +324,8 @@ def write_paths(folder: str | Path, paths: PathLog, *, overwrite: bool = False) 
     """
     from stcvision.fileio import write_set
 
-    return write_set(folder, {k: v.encode() for k, v in paths.tum().items()}, overwrite=overwrite)
+    files = paths.tum() if isinstance(paths, PathLog) else paths
+    return write_set(folder, {k: v.encode() for k, v in files.items()}, overwrite=overwrite)
 
 
 def write_trace(path: str | Path, trace: JsonTrace, *, overwrite: bool = False) -> Path:

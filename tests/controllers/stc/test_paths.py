@@ -146,3 +146,19 @@ def test_existing_files_refused_without_force(tmp_path, capsys):
     assert main([*argv, "--trajectory", str(paths), "--force"]) == 0
     assert trace.read_text() != "mine\n" and (paths / "believed.tum").exists()
     assert [p.name for p in tmp_path.iterdir() if p.name.startswith(".")] == []  # no temporaries left
+
+
+def test_search_trajectory_evo_max_is_max_odometry_error(tmp_path, capsys):
+    """search --trajectory: the true path and the odometry's at the start and after every move;
+    evo's APE max is the run's max_odometry_error_m (which --json rounds to 4 decimals)."""
+    paths = tmp_path / "paths"
+    argv = ["search", "--max-steps", "12", "--obstacle", "0.5,0.2,0.1", "--trajectory", str(paths)]
+    code, summary = _run(argv, capsys)
+    assert code == 0 and summary["trajectory"] == str(paths)
+    r = subprocess.run(
+        [sys.executable, "-c", EVO_APE, str(paths / "true.tum"), str(paths / "believed.tum")],
+        capture_output=True, text=True, env=_evo_env(tmp_path), check=True,
+    )  # fmt: skip
+    ape = json.loads(r.stdout)
+    assert ape["poses"] == summary["moves"] + 1
+    assert ape["max"] == pytest.approx(summary["max_odometry_error_m"], abs=5e-5)
