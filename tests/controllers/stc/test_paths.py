@@ -162,3 +162,13 @@ def test_search_trajectory_evo_max_is_max_odometry_error(tmp_path, capsys):
     ape = json.loads(r.stdout)
     assert ape["poses"] == summary["moves"] + 1
     assert ape["max"] == pytest.approx(summary["max_odometry_error_m"], abs=5e-5)
+
+
+def test_recording_draws_the_true_and_believed_paths(tmp_path, capsys):
+    """cover --rrd draws the two paths on the floor map (what --trajectory writes)."""
+    rrd = tmp_path / "c.rrd"
+    code, _ = _run(["cover", "--board", "3x3", "--perception", "oracle", "--rrd", str(rrd)], capsys)
+    assert code == 0
+    rerun = Path(sys.executable).parent / "rerun"
+    text = subprocess.run([str(rerun), "rrd", "print", "-v", str(rrd)], capture_output=True, text=True).stdout
+    assert "/world/path/true" in text and "/world/path/believed" in text
