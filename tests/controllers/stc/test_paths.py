@@ -172,3 +172,34 @@ def test_recording_draws_the_true_and_believed_paths(tmp_path, capsys):
     rerun = Path(sys.executable).parent / "rerun"
     text = subprocess.run([str(rerun), "rrd", "print", "-v", str(rrd)], capture_output=True, text=True).stdout
     assert "/world/path/true" in text and "/world/path/believed" in text
+
+
+def test_trace_puts_each_finding_on_the_line_it_judges():
+    """A misread or a decision error goes on the latest decision's line (a decision is judged
+    when the robot leaves its cell, after its looks); a look error, reported before its look's
+    reading, on that look's line."""
+    from types import SimpleNamespace
+
+    import numpy as np
+
+    from stcvision.controllers.stc.observers import Reading
+    from stcvision.controllers.stc.paths import JsonTrace
+    from stcvision.sim_camera.board import Board
+
+    board = Board.from_text("S...\n....\n")
+    plant = SimpleNamespace(t=1.0, x=0.1, y=0.1, heading_rad=0.0, true_offset=lambda sub: np.zeros(2))
+    belief = SimpleNamespace(sub=(0, 0), hc=1, offset_m=np.zeros(2))
+    trace = JsonTrace(board)
+    trace.attach(SimpleNamespace(refereed=True))
+    decision = Reading("decision", 1, plant, belief, None, obs=None, decision=None)
+    look = Reading("look", 1, plant, belief, None, marked=True)
+    trace.on_reading(decision)
+    trace.on_referee("look error", "the cell ahead is unmarked")
+    trace.on_reading(look)
+    trace.on_reading(look)
+    trace.on_referee("decision error", "the oracle would leave")
+    verdicts = [line["verdict"] for line in trace.lines]
+    assert verdicts[0] == {"ok": False, "findings": [{"kind": "decision error", "text": "the oracle would leave"}]}
+    assert verdicts[1] == {"ok": False, "findings": [{"kind": "look error", "text": "the cell ahead is unmarked"}]}
+    assert verdicts[2] == {"ok": True, "findings": []}
+    assert all(line["frames"] is None for line in trace.lines)  # no camera attached
