@@ -203,3 +203,17 @@ def test_trace_puts_each_finding_on_the_line_it_judges():
     assert verdicts[1] == {"ok": False, "findings": [{"kind": "look error", "text": "the cell ahead is unmarked"}]}
     assert verdicts[2] == {"ok": True, "findings": []}
     assert all(line["frames"] is None for line in trace.lines)  # no camera attached
+
+
+def test_interrupted_run_writes_neither_file(tmp_path, monkeypatch, capsys):
+    """Ctrl-C during the run: no trace, no TUM files, no temporaries."""
+    import stcvision.cli.cmd_cover as cmd_cover
+
+    def interrupted(*args, **kw):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(cmd_cover, "run_recorded", interrupted)
+    argv = ["cover", "--board", "3x3", "--perception", "oracle"]
+    code = main([*argv, "--trajectory", str(tmp_path / "paths"), "--trace", str(tmp_path / "t.jsonl")])
+    assert code != 0 and "interrupted" in capsys.readouterr().err
+    assert list(tmp_path.iterdir()) == []
