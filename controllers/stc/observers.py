@@ -1,7 +1,8 @@
 """Observers of a coverage run: they are told what happened (a reading, a controller step, a
 turn's measurement, the referee's findings, the end) and never change it. The rerun recording
-(:class:`stcvision.controllers.stc.recorder.CoverRecorder`), a text trace (:class:`Trace`) and a top view of
-the floor (:class:`FloorPicture`, :func:`draw_floor`) are observers.
+(:class:`stcvision.controllers.stc.recorder.CoverRecorder`), a text trace (:class:`Trace`), a top view of
+the floor (:class:`FloorPicture`, :func:`draw_floor`), the true and believed paths and the JSON
+trace (:mod:`stcvision.controllers.stc.paths`) are observers.
 
 Events hand over the live plant (the physical robot), the robot's belief and the floor: an
 observer reads them at once and keeps copies of whatever it wants to keep.
@@ -45,6 +46,8 @@ class Observer:
 
     def on_turn(self, plant, belief, measured_rad: float | None) -> None: ...
 
+    def on_move(self, plant, belief) -> None: ...
+
     def on_referee(self, kind: str, text: str) -> None: ...
 
     def on_end(self, plant, floor) -> None: ...
@@ -67,6 +70,10 @@ class Observers(Observer):
     def on_turn(self, plant, belief, measured_rad):
         for o in self.all:
             o.on_turn(plant, belief, measured_rad)
+
+    def on_move(self, plant, belief):
+        for o in self.all:
+            o.on_move(plant, belief)
 
     def on_referee(self, kind, text):
         for o in self.all:

@@ -1,7 +1,7 @@
 """Rerun recording of a coverage run: the world (board, obstacle cells, robot pose, marks with
-their current luminance, covered sub-cells), the camera's pipeline stages at every decision
-(``stcvision.rr`` entity paths) and each decision as text, on the ``sim_time`` and ``decision``
-timelines. World coordinates are drawn with north up (y flipped for the 2-D view)."""
+their current luminance, covered sub-cells, the true and believed paths), the camera's
+pipeline stages at every decision (``stcvision.rr`` entity paths) and each decision as text, on
+the ``sim_time`` and ``decision`` timelines. World coordinates are drawn with north up (y flipped for the 2-D view)."""
 
 from __future__ import annotations
 
@@ -12,6 +12,7 @@ import rerun as rr
 import rerun.blueprint as rrb
 
 from stcvision.controllers.stc.observers import Observer, Reading
+from stcvision.controllers.stc.paths import PathLog
 from stcvision.rr import PipelineLogger, Recordings, abort_recording, finish_recording, open_recording
 
 __all__ = ["READINGS_BUDGET", "WORLD_BUDGET", "CoverRecorder", "readings_every", "run_cover_recorded"]
@@ -67,6 +68,7 @@ class CoverRecorder(Observer):
         self.path = Path(path)
         self.rec, self.tmp = open_recording(self.path, app_id="stcvision-cover", default_blueprint=_blueprint())
         self.board = board
+        self.paths = PathLog(board)  # the true and believed paths, drawn with the world's snapshots
         self.every = readings_every(board) if every is None else max(1, int(every))
         self.world_every = max(self.every, readings_every(board, WORLD_BUDGET))
         self.readings = self.full = 0  # readings seen, and logged in full
@@ -102,7 +104,11 @@ class CoverRecorder(Observer):
             "world/red_lights", rr.Points2D(self._xy(b.red_lights_m()), colors=[255, 0, 0], radii=0.01), static=True
         )
 
+    def on_move(self, plant, belief) -> None:
+        self.paths.on_move(plant, belief)
+
     def on_reading(self, ev: Reading) -> None:
+        self.paths.on_reading(ev)
         if ev.kind == "look" and ev.frame is None:
             return
         self.readings += 1
@@ -157,8 +163,14 @@ class CoverRecorder(Observer):
             self._pipe_logger.log(result, frame=k, sim_time_s=t_s)
 
     def _world(self, t_s: float, phosphor, visits) -> None:
-        """Every mark with its glow at ``t_s``, and the covered sub-cells."""
+        """Every mark with its glow at ``t_s``, the covered sub-cells, and the true (blue) and
+        believed (orange) paths so far: the start and every forward move."""
         rec = self.rec
+        for name, poses, colour in (("true", self.paths.true, [60, 120, 255]),
+                                    ("believed", self.paths.believed, [255, 150, 30])):  # fmt: skip
+            if len(poses) > 1:
+                strip = self._xy([(x, y) for _, x, y, _ in poses])
+                rec.log(f"world/path/{name}", rr.LineStrips2D([strip], colors=[colour], radii=0.003))
         if len(phosphor):
             lum = phosphor.luminance_at(t_s)
             g = np.clip(255 * np.sqrt(lum / max(phosphor.law.l_sat_cd_m2, 1e-9)), 30, 255).astype(np.uint8)
@@ -181,11 +193,11 @@ class CoverRecorder(Observer):
         abort_recording(self.rec, self.tmp)
 
 
-def run_cover_recorded(board, cfg, rrd=None, observers=()) -> dict:
+def run_cover_recorded(board, cfg, rrd=None, observers=(), perception_hook=None) -> dict:
     """:func:`stcvision.controllers.stc.loop.run_cover` with a rerun recording to ``rrd`` (when given),
     renamed into place only when the run ends: an error or a signal removes it."""
     from stcvision.controllers.stc.loop import run_cover
 
     with Recordings() as recs:
         recorder = recs.add(CoverRecorder(rrd, board)) if rrd else None
-        return run_cover(board, cfg, observers=[recorder, *observers])
+        return run_cover(board, cfg, observers=[recorder, *observers], perception_hook=perception_hook)

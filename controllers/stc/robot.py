@@ -105,7 +105,7 @@ class Robot:
     count : MoveCount
         Its count of moves.
     watch : Observer
-        Hears of every turn's measurement.
+        Hears of every turn's measurement and every forward move.
     log : MoveLog or None
         The study switch's map of where it has been (``CoverConfig.move_log``), None in the
         ant-like robot.
@@ -151,7 +151,9 @@ class Robot:
             # off its box line by as much, so the robot drives along its heading to it first
             align_along(plant, belief)
         lay_row(plant, belief, self.floor)
-        return drive_forward(plant, belief)
+        why = drive_forward(plant, belief)
+        self.watch.on_move(plant, belief)
+        return why
 
     def turn(self, left: bool) -> None:
         """Make a quarter turn, then measure the heading for the turn-time recalibration.

@@ -20,6 +20,15 @@ abort_reason), 2 for bad input.
                         [--workers N | --scheduler tcp://H:P]
   stcvision cover faults --out DIR [--cells 6 --runs 3 --faults rate,led,...]
   stcvision cover --fault NAME[:LEVEL] ...   (--list-faults)
+  stcvision cover --board 3x3 --trajectory DIR [--trace FILE.jsonl] [--force]
+
+--trajectory DIR writes the robot's true and believed paths as TUM files (true.tum,
+believed.tum: the robot's clock, x, y, z 0, the heading as a quaternion; one pose at the start
+and one after every forward move), which evo reads: evo_ape tum DIR/true.tum DIR/believed.tum
+gives as its max the run's max_position_error_m. --trace FILE.jsonl writes one JSON line per
+decision and per look (the observation, the decision, the true and believed pose, the frames
+taken, the referee's verdict; the schema is the docs' reference page). Both are written when
+the run ends, atomically; existing files are refused without --force.
 
 plan says what the tour needs of the camera, from the physics-limited camera (exposure auto):
 does it converge, how long, the oldest mark it reads, the frame lengths it uses. sweep runs the
@@ -97,7 +106,13 @@ def add_parser(p):
     p.add_argument("--list-cameras", action="store_true", help="list the camera presets with their sources")
     p.add_argument("--list-robots", action="store_true", help="list the robot presets with their sources")
     p.add_argument("--rrd", metavar="OUT.rrd", help="rerun recording of the world, the camera stages and each decision")
-    p.add_argument("--force", action="store_true", help="overwrite --rrd")
+    p.add_argument("--trajectory", metavar="DIR",
+                   help="write the robot's true and believed paths there as TUM files (true.tum, believed.tum: "
+                   "timestamp x y z qx qy qz qw, what evo reads)")  # fmt: skip
+    p.add_argument("--trace", metavar="FILE.jsonl",
+                   help="write one JSON line per decision and per look: the observation, the decision, the true "
+                   "and believed pose, the frames, the referee's verdict")  # fmt: skip
+    p.add_argument("--force", action="store_true", help="overwrite --rrd, --trajectory's files and --trace")
 
 
 def add_board_arguments(p) -> None:
@@ -224,18 +239,59 @@ def run(args):
     Faults(faults, args.seed, args.perception)  # a fault twice or one the perception has no frames for: exit 2
     cfg = CoverConfig(perception=args.perception, exposure=exposure, seed=args.seed, camera=camera, robot=robot,
                       faults=faults, move_log=args.move_log, fsm=args.fsm, mcu=args.mcu)  # fmt: skip
-    result = run_recorded(board, cfg, args.rrd)
+    outputs = _check_outputs(args, board)
+    result = run_recorded(board, cfg, args.rrd, outputs.observers, perception_hook=outputs.attach)
     result["rrd"] = args.rrd
+    outputs.write(result, overwrite=args.force)
     return result
 
 
-def run_recorded(board, cfg, rrd, observers=()) -> dict:
+class _Outputs:
+    """The run's --trajectory and --trace observers, and their files written when it ends."""
+
+    def __init__(self, args, board):
+        from stcvision.controllers.stc.paths import JsonTrace, PathLog
+
+        self.args = args
+        self.paths = PathLog(board) if args.trajectory else None
+        self.trace = JsonTrace(board) if args.trace else None
+        self.observers = [o for o in (self.paths, self.trace) if o is not None]
+
+    def attach(self, perception) -> None:
+        if self.trace is not None:
+            self.trace.attach(perception)
+
+    def write(self, result: dict, *, overwrite: bool) -> None:
+        # the keys appear only with their options: a run without them prints what it always did
+        from stcvision.controllers.stc.paths import write_paths, write_trace
+
+        if self.paths is not None:
+            write_paths(self.args.trajectory, self.paths, overwrite=overwrite)
+            result["trajectory"] = self.args.trajectory
+        if self.trace is not None:
+            write_trace(self.args.trace, self.trace, overwrite=overwrite)
+            result["trace"] = self.args.trace
+
+
+def _check_outputs(args, board) -> _Outputs:
+    """Refuse, before the run, --trajectory and --trace files that exist (without --force) or cannot be made."""
+    from stcvision.controllers.stc.paths import TUM_FILES
+    from stcvision.fileio import check_output_file, check_output_folder
+
+    if args.trajectory:
+        check_output_folder(args.trajectory, TUM_FILES, overwrite=args.force)
+    if args.trace:
+        check_output_file(args.trace, overwrite=args.force, what="trace")
+    return _Outputs(args, board)
+
+
+def run_recorded(board, cfg, rrd, observers=(), perception_hook=None) -> dict:
     """:func:`stcvision.controllers.stc.recorder.run_cover_recorded` and the command's exit status: 0 when
     the robot completed the board, else :data:`~stcvision.cli.EXIT_INCOMPLETE` (3)."""
     from stcvision.cli import EXIT_INCOMPLETE, EXIT_OK
     from stcvision.controllers.stc.recorder import run_cover_recorded
 
-    result = run_cover_recorded(board, cfg, rrd, observers)
+    result = run_cover_recorded(board, cfg, rrd, observers, perception_hook=perception_hook)
     result["exit_code"] = EXIT_OK if result["complete"] else EXIT_INCOMPLETE
     return result
 
@@ -304,4 +360,5 @@ def format_text(r):
     ]
     w = max(len(k) for k, _ in rows)
     text = "\n".join(f"{k:<{w}}  {v}" for k, v in rows)
-    return text + (f"\nwrote {r['rrd']}" if r.get("rrd") else "")
+    wrote = [r[k] for k in ("rrd", "trajectory", "trace") if r.get(k)]
+    return text + "".join(f"\nwrote {w}" for w in wrote)

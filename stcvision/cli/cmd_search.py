@@ -10,6 +10,10 @@ whenever the beacon is in view. Coordinates are metres relative to the start, he
 `stcvision search reproduce --out DIR` regenerates the paper's figures (1, 2, 6, 7, 8, 11-14),
 a summary.md comparing with the paper's statements and the tables of shadow area and odometry
 error over many seeds per policy, with and without the beacon.
+
+`stcvision search --trajectory DIR` writes the true path and the odometry's as TUM files
+(true.tum, believed.tum: the start and every move), what evo reads: evo_ape tum on them has as
+its max the run's max_odometry_error_m.
 """
 
 from __future__ import annotations
@@ -84,7 +88,11 @@ def add_parser(p):
         default=None,
         help="reproduce: seeds per row of the tables (default 8); detours: seeds per cell (default 4)",
     )
-    p.add_argument("--force", action="store_true", help="overwrite --rrd, --plot or files in --out")
+    p.add_argument("--trajectory", metavar="DIR",
+                   help="write the true and the odometry's paths as TUM files (true.tum, believed.tum)")  # fmt: skip
+    p.add_argument(
+        "--force", action="store_true", help="overwrite --rrd, --plot, --trajectory's files or files in --out"
+    )
     from stcvision.sweep import add_sweep_arguments
 
     add_sweep_arguments(p)  # reproduce: where its rows run
@@ -130,6 +138,11 @@ def run(args):
     scene = SearchScene(obstacles=tuple(args.obstacle), patch=args.patch)
     cfg = SearchConfig(pattern=pattern, policy=Policy(args.policy), threshold=args.threshold)
     _check_plot(args.plot, args.force)
+    if args.trajectory:
+        from stcvision.controllers.stc.paths import TUM_FILES
+        from stcvision.fileio import check_output_folder
+
+        check_output_folder(args.trajectory, TUM_FILES, overwrite=args.force)
     if args.rrd:
         from stcvision.rr import check_recording_path
 
@@ -179,12 +192,26 @@ def run(args):
         "rrd": args.rrd,
         "plot": args.plot,
     }
+    if args.trajectory:
+        _write_trajectory(args.trajectory, result, overwrite=args.force)
+        out["trajectory"] = args.trajectory  # only when asked for: a run without it prints what it always did
     if args.plot:
         from stcvision.controllers.search.plots import plot_path, save_figure
 
         title = f"{pattern.describe()}, policy {args.policy}, seed {args.seed}: {result.reason}"
         save_figure(plot_path(result, title), args.plot, overwrite=True)
     return out
+
+
+def _write_trajectory(folder, result, *, overwrite: bool) -> None:
+    """The true path and the odometry's (after a beacon fix) at the start and after every move,
+    where the run's odometry error is measured: evo's APE max is max_odometry_error_m."""
+    from stcvision.controllers.stc.paths import tum_files, write_paths
+
+    start = (0.0, 0.0, 0.0, 0.0)  # the odometry's origin is the true start: metres from it
+    true = [start, *((m.t_s, *m.true_pose) for m in result.moves)]
+    believed = [start, *((m.t_s, *m.odo_pose) for m in result.moves)]
+    write_paths(folder, tum_files(true, believed), overwrite=overwrite)
 
 
 def _reproduce(args):
@@ -233,7 +260,7 @@ def format_text(r):
     )
     w = max(len(k) for k in keys)
     lines = [f"{k:<{w}}  {r[k]}" for k in keys]
-    for k in ("plot", "rrd"):
+    for k in ("plot", "rrd", "trajectory"):
         if r.get(k):
             lines.append(f"wrote {r[k]}")
     return "\n".join(lines)

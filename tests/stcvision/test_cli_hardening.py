@@ -353,13 +353,13 @@ def test_a_signal_a_library_swallowed_still_commits_nothing(tmp_path, capsys, mo
 
     real = cmd_cover.run_recorded
 
-    def swallowed(board, cfg, rrd, observers=()):
+    def swallowed(board, cfg, rrd, observers=(), **kw):
         try:
             signal_received(signal.SIGTERM)  # what the CLI's handler notes before it raises
             raise KeyboardInterrupt
         except KeyboardInterrupt:
             pass  # the library's catch-all
-        return real(board, cfg, rrd, observers)
+        return real(board, cfg, rrd, observers, **kw)
 
     monkeypatch.setattr(cmd_cover, "run_recorded", swallowed)
     rrd = tmp_path / "run.rrd"
