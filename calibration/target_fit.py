@@ -539,16 +539,21 @@ def heldout_rms(views: TargetViews, fit: TargetFit, folds: int, should_stop=None
 COV_STEP_OF_STD = 1e-3
 
 
-def ray_to_pixel_jacobian(fit: TargetFit, rays: np.ndarray) -> np.ndarray:
-    """d(pixel)/d(intrinsics) for fixed camera-frame rays (N, 3): (N, 2, n), central differences
-    with steps of :data:`COV_STEP_OF_STD` of each parameter's standard deviation."""
-    n = len(fit.params)
-    out = np.empty((len(rays), 2, n))
+def params_jacobian(fit: TargetFit, value_of) -> np.ndarray:
+    """d(value)/d(intrinsics): (N, 2, n), central differences with steps of
+    :data:`COV_STEP_OF_STD` of each parameter's standard deviation; ``value_of(params)`` gives
+    the (N, 2) values at a parameter vector."""
     std = np.where(fit.std > 0, fit.std, 1e-9)
-    for j in range(n):
+    cols = []
+    for j in range(len(fit.params)):
         h = COV_STEP_OF_STD * std[j]
         p1, p0 = fit.params.copy(), fit.params.copy()
         p1[j] += h
         p0[j] -= h
-        out[:, :, j] = (fit.project(rays, p1) - fit.project(rays, p0)) / (2 * h)
-    return out
+        cols.append((value_of(p1) - value_of(p0)) / (2 * h))
+    return np.stack(cols, axis=-1)
+
+
+def ray_to_pixel_jacobian(fit: TargetFit, rays: np.ndarray) -> np.ndarray:
+    """d(pixel)/d(intrinsics) for fixed camera-frame rays (N, 3): (N, 2, n)."""
+    return params_jacobian(fit, lambda p: fit.project(rays, p))

@@ -20,7 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.stats import chi2
 
-from stcvision.calibration.target_fit import COV_STEP_OF_STD, TargetFit, fit_target, ray_to_pixel_jacobian
+from stcvision.calibration.target_fit import TargetFit, fit_target, params_jacobian, ray_to_pixel_jacobian
 from stcvision.calibration.target_views import TargetViews
 
 __all__ = [
@@ -163,16 +163,7 @@ def floor_points(fit: TargetFit, uv: np.ndarray, height_m: float, params=None) -
 
 def floor_jacobian(fit: TargetFit, uv: np.ndarray, height_m: float) -> np.ndarray:
     """(N, 2, n) derivative of fixed pixels' floor points (m) by the intrinsics."""
-    n = len(fit.params)
-    J = np.empty((len(uv), 2, n))
-    std = np.where(fit.std > 0, fit.std, 1e-9)
-    for j in range(n):
-        hstep = COV_STEP_OF_STD * std[j]
-        p1, p0 = fit.params.copy(), fit.params.copy()
-        p1[j] += hstep
-        p0[j] -= hstep
-        J[:, :, j] = (floor_points(fit, uv, height_m, p1) - floor_points(fit, uv, height_m, p0)) / (2 * hstep)
-    return J
+    return params_jacobian(fit, lambda p: floor_points(fit, uv, height_m, p))
 
 
 def remove_mount(J: np.ndarray, xy: np.ndarray) -> np.ndarray:
