@@ -32,10 +32,13 @@ IMAGE_DEF = (
 STRING_DEF = "string data\n"
 
 
+_WHICH_FRAME = ("frame", "t_s", "stamp_ns")
+
+
 def _drop_times(d):
     """Results without their wall-clock timings and their frame's name and time."""
     if isinstance(d, dict):
-        return {k: _drop_times(v) for k, v in d.items() if not k.endswith("_ms") and k not in ("frame", "t_s", "stamp_ns")}
+        return {k: _drop_times(v) for k, v in d.items() if not k.endswith("_ms") and k not in _WHICH_FRAME}
     if isinstance(d, list):
         return [_drop_times(v) for v in d]
     return d
