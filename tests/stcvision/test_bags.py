@@ -324,7 +324,8 @@ def test_bad_recordings_and_topics_are_one_line(rendered, tmp_path, cli, capsys)
         assert "Traceback" not in err
 
 
-def test_sigterm_stops_a_bag_run_within_two_seconds(rendered, tmp_path):
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["ctrl-c", "sigterm"])
+def test_a_signal_stops_a_bag_run_within_two_seconds(rendered, tmp_path, sig):
     d, frames, dark = rendered
     cv2.imwrite(str(tmp_path / "dark.png"), dark)
     bag = write_ros1(tmp_path / "long.bag", frames[:1] * 400, compressed=True)
@@ -337,7 +338,7 @@ def test_sigterm_stops_a_bag_run_within_two_seconds(rendered, tmp_path):
     )
     try:
         assert proc.stdout.readline().startswith("{")  # running: frames stream out
-        proc.send_signal(signal.SIGTERM)
+        proc.send_signal(sig)
         t0 = time.monotonic()
         code = proc.wait(timeout=10)
         took = time.monotonic() - t0
@@ -345,6 +346,6 @@ def test_sigterm_stops_a_bag_run_within_two_seconds(rendered, tmp_path):
         if proc.poll() is None:
             proc.kill()
             proc.wait()
-    assert code == 128 + signal.SIGTERM and took < 2.0, (code, took)
+    assert code == 128 + sig and took < 2.0, (code, took)
     err = proc.stderr.read()
     assert "interrupted" in err and "Traceback" not in err

@@ -114,3 +114,29 @@ def test_a_camera_that_is_not_there_is_one_line(rendered, cli):
     d, _ = rendered
     code, out, err = cli("pipeline", "--device", "97", "--dark", d / "dark.png")
     assert code == 2 and out == "" and "camera device 97 cannot be opened" in err and err.count("\n") == 1
+
+
+def test_a_live_cameras_frames_carry_this_computers_clock(rendered, tmp_path, cli, monkeypatch):
+    """A camera's frames are timed by this computer's clock as they arrive (a lossless video
+    stands in for the camera: no camera is attached where the tests run)."""
+    import time
+
+    import stcvision.video as video
+
+    d, frames = rendered
+    _write_video(tmp_path / "cam.mkv", frames[:2], "FFV1")
+
+    def fake_device(index):
+        src = video.open_video(tmp_path / "cam.mkv")
+        src.live, src.name = True, f"camera device {index}"
+        return src
+
+    monkeypatch.setattr(video, "open_device", fake_device)
+    before = time.time()
+    code, out, err = cli("pipeline", "--device", "0", "--dark", d / "dark.png", "--json")
+    after = time.time()
+    assert code == 0, err
+    *lines, summary = [json.loads(ln) for ln in out.splitlines()]
+    assert [ln["frame"] for ln in lines] == [0, 1]
+    assert before <= lines[0]["t_s"] <= lines[1]["t_s"] <= after
+    assert summary["summary"]["clock"] == "computer clock" and summary["summary"]["frames"] == 2
