@@ -670,6 +670,76 @@ def evaluate_image_folder(paths, *, profile, dark, dark_path=None, out, rrd=None
     as unreadable and those whose result is untrusted (a lights-on frame, say). Without ground
     truth there is no accuracy: ``accuracy`` is None.
     """
+    items = (
+        ({"frame": str(p)}, res, reason, pipe)
+        for p, res, reason, pipe in evaluate_images(paths, profile=profile, dark=dark, dark_path=dark_path)
+    )
+    return _write_results(items, out=out, rrd=rrd, dark_path=dark_path)
+
+
+def evaluate_recording(frames, *, name: str, profile, dark, dark_path=None, out, rrd=None, total=None) -> dict:
+    """Run the pipeline on a recording's frames and write one JSON line per frame.
+
+    As :func:`evaluate_image_folder`, for frames that come with their time (a ROS bag's or an
+    MCAP file's, :func:`stcvision.bags.open_bag`): each line names the frame by its index in the
+    recording and carries its time, ``t_s`` (and ``stamp_ns``, the exact header stamp).
+
+    Parameters
+    ----------
+    frames : iterable of stcvision.video.Frame
+        The frames, each with its index and time.
+    name : str
+        The recording's name in error messages.
+    profile : stcvision.profile.Profile
+        The camera's calibration.
+    dark : numpy.ndarray or None
+        The dark frame (read from ``dark_path``), of the frames' depth.
+    dark_path : str, optional
+        Where the dark frame was read from (for messages and the summary).
+    out : str or os.PathLike
+        The results file (JSON Lines), written atomically when all frames are done.
+    rrd : str, optional
+        A rerun recording of every frame.
+    total : int, optional
+        How many frames to expect (the progress bar's length).
+
+    Returns
+    -------
+    dict
+        As :func:`evaluate_image_folder`'s.
+    """
+    from stcvision.fileio import check_same_depth
+    from stcvision.pipeline import Pipeline
+
+    def items():
+        pipe = Pipeline(profile, dark=dark)
+        bar = _progress(total or 0, "pipeline")
+        try:
+            for f in frames:
+                what = f"frame {f.index} of {name}"
+                profile.check_frame(f.image.shape, what=what)
+                if dark is not None:
+                    check_same_depth(f.image, dark, dark_path, frame_path=what)
+                res = pipe.process(f.image)
+                bar(1)
+                ident = {"frame": f.index, "t_s": f.t_s}
+                if f.stamp_ns is not None:
+                    ident["stamp_ns"] = f.stamp_ns
+                yield ident, res, None, pipe
+        finally:
+            close = getattr(bar, "close", None)
+            if close:
+                close()
+
+    return _write_results(items(), out=out, rrd=rrd, dark_path=dark_path)
+
+
+def _write_results(items, *, out, rrd, dark_path) -> dict:
+    """Write the results file of ``items`` and return the counts and medians.
+
+    ``items`` yields a frame's identifying fields, its result or None, the reason it was
+    skipped, and the pipeline; the counts and medians are :func:`evaluate_image_folder`'s.
+    """
     from stcvision.fileio import check_output_file, dumps, write_bytes_atomic
 
     out = Path(out)
@@ -679,12 +749,10 @@ def evaluate_image_folder(paths, *, profile, dark, dark_path=None, out, rrd=None
     logger = None
     lines, ms, skipped, fits, ndots, untrusted = [], [], [], 0, [], []
     with Recordings() as recs:
-        for i, (p, res, reason, pipe) in enumerate(
-            evaluate_images(paths, profile=profile, dark=dark, dark_path=dark_path)
-        ):
+        for i, (ident, res, reason, pipe) in enumerate(items):
             if res is None:
-                skipped.append({"frame": str(p), "reason": reason})
-                lines.append(dumps({"frame": str(p), "skipped": reason}, indent=None))
+                skipped.append({"frame": ident["frame"], "reason": reason})
+                lines.append(dumps({**ident, "skipped": reason}, indent=None))
                 continue
             if rrd and logger is None:
                 from stcvision.rr import PipelineLogger
@@ -694,8 +762,8 @@ def evaluate_image_folder(paths, *, profile, dark, dark_path=None, out, rrd=None
                 logger.log(res, frame=i)
             d = res.to_dict()
             if res.untrusted:  # e.g. a lit (lights-on) frame, or no dark frame on a sensor that needs one
-                untrusted.append({"frame": str(p), "reason": res.untrusted})
-            lines.append(dumps({"frame": str(p), **d}, indent=None))
+                untrusted.append({"frame": ident["frame"], "reason": res.untrusted})
+            lines.append(dumps({**ident, **d}, indent=None))
             ms.append(res.total_ms)
             fits += bool(res.heading.ok)
             ndots.append(len(d["dots"]))

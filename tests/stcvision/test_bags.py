@@ -349,3 +349,32 @@ def test_a_signal_stops_a_bag_run_within_two_seconds(rendered, tmp_path, sig):
     assert code == 128 + sig and took < 2.0, (code, took)
     err = proc.stderr.read()
     assert "interrupted" in err and "Traceback" not in err
+
+
+def test_eval_of_a_recording_writes_the_folders_results_with_stamps(rendered, tmp_path, cli):
+    d, frames, dark = rendered
+    folder = tmp_path / "frames"
+    folder.mkdir()
+    for i, f in enumerate(frames):
+        cv2.imwrite(str(folder / f"f{i}.png"), f)
+    cv2.imwrite(str(tmp_path / "dark.png"), dark)
+    code, out, err = cli("eval", folder, "--dark", tmp_path / "dark.png", "--out", tmp_path / "png.jsonl", "--json")
+    assert code == 0, err
+    png = [json.loads(ln) for ln in (tmp_path / "png.jsonl").read_text().splitlines()]
+    bag = write_ros1(tmp_path / "run.bag", frames)
+    code, out, err = cli("eval", "--bag", bag, "--topic", TOPIC, "--dark", tmp_path / "dark.png", "--json")
+    assert code == 0, err
+    r = json.loads(out)
+    assert r["frames"] == 4 and r["results"] == str(tmp_path / "run-results.jsonl") and r["accuracy"] is None
+    lines = [json.loads(ln) for ln in (tmp_path / "run-results.jsonl").read_text().splitlines()]
+    assert [ln["frame"] for ln in lines] == [0, 1, 2, 3]
+    assert [ln["stamp_ns"] for ln in lines] == [_stamp_ns(i) for i in range(4)]
+    assert [_drop_times(x) for x in lines] == [_drop_times(x) for x in png]
+    # a second run does not overwrite the results without --force; a topic that is no image is one line
+    for argv, words in (
+        (["--bag", bag, "--topic", TOPIC], "refusing to overwrite"),
+        (["--bag", bag, "--topic", "/status", "--force"], "not an image; image topics present"),
+        (["--bag", bag], "go together"),
+    ):
+        code, _, err = cli("eval", *argv, "--dark", tmp_path / "dark.png")
+        assert code == 2 and words in err and err.count("\n") == 1, err
