@@ -740,34 +740,50 @@ def _write_results(items, *, out, rrd, dark_path) -> dict:
     ``items`` yields a frame's identifying fields, its result or None, the reason it was
     skipped, and the pipeline; the counts and medians are :func:`evaluate_image_folder`'s.
     """
-    from stcvision.fileio import check_output_file, dumps, write_bytes_atomic
+    import os
 
-    out = Path(out)
-    check_output_file(out, overwrite=True, what="results file")
+    from stcvision.fileio import check_output_file, commit_temp, discard_temp, dumps, output_error, temp_sibling
     from stcvision.rr import Recordings
 
+    out = check_output_file(Path(out), overwrite=True, what="results file")
     logger = None
-    lines, ms, skipped, fits, ndots, untrusted = [], [], [], 0, [], []
-    with Recordings() as recs:
-        for i, (ident, res, reason, pipe) in enumerate(items):
-            if res is None:
-                skipped.append({"frame": ident["frame"], "reason": reason})
-                lines.append(dumps({**ident, "skipped": reason}, indent=None))
-                continue
-            if rrd and logger is None:
-                from stcvision.rr import PipelineLogger
+    ms, skipped, fits, ndots, untrusted = [], [], 0, [], []
+    tmp = None
+    # the lines stream into a temporary beside ``out``, renamed over it when all are done: a
+    # recording's frames are too many to hold their results in memory
+    try:
+        out.parent.mkdir(parents=True, exist_ok=True)
+        tmp = temp_sibling(out)
+        with open(tmp, "w") as fh, Recordings() as recs:
+            for i, (ident, res, reason, pipe) in enumerate(items):
+                if res is None:
+                    skipped.append({"frame": ident["frame"], "reason": reason})
+                    fh.write(dumps({**ident, "skipped": reason}, indent=None) + "\n")
+                    continue
+                if rrd and logger is None:
+                    from stcvision.rr import PipelineLogger
 
-                logger = recs.add(PipelineLogger.to_file(rrd, pipe))
-            if logger is not None:
-                logger.log(res, frame=i)
-            d = res.to_dict()
-            if res.untrusted:  # e.g. a lit (lights-on) frame, or no dark frame on a sensor that needs one
-                untrusted.append({"frame": ident["frame"], "reason": res.untrusted})
-            lines.append(dumps({**ident, **d}, indent=None))
-            ms.append(res.total_ms)
-            fits += bool(res.heading.ok)
-            ndots.append(len(d["dots"]))
-    write_bytes_atomic(out, "".join(s + "\n" for s in lines).encode(), overwrite=True)
+                    logger = recs.add(PipelineLogger.to_file(rrd, pipe))
+                if logger is not None:
+                    logger.log(res, frame=i)
+                d = res.to_dict()
+                if res.untrusted:  # e.g. a lit (lights-on) frame, or no dark frame on a sensor that needs one
+                    untrusted.append({"frame": ident["frame"], "reason": res.untrusted})
+                fh.write(dumps({**ident, **d}, indent=None) + "\n")
+                ms.append(res.total_ms)
+                fits += bool(res.heading.ok)
+                ndots.append(len(d["dots"]))
+            fh.flush()
+            os.fsync(fh.fileno())
+        commit_temp(tmp, out)
+    except OSError as exc:
+        discard_temp(tmp)
+        if exc.filename is None or Path(exc.filename).resolve() not in (out.resolve(), tmp and tmp.resolve()):
+            raise
+        raise output_error(out, exc) from None
+    except BaseException:
+        discard_temp(tmp)
+        raise
     return {
         "frames": len(ms),
         "frames_skipped": len(skipped),
