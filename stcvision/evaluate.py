@@ -33,6 +33,7 @@ __all__ = [
     "evaluate_dataset",
     "evaluate_frames",
     "evaluate_image_folder",
+    "evaluate_recording",
     "evaluate_images",
     "eval_chunk",
     "summarize_evaluation",

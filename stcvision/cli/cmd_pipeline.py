@@ -293,11 +293,13 @@ def _frame_line(f) -> str:
     if "stamp_ns" in f:
         from stcvision.bags import stamp_text
 
-        t = stamp_text(f["stamp_ns"])
+        when = f"t={stamp_text(f['stamp_ns'])} s"
+    elif isinstance(f["frame"], str):  # a frame file: its time is its place in the order given
+        when = f"order {f['t_s']:.0f}"
     else:
-        t = f"{f['t_s']:.6f}"
+        when = f"t={f['t_s']:.6f} s"
     return (
-        f"{f['frame']} t={t} s: {len(f['dots'])} dots, heading {head}, lit boxes {lit or 'none'}, "
+        f"{f['frame']} {when}: {len(f['dots'])} dots, heading {head}, lit boxes {lit or 'none'}, "
         f"visited {[k for k, v in obs['visited'].items() if v] or 'none'}, neighbours {nb}, "
         f"{len(f['obstacles'])} red lights, {f['total_ms']:.2f} ms"
         + (f"\n  UNTRUSTED: {f['untrusted']}" if f["untrusted"] else "")
