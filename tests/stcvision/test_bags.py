@@ -112,7 +112,7 @@ def _raw_fields(pixels, encoding: str, bigendian: bool = False):
     }
 
 
-def _rosbags_messages(ts, images, *, compressed: bool = False, encoding: str = "bgr8", bigendian=False):
+def _rosbags_messages(ts, images, *, compressed: str = "", encoding: str = "bgr8", bigendian=False):
     """(topic, msgtype, log time, message) of the image topic and a /status string topic."""
     Header = ts.types["std_msgs/msg/Header"]
     Time = ts.types["builtin_interfaces/msg/Time"]
@@ -126,8 +126,8 @@ def _rosbags_messages(ts, images, *, compressed: bool = False, encoding: str = "
             hdr["seq"] = i
         if compressed:
             Msg = ts.types["sensor_msgs/msg/CompressedImage"]
-            ok, png = cv2.imencode(".png", pixels)
-            msg = Msg(header=Header(**hdr), format="bgr8; png compressed bgr8", data=png.reshape(-1))
+            ok, data = cv2.imencode(f".{compressed}", pixels)
+            msg = Msg(header=Header(**hdr), format=f"bgr8; {compressed} compressed bgr8", data=data.reshape(-1))
         else:
             Msg = ts.types["sensor_msgs/msg/Image"]
             msg = Msg(header=Header(**hdr), **_raw_fields(pixels, encoding, bigendian))
@@ -258,7 +258,7 @@ def test_compressed_and_big_endian_images(rendered, tmp_path, cli):
     d, frames, dark = rendered
     frames = frames[:2]
     png, dark_path = _png_results(cli, tmp_path, frames, dark, "c")
-    bag = write_ros1(tmp_path / "png.bag", frames, compressed=True)
+    bag = write_ros1(tmp_path / "png.bag", frames, compressed="png")
     lines, _, err = _bag_lines(cli, bag, dark_path)
     assert [_drop_times(x) for x in lines] == [_drop_times(x) for x in png] and "warning" not in err
     f16 = [f.astype(np.uint16) * 16 for f in frames]
@@ -328,7 +328,7 @@ def test_bad_recordings_and_topics_are_one_line(rendered, tmp_path, cli, capsys)
 def test_a_signal_stops_a_bag_run_within_two_seconds(rendered, tmp_path, sig):
     d, frames, dark = rendered
     cv2.imwrite(str(tmp_path / "dark.png"), dark)
-    bag = write_ros1(tmp_path / "long.bag", frames[:1] * 400, compressed=True)
+    bag = write_ros1(tmp_path / "long.bag", frames[:1] * 400, compressed="png")
     argv = [sys.executable, "-m", "stcvision", "pipeline", "--bag", str(bag), "--topic", TOPIC]
     proc = subprocess.Popen(
         [*argv, "--dark", str(tmp_path / "dark.png"), "--json"],
@@ -378,3 +378,16 @@ def test_eval_of_a_recording_writes_the_folders_results_with_stamps(rendered, tm
     ):
         code, _, err = cli("eval", *argv, "--dark", tmp_path / "dark.png")
         assert code == 2 and words in err and err.count("\n") == 1, err
+
+
+def test_the_frame_cap_and_a_jpeg_topic_are_said(rendered, tmp_path, cli, monkeypatch):
+    import stcvision.limits
+
+    d, frames, dark = rendered
+    cv2.imwrite(str(tmp_path / "dark.png"), dark)
+    bag = write_ros1(tmp_path / "jpeg.bag", frames, compressed="jpg")
+    monkeypatch.setattr(stcvision.limits, "MAX_VIDEO_FRAMES", 2)
+    lines, summary, err = _bag_lines(cli, bag, tmp_path / "dark.png")
+    assert len(lines) == 2 and summary["frames"] == 2
+    assert "has 4 frames on /camera/image_raw; reading the first 2 (the cap of one run)" in err
+    assert "JPEG" in err and "lossy" in err
