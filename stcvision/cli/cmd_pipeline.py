@@ -86,7 +86,14 @@ def _seconds(text: str) -> float:
 def _start(text: str) -> float:
     """argparse type of --start: a frame index (--video) or seconds (--bag); which one the
     source decides, once all the flags are read."""
-    return _seconds(text)
+    import argparse
+
+    try:
+        return _seconds(text)
+    except argparse.ArgumentTypeError:
+        raise argparse.ArgumentTypeError(
+            f"{text!r} is not a frame index (--video) or a number of seconds >= 0 (--bag)"
+        ) from None
 
 
 def run(args):
