@@ -391,3 +391,35 @@ def test_the_frame_cap_and_a_jpeg_topic_are_said(rendered, tmp_path, cli, monkey
     assert len(lines) == 2 and summary["frames"] == 2
     assert "has 4 frames on /camera/image_raw; reading the first 2 (the cap of one run)" in err
     assert "JPEG" in err and "lossy" in err
+
+
+def test_calibrate_dark_from_a_recording_equals_the_files(tmp_path, cli):
+    cam = Scene.from_dict(EXAMPLE_SCENE).camera()
+    rngs = [np.random.default_rng(s) for s in np.random.SeedSequence(5).spawn(3)]
+    darks = [cam.dark_frame(rng=r) for r in rngs]
+    for i, f in enumerate(darks):
+        cv2.imwrite(str(tmp_path / f"d{i}.png"), f)
+    code, _, err = cli("calibrate", "dark", *[tmp_path / f"d{i}.png" for i in range(3)], "--out", tmp_path / "a.png")
+    assert code == 0, err
+    bag = write_ros2(tmp_path / "darks", darks, storage="mcap")
+    code, out, err = cli("calibrate", "dark", "--bag", bag, "--topic", TOPIC, "--out", tmp_path / "b.png", "--json")
+    assert code == 0, err
+    assert json.loads(out)["frames"] == 3
+    a, b = (cv2.imread(str(tmp_path / n), cv2.IMREAD_UNCHANGED) for n in ("a.png", "b.png"))
+    assert np.array_equal(a, b)
+    # a window: the frames recorded 0.25 and 0.5 s after the recording's start
+    code, out, err = cli(
+        "calibrate", "dark", "--bag", bag, "--topic", TOPIC, "--start", "0.2", "--out", tmp_path / "c.png", "--json"
+    )
+    assert code == 0 and json.loads(out)["frames"] == 2, err
+    jpeg = write_ros1(tmp_path / "jpeg.bag", darks, compressed="jpg")
+    for argv, words in (
+        (["--bag", jpeg, "--topic", TOPIC], "JPEG-compressed"),
+        (["--bag", bag, "--topic", "/status"], "not an image"),
+        (["--bag", bag], "go together"),
+        ([tmp_path / "d0.png", "--bag", bag, "--topic", TOPIC], "one of them"),
+        (["--bag", bag, "--topic", TOPIC, "--start", "9"], "no frame"),
+    ):
+        code, _, err = cli("calibrate", "dark", *argv, "--out", tmp_path / "x.png")
+        assert code == 2 and words in err and err.count("\n") == 1, (argv, err)
+    assert not (tmp_path / "x.png").exists()
