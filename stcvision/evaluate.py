@@ -33,6 +33,7 @@ __all__ = [
     "evaluate_dataset",
     "evaluate_frames",
     "evaluate_image_folder",
+    "evaluate_recording",
     "evaluate_images",
     "eval_chunk",
     "summarize_evaluation",
@@ -670,36 +671,120 @@ def evaluate_image_folder(paths, *, profile, dark, dark_path=None, out, rrd=None
     as unreadable and those whose result is untrusted (a lights-on frame, say). Without ground
     truth there is no accuracy: ``accuracy`` is None.
     """
-    from stcvision.fileio import check_output_file, dumps, write_bytes_atomic
+    items = (
+        ({"frame": str(p)}, res, reason, pipe)
+        for p, res, reason, pipe in evaluate_images(paths, profile=profile, dark=dark, dark_path=dark_path)
+    )
+    return _write_results(items, out=out, rrd=rrd, dark_path=dark_path)
 
-    out = Path(out)
-    check_output_file(out, overwrite=True, what="results file")
+
+def evaluate_recording(frames, *, name: str, profile, dark, dark_path=None, out, rrd=None, total=None) -> dict:
+    """Run the pipeline on a recording's frames and write one JSON line per frame.
+
+    As :func:`evaluate_image_folder`, for frames that come with their time (a ROS bag's or an
+    MCAP file's, :func:`stcvision.bags.open_bag`): each line names the frame by its index in the
+    recording and carries its time, ``t_s`` (and ``stamp_ns``, the exact header stamp).
+
+    Parameters
+    ----------
+    frames : iterable of stcvision.video.Frame
+        The frames, each with its index and time.
+    name : str
+        The recording's name in error messages.
+    profile : stcvision.profile.Profile
+        The camera's calibration.
+    dark : numpy.ndarray or None
+        The dark frame (read from ``dark_path``), of the frames' depth.
+    dark_path : str, optional
+        Where the dark frame was read from (for messages and the summary).
+    out : str or os.PathLike
+        The results file (JSON Lines), written atomically when all frames are done.
+    rrd : str, optional
+        A rerun recording of every frame.
+    total : int, optional
+        How many frames to expect (the progress bar's length).
+
+    Returns
+    -------
+    dict
+        As :func:`evaluate_image_folder`'s.
+    """
+    from stcvision.fileio import check_same_depth
+    from stcvision.pipeline import Pipeline
+
+    def items():
+        pipe = Pipeline(profile, dark=dark)
+        bar = _progress(total or 0, "pipeline")
+        try:
+            for f in frames:
+                what = f"frame {f.index} of {name}"
+                profile.check_frame(f.image.shape, what=what)
+                if dark is not None:
+                    check_same_depth(f.image, dark, dark_path, frame_path=what)
+                res = pipe.process(f.image)
+                bar(1)
+                ident = {"frame": f.index, "t_s": f.t_s}
+                if f.stamp_ns is not None:
+                    ident["stamp_ns"] = f.stamp_ns
+                yield ident, res, None, pipe
+        finally:
+            close = getattr(bar, "close", None)
+            if close:
+                close()
+
+    return _write_results(items(), out=out, rrd=rrd, dark_path=dark_path)
+
+
+def _write_results(items, *, out, rrd, dark_path) -> dict:
+    """Write the results file of ``items`` and return the counts and medians.
+
+    ``items`` yields a frame's identifying fields, its result or None, the reason it was
+    skipped, and the pipeline; the counts and medians are :func:`evaluate_image_folder`'s.
+    """
+    import os
+
+    from stcvision.fileio import check_output_file, commit_temp, discard_temp, dumps, output_error, temp_sibling
     from stcvision.rr import Recordings
 
+    out = check_output_file(Path(out), overwrite=True, what="results file")
     logger = None
-    lines, ms, skipped, fits, ndots, untrusted = [], [], [], 0, [], []
-    with Recordings() as recs:
-        for i, (p, res, reason, pipe) in enumerate(
-            evaluate_images(paths, profile=profile, dark=dark, dark_path=dark_path)
-        ):
-            if res is None:
-                skipped.append({"frame": str(p), "reason": reason})
-                lines.append(dumps({"frame": str(p), "skipped": reason}, indent=None))
-                continue
-            if rrd and logger is None:
-                from stcvision.rr import PipelineLogger
+    ms, skipped, fits, ndots, untrusted = [], [], 0, [], []
+    tmp = None
+    # the lines stream into a temporary beside ``out``, renamed over it when all are done: a
+    # recording's frames are too many to hold their results in memory
+    try:
+        out.parent.mkdir(parents=True, exist_ok=True)
+        tmp = temp_sibling(out)
+        with open(tmp, "w") as fh, Recordings() as recs:
+            for i, (ident, res, reason, pipe) in enumerate(items):
+                if res is None:
+                    skipped.append({"frame": ident["frame"], "reason": reason})
+                    fh.write(dumps({**ident, "skipped": reason}, indent=None) + "\n")
+                    continue
+                if rrd and logger is None:
+                    from stcvision.rr import PipelineLogger
 
-                logger = recs.add(PipelineLogger.to_file(rrd, pipe))
-            if logger is not None:
-                logger.log(res, frame=i)
-            d = res.to_dict()
-            if res.untrusted:  # e.g. a lit (lights-on) frame, or no dark frame on a sensor that needs one
-                untrusted.append({"frame": str(p), "reason": res.untrusted})
-            lines.append(dumps({"frame": str(p), **d}, indent=None))
-            ms.append(res.total_ms)
-            fits += bool(res.heading.ok)
-            ndots.append(len(d["dots"]))
-    write_bytes_atomic(out, "".join(s + "\n" for s in lines).encode(), overwrite=True)
+                    logger = recs.add(PipelineLogger.to_file(rrd, pipe))
+                if logger is not None:
+                    logger.log(res, frame=i)
+                d = res.to_dict()
+                if res.untrusted:  # e.g. a lit (lights-on) frame, or no dark frame on a sensor that needs one
+                    untrusted.append({"frame": ident["frame"], "reason": res.untrusted})
+                fh.write(dumps({**ident, **d}, indent=None) + "\n")
+                ms.append(res.total_ms)
+                fits += bool(res.heading.ok)
+                ndots.append(len(d["dots"]))
+            fh.flush()
+            os.fsync(fh.fileno())
+        commit_temp(tmp, out)
+    except OSError as exc:
+        discard_temp(tmp)
+        if exc.filename is None or Path(exc.filename).resolve() not in (out.resolve(), tmp and tmp.resolve()):
+            raise
+        raise output_error(out, exc) from None
+    except BaseException:
+        discard_temp(tmp)
+        raise
     return {
         "frames": len(ms),
         "frames_skipped": len(skipped),

@@ -11,17 +11,29 @@ from __future__ import annotations
 
 from collections.abc import Iterator
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
 from stcvision.errors import BadInputError
 
-__all__ = ["LOSSLESS_FOURCCS", "VideoSource", "codec_warning", "open_device", "open_video"]
+__all__ = ["LOSSLESS_FOURCCS", "Frame", "VideoSource", "codec_warning", "open_device", "open_video"]
 
 #: codecs that keep every pixel of a BGR frame (OpenCV's FFmpeg reader reports these FourCCs)
 LOSSLESS_FOURCCS = frozenset(
     {"FFV1", "MPNG", "PNG ", "HFYU", "FFVH", "LAGS", "RGBA", "RGB ", "DIB ", "BGR ", "\0\0\0\0"}
 )
+
+
+class Frame(NamedTuple):
+    """A frame and its time: ``index`` in its source, ``image`` (BGR), ``t_s`` in seconds, and
+    ``stamp_ns``, the exact stamp in integer nanoseconds where the source has one (a recording's
+    header stamp), else None."""
+
+    index: int
+    image: np.ndarray
+    t_s: float
+    stamp_ns: int | None = None
 
 
 @dataclass
@@ -35,8 +47,15 @@ class VideoSource:
     frame_count: int | None
     live: bool
 
-    def frames(self, *, start: int = 0, count: int | None = None, every: int = 1) -> Iterator[tuple[int, np.ndarray]]:
-        """Yield ``(index, frame)``: frames ``start``, ``start + every``, ... (at most ``count``)."""
+    def frames(self, *, start: int = 0, count: int | None = None, every: int = 1) -> Iterator[Frame]:
+        """Yield :class:`Frame`: frames ``start``, ``start + every``, ... (at most ``count``).
+
+        A video file's frame time is its container's timestamp (OpenCV's ``CAP_PROP_POS_MSEC``,
+        the frame just decoded); a live camera's is this computer's clock (Unix time)
+        when the frame arrived, so that it lines up with other recordings made on it.
+        """
+        import time
+
         import cv2
 
         if start:
@@ -54,7 +73,9 @@ class VideoSource:
             ok, frame = self.cap.read()
             if not ok:
                 return
-            yield index, frame
+            # to the microsecond: the container counts in its own time base, not in binary fractions
+            t_s = time.time() if self.live else round(self.cap.get(cv2.CAP_PROP_POS_MSEC) / 1000.0, 6)
+            yield Frame(index, frame, t_s)
             taken += 1
             for _ in range(every - 1):  # skip without decoding into numpy
                 index += 1

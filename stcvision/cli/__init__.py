@@ -26,7 +26,7 @@ COMMANDS: list[tuple[str, str, str]] = [
     ("demo", "stcvision.cli.cmd_demo", "run the toolkit's main job on an embedded default"),
     ("world", "stcvision.cli.cmd_world", "build an arena or board world, drive a robot, draw it"),
     ("render", "stcvision.cli.cmd_render", "render a synthetic catadioptric frame with ground truth"),
-    ("pipeline", "stcvision.cli.cmd_pipeline", "run the vision pipeline on frames from disk"),
+    ("pipeline", "stcvision.cli.cmd_pipeline", "run the vision pipeline on frames, a video, a camera or a ROS bag"),
     ("cover", "stcvision.cli.cmd_cover", "run the ant-like STC robot until it has covered a board"),
     ("firmware", "stcvision.cli.cmd_firmware", "check the STC controller's C firmware; build it for a microcontroller"),
     ("robot", "stcvision.cli.cmd_robot", "drive an STC robot over a serial link; or be a simulated one on a pty"),

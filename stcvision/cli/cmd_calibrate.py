@@ -4,6 +4,7 @@ of the five cells). Automatic, with a preview to check and a manual override, sa
 versioned profile.
 
   stcvision calibrate dark FRAME... --out dark.png
+  stcvision calibrate dark --bag FILE --topic TOPIC [--start S] [--end S] --out dark.png
   stcvision calibrate rim FRAME
   stcvision calibrate transform FRAME --out PROFILE.json [--center U,V] [--yes] [--force]
   stcvision calibrate neighbors FRAME --profile PROFILE.json [--points POINTS.json] [--yes]
@@ -39,7 +40,11 @@ def add_parser(p):
         description="Median-stack dark frames "
         "(lens capped or room dark) taken at the exposure of the frames they will correct.",
     )
-    d.add_argument("frames", nargs="+", metavar="FRAME")
+    d.add_argument("frames", nargs="*", metavar="FRAME")
+    d.add_argument("--bag", metavar="FILE", help="the dark frames of a recording (ROS 1/2 bag, MCAP), with --topic")
+    d.add_argument("--topic", metavar="TOPIC", help="--bag: the image topic")
+    d.add_argument("--start", type=float, default=0.0, metavar="S", help="--bag: seconds from the recording's start")
+    d.add_argument("--end", type=float, metavar="S", help="--bag: up to S seconds from the recording's start")
     d.add_argument("--out", required=True, metavar="DARK.png")
     d.add_argument("--force", action="store_true", help="overwrite --out")
     r = sub.add_parser(
@@ -457,24 +462,32 @@ def _dark(args):
         raise BadInputError(
             f"--out {out}: a dark frame must be stored losslessly; expected .png (JPEG loses the hot pixels)"
         )
-    lossy = [f for f in args.frames if Path(f).suffix.lower() not in DARK_SUFFIXES]
-    if lossy:
-        raise BadInputError(
-            f"{lossy[0]}: a dark frame must be taken losslessly; expected .png or .tiff frames (JPEG smears the hot "
-            "pixels and the fixed pattern the subtraction removes)"
-        )
-    frames, exposures = [], []
-    for f in args.frames:
-        frames.append(read_image(f, what="dark frame"))
-        side = Path(f).with_suffix(".json")  # optional sidecar: {"exposure_s": ...}
-        if side.exists():
-            exposures.append(_sidecar_exposure(read_json(side, what="frame sidecar"), side))
+    if bool(args.frames) == (args.bag is not None):
+        raise BadInputError("give dark FRAME files or --bag FILE --topic TOPIC, one of them")
+    if args.bag is not None:
+        frames, names = _bag_darks(args)
+        exposures = []
+    else:
+        if args.topic is not None or args.start or args.end is not None:
+            raise BadInputError("--topic, --start and --end apply to --bag")
+        lossy = [f for f in args.frames if Path(f).suffix.lower() not in DARK_SUFFIXES]
+        if lossy:
+            raise BadInputError(
+                f"{lossy[0]}: a dark frame must be taken losslessly; expected .png or .tiff frames (JPEG smears the "
+                "hot pixels and the fixed pattern the subtraction removes)"
+            )
+        frames, exposures, names = [], [], [str(f) for f in args.frames]
+        for f in args.frames:
+            frames.append(read_image(f, what="dark frame"))
+            side = Path(f).with_suffix(".json")  # optional sidecar: {"exposure_s": ...}
+            if side.exists():
+                exposures.append(_sidecar_exposure(read_json(side, what="frame sidecar"), side))
     if exposures and (max(exposures) - min(exposures) > 0.01 * max(exposures)):
         raise BadInputError(
             f"dark frames were taken at different exposures ({min(exposures):g}..{max(exposures):g} s); "
             "expected one exposure"
         )
-    dark = median_dark(frames, [str(f) for f in args.frames])  # 8 or 16 bits, as taken
+    dark = median_dark(frames, names)  # 8 or 16 bits, as taken
     write_image(out, dark, overwrite=args.force)
     hot = hot_pixels(dark)
     return {
@@ -483,6 +496,45 @@ def _dark(args):
         "hot_pixels": int(len(np.unique(hot // 3))),
         "mean_dn": float(dark.mean()),
     }
+
+
+def _bag_darks(args):
+    """The dark frames of a recording's topic (all of them, or those recorded in --start..--end):
+    at most MAX_DARK_FRAMES, held in memory for the median; never JPEG-compressed ones."""
+    import math
+
+    from stcvision.bags import open_bag
+    from stcvision.errors import BadInputError
+    from stcvision.limits import MAX_DARK_FRAMES
+
+    if args.topic is None:
+        raise BadInputError("--bag FILE and --topic TOPIC go together")
+    for flag, v in (("--start", args.start), ("--end", args.end)):
+        if v is not None and (not math.isfinite(v) or v < 0):
+            raise BadInputError(f"{flag} {v}: expected seconds >= 0 from the recording's start")
+    if args.end is not None and args.end <= args.start:
+        raise BadInputError(f"--end {args.end:g} must be after --start {args.start:g}")
+    src = open_bag(args.bag, args.topic)
+    frames, names = [], []
+    try:
+        for f in src.frames(start_s=args.start, end_s=args.end, count=MAX_DARK_FRAMES + 1):
+            if src.encoding == "jpeg":
+                raise BadInputError(
+                    f"{src.name}: {args.topic} is JPEG-compressed; a dark frame must be taken losslessly (JPEG smears "
+                    "the hot pixels and the fixed pattern the subtraction removes)"
+                )
+            if len(frames) == MAX_DARK_FRAMES:
+                raise BadInputError(
+                    f"{src.name}: more than {MAX_DARK_FRAMES} frames on {args.topic} (the cap of frames held in memory "
+                    "for the median, MAX_DARK_FRAMES); choose a window with --start and --end"
+                )
+            frames.append(f.image)
+            names.append(f"frame {f.index} of {src.name}")
+    finally:
+        src.close()
+    if not frames:
+        raise BadInputError(f"{src.name}: no frame on {args.topic} in the window given")
+    return frames, names
 
 
 def _sidecar_exposure(d, path) -> float:

@@ -4,6 +4,7 @@
   stcvision eval --compare A.json B.json
   stcvision eval LABELLED_FOLDER [--dark D.png | --no-dark] [--profile P.json] [--json] [--report OUTDIR]
   stcvision eval FOLDER_OF_IMAGES (--dark D.png | --no-dark) [--out RESULTS.jsonl] [--rrd R.rrd]
+  stcvision eval --bag FILE --topic TOPIC (--dark D.png | --no-dark) [--out RESULTS.jsonl] [--rrd R.rrd]
 
 On a dataset (made by 'stcvision dataset generate') every frame is run through the pipeline
 (chunks of frames are tasks of the sweep runner: --workers N, --scheduler tcp://HOST:PORT; with
@@ -24,7 +25,9 @@ the heading error, dots) the same metrics and report are computed against your l
 label leaves out is not scored.
 
 On a folder of images without labels the pipeline runs on each and writes per-frame results
-(JSONL); there is no truth, so no accuracy.
+(JSONL); there is no truth, so no accuracy. --bag does the same on a robot's recording (a ROS 1
+bag, a ROS 2 bag folder or an MCAP file, as 'stcvision pipeline --bag' reads it), each line with
+its frame's header stamp.
 """
 
 from __future__ import annotations
@@ -35,6 +38,8 @@ def add_parser(p):
 
     p.formatter_class = argparse.RawDescriptionHelpFormatter  # keep the usage lines of the docstring
     p.add_argument("dir", nargs="?", metavar="DIR", help="a dataset folder, or a folder of your own frames")
+    p.add_argument("--bag", metavar="FILE", help="a recording: ROS 1 bag, ROS 2 bag folder or MCAP file (with --topic)")
+    p.add_argument("--topic", metavar="TOPIC", help="--bag: the sensor_msgs/Image or CompressedImage topic")
     p.add_argument("--profile", metavar="PROFILE.json", help="calibration profile for every frame")
     p.add_argument("--report", metavar="OUTDIR", help="write summary.md, eval.json, frames.jsonl and PNG plots")
     p.add_argument("--rrd", metavar="OUT.rrd", help="rerun recording of the worst frames (dataset) or every frame")
@@ -90,6 +95,12 @@ def run(args):
         r = compare(a, b, names=tuple(args.compare))
         r["mode"] = "compare"
         return r
+    if (args.bag is None) != (args.topic is None):
+        raise BadInputError("--bag FILE and --topic TOPIC go together")
+    if args.bag is not None:
+        if args.dir or args.compare:
+            raise BadInputError("give DIR, --bag FILE or --compare A.json B.json, one of them")
+        return _run_bag(args)
     if not args.dir:
         raise BadInputError("eval needs DIR (a dataset or a folder of frames) or --compare A.json B.json")
     from stcvision.limits import MAX_EVAL_WORST_FRAMES, check_count
@@ -210,6 +221,67 @@ def _run_images(args, root):
         raise FileExistsRefusedError(f"{out} exists; refusing to overwrite it (use --out or --force)")
     r = evaluate_image_folder(paths, profile=profile, dark=dark, dark_path=args.dark, out=out, rrd=args.rrd)
     return {"mode": "frames", "dir": str(root), **r, "excluded": excluded, "profile": args.profile or "default"}
+
+
+def _run_bag(args):
+    """A recording's frames through the pipeline into a results file, as a folder of frames."""
+    from pathlib import Path
+
+    from stcvision.bags import open_bag
+    from stcvision.errors import BadInputError, FileExistsRefusedError
+    from stcvision.evaluate import evaluate_recording
+    from stcvision.fileio import read_image
+    from stcvision.limits import MAX_VIDEO_FRAMES
+
+    if args.dark is None and not args.no_dark:
+        raise BadInputError("--bag: pass --dark DARK.png (captured at the frames' exposure) or --no-dark")
+    if args.dark and args.no_dark:
+        raise BadInputError("give --dark DARK.png or --no-dark, not both")
+    if args.report:
+        raise BadInputError("a recording has no labels, so there is no accuracy to report; drop --report")
+    bag = Path(args.bag)
+    out = Path(args.out) if args.out else bag.resolve().parent / f"{bag.resolve().stem}-results.jsonl"
+    if out.exists() and not args.force:
+        raise FileExistsRefusedError(f"{out} exists; refusing to overwrite it (use --out or --force)")
+    if args.rrd:
+        from stcvision.rr import check_recording_path
+
+        check_recording_path(args.rrd, overwrite=args.force)
+    profile = _load_profile(args.profile) or _default_profile()
+    dark = None
+    if args.dark:
+        dark = read_image(args.dark, what="dark frame")
+        profile.check_frame(dark.shape, what=f"dark frame {args.dark}")
+    src = open_bag(bag, args.topic)
+
+    profile_name = f"profile {args.profile or 'default'}"
+
+    def frames():
+        from stcvision.calibration.rim import check_rim_matches
+
+        for k, f in enumerate(src.frames(count=MAX_VIDEO_FRAMES)):
+            if k == 0:  # where its mirror rim shows (lights on), it must be where the profile has it
+                name = f"frame {f.index} of {src.name}"
+                profile.check_frame(f.image.shape, what=name)
+                check_rim_matches(f.image, profile, frame_name=name, profile_name=profile_name)
+            yield f
+
+    try:
+        r = evaluate_recording(
+            frames(),
+            name=src.name,
+            profile=profile,
+            dark=dark,
+            dark_path=args.dark,
+            out=out,
+            rrd=args.rrd,
+            total=min(src.frame_count, MAX_VIDEO_FRAMES),
+        )
+    finally:
+        src.close()
+    if r["frames"] == 0:
+        raise BadInputError(f"{src.name}: no frame on {args.topic}")
+    return {"mode": "frames", "dir": src.name, **r, "topic": args.topic, "profile": args.profile or "default"}
 
 
 def _f(v, fmt=".4g"):

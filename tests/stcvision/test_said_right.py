@@ -111,7 +111,8 @@ def test_calibrate_help_keeps_its_examples_on_their_own_lines(cli, capsys):
     with pytest.raises(SystemExit):
         main(["calibrate", "--help"])
     text = capsys.readouterr().out
-    assert "\n  stcvision calibrate dark FRAME... --out dark.png\n  stcvision calibrate rim FRAME\n" in text
+    assert "\n  stcvision calibrate dark FRAME... --out dark.png\n  stcvision calibrate dark --bag FILE" in text
+    assert "\n  stcvision calibrate rim FRAME\n" in text
 
 
 @pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])

@@ -1,5 +1,6 @@
 """stcvision pipeline --video: a lossless video of rendered frames gives exactly the PNG frames'
-results; a lossy one is warned about; frames of the wrong size are refused as PNGs are."""
+results, each line with the container's timestamp and a summary line at the end; a lossy one is
+warned about; frames of the wrong size are refused as PNGs are."""
 
 import json
 
@@ -13,7 +14,7 @@ from stcvision.sim_camera.scene import EXAMPLE_SCENE, Scene
 def _drop_times(d):
     """Results without their wall-clock timings (the only part that may differ run to run)."""
     if isinstance(d, dict):
-        return {k: _drop_times(v) for k, v in d.items() if not k.endswith("_ms") and k != "frame"}
+        return {k: _drop_times(v) for k, v in d.items() if not k.endswith("_ms") and k not in ("frame", "t_s")}
     if isinstance(d, list):
         return [_drop_times(v) for v in d]
     return d
@@ -62,8 +63,12 @@ def test_lossless_video_gives_the_png_frames_results(rendered, tmp_path, cli, fo
     code, out, err = cli("pipeline", "--video", video, "--dark", d / "dark.png", "--json")
     assert code == 0, err
     assert "warning" not in err
-    lines = [json.loads(ln) for ln in out.splitlines()]
+    *lines, summary = [json.loads(ln) for ln in out.splitlines()]
     assert [ln["frame"] for ln in lines] == [0, 1, 2, 3]
+    # the container's timestamps: 10 frames a second
+    assert [ln["t_s"] for ln in lines] == [0.0, 0.1, 0.2, 0.3]
+    assert summary["summary"]["frames"] == 4 and summary["summary"]["clock"] == "container"
+    assert (summary["summary"]["first_t_s"], summary["summary"]["last_t_s"]) == (0.0, 0.3)
     assert [_drop_times(x) for x in lines] == [_drop_times(x) for x in png]
     assert sum(len(x["dots"]) for x in lines) > 0
     # --start, --frames, --every pick frames 1 and 3
@@ -71,11 +76,12 @@ def test_lossless_video_gives_the_png_frames_results(rendered, tmp_path, cli, fo
         "pipeline", "--video", video, "--dark", d / "dark.png", "--json", "--start", "1", "--every", "2"
     )
     assert code == 0, err
-    lines = [json.loads(ln) for ln in out.splitlines()]
-    assert [ln["frame"] for ln in lines] == [1, 3]
+    lines = [json.loads(ln) for ln in out.splitlines()][:-1]
+    assert [ln["frame"] for ln in lines] == [1, 3] and [ln["t_s"] for ln in lines] == [0.1, 0.3]
     assert [_drop_times(x) for x in lines] == [_drop_times(png[1]), _drop_times(png[3])]
     code, out, _ = cli("pipeline", "--video", video, "--dark", d / "dark.png", "--frames", "1")
-    assert code == 0 and len(out.splitlines()) == 1 and out.startswith("0: ")
+    assert code == 0 and len(out.splitlines()) == 2 and out.startswith("0 t=0.000000 s: ")
+    assert out.splitlines()[1].startswith(f"1 frame of video {video}, t 0.000000 .. 0.000000 s (container)")
 
 
 def test_lossy_video_is_warned_and_wrong_size_refused(rendered, tmp_path, cli):
@@ -108,3 +114,29 @@ def test_a_camera_that_is_not_there_is_one_line(rendered, cli):
     d, _ = rendered
     code, out, err = cli("pipeline", "--device", "97", "--dark", d / "dark.png")
     assert code == 2 and out == "" and "camera device 97 cannot be opened" in err and err.count("\n") == 1
+
+
+def test_a_live_cameras_frames_carry_this_computers_clock(rendered, tmp_path, cli, monkeypatch):
+    """A camera's frames are timed by this computer's clock as they arrive (a lossless video
+    stands in for the camera: no camera is attached where the tests run)."""
+    import time
+
+    import stcvision.video as video
+
+    d, frames = rendered
+    _write_video(tmp_path / "cam.mkv", frames[:2], "FFV1")
+
+    def fake_device(index):
+        src = video.open_video(tmp_path / "cam.mkv")
+        src.live, src.name = True, f"camera device {index}"
+        return src
+
+    monkeypatch.setattr(video, "open_device", fake_device)
+    before = time.time()
+    code, out, err = cli("pipeline", "--device", "0", "--dark", d / "dark.png", "--json")
+    after = time.time()
+    assert code == 0, err
+    *lines, summary = [json.loads(ln) for ln in out.splitlines()]
+    assert [ln["frame"] for ln in lines] == [0, 1]
+    assert before <= lines[0]["t_s"] <= lines[1]["t_s"] <= after
+    assert summary["summary"]["clock"] == "computer clock" and summary["summary"]["frames"] == 2
