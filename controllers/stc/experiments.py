@@ -369,6 +369,7 @@ def cover_run(params: dict, seed) -> dict:
         max_decisions=cap,
         camera=hardware.load_camera(params["camera"]),
         move_log=params.get("move_log", False),
+        fsm=params.get("fsm", "python"),
     )
     r = run_cover(board, cfg)
     keep = {k: v for k, v in params.items() if k != "grid"}  # the map's bits stay in the task
@@ -409,10 +410,13 @@ def plan(
     start: str = "board",
     decisions_per_subcell: int = 10,
     move_log: bool = False,
+    fsm: str = "python",
 ):
     """The tasks, largest boards first (so the pool is not left waiting on one at the end);
     every input checked, and the count capped, before a task is made. ``move_log``: the study
-    switch's robot (``CoverConfig.move_log``), tabled apart from the ant-like one."""
+    switch's robot (``CoverConfig.move_log``), tabled apart from the ant-like one. ``fsm``: the
+    controller that decides (``CoverConfig.fsm``: python, c or firmware); the same runs, so the
+    same table, whichever decides."""
     from stcvision.limits import MAX_SWEEP_SEEDS, MAX_SWEEP_TASKS, check_count
     from stcvision.sim_camera import hardware
     from stcvision.sweep import Task
@@ -437,6 +441,11 @@ def plan(
     common = {"start": start, "decisions_per_subcell": decisions_per_subcell}
     if move_log:  # (absent otherwise: the ant-like robot's tasks keep their parameters)
         common["move_log"] = True
+    if fsm != "python":  # (absent for the Python controller: earlier stores' tasks stay the same tasks)
+        from stcvision.controllers.stc.choose import make_controller
+
+        make_controller(fsm).close()  # a controller that cannot be built: one line before any task
+        common["fsm"] = fsm
     grid = itertools.product(order, exposures, perceptions, cameras, seeds)
     kw = ("exposure", "perception", "camera", "seed")
     return [Task(EXPERIMENT, {**f.params(), **common, **dict(zip(kw, rest, strict=True))}, rest[-1])
@@ -725,6 +734,7 @@ def sweep(
     move_log: bool = False,
     options=None,
     force: bool = False,
+    fsm: str = "python",
 ) -> dict:
     """Plan the runs (every input checked first), run them through the sweep runner into
     ``out/sweep.jsonl`` (resumable), and write the table, the runs, the summary and the plot."""
@@ -732,7 +742,7 @@ def sweep(
 
     families = [*map_families(maps), *with_fraction(sizes, obstacle_fraction)]
     tasks = plan(families, seeds, exposures, perceptions, cameras, start=start,
-                 decisions_per_subcell=decisions_per_subcell, move_log=move_log)  # fmt: skip
+                 decisions_per_subcell=decisions_per_subcell, move_log=move_log, fsm=fsm)  # fmt: skip
     out = output_folder(out, OUTPUTS, store=STORE, force=force, what="cover sweep")
     report = run_sweep(tasks, out / STORE, options or SweepOptions(), desc="cover sweep")
     runs = list(report.results.values())

@@ -64,6 +64,9 @@ not complete is listed with the 'stcvision cover' command that replays it.
                    help="stop a run after this many decisions per reachable sub-cell (default 10)")  # fmt: skip
     s.add_argument("--move-log", action="store_true",
                    help="the study switch's robot, which keeps a map of where it has been (tabled apart)")  # fmt: skip
+    s.add_argument("--fsm", choices=("python", "c", "firmware"), default="python",
+                   help="the controller that decides every run: Python, the host-built C, or the firmware in its "
+                   "emulator (default python)")  # fmt: skip
     s.add_argument("--out", required=True, metavar="DIR", help="folder for the store, the tables and the plot")
     s.add_argument("--force", action="store_true", help="overwrite tables/plot in a folder that holds no cover sweep")
     s.add_argument("--json", action="store_true", help="print the result as one JSON object")
@@ -81,7 +84,7 @@ def sweep_cover(args) -> dict:
                  exposures=args.exposures, perceptions=args.perceptions, cameras=args.cameras,
                  obstacle_fraction=parse_fraction(args.obstacle_fraction),
                  start=args.start, decisions_per_subcell=args.decisions_per_subcell, move_log=args.move_log,
-                 options=sweep_options_from_args(args), force=args.force)  # fmt: skip
+                 options=sweep_options_from_args(args), force=args.force, fsm=args.fsm)  # fmt: skip
 
 
 def format_text(r: dict) -> str:

@@ -83,3 +83,16 @@ def test_cover_sweep_over_camera_presets(tmp_path, cli):
     assert sorted(x["camera"] for x in runs) == ["lowlight", "webcam"]
     code, _, err = cli("cover", "sweep", "--sizes", "2", "--cameras", "nope", "--out", tmp_path / "x")
     assert code == 2 and "unknown camera" in err
+
+
+def test_cover_sweep_with_the_c_controller_gives_the_python_table(tmp_path, cli):
+    """The same runs decided by the host-built C step: the same outcomes, row for row."""
+    import json
+
+    argv = ("cover", "sweep", "--sizes", "2,3", "--runs", "2", "--perceptions", "oracle", "--workers", "1", "--json")
+    tables = {}
+    for fsm in ("python", "c"):
+        code, out, err = cli(*argv, "--fsm", fsm, "--out", tmp_path / fsm)
+        assert code == 0, err
+        tables[fsm] = [{k: v for k, v in row.items() if not k.startswith("wall_s")} for row in json.loads(out)["table"]]
+    assert tables["c"] == tables["python"] and len(tables["c"]) >= 2
