@@ -107,7 +107,7 @@ def check_display(environ=None, platform: str | None = None) -> None:
         env.get("DISPLAY") or env.get("WAYLAND_DISPLAY")
     ):
         raise StcVisionError(
-            "--spawn opens the rerun viewer in a window, and this session has no display (DISPLAY and "
+            "--spawn opens the rerun viewer in a window, and there is no display here (DISPLAY and "
             "WAYLAND_DISPLAY are unset); write a file with --rrd OUT.rrd and open it with 'rerun OUT.rrd' "
             "where there is one"
         )
