@@ -531,39 +531,11 @@ class Pipeline:
         f = self.front.run(frame, self.scratch, times)
         g, r, obstacle, marks = f.green, f.red, f.obstacle, f.marks
         dots, all_dots = self._dots_and_rows(f, frame, times)
-        with times("red"):
-            wide = None if f.wide_obstacle is None else (f.wide_obstacle, self.front.wide_profile.ground_to_robot)
-            lights = read_red(
-                obstacle,
-                frame,
-                p.red,
-                window_area=area,
-                profile=self.profile,
-                dark=self.dark,
-                pedestal=self.pedestal,
-                red_channel=r,
-                white_blue_ratio=p.white_blue_ratio,
-                wide=wide,
-            )
-            red = lights.lights
+        lights = self._red_lights(f, frame, area, times)
+        red = lights.lights
         with times("heading"):
             heading = fit_heading(dots, p.heading)
-        with times("observe"):
-            herr = heading.heading_error_rad if (heading.ok and p.use_heading) else 0.0
-            if heading_error_rad is not None:
-                herr = float(heading_error_rad)
-            obs = observe_cell(
-                all_dots,
-                red.xy_px,
-                red.peak_dn,
-                self.geometry,
-                red_threshold_dn=p.channels.levels(*f.red_levels)[0],
-                heading_error_rad=herr,
-                params=p.observation,
-                landmark_px=lights.landmark_px,
-                subcell_m=self.profile.subcell_m,
-                position_offset=position_offset,
-            )
+        obs = self._observe(f, all_dots, lights, heading, times, heading_error_rad, position_offset)
         if tuple(times.ms) != STAGES:  # every stage timed once, in order (a new stage names itself in STAGES)
             raise RuntimeError(f"stages timed {tuple(times.ms)}, expected {STAGES}")
         return PipelineResult(
@@ -582,6 +554,52 @@ class Pipeline:
             area,
             lights.white_m,
         )
+
+    def _red_lights(self, f, frame: np.ndarray, area: int, times: StageTimes):
+        """Run the red stage on the front end's output ``f`` and the raw ``frame``, timed as "red".
+
+        Returns the lights (:func:`stcvision.stages.red.read_red`).
+        """
+        p = self.params
+        with times("red"):
+            wide = None if f.wide_obstacle is None else (f.wide_obstacle, self.front.wide_profile.ground_to_robot)
+            return read_red(
+                f.obstacle,
+                frame,
+                p.red,
+                window_area=area,
+                profile=self.profile,
+                dark=self.dark,
+                pedestal=self.pedestal,
+                red_channel=f.red,
+                white_blue_ratio=p.white_blue_ratio,
+                wide=wide,
+            )
+
+    def _observe(self, f, all_dots, lights, heading, times: StageTimes, heading_error_rad, position_offset):
+        """Read the cell, timed as "observe".
+
+        The heading error is the one given, else the frame's own fit (when it holds and the
+        parameters use it), else none.
+        """
+        p = self.params
+        with times("observe"):
+            herr = heading.heading_error_rad if (heading.ok and p.use_heading) else 0.0
+            if heading_error_rad is not None:
+                herr = float(heading_error_rad)
+            red = lights.lights
+            return observe_cell(
+                all_dots,
+                red.xy_px,
+                red.peak_dn,
+                self.geometry,
+                red_threshold_dn=p.channels.levels(*f.red_levels)[0],
+                heading_error_rad=herr,
+                params=p.observation,
+                landmark_px=lights.landmark_px,
+                subcell_m=self.profile.subcell_m,
+                position_offset=position_offset,
+            )
 
     def ground_view(self, image: np.ndarray) -> np.ndarray:
         """Return the 8-bit colour ground view of an image, as the stages see it.

@@ -152,6 +152,34 @@ def _candidate_level(dtype, gain, params: DotParams, area: int, background_dn: f
     return 2, 0.0, float(level)
 
 
+def _window_sums_and_levels(marks: np.ndarray, w: int, background_dn, noise_dn, quantum: float):
+    """Return (window sums, background, noise) of a marks image.
+
+    A plain uint8 image is filtered here and its levels measured when not given; window sums come
+    filtered, with their levels. The noise is never taken below the quantisation's rounding noise.
+    """
+    if background_dn is None or noise_dn is None:
+        if marks.dtype != np.uint8:
+            raise BadInputError("find_dots: give background_dn and noise_dn with window sums")
+        background_dn, noise_dn = estimate_background(marks)
+    noise_dn = max(noise_dn, noise_floor(quantum))
+    if marks.dtype == np.uint8:  # a plain image: filter it here
+        return cv2.boxFilter(marks, cv2.CV_32F, (w, w), normalize=False), background_dn, noise_dn
+    return marks, background_dn, noise_dn  # window sums of the mirror image, already unwarped
+
+
+def _too_many(n_cand: int, n: int, low: float, params: DotParams) -> str:
+    """Why a frame's dots are not to be trusted for their number ("" when they are)."""
+    if n_cand > params.max_candidates:
+        return (
+            f"{n_cand} dot candidates above {low:g} sigma, more than the {params.max_candidates} a frame of "
+            "marks can hold: the measured noise does not describe this frame"
+        )
+    if n >= params.max_dots:
+        return f"{params.max_dots} dots found, the most a frame is read for (DotParams.max_dots)"
+    return ""
+
+
 def find_dots(
     marks: np.ndarray,
     params: DotParams = DotParams(),
@@ -200,15 +228,7 @@ def find_dots(
     check_image(marks, "marks image (uint8, or window sums)", (np.uint8, *SUM_DTYPES), ndims=(2,))
     w = params.window_px
     area = w * w
-    if background_dn is None or noise_dn is None:
-        if marks.dtype != np.uint8:
-            raise BadInputError("find_dots: give background_dn and noise_dn with window sums")
-        background_dn, noise_dn = estimate_background(marks)
-    noise_dn = max(noise_dn, noise_floor(quantum))
-    if marks.dtype == np.uint8:  # a plain image: filter it here
-        sums = cv2.boxFilter(marks, cv2.CV_32F, (w, w), normalize=False)
-    else:  # window sums of the mirror image, already unwarped
-        sums = marks
+    sums, background_dn, noise_dn = _window_sums_and_levels(marks, w, background_dn, noise_dn, quantum)
     low = min(params.candidate_snr, params.k_sigma)
     # local maxima (3x3) at or above the candidate level, area * (background + snr * noise of
     # the window mean there), in one compiled pass (dot_candidates: the level image,
@@ -243,15 +263,8 @@ def find_dots(
         params.centroid_px,
         float(per_px),
     )
-    untrusted = ""
-    if n_cand > params.max_candidates:
-        untrusted = (
-            f"{n_cand} dot candidates above {low:g} sigma, more than the {params.max_candidates} a frame of "
-            "marks can hold: the measured noise does not describe this frame"
-        )
     n = len(snr_k)
-    if n >= params.max_dots and not untrusted:
-        untrusted = f"{params.max_dots} dots found, the most a frame is read for (DotParams.max_dots)"
+    untrusted = _too_many(n_cand, n, low, params)
     if not n:
         strength = np.zeros(0)
     xy_m = ground_to_robot(xy) if (ground_to_robot is not None and n) else np.zeros((n, 2))

@@ -32,18 +32,6 @@ IMAGE_DEF = (
 STRING_DEF = "string data\n"
 
 
-_WHICH_FRAME = ("frame", "t_s", "stamp_ns")
-
-
-def _drop_times(d):
-    """Results without their wall-clock timings and their frame's name and time."""
-    if isinstance(d, dict):
-        return {k: _drop_times(v) for k, v in d.items() if not k.endswith("_ms") and k not in _WHICH_FRAME}
-    if isinstance(d, list):
-        return [_drop_times(v) for v in d]
-    return d
-
-
 @pytest.fixture(scope="module")
 def rendered(tmp_path_factory):
     """Four dark-room frames (different noise draws and times) and their dark frame."""
@@ -208,7 +196,7 @@ def _bag_lines(cli, bag, dark, *extra):
 
 
 @pytest.mark.parametrize("kind", ["ros1", "ros2-sqlite3", "ros2-mcap", "mcap"])
-def test_a_recording_gives_the_png_frames_results_and_stamps(rendered, tmp_path, cli, kind):
+def test_a_recording_gives_the_png_frames_results_and_stamps(rendered, tmp_path, cli, kind, results_only):
     d, frames, dark = rendered
     png, dark_path = _png_results(cli, tmp_path, frames, dark, "bgr")
     bag = {
@@ -222,7 +210,7 @@ def test_a_recording_gives_the_png_frames_results_and_stamps(rendered, tmp_path,
     assert [ln["frame"] for ln in lines] == [0, 1, 2, 3]
     assert [ln["stamp_ns"] for ln in lines] == [_stamp_ns(i) for i in range(4)]
     assert [ln["t_s"] for ln in lines] == [_stamp_ns(i) / 10**9 for i in range(4)]
-    assert [_drop_times(x) for x in lines] == [_drop_times(x) for x in png]
+    assert [results_only(x) for x in lines] == [results_only(x) for x in png]
     assert sum(len(x["dots"]) for x in lines) > 0
     assert summary["frames"] == 4 and summary["clock"] == "header stamp"
     assert summary["first_t_s"] == _stamp_ns(0) / 10**9 and summary["last_t_s"] == _stamp_ns(3) / 10**9
@@ -243,29 +231,29 @@ def test_a_recording_gives_the_png_frames_results_and_stamps(rendered, tmp_path,
 
 
 @pytest.mark.parametrize("encoding", sorted(ENCODINGS))
-def test_every_encoding_reads_as_its_bgr_frame(rendered, tmp_path, cli, encoding):
+def test_every_encoding_reads_as_its_bgr_frame(rendered, tmp_path, cli, encoding, results_only):
     d, frames, dark = rendered
     to_msg, to_bgr = ENCODINGS[encoding]
     frames = frames[:2]
     png, dark_path = _png_results(cli, tmp_path, [to_bgr(f) for f in frames], to_bgr(dark), encoding)
     bag = write_ros2(tmp_path / "run", [to_msg(f) for f in frames], storage="mcap", encoding=encoding)
     lines, _, err = _bag_lines(cli, bag, dark_path)
-    assert [_drop_times(x) for x in lines] == [_drop_times(x) for x in png]
+    assert [results_only(x) for x in lines] == [results_only(x) for x in png]
     assert ("no colour" in err) == encoding.startswith("mono"), err
 
 
-def test_compressed_and_big_endian_images(rendered, tmp_path, cli):
+def test_compressed_and_big_endian_images(rendered, tmp_path, cli, results_only):
     d, frames, dark = rendered
     frames = frames[:2]
     png, dark_path = _png_results(cli, tmp_path, frames, dark, "c")
     bag = write_ros1(tmp_path / "png.bag", frames, compressed="png")
     lines, _, err = _bag_lines(cli, bag, dark_path)
-    assert [_drop_times(x) for x in lines] == [_drop_times(x) for x in png] and "warning" not in err
+    assert [results_only(x) for x in lines] == [results_only(x) for x in png] and "warning" not in err
     f16 = [f.astype(np.uint16) * 16 for f in frames]
     png, dark_path = _png_results(cli, tmp_path, f16, dark.astype(np.uint16) * 16, "be")
     bag = write_ros2(tmp_path / "be", f16, encoding="bgr16", bigendian=True)
     lines, _, _ = _bag_lines(cli, bag, dark_path)
-    assert [_drop_times(x) for x in lines] == [_drop_times(x) for x in png]
+    assert [results_only(x) for x in lines] == [results_only(x) for x in png]
 
 
 def test_bayer_patterns_come_back_in_their_colours():
@@ -351,7 +339,7 @@ def test_a_signal_stops_a_bag_run_within_two_seconds(rendered, tmp_path, sig):
     assert "interrupted" in err and "Traceback" not in err
 
 
-def test_eval_of_a_recording_writes_the_folders_results_with_stamps(rendered, tmp_path, cli):
+def test_eval_of_a_recording_writes_the_folders_results_with_stamps(rendered, tmp_path, cli, results_only):
     d, frames, dark = rendered
     folder = tmp_path / "frames"
     folder.mkdir()
@@ -369,7 +357,7 @@ def test_eval_of_a_recording_writes_the_folders_results_with_stamps(rendered, tm
     lines = [json.loads(ln) for ln in (tmp_path / "run-results.jsonl").read_text().splitlines()]
     assert [ln["frame"] for ln in lines] == [0, 1, 2, 3]
     assert [ln["stamp_ns"] for ln in lines] == [_stamp_ns(i) for i in range(4)]
-    assert [_drop_times(x) for x in lines] == [_drop_times(x) for x in png]
+    assert [results_only(x) for x in lines] == [results_only(x) for x in png]
     # a second run does not overwrite the results without --force; a topic that is no image is one line
     for argv, words in (
         (["--bag", bag, "--topic", TOPIC], "refusing to overwrite"),

@@ -11,15 +11,6 @@ import pytest
 from stcvision.sim_camera.scene import EXAMPLE_SCENE, Scene
 
 
-def _drop_times(d):
-    """Results without their wall-clock timings (the only part that may differ run to run)."""
-    if isinstance(d, dict):
-        return {k: _drop_times(v) for k, v in d.items() if not k.endswith("_ms") and k not in ("frame", "t_s")}
-    if isinstance(d, list):
-        return [_drop_times(v) for v in d]
-    return d
-
-
 @pytest.fixture(scope="module")
 def rendered(tmp_path_factory):
     """Four dark-room frames (different noise draws and times) and their dark frame."""
@@ -53,7 +44,7 @@ def _write_video(path, frames, fourcc):
 
 
 @pytest.mark.parametrize("fourcc, suffix", [("FFV1", ".mkv"), ("MPNG", ".avi")])
-def test_lossless_video_gives_the_png_frames_results(rendered, tmp_path, cli, fourcc, suffix):
+def test_lossless_video_gives_the_png_frames_results(rendered, tmp_path, cli, fourcc, suffix, results_only):
     d, frames = rendered
     video = tmp_path / f"run{suffix}"
     _write_video(video, frames, fourcc)
@@ -69,7 +60,7 @@ def test_lossless_video_gives_the_png_frames_results(rendered, tmp_path, cli, fo
     assert [ln["t_s"] for ln in lines] == [0.0, 0.1, 0.2, 0.3]
     assert summary["summary"]["frames"] == 4 and summary["summary"]["clock"] == "container"
     assert (summary["summary"]["first_t_s"], summary["summary"]["last_t_s"]) == (0.0, 0.3)
-    assert [_drop_times(x) for x in lines] == [_drop_times(x) for x in png]
+    assert [results_only(x) for x in lines] == [results_only(x) for x in png]
     assert sum(len(x["dots"]) for x in lines) > 0
     # --start, --frames, --every pick frames 1 and 3
     code, out, err = cli(
@@ -78,7 +69,7 @@ def test_lossless_video_gives_the_png_frames_results(rendered, tmp_path, cli, fo
     assert code == 0, err
     lines = [json.loads(ln) for ln in out.splitlines()][:-1]
     assert [ln["frame"] for ln in lines] == [1, 3] and [ln["t_s"] for ln in lines] == [0.1, 0.3]
-    assert [_drop_times(x) for x in lines] == [_drop_times(png[1]), _drop_times(png[3])]
+    assert [results_only(x) for x in lines] == [results_only(png[1]), results_only(png[3])]
     code, out, _ = cli("pipeline", "--video", video, "--dark", d / "dark.png", "--frames", "1")
     assert code == 0 and len(out.splitlines()) == 2 and out.startswith("0 t=0.000000 s: ")
     assert out.splitlines()[1].startswith(f"1 frame of video {video}, t 0.000000 .. 0.000000 s (container)")
