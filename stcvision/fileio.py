@@ -14,11 +14,12 @@ import os
 import secrets
 import tempfile
 from pathlib import Path
-from typing import Any
-
-import numpy as np
+from typing import TYPE_CHECKING, Any
 
 from stcvision.errors import BadInputError, FileExistsRefusedError, OutputError
+
+if TYPE_CHECKING:  # numpy is imported where it is used: the command line's start needs none of it
+    import numpy as np
 
 __all__ = [
     "check_output_file",
@@ -303,6 +304,8 @@ def write_bytes_atomic(path: str | os.PathLike, data: bytes, *, overwrite: bool 
 
 
 def _json_default(obj: Any) -> Any:
+    import numpy as np  # here, not at the top: the command line's start needs none of numpy
+
     if isinstance(obj, np.generic):
         return obj.item()
     if isinstance(obj, np.ndarray):
@@ -434,6 +437,7 @@ def write_image(path: str | os.PathLike, image: np.ndarray, *, overwrite: bool =
         When the file cannot be written.
     """
     import cv2
+    import numpy as np
 
     path = Path(path)
     suffix = path.suffix.lower()
@@ -531,6 +535,7 @@ def read_image(path: str | os.PathLike, *, color: bool = True, what: str = "imag
         3-channel BGR (greyscale, alpha) or not 8/16-bit.
     """
     import cv2
+    import numpy as np
 
     path = Path(path)
     try:

@@ -16,11 +16,11 @@ from pathlib import Path
 
 import numpy as np
 
-from stcvision.controllers.buffon.batched import PAPER_TRAIL_WIDTH_U, PAPER_VISIT_STEPS, VisitConfig, run_trials
+from stcvision.controllers.buffon.batched import VisitConfig, run_trials
+from stcvision.controllers.buffon.defaults import CORRECTION_REFERENCE, PAPER_TRAIL_WIDTH_U, PAPER_VISIT_STEPS
 from stcvision.controllers.buffon.estimate import (
     AREA_CORRECTION,
     AREA_VISIT_STEPS,
-    CORRECTION_REFERENCE,
     calibrate_area_correction,
     summarise,
 )

@@ -75,7 +75,7 @@ def add_parser(p):
 
 def _nest_arguments(p, *, required: bool) -> None:
     from stcvision.cli._args import positive
-    from stcvision.controllers.buffon.batched import PAPER_TRAIL_WIDTH_U
+    from stcvision.controllers.buffon.defaults import PAPER_TRAIL_WIDTH_U
 
     p.add_argument(
         "--nest",
@@ -174,7 +174,7 @@ def _add_compare(sub):
 
 
 def _add_calibrate(sub):
-    from stcvision.controllers.buffon.estimate import CORRECTION_REFERENCE
+    from stcvision.controllers.buffon.defaults import CORRECTION_REFERENCE
 
     s = sub.add_parser(
         "calibrate",

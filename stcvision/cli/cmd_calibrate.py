@@ -102,7 +102,7 @@ def add_parser(p):
 def _add_lens_file_parsers(sub):
     """The ``import`` and ``export`` steps: profiles from and to other tools' calibration files."""
     from stcvision.cli._args import pair, positive
-    from stcvision.sim_camera.board import DEFAULT_SUBCELL_M
+    from stcvision.stc_geometry import DEFAULT_SUBCELL_M
 
     i = sub.add_parser(
         "import",
@@ -190,11 +190,9 @@ def _add_lens_file_parsers(sub):
 
 def _add_target_parsers(sub):
     """The ``target`` and ``rescale`` steps."""
-    from stcvision.calibration.target import DEFAULT_FOLDS
-    from stcvision.calibration.target_fit import MODELS
-    from stcvision.calibration.target_views import PATTERNS
+    from stcvision.calibration.target_options import DEFAULT_FOLDS, MODELS, PATTERNS
     from stcvision.cli._args import pair, positive
-    from stcvision.sim_camera.board import DEFAULT_SUBCELL_M
+    from stcvision.stc_geometry import DEFAULT_SUBCELL_M
 
     g = sub.add_parser(
         "target",

@@ -13,6 +13,8 @@ ROOT = Path(__file__).resolve().parents[2]
 TWO_COMPILES = """
 from stcvision.compiles import announce_compiles
 announce_compiles(); announce_compiles()  # idempotent
+import sys
+assert "numba" not in sys.modules  # listening costs no compiler's import
 import numba
 f = numba.njit(lambda x: x + 1)
 g = numba.njit(lambda x: x * 2)
