@@ -174,6 +174,28 @@ def test_recording_draws_the_true_and_believed_paths(tmp_path, capsys):
     assert "/world/path/true" in text and "/world/path/believed" in text
 
 
+def test_recording_holds_the_trace_lines_uncut_and_opens_with_the_runs_layout(tmp_path, capsys, rrd_contents):
+    """cover --rrd logs every --trace line whole, as a text log on the decision and sim_time
+    timelines (a camera run: its lines carry the frames and run to ~1,000 characters), and opens
+    with the floor map, the camera's raw frame and ground view, the decision and trace texts,
+    the time panel open on sim_time."""
+    rrd, trace = tmp_path / "c.rrd", tmp_path / "t.jsonl"
+    code, summary = _run([*CAMERA_RUN, "--rrd", str(rrd), "--trace", str(trace)], capsys)
+    assert code == 0 and summary["complete"]
+    lines = trace.read_text().splitlines()
+    contents = rrd_contents(rrd)
+    logged = [text for (text,) in contents.column("/trace", "TextLog:text")]
+    assert logged == lines and max(map(len, logged)) > 500
+    assert contents.times("/trace", "decision") == sorted(json.loads(line)["decision"] for line in lines)
+    views = contents.views()
+    for view in [("2D", "world (north up)", "world"), ("2D", "camera: raw frame", "raw"),
+                 ("2D", "ground view", "ground"), ("TextDocument", "decision", "decision"),
+                 ("TextLog", "trace (the --trace lines)", "trace")]:  # fmt: skip
+        assert view in views
+    assert contents.time_panel() == {"state": 3, "timeline": "sim_time"}
+    assert contents.times("/world/path/believed", "decision") and contents.times("/raw", "decision")
+
+
 def test_trace_puts_each_finding_on_the_line_it_judges():
     """A misread or a decision error goes on the latest decision's line (a decision is judged
     when the robot leaves its cell, after its looks); a look error, reported before its look's
