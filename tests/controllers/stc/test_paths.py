@@ -28,7 +28,8 @@ est = file_interface.read_tum_trajectory_file(sys.argv[2])
 ref, est = sync.associate_trajectories(ref, est)
 ape = metrics.APE(metrics.PoseRelation.translation_part)
 ape.process_data((ref, est))
-print(json.dumps({k: float(v) for k, v in ape.get_all_statistics().items()} | {"poses": ref.num_poses}))
+stats = {k: float(v) for k, v in ape.get_all_statistics().items()}
+print(json.dumps(stats | {"poses": ref.num_poses, "last": float(ape.error[-1])}))
 """
 
 
@@ -150,7 +151,8 @@ def test_existing_files_refused_without_force(tmp_path, capsys):
 
 def test_search_trajectory_evo_max_is_max_odometry_error(tmp_path, capsys):
     """search --trajectory: the true path and the odometry's at the start and after every move;
-    evo's APE max is the run's max_odometry_error_m (which --json rounds to 4 decimals)."""
+    evo's APE max is the run's max_odometry_error_m and its last error the odometry_error_m at
+    the end (the results page's two columns; --json rounds them to 4 decimals)."""
     paths = tmp_path / "paths"
     argv = ["search", "--max-steps", "12", "--obstacle", "0.5,0.2,0.1", "--trajectory", str(paths)]
     code, summary = _run(argv, capsys)
@@ -162,6 +164,7 @@ def test_search_trajectory_evo_max_is_max_odometry_error(tmp_path, capsys):
     ape = json.loads(r.stdout)
     assert ape["poses"] == summary["moves"] + 1
     assert ape["max"] == pytest.approx(summary["max_odometry_error_m"], abs=5e-5)
+    assert ape["last"] == pytest.approx(summary["odometry_error_m"], abs=5e-5) and ape["last"] > 1e-3
 
 
 def test_recording_draws_the_true_and_believed_paths(tmp_path, capsys):
