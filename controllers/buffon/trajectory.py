@@ -42,9 +42,9 @@ def visit_tum(start_xy, path: np.ndarray, dt_s: float) -> str:
     Returns
     -------
     str
-        ``S + 1`` TUM lines (:func:`stcvision.controllers.stc.paths.tum_line`).
+        ``S + 1`` TUM lines (:func:`stcvision.tum.tum_line`).
     """
-    from stcvision.controllers.stc.paths import tum_line
+    from stcvision.tum import tum_line
 
     pts = np.vstack([np.asarray(start_xy, float).reshape(1, 2), np.asarray(path, float)[:, :2]])
     steps = np.diff(pts, axis=0)
@@ -58,7 +58,8 @@ def visit_tum(start_xy, path: np.ndarray, dt_s: float) -> str:
 
 
 def write_trajectory(folder: str | Path, start_xy, trails: dict, dt_s: float, *, overwrite: bool = False) -> list[Path]:
-    """Write the two visits' true paths into ``folder`` as one set (:data:`VISIT_FILES`).
+    """Write the two visits' true paths into ``folder`` as one set (:data:`VISIT_FILES`,
+    :func:`stcvision.fileio.write_set`).
 
     Parameters
     ----------
@@ -78,7 +79,7 @@ def write_trajectory(folder: str | Path, start_xy, trails: dict, dt_s: float, *,
     list of Path
         The files written.
     """
-    from stcvision.controllers.stc.paths import write_paths
+    from stcvision.fileio import write_set
 
     files = {name: visit_tum(start_xy, trails[f"visit{k}"], dt_s) for k, name in enumerate(VISIT_FILES, 1)}
-    return write_paths(folder, files, overwrite=overwrite)
+    return write_set(folder, {k: v.encode() for k, v in files.items()}, overwrite=overwrite)
