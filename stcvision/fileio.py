@@ -27,6 +27,8 @@ __all__ = [
     "commit_temp",
     "discard_temp",
     "figure_png",
+    "keep_partial",
+    "kept_partial",
     "read_image",
     "read_json",
     "remove_live_temps",
@@ -147,11 +149,16 @@ def _sweep_once(folder: Path) -> None:
 #: a logging wrapper), no output is committed after it all the same
 _SIGNALS: list[int] = []
 
+#: outputs this run kept as they stood when a signal stopped it (a recording whose every
+#: record up to the signal is whole), for the line the CLI ends an interrupted run with
+_KEPT: list[Path] = []
+
 
 def new_run() -> None:
     """Start a new run (the CLI calls it first): folders are swept for stale temporaries again."""
     _SWEPT.clear()
     _SIGNALS.clear()
+    _KEPT.clear()
 
 
 def signal_received(signum: int) -> None:
@@ -244,6 +251,23 @@ def commit_temp(tmp: Path, path: Path) -> None:
     raise_if_signalled()
     os.replace(tmp, path)
     _LIVE_TEMPS.discard(tmp)
+
+
+def keep_partial(tmp: Path, path: Path) -> None:
+    """Rename the temporary ``tmp`` over ``path`` after a termination signal, and note it.
+
+    For a stream whose every record up to the signal is whole and whose end has been written
+    (a rerun recording closed cleanly): the run stopped, but what it wrote is worth keeping.
+    :func:`kept_partial` lists what was kept, for the line that ends the run.
+    """
+    os.replace(tmp, path)
+    _LIVE_TEMPS.discard(tmp)
+    _KEPT.append(Path(path))
+
+
+def kept_partial() -> list[Path]:
+    """Return the outputs this run kept as they stood when a signal stopped it (:func:`keep_partial`)."""
+    return list(_KEPT)
 
 
 def discard_temp(tmp: Path | None) -> None:
