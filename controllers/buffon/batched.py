@@ -32,7 +32,6 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
-import numba
 import numpy as np
 
 from stcvision.controllers.buffon.behaviour import ExplorerParams, explorer_core_nb, wheel_speeds_nb
@@ -53,6 +52,7 @@ from stcvision.sim_camera.fastworld import (
     StaticGeometry,
     cell_span,
     inside_polygon,
+    loop_jit,
     push_out,
     ray_cast,
     read_cell,
@@ -201,7 +201,7 @@ X, Y, TH, R, WL, WR, LEVEL, PLEN, ABOVE, GAIN, BLIND, ESC, CROSS, STEPS, GAVE_UP
 N_STATE = 15
 
 
-@numba.njit(cache=True, nogil=True)
+@loop_jit
 def _ir_reading(d, sat, rng_m, noise):
     v = 0.0
     if d < rng_m:
@@ -209,7 +209,7 @@ def _ir_reading(d, sat, rng_m, noise):
     return min(1.0, max(0.0, v + noise))
 
 
-@numba.njit(cache=True, nogil=True, inline="always")
+@loop_jit
 def _read_ir(ir, x, y, th, irg, geo, ir_cos, ir_sin, radius, ir_sat, ir_range, ir_sigma):
     """The six IR rays from the rim (stcvision.sim_camera.robot_sensors.IrSensors) into ``ir``, their noise from
     the IR stream ``irg`` (one draw per ray, in ray order)."""
@@ -227,7 +227,7 @@ def _read_ir(ir, x, y, th, irg, geo, ir_cos, ir_sin, radius, ir_sat, ir_range, i
         ir[q] = _ir_reading(d, ir_sat, ir_range, ir_sigma * irg.standard_normal())
 
 
-@numba.njit(cache=True, nogil=True, inline="always")
+@loop_jit
 def _rule_stops(st, lay, plen, crossings, steps_done, blind, sp, bst, l1_u):
     """Whether the online rule (:mod:`stcvision.controllers.buffon.stopping`) ends the visit now; a first
     visit that cannot reach its coverage gives up (``st[GAVE_UP]``)."""
@@ -246,7 +246,7 @@ def _rule_stops(st, lay, plen, crossings, steps_done, blind, sp, bst, l1_u):
     return False
 
 
-@numba.njit(cache=True, nogil=True)
+@loop_jit
 def _visit(
     state,
     behaviour_rng,
@@ -259,7 +259,8 @@ def _visit(
     outer,
     trail,
     params,
-    ir_angles_rad,
+    ir_dirs,
+    ir,
     record,
     auto_stop,
     stop_params,
@@ -284,7 +285,7 @@ def _visit(
     rate, thr, hyst = params[17], params[18], params[19]
     half_w, recent_stamps, avoid = params[20], params[21], params[22]
     batches = int(stop_params[6])
-    ir_cos, ir_sin, ir = np.cos(ir_angles_rad), np.sin(ir_angles_rad), np.empty(6)
+    ir_cos, ir_sin = ir_dirs[0], ir_dirs[1]
     x, y, th = state[X], state[Y], state[TH]
     r, wl, wr, level, plen = state[R], state[WL], state[WR], state[LEVEL], state[PLEN]
     gain, blind, esc, above = state[GAIN], state[BLIND], state[ESC], state[ABOVE] > 0.5
@@ -348,7 +349,7 @@ def _visit(
     return escapes, stopped
 
 
-@numba.njit(cache=True, nogil=True)
+@loop_jit
 def _wheels_to_body(ml, mr, vmax, dt, gain, dl_ratio, dr_ratio, slip_k, slip_rng, b_true):
     """One step's wheel travel (speeds ``ml``, ``mr`` clipped at ``vmax``, over the step ``dt``
     at the battery's ``gain``; each wheel's own ratio, and slip drawn from ``slip_rng``) as
@@ -363,7 +364,7 @@ def _wheels_to_body(ml, mr, vmax, dt, gain, dl_ratio, dr_ratio, slip_k, slip_rng
     return 0.5 * (dl + dr), (dr - dl) / b_true
 
 
-@numba.njit(cache=True, nogil=True)
+@loop_jit
 def _sense_trail(grid, trail, lay, plen, recent_stamps, half_w, x, y, nx_, ny_):
     """The detector's reading (1.0 or 0.0) of the cell the robot reached, ``(nx_, ny_)``: on
     the first visit (``lay``) its own trail laid long enough ago (not the stripe being laid),
@@ -521,7 +522,9 @@ class TrialWorld:
         self.raster_bytes = self.grid_shape[0] * self.grid_shape[1] * np.dtype(np.uint32).itemsize
         self.prm = config.kernel_params()
         self.sp = config.stop.array(config.trail_width_u)
-        self.ir_ang = np.array(config.ir.angles_rad, dtype=np.float64)
+        # the rays' directions in the body frame: cos, sin (libm's, as the scalar sensor's)
+        ang = config.ir.angles_rad
+        self.ir_dirs = np.array([[math.cos(a) for a in ang], [math.sin(a) for a in ang]])
         self.start = nest.start_xy
 
     def trial(self, seeds, *, record: bool = False, progress=None, cancel: threading.Event | None = None):
@@ -533,6 +536,7 @@ class TrialWorld:
         start, beh, irg, slip = (np.random.default_rng(s) for s in seeds)
         gain = _motor_gain(c.robot, start)
         grid = np.zeros(self.grid_shape, dtype=np.uint32)
+        ir = np.empty(len(c.ir.angles_rad))  # the loop's readings of one step (the loop allocates nothing)
         out, trails, escapes, converged, steps = [0.0, 0.0, 0, 0.0], {}, 0, True, 0
         n_self, self_blind, rel_se = 0, float("nan"), float("nan")
         limit = c.step_limit
@@ -550,7 +554,7 @@ class TrialWorld:
                 rec = np.zeros((chunk if keep else 0, 3))
                 before = int(st[STEPS])
                 e, stopped = _visit(st, beh, irg, slip, chunk, grid, visit == 1, geo.arrays, geo.outer, self.trail,
-                                    self.prm, self.ir_ang, rec, c.auto, self.sp, bst, out[0])  # fmt: skip
+                                    self.prm, self.ir_dirs, ir, rec, c.auto, self.sp, bst, out[0])  # fmt: skip
                 escapes += e
                 if keep:
                     recs.append(rec[: int(st[STEPS]) - before])
