@@ -52,6 +52,10 @@ __all__ = [
 ]
 
 _MAX_GRID_CELLS = 4_000_000
+#: relative slack of the tests that skip what is surely out of reach (a capsule the disc cannot
+#: touch, a raster cell the trail cannot cover): a billionth, far above the rounding of the few
+#: products and quotients they compare (~1e-16), far below any distance that matters
+_SLACK = 1e-9
 
 
 @dataclass(frozen=True, eq=False)
@@ -217,6 +221,19 @@ def _closest_on_segment(x, y, ax, ay, bx, by):
 
 
 @loop_jit
+def _surely_apart(x, y, ax, ay, bx, by, need):
+    """Whether (x, y) is surely farther than ``need`` from segment a-b, told without a division
+    or a root: its distance to the segment's line, or beyond an end along the segment, is."""
+    ex, ey = bx - ax, by - ay
+    ll = ex * ex + ey * ey
+    px, py = x - ax, y - ay
+    cr = px * ey - py * ex  # |e| times the distance to the line
+    dot = px * ex + py * ey  # |e| times the position along the segment
+    beyond = min(dot, 0.0) + max(dot - ll, 0.0)  # |e| times the distance beyond an end
+    return max(cr * cr, beyond * beyond) > need * need * ll * (1.0 + _SLACK)
+
+
+@loop_jit
 def push_out(caps, ox, oy, cell, ny, nx, offsets, index, x, y, radius):
     """Move a disc of ``radius`` centred at (x, y) out of every capsule it overlaps (frictionless
     contact: only the normal component is removed). Returns (x, y, touched)."""
@@ -226,10 +243,12 @@ def push_out(caps, ox, oy, cell, ny, nx, offsets, index, x, y, radius):
         lo, hi = cell_span(x, y, ox, oy, cell, ny, nx, offsets)
         for m in range(lo, hi):
             k = index[m]
+            need = radius + caps[k, 4]
+            if _surely_apart(x, y, caps[k, 0], caps[k, 1], caps[k, 2], caps[k, 3], need):
+                continue
             cx, cy = _closest_on_segment(x, y, caps[k, 0], caps[k, 1], caps[k, 2], caps[k, 3])
             ddx, ddy = x - cx, y - cy
             d = math.hypot(ddx, ddy)
-            need = radius + caps[k, 4]
             if d < need and d > 0.0:
                 s = (need - d) / d
                 x += ddx * s
@@ -270,18 +289,27 @@ def stamp_segment(grid, ox, oy, cell, half, x0, y0, x1, y1, value):
     what it holds: a raster of when (how far along its path) the trail was first laid, which a
     robot reading its own trail needs to tell an old strand from the stripe it is laying."""
     ny, nx = grid.shape
-    j0 = max(0, int(math.floor((min(x0, x1) - half - ox) / cell - 0.5)))
-    j1 = min(nx - 1, int(math.ceil((max(x0, x1) + half - ox) / cell - 0.5)))
-    i0 = max(0, int(math.floor((min(y0, y1) - half - oy) / cell - 0.5)))
-    i1 = min(ny - 1, int(math.ceil((max(y0, y1) + half - oy) / cell - 0.5)))
+    # the cells whose centres lie within the segment's box grown by half (and a margin, so that
+    # no cell the test below could mark is left out by rounding): ~6 cells a robot-step
+    reach = half * (1.0 + _SLACK)
+    j0 = max(0, int(math.ceil((min(x0, x1) - reach - ox) / cell - 0.5)))
+    j1 = min(nx - 1, int(math.floor((max(x0, x1) + reach - ox) / cell - 0.5)))
+    i0 = max(0, int(math.ceil((min(y0, y1) - reach - oy) / cell - 0.5)))
+    i1 = min(ny - 1, int(math.floor((max(y0, y1) + reach - oy) / cell - 0.5)))
     h2 = half * half
+    ex, ey = x1 - x0, y1 - y0
+    ll = ex * ex + ey * ey
+    moving = ll > 0.0
     for i in range(i0, i1 + 1):
         cy = oy + (i + 0.5) * cell
         for j in range(j0, j1 + 1):
+            # _closest_on_segment, and a store whatever the outcome: no branch in the loop (which
+            # cells a step reaches, and which were laid, are a coin toss to the branch predictor)
             cx = ox + (j + 0.5) * cell
-            qx, qy = _closest_on_segment(cx, cy, x0, y0, x1, y1)
-            if (cx - qx) ** 2 + (cy - qy) ** 2 <= h2 and grid[i, j] == 0:
-                grid[i, j] = value
+            t = min(1.0, max(0.0, ((cx - x0) * ex + (cy - y0) * ey) / ll)) if moving else 0.0
+            qx, qy = x0 + t * ex, y0 + t * ey
+            g = grid[i, j]
+            grid[i, j] = value if ((cx - qx) ** 2 + (cy - qy) ** 2 <= h2) & (g == 0) else g
 
 
 @loop_jit
