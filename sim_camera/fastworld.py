@@ -14,7 +14,7 @@ What it models, and how it matches the pymunk path:
   with half their thickness (pymunk ``Segment(radius=thickness/2)``), obstacle edges with radius 0.
   :class:`StaticGeometry` holds them with a uniform *near grid*: each cell lists the capsules that
   can be within ``reach_m`` of any point of the cell, so a robot far from every wall looks at none.
-* **Ray casts** (:func:`ray_cast`): the distance along a ray to the first capsule surface, like
+* **Ray casts** (:func:`ray_fan`): the distance along a ray to the first capsule surface, like
   pymunk's ``segment_query_first`` with radius 0.
 * **Contact** (:func:`push_out`): the disc's centre is moved out of every capsule it overlaps,
   along the normal, a few passes: a frictionless slide, like pymunk's contact with friction 0 and
@@ -46,7 +46,7 @@ __all__ = [
     "inside_polygon",
     "loop_jit",
     "push_out",
-    "ray_cast",
+    "ray_fan",
     "read_cell",
     "stamp_segment",
 ]
@@ -140,7 +140,7 @@ def _point_segment_distance_np(px, py, ax, ay, bx, by):
 #: increments and decrements around every call that takes an array were half of a robot-step
 #: (measured with perf on the Buffon explorer); these kernels only read and write arrays their
 #: caller owns, so no count is needed. No fastmath: results stay the same to the last digit.
-loop_jit = numba.njit(cache=True, fastmath=False, nogil=True, _nrt=False)
+loop_jit = numba.njit(cache=True, fastmath=False, nogil=True, _nrt=False, error_model="numpy")
 
 
 @loop_jit
@@ -159,14 +159,12 @@ def _ray_segment(px, py, dx, dy, ax, ay, bx, by):
     """Ray parameter t >= 0 (unit direction) where the ray meets segment a-b, or inf."""
     ex, ey = bx - ax, by - ay
     den = dx * ey - dy * ex
-    if den == 0.0:
-        return np.inf
     qx, qy = ax - px, ay - py
     t = (qx * ey - qy * ex) / den
     u = (qx * dy - qy * dx) / den
-    if t >= 0.0 and 0.0 <= u <= 1.0:
-        return t
-    return np.inf
+    # one select, no branch, so that a fan of rays runs side by side in vector registers (a
+    # parallel ray, den = 0, gives inf or nan here, and inf)
+    return t if (den != 0.0) & (t >= 0.0) & (u >= 0.0) & (u <= 1.0) else np.inf
 
 
 @loop_jit
@@ -196,18 +194,29 @@ def _ray_capsule(px, py, dx, dy, ax, ay, bx, by, rad):
 
 
 @loop_jit
-def ray_cast(caps, ox, oy, cell, ny, nx, offsets, index, qx, qy, px, py, dx, dy, max_len):
-    """Distance from (px, py) along the unit direction (dx, dy) to the first capsule, or inf if
-    none within ``max_len``. The capsules are those listed in the near cell of (qx, qy) (the
-    robot's centre: the grid was built with a reach covering every ray of the robot)."""
+def ray_fan(caps, ox, oy, cell, ny, nx, offsets, index, qx, qy, rays, max_len):
+    """Cast a fan of rays: for each column q of ``rays`` (5, n): origin (rays[0, q], rays[1, q]),
+    unit direction (rays[2, q], rays[3, q]), the distance to the first capsule, or inf if none
+    within ``max_len``, into rays[4, q]. The capsules are those listed in the near cell of
+    (qx, qy) (the robot's centre: the grid was built with a reach covering every ray of the
+    robot). The rays of one capsule are cast side by side (columns: one vector lane each)."""
+    n = rays.shape[1]
+    for q in range(n):
+        rays[4, q] = np.inf
     lo, hi = cell_span(qx, qy, ox, oy, cell, ny, nx, offsets)
-    best = np.inf
     for m in range(lo, hi):
         k = index[m]
-        t = _ray_capsule(px, py, dx, dy, caps[k, 0], caps[k, 1], caps[k, 2], caps[k, 3], caps[k, 4])
-        if t < best:
-            best = t
-    return best if best <= max_len else np.inf
+        ax, ay, bx, by, rad = caps[k, 0], caps[k, 1], caps[k, 2], caps[k, 3], caps[k, 4]
+        if rad == 0.0:
+            for q in range(n):
+                t = _ray_segment(rays[0, q], rays[1, q], rays[2, q], rays[3, q], ax, ay, bx, by)
+                rays[4, q] = min(rays[4, q], t)
+        else:
+            for q in range(n):
+                t = _ray_capsule(rays[0, q], rays[1, q], rays[2, q], rays[3, q], ax, ay, bx, by, rad)
+                rays[4, q] = min(rays[4, q], t)
+    for q in range(n):
+        rays[4, q] = rays[4, q] if rays[4, q] <= max_len else np.inf
 
 
 @loop_jit

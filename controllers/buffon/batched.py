@@ -9,7 +9,7 @@ crossings. The trials of an experiment are independent worlds, so robots never m
 
 One step of one robot, in the order of the pymunk path (:mod:`stcvision.controllers.buffon.pymunk_path`):
 
-1. six IR ray casts from the rim (:func:`stcvision.sim_camera.fastworld.ray_cast`), the Khepera response
+1. six IR ray casts from the rim (:func:`stcvision.sim_camera.fastworld.ray_fan`), the Khepera response
    :func:`stcvision.sim_camera.robot_sensors.ir_response` plus Gaussian noise, clipped to [0, 1];
 2. the behaviour of sec. 3.2 (:func:`stcvision.controllers.buffon.behaviour.explorer_core`, the same source
    as the scalar controller) gives the wheel speeds;
@@ -54,7 +54,7 @@ from stcvision.sim_camera.fastworld import (
     inside_polygon,
     loop_jit,
     push_out,
-    ray_cast,
+    ray_fan,
     read_cell,
     stamp_segment,
 )
@@ -210,21 +210,25 @@ def _ir_reading(d, sat, rng_m, noise):
 
 
 @loop_jit
-def _read_ir(ir, x, y, th, irg, geo, ir_cos, ir_sin, radius, ir_sat, ir_range, ir_sigma):
-    """The six IR rays from the rim (stcvision.sim_camera.robot_sensors.IrSensors) into ``ir``, their noise from
-    the IR stream ``irg`` (one draw per ray, in ray order)."""
+def _read_ir(fan, x, y, th, irg, geo, ir_cos, ir_sin, radius, ir_sat, ir_range, ir_sigma):
+    """The six IR rays from the rim (stcvision.sim_camera.robot_sensors.IrSensors) into ``fan[4]``
+    (``fan``: the (5, 6) rays of :func:`stcvision.sim_camera.fastworld.ray_fan`), their noise
+    from the IR stream ``irg`` (one draw per ray, in ray order)."""
     caps, ox, oy, cell, ny, nx, offsets, index = geo
+    n = ir_cos.shape[0]
     lo, hi = cell_span(x, y, ox, oy, cell, ny, nx, offsets)
     if lo == hi:  # no solid within reach: the readings are noise around 0
-        for q in range(ir_cos.shape[0]):
-            ir[q] = _ir_reading(np.inf, ir_sat, ir_range, ir_sigma * irg.standard_normal())
+        for q in range(n):
+            fan[4, q] = _ir_reading(np.inf, ir_sat, ir_range, ir_sigma * irg.standard_normal())
         return
     ct, st_ = math.cos(th), math.sin(th)
-    for q in range(ir_cos.shape[0]):
+    for q in range(n):
         c = ct * ir_cos[q] - st_ * ir_sin[q]
         sn = st_ * ir_cos[q] + ct * ir_sin[q]
-        d = ray_cast(caps, ox, oy, cell, ny, nx, offsets, index, x, y, x + radius * c, y + radius * sn, c, sn, ir_range)
-        ir[q] = _ir_reading(d, ir_sat, ir_range, ir_sigma * irg.standard_normal())
+        fan[0, q], fan[1, q], fan[2, q], fan[3, q] = x + radius * c, y + radius * sn, c, sn
+    ray_fan(caps, ox, oy, cell, ny, nx, offsets, index, x, y, fan, ir_range)
+    for q in range(n):
+        fan[4, q] = _ir_reading(fan[4, q], ir_sat, ir_range, ir_sigma * irg.standard_normal())
 
 
 @loop_jit
@@ -260,7 +264,7 @@ def _visit(
     trail,
     params,
     ir_dirs,
-    ir,
+    fan,
     record,
     auto_stop,
     stop_params,
@@ -285,7 +289,7 @@ def _visit(
     rate, thr, hyst = params[17], params[18], params[19]
     half_w, recent_stamps, avoid = params[20], params[21], params[22]
     batches = int(stop_params[6])
-    ir_cos, ir_sin = ir_dirs[0], ir_dirs[1]
+    ir_cos, ir_sin, ir = ir_dirs[0], ir_dirs[1], fan[4]  # ir: the readings' row of the rays
     x, y, th = state[X], state[Y], state[TH]
     r, wl, wr, level, plen = state[R], state[WL], state[WR], state[LEVEL], state[PLEN]
     gain, blind, esc, above = state[GAIN], state[BLIND], state[ESC], state[ABOVE] > 0.5
@@ -295,7 +299,7 @@ def _visit(
     recording = record.shape[0] > 0
     for s in range(steps):
         # 1. six IR rays from the rim (stcvision.sim_camera.robot_sensors.IrSensors), noise from their stream
-        _read_ir(ir, x, y, th, ir_rng, geo, ir_cos, ir_sin, radius, ir_sat, ir_range, ir_sigma)
+        _read_ir(fan, x, y, th, ir_rng, geo, ir_cos, ir_sin, radius, ir_sat, ir_range, ir_sigma)
         # 2. the behaviour of sec. 3.2 (the scalar controller's own equations)
         n = -noise + 2.0 * noise * behaviour_rng.random()
         nbar = esc_min + (esc_max - esc_min) * behaviour_rng.random()
@@ -536,7 +540,7 @@ class TrialWorld:
         start, beh, irg, slip = (np.random.default_rng(s) for s in seeds)
         gain = _motor_gain(c.robot, start)
         grid = np.zeros(self.grid_shape, dtype=np.uint32)
-        ir = np.empty(len(c.ir.angles_rad))  # the loop's readings of one step (the loop allocates nothing)
+        fan = np.empty((5, len(c.ir.angles_rad)))  # one step's rays and readings (the loop allocates nothing)
         out, trails, escapes, converged, steps = [0.0, 0.0, 0, 0.0], {}, 0, True, 0
         n_self, self_blind, rel_se = 0, float("nan"), float("nan")
         limit = c.step_limit
@@ -554,7 +558,7 @@ class TrialWorld:
                 rec = np.zeros((chunk if keep else 0, 3))
                 before = int(st[STEPS])
                 e, stopped = _visit(st, beh, irg, slip, chunk, grid, visit == 1, geo.arrays, geo.outer, self.trail,
-                                    self.prm, self.ir_dirs, ir, rec, c.auto, self.sp, bst, out[0])  # fmt: skip
+                                    self.prm, self.ir_dirs, fan, rec, c.auto, self.sp, bst, out[0])  # fmt: skip
                 escapes += e
                 if keep:
                     recs.append(rec[: int(st[STEPS]) - before])
