@@ -57,6 +57,7 @@ from stcvision.sim_camera.fastworld import (
     ray_fan,
     read_cell,
     stamp_segment,
+    step_jit,
 )
 from stcvision.sim_camera.robot import KHEPERA, DiffDriveParams
 from stcvision.sim_camera.robot_sensors import IrParams
@@ -209,7 +210,7 @@ def _ir_reading(d, sat, rng_m, noise):
     return min(1.0, max(0.0, v + noise))
 
 
-@loop_jit
+@step_jit
 def _read_ir(fan, x, y, th, irg, geo, ir_cos, ir_sin, radius, ir_sat, ir_range, ir_sigma):
     """The six IR rays from the rim (stcvision.sim_camera.robot_sensors.IrSensors) into ``fan[4]``
     (``fan``: the (5, 6) rays of :func:`stcvision.sim_camera.fastworld.ray_fan`), their noise
@@ -353,7 +354,7 @@ def _visit(
     return escapes, stopped
 
 
-@loop_jit
+@step_jit
 def _wheels_to_body(ml, mr, vmax, dt, gain, dl_ratio, dr_ratio, slip_k, slip_rng, b_true):
     """One step's wheel travel (speeds ``ml``, ``mr`` clipped at ``vmax``, over the step ``dt``
     at the battery's ``gain``; each wheel's own ratio, and slip drawn from ``slip_rng``) as
@@ -368,7 +369,7 @@ def _wheels_to_body(ml, mr, vmax, dt, gain, dl_ratio, dr_ratio, slip_k, slip_rng
     return 0.5 * (dl + dr), (dr - dl) / b_true
 
 
-@loop_jit
+@step_jit
 def _sense_trail(grid, trail, lay, plen, recent_stamps, half_w, x, y, nx_, ny_):
     """The detector's reading (1.0 or 0.0) of the cell the robot reached, ``(nx_, ny_)``: on
     the first visit (``lay``) its own trail laid long enough ago (not the stripe being laid),
