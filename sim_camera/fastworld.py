@@ -4,8 +4,8 @@ The pymunk world (:mod:`stcvision.sim_camera.world`) with the Buffon explorer's 
 ~4,200 robot-steps/s here; a Buffon reproduction is ~10^9 robot-steps (the
 Buffon's needle paper of Girgin & Sahin, sec. 4-5: 100 trials x 2 visits x 50,000 steps per nest,
 and more), so the Monte-Carlo path needs compiled per-step loops. numba compiles the plain Python
-below to machine code (``cache=True`` keeps the compiled code between runs): 1.7 million
-robot-steps/s on one core in a 30 body-length circle (``stcvision bench``).
+below to machine code (``cache=True`` keeps the compiled code between runs): 4.4-4.9 million
+robot-steps per CPU-second on one core in a 30 body-length circle (``stcvision bench``).
 
 What it models, and how it matches the pymunk path:
 

@@ -76,7 +76,7 @@ START_HEADING_SPREAD_RAD = math.radians(15)  # sec. 3.1: "varied within +-15 deg
 #: the first visit first laid it; uint32 holds 2,100 km of path, over 20 times the longest visit
 STAMP_M = 0.0005
 #: steps the compiled loop runs before it returns to Python, which then looks at signals (Ctrl-C,
-#: SIGTERM) and at the other threads' failures: ~30-70 ms at 1-2 million steps/s
+#: SIGTERM) and at the other threads' failures: ~15-35 ms at 2-5 million steps/s
 CHUNK_STEPS = 1 << 16
 AUTO = "auto"
 

@@ -1,10 +1,10 @@
 """The batched path's results to the last digit: a speed-up of the compiled loop must not move one.
 
-The digests below were recorded on the loop as it stood before its rework for speed (draws made
-one at a time inside the loop); each covers, for every trial, both visits' path lengths, the
-counts, the blind shares, the batch-means error and the recorded paths, as exact float64 bytes.
-A change of any of them, in any digit, fails the test. (The area estimates follow from these by
-numpy's vectorised exp and power, whose last bit may differ between CPUs, so they are left out.)
+The digests below were recorded on the loop as it stood before its rework for speed; each
+covers, for every trial, both visits' path lengths, the counts, the blind shares, the
+batch-means error and the recorded paths, as exact float64 bytes. A change of any of them, in
+any digit, fails the test. (The area estimates follow from these by numpy's vectorised exp and
+power, whose last bit may differ between CPUs, so they are left out.)
 """
 
 import hashlib
