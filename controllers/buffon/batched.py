@@ -9,7 +9,7 @@ crossings. The trials of an experiment are independent worlds, so robots never m
 
 One step of one robot, in the order of the pymunk path (:mod:`stcvision.controllers.buffon.pymunk_path`):
 
-1. six IR ray casts from the rim (:func:`stcvision.sim_camera.fastworld.ray_cast`), the Khepera response
+1. six IR ray casts from the rim (:func:`stcvision.sim_camera.fastworld.ray_fan`), the Khepera response
    :func:`stcvision.sim_camera.robot_sensors.ir_response` plus Gaussian noise, clipped to [0, 1];
 2. the behaviour of sec. 3.2 (:func:`stcvision.controllers.buffon.behaviour.explorer_core`, the same source
    as the scalar controller) gives the wheel speeds;
@@ -32,7 +32,6 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
-import numba
 import numpy as np
 
 from stcvision.controllers.buffon.behaviour import ExplorerParams, explorer_core_nb, wheel_speeds_nb
@@ -53,10 +52,12 @@ from stcvision.sim_camera.fastworld import (
     StaticGeometry,
     cell_span,
     inside_polygon,
+    loop_jit,
     push_out,
-    ray_cast,
+    ray_fan,
     read_cell,
     stamp_segment,
+    step_jit,
 )
 from stcvision.sim_camera.robot import KHEPERA, DiffDriveParams
 from stcvision.sim_camera.robot_sensors import IrParams
@@ -75,7 +76,7 @@ START_HEADING_SPREAD_RAD = math.radians(15)  # sec. 3.1: "varied within +-15 deg
 #: the first visit first laid it; uint32 holds 2,100 km of path, over 20 times the longest visit
 STAMP_M = 0.0005
 #: steps the compiled loop runs before it returns to Python, which then looks at signals (Ctrl-C,
-#: SIGTERM) and at the other threads' failures: ~30-70 ms at 1-2 million steps/s
+#: SIGTERM) and at the other threads' failures: ~15-35 ms at 2-5 million steps/s
 CHUNK_STEPS = 1 << 16
 AUTO = "auto"
 
@@ -201,7 +202,7 @@ X, Y, TH, R, WL, WR, LEVEL, PLEN, ABOVE, GAIN, BLIND, ESC, CROSS, STEPS, GAVE_UP
 N_STATE = 15
 
 
-@numba.njit(cache=True, nogil=True)
+@loop_jit
 def _ir_reading(d, sat, rng_m, noise):
     v = 0.0
     if d < rng_m:
@@ -209,25 +210,29 @@ def _ir_reading(d, sat, rng_m, noise):
     return min(1.0, max(0.0, v + noise))
 
 
-@numba.njit(cache=True, nogil=True, inline="always")
-def _read_ir(ir, x, y, th, irg, geo, ir_cos, ir_sin, radius, ir_sat, ir_range, ir_sigma):
-    """The six IR rays from the rim (stcvision.sim_camera.robot_sensors.IrSensors) into ``ir``, their noise from
-    the IR stream ``irg`` (one draw per ray, in ray order)."""
+@step_jit
+def _read_ir(fan, x, y, th, irg, geo, ir_cos, ir_sin, radius, ir_sat, ir_range, ir_sigma):
+    """The six IR rays from the rim (stcvision.sim_camera.robot_sensors.IrSensors) into ``fan[4]``
+    (``fan``: the (5, 6) rays of :func:`stcvision.sim_camera.fastworld.ray_fan`), their noise
+    from the IR stream ``irg`` (one draw per ray, in ray order)."""
     caps, ox, oy, cell, ny, nx, offsets, index = geo
+    n = ir_cos.shape[0]
     lo, hi = cell_span(x, y, ox, oy, cell, ny, nx, offsets)
     if lo == hi:  # no solid within reach: the readings are noise around 0
-        for q in range(ir_cos.shape[0]):
-            ir[q] = _ir_reading(np.inf, ir_sat, ir_range, ir_sigma * irg.standard_normal())
+        for q in range(n):
+            fan[4, q] = _ir_reading(np.inf, ir_sat, ir_range, ir_sigma * irg.standard_normal())
         return
     ct, st_ = math.cos(th), math.sin(th)
-    for q in range(ir_cos.shape[0]):
+    for q in range(n):
         c = ct * ir_cos[q] - st_ * ir_sin[q]
         sn = st_ * ir_cos[q] + ct * ir_sin[q]
-        d = ray_cast(caps, ox, oy, cell, ny, nx, offsets, index, x, y, x + radius * c, y + radius * sn, c, sn, ir_range)
-        ir[q] = _ir_reading(d, ir_sat, ir_range, ir_sigma * irg.standard_normal())
+        fan[0, q], fan[1, q], fan[2, q], fan[3, q] = x + radius * c, y + radius * sn, c, sn
+    ray_fan(caps, ox, oy, cell, ny, nx, offsets, index, x, y, fan, ir_range)
+    for q in range(n):
+        fan[4, q] = _ir_reading(fan[4, q], ir_sat, ir_range, ir_sigma * irg.standard_normal())
 
 
-@numba.njit(cache=True, nogil=True, inline="always")
+@loop_jit
 def _rule_stops(st, lay, plen, crossings, steps_done, blind, sp, bst, l1_u):
     """Whether the online rule (:mod:`stcvision.controllers.buffon.stopping`) ends the visit now; a first
     visit that cannot reach its coverage gives up (``st[GAVE_UP]``)."""
@@ -246,7 +251,7 @@ def _rule_stops(st, lay, plen, crossings, steps_done, blind, sp, bst, l1_u):
     return False
 
 
-@numba.njit(cache=True, nogil=True)
+@loop_jit
 def _visit(
     state,
     behaviour_rng,
@@ -259,7 +264,8 @@ def _visit(
     outer,
     trail,
     params,
-    ir_angles_rad,
+    ir_dirs,
+    fan,
     record,
     auto_stop,
     stop_params,
@@ -284,7 +290,7 @@ def _visit(
     rate, thr, hyst = params[17], params[18], params[19]
     half_w, recent_stamps, avoid = params[20], params[21], params[22]
     batches = int(stop_params[6])
-    ir_cos, ir_sin, ir = np.cos(ir_angles_rad), np.sin(ir_angles_rad), np.empty(6)
+    ir_cos, ir_sin, ir = ir_dirs[0], ir_dirs[1], fan[4]  # ir: the readings' row of the rays
     x, y, th = state[X], state[Y], state[TH]
     r, wl, wr, level, plen = state[R], state[WL], state[WR], state[LEVEL], state[PLEN]
     gain, blind, esc, above = state[GAIN], state[BLIND], state[ESC], state[ABOVE] > 0.5
@@ -294,7 +300,7 @@ def _visit(
     recording = record.shape[0] > 0
     for s in range(steps):
         # 1. six IR rays from the rim (stcvision.sim_camera.robot_sensors.IrSensors), noise from their stream
-        _read_ir(ir, x, y, th, ir_rng, geo, ir_cos, ir_sin, radius, ir_sat, ir_range, ir_sigma)
+        _read_ir(fan, x, y, th, ir_rng, geo, ir_cos, ir_sin, radius, ir_sat, ir_range, ir_sigma)
         # 2. the behaviour of sec. 3.2 (the scalar controller's own equations)
         n = -noise + 2.0 * noise * behaviour_rng.random()
         nbar = esc_min + (esc_max - esc_min) * behaviour_rng.random()
@@ -348,7 +354,7 @@ def _visit(
     return escapes, stopped
 
 
-@numba.njit(cache=True, nogil=True)
+@step_jit
 def _wheels_to_body(ml, mr, vmax, dt, gain, dl_ratio, dr_ratio, slip_k, slip_rng, b_true):
     """One step's wheel travel (speeds ``ml``, ``mr`` clipped at ``vmax``, over the step ``dt``
     at the battery's ``gain``; each wheel's own ratio, and slip drawn from ``slip_rng``) as
@@ -363,7 +369,7 @@ def _wheels_to_body(ml, mr, vmax, dt, gain, dl_ratio, dr_ratio, slip_k, slip_rng
     return 0.5 * (dl + dr), (dr - dl) / b_true
 
 
-@numba.njit(cache=True, nogil=True)
+@step_jit
 def _sense_trail(grid, trail, lay, plen, recent_stamps, half_w, x, y, nx_, ny_):
     """The detector's reading (1.0 or 0.0) of the cell the robot reached, ``(nx_, ny_)``: on
     the first visit (``lay``) its own trail laid long enough ago (not the stripe being laid),
@@ -521,7 +527,9 @@ class TrialWorld:
         self.raster_bytes = self.grid_shape[0] * self.grid_shape[1] * np.dtype(np.uint32).itemsize
         self.prm = config.kernel_params()
         self.sp = config.stop.array(config.trail_width_u)
-        self.ir_ang = np.array(config.ir.angles_rad, dtype=np.float64)
+        # the rays' directions in the body frame: cos, sin (libm's, as the scalar sensor's)
+        ang = config.ir.angles_rad
+        self.ir_dirs = np.array([[math.cos(a) for a in ang], [math.sin(a) for a in ang]])
         self.start = nest.start_xy
 
     def trial(self, seeds, *, record: bool = False, progress=None, cancel: threading.Event | None = None):
@@ -533,6 +541,7 @@ class TrialWorld:
         start, beh, irg, slip = (np.random.default_rng(s) for s in seeds)
         gain = _motor_gain(c.robot, start)
         grid = np.zeros(self.grid_shape, dtype=np.uint32)
+        fan = np.empty((5, len(c.ir.angles_rad)))  # one step's rays and readings (the loop allocates nothing)
         out, trails, escapes, converged, steps = [0.0, 0.0, 0, 0.0], {}, 0, True, 0
         n_self, self_blind, rel_se = 0, float("nan"), float("nan")
         limit = c.step_limit
@@ -550,7 +559,7 @@ class TrialWorld:
                 rec = np.zeros((chunk if keep else 0, 3))
                 before = int(st[STEPS])
                 e, stopped = _visit(st, beh, irg, slip, chunk, grid, visit == 1, geo.arrays, geo.outer, self.trail,
-                                    self.prm, self.ir_ang, rec, c.auto, self.sp, bst, out[0])  # fmt: skip
+                                    self.prm, self.ir_dirs, fan, rec, c.auto, self.sp, bst, out[0])  # fmt: skip
                 escapes += e
                 if keep:
                     recs.append(rec[: int(st[STEPS]) - before])

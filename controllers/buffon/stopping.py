@@ -106,10 +106,10 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-import numba
 import numpy as np
 
 from stcvision.errors import BadInputError
+from stcvision.sim_camera.fastworld import loop_jit
 
 __all__ = [
     "StopParams",
@@ -187,7 +187,7 @@ class StopParams:
         )
 
 
-@numba.njit(cache=True)
+@loop_jit
 def first_visit_done(path_u, n_self, coverage, min_self, pi_w, st, batches, mix_tol, max_coverage):
     """Rules (1) and (1b): has the trail of ``path_u`` body lengths, with ``n_self``
     self-encounters, reached the target coverage with its encounter rate steady (``st``: the
@@ -199,7 +199,7 @@ def first_visit_done(path_u, n_self, coverage, min_self, pi_w, st, batches, mix_
     return mixing_spread(st, batches) <= mix_tol
 
 
-@numba.njit(cache=True)
+@loop_jit
 def first_visit_hopeless(steps, blind_steps, n_self, min_self):
     """The first visit gives up (the measurement is then untrusted) once, after ``min_self``
     encounters, its counter has been blind for more than :data:`MAX_FIRST_BLIND` of its steps:
@@ -223,7 +223,7 @@ def new_batch_state(batches: int, first_width: int = 64) -> np.ndarray:
     return st
 
 
-@numba.njit(cache=True)
+@loop_jit
 def batch_add(st, crossed, dl_u, batches):
     """Add one step (``crossed`` 0 or 1, path ``dl_u``) to the batch-means state ``st``."""
     b2 = 2 * batches
@@ -246,7 +246,7 @@ def batch_add(st, crossed, dl_u, batches):
         st[_FULL] = k
 
 
-@numba.njit(cache=True)
+@loop_jit
 def batch_rel_se(st, batches):
     """Rule (2): the relative standard error of crossings per path over the full bins (inf with
     fewer than two full bins or no crossing)."""
@@ -270,7 +270,7 @@ def batch_rel_se(st, batches):
     return math.sqrt(ss / (k * (k - 1))) / (lbar * rate)
 
 
-@numba.njit(cache=True)
+@loop_jit
 def mixing_spread(st, batches):
     """Rule (1b): the relative spread, beyond counting noise, of the self-encounters in the later
     half of the full bins of ``st`` about a rate growing smoothly with the path (a + b l per unit
@@ -321,7 +321,7 @@ def mixing_spread(st, batches):
     return math.sqrt(max(0.0, x2 - (k - h - 2)) / count)
 
 
-@numba.njit(cache=True)
+@loop_jit
 def second_visit_done(st, path_u, n, l1_u, second_ratio, min_crossings, rel_se, batches, max_ratio):
     """The second visit's rule: mixed (path >= second_ratio * L1), enough crossings, and the
     rate's relative standard error (2) at most ``rel_se`` over at least ``batches`` full bins;

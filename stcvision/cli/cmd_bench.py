@@ -240,10 +240,11 @@ def format_text(r):
     ]
     if "render_moving_ms_per_frame" in r:
         lines.append(f"render from a new pose every frame: {r['render_moving_ms_per_frame']:.2f} ms/frame")
-    if "buffon_robot_steps_per_s" in r:
+    if "buffon_robot_steps_per_cpu_s" in r:
         lines.append(
-            f"buffon ({r['buffon_nest']}): batched {r['buffon_robot_steps_per_s']:,.0f} robot-steps/s, pymunk "
-            f"{r['buffon_pymunk_robot_steps_per_s']:,.0f} robot-steps/s ({r['buffon_speedup']:.0f}x), 1 thread"
+            f"buffon ({r['buffon_nest']}): batched {r['buffon_robot_steps_per_cpu_s']:,.0f} robot-steps per CPU-second "
+            f"({r['buffon_robot_steps_per_s']:,.0f} per wall-clock second), pymunk "
+            f"{r['buffon_pymunk_robot_steps_per_cpu_s']:,.0f} per CPU-second ({r['buffon_speedup']:.0f}x), one thread"
         )
     if "pipeline_ms_per_frame" in r:
         lines.append(f"pipeline: {r['pipeline_ms_per_frame']:.3f} ms/frame (median, all stages, 1 thread)")

@@ -9,7 +9,7 @@ from scipy import stats
 from stcvision.controllers.buffon.batched import VisitConfig, run_trials
 from stcvision.controllers.buffon.estimate import area_estimates, buffon_area, median_ci95, summarise
 from stcvision.controllers.buffon.nests import BODY_LENGTH_M, parse_nest
-from stcvision.sim_camera.fastworld import StaticGeometry, push_out, ray_cast
+from stcvision.sim_camera.fastworld import StaticGeometry, push_out, ray_fan
 from stcvision.sim_camera.robot import KHEPERA
 from stcvision.sim_camera.world import World
 
@@ -29,7 +29,9 @@ def test_ray_casts_match_pymunk_segment_queries():
     for (x, y), a in zip(pts, rng.uniform(-np.pi, np.pi, len(pts)), strict=True):
         c, s = math.cos(a), math.sin(a)
         ref = world.ray_distance((x, y), (x + 0.2 * c, y + 0.2 * s))
-        got = ray_cast(*geo.arrays, x, y, x, y, c, s, 0.2)
+        rays = np.array([[x], [y], [c], [s], [0.0]])
+        ray_fan(*geo.arrays, x, y, rays, 0.2)
+        got = rays[4, 0]
         if ref is None:
             assert got == np.inf
         else:
