@@ -15,8 +15,8 @@ _ANNOUNCED = False
 _LISTENING = False
 
 NOTICE = (
-    "stcvision: compiling numba kernels on first use (once: ~30 s in all, then cached in __pycache__; "
-    "'make' or 'python -m stcvision.warm' does it ahead)"
+    "stcvision: compiling numba kernels on first use (once, ~30-50 s; then they load from __pycache__; "
+    "'python -m stcvision.warm' compiles the demo's and the pipeline's ahead, in parallel)"
 )
 
 
