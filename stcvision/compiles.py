@@ -1,4 +1,4 @@
-"""Say when numba compiles: a first run that compiles kernels (~30 s in all, then cached in
+"""Say when numba compiles: a first run that compiles kernels (~30-50 s for the demo's, then cached in
 ``__pycache__``) says so once on stderr instead of sitting silent. The CLI installs
 :func:`announce_compiles` for every command; :mod:`stcvision.warm` compiles ahead of time.
 """
