@@ -243,6 +243,12 @@ def _add_target_parsers(sub):
     s.add_argument("profile", metavar="PROFILE.json")
     s.add_argument("--size", required=True, type=pair(int, fmt="WxH", example="640x480"), metavar="WxH")
     s.add_argument("--out", required=True, metavar="PROFILE.json")
+    s.add_argument(
+        "--native",
+        action="store_true",
+        help="the camera's own mode at this size (independent pixel noise), not frames resized from the "
+        "calibrated size (area-averaged down, interpolated up: the default)",
+    )
     s.add_argument("--force", action="store_true", help="overwrite --out")
     return g, s
 
@@ -406,9 +412,15 @@ def _rescale(args):
     if not str(args.out).lower().endswith(".json"):
         raise OutputError(f"profile {args.out} does not end in .json; expected a .json file name")
     check_output_file(args.out, overwrite=args.force, what="profile")
-    prof = rescale_profile(Profile.load(args.profile), tuple(args.size))
+    prof = rescale_profile(Profile.load(args.profile), tuple(args.size), native=args.native)
     prof.save(args.out, overwrite=args.force)
-    return {"out": str(args.out), "image_size_px": list(prof.image_size_px), "scale": prof.provenance["rescaled"]}
+    return {
+        "out": str(args.out),
+        "image_size_px": list(prof.image_size_px),
+        "scale": prof.provenance["rescaled"],
+        "pixel_scale": prof.pixel_scale,
+        "resampling": prof.resampling,
+    }
 
 
 def _model_name(model) -> str:
@@ -725,7 +737,10 @@ def format_text(r):
     if step == "target":
         return _target_text(r)
     if step == "rescale":
-        return f"wrote {r['out']}: the profile at {r['image_size_px'][0]}x{r['image_size_px'][1]} (x{r['scale']:.4g})"
+        return (
+            f"wrote {r['out']}: the profile at {r['image_size_px'][0]}x{r['image_size_px'][1]} (x{r['scale']:.4g}; "
+            f"x{r['pixel_scale']:.4g} the calibrated camera's pixels, frames {r['resampling']} resampled)"
+        )
     return f"wrote {r['out']}: {len(r['corners_px'])} neighbour corners (preview {r['preview']})"
 
 

@@ -338,8 +338,8 @@ def test_rescaled_profile_reads_a_rescaled_frame_as_the_original(cli, tmp_path):
 def test_rescaled_profile_finds_the_dots_where_the_original_does(cli, tmp_path):
     """The example scene's dark-room frame and dark frame resized to 960x720 and read with the
     rescaled profile: every dot the original reading finds lit in the image is found at the same
-    floor point to 3 mm (the geometry is the profile's; the pipeline's pixel-scale settings -- window, dot size --
-    are the camera's, so an enlarged frame's noise can add dots of its own)."""
+    floor point to 3 mm, and the enlarged frame's interpolated noise adds no dots of its own (the
+    pipeline's dot window and noise model follow the profile's scale)."""
     from stcvision.calibration.profiles import default_profile_path
     from stcvision.pipeline import Pipeline
     from stcvision.profile import Profile
@@ -364,6 +364,7 @@ def test_rescaled_profile_finds_the_dots_where_the_original_does(cli, tmp_path):
     assert len(A) >= 10
     nearest = np.linalg.norm(A[:, None] - B[None], axis=2).min(axis=1)
     assert (nearest < 0.003).all(), 1000 * nearest
+    assert not b.untrusted and len(B) <= len(a.dots.xy_m[a.dots.lit]) + 2
 
 
 def test_the_floor_bound_holds_on_the_simulators_own_camera():
