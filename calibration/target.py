@@ -130,7 +130,7 @@ def calibrate_target(
         rows[name] = {
             "rms_px": f.rms_px,
             "heldout_rms_px": held,
-            "heldout_ratio": held / f.rms_px,
+            "heldout_ratio": held / max(f.rms_px, 1e-12),
             "n_params": len(f.params),
             "params": _params(f),
         }

@@ -537,16 +537,42 @@ def heldout_rms(views: TargetViews, fit: TargetFit, folds: int, should_stop=None
 #: finite-difference steps for propagating the covariance: this fraction of each parameter's
 #: standard deviation (the model is close to linear over it, and far above rounding)
 COV_STEP_OF_STD = 1e-3
+#: ... but never more than this fraction of the parameter's own size: a parameter the views
+#: barely fix (the polynomial's constant term, where no view reaches the image's centre, had a
+#: standard deviation 5000 times its value) would otherwise be stepped to another model, whose
+#: elevation curve no longer reaches the rays (NaN: every floor bound of such a fit was lost)
+COV_STEP_OF_VALUE = 1e-3
+
+
+def derivative_steps(params: np.ndarray, std: np.ndarray) -> np.ndarray:
+    """The finite-difference step of each parameter for propagating a covariance.
+
+    :data:`COV_STEP_OF_STD` of its standard deviation, at most :data:`COV_STEP_OF_VALUE` of its
+    size (a parameter at zero: of its standard deviation alone), never zero.
+
+    Parameters
+    ----------
+    params, std : numpy.ndarray
+        The parameters and their standard deviations.
+
+    Returns
+    -------
+    numpy.ndarray
+        The steps.
+    """
+    sd = np.where(np.isfinite(std) & (std > 0), std, 1e-9)
+    size = np.abs(np.asarray(params, float))
+    step = COV_STEP_OF_STD * sd
+    return np.where(size > 0, np.minimum(step, COV_STEP_OF_VALUE * size), step)
 
 
 def params_jacobian(fit: TargetFit, value_of) -> np.ndarray:
-    """d(value)/d(intrinsics): (N, 2, n), central differences with steps of
-    :data:`COV_STEP_OF_STD` of each parameter's standard deviation; ``value_of(params)`` gives
-    the (N, 2) values at a parameter vector."""
-    std = np.where(fit.std > 0, fit.std, 1e-9)
+    """d(value)/d(intrinsics): (N, 2, n), central differences with the steps of
+    :func:`derivative_steps`; ``value_of(params)`` gives the (N, 2) values at a parameter vector."""
+    steps = derivative_steps(fit.params, fit.std)
     cols = []
     for j in range(len(fit.params)):
-        h = COV_STEP_OF_STD * std[j]
+        h = steps[j]
         p1, p0 = fit.params.copy(), fit.params.copy()
         p1[j] += h
         p0[j] -= h

@@ -12,6 +12,7 @@ kept.
 from __future__ import annotations
 
 import math
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -58,6 +59,9 @@ MAX_SUBPIX_SHIFT_PX = 3.0
 #: corners nearer the image's border than this (px) are cut by it
 BORDER_PX = 3.0
 #: how far outside the image (px from the outermost pixel centres) a points file's point may lie:
+#: the least spread of a view's image points across their narrowest direction (the smallest
+#: singular value of the centred points, px): a grid's image spans tens of pixels each way
+MIN_IMAGE_SPREAD_PX = 1.0
 #: a detector's sub-pixel estimate at the edge; further means the image size is wrong
 OFF_IMAGE_TOLERANCE_PX = 2.0
 
@@ -117,6 +121,12 @@ def check_views(views: TargetViews, where: str) -> TargetViews:
         span = np.ptp(obj[:, :2], axis=0)
         if min(span) <= 0:
             raise BadInputError(f"{where}: view {name}'s object points lie on a line; expected a planar grid")
+        # the image of a grid spans an area: points on a line or on one pixel fix no camera
+        # (found by fuzzing: every image point at one pixel gave a zero RMS and a division by it)
+        if np.linalg.svd(img - img.mean(axis=0), compute_uv=False)[-1] < MIN_IMAGE_SPREAD_PX:
+            raise BadInputError(
+                f"{where}: view {name}'s image points lie on a line or a point; expected the image of a planar grid"
+            )
         m = OFF_IMAGE_TOLERANCE_PX
         if (img < -m).any() or (img[:, 0] > w - 1 + m).any() or (img[:, 1] > h - 1 + m).any():
             raise BadInputError(
@@ -193,8 +203,11 @@ def _image_size(fs, where: str, given) -> tuple[int, int]:
     else:
         m = node.mat()
         vals = [] if m is None else [float(x) for x in np.ravel(m)]
-    if len(vals) != 2 or not all(math.isfinite(v) and v == int(v) and v > 0 for v in vals):
-        raise BadInputError(f"{where}: imageSize must be two positive integers (width height), got {vals}")
+    if len(vals) != 2 or not all(math.isfinite(v) and v == int(v) and 0 < v <= MAX_TARGET_IMAGE_SIDE_PX for v in vals):
+        shown = ", ".join(f"{v:.6g}" for v in vals[:4]) + (", ..." if len(vals) > 4 else "")
+        raise BadInputError(
+            f"{where}: imageSize must be two integers 1..{MAX_TARGET_IMAGE_SIDE_PX} (width height), got [{shown}]"
+        )
     return int(vals[0]), int(vals[1])
 
 
@@ -224,6 +237,7 @@ def read_points_file(path, *, camera: int | None = None, image_size=None) -> Tar
             f"{where} is {size / 2**20:.0f} MiB, over the cap of {MAX_POINTS_FILE_BYTES // 2**20} MiB "
             "(MAX_POINTS_FILE_BYTES)"
         )
+    _check_declared_sizes(path, where)
     try:
         with quiet_opencv():
             fs = cv2.FileStorage(str(path), cv2.FILE_STORAGE_READ)
@@ -241,6 +255,25 @@ def read_points_file(path, *, camera: int | None = None, image_size=None) -> Tar
             msg = msg[msg.index("error: (") + len("error: ") :]
         raise BadInputError(f"{where} is not readable OpenCV FileStorage: {msg[:140]}") from None
     return check_views(views, where)
+
+
+#: a matrix's declared rows or columns, as FileStorage XML (``<rows>N</rows>``) and YAML
+#: (``rows: N``) write them
+_DECLARED = re.compile(rb"(?:<(?:rows|cols)>|\b(?:rows|cols):)\s*(-?\d+)")
+
+
+def _check_declared_sizes(path: Path, where: str) -> None:
+    """Refuse a matrix declared larger than a view may be before OpenCV allocates it.
+
+    OpenCV allocates a matrix by its declared rows and columns before reading its data (found by
+    fuzzing: a declared 2e9 rows asked for 48 GB).
+    """
+    cap = 3 * MAX_POINTS_PER_VIEW
+    for m in _DECLARED.finditer(path.read_bytes()):
+        if abs(int(m.group(1))) > cap:
+            raise BadInputError(
+                f"{where} declares a matrix of {int(m.group(1)):,} rows or columns, over the {cap:,} a view may hold"
+            )
 
 
 def _read_storage(fs, where: str, camera: int | None, image_size) -> TargetViews:

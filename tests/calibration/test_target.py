@@ -125,6 +125,15 @@ MALFORMED = [
     ("a nan", lambda t: re.sub(r"(<data>\s*)\S+", r"\1.Nan", t, count=1), "finite"),
     ("a size not in pixels", lambda t: re.sub(r"<imageSize>[^<]*<", "<imageSize>\n  1280.5 960<", t), "imageSize"),
     ("a view too few", lambda t: re.sub(r"(<imagePoints>\s*)<_ [\s\S]*?</_>", r"\1", t, count=1), "views"),
+    ("rows declared huge", lambda t: re.sub(r"<rows>\d+</rows>", "<rows>2000000000</rows>", t, count=1), "declares"),
+    ("a size of words", lambda t: re.sub(r"<imageSize>[^<]*<", "<imageSize>abc def<", t), "imageSize"),
+    (
+        "a view's image points at one pixel",
+        lambda t: re.sub(
+            r"(<imagePoints>\s*<_[^>]*>[\s\S]*?<data>)[^<]*", lambda m: m.group(1) + " 5." * 108, t, count=1
+        ),
+        "on a line or a point",
+    ),
 ]
 
 
