@@ -351,7 +351,7 @@ def _target(args):
     from stcvision.errors import BadInputError, OutputError
     from stcvision.fileio import check_output_file, raise_if_signalled, read_image, write_bytes_atomic
 
-    png = args.uncertainty_png or f"{Path(args.source).name}.uncertainty.png"
+    png = args.uncertainty_png or f"{Path(args.source).resolve().name or 'target'}.uncertainty.png"
     if Path(png).suffix.lower() != ".png":
         raise OutputError(f"uncertainty map {png} does not end in .png; expected a .png file name")
     check_output_file(png, overwrite=args.force or _own_preview(png), what="uncertainty map")
