@@ -4,6 +4,7 @@ PYTHON ?= python3
 VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
+WARMED := $(VENV)/.warmed
 
 .PHONY: demo test test-emulator cross-tools fuzz bench lint clean venv docs serve-docs browser-deps test-browser
 
@@ -12,15 +13,20 @@ venv: $(STAMP)
 $(STAMP): pyproject.toml
 	@test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --disable-pip-version-check -e '.[dev]'
-	$(BIN)/python -m stcvision.warm  # compile the demo's and the pipeline's numba kernels now, not on the first run
 	@touch $(STAMP)
+
+# the demo compiles the kernels it uses on its first run (and says so); the suite's workers would
+# each compile the same ones, so make test compiles them first, in parallel processes
+$(WARMED): $(STAMP)
+	$(BIN)/python -m stcvision.warm
+	@touch $(WARMED)
 
 demo: $(STAMP)
 	$(BIN)/stcvision demo --out out --force  # out/ is make demo's own folder: replace the last run
 
 # everything but the emulator's and the browser's tests: a machine with Python and cc runs it
 # whole, none skipped (make test-emulator, make test-browser run those)
-test: $(STAMP)
+test: $(WARMED)
 	$(BIN)/python -m pytest -q -n 2 -m "not emulator and not browser"
 
 # the STC controller's firmware for the ATmega328P (avr-gcc) run in QEMU's uno machine

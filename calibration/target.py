@@ -15,7 +15,8 @@ from pathlib import Path
 
 import numpy as np
 
-from stcvision.calibration.target_fit import MODELS, TargetFit, fit_target, heldout_rms
+from stcvision.calibration.target_fit import TargetFit, fit_target, heldout_rms
+from stcvision.calibration.target_options import DEFAULT_FOLDS, MODELS
 from stcvision.calibration.target_uncertainty import (
     CONFIDENCE,
     cross_validation_diff,
@@ -27,10 +28,7 @@ from stcvision.calibration.target_uncertainty import (
 from stcvision.calibration.target_views import TargetViews, detect_views, read_points_file
 from stcvision.errors import BadInputError
 
-__all__ = ["DEFAULT_FOLDS", "TargetResult", "calibrate_target", "load_views", "target_profile"]
-
-#: folds of the held-out test (fewer when there are fewer views)
-DEFAULT_FOLDS = 5
+__all__ = ["TargetResult", "calibrate_target", "load_views", "target_profile"]
 
 
 @dataclass(frozen=True)

@@ -41,16 +41,12 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from stcvision.calibration.lens_models import CentralModel
+from stcvision.calibration.target_options import MODELS
 from stcvision.calibration.target_views import TargetViews
 from stcvision.errors import BadInputError
 
-__all__ = ["MODELS", "TargetFit", "fit_target", "heldout_rms", "project_points", "ray_to_pixel_jacobian"]
+__all__ = ["TargetFit", "fit_target", "heldout_rms", "project_points", "ray_to_pixel_jacobian"]
 
-#: the models and their parameters' names, in the order of the parameter vector
-MODELS = {
-    "mei": ("xi", "fu", "fv", "pu", "pv", "k1", "k2", "p1", "p2"),
-    "poly": ("pu", "pv", "c", "e", "a0", "a2", "a3", "a4", "p1", "p2"),
-}
 #: polynomial coefficients are fitted in units of this many pixels of radius, so that the four
 #: are of one size (a4 rho^4 in raw pixels is ~1e-10 rho^4, beyond a finite difference's reach)
 POLY_RADIUS_UNIT_PX = 100.0

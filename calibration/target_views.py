@@ -18,6 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
+from stcvision.calibration.target_options import PATTERNS
 from stcvision.errors import BadInputError
 
 __all__ = [
@@ -27,7 +28,6 @@ __all__ = [
     "MAX_VIEWS",
     "MIN_POINTS_PER_VIEW",
     "MIN_VIEWS",
-    "PATTERNS",
     "TargetViews",
     "detect_views",
     "read_points_file",
@@ -49,8 +49,6 @@ MAX_POINTS_FILE_BYTES = 64 * 2**20
 MAX_TARGET_IMAGE_SIDE_PX = 8192
 #: images read from one folder (the views' cap, with room for refused ones)
 MAX_TARGET_IMAGES = 2 * MAX_VIEWS
-#: the target patterns the image detector knows
-PATTERNS = ("chessboard", "circles", "acircles")
 #: image file suffixes read from a folder
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".pgm", ".ppm", ".pnm")
 #: how far the sub-pixel refinement may move a corner from the detector's estimate (px), or half

@@ -19,7 +19,16 @@ import numpy as np
 from stcvision.errors import BadInputError
 from stcvision.video import Frame
 
-__all__ = ["IMAGE_TYPES", "BagSource", "colour_warning", "image_from_message", "open_bag", "stamp_text"]
+__all__ = [
+    "IMAGE_TYPES",
+    "BagSource",
+    "colour_warning",
+    "image_from_message",
+    "open_bag",
+    "parse_stamp",
+    "read_frame",
+    "stamp_text",
+]
 
 _RAW = "sensor_msgs/msg/Image"
 _COMPRESSED = "sensor_msgs/msg/CompressedImage"
@@ -154,6 +163,35 @@ def stamp_text(stamp_ns: int) -> str:
     """
     sec, ns = divmod(int(stamp_ns), _NS_PER_S)
     return f"{sec}.{ns:09d}"
+
+
+def parse_stamp(text: str) -> int:
+    """A header stamp given in decimal seconds (``1700000000.000000123``), as integer nanoseconds.
+
+    Parameters
+    ----------
+    text : str
+        Seconds, with up to nine decimals (read exactly, not through a float).
+
+    Returns
+    -------
+    int
+        Nanoseconds.
+
+    Raises
+    ------
+    BadInputError
+        If ``text`` is not a number of seconds >= 0 with at most nine decimals.
+    """
+    from decimal import Decimal, InvalidOperation
+
+    try:
+        sec = Decimal(text.strip())
+    except InvalidOperation:
+        raise BadInputError(f"stamp {text!r} is not a number of seconds (e.g. 1700000000.000000123)") from None
+    if not sec.is_finite() or sec < 0 or (sec * _NS_PER_S) != (sec * _NS_PER_S).to_integral_value():
+        raise BadInputError(f"stamp {text!r}: expected seconds >= 0 with at most nine decimals")
+    return int(sec * _NS_PER_S)
 
 
 def _stamp_ns(msg) -> int:
@@ -295,3 +333,64 @@ def open_bag(path, topic: str) -> BagSource:
         raise BadInputError(f"{name}: {what}; image topics present: {present}")
     count = sum(c.msgcount for c in conns)
     return BagSource(reader, name, topic, conns, conns[0].msgtype, count)
+
+
+def read_frame(path, topic: str, *, stamp_ns: int | None = None) -> tuple[np.ndarray, str]:
+    """One frame of a recording's image topic: the message whose header stamp is ``stamp_ns``,
+    or the first.
+
+    Only the chosen message's image is decoded; the search reads at most ``MAX_VIDEO_FRAMES``
+    messages (``stcvision.limits``), the cap of one pipeline run.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The recording (:func:`open_bag`).
+    topic : str
+        Its image topic.
+    stamp_ns : int, optional
+        The header stamp to find (:func:`parse_stamp`); None: the topic's first message.
+
+    Returns
+    -------
+    image : ndarray
+        The frame as the pipeline reads it (BGR, 8 or 16 bits).
+    name : str
+        What names it in messages and a profile's provenance: the file, the topic, the stamp.
+
+    Raises
+    ------
+    BadInputError
+        In one line: what :func:`open_bag` refuses, an empty topic, or no message with that
+        stamp (with the range of stamps the topic has).
+    """
+    from stcvision.limits import MAX_VIDEO_FRAMES
+
+    src = open_bag(path, topic)
+    try:
+        first = last = None
+        for index, (conn, raw) in enumerate(src._raw()):
+            if index == MAX_VIDEO_FRAMES:
+                break
+            try:
+                msg = src.reader.deserialize(raw, conn.msgtype)
+            except Exception as exc:  # a damaged message is the file's fault, in one line
+                raise BadInputError(f"{src.name}: message {index} of {topic} cannot be read: {exc}") from None
+            ns = _stamp_ns(msg)
+            first = ns if first is None else first
+            last = ns
+            if stamp_ns is None or ns == stamp_ns:
+                try:
+                    image = image_from_message(msg, conn.msgtype)
+                except BadInputError as exc:
+                    raise BadInputError(f"{src.name}: message {index} of {topic}: {exc}") from None
+                return image, f"{src.name} {topic} at stamp {stamp_text(ns)} s"
+    finally:
+        src.close()
+    if first is None:
+        raise BadInputError(f"{src.name}: no message on {topic}")
+    read = f"the first {MAX_VIDEO_FRAMES:,} messages' stamps" if index == MAX_VIDEO_FRAMES else "its stamps"
+    raise BadInputError(
+        f"{src.name}: no message on {topic} has header stamp {stamp_text(stamp_ns)} s; "
+        f"{read} run from {stamp_text(first)} to {stamp_text(last)} s"
+    )

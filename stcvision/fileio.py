@@ -14,11 +14,12 @@ import os
 import secrets
 import tempfile
 from pathlib import Path
-from typing import Any
-
-import numpy as np
+from typing import TYPE_CHECKING, Any
 
 from stcvision.errors import BadInputError, FileExistsRefusedError, OutputError
+
+if TYPE_CHECKING:  # numpy is imported where it is used: the command line's start needs none of it
+    import numpy as np
 
 __all__ = [
     "check_output_file",
@@ -26,6 +27,8 @@ __all__ = [
     "commit_temp",
     "discard_temp",
     "figure_png",
+    "keep_partial",
+    "kept_partial",
     "read_image",
     "read_json",
     "remove_live_temps",
@@ -146,11 +149,16 @@ def _sweep_once(folder: Path) -> None:
 #: a logging wrapper), no output is committed after it all the same
 _SIGNALS: list[int] = []
 
+#: outputs this run kept as they stood when a signal stopped it (a recording whose every
+#: record up to the signal is whole), for the line the CLI ends an interrupted run with
+_KEPT: list[Path] = []
+
 
 def new_run() -> None:
     """Start a new run (the CLI calls it first): folders are swept for stale temporaries again."""
     _SWEPT.clear()
     _SIGNALS.clear()
+    _KEPT.clear()
 
 
 def signal_received(signum: int) -> None:
@@ -245,6 +253,23 @@ def commit_temp(tmp: Path, path: Path) -> None:
     _LIVE_TEMPS.discard(tmp)
 
 
+def keep_partial(tmp: Path, path: Path) -> None:
+    """Rename the temporary ``tmp`` over ``path`` after a termination signal, and note it.
+
+    For a stream whose every record up to the signal is whole and whose end has been written
+    (a rerun recording closed cleanly): the run stopped, but what it wrote is worth keeping.
+    :func:`kept_partial` lists what was kept, for the line that ends the run.
+    """
+    os.replace(tmp, path)
+    _LIVE_TEMPS.discard(tmp)
+    _KEPT.append(Path(path))
+
+
+def kept_partial() -> list[Path]:
+    """Return the outputs this run kept as they stood when a signal stopped it (:func:`keep_partial`)."""
+    return list(_KEPT)
+
+
 def discard_temp(tmp: Path | None) -> None:
     """Remove the temporary ``tmp`` (file or folder) instead of committing it."""
     import shutil
@@ -303,6 +328,8 @@ def write_bytes_atomic(path: str | os.PathLike, data: bytes, *, overwrite: bool 
 
 
 def _json_default(obj: Any) -> Any:
+    import numpy as np  # here, not at the top: the command line's start needs none of numpy
+
     if isinstance(obj, np.generic):
         return obj.item()
     if isinstance(obj, np.ndarray):
@@ -434,6 +461,7 @@ def write_image(path: str | os.PathLike, image: np.ndarray, *, overwrite: bool =
         When the file cannot be written.
     """
     import cv2
+    import numpy as np
 
     path = Path(path)
     suffix = path.suffix.lower()
@@ -531,6 +559,7 @@ def read_image(path: str | os.PathLike, *, color: bool = True, what: str = "imag
         3-channel BGR (greyscale, alpha) or not 8/16-bit.
     """
     import cv2
+    import numpy as np
 
     path = Path(path)
     try:

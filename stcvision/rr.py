@@ -30,13 +30,14 @@ import rerun.blueprint as rrb
 
 __all__ = [
     "ENTITY_PATHS",
+    "INTERRUPTED_PROPERTY",
     "PipelineLogger",
+    "Recorder",
+    "RecordingFile",
     "Recordings",
-    "abort_recording",
     "blueprint",
     "check_recording_path",
-    "finish_recording",
-    "open_recording",
+    "layout",
 ]
 
 ENTITY_PATHS = (
@@ -54,10 +55,23 @@ ENTITY_PATHS = (
 )
 
 
-def blueprint() -> rrb.Blueprint:
-    """Layout: raw and dark-subtracted frames, the annotated ground view, both channel images,
-    the observation text and the stage timings."""
+def layout(root: rrb.Container, *, timeline: str) -> rrb.Blueprint:
+    """A recording's default blueprint: the views in ``root``, the time panel open on
+    ``timeline`` (its other timelines one click away), the blueprint and selection panels
+    folded away until wanted."""
     return rrb.Blueprint(
+        root,
+        rrb.BlueprintPanel(state="collapsed"),
+        rrb.SelectionPanel(state="collapsed"),
+        rrb.TimePanel(state="expanded", timeline=timeline),
+    )
+
+
+def blueprint() -> rrb.Blueprint:
+    """The pipeline's layout: raw and dark-subtracted frames, the ground view with its cells,
+    boxes, dots and heading, both channel images, the observation text and the stage timings,
+    on the ``frame`` timeline."""
+    return layout(
         rrb.Horizontal(
             rrb.Vertical(
                 rrb.Spatial2DView(origin="raw", name="raw frame"),
@@ -74,7 +88,7 @@ def blueprint() -> rrb.Blueprint:
             ),
             column_shares=[2, 3, 2, 2],
         ),
-        collapse_panels=True,
+        timeline="frame",
     )
 
 
@@ -113,78 +127,173 @@ def check_display(environ=None, platform: str | None = None) -> None:
         )
 
 
-def open_recording(
-    path: str | Path | None = None,
-    *,
-    spawn: bool = False,
-    app_id: str = "stcvision",
-    default_blueprint: rrb.Blueprint | None = None,
-):
-    """A recording stream writing to ``path`` (.rrd, atomically: into a hidden temporary sibling
-    until :func:`finish_recording` renames it into place; :func:`abort_recording` removes it)
-    and/or a spawned viewer; ``default_blueprint`` defaults to the pipeline's :func:`blueprint`.
-    Returns ``(stream, temporary path or None)``."""
-    from stcvision.errors import StcVisionError
-    from stcvision.fileio import discard_temp, output_error, temp_sibling
+class RecordingFile:
+    """A rerun recording streamed to a .rrd file as it is logged: the one way the toolkit writes one.
 
-    if spawn:
-        check_display()
-    rec = rr.RecordingStream(app_id)
-    bp = default_blueprint or blueprint()
-    tmp = None
-    if path is not None:
-        path = check_recording_path(path, overwrite=True)
+    The stream goes to a hidden temporary sibling of ``path`` (rerun's file sink writes each
+    batch as the batcher flushes it, every ``flush_tick``), so the file under the user's name
+    is always a whole recording: the old one or the new one, never half of either. The end
+    decides what happens to it (:meth:`end`):
+
+    - the run ended: :meth:`close` writes rerun's footer and renames the file into place;
+    - a termination signal (Ctrl-C, SIGTERM, SIGHUP): :meth:`interrupted` names the recording
+      "interrupted by SIGINT" (in the viewer's recording list and in its properties), writes
+      the footer all the same, and renames it into place: every entity logged before the
+      signal is kept, the file verifies, and the line the run ends with says it was kept;
+    - any other error: :meth:`abort` removes it.
+
+    A SIGKILL or a power cut cannot be caught: its temporary is removed by the next run that
+    writes into the folder, and the old recording stays.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path or None
+        The .rrd file (checked by :func:`check_recording_path`; an existing one is replaced at
+        the end, so check ``--force`` before). None: no file (a viewer only).
+    spawn : bool
+        Also stream to a spawned rerun viewer (refused at once where there is no display).
+    app_id : str
+        Rerun's application id: recordings of one kind share their layout in the viewer.
+    default_blueprint : rerun.blueprint.Blueprint or None
+        The layout the recording opens with (default: the pipeline's, :func:`blueprint`).
+
+    Raises
+    ------
+    OutputError
+        If ``path`` cannot be made.
+    StcVisionError
+        If ``spawn`` and the viewer cannot start.
+    """
+
+    def __init__(
+        self,
+        path: str | Path | None,
+        *,
+        spawn: bool = False,
+        app_id: str = "stcvision",
+        default_blueprint: rrb.Blueprint | None = None,
+    ) -> None:
+        from stcvision.errors import StcVisionError
+        from stcvision.fileio import output_error, temp_sibling
+
+        if spawn:
+            check_display()
+        self.rec = rr.RecordingStream(app_id)
+        self.path = None if path is None else check_recording_path(path, overwrite=True)
+        self._tmp: Path | None = None
+        bp = default_blueprint or blueprint()
+        if self.path is not None:
+            try:
+                self.path.parent.mkdir(parents=True, exist_ok=True)
+                self._tmp = temp_sibling(self.path)
+            except OSError as exc:
+                raise output_error(self.path, exc) from None
+            try:
+                self.rec.save(self._tmp, default_blueprint=bp)
+                self.rec.send_recording_name(self.path.name)
+            except BaseException:  # a signal while the file sink starts: stop it, then remove its file
+                self.abort()
+                raise
+        if spawn:
+            try:
+                self.rec.spawn(default_blueprint=bp)
+            except (RuntimeError, OSError) as exc:
+                self.abort()
+                why = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+                raise StcVisionError(
+                    f"cannot start the rerun viewer ({why}); install it (pip install rerun-sdk puts 'rerun' on "
+                    "PATH) or write a file with --rrd OUT.rrd instead of --spawn"
+                ) from None
+
+    def close(self) -> None:
+        """End the recording and rename it into place. After a termination signal whose
+        exception a library swallowed, it is kept as :meth:`interrupted` and the signal's
+        :class:`~stcvision.errors.Terminated` raised."""
+        from stcvision.errors import Terminated
+        from stcvision.fileio import commit_temp, raise_if_signalled
+
         try:
-            path.parent.mkdir(parents=True, exist_ok=True)
-            tmp = temp_sibling(path)
-        except OSError as exc:
-            raise output_error(path, exc) from None
-        try:
-            rec.save(tmp, default_blueprint=bp)
-        except BaseException:  # a signal while the file sink starts: stop it, then remove its file
-            abort_recording(rec, tmp)
+            raise_if_signalled()
+        except Terminated as exc:
+            self.interrupted(exc.signum)
             raise
-    if spawn:
+        self.rec.flush()
+        self.rec.disconnect()
+        if self._tmp is not None:
+            commit_temp(self._tmp, self.path)
+            self._tmp = None
+
+    def interrupted(self, signum: int) -> None:
+        """End the recording after signal ``signum`` and keep it, named as interrupted."""
+        import signal
+
+        from stcvision.fileio import keep_partial
+
+        if self._tmp is None:
+            self.rec.disconnect()
+            return
         try:
-            rec.spawn(default_blueprint=bp)
-        except (RuntimeError, OSError) as exc:
-            abort_recording(rec, tmp)
-            discard_temp(tmp)
-            why = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
-            raise StcVisionError(
-                f"cannot start the rerun viewer ({why}); install it (pip install rerun-sdk puts 'rerun' on "
-                "PATH) or write a file with --rrd OUT.rrd instead of --spawn"
-            ) from None
-    return rec, tmp
+            why = signal.Signals(signum).name
+        except ValueError:
+            why = f"signal {signum}"
+        self.rec.send_recording_name(f"{self.path.name} (interrupted by {why})")
+        self.rec.send_property(INTERRUPTED_PROPERTY, rr.AnyValues(signal=why))
+        self.rec.flush()
+        self.rec.disconnect()  # the file sink writes rerun's footer: the file verifies
+        keep_partial(self._tmp, self.path)
+        self._tmp = None
+
+    def abort(self) -> None:
+        """Stop without keeping the recording (after an error): the old one, or none, stays."""
+        from stcvision.fileio import discard_temp
+
+        try:
+            self.rec.disconnect()
+        finally:
+            discard_temp(self._tmp)
+            self._tmp = None
+
+    def end(self, exc: BaseException | None) -> None:
+        """End as a block that raised ``exc`` (None: it did not) asks: :meth:`close`,
+        :meth:`interrupted` after Ctrl-C or a termination signal, :meth:`abort` after an error."""
+        from stcvision.errors import Terminated
+
+        if exc is None:
+            self.close()
+        elif isinstance(exc, KeyboardInterrupt):
+            self.interrupted(exc.signum if isinstance(exc, Terminated) else 2)
+        else:
+            self.abort()
 
 
-def finish_recording(rec: rr.RecordingStream, tmp: Path | None, final: str | Path | None) -> None:
-    """Flush ``rec`` and, if it writes to the temporary file ``tmp``, move it to ``final``
-    atomically (the other half of :func:`open_recording`)."""
-    from stcvision.fileio import commit_temp
-
-    rec.flush()
-    if tmp is not None:
-        rec.disconnect()
-        commit_temp(tmp, Path(final))
+#: the recording property that marks a recording stopped by a signal (its value: the signal's name)
+INTERRUPTED_PROPERTY = "interrupted"
 
 
-def abort_recording(rec: rr.RecordingStream, tmp: Path | None) -> None:
-    """Stop ``rec`` and remove its temporary file: a run that failed or was interrupted leaves
-    the old recording (or none) in place, never a partial one."""
-    from stcvision.fileio import discard_temp
+class Recorder:
+    """What writes a .rrd (a :class:`PipelineLogger`, the robots' recorders): ``file``, its
+    :class:`RecordingFile`, and ``rec``, the stream to log to."""
 
-    try:
-        rec.disconnect()
-    finally:
-        discard_temp(tmp)
+    file: RecordingFile
+    rec: rr.RecordingStream
+
+    def close(self) -> None:
+        """End the recording and rename it into place (:meth:`RecordingFile.close`)."""
+        self.file.close()
+
+    def abort(self) -> None:
+        """Stop without keeping the recording (:meth:`RecordingFile.abort`)."""
+        self.file.abort()
+
+    def end(self, exc: BaseException | None) -> None:
+        """End as :meth:`RecordingFile.end` says."""
+        self.file.end(exc)
 
 
 class Recordings:
-    """The recordings a block writes (anything with ``close()`` and ``abort()``: a
-    :class:`PipelineLogger`, the STC robot's recorder): each is committed (renamed into place)
-    when the block ends normally and removed when it raises (an error, Ctrl-C, SIGTERM), so no
-    half-written recording is left behind::
+    """The recordings a block writes (each a :class:`Recorder` or a :class:`RecordingFile`),
+    each ended as the block ends (:meth:`RecordingFile.end`): renamed into place when it ends
+    normally, kept as it stood after Ctrl-C or SIGTERM, removed after an error::
 
         with Recordings() as recs:
             logger = recs.add(PipelineLogger.to_file(path, pipeline))
@@ -202,36 +311,30 @@ class Recordings:
         return self
 
     def __exit__(self, exc_type, exc, tb) -> bool:
-        for r in self._open:
-            if exc_type is None:
-                r.close()
-            else:
-                r.abort()
+        try:
+            for r in self._open:
+                r.end(exc)
+        finally:
+            self._open.clear()
         return False
 
 
-class PipelineLogger:
-    """Log :class:`stcvision.pipeline.PipelineResult` objects to a recording."""
+class PipelineLogger(Recorder):
+    """Log :class:`stcvision.pipeline.PipelineResult` objects to a recording: its own file
+    (:meth:`to_file`) or a stream another recorder writes (``recording``)."""
 
-    def __init__(
-        self,
-        recording: rr.RecordingStream,
-        pipeline,
-        *,
-        jpeg_quality: int = 80,
-        final_path: str | Path | None = None,
-        tmp_path: Path | None = None,
-    ) -> None:
+    def __init__(self, recording: rr.RecordingStream, pipeline, *, jpeg_quality: int = 80, file=None) -> None:
         self.rec = recording
         self.pipeline = pipeline
         self.q = jpeg_quality
-        self._final, self._tmp = final_path, tmp_path
-        self._static_done = False
+        self.file = file
 
     @classmethod
-    def to_file(cls, path: str | Path, pipeline, *, spawn: bool = False, **kw) -> PipelineLogger:
-        rec, tmp = open_recording(path, spawn=spawn)
-        return cls(rec, pipeline, final_path=path, tmp_path=tmp, **kw)
+    def to_file(cls, path: str | Path | None, pipeline, *, spawn: bool = False, **kw) -> PipelineLogger:
+        """A logger writing the recording ``path`` (:class:`RecordingFile`; None: to a
+        spawned viewer only)."""
+        f = RecordingFile(path, spawn=spawn)
+        return cls(f.rec, pipeline, file=f, **kw)
 
     @property
     def enabled(self) -> bool:
@@ -301,16 +404,6 @@ class PipelineLogger:
         rec.log("observation", rr.TextDocument(text or observation_markdown(result), media_type="text/markdown"))
         for k, v in result.stage_ms.items():
             rec.log(f"timing/{k}", rr.Scalars(v))
-
-    def close(self) -> None:
-        """Flush, and move the recording into place atomically."""
-        finish_recording(self.rec, self._tmp, self._final)
-        self._tmp = None
-
-    def abort(self) -> None:
-        """Stop without keeping the recording (after an error or an interruption)."""
-        abort_recording(self.rec, self._tmp)
-        self._tmp = None
 
 
 def observation_markdown(result) -> str:

@@ -31,8 +31,10 @@ not cancel there.
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING
 
-import numpy as np
+if TYPE_CHECKING:  # numpy is imported where it is used: the command line's help shows these numbers
+    import numpy as np
 
 #: Default sub-cell side D (m): the footprint of the default STC robot, a small Lego Mindstorms
 #: robot about 16 cm across (ant-like STC paper: "the robot divides the floor virtually into
@@ -79,6 +81,8 @@ def compass_to_rad(h: int) -> float:
 
 def entry_axes(h: int) -> tuple[np.ndarray, np.ndarray]:
     """World unit vectors (right, up) of the entry frame of a robot heading compass ``h``."""
+    import numpy as np
+
     a = compass_to_rad(h)
     up = np.array([math.cos(a), math.sin(a)])
     return np.array([up[1], -up[0]]), up

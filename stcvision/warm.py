@@ -1,71 +1,133 @@
-"""Compile, once, the numba kernels a first run would otherwise compile in front of the user.
+"""Compile, once and in parallel, the numba kernels the commands would otherwise compile on first use.
 
 numba compiles a kernel on its first call and keeps the machine code in ``__pycache__``
-(``cache=True``); every later process loads it in milliseconds. On a fresh install the first
-``stcvision demo`` would spend ~30 s compiling in silence, so ``make``'s install step runs
-``python -m stcvision.warm``: it does, small, what the demo and the pipeline do -- the demo's
-closed loop itself (render, 8-bit pipeline, world, recording) into a temporary folder, and a
-16-bit frame of the cooled camera through the pipeline -- so that each of their kernels is
-compiled with the argument types they will meet. Buffon's and the other rooms' kernels compile
-on their first use instead (only what runs).
+(``cache=True``); every later process loads it in milliseconds. ``make demo`` does not wait for
+this: the demo compiles the kernels it uses itself, on its first run, and says so on stderr
+(:func:`stcvision.compiles.announce_compiles`). ``make test`` runs ``python -m stcvision.warm``
+first, so that the suite's parallel workers do not each compile the same kernels: it does, small,
+what the demo and the pipeline do -- the demo's closed loop (render, 8-bit pipeline, world,
+recording), and an 8-bit and a 16-bit frame through render and the pipeline -- each in a process
+of its own, as many at a time as the machine has cores, so that each kernel is compiled with the
+argument types it will meet. Buffon's and the other rooms' kernels compile on their first use.
 
-:func:`stcvision.compiles.announce_compiles` (the CLI installs it) says on stderr, once per
-process, when a kernel is compiled rather than loaded from the cache, so a slow first run is
-never a silent one.
+A line on stderr as each part starts and ends; Ctrl-C or SIGTERM ends the parts at once (each is
+a ``stcvision`` command, which stops within a second of a signal).
 """
 
 from __future__ import annotations
 
+import os
+import subprocess
 import sys
 import time
 
 
-def warm(*, verbose: bool = True) -> dict:
-    """Run the small workloads that compile the demo's and the pipeline's kernels; returns the
-    wall time of each (seconds)."""
+def warm_steps(tmp: str) -> list[tuple[str, list[list[str]]]]:
+    """The parts of the warm-up: (name, the ``stcvision`` commands one process runs in turn)."""
     import json
-    import tempfile
     from pathlib import Path
+
+    from stcvision.sim_camera.scene import EXAMPLE_SCENE
+
+    scene = Path(tmp) / "scene.json"
+    scene.write_text(json.dumps(EXAMPLE_SCENE))
+    steps = [("demo (closed loop, 8-bit pipeline, recording)", [["demo", "--out", f"{tmp}/demo"]])]
+    for cam in ("cooled", "webcam"):
+        out = f"{tmp}/{cam}"
+        render = ["render", "--scene", str(scene), "--camera", cam, "--out", out]
+        pipeline = ["pipeline", f"{out}/frame.png", "--dark", f"{out}/dark.png", "--json"]
+        steps.append((f"render and pipeline, {cam} frame", [render, pipeline]))
+    return steps
+
+
+def _run_part(commands: list[list[str]]) -> int:
+    """Run ``stcvision`` commands in turn in this process (one part of the warm-up)."""
+    import contextlib
+    import io
 
     from stcvision.cli import main
 
-    times = {}
+    for argv in commands:
+        with contextlib.redirect_stdout(io.StringIO()):
+            code = main(argv)
+        if code not in (0, 3):
+            return code
+    return 0
+
+
+def warm(*, verbose: bool = True, processes: int | None = None) -> dict:
+    """Run the warm-up's parts, ``processes`` at a time (default: the machine's cores); returns
+    the wall time of each part (seconds).
+
+    Raises
+    ------
+    SystemExit
+        When a part fails (its exit code is neither 0 nor 3, the robot not completing).
+    """
+    import json
+    import tempfile
+
+    processes = max(1, processes or os.cpu_count() or 1)
+    times: dict[str, float] = {}
     with tempfile.TemporaryDirectory(prefix="stcvision-warm-") as tmp:
-        steps = [
-            ("demo (closed loop, 8-bit pipeline, recording)", ["demo", "--out", f"{tmp}/demo"]),
-        ]
-        from stcvision.sim_camera.scene import EXAMPLE_SCENE
-
-        scene = Path(tmp) / "scene.json"
-        scene.write_text(json.dumps(EXAMPLE_SCENE))
-        for cam in ("cooled", "webcam"):
-            steps.append(
-                (f"render, {cam}", ["render", "--scene", str(scene), "--camera", cam, "--out", f"{tmp}/{cam}"])
-            )
-            steps.append(
-                (
-                    f"pipeline, {cam} frame",
-                    ["pipeline", f"{tmp}/{cam}/frame.png", "--dark", f"{tmp}/{cam}/dark.png", "--json"],
-                )
-            )
-        import contextlib
-        import io
-
-        for name, argv in steps:
-            t0 = time.perf_counter()
-            with contextlib.redirect_stdout(io.StringIO()):
-                code = main(argv)
-            times[name] = round(time.perf_counter() - t0, 2)
-            if verbose:
-                print(f"stcvision warm: {name}: {times[name]:.1f} s", file=sys.stderr, flush=True)
-            if code not in (0, 3):  # 3: the robot did not complete, which still compiled everything
-                raise SystemExit(f"stcvision warm: {' '.join(argv)} failed with exit code {code}")
+        pending = warm_steps(tmp)
+        running: list[tuple[str, subprocess.Popen, float]] = []
+        try:
+            while pending or running:
+                while pending and len(running) < processes:
+                    name, argv = pending.pop(0)
+                    if verbose:
+                        print(f"stcvision warm: compiling for {name} ...", file=sys.stderr, flush=True)
+                    proc = subprocess.Popen(
+                        [sys.executable, "-m", "stcvision.warm", "--part", json.dumps(argv)],
+                        stdout=subprocess.DEVNULL,
+                        stderr=subprocess.PIPE,
+                        text=True,
+                    )
+                    running.append((name, proc, time.perf_counter()))
+                time.sleep(0.05)
+                for item in list(running):
+                    name, proc, t0 = item
+                    code = proc.poll()
+                    if code is None:
+                        continue
+                    running.remove(item)
+                    times[name] = round(time.perf_counter() - t0, 2)
+                    if code not in (0, 3):  # 3: the robot did not complete, which still compiled everything
+                        err = (proc.stderr.read() if proc.stderr else "").strip().splitlines()
+                        last = err[-1] if err else ""
+                        raise SystemExit(f"stcvision warm: {name} failed with exit code {code}: {last}")
+                    if verbose:
+                        print(f"stcvision warm: {name}: {times[name]:.1f} s", file=sys.stderr, flush=True)
+        finally:
+            for _, proc, _ in running:  # a signal or a failure: the other parts end now
+                proc.terminate()
+            for _, proc, _ in running:
+                proc.wait()
     return times
 
 
-def main() -> int:
+def main(argv: list[str] | None = None) -> int:
+    import signal
+
+    argv = sys.argv[1:] if argv is None else argv
+    if argv[:1] == ["--part"]:
+        import json
+
+        return _run_part(json.loads(argv[1]))
+
+    from stcvision.errors import Terminated
+
+    def on_term(signum, frame):
+        raise Terminated(signum)
+
+    signal.signal(signal.SIGTERM, on_term)
     t0 = time.perf_counter()
-    warm()
+    try:
+        warm()
+    except KeyboardInterrupt as exc:
+        print("stcvision warm: interrupted", file=sys.stderr)
+        return 128 + (exc.signum if isinstance(exc, Terminated) else signal.SIGINT)
     print(f"stcvision warm: numba kernels compiled and cached in {time.perf_counter() - t0:.1f} s", file=sys.stderr)
     return 0
 

@@ -60,3 +60,57 @@ def cli(capsys):
         return code, out.out, out.err
 
     return run
+
+
+class RrdContents:
+    """A rerun recording read back with rerun's own reader (``rerun.chunk.RrdReader``): what
+    its data store and its blueprint store hold."""
+
+    def __init__(self, path) -> None:
+        from rerun.chunk import RrdReader
+
+        self.reader = RrdReader(str(path))
+
+    def _rows(self, store=None):
+        for ch in self.reader.stream(store=store):
+            rb = ch.to_record_batch()
+            yield ch.entity_path, {n: rb.column(n).to_pylist() for n in rb.schema.names if "RowId" not in n}
+
+    def times(self, entity: str, timeline: str) -> list:
+        """The ``timeline`` values at which ``entity`` was logged, sorted."""
+        return sorted(v for e, cols in self._rows() if e == entity for v in cols.get(timeline, []))
+
+    def column(self, entity: str, component: str) -> list:
+        """Every value ``entity`` logged for ``component`` (e.g. ``TextLog:text``), in the order stored."""
+        return [v for e, cols in self._rows() if e == entity for v in cols.get(component, [])]
+
+    def properties(self) -> dict:
+        """The recording's properties (name, and what the toolkit sent), the last value of each."""
+        out = {}
+        for e, cols in self._rows():
+            if e.startswith("/__properties"):
+                for k, v in cols.items():
+                    out[f"{e}:{k}"] = v[-1]
+        return out
+
+    def views(self) -> list[tuple[str, str, str]]:
+        """The default blueprint's views: (kind, name, origin) each."""
+        (bp,) = self.reader.blueprints()
+        views = [cols for e, cols in self._rows(bp) if "ViewBlueprint:class_identifier" in cols]
+        return sorted(
+            (v["ViewBlueprint:class_identifier"][0][0], v["ViewBlueprint:display_name"][0][0],
+             v["ViewBlueprint:space_origin"][0][0])
+            for v in views
+        )  # fmt: skip
+
+    def time_panel(self) -> dict:
+        """The default blueprint's time panel: its state and its timeline."""
+        (bp,) = self.reader.blueprints()
+        return {k.split(":")[1]: v[0][0] for e, cols in self._rows(bp) if e == "/time_panel"
+                for k, v in cols.items() if k.startswith("TimePanelBlueprint")}  # fmt: skip
+
+
+@pytest.fixture
+def rrd_contents():
+    """``rrd_contents(path)``: a recording read back (:class:`RrdContents`)."""
+    return RrdContents

@@ -37,6 +37,7 @@ import numpy as np
 
 from stcvision.controllers.buffon.behaviour import ExplorerParams, explorer_core_nb, wheel_speeds_nb
 from stcvision.controllers.buffon.counter import CounterParams, integrate_nb
+from stcvision.controllers.buffon.defaults import PAPER_TRAIL_WIDTH_U, PAPER_VISIT_STEPS
 from stcvision.controllers.buffon.nests import BODY_LENGTH_M, Nest
 from stcvision.controllers.buffon.stopping import (
     StopParams,
@@ -61,8 +62,6 @@ from stcvision.sim_camera.robot import KHEPERA, DiffDriveParams
 from stcvision.sim_camera.robot_sensors import IrParams
 
 __all__ = [
-    "PAPER_TRAIL_WIDTH_U",
-    "PAPER_VISIT_STEPS",
     "TrialSet",
     "TrialWorld",
     "VisitConfig",
@@ -71,8 +70,6 @@ __all__ = [
     "trial_seeds",
 ]
 
-PAPER_VISIT_STEPS = 50_000  # sec. 4: "the duration of the first visit is fixed to 50000 steps"
-PAPER_TRAIL_WIDTH_U = 0.1  # sec. 4: "the width of the pheromone is taken as 0.1"
 START_HEADING_SPREAD_RAD = math.radians(15)  # sec. 3.1: "varied within +-15 degrees of the wall"
 #: the trail raster's unit of path length: a cell holds the path (in these units, + 1) at which
 #: the first visit first laid it; uint32 holds 2,100 km of path, over 20 times the longest visit

@@ -119,7 +119,8 @@ import math
 import numpy as np
 from scipy import stats
 
-from stcvision.controllers.buffon.batched import PAPER_TRAIL_WIDTH_U, VisitConfig
+from stcvision.controllers.buffon.batched import VisitConfig
+from stcvision.controllers.buffon.defaults import PAPER_TRAIL_WIDTH_U
 from stcvision.controllers.buffon.nests import BODY_LENGTH_M
 from stcvision.controllers.buffon.stopping import StopParams
 from stcvision.errors import BadInputError
@@ -152,7 +153,6 @@ MIN_PATH_FRACTION = 0.4  # measured ~0.8 of it in open nests; a robot jammed in 
 # A_true / median(A_dt) on the standard circle, 100 trials of AREA_VISIT_STEPS, trail 0.1 u,
 # seed 0 (`stcvision buffon calibrate`): held fixed.
 AREA_CORRECTION = 0.935  # measured 0.9346, 95 % CI 0.928-0.946
-CORRECTION_REFERENCE = "circle:100"
 
 
 # The online estimate's log is this share of the second visit's Buffon estimate and the rest of

@@ -27,13 +27,8 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from stcvision.controllers.buffon.batched import (
-    PAPER_TRAIL_WIDTH_U,
-    PAPER_VISIT_STEPS,
-    TrialSet,
-    VisitConfig,
-    run_trials,
-)
+from stcvision.controllers.buffon.batched import TrialSet, VisitConfig, run_trials
+from stcvision.controllers.buffon.defaults import PAPER_TRAIL_WIDTH_U, PAPER_VISIT_STEPS
 from stcvision.controllers.buffon.estimate import AREA_VISIT_STEPS, area_estimates, summarise
 from stcvision.controllers.buffon.nests import STANDARD_AREA_U2, STANDARD_DIAMETER_U, eccentricity_to_ratio, parse_nest
 

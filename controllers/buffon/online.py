@@ -190,7 +190,7 @@ def calibrate_online(results: list[dict], *, w: float | None = None, slope: floa
     :mod:`stcvision.controllers.buffon.estimate`. The slope (the log estimate's on the reading coverage,
     within nests, pooled) is measured on ``results`` unless ``slope`` is given (or the trials of
     every nest were read at one coverage: then the shipped one and its error are used)."""
-    from stcvision.controllers.buffon.batched import PAPER_TRAIL_WIDTH_U
+    from stcvision.controllers.buffon.defaults import PAPER_TRAIL_WIDTH_U
     from stcvision.controllers.buffon.estimate import (
         COVERAGE_SLOPE,
         COVERAGE_SLOPE_SE,

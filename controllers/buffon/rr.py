@@ -22,11 +22,15 @@ import rerun.blueprint as rrb
 
 from stcvision.controllers.buffon.nests import BODY_LENGTH_M
 
-__all__ = ["record_trial"]
+__all__ = ["blueprint", "record_trial"]
 
 
-def _blueprint() -> rrb.Blueprint:
-    return rrb.Blueprint(
+def blueprint() -> rrb.Blueprint:
+    """The layout a trial's recording opens with: the nest with the first visit's trail and
+    the second visit's path, nBC over the second visit, on the ``step`` timeline."""
+    from stcvision.rr import layout
+
+    return layout(
         rrb.Horizontal(
             rrb.Spatial2DView(
                 origin="/",
@@ -36,7 +40,7 @@ def _blueprint() -> rrb.Blueprint:
             rrb.TimeSeriesView(origin="nbc", name="nBC over the second visit"),
             column_shares=[3, 2],
         ),
-        collapse_panels=True,
+        timeline="step",
     )
 
 
@@ -46,18 +50,17 @@ def _xy(p) -> np.ndarray:
 
 
 def record_trial(path: str | Path, nest, visit1: np.ndarray, visit2: np.ndarray, *, frames: int = 250) -> Path:
-    """Write ``path`` (.rrd, atomically): the trial whose paths are ``visit1``, ``visit2``
-    ((S, 3) arrays x m, y m, crossed), as recorded by :func:`stcvision.controllers.buffon.batched.run_trials`."""
-    from stcvision.rr import abort_recording, finish_recording, open_recording
+    """Write ``path`` (.rrd, streamed as it is logged: :class:`stcvision.rr.RecordingFile`).
+
+    The trial whose paths are ``visit1``, ``visit2`` ((S, 3) arrays x m, y m, crossed), as
+    recorded by :func:`stcvision.controllers.buffon.batched.run_trials`.
+    """
+    from stcvision.rr import RecordingFile, Recordings
 
     path = Path(path)
-    rec, tmp = open_recording(path, app_id="stcvision-buffon", default_blueprint=_blueprint())
-    try:
+    with Recordings() as recs:
+        rec = recs.add(RecordingFile(path, app_id="stcvision-buffon", default_blueprint=blueprint())).rec
         _log(rec, nest, visit1, visit2, frames)
-        finish_recording(rec, tmp, path)
-    except BaseException:
-        abort_recording(rec, tmp)
-        raise
     return path
 
 

@@ -16,11 +16,11 @@ from pathlib import Path
 
 import numpy as np
 
-from stcvision.controllers.buffon.batched import PAPER_TRAIL_WIDTH_U, PAPER_VISIT_STEPS, VisitConfig, run_trials
+from stcvision.controllers.buffon.batched import VisitConfig, run_trials
+from stcvision.controllers.buffon.defaults import CORRECTION_REFERENCE, PAPER_TRAIL_WIDTH_U, PAPER_VISIT_STEPS
 from stcvision.controllers.buffon.estimate import (
     AREA_CORRECTION,
     AREA_VISIT_STEPS,
-    CORRECTION_REFERENCE,
     calibrate_area_correction,
     summarise,
 )
@@ -53,6 +53,7 @@ def measure(
     rrd: str | None = None,
     force: bool = False,
     threads: int | None = None,
+    trajectory: str | None = None,
 ) -> dict:
     """Measure one nest with Buffon's method: run the trials, return the nest's nBC and area figures.
 
@@ -82,6 +83,10 @@ def measure(
         Replace an existing recording.
     threads : int, optional
         Threads for the trials (default: one per core).
+    trajectory : str, optional
+        A folder for the first trial's true paths as TUM files, one per visit
+        (:func:`stcvision.controllers.buffon.trajectory.write_trajectory`; the explorer keeps
+        no pose estimate, so there is no believed path).
 
     Returns
     -------
@@ -108,6 +113,11 @@ def measure(
         from stcvision.rr import check_recording_path
 
         check_recording_path(rrd, overwrite=force)
+    if trajectory is not None:
+        from stcvision.controllers.buffon.trajectory import VISIT_FILES
+        from stcvision.fileio import check_output_folder
+
+        check_output_folder(trajectory, VISIT_FILES, overwrite=force)
     with _bar(None if config.auto else 2 * trials * visit_steps, f"buffon {nest.label}") as bar:
         threads = threads or machine_workers()
         ts = run_trials(
@@ -115,7 +125,7 @@ def measure(
             config,
             trials=trials,
             seed=seed,
-            record_trial=0 if rrd else None,
+            record_trial=0 if rrd or trajectory else None,
             progress=bar.update,
             threads=threads,
         )
@@ -137,6 +147,12 @@ def measure(
 
         record_trial(rrd, nest, ts.trails["visit1"], ts.trails["visit2"])
         out["rrd"] = str(rrd)
+    if trajectory:
+        from stcvision.controllers.buffon.trajectory import write_trajectory
+
+        write_trajectory(trajectory, nest.start_xy, ts.trails, config.dt_s, overwrite=force)
+        out["trajectory"] = str(trajectory)  # only when asked for: a run without it prints what it always did
+        out["trajectory_steps"] = [len(ts.trails["visit1"]), len(ts.trails["visit2"])]
     return out
 
 
@@ -177,6 +193,8 @@ def format_text(r: dict) -> str:
         lines.append(f"note: {r['trial_ci95_note']}")
     if r.get("area_warning"):
         lines.append(f"WARNING: {r['area_warning']}")
+    if r.get("trajectory"):
+        lines.append(f"wrote {r['trajectory']}: trial 0's true paths, a TUM file a visit")
     return "\n".join(lines)
 
 

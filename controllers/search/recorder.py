@@ -3,7 +3,7 @@ each move): the obstacles, patch and planned pattern (static), the true and beli
 the sensing points and beacon fixes in ``world/``; the phase, tongue, ring and odometry error
 as time series; the beacon camera's pipeline stages (``stcvision.rr`` paths) when a frame was
 taken. Timelines ``move`` (sequence) and ``sim_time``. World y is flipped for the 2-D view (north
-up). The file is written atomically on :meth:`close`."""
+up). The file is streamed as it is logged (:class:`stcvision.rr.RecordingFile`)."""
 
 from __future__ import annotations
 
@@ -14,8 +14,9 @@ import rerun as rr
 import rerun.blueprint as rrb
 
 from stcvision.controllers.search.patterns import planned_points
+from stcvision.rr import Recorder, RecordingFile
 
-__all__ = ["SearchRecorder"]
+__all__ = ["SearchRecorder", "blueprint"]
 
 
 #: time series (entity under ``series/``, view name)
@@ -27,11 +28,19 @@ SERIES = (
 )
 
 
-def _blueprint() -> rrb.Blueprint:
+def blueprint() -> rrb.Blueprint:
+    """The layout a search run's recording opens with: the floor map with the true and
+    believed paths, the time series, the beacon camera's raw frame and ground view, on the
+    ``sim_time`` timeline."""
+    from stcvision.rr import layout
+
     world = rrb.Spatial2DView(origin="world", name="world (north up)")
     series = rrb.Vertical(*[rrb.TimeSeriesView(origin=f"series/{k}", name=n) for k, n in SERIES])
-    camera = rrb.Spatial2DView(origin="ground", name="beacon camera: ground view")
-    return rrb.Blueprint(rrb.Horizontal(world, series, camera, column_shares=[3, 2, 2]), collapse_panels=True)
+    camera = rrb.Vertical(
+        rrb.Spatial2DView(origin="raw", name="beacon camera: raw frame"),
+        rrb.Spatial2DView(origin="ground", name="beacon camera: ground view"),
+    )
+    return layout(rrb.Horizontal(world, series, camera, column_shares=[3, 2, 2]), timeline="sim_time")
 
 
 def _xy(p) -> np.ndarray:
@@ -39,16 +48,22 @@ def _xy(p) -> np.ndarray:
     return np.column_stack([p[:, 0], -p[:, 1]])
 
 
-class SearchRecorder:
+class SearchRecorder(Recorder):
     def __init__(self, path: str | Path, scene, pattern) -> None:
-        from stcvision.rr import open_recording
-
         self.path = Path(path)
-        self.rec, self.tmp = open_recording(self.path, app_id="stcvision-search", default_blueprint=_blueprint())
+        self.file = RecordingFile(self.path, app_id="stcvision-search", default_blueprint=blueprint())
+        self.rec = self.file.rec
         self._true = [(0.0, 0.0)]
         self._odo = [(0.0, 0.0)]
         self._fixes: list = []
         self._pipe_logger = None
+        try:
+            self._static(scene, pattern)
+        except BaseException as exc:  # stopped before the caller holds it: ended here as the caller would
+            self.end(exc)
+            raise
+
+    def _static(self, scene, pattern) -> None:
         rec = self.rec
         for k, (x, y, r) in enumerate(scene.obstacles):
             ang = np.linspace(0, 2 * np.pi, 49)
@@ -98,14 +113,3 @@ class SearchRecorder:
                 self._pipe_logger = PipelineLogger(rec, fixer.pipeline, jpeg_quality=70)
             self._pipe_logger.log(res, frame=m.index, sim_time_s=m.t_s)
             fixer.last_result = None
-
-    def close(self) -> None:
-        from stcvision.rr import finish_recording
-
-        finish_recording(self.rec, self.tmp, self.path)
-
-    def abort(self) -> None:
-        """Stop without keeping the recording (the run failed or was interrupted)."""
-        from stcvision.rr import abort_recording
-
-        abort_recording(self.rec, self.tmp)

@@ -20,6 +20,7 @@ import numpy as np
 
 from stcvision.controllers.stc.observers import Observer, Reading
 from stcvision.stc_geometry import compass_to_rad
+from stcvision.tum import tum_line
 
 __all__ = [
     "TRACE_SCHEMA_VERSION",
@@ -36,30 +37,6 @@ __all__ = [
 TUM_FILES = ("true.tum", "believed.tum")
 #: the trace's schema version (every line carries it): raised when a field changes meaning
 TRACE_SCHEMA_VERSION = 1
-#: decimals of times and positions in the TUM files: a nanometre, far below any error they show
-_DECIMALS = 9
-
-
-def tum_line(t_s: float, x_m: float, y_m: float, yaw_rad: float) -> str:
-    """One TUM trajectory line of a pose on the floor.
-
-    Parameters
-    ----------
-    t_s : float
-        The robot's clock (s).
-    x_m, y_m : float
-        The position on the floor (world, m); z is 0.
-    yaw_rad : float
-        The heading (counter-clockwise from the world's x axis), written as a unit quaternion
-        about z.
-
-    Returns
-    -------
-    str
-        ``timestamp x y z qx qy qz qw``, space-separated, no newline.
-    """
-    qz, qw = math.sin(yaw_rad / 2), math.cos(yaw_rad / 2)
-    return " ".join(f"{v:.{_DECIMALS}f}" for v in (t_s, x_m, y_m, 0.0, 0.0, 0.0, qz, qw))
 
 
 def tum_files(true, believed) -> dict[str, str]:

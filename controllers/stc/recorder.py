@@ -5,6 +5,7 @@ the ``sim_time`` and ``decision`` timelines. World coordinates are drawn with no
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import numpy as np
@@ -12,28 +13,43 @@ import rerun as rr
 import rerun.blueprint as rrb
 
 from stcvision.controllers.stc.observers import Observer, Reading
-from stcvision.controllers.stc.paths import PathLog
-from stcvision.rr import PipelineLogger, Recordings, abort_recording, finish_recording, open_recording
+from stcvision.controllers.stc.paths import JsonTrace, PathLog
+from stcvision.rr import PipelineLogger, Recorder, RecordingFile, Recordings
 
-__all__ = ["READINGS_BUDGET", "WORLD_BUDGET", "CoverRecorder", "readings_every", "run_cover_recorded"]
+__all__ = [
+    "READINGS_BUDGET",
+    "TRACE_ENTITY",
+    "WORLD_BUDGET",
+    "CoverRecorder",
+    "blueprint",
+    "readings_every",
+    "run_cover_recorded",
+]
 
 
-def _blueprint() -> rrb.Blueprint:
-    return rrb.Blueprint(
+def blueprint() -> rrb.Blueprint:
+    """The layout a coverage run's recording opens with: the floor map with the true and
+    believed paths, the camera's raw frame and ground view (cells, boxes, dots), the decision,
+    the per-reading trace lines and the observation as text, the stage timings, on the
+    ``sim_time`` timeline (``decision`` beside it)."""
+    from stcvision.rr import layout
+
+    return layout(
         rrb.Horizontal(
             rrb.Spatial2DView(origin="world", name="world (north up)"),
             rrb.Vertical(
-                rrb.Spatial2DView(origin="raw", name="camera"),
+                rrb.Spatial2DView(origin="raw", name="camera: raw frame"),
                 rrb.Spatial2DView(origin="ground", name="ground view"),
             ),
             rrb.Vertical(
                 rrb.TextDocumentView(origin="decision", name="decision"),
+                rrb.TextLogView(origin="trace", name="trace (the --trace lines)"),
                 rrb.TextDocumentView(origin="observation", name="observation"),
                 rrb.TimeSeriesView(origin="timing", name="stage ms"),
             ),
             column_shares=[3, 2, 2],
         ),
-        collapse_panels=True,
+        timeline="sim_time",
     )
 
 
@@ -44,6 +60,9 @@ READINGS_BUDGET = 300
 #: many: a snapshot grows with the marks laid (a 22x22 tour: ~7,000 dots, ~100 kB at its end)
 WORLD_BUDGET = 50
 
+#: where each reading's trace line (what ``cover --trace`` writes, :class:`JsonTrace`) goes, whole, as a text log
+TRACE_ENTITY = "trace"
+
 
 def readings_every(board, budget: int = READINGS_BUDGET) -> int:
     """One reading in how many a recording of ``board`` keeps in full: a tour reads about once
@@ -52,9 +71,10 @@ def readings_every(board, budget: int = READINGS_BUDGET) -> int:
     return max(1, -(-n // budget))
 
 
-class CoverRecorder(Observer):
+class CoverRecorder(Observer, Recorder):
     """An observer of a coverage run (:func:`stcvision.controllers.stc.loop.run_cover`, ``observers=``).
-    Writes ``path`` (.rrd) atomically on :meth:`close`.
+    Streams ``path`` (.rrd) as it logs (:class:`stcvision.rr.RecordingFile`: renamed into
+    place at the end, kept as it stood after Ctrl-C or SIGTERM).
 
     Bounded (rerun has no backpressure: what is logged stays in memory until written): every
     reading (decision, look) logs the robot's pose and the decision as text; one in ``every``
@@ -62,13 +82,20 @@ class CoverRecorder(Observer):
     (JPEG-compressed, :class:`stcvision.rr.PipelineLogger`), and ~:data:`WORLD_BUDGET` per run
     the world's snapshot (every mark with its glow, the covered sub-cells), whose size grows with
     the marks laid. A reading the referee finds wrong is always logged in full, and the world as
-    the run left it at the end."""
+    the run left it at the end.
+
+    Every reading's trace line (the JSON object ``cover --trace`` writes, uncut) goes to
+    :data:`TRACE_ENTITY` as a text log once it is final: a look's at once, a decision's when the
+    next decision starts or the run ends (the referee judges a decision when the robot leaves
+    its cell, after its looks). Only the decision awaiting its verdict is held."""
 
     def __init__(self, path: str | Path, board, *, every: int | None = None) -> None:
         self.path = Path(path)
-        self.rec, self.tmp = open_recording(self.path, app_id="stcvision-cover", default_blueprint=_blueprint())
+        self.file = RecordingFile(self.path, app_id="stcvision-cover", default_blueprint=blueprint())
+        self.rec = self.file.rec
         self.board = board
         self.paths = PathLog(board)  # the true and believed paths, drawn with the world's snapshots
+        self.trace = JsonTrace(board)  # each reading's trace line, logged once final
         self.every = readings_every(board) if every is None else max(1, int(every))
         self.world_every = max(self.every, readings_every(board, WORLD_BUDGET))
         self.readings = self.full = 0  # readings seen, and logged in full
@@ -76,8 +103,8 @@ class CoverRecorder(Observer):
         self._pipe_logger = None
         try:
             self._static()
-        except BaseException:  # interrupted before the caller holds it: no half-made recording left
-            self.abort()
+        except BaseException as exc:  # stopped before the caller holds it: ended here as the caller would
+            self.end(exc)
             raise
 
     @staticmethod
@@ -104,11 +131,31 @@ class CoverRecorder(Observer):
             "world/red_lights", rr.Points2D(self._xy(b.red_lights_m()), colors=[255, 0, 0], radii=0.01), static=True
         )
 
+    def attach(self, perception) -> None:
+        """Read the run's perception (``run_cover``'s ``perception_hook``): its frames and
+        whether the referee judges it, for the trace lines."""
+        self.trace.attach(perception)
+
     def on_move(self, plant, belief) -> None:
         self.paths.on_move(plant, belief)
 
+    def on_turn(self, plant, belief, measured_rad) -> None:
+        self.trace.on_turn(plant, belief, measured_rad)
+
+    def _log_trace(self, *, final: bool) -> None:
+        """Log the trace lines that are final (all of them when ``final``) and forget them."""
+        lines = self.trace.lines
+        keep = 0 if final or not lines or lines[-1]["kind"] != "decision" else 1
+        for line in lines[: len(lines) - keep]:
+            self.rec.set_time("decision", sequence=line["decision"])
+            self.rec.set_time("sim_time", duration=float(line["t_s"]))
+            self.rec.log(TRACE_ENTITY, rr.TextLog(json.dumps(line, allow_nan=False), level="INFO"))
+        del lines[: len(lines) - keep]
+
     def on_reading(self, ev: Reading) -> None:
         self.paths.on_reading(ev)
+        self.trace.on_reading(ev)
+        self._log_trace(final=False)
         if ev.kind == "look" and ev.frame is None:
             return
         self.readings += 1
@@ -118,12 +165,21 @@ class CoverRecorder(Observer):
 
     def on_referee(self, kind: str, text: str) -> None:
         """A reading the referee finds wrong: its frames and the world, in full (once)."""
+        self.trace.on_referee(kind, text)
         if self._last is not None:
             self._log_reading(self._last, full=True)
             self._last = None
 
     def on_end(self, plant, floor) -> None:
         self._world(plant.t, floor.phosphor, plant.visits)
+        self._log_trace(final=True)
+
+    def end(self, exc) -> None:
+        """End the recording (:meth:`stcvision.rr.RecordingFile.end`); one stopped by a signal
+        keeps the decision that was awaiting its verdict too."""
+        if isinstance(exc, KeyboardInterrupt):
+            self._log_trace(final=True)
+        super().end(exc)
 
     def _log_reading(self, ev: Reading, *, full: bool, world: bool | None = None) -> None:
         p, sub = ev.plant, ev.belief.sub
@@ -185,19 +241,19 @@ class CoverRecorder(Observer):
                 rr.Boxes2D(centers=centres, sizes=[[0.9 * D, 0.9 * D]] * len(cov), colors=[80, 200, 80, 60]),
             )
 
-    def close(self) -> None:
-        finish_recording(self.rec, self.tmp, self.path)
-
-    def abort(self) -> None:
-        """Stop without keeping the recording (the run failed or was interrupted)."""
-        abort_recording(self.rec, self.tmp)
-
 
 def run_cover_recorded(board, cfg, rrd=None, observers=(), perception_hook=None) -> dict:
     """:func:`stcvision.controllers.stc.loop.run_cover` with a rerun recording to ``rrd`` (when given),
-    renamed into place only when the run ends: an error or a signal removes it."""
+    renamed into place when the run ends or a signal stops it; an error removes it."""
     from stcvision.controllers.stc.loop import run_cover
 
     with Recordings() as recs:
         recorder = recs.add(CoverRecorder(rrd, board)) if rrd else None
-        return run_cover(board, cfg, observers=[recorder, *observers], perception_hook=perception_hook)
+
+        def hook(perception):
+            if recorder is not None:
+                recorder.attach(perception)
+            if perception_hook is not None:
+                perception_hook(perception)
+
+        return run_cover(board, cfg, observers=[recorder, *observers], perception_hook=hook)

@@ -22,7 +22,7 @@ from stcvision.controllers.stc.fsm import Action, StcPhase, initial_state
 from stcvision.controllers.stc.link import Link, LinkError
 from stcvision.errors import BadInputError
 
-__all__ = ["BAUD", "CAMERAS", "CameraStop", "LinkRecorder", "PcCamera", "run_robot"]
+__all__ = ["BAUD", "CAMERAS", "CameraStop", "LinkRecorder", "PcCamera", "blueprint", "run_robot"]
 
 #: the link's speed (bits/s): what an Arduino-class board's USB serial runs at
 BAUD = 115_200
@@ -141,19 +141,16 @@ class LinkRecorder:
 
     Every request on the link with its reply (or how it failed) on the ``request`` timeline,
     and every controller tick (the state, the reading, the action, the decision) on the
-    ``tick`` timeline. Committed by :meth:`close`, removed by :meth:`abort`
-    (:class:`stcvision.rr.Recordings`).
+    ``tick`` timeline. Streamed as it is logged and ended as the run ends
+    (:class:`stcvision.rr.RecordingFile`, :class:`stcvision.rr.Recordings`).
     """
 
     def __init__(self, path):
-        import rerun.blueprint as rrb
+        from stcvision.rr import RecordingFile
 
-        from stcvision.rr import open_recording
-
-        bp = rrb.Blueprint(rrb.Horizontal(rrb.TextLogView(origin="link", name="link"),
-                                          rrb.TextDocumentView(origin="tick", name="tick")))  # fmt: skip
         self.path = path
-        self.rec, self.tmp = open_recording(path, app_id="stcvision-robot", default_blueprint=bp)
+        self.file = RecordingFile(path, app_id="stcvision-robot", default_blueprint=blueprint())
+        self.rec = self.file.rec
         self.requests = self.ticks = 0
 
     def on_request(self, name: str, payload: bytes, reply) -> None:
@@ -176,17 +173,25 @@ class LinkRecorder:
         text = f"state: {state}\n\nreading: {obs}\n\naction: {action.name}\n\ndecision: {decision}"
         self.rec.log("tick", rr.TextDocument(text))
 
-    def close(self) -> None:
-        """Commit the recording."""
-        from stcvision.rr import finish_recording
+    def end(self, exc) -> None:
+        """End the recording as :meth:`stcvision.rr.RecordingFile.end` says."""
+        self.file.end(exc)
 
-        finish_recording(self.rec, self.tmp, self.path)
 
-    def abort(self) -> None:
-        """Remove the recording."""
-        from stcvision.rr import abort_recording
+def blueprint():
+    """Return the layout a robot run's recording opens with.
 
-        abort_recording(self.rec, self.tmp)
+    The link's requests as a log, the controller's tick as text, the request and tick
+    timelines below.
+    """
+    import rerun.blueprint as rrb
+
+    from stcvision.rr import layout
+
+    return layout(
+        rrb.Horizontal(rrb.TextLogView(origin="link", name="link"), rrb.TextDocumentView(origin="tick", name="tick")),
+        timeline="tick",
+    )
 
 
 def run_robot(port: str, *, camera: str, profile, fsm: str = "python", mcu: str | None = None,

@@ -81,7 +81,8 @@ EXIT_STATUSES = """exit status:
   0    done
   2    bad input, or an output that cannot be made or exists without --force (one line on stderr)
   3    ran, but the robot did not complete (cover, demo: aborted, covered a sub-cell twice, not back)
-  130  interrupted (Ctrl-C); 143 SIGTERM; 129 SIGHUP: no partial output, no temporary file left
+  130  interrupted (Ctrl-C); 143 SIGTERM; 129 SIGHUP: no partial output but a --rrd recording up to
+       the signal (the line says so), no temporary file left
   141  stdout closed early (| head)"""
 
 #: errno values of an OSError that is about a path the user named (one line, exit 2), not a bug
@@ -137,6 +138,17 @@ def _restore_signal_handlers(previous: dict) -> None:
 
     for sig, h in previous.items():
         signal.signal(sig, h)
+
+
+def _kept_note() -> str:
+    """What an interrupted run kept (its rerun recordings, closed cleanly at the signal), for
+    the one line it ends with."""
+    from stcvision.fileio import kept_partial
+
+    kept = kept_partial()
+    if not kept:
+        return ""
+    return "; kept " + ", ".join(map(str, kept)) + " as recorded up to the interruption"
 
 
 def _print_result(args, mod, result) -> None:
@@ -226,7 +238,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         return EXIT_BAD_INPUT
     except KeyboardInterrupt as exc:
         signum = exc.signum if isinstance(exc, Terminated) else 2
-        print(f"stcvision {name}: interrupted", file=sys.stderr)
+        print(f"stcvision {name}: interrupted{_kept_note()}", file=sys.stderr)
         return 128 + signum
     except Exception as exc:
         # a signal that lands inside code which wraps what it raises (a dataclass's __set_name__
@@ -234,7 +246,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         signum = _signal_in_chain(exc)
         if signum is None:
             raise
-        print(f"stcvision {name}: interrupted", file=sys.stderr)
+        print(f"stcvision {name}: interrupted{_kept_note()}", file=sys.stderr)
         return 128 + signum
     finally:
         remove_live_temps()

@@ -5,7 +5,7 @@ A = 2 L1 L2 / (pi N) (with a dead-time and a calibrated correction; see the docs
 Buffon's-needle explorer). By default the robot ends each visit itself (--visit-steps auto).
 Lengths are in body lengths (u = 55 mm).
 
-  stcvision buffon --nest circle:100 [--barrier plus:0.5] [--trials 100] [--json] [--rrd R.rrd]
+  stcvision buffon --nest circle:100 [--barrier plus:0.5] [--trials 100] [--json] [--rrd R.rrd] [--trajectory DIR]
   stcvision buffon reproduce --out DIR [--trials 100] [--workers N | --scheduler tcp://H:P]
   stcvision buffon online --out DIR [--trials 12] [--workers N]
   stcvision buffon compare --nest square:88.6 --out DIR [--trials 100] [--visit-steps 3000]
@@ -65,7 +65,13 @@ def add_parser(p):
     p.add_argument("--seed", type=seed, default=0, help="seed of every trial's streams (default 0)")
     p.add_argument("--threads", type=positive(int), metavar="N", help="threads for the trials (default: one per core)")
     p.add_argument("--rrd", metavar="OUT.rrd", help="record trial 0 in rerun (nest, trail, path, crossings, nBC)")
-    p.add_argument("--force", action="store_true", help="overwrite --rrd")
+    p.add_argument(
+        "--trajectory",
+        metavar="DIR",
+        help="write trial 0's true paths as TUM files (visit1.true.tum, visit2.true.tum) for evo; the "
+        "explorer keeps no pose estimate, so there is no believed path",
+    )
+    p.add_argument("--force", action="store_true", help="overwrite --rrd and --trajectory's files")
     p.add_argument("--json", action="store_true", help="print the result as one JSON object")
     _add_reproduce(sub)
     _add_online(sub)
@@ -75,7 +81,7 @@ def add_parser(p):
 
 def _nest_arguments(p, *, required: bool) -> None:
     from stcvision.cli._args import positive
-    from stcvision.controllers.buffon.batched import PAPER_TRAIL_WIDTH_U
+    from stcvision.controllers.buffon.defaults import PAPER_TRAIL_WIDTH_U
 
     p.add_argument(
         "--nest",
@@ -174,7 +180,7 @@ def _add_compare(sub):
 
 
 def _add_calibrate(sub):
-    from stcvision.controllers.buffon.estimate import CORRECTION_REFERENCE
+    from stcvision.controllers.buffon.defaults import CORRECTION_REFERENCE
 
     s = sub.add_parser(
         "calibrate",
@@ -234,6 +240,7 @@ def run(args):
         rrd=args.rrd,
         threads=args.threads,
         force=args.force,
+        trajectory=args.trajectory,
     )
 
 

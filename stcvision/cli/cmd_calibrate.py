@@ -8,6 +8,7 @@ versioned profile.
   stcvision calibrate rim FRAME
   stcvision calibrate transform FRAME --out PROFILE.json [--center U,V] [--yes] [--force]
   stcvision calibrate neighbors FRAME --profile PROFILE.json [--points POINTS.json] [--yes]
+  stcvision calibrate rim|transform|neighbors --bag FILE --topic TOPIC [--stamp S] ...
   stcvision calibrate import FILE --viewpoint-height-m H --out PROFILE.json [--format F] [--camera camN]
                              [--forward-angle-deg A] [--mirrored] [--rim-px R] [--lights-on FRAME] [--force]
   stcvision calibrate export PROFILE.json --format ocamcalib|omnidir|kalibr --out FILE [--force]
@@ -15,6 +16,10 @@ versioned profile.
                              [--model mei|poly] [--folds K] [--uncertainty-png U.png]
                              [--out PROFILE.json --viewpoint-height-m H --lights-on FRAME] [--force]
   stcvision calibrate rescale PROFILE.json --size WxH --out PROFILE.json [--force]
+
+Wherever a step reads one frame (rim, transform, neighbors, and the lights-on frame of import
+and target), --bag FILE --topic TOPIC reads it from a recording (ROS 1/2 bag, MCAP): the message
+whose header stamp is --stamp S (seconds, as the pipeline prints them), or the first.
 
 For transform and neighbors the robot stands on the board with the room lights on, at the
 centre of a sub-cell and facing along the grid (as when it enters a cell).
@@ -52,13 +57,13 @@ def add_parser(p):
         help="find the mirror's rim circle in a frame",
         description="The mirror's rim circle (centre, radius, fit residual) in any catadioptric image.",
     )
-    r.add_argument("frame", metavar="FRAME")
+    r.add_argument("frame", nargs="?", metavar="FRAME")
     t = sub.add_parser(
         "transform",
         help="fit the phi/theta model to a lights-on frame of the grid",
         description="Find the rim, fit the grid, write a preview PNG, ask, write the profile.",
     )
-    t.add_argument("frame", metavar="FRAME")
+    t.add_argument("frame", nargs="?", metavar="FRAME")
     t.add_argument("--out", required=True, metavar="PROFILE.json")
     t.add_argument(
         "--center", type=pair(float, fmt="U,V", example="320,240"), metavar="U,V", help="mirror centre by hand (pixels)"
@@ -86,7 +91,7 @@ def add_parser(p):
         description="Find the 12 corners of the current cell and its four neighbours in the "
         "ground view (or take them from --points), preview, store in the profile.",
     )
-    n.add_argument("frame", metavar="FRAME")
+    n.add_argument("frame", nargs="?", metavar="FRAME")
     n.add_argument("--profile", required=True, metavar="PROFILE.json")
     n.add_argument("--points", metavar="POINTS.json", help="12 [x, y] ground-view points made by a person")
     n.add_argument("--out", metavar="PROFILE.json", help="write here instead of updating --profile")
@@ -95,14 +100,51 @@ def add_parser(p):
     n.add_argument("--force", action="store_true", help="overwrite an existing --out or preview")
     i, e = _add_lens_file_parsers(sub)
     g, s = _add_target_parsers(sub)
+    for q in (r, t, n, i, g):
+        _add_bag_frame(q, "FRAME" if q in (r, t, n) else "--lights-on FRAME")
     for q in (d, r, t, n, i, e, g, s):
         q.add_argument("--json", action="store_true", help="print the result as one JSON object")
+
+
+def _add_bag_frame(q, instead: str) -> None:
+    """--bag, --topic and --stamp: the one frame a step reads, from a recording."""
+    q.add_argument("--bag", metavar="FILE", help=f"instead of {instead}: a recording (ROS 1/2 bag, MCAP), with --topic")
+    q.add_argument("--topic", metavar="TOPIC", help="--bag: the image topic")
+    q.add_argument(
+        "--stamp", metavar="S", help="--bag: the message with this header stamp (seconds; default: the first)"
+    )
+
+
+def _one_frame(args, path, what: str, *, flag: str = "FRAME", required: bool = True):
+    """The frame a step reads: the file ``path`` or, with --bag, one message of a recording
+    (:func:`stcvision.bags.read_frame`). Returns (image, its name), or (None, None) when
+    neither is given and the frame is optional."""
+    from stcvision.errors import BadInputError
+
+    if args.bag is None:
+        if args.topic is not None or args.stamp is not None:
+            raise BadInputError("--topic and --stamp go with --bag FILE")
+        if path is None:
+            if required:
+                raise BadInputError(f"no {what}: give {flag} or --bag FILE --topic TOPIC [--stamp S]")
+            return None, None
+        from stcvision.fileio import read_image
+
+        return read_image(path, what=what), f"{what} {path}"
+    if path is not None:
+        raise BadInputError(f"give {flag} or --bag FILE --topic TOPIC, not both")
+    if args.topic is None:
+        raise BadInputError("--bag FILE and --topic TOPIC go together")
+    from stcvision.bags import parse_stamp, read_frame
+
+    image, name = read_frame(args.bag, args.topic, stamp_ns=None if args.stamp is None else parse_stamp(args.stamp))
+    return image, f"{what}: {name}"
 
 
 def _add_lens_file_parsers(sub):
     """The ``import`` and ``export`` steps: profiles from and to other tools' calibration files."""
     from stcvision.cli._args import pair, positive
-    from stcvision.sim_camera.board import DEFAULT_SUBCELL_M
+    from stcvision.stc_geometry import DEFAULT_SUBCELL_M
 
     i = sub.add_parser(
         "import",
@@ -190,11 +232,9 @@ def _add_lens_file_parsers(sub):
 
 def _add_target_parsers(sub):
     """The ``target`` and ``rescale`` steps."""
-    from stcvision.calibration.target import DEFAULT_FOLDS
-    from stcvision.calibration.target_fit import MODELS
-    from stcvision.calibration.target_views import PATTERNS
+    from stcvision.calibration.target_options import DEFAULT_FOLDS, MODELS, PATTERNS
     from stcvision.cli._args import pair, positive
-    from stcvision.sim_camera.board import DEFAULT_SUBCELL_M
+    from stcvision.stc_geometry import DEFAULT_SUBCELL_M
 
     g = sub.add_parser(
         "target",
@@ -313,13 +353,12 @@ def _import(args):
     )
     prof = prof.replace(subcell_m=args.subcell_m)
     mount = {}
-    if args.lights_on:
+    frame, name = _one_frame(args, args.lights_on, "lights-on frame", flag="--lights-on FRAME", required=False)
+    if frame is not None:
         from stcvision.calibration.transform import calibrate_mount
-        from stcvision.fileio import read_image
 
-        frame = read_image(args.lights_on, what="lights-on frame")
         prof, rep = calibrate_mount(frame, prof, subcell_m=args.subcell_m)
-        prof = prof.replace(provenance={**prof.provenance, "lights_on_frame": str(args.lights_on)})
+        prof = prof.replace(provenance={**prof.provenance, "lights_on_frame": _source_of(args, args.lights_on, name)})
         mount = {
             "forward_angle_deg": math.degrees(prof.forward_angle_rad),
             "viewpoint_height_m": prof.viewpoint_height_m,
@@ -349,7 +388,7 @@ def _target(args):
 
     from stcvision.calibration.target import calibrate_target, load_views, target_profile
     from stcvision.errors import BadInputError, OutputError
-    from stcvision.fileio import check_output_file, raise_if_signalled, read_image, write_bytes_atomic
+    from stcvision.fileio import check_output_file, raise_if_signalled, write_bytes_atomic
 
     png = args.uncertainty_png or f"{Path(args.source).resolve().name or 'target'}.uncertainty.png"
     if Path(png).suffix.lower() != ".png":
@@ -362,9 +401,11 @@ def _target(args):
             raise BadInputError("--out needs --viewpoint-height-m (the first guess the lights-on frame refines)")
         check_output_file(args.out, overwrite=args.force, what="profile")
         _check_mount_ranges(args.subcell_m, args.viewpoint_height_m)
-    elif args.lights_on or args.viewpoint_height_m:
-        raise BadInputError("--lights-on and --viewpoint-height-m make a profile: give --out PROFILE.json too")
-    frame = read_image(args.lights_on, what="lights-on frame") if args.lights_on else None
+    elif args.lights_on or args.bag or args.viewpoint_height_m:
+        raise BadInputError(
+            "--lights-on (or --bag) and --viewpoint-height-m make a profile: give --out PROFILE.json too"
+        )
+    frame, name = _one_frame(args, args.lights_on, "lights-on frame", flag="--lights-on FRAME", required=False)
     views, kind = load_views(
         args.source,
         camera=args.camera,
@@ -390,7 +431,7 @@ def _target(args):
                 "source": str(args.source),
                 "rms_px": rep["rms_px"],
                 "heldout_rms_px": rep["heldout_rms_px"],
-                **({"lights_on_frame": str(args.lights_on)} if args.lights_on else {}),
+                **({"lights_on_frame": _source_of(args, args.lights_on, name)} if frame is not None else {}),
             },
             n_views=len(views),
             heldout_ratio=rep["heldout_rms_px"] / rep["rms_px"],
@@ -562,9 +603,15 @@ def _sidecar_exposure(d, path) -> float:
 
 def _rim(args):
     from stcvision.calibration.rim import detect_rim
-    from stcvision.fileio import read_image
 
-    return detect_rim(read_image(args.frame, what="frame")).to_dict()
+    frame, name = _one_frame(args, args.frame, "frame")
+    return {**detect_rim(frame).to_dict(), **({"frame": name} if args.bag else {})}
+
+
+def _source_of(args, path, name: str) -> str:
+    """A frame's source as a profile's provenance keeps it: the file as given, or the recording's
+    file, topic and stamp."""
+    return str(path) if args.bag is None else name
 
 
 #: the PNG text chunk that marks a preview this command wrote: a re-run (e.g. with --yes after
@@ -644,16 +691,15 @@ def _transform(args):
 
     from stcvision.calibration.transform import calibrate_neighbors, calibrate_transform, draw_preview
     from stcvision.errors import BadInputError
-    from stcvision.fileio import read_image
 
     preview = args.preview or str(Path(args.out).with_suffix(".preview.png"))
     _check_outputs(args, args.out, preview, out_force=args.force)
     _check_mount_ranges(args.subcell_m, args.viewpoint_m, flag="--viewpoint-m")
-    frame = read_image(args.frame, what="lights-on frame")
+    frame, name = _one_frame(args, args.frame, "lights-on frame")
     prof, rep = calibrate_transform(
         frame, subcell_m=args.subcell_m, center_px=args.center, viewpoint_height_m=args.viewpoint_m
     )
-    prof = prof.replace(provenance={**prof.provenance, "frame": str(args.frame)})
+    prof = prof.replace(provenance={**prof.provenance, "frame": _source_of(args, args.frame, name)})
     import cv2
 
     try:  # the corners too, when they are where the transformation puts them
@@ -672,7 +718,7 @@ def _neighbors(args):
     from stcvision.calibration.rim import check_rim_matches
     from stcvision.calibration.transform import calibrate_neighbors, draw_preview, with_corners
     from stcvision.errors import BadInputError
-    from stcvision.fileio import read_image, read_json
+    from stcvision.fileio import read_json
     from stcvision.profile import Profile
 
     out = args.out or args.profile
@@ -680,12 +726,14 @@ def _neighbors(args):
     # updating --profile in place is what the command is for; another existing --out needs --force
     _check_outputs(args, out, preview, out_force=args.force or args.out is None)
     prof = Profile.load(args.profile)
-    frame = read_image(args.frame, what="lights-on frame")
-    prof.check_frame(frame.shape, what=f"lights-on frame {args.frame}")
-    rim = check_rim_matches(frame, prof, frame_name=str(args.frame), profile_name=f"profile {args.profile}")
+    frame, name = _one_frame(args, args.frame, "lights-on frame")
+    prof.check_frame(frame.shape, what=name)
+    rim = check_rim_matches(
+        frame, prof, frame_name=_source_of(args, args.frame, name), profile_name=f"profile {args.profile}"
+    )
     if rim is None and not args.points:
         raise BadInputError(
-            f"lights-on frame {args.frame} shows no mirror rim, so no grid to find corners on; expected a lights-on "
+            f"{name} shows no mirror rim, so no grid to find corners on; expected a lights-on "
             "frame of the board (or give the corners with --points)"
         )
     if args.points:

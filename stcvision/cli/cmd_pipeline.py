@@ -140,14 +140,6 @@ def run(args):
         check_recording_path(args.rrd, overwrite=args.force)
     pipe = Pipeline(profile, dark=dark)
     logger = None
-    if args.rrd or args.spawn:
-        from stcvision.rr import PipelineLogger, open_recording
-
-        if args.rrd:
-            logger = PipelineLogger.to_file(args.rrd, pipe, spawn=args.spawn)
-        else:
-            rec, _ = open_recording(None, spawn=True)
-            logger = PipelineLogger(rec, pipe)
 
     def process(frame, i: int, name: str):
         profile.check_frame(frame.shape, what=name)
@@ -166,8 +158,10 @@ def run(args):
     from stcvision.rr import Recordings
 
     with Recordings() as recs:
-        if logger is not None:
-            recs.add(logger)
+        if args.rrd or args.spawn:
+            from stcvision.rr import PipelineLogger
+
+            logger = recs.add(PipelineLogger.to_file(args.rrd, pipe, spawn=args.spawn))
         if streaming:
             summary = _stream(args, process)
         else:

@@ -152,17 +152,19 @@ def run(args):
         from stcvision.controllers.search.beacon import Beacon
 
         beacon = Beacon()
-    recorder = None
-    if args.rrd:
-        from stcvision.controllers.search.recorder import SearchRecorder
-
-        recorder = SearchRecorder(args.rrd, scene, pattern)
     bar = tqdm(total=pattern.n_steps, desc="search steps", unit="step", leave=False)
 
     def progress(steps):
         bar.update(steps - bar.n)
 
-    try:
+    from stcvision.rr import Recordings
+
+    with Recordings() as recs, bar:
+        recorder = None
+        if args.rrd:
+            from stcvision.controllers.search.recorder import SearchRecorder
+
+            recorder = recs.add(SearchRecorder(args.rrd, scene, pattern))
         result = run_search(
             scene,
             cfg,
@@ -172,14 +174,6 @@ def run(args):
             observer=recorder,
             progress=progress,
         )
-    except BaseException:
-        if recorder is not None:
-            recorder.abort()
-        raise
-    finally:
-        bar.close()
-    if recorder is not None:
-        recorder.close()
     out = {
         "pattern": pattern.describe(),
         "policy": args.policy,

@@ -411,3 +411,58 @@ def test_calibrate_dark_from_a_recording_equals_the_files(tmp_path, cli):
         code, _, err = cli("calibrate", "dark", *argv, "--out", tmp_path / "x.png")
         assert code == 2 and words in err and err.count("\n") == 1, (argv, err)
     assert not (tmp_path / "x.png").exists()
+
+
+def test_calibrate_reads_its_one_frame_from_a_recording(tmp_path, cli):
+    """rim, transform and import --lights-on read a recording's message as they read a PNG of it:
+    the one whose header stamp is --stamp, or the first; the same results, the same profiles
+    (their provenance names the recording, the topic and the stamp); bad choices are one line."""
+    from stcvision.bags import stamp_text
+    from stcvision.calibration.defaults import calibration_frame
+    from stcvision.calibration.profiles import default_profile_path
+    from stcvision.profile import Profile
+    from stcvision.sim_camera.camera import SyntheticCamera
+
+    lights = calibration_frame(SyntheticCamera())
+    moved = np.roll(lights, 6, axis=1)  # another frame first: the rim 6 px to the right
+    cv2.imwrite(str(tmp_path / "lights.png"), lights)
+    cv2.imwrite(str(tmp_path / "moved.png"), moved)
+    bag = write_ros2(tmp_path / "cal", [moved, lights], storage="mcap")
+    chosen = ["--bag", bag, "--topic", TOPIC, "--stamp", stamp_text(_stamp_ns(1))]
+
+    def rim(*argv):
+        code, out, err = cli("calibrate", "rim", *argv, "--json")
+        assert code == 0, err
+        return {k: v for k, v in json.loads(out).items() if k != "frame"}
+
+    assert rim(*chosen) == rim(tmp_path / "lights.png")
+    assert rim("--bag", bag, "--topic", TOPIC) == rim(tmp_path / "moved.png") != rim(tmp_path / "lights.png")
+
+    def profile(step, *argv, name):
+        out = tmp_path / name
+        code, _, err = cli("calibrate", step, *argv, "--out", out, *(["--yes"] if step == "transform" else []))
+        assert code == 0, err
+        d = Profile.load(out).to_dict()
+        return {k: v for k, v in d.items() if k != "provenance"}, d["provenance"]
+
+    a, _ = profile("transform", tmp_path / "lights.png", name="a.json")
+    b, prov = profile("transform", *chosen, name="b.json")
+    assert a == b and TOPIC in prov["frame"] and stamp_text(_stamp_ns(1)) in prov["frame"]
+    code, _, err = cli(
+        "calibrate", "export", default_profile_path(), "--format", "ocamcalib", "--out", tmp_path / "c.txt"
+    )
+    assert code == 0, err
+    h = ["--viewpoint-height-m", "0.3"]
+    a, _ = profile("import", tmp_path / "c.txt", *h, "--lights-on", tmp_path / "lights.png", name="c.json")
+    b, prov = profile("import", tmp_path / "c.txt", *h, *chosen, name="d.json")
+    assert a == b and TOPIC in prov["lights_on_frame"]
+    for argv, words in (
+        (["--bag", bag, "--topic", TOPIC, "--stamp", "1700000000.1"], "no message on /camera/image_raw has header"),
+        (["--bag", bag, "--topic", TOPIC, "--stamp", "soon"], "not a number of seconds"),
+        ([tmp_path / "lights.png", "--bag", bag, "--topic", TOPIC], "not both"),
+        ([tmp_path / "lights.png", "--stamp", "1"], "go with --bag"),
+        (["--bag", bag, "--topic", "/status"], "not an image"),
+        ([], "give FRAME or --bag"),
+    ):
+        code, _, err = cli("calibrate", "rim", *argv)
+        assert code == 2 and words in err and err.count("\n") == 1, (argv, err)

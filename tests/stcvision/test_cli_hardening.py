@@ -327,27 +327,32 @@ def test_a_closed_stdout_ends_quietly(files):
     assert err == ""
 
 
-def test_sigterm_leaves_no_temporary_recording(tmp_path):
-    """SIGTERM once the recording's temporary file exists: exit 143, no .rrd, no temp. The run is
-    an 8x8 board (seconds of work after the recording opens; the signal ends it long before): a
-    3x3 run, now a fraction of a second, could finish between the poll and the signal."""
+def test_sigterm_keeps_the_recording_so_far_and_no_temporary(tmp_path):
+    """SIGTERM once the recording's file has its first batch: exit 143, the recording kept
+    whole (rerun's footer written: it verifies) as it stood, no temporary. The run is an 8x8
+    board (seconds of work after the recording opens; the signal ends it long before): a 3x3
+    run, now a fraction of a second, could finish between the poll and the signal."""
     rrd = tmp_path / "run.rrd"
     p = _stcvision("cover", "--board", "8x8", "--rrd", rrd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
     try:
-        while not no_temps(tmp_path) and p.poll() is None:
+        while not any(t.stat().st_size for t in tmp_path.glob(".*.tmp")) and p.poll() is None:
             time.sleep(0.02)  # polling for an event, not timing anything
         assert p.poll() is None, "the run ended before its recording was opened"
         p.send_signal(signal.SIGTERM)
         assert p.wait(timeout=120) == 128 + signal.SIGTERM
     finally:
         p.kill()
-    assert "interrupted" in p.stderr.read().decode()
-    assert list(tmp_path.iterdir()) == []
+    err = p.stderr.read().decode()
+    assert err.count("\n") == 1 and f"interrupted; kept {rrd}" in err
+    assert [f.name for f in tmp_path.iterdir()] == ["run.rrd"]
+    rerun = Path(sys.executable).parent / "rerun"
+    assert subprocess.run([str(rerun), "rrd", "verify", str(rrd)], capture_output=True).returncode == 0
 
 
 def test_a_signal_a_library_swallowed_still_commits_nothing(tmp_path, capsys, monkeypatch):
     """A SIGTERM whose exception a library swallowed (numba's compiler, a logging wrapper): the
-    run goes on, but its outputs are not committed and it ends with 143 (no file, no temp)."""
+    run goes on, but its outputs are not committed and it ends with 143 (no file, no temp)
+    but the recording, kept as an interrupted one is."""
     import stcvision.cli.cmd_cover as cmd_cover
     from stcvision.fileio import signal_received
 
@@ -365,8 +370,8 @@ def test_a_signal_a_library_swallowed_still_commits_nothing(tmp_path, capsys, mo
     rrd = tmp_path / "run.rrd"
     code = main(["cover", "--board", "2x2", "--perception", "oracle", "--rrd", str(rrd)])
     assert code == 128 + signal.SIGTERM
-    assert "interrupted" in capsys.readouterr().err
-    assert list(tmp_path.iterdir()) == []
+    assert f"interrupted; kept {rrd}" in capsys.readouterr().err
+    assert list(tmp_path.iterdir()) == [rrd]
     from stcvision.fileio import write_json
 
     write_json(tmp_path / "later.json", {})  # the run is over: a later write is not refused

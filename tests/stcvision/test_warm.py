@@ -13,6 +13,8 @@ ROOT = Path(__file__).resolve().parents[2]
 TWO_COMPILES = """
 from stcvision.compiles import announce_compiles
 announce_compiles(); announce_compiles()  # idempotent
+import sys
+assert "numba" not in sys.modules  # listening costs no compiler's import
 import numba
 f = numba.njit(lambda x: x + 1)
 g = numba.njit(lambda x: x * 2)
@@ -34,7 +36,49 @@ def test_warm_runs_and_then_the_demo_loads_every_kernel_from_the_cache(tmp_path)
     assert r.returncode == 0 and NOTICE not in r.stderr, r.stderr  # nothing left to compile
 
 
-def test_the_install_step_warms_the_cache():
+def test_the_suite_warms_the_cache_and_the_demo_compiles_only_its_own():
     make = (ROOT / "Makefile").read_text()
-    recipe = make.split("$(STAMP): pyproject.toml")[1].split("\n\n")[0]
-    assert "-m stcvision.warm" in recipe and recipe.index("pip install") < recipe.index("stcvision.warm")
+    warmed = make.split("$(WARMED): $(STAMP)")[1].split("\n\n")[0]
+    assert "-m stcvision.warm" in warmed
+    assert "\ntest: $(WARMED)" in make and "\ndemo: $(STAMP)" in make
+    install = make.split("$(STAMP): pyproject.toml")[1].split("\n\n")[0]
+    assert "stcvision.warm" not in install  # the demo's first run compiles what it uses, no more
+
+
+def _processes_with(env_value: str) -> list[int]:
+    """PIDs of this user's processes whose environment holds ``env_value``."""
+    found = []
+    for d in Path("/proc").iterdir():
+        if d.name.isdigit():
+            try:
+                if env_value.encode() in (d / "environ").read_bytes():
+                    found.append(int(d.name))
+            except OSError:
+                continue
+    return found
+
+
+def test_a_signal_during_the_warm_up_ends_it_and_its_parts(tmp_path):
+    """The parts compile in child processes; SIGTERM to the warm-up ends them all, at once."""
+    import os
+    import signal
+    import time
+
+    cache = str(tmp_path / "numba-cache")  # an empty cache: the parts are compiling when it lands
+    env = {**os.environ, "NUMBA_CACHE_DIR": cache}
+    p = subprocess.Popen([sys.executable, "-m", "stcvision.warm"], env=env, stderr=subprocess.PIPE, text=True)
+    line = p.stderr.readline()
+    assert "compiling for" in line, line
+    deadline = time.monotonic() + 60
+    while len(_processes_with(cache)) < 2 and time.monotonic() < deadline:  # a part has started
+        time.sleep(0.05)
+    p.send_signal(signal.SIGTERM)
+    t0 = time.monotonic()
+    p.wait(timeout=30)
+    waited = time.monotonic() - t0
+    assert p.returncode == 128 + signal.SIGTERM and "interrupted" in p.stderr.read()
+    assert waited < 10  # within a second or two on a quiet machine; the bound allows for load
+    deadline = time.monotonic() + 10
+    while _processes_with(cache) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert _processes_with(cache) == []

@@ -31,13 +31,16 @@ def test_measure_json_keys_and_containment(cli):
     assert r["robot_steps"] == 2 * 5 * 3000
 
 
-def test_measure_text_and_rrd(cli, tmp_path):
+def test_measure_text_and_rrd(cli, tmp_path, rrd_contents):
     rrd = tmp_path / "t.rrd"
     code, out, err = cli(
         "buffon", "--nest", "square:15", "--barrier", "bar:0.5", "--trials", 2, "--visit-steps", 2000, "--rrd", rrd
     )
     assert code == 0, err
     assert "nBC median" in out and rrd.stat().st_size > 10_000
+    contents = rrd_contents(rrd)
+    assert contents.views() == [("2D", "nest (north up)", "/"), ("TimeSeries", "nBC over the second visit", "nbc")]
+    assert contents.time_panel() == {"state": 3, "timeline": "step"}
     code, _, err = cli("buffon", "--nest", "square:15", "--trials", 2, "--visit-steps", 100, "--rrd", rrd)
     assert code == 2 and "exists" in err and "--force" in err
 

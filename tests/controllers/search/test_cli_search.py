@@ -93,11 +93,18 @@ def test_beacon_reduces_the_radial_odometry_error(capsys):
     assert on["max_odometry_error_m"] < off["max_odometry_error_m"]
 
 
-def test_rrd_and_plot_are_written_and_not_overwritten(tmp_path, capsys):
+def test_rrd_and_plot_are_written_and_not_overwritten(tmp_path, capsys, rrd_contents):
     rrd, png = tmp_path / "run.rrd", tmp_path / "run.png"
     argv = ["search", "--pattern", "spiral", "--max-steps", "8", "--rrd", str(rrd), "--plot", str(png)]
     r = _json(capsys, argv)
     assert rrd.stat().st_size > 1000 and png.read_bytes()[:4] == b"\x89PNG" and r["rrd"] == str(rrd)
+    # its default layout: the floor map (true and believed paths), the beacon camera, the time series
+    contents = rrd_contents(rrd)
+    views = contents.views()
+    assert ("2D", "world (north up)", "world") in views and ("2D", "beacon camera: raw frame", "raw") in views
+    assert ("TimeSeries", "odometry error (m)", "series/odometry_error_m") in views
+    assert contents.time_panel() == {"state": 3, "timeline": "sim_time"}
+    assert contents.times("/world/believed_path", "move") == list(range(r["moves"]))
     assert _exit(argv) == 2 and "exists" in capsys.readouterr().err
 
 

@@ -28,7 +28,8 @@ est = file_interface.read_tum_trajectory_file(sys.argv[2])
 ref, est = sync.associate_trajectories(ref, est)
 ape = metrics.APE(metrics.PoseRelation.translation_part)
 ape.process_data((ref, est))
-print(json.dumps({k: float(v) for k, v in ape.get_all_statistics().items()} | {"poses": ref.num_poses}))
+stats = {k: float(v) for k, v in ape.get_all_statistics().items()}
+print(json.dumps(stats | {"poses": ref.num_poses, "last": float(ape.error[-1])}))
 """
 
 
@@ -150,7 +151,8 @@ def test_existing_files_refused_without_force(tmp_path, capsys):
 
 def test_search_trajectory_evo_max_is_max_odometry_error(tmp_path, capsys):
     """search --trajectory: the true path and the odometry's at the start and after every move;
-    evo's APE max is the run's max_odometry_error_m (which --json rounds to 4 decimals)."""
+    evo's APE max is the run's max_odometry_error_m and its last error the odometry_error_m at
+    the end (the results page's two columns; --json rounds them to 4 decimals)."""
     paths = tmp_path / "paths"
     argv = ["search", "--max-steps", "12", "--obstacle", "0.5,0.2,0.1", "--trajectory", str(paths)]
     code, summary = _run(argv, capsys)
@@ -162,6 +164,7 @@ def test_search_trajectory_evo_max_is_max_odometry_error(tmp_path, capsys):
     ape = json.loads(r.stdout)
     assert ape["poses"] == summary["moves"] + 1
     assert ape["max"] == pytest.approx(summary["max_odometry_error_m"], abs=5e-5)
+    assert ape["last"] == pytest.approx(summary["odometry_error_m"], abs=5e-5) and ape["last"] > 1e-3
 
 
 def test_recording_draws_the_true_and_believed_paths(tmp_path, capsys):
@@ -172,6 +175,28 @@ def test_recording_draws_the_true_and_believed_paths(tmp_path, capsys):
     rerun = Path(sys.executable).parent / "rerun"
     text = subprocess.run([str(rerun), "rrd", "print", "-v", str(rrd)], capture_output=True, text=True).stdout
     assert "/world/path/true" in text and "/world/path/believed" in text
+
+
+def test_recording_holds_the_trace_lines_uncut_and_opens_with_the_runs_layout(tmp_path, capsys, rrd_contents):
+    """cover --rrd logs every --trace line whole, as a text log on the decision and sim_time
+    timelines (a camera run: its lines carry the frames and run to ~1,000 characters), and opens
+    with the floor map, the camera's raw frame and ground view, the decision and trace texts,
+    the time panel open on sim_time."""
+    rrd, trace = tmp_path / "c.rrd", tmp_path / "t.jsonl"
+    code, summary = _run([*CAMERA_RUN, "--rrd", str(rrd), "--trace", str(trace)], capsys)
+    assert code == 0 and summary["complete"]
+    lines = trace.read_text().splitlines()
+    contents = rrd_contents(rrd)
+    logged = [text for (text,) in contents.column("/trace", "TextLog:text")]
+    assert logged == lines and max(map(len, logged)) > 500
+    assert contents.times("/trace", "decision") == sorted(json.loads(line)["decision"] for line in lines)
+    views = contents.views()
+    for view in [("2D", "world (north up)", "world"), ("2D", "camera: raw frame", "raw"),
+                 ("2D", "ground view", "ground"), ("TextDocument", "decision", "decision"),
+                 ("TextLog", "trace (the --trace lines)", "trace")]:  # fmt: skip
+        assert view in views
+    assert contents.time_panel() == {"state": 3, "timeline": "sim_time"}
+    assert contents.times("/world/path/believed", "decision") and contents.times("/raw", "decision")
 
 
 def test_trace_puts_each_finding_on_the_line_it_judges():

@@ -246,7 +246,7 @@ def test_sigterm_stops_the_simulated_robot(sim):
     assert p.returncode == 143 and time.monotonic() - t0 < 2
 
 
-def test_robot_run_records_every_request_and_tick(cli, sim, tmp_path):
+def test_robot_run_records_every_request_and_tick(cli, sim, tmp_path, rrd_contents):
     import shutil
     from pathlib import Path
 
@@ -259,5 +259,8 @@ def test_robot_run_records_every_request_and_tick(cli, sim, tmp_path):
     assert subprocess.run([rerun, "rrd", "verify", str(out)], capture_output=True).returncode == 0
     printed = subprocess.run([rerun, "rrd", "print", "-v", str(out)], capture_output=True, text=True).stdout
     assert "- /link - data columns" in printed and "- /tick - data columns" in printed
+    contents = rrd_contents(out)
+    assert contents.views() == [("TextDocument", "tick", "tick"), ("TextLog", "link", "link")]
+    assert contents.time_panel() == {"state": 3, "timeline": "tick"}
     code, _, err = cli("robot", "run", "--port", port, "--rrd", out)  # no overwrite without --force
     assert code == 2 and "exists" in err
