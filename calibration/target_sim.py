@@ -247,9 +247,9 @@ def _floor_of_first_view(fit, x: np.ndarray, uv: np.ndarray, placement) -> np.nd
 
 def _chosen_fit(views, model: str):
     """The fit of ``model``, or with ``"chosen"`` the model ``calibrate target`` picks: the lowest
-    held-out RMS (:data:`~stcvision.calibration.target.DEFAULT_FOLDS`-fold); with its name."""
-    from stcvision.calibration.target import DEFAULT_FOLDS
-    from stcvision.calibration.target_fit import MODELS, heldout_rms
+    held-out RMS (:data:`~stcvision.calibration.target_options.DEFAULT_FOLDS`-fold); with its name."""
+    from stcvision.calibration.target_fit import heldout_rms
+    from stcvision.calibration.target_options import DEFAULT_FOLDS, MODELS
 
     if model != CHOSEN:
         return fit_target(views, model), model
