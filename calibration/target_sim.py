@@ -246,16 +246,17 @@ def _floor_of_first_view(fit, x: np.ndarray, uv: np.ndarray, placement) -> np.nd
 
 
 def _chosen_fit(views, model: str):
-    """The fit of ``model``, or with ``"chosen"`` the model ``calibrate target`` picks: the lowest
-    held-out RMS (:data:`~stcvision.calibration.target_options.DEFAULT_FOLDS`-fold); with its name."""
+    """The fit of ``model``, or with ``"chosen"`` the model ``calibrate target`` picks
+    (:func:`~stcvision.calibration.target.choose_model` on the
+    :data:`~stcvision.calibration.target_options.DEFAULT_FOLDS`-fold held-out errors); with its name."""
+    from stcvision.calibration.target import choose_model
     from stcvision.calibration.target_fit import heldout_rms
     from stcvision.calibration.target_options import DEFAULT_FOLDS, MODELS
 
     if model != CHOSEN:
         return fit_target(views, model), model
     fits = {m: fit_target(views, m) for m in MODELS}
-    held = {m: heldout_rms(views, f, DEFAULT_FOLDS)[0] for m, f in fits.items()}
-    best = min(held, key=lambda m: held[m] if np.isfinite(held[m]) else np.inf)
+    best = choose_model({m: heldout_rms(views, f, DEFAULT_FOLDS)[1] for m, f in fits.items()}, views)
     return fits[best], best
 
 

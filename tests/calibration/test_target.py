@@ -550,3 +550,20 @@ def test_model_error_widens_the_uncertainty_to_what_the_halves_show(peer_data):
     assert model_error_inflation({"diff_over_predicted": 1.6}) == 1.0  # within the halves' own sampling
     assert model_error_inflation({"failed": "a half could not be fitted"}) == 1.0
     assert inflate(r.fit, 1.0) is r.fit
+
+
+def test_the_richer_model_is_chosen_only_when_better_beyond_its_standard_error():
+    """The one-standard-error rule: the polynomial (ten parameters) replaces the unified model
+    (nine) only when its held-out mean squared error is lower by more than the standard error of
+    the paired per-view difference; within it the simpler model is kept."""
+    from stcvision.calibration.target import choose_model
+    from stcvision.calibration.target_sim import simulated_views
+
+    views = simulated_views(2, 8)
+    rng = np.random.default_rng(0)
+    mei = 0.5 + 0.05 * rng.standard_normal(len(views))
+    assert choose_model({"mei": mei, "poly": mei - 0.05}, views) == "poly"  # better on every view
+    jitter = 0.05 * rng.standard_normal(len(views))
+    alike = mei + jitter - jitter.mean() - 0.001  # lower on average, by far less than its scatter
+    assert choose_model({"mei": mei, "poly": alike}, views) == "mei"
+    assert choose_model({"poly": mei}, views) == "poly"
