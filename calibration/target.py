@@ -3,8 +3,9 @@
 views), the chosen model's uncertainty over the image, and -- for a profile -- the mount from a
 lights-on frame, the uncertainty on the floor and a verdict for the STC robot.
 
-The model chosen (unless asked for one) is the one with the lowest held-out error: a model with
-more freedom that only follows the views' noise does worse on views it has not seen.
+The model chosen (unless asked for one) is the simpler one unless the richer one's held-out error
+is lower by more than its standard error (:func:`choose_model`): a model with more freedom that
+only follows the views' noise does worse on views it has not seen.
 """
 
 from __future__ import annotations
@@ -145,7 +146,7 @@ def calibrate_target(
     views: TargetViews, *, model: str | None = None, folds: int = DEFAULT_FOLDS, should_stop=None
 ) -> TargetResult:
     """Fit every model (or only ``model``), test each by k-fold over the views, take the one with
-    the lowest held-out RMS (or ``model``), and measure its uncertainty."""
+    the better held-out error by :func:`choose_model` (or ``model``), and measure its uncertainty."""
     from stcvision.fileio import figure_png
 
     if model is not None and model not in MODELS:

@@ -258,7 +258,9 @@ def _add_target_parsers(sub):
     )
     g.add_argument("--spacing", type=positive(float), metavar="S", help="distance between neighbouring points (m)")
     g.add_argument(
-        "--model", choices=tuple(MODELS), help="fit this model only (default: all, the lowest held-out RMS chosen)"
+        "--model",
+        choices=tuple(MODELS),
+        help="fit this model only (default: all; the richer chosen only when better held out beyond its error)",
     )
     g.add_argument(
         "--folds", type=int, default=DEFAULT_FOLDS, metavar="K", help=f"k-fold over views (default {DEFAULT_FOLDS})"
