@@ -417,25 +417,63 @@ def _initial_mei(views: TargetViews, should_stop=None):
 
 
 def _initial_poly(views: TargetViews, mei: TargetFit):
-    """The polynomial fitted (linear least squares) to the unified model's rays at the views'
-    points and over the image, with the same poses."""
+    """The polynomial fitted (linear least squares) to the unified model's rays with the same
+    poses: at the views' points and over the whole image (a curve that holds beyond them), or at
+    the views' points alone, whichever reprojects the views better. Over the whole image the
+    conic's rays past its field of view can bend the quartic away from the views (a simulated
+    calibration of the spherical mirror started 66 px off, with 586 points unreachable, and the
+    fit diverged); at the views alone it follows them."""
     pu, pv = mei.params[3], mei.params[4]
     fu, fv = mei.params[1], mei.params[2]
-    uv = np.vstack(views.image_points)
+    c = fv / fu
     w, h = views.image_size_px
     grid = np.stack(np.meshgrid(np.linspace(0, w - 1, 40), np.linspace(0, h - 1, 30)), -1).reshape(-1, 2)
-    uv = np.vstack([uv, grid])  # the views' points and the whole image: a curve that holds beyond them
-    rays = mei.unproject(uv)
-    c = fv / fu
-    X, Y = (uv[:, 0] - pu) / POLY_RADIUS_UNIT_PX, (uv[:, 1] - pv) / (c * POLY_RADIUS_UNIT_PX)
-    rho = np.hypot(X, Y)
-    nrm = np.hypot(rays[:, 0], rays[:, 1])
-    ok = np.isfinite(rays).all(axis=1) & (nrm > 1e-6) & (rho > 1e-6)
-    # -f(rho) / rho = z / n, so f(rho) = -rho z / n, linear in a0, a2, a3, a4
-    t = -rho[ok] * rays[ok, 2] / nrm[ok]
-    V = np.column_stack([np.ones(ok.sum()), rho[ok] ** 2, rho[ok] ** 3, rho[ok] ** 4])
-    a = np.linalg.lstsq(V, t, rcond=None)[0]
-    return np.array([pu, pv, c, 0.0, *a, 0.0, 0.0]), mei.poses
+    seen = np.vstack(views.image_points)
+    best = None
+    for uv in (np.vstack([seen, grid]), seen):
+        rays = mei.unproject(uv)
+        X, Y = (uv[:, 0] - pu) / POLY_RADIUS_UNIT_PX, (uv[:, 1] - pv) / (c * POLY_RADIUS_UNIT_PX)
+        rho = np.hypot(X, Y)
+        nrm = np.hypot(rays[:, 0], rays[:, 1])
+        ok = np.isfinite(rays).all(axis=1) & (nrm > 1e-6) & (rho > 1e-6)
+        # -f(rho) / rho = z / n, so f(rho) = -rho z / n, linear in a0, a2, a3, a4
+        t = -rho[ok] * rays[ok, 2] / nrm[ok]
+        V = np.column_stack([np.ones(ok.sum()), rho[ok] ** 2, rho[ok] ** 3, rho[ok] ** 4])
+        a = np.linalg.lstsq(V, t, rcond=None)[0]
+        p = np.array([pu, pv, c, 0.0, *a, 0.0, 0.0])
+        err = _start_error(views, p, mei.poses)
+        if best is None or err < best[0]:
+            best = (err, p)
+    return best[1], mei.poses
+
+
+def _start_error(views: TargetViews, p: np.ndarray, poses: np.ndarray) -> float:
+    """The polynomial model's summed squared reprojection error at ``p`` and ``poses`` (a point
+    it cannot reach counts 1e4 px off, as in the unified model's start)."""
+    err = 0.0
+    for pose, obj, img in zip(poses, views.object_points, views.image_points, strict=True):
+        e = np.nan_to_num(project_points("poly", p, _transform(pose, obj), views.image_size_px) - img, nan=1e4)
+        err += float(np.sum(e * e))
+    return err
+
+
+#: eigenvalues of the scaled normal matrix below this fraction of its largest are the rounding's,
+#: not the data's: their directions are taken as fixed only that well (double precision's
+#: 1e-16, with room for the products of the Jacobian)
+EIGEN_FLOOR = 1e-14
+
+
+def _psd_inverse(N: np.ndarray) -> np.ndarray:
+    """The inverse of a symmetric positive semi-definite matrix, positive semi-definite.
+
+    By its eigen-decomposition, with eigenvalues floored at :data:`EIGEN_FLOOR` of the largest:
+    a direction the views barely fix keeps a huge variance. ``numpy.linalg.inv`` of a nearly
+    singular normal matrix (the polynomial model's on views of one annulus) gave negative
+    variances, and NaN standard deviations and bounds from them.
+    """
+    lam, V = np.linalg.eigh((N + N.T) / 2)
+    lam = np.maximum(lam, EIGEN_FLOOR * max(float(lam[-1]), 1e-300))
+    return (V / lam) @ V.T
 
 
 def _make_fit(model, views, sol, n_intr) -> TargetFit:
@@ -450,10 +488,7 @@ def _make_fit(model, views, sol, n_intr) -> TargetFit:
     scale = np.sqrt(np.diag(JtJ))
     scale[scale == 0] = 1.0
     N = JtJ / np.outer(scale, scale)
-    try:
-        cov_all = np.linalg.inv(N) / np.outer(scale, scale) * s2
-    except np.linalg.LinAlgError:
-        cov_all = np.linalg.pinv(N) / np.outer(scale, scale) * s2
+    cov_all = _psd_inverse(N) / np.outer(scale, scale) * s2
     res = r.reshape(-1, 2)
     view_rms, k = [], 0
     for img in views.image_points:
@@ -533,16 +568,42 @@ def heldout_rms(views: TargetViews, fit: TargetFit, folds: int, should_stop=None
 #: finite-difference steps for propagating the covariance: this fraction of each parameter's
 #: standard deviation (the model is close to linear over it, and far above rounding)
 COV_STEP_OF_STD = 1e-3
+#: ... but never more than this fraction of the parameter's own size: a parameter the views
+#: barely fix (the polynomial's constant term, where no view reaches the image's centre, had a
+#: standard deviation 5000 times its value) would otherwise be stepped to another model, whose
+#: elevation curve no longer reaches the rays (NaN: every floor bound of such a fit was lost)
+COV_STEP_OF_VALUE = 1e-3
+
+
+def derivative_steps(params: np.ndarray, std: np.ndarray) -> np.ndarray:
+    """The finite-difference step of each parameter for propagating a covariance.
+
+    :data:`COV_STEP_OF_STD` of its standard deviation, at most :data:`COV_STEP_OF_VALUE` of its
+    size (a parameter at zero: of its standard deviation alone), never zero.
+
+    Parameters
+    ----------
+    params, std : numpy.ndarray
+        The parameters and their standard deviations.
+
+    Returns
+    -------
+    numpy.ndarray
+        The steps.
+    """
+    sd = np.where(np.isfinite(std) & (std > 0), std, 1e-9)
+    size = np.abs(np.asarray(params, float))
+    step = COV_STEP_OF_STD * sd
+    return np.where(size > 0, np.minimum(step, COV_STEP_OF_VALUE * size), step)
 
 
 def params_jacobian(fit: TargetFit, value_of) -> np.ndarray:
-    """d(value)/d(intrinsics): (N, 2, n), central differences with steps of
-    :data:`COV_STEP_OF_STD` of each parameter's standard deviation; ``value_of(params)`` gives
-    the (N, 2) values at a parameter vector."""
-    std = np.where(fit.std > 0, fit.std, 1e-9)
+    """d(value)/d(intrinsics): (N, 2, n), central differences with the steps of
+    :func:`derivative_steps`; ``value_of(params)`` gives the (N, 2) values at a parameter vector."""
+    steps = derivative_steps(fit.params, fit.std)
     cols = []
     for j in range(len(fit.params)):
-        h = COV_STEP_OF_STD * std[j]
+        h = steps[j]
         p1, p0 = fit.params.copy(), fit.params.copy()
         p1[j] += h
         p0[j] -= h

@@ -22,7 +22,7 @@ import math
 
 import numpy as np
 
-from stcvision.calibration.target_fit import COV_STEP_OF_STD, fit_target, project_points
+from stcvision.calibration.target_fit import derivative_steps, fit_target, project_points
 from stcvision.calibration.target_uncertainty import (
     K95,
     floor_covariances,
@@ -170,8 +170,9 @@ def main(argv=None) -> None:
         print(
             f"{a.seeds} calibrations of the simulator's camera ({a.model}, 12 views each, median RMS "
             f"{r['rms_px_median']:.3f} px): the 95 % floor bound holds the truth at "
-            f"{100 * r['floor_coverage']:.1f} % of {r['floor_points']:,} floor points (0.1-0.9 m); "
-            f"median floor error {r['error_mm_median']:.2f} mm"
+            f"{100 * r['floor_coverage']:.1f} % (binomial 95 % interval {100 * r['floor_coverage_ci95'][0]:.1f}-"
+            f"{100 * r['floor_coverage_ci95'][1]:.1f} %) of {r['floor_points']:,} floor points (0.1-0.9 m); "
+            f"median floor error {r['error_mm_median']:.2f} mm; models used {r['models']}"
         )
         return
     r = coverage(range(a.first_seed, a.first_seed + a.seeds), n_views=a.views, model=a.model)
@@ -244,10 +245,66 @@ def _floor_of_first_view(fit, x: np.ndarray, uv: np.ndarray, placement) -> np.nd
     return (b[:, :2] - mid) @ rot.T + c
 
 
+def _chosen_fit(views, model: str):
+    """The fit of ``model``, or with ``"chosen"`` the model ``calibrate target`` picks
+    (:func:`~stcvision.calibration.target.choose_model` on the
+    :data:`~stcvision.calibration.target_options.DEFAULT_FOLDS`-fold held-out errors); with its name."""
+    from stcvision.calibration.target import choose_model
+    from stcvision.calibration.target_fit import heldout_rms
+    from stcvision.calibration.target_options import DEFAULT_FOLDS, MODELS
+
+    if model != CHOSEN:
+        return fit_target(views, model), model
+    fits = {m: fit_target(views, m) for m in MODELS}
+    best = choose_model({m: heldout_rms(views, f, DEFAULT_FOLDS)[1] for m, f in fits.items()}, views)
+    return fits[best], best
+
+
+#: ``--model`` of the simulator's coverage for the model ``calibrate target`` would choose
+CHOSEN = "chosen"
+
+
+def _floor_check(seed: int, model: str, xy: np.ndarray, uv: np.ndarray, n_views: int) -> dict:
+    """One calibration of the simulator's camera: its floor points inside their 95 % bound."""
+    views, placement = simulator_views(seed, n_views)
+    fit, name = _chosen_fit(views, model)
+    fit = _as_reported(views, fit)
+    x0 = np.concatenate([fit.params, fit.poses[0]])
+    e = _floor_of_first_view(fit, x0, uv, placement) - xy
+    J = np.empty((len(uv), 2, len(x0)))
+    steps = derivative_steps(x0, np.sqrt(np.diag(fit.cov_first_view)))
+    for j in range(len(x0)):
+        xp, xm = x0.copy(), x0.copy()
+        xp[j] += steps[j]
+        xm[j] -= steps[j]
+        fp, fm = (_floor_of_first_view(fit, x, uv, placement) for x in (xp, xm))
+        J[:, :, j] = (fp - fm) / (2 * steps[j])
+    S = np.einsum("nij,jk,nlk->nil", J, fit.cov_first_view, J)
+    good = np.isfinite(e).all(axis=1)
+    # a point the fit gives no floor point for, or whose bound is degenerate (a flat or
+    # undefined covariance), holds no error: it counts, outside the bound
+    bounded = good & np.isfinite(S).all(axis=(1, 2))
+    bounded[bounded] &= np.linalg.det(S[bounded]) > 0
+    d2 = np.einsum("ni,nij,nj->n", e[bounded], np.linalg.inv(S[bounded]), e[bounded])
+    return {
+        "model": name,
+        "inside": int((d2 <= K95**2).sum()),
+        "points": len(uv),
+        "errors_mm": 1000 * np.hypot(*e[good].T),
+        "rms_px": fit.rms_px,
+    }
+
+
 def simulator_coverage(seeds, *, model: str = "mei", n_views: int = 12) -> dict:
     """Over calibrations of the simulator's camera from ``simulator_views``: the share of floor
     points (0.1-0.9 m, every 30 degrees) whose true error lies within the 95 % floor bound (the
-    intrinsics' and the floor view's pose's joint covariance), and the errors' median (mm)."""
+    intrinsics' and the floor view's pose's joint covariance, widened as ``calibrate target``
+    reports it), with its exact binomial 95 % interval (the points of one calibration share its
+    errors, so the interval is narrower than the calibrations alone would give), the errors'
+    median (mm), and which model each calibration used (``model`` ``"chosen"``: the one
+    ``calibrate target`` picks by held-out RMS)."""
+    from scipy.stats import binomtest
+
     from stcvision.calibration.target_uncertainty import FLOOR_DISTANCES_M
     from stcvision.sim_camera.optics import MirrorCameraParams, project_floor_points
 
@@ -258,39 +315,19 @@ def simulator_coverage(seeds, *, model: str = "mei", n_views: int = 12) -> dict:
     xy = np.column_stack([rho * np.cos(ps), rho * np.sin(ps)])
     uv, ok = project_floor_points(base, xy)
     xy, uv = xy[ok], uv[ok]
-    inside, n, errs, rms = 0, 0, [], []
-    for seed in seeds:
-        views, placement = simulator_views(seed, n_views)
-        fit = _as_reported(views, fit_target(views, model))
-        rms.append(fit.rms_px)
-        x0 = np.concatenate([fit.params, fit.poses[0]])
-        est = _floor_of_first_view(fit, x0, uv, placement)
-        e = est - xy
-        J = np.empty((len(uv), 2, len(x0)))
-        sd = np.sqrt(np.diag(fit.cov_first_view))
-        for j in range(len(x0)):
-            h = COV_STEP_OF_STD * max(sd[j], 1e-12)
-            xp, xm = x0.copy(), x0.copy()
-            xp[j] += h
-            xm[j] -= h
-            fp, fm = (_floor_of_first_view(fit, x, uv, placement) for x in (xp, xm))
-            J[:, :, j] = (fp - fm) / (2 * h)
-        S = np.einsum("nij,jk,nlk->nil", J, fit.cov_first_view, J)
-        good = np.isfinite(e).all(axis=1)
-        # a point whose bound is degenerate (a flat or undefined covariance) holds no error:
-        # it counts, outside the bound
-        bounded = good & np.isfinite(S).all(axis=(1, 2))
-        bounded[bounded] &= np.linalg.det(S[bounded]) > 0
-        d2 = np.einsum("ni,nij,nj->n", e[bounded], np.linalg.inv(S[bounded]), e[bounded])
-        inside += int((d2 <= K95**2).sum())
-        n += int(good.sum())
-        errs.append(1000 * np.hypot(*e[good].T))
-    errs = np.concatenate(errs)
+    runs = [_floor_check(seed, model, xy, uv, n_views) for seed in seeds]
+    inside, n = sum(r["inside"] for r in runs), sum(r["points"] for r in runs)
+    ci = binomtest(inside, n).proportion_ci(0.95)
+    errs = np.concatenate([r["errors_mm"] for r in runs])
     return {
+        "calibrations": len(runs),
         "floor_points": n,
         "floor_coverage": inside / n,
-        "error_mm_median": float(np.median(errs)),
-        "rms_px_median": float(np.median(rms)),
+        "floor_coverage_ci95": [float(ci.low), float(ci.high)],
+        "per_calibration_coverage": [round(r["inside"] / r["points"], 4) for r in runs],
+        "models": {m: sum(r["model"] == m for r in runs) for m in sorted({r["model"] for r in runs})},
+        "error_mm_median": float(np.median(errs)) if len(errs) else float("nan"),
+        "rms_px_median": float(np.median([r["rms_px"] for r in runs])),
     }
 
 

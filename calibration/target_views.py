@@ -12,6 +12,7 @@ kept.
 from __future__ import annotations
 
 import math
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -49,13 +50,19 @@ MAX_TARGET_IMAGE_SIDE_PX = 8192
 #: images read from one folder (the views' cap, with room for refused ones)
 MAX_TARGET_IMAGES = 2 * MAX_VIEWS
 #: image file suffixes read from a folder
-IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff")
-#: how far the sub-pixel refinement may move a corner from the detector's estimate (px): further
-#: means the window met another corner or the blur, and the view is refused
+IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".pgm", ".ppm", ".pnm")
+#: how far the sub-pixel refinement may move a corner from the detector's estimate (px), or half
+#: the refinement window's half-side when that is more: further means the window met another
+#: corner or the blur, and the view is refused (the detector's estimate on a 1280x1024
+#: catadioptric photograph, whose corners are 11-px windows apart, was 3-5 px off: Mei's
+#: toolbox sample)
 MAX_SUBPIX_SHIFT_PX = 3.0
 #: corners nearer the image's border than this (px) are cut by it
 BORDER_PX = 3.0
 #: how far outside the image (px from the outermost pixel centres) a points file's point may lie:
+#: the least spread of a view's image points across their narrowest direction (the smallest
+#: singular value of the centred points, px): a grid's image spans tens of pixels each way
+MIN_IMAGE_SPREAD_PX = 1.0
 #: a detector's sub-pixel estimate at the edge; further means the image size is wrong
 OFF_IMAGE_TOLERANCE_PX = 2.0
 
@@ -115,6 +122,12 @@ def check_views(views: TargetViews, where: str) -> TargetViews:
         span = np.ptp(obj[:, :2], axis=0)
         if min(span) <= 0:
             raise BadInputError(f"{where}: view {name}'s object points lie on a line; expected a planar grid")
+        # the image of a grid spans an area: points on a line or on one pixel fix no camera
+        # (found by fuzzing: every image point at one pixel gave a zero RMS and a division by it)
+        if np.linalg.svd(img - img.mean(axis=0), compute_uv=False)[-1] < MIN_IMAGE_SPREAD_PX:
+            raise BadInputError(
+                f"{where}: view {name}'s image points lie on a line or a point; expected the image of a planar grid"
+            )
         m = OFF_IMAGE_TOLERANCE_PX
         if (img < -m).any() or (img[:, 0] > w - 1 + m).any() or (img[:, 1] > h - 1 + m).any():
             raise BadInputError(
@@ -191,8 +204,11 @@ def _image_size(fs, where: str, given) -> tuple[int, int]:
     else:
         m = node.mat()
         vals = [] if m is None else [float(x) for x in np.ravel(m)]
-    if len(vals) != 2 or not all(math.isfinite(v) and v == int(v) and v > 0 for v in vals):
-        raise BadInputError(f"{where}: imageSize must be two positive integers (width height), got {vals}")
+    if len(vals) != 2 or not all(math.isfinite(v) and v == int(v) and 0 < v <= MAX_TARGET_IMAGE_SIDE_PX for v in vals):
+        shown = ", ".join(f"{v:.6g}" for v in vals[:4]) + (", ..." if len(vals) > 4 else "")
+        raise BadInputError(
+            f"{where}: imageSize must be two integers 1..{MAX_TARGET_IMAGE_SIDE_PX} (width height), got [{shown}]"
+        )
     return int(vals[0]), int(vals[1])
 
 
@@ -222,6 +238,7 @@ def read_points_file(path, *, camera: int | None = None, image_size=None) -> Tar
             f"{where} is {size / 2**20:.0f} MiB, over the cap of {MAX_POINTS_FILE_BYTES // 2**20} MiB "
             "(MAX_POINTS_FILE_BYTES)"
         )
+    _check_declared_sizes(path, where)
     try:
         with quiet_opencv():
             fs = cv2.FileStorage(str(path), cv2.FILE_STORAGE_READ)
@@ -239,6 +256,25 @@ def read_points_file(path, *, camera: int | None = None, image_size=None) -> Tar
             msg = msg[msg.index("error: (") + len("error: ") :]
         raise BadInputError(f"{where} is not readable OpenCV FileStorage: {msg[:140]}") from None
     return check_views(views, where)
+
+
+#: a matrix's declared rows or columns, as FileStorage XML (``<rows>N</rows>``) and YAML
+#: (``rows: N``) write them
+_DECLARED = re.compile(rb"(?:<(?:rows|cols)>|\b(?:rows|cols):)\s*(-?\d+)")
+
+
+def _check_declared_sizes(path: Path, where: str) -> None:
+    """Refuse a matrix declared larger than a view may be before OpenCV allocates it.
+
+    OpenCV allocates a matrix by its declared rows and columns before reading its data (found by
+    fuzzing: a declared 2e9 rows asked for 48 GB).
+    """
+    cap = 3 * MAX_POINTS_PER_VIEW
+    for m in _DECLARED.finditer(path.read_bytes()):
+        if abs(int(m.group(1))) > cap:
+            raise BadInputError(
+                f"{where} declares a matrix of {int(m.group(1)):,} rows or columns, over the {cap:,} a view may hold"
+            )
 
 
 def _read_storage(fs, where: str, camera: int | None, image_size) -> TargetViews:
@@ -286,7 +322,7 @@ def write_points_file(path, views: TargetViews, *, overwrite: bool = False) -> P
 
 # ---------------------------------------------------------------------------- images
 def _find(grey: np.ndarray, pattern: str, cols: int, rows: int):
-    """Detected centres (N, 2) or None, and the refined corners' largest shift (px)."""
+    """Detected centres (N, 2) or None, the refined corners' largest shift (px) and its limit."""
     import cv2
 
     size = (cols, rows)
@@ -294,19 +330,20 @@ def _find(grey: np.ndarray, pattern: str, cols: int, rows: int):
         flags = cv2.CALIB_CB_ADAPTIVE_THRESH | cv2.CALIB_CB_NORMALIZE_IMAGE
         ok, pts = cv2.findChessboardCorners(grey, size, flags=flags)
         if not ok:
-            return None, 0.0
+            return None, 0.0, MAX_SUBPIX_SHIFT_PX
         raw = pts.reshape(-1, 2).astype(np.float32)
         # the window: a third of the nearest corners' spacing (never reaching the next corner)
         d = np.linalg.norm(np.diff(raw.reshape(rows, cols, 2), axis=1), axis=2).min()
         win = int(max(2, min(11, d / 3)))
         crit = (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_COUNT, 50, 1e-3)
         ref = cv2.cornerSubPix(grey, raw.reshape(-1, 1, 2).copy(), (win, win), (-1, -1), crit).reshape(-1, 2)
-        return ref.astype(float), float(np.linalg.norm(ref - raw, axis=1).max())
+        shift = float(np.linalg.norm(ref - raw, axis=1).max())
+        return ref.astype(float), shift, max(MAX_SUBPIX_SHIFT_PX, win / 2)
     flag = cv2.CALIB_CB_SYMMETRIC_GRID if pattern == "circles" else cv2.CALIB_CB_ASYMMETRIC_GRID
     ok, pts = cv2.findCirclesGrid(grey, size, flags=flag)
     if not ok:
-        return None, 0.0
-    return pts.reshape(-1, 2).astype(float), 0.0  # blob centres are sub-pixel already
+        return None, 0.0, MAX_SUBPIX_SHIFT_PX
+    return pts.reshape(-1, 2).astype(float), 0.0, MAX_SUBPIX_SHIFT_PX  # blob centres are sub-pixel already
 
 
 def board_points(pattern: str, cols: int, rows: int, spacing: float) -> np.ndarray:
@@ -319,15 +356,17 @@ def board_points(pattern: str, cols: int, rows: int, spacing: float) -> np.ndarr
     return np.column_stack([x.ravel(), y.ravel(), np.zeros(x.size)]).astype(float)
 
 
-def view_problem(pts: np.ndarray | None, shift: float, size, pattern: str, cols: int, rows: int) -> str | None:
+def view_problem(
+    pts: np.ndarray | None, shift: float, size, pattern: str, cols: int, rows: int, limit: float = MAX_SUBPIX_SHIFT_PX
+) -> str | None:
     """Why a detection is not taken, or None: not found, cut by the border, refined too far, or
     mis-ordered (a row that repeats a point or turns back: OpenCV's circle-grid search can give
     one dot twice when far dots blur together)."""
     w, h = size
     if pts is None:
         return f"no {cols}x{rows} {pattern} found"
-    if shift > MAX_SUBPIX_SHIFT_PX:
-        return f"the sub-pixel refinement moved a corner {shift:.1f} px (over {MAX_SUBPIX_SHIFT_PX:g}): blurred?"
+    if shift > limit:
+        return f"the sub-pixel refinement moved a corner {shift:.1f} px (over {limit:g}): blurred?"
     if (
         (pts[:, 0] < BORDER_PX).any()
         or (pts[:, 1] < BORDER_PX).any()
@@ -346,7 +385,6 @@ def detect_views(folder, *, pattern: str, cols: int, rows: int, spacing: float, 
     """Find the target in each image of ``folder`` (sorted by name). ``cols`` x ``rows`` inner
     corners (or circles), ``spacing`` between neighbours in the unit the result is to be in.
     ``should_stop()`` is called between images (for Ctrl-C)."""
-    import cv2
 
     from stcvision.fileio import read_image
 
@@ -369,19 +407,19 @@ def detect_views(folder, *, pattern: str, cols: int, rows: int, spacing: float, 
     for f in files:
         if should_stop is not None:
             should_stop()
-        img = read_image(f, what="target image")
+        # a target's photographs are often grey (calibration toolboxes' samples): read as grey
+        img = read_image(f, color=False, what="target image")
         h, w = img.shape[:2]
         if max(w, h) > MAX_TARGET_IMAGE_SIDE_PX:
             raise BadInputError(f"target image {f} is {w}x{h}, over the cap of {MAX_TARGET_IMAGE_SIDE_PX} px a side")
         if size is None:
             size = (w, h)
-        elif (w, h) != size:
-            raise BadInputError(f"target image {f} is {w}x{h} but the first was {size[0]}x{size[1]}; one camera only")
-        grey = cv2.cvtColor(img, cv2.COLOR_BGR2GRAY)
-        if grey.dtype != np.uint8:
-            grey = (grey / 257).astype(np.uint8)
-        pts, shift = _find(grey, pattern, cols, rows)
-        why = view_problem(pts, shift, size, pattern, cols, rows)
+        elif (w, h) != size:  # another camera's, or not a view (a map written beside them): refused
+            refused.append((f.name, f"{w}x{h}, not the {size[0]}x{size[1]} of the first view: another camera?"))
+            continue
+        grey = img if img.dtype == np.uint8 else (img / 257).astype(np.uint8)
+        pts, shift, limit = _find(grey, pattern, cols, rows)
+        why = view_problem(pts, shift, size, pattern, cols, rows, limit)
         if why is not None:
             refused.append((f.name, why))
             continue

@@ -56,6 +56,7 @@ from stcvision.stages import (
     fit_heading,
     frame_structure,
     mirror_centroids,
+    noise_floor,
     noise_gain,
     subtract_dark,
     unwarp,
@@ -112,6 +113,38 @@ class PipelineParams:
     observation: ObservationParams = field(default_factory=ObservationParams)
     use_heading: bool = True
     white_blue_ratio: float | None = None
+
+    def at_pixel_scale(self, k: float) -> PipelineParams:
+        """Return these parameters for frames ``k`` times the resolution they were set for.
+
+        The settings in mirror-image pixels follow the scale so that they cover the same floor:
+        the dot window (its side rounded, at least one pixel), the mirror-image centroid's
+        Gaussian and square. Settings in ground-view pixels (the black-out, the centroid's
+        square there, the rows' spacing) and in noise sigmas do not change: the ground view is
+        in metres and the noise model follows the frames (:func:`~stcvision.stages.noise_gain`).
+
+        Parameters
+        ----------
+        k : float
+            The frames' pixels per pixel of the camera these parameters were set for.
+
+        Returns
+        -------
+        PipelineParams
+            The scaled parameters (these when ``k`` is 1).
+        """
+        if k == 1.0:
+            return self
+        d = self.dots
+        return dataclasses.replace(
+            self,
+            dots=dataclasses.replace(
+                d,
+                window_px=max(1, round(d.window_px * k)),
+                mirror_sigma_px=d.mirror_sigma_px * k,
+                mirror_half_px=max(1, round(d.mirror_half_px * k)),
+            ),
+        )
 
 
 def display_scale(frame: np.ndarray) -> float:
@@ -292,7 +325,9 @@ class Pipeline:
         self, profile: Profile, params: PipelineParams | None = None, *, dark: np.ndarray | None = None
     ) -> None:
         self.profile = profile
-        self.params = params or PipelineParams()
+        # a profile rescaled to another resolution carries the scale: the parameters, set for
+        # the calibrated camera's pixels, follow it
+        self.params = (params or PipelineParams()).at_pixel_scale(profile.pixel_scale)
         p = self.params
         # the wide, coarse ground view for far red-light landmarks (pose estimates only)
         wide = p.observation.pose_estimates and p.observation.landmark_range_m > 0
@@ -306,6 +341,11 @@ class Pipeline:
         )
         self.geometry = CellGeometry.from_profile(profile)
         self.gain = noise_gain(self.umap, p.dots.window_px)
+        resampled = _resampled_from(profile)
+        #: a resized frame's noise: the gain of the noise the resize spread (None: not resized)
+        self.gain_resampled = (
+            None if resampled is None else noise_gain(self.umap, p.dots.window_px, resampled_from=resampled)
+        )
         #: the stages' scratch arrays, reused from frame to frame (never one a result holds)
         self.scratch = Scratch()
         if dark is not None:
@@ -406,7 +446,7 @@ class Pipeline:
         # limit cannot spread more over blocks (a mean varies less than what it averages), so
         # the measure is only taken on frames that might fail it
         if noise >= DARK_ROOM_MAX_STRUCTURE * full:
-            structure = frame_structure(frame)
+            structure = frame_structure(frame, block_px=max(1, round(STRUCTURE_BLOCK_PX * self.profile.pixel_scale)))
             if structure > DARK_ROOM_MAX_STRUCTURE:
                 return (
                     f"the frame shows a scene ({100 * structure:.1f} % of full scale of structure over "
@@ -442,11 +482,12 @@ class Pipeline:
         p, w = self.params, self.params.dots.window_px
         marks, g, bg, noise, q = f.marks, f.green, f.bg, f.noise, f.quantum
         g2r = self.profile.ground_to_robot
+        gain = self._gain(noise, q)
         with times("dots"):
             dots = find_dots(  # robot-frame positions from the mirror-image centroids when they run
                 marks,
                 p.dots,
-                gain=self.gain,
+                gain=gain,
                 background_dn=bg,
                 noise_dn=noise,
                 ground_to_robot=None if p.dots.mirror_sigma_px > 0 else g2r,
@@ -464,7 +505,7 @@ class Pipeline:
             all_dots = find_rows(
                 marks,
                 dots,
-                gain=self.gain,
+                gain=gain,
                 background_dn=bg,
                 noise_dn=noise,
                 px_per_m=self.profile.ground_px_per_m,
@@ -479,6 +520,20 @@ class Pipeline:
             if lit and not all_dots.untrusted:
                 all_dots = dataclasses.replace(all_dots, untrusted=lit)
         return dots, all_dots
+
+    def _gain(self, noise: float, quantum: int) -> np.ndarray:
+        """Return the noise gain map for a frame of per-pixel ``noise`` (DN) and quantisation step.
+
+        For a frame resized from the calibrated camera's, its noise is two parts: what the resize
+        spread over neighbours, and the rounding of the resized frame and of its dark frame to
+        whole steps, which is fresh at every pixel. Their variances add, each with its own gain.
+        """
+        if self.gain_resampled is None:
+            return self.gain
+        fresh = min(2.0 * noise_floor(quantum) ** 2, noise * noise)
+        spread = noise * noise - fresh
+        var = spread * self.gain_resampled**2 + fresh * self.gain**2
+        return np.sqrt(var, dtype=np.float32) / np.float32(max(noise, 1e-9))
 
     def process(
         self,
@@ -618,6 +673,19 @@ class Pipeline:
         """
         w = self.params.dots.window_px
         return cv2.convertScaleAbs(unwarp(window_sums(image, w), self.umap), alpha=display_scale(image) / (w * w))
+
+
+#: the OpenCV interpolation a profile's ``resampling`` names (:data:`stcvision.profile.RESAMPLINGS`)
+_INTERPOLATION = {"area": cv2.INTER_AREA, "linear": cv2.INTER_LINEAR}
+
+
+def _resampled_from(profile: Profile):
+    """``((W, H), interpolation)`` a rescaled profile's frames were resized from (None: not resized)."""
+    if profile.resampling == "none":
+        return None
+    w, h = profile.image_size_px
+    k = profile.pixel_scale
+    return (max(1, round(w / k)), max(1, round(h / k))), _INTERPOLATION[profile.resampling]
 
 
 def bench_pipeline(camera, board, layer, pose, *, frames: int, rng, profile: Profile) -> dict:

@@ -31,7 +31,14 @@ renderer's ray-traced spherical mirror -- and it says:
 * the ground view: top-down, centred on the robot, forward up, ``ground_px_per_m``,
   ``ground_size_px`` square;
 * the board's sub-cell side ``subcell_m`` and the neighbours calibration: the 12 corners of the
-  five cells (``neighbour_corners_px``, ground-view pixels, order :data:`CORNER_ORDER`).
+  five cells (``neighbour_corners_px``, ground-view pixels, order :data:`CORNER_ORDER`);
+* for a profile rescaled to another resolution of the same camera, ``pixel_scale``: its pixels
+  per pixel of the camera the pipeline's pixel-scale settings (the dot window, the centroid's
+  blur) were set for, which the pipeline scales them by; and ``resampling``: how its frames are
+  made from that camera's -- ``"none"`` (the camera's own mode: independent pixel noise),
+  ``"area"`` (area-averaged, as ``cv2.INTER_AREA`` or binning) or ``"linear"`` (interpolated up,
+  as ``cv2.INTER_LINEAR``) -- which says what the resizing did to the noise the dot threshold
+  models.
 """
 
 from __future__ import annotations
@@ -46,7 +53,7 @@ import numpy as np
 from stcvision.errors import ProfileError
 from stcvision.stc_geometry import DEFAULT_SUBCELL_M
 
-__all__ = ["CORNER_ORDER", "SCHEMA_VERSION", "Profile", "nominal_corners_px"]
+__all__ = ["CORNER_ORDER", "PIXEL_SCALE_RANGE", "RESAMPLINGS", "SCHEMA_VERSION", "Profile", "nominal_corners_px"]
 
 SCHEMA_VERSION = 1
 MODEL = "radial_central"
@@ -56,6 +63,11 @@ MAX_DECENTERING = 0.02
 #: ... and its radial factor's coefficients: a lens's radial distortion changes the factor by tens
 #: of per cent at the rim; beyond this the product could outgrow the bound above
 MAX_DECENTERING_RADIAL = 5.0
+#: how a rescaled profile's frames may be made from the calibrated camera's (:class:`Profile`)
+RESAMPLINGS = ("none", "area", "linear")
+#: the pixel scales a profile may carry: from a quarter to four times the calibrated resolution
+#: (outside it the dot window would be under a pixel or the dot search's scales would not fit)
+PIXEL_SCALE_RANGE = (0.25, 4.0)
 #: fixed-point iterations of the decentering's inverse: the error shrinks by ~6 |p| each, to below
 #: 1e-12 px from |p| = 0.02 in 20
 DECENTER_ITERATIONS = 20
@@ -160,6 +172,11 @@ class Profile:
     neighbour_corners_px : tuple of (float, float), optional
         The 12 corners of the five cells in ground-view pixels, order :data:`CORNER_ORDER`
         (None: the nominal ones).
+    pixel_scale : float
+        This profile's pixels per pixel of the camera the pipeline's pixel-scale settings were
+        set for (1 unless rescaled).
+    resampling : str
+        How the frames are made from that camera's: one of :data:`RESAMPLINGS`.
     provenance : dict
         Where the profile came from (the calibration's inputs and settings).
     """
@@ -180,6 +197,8 @@ class Profile:
     ground_size_px: int = 300
     subcell_m: float = DEFAULT_SUBCELL_M
     neighbour_corners_px: tuple[tuple[float, float], ...] | None = None
+    pixel_scale: float = 1.0
+    resampling: str = "none"
     provenance: dict = field(default_factory=dict)
 
     # ------------------------------------------------------------------ model
@@ -318,6 +337,8 @@ class Profile:
         d = {k: (list(v) if isinstance(v, tuple) else v) for k, v in d.items()}
         if self.neighbour_corners_px is not None:
             d["neighbour_corners_px"] = [list(p) for p in self.neighbour_corners_px]
+        if self.pixel_scale == 1.0 and self.resampling == "none":  # a profile of its camera's own mode
+            del d["pixel_scale"], d["resampling"]
         return {"schema_version": SCHEMA_VERSION, "model": MODEL, **d}
 
     @classmethod
@@ -371,6 +392,13 @@ class Profile:
         ratio = _num(d, "ellipse_ratio", positive=True, where=where) if "ellipse_ratio" in d else 1.0
         if not 0.8 <= ratio <= 1.25:
             raise ProfileError(f"{where} field 'ellipse_ratio' must be in 0.8..1.25, got {ratio}")
+        scale = _num(d, "pixel_scale", positive=True, where=where) if "pixel_scale" in d else 1.0
+        if not PIXEL_SCALE_RANGE[0] <= scale <= PIXEL_SCALE_RANGE[1]:
+            lo, hi = PIXEL_SCALE_RANGE
+            raise ProfileError(f"{where} field 'pixel_scale' must be in {lo}..{hi}, got {scale}")
+        resampling = d.get("resampling", "none")
+        if resampling not in RESAMPLINGS:
+            raise ProfileError(f"{where} field 'resampling' must be one of {list(RESAMPLINGS)}, got {resampling!r}")
         prof = cls(
             image_size_px=(int(size[0]), int(size[1])),
             center_px=tuple(_vec(d, "center_px", 2, where=where)),
@@ -388,6 +416,8 @@ class Profile:
             ground_size_px=int(gsize),
             subcell_m=_num(d, "subcell_m", positive=True, where=where) if "subcell_m" in d else DEFAULT_SUBCELL_M,
             neighbour_corners_px=corners,
+            pixel_scale=scale,
+            resampling=resampling,
             provenance=prov,
         )
         if corners is not None:

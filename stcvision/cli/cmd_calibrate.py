@@ -258,7 +258,9 @@ def _add_target_parsers(sub):
     )
     g.add_argument("--spacing", type=positive(float), metavar="S", help="distance between neighbouring points (m)")
     g.add_argument(
-        "--model", choices=tuple(MODELS), help="fit this model only (default: all, the lowest held-out RMS chosen)"
+        "--model",
+        choices=tuple(MODELS),
+        help="fit this model only (default: all; the richer chosen only when better held out beyond its error)",
     )
     g.add_argument(
         "--folds", type=int, default=DEFAULT_FOLDS, metavar="K", help=f"k-fold over views (default {DEFAULT_FOLDS})"
@@ -283,6 +285,12 @@ def _add_target_parsers(sub):
     s.add_argument("profile", metavar="PROFILE.json")
     s.add_argument("--size", required=True, type=pair(int, fmt="WxH", example="640x480"), metavar="WxH")
     s.add_argument("--out", required=True, metavar="PROFILE.json")
+    s.add_argument(
+        "--native",
+        action="store_true",
+        help="the camera's own mode at this size (independent pixel noise), not frames resized from the "
+        "calibrated size (area-averaged down, interpolated up: the default)",
+    )
     s.add_argument("--force", action="store_true", help="overwrite --out")
     return g, s
 
@@ -384,7 +392,7 @@ def _target(args):
     from stcvision.errors import BadInputError, OutputError
     from stcvision.fileio import check_output_file, raise_if_signalled, write_bytes_atomic
 
-    png = args.uncertainty_png or f"{Path(args.source).name}.uncertainty.png"
+    png = args.uncertainty_png or f"{Path(args.source).resolve().name or 'target'}.uncertainty.png"
     if Path(png).suffix.lower() != ".png":
         raise OutputError(f"uncertainty map {png} does not end in .png; expected a .png file name")
     check_output_file(png, overwrite=args.force or _own_preview(png), what="uncertainty map")
@@ -447,9 +455,15 @@ def _rescale(args):
     if not str(args.out).lower().endswith(".json"):
         raise OutputError(f"profile {args.out} does not end in .json; expected a .json file name")
     check_output_file(args.out, overwrite=args.force, what="profile")
-    prof = rescale_profile(Profile.load(args.profile), tuple(args.size))
+    prof = rescale_profile(Profile.load(args.profile), tuple(args.size), native=args.native)
     prof.save(args.out, overwrite=args.force)
-    return {"out": str(args.out), "image_size_px": list(prof.image_size_px), "scale": prof.provenance["rescaled"]}
+    return {
+        "out": str(args.out),
+        "image_size_px": list(prof.image_size_px),
+        "scale": prof.provenance["rescaled"],
+        "pixel_scale": prof.pixel_scale,
+        "resampling": prof.resampling,
+    }
 
 
 def _model_name(model) -> str:
@@ -773,7 +787,10 @@ def format_text(r):
     if step == "target":
         return _target_text(r)
     if step == "rescale":
-        return f"wrote {r['out']}: the profile at {r['image_size_px'][0]}x{r['image_size_px'][1]} (x{r['scale']:.4g})"
+        return (
+            f"wrote {r['out']}: the profile at {r['image_size_px'][0]}x{r['image_size_px'][1]} (x{r['scale']:.4g}; "
+            f"x{r['pixel_scale']:.4g} the calibrated camera's pixels, frames {r['resampling']} resampled)"
+        )
     return f"wrote {r['out']}: {len(r['corners_px'])} neighbour corners (preview {r['preview']})"
 
 

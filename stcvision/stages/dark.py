@@ -36,7 +36,7 @@ DARK_ROOM_MAX_STRUCTURE = 0.02
 STRUCTURE_BLOCK_PX = 8
 
 
-def frame_structure(frame: np.ndarray) -> float:
+def frame_structure(frame: np.ndarray, *, block_px: int = STRUCTURE_BLOCK_PX) -> float:
     """How much of a scene a frame shows, as a share of full scale.
 
     The robust spread (1.4826 x the median absolute deviation) of the means of
@@ -50,6 +50,9 @@ def frame_structure(frame: np.ndarray) -> float:
     ----------
     frame : numpy.ndarray
         (H, W, 3) or (H, W), uint8 or uint16.
+    block_px : int
+        The blocks' side (px): :data:`STRUCTURE_BLOCK_PX` of the calibrated camera's pixels,
+        scaled with a frame resized from it.
 
     Returns
     -------
@@ -58,7 +61,7 @@ def frame_structure(frame: np.ndarray) -> float:
         :data:`DARK_ROOM_MAX_STRUCTURE`.
     """
     full = float(np.iinfo(frame.dtype).max)
-    b = STRUCTURE_BLOCK_PX
+    b = max(1, int(block_px))
     small = cv2.resize(frame, (frame.shape[1] // b, frame.shape[0] // b), interpolation=cv2.INTER_AREA)
     level = (small.max(axis=2) if small.ndim == 3 else small).astype(np.float32)
     med = float(np.median(level))

@@ -107,20 +107,52 @@ class Dots:
         return int(self.lit.sum())
 
 
-def noise_gain(umap: UnwarpMap, window_px: int, *, n: int = 12, seed: int = 0) -> np.ndarray:
+def noise_gain(
+    umap: UnwarpMap, window_px: int, *, n: int = 12, seed: int = 0, resampled_from: tuple | None = None
+) -> np.ndarray:
     """Map the noise of the unwarped window mean per ground pixel.
 
-    Standard deviation, per ground pixel, of the unwarped window mean of unit white noise.
+    Standard deviation, per ground pixel, of the unwarped window mean of noise of unit standard
+    deviation per pixel: white noise, or noise white at another size and resized to this one.
 
     The unwarp interpolates between window means, which lowers their noise by an amount that
     varies across the ground view; this map, computed once, turns the raw image's per-pixel
-    noise into each ground pixel's.
+    noise into each ground pixel's. A frame resized from the camera's own size no longer has
+    independent pixels: area averaging leaves them nearly so, interpolating up makes neighbours
+    share their noise, so a window's mean is noisier than independent pixels' would be (twice,
+    for a 3-pixel window of a frame enlarged by 2 with ``cv2.INTER_LINEAR``). With
+    ``resampled_from`` the noise is drawn white at that size and resized as the frames were,
+    then scaled to unit standard deviation per pixel, as the frame's own noise is measured.
+
+    Parameters
+    ----------
+    umap : UnwarpMap
+        The unwarp map (the mirror image's size and the ground view).
+    window_px : int
+        The dot window's side (px).
+    n : int
+        Monte-Carlo images (the variance is smoothed across the view after).
+    seed : int
+        Their seed.
+    resampled_from : tuple, optional
+        ``((W, H), interpolation)``: the size the frames were resized from and the OpenCV
+        interpolation flag; None: the frames' pixels are independent.
+
+    Returns
+    -------
+    numpy.ndarray
+        The gain per ground pixel, float32 (large where the mirror does not look).
     """
     rng = np.random.default_rng(seed)
     w, h = umap.image_size_px
     acc = np.zeros(umap.map_x.shape, np.float64)
     for _ in range(n):
-        z = rng.standard_normal((h, w)).astype(np.float32)
+        if resampled_from is None:
+            z = rng.standard_normal((h, w)).astype(np.float32)
+        else:
+            (w0, h0), interp = resampled_from
+            z = cv2.resize(rng.standard_normal((h0, w0)).astype(np.float32), (w, h), interpolation=interp)
+            z /= np.float32(z.std())  # the frame's noise is measured per pixel, after the resize
         b = cv2.boxFilter(z, cv2.CV_32F, (window_px, window_px))  # the window mean, in the mirror image
         g = cv2.remap(b, umap.map_x, umap.map_y, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=0)
         acc += g.astype(np.float64) ** 2

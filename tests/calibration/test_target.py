@@ -125,6 +125,15 @@ MALFORMED = [
     ("a nan", lambda t: re.sub(r"(<data>\s*)\S+", r"\1.Nan", t, count=1), "finite"),
     ("a size not in pixels", lambda t: re.sub(r"<imageSize>[^<]*<", "<imageSize>\n  1280.5 960<", t), "imageSize"),
     ("a view too few", lambda t: re.sub(r"(<imagePoints>\s*)<_ [\s\S]*?</_>", r"\1", t, count=1), "views"),
+    ("rows declared huge", lambda t: re.sub(r"<rows>\d+</rows>", "<rows>2000000000</rows>", t, count=1), "declares"),
+    ("a size of words", lambda t: re.sub(r"<imageSize>[^<]*<", "<imageSize>abc def<", t), "imageSize"),
+    (
+        "a view's image points at one pixel",
+        lambda t: re.sub(
+            r"(<imagePoints>\s*<_[^>]*>[\s\S]*?<data>)[^<]*", lambda m: m.group(1) + " 5." * 108, t, count=1
+        ),
+        "on a line or a point",
+    ),
 ]
 
 
@@ -338,8 +347,8 @@ def test_rescaled_profile_reads_a_rescaled_frame_as_the_original(cli, tmp_path):
 def test_rescaled_profile_finds_the_dots_where_the_original_does(cli, tmp_path):
     """The example scene's dark-room frame and dark frame resized to 960x720 and read with the
     rescaled profile: every dot the original reading finds lit in the image is found at the same
-    floor point to 3 mm (the geometry is the profile's; the pipeline's pixel-scale settings -- window, dot size --
-    are the camera's, so an enlarged frame's noise can add dots of its own)."""
+    floor point to 3 mm, and the enlarged frame's interpolated noise adds no dots of its own (the
+    pipeline's dot window and noise model follow the profile's scale)."""
     from stcvision.calibration.profiles import default_profile_path
     from stcvision.pipeline import Pipeline
     from stcvision.profile import Profile
@@ -364,6 +373,7 @@ def test_rescaled_profile_finds_the_dots_where_the_original_does(cli, tmp_path):
     assert len(A) >= 10
     nearest = np.linalg.norm(A[:, None] - B[None], axis=2).min(axis=1)
     assert (nearest < 0.003).all(), 1000 * nearest
+    assert not b.untrusted and len(B) <= len(a.dots.xy_m[a.dots.lit]) + 2
 
 
 def test_the_floor_bound_holds_on_the_simulators_own_camera():
@@ -540,3 +550,20 @@ def test_model_error_widens_the_uncertainty_to_what_the_halves_show(peer_data):
     assert model_error_inflation({"diff_over_predicted": 1.6}) == 1.0  # within the halves' own sampling
     assert model_error_inflation({"failed": "a half could not be fitted"}) == 1.0
     assert inflate(r.fit, 1.0) is r.fit
+
+
+def test_the_richer_model_is_chosen_only_when_better_beyond_its_standard_error():
+    """The one-standard-error rule: the polynomial (ten parameters) replaces the unified model
+    (nine) only when its held-out mean squared error is lower by more than the standard error of
+    the paired per-view difference; within it the simpler model is kept."""
+    from stcvision.calibration.target import choose_model
+    from stcvision.calibration.target_sim import simulated_views
+
+    views = simulated_views(2, 8)
+    rng = np.random.default_rng(0)
+    mei = 0.5 + 0.05 * rng.standard_normal(len(views))
+    assert choose_model({"mei": mei, "poly": mei - 0.05}, views) == "poly"  # better on every view
+    jitter = 0.05 * rng.standard_normal(len(views))
+    alike = mei + jitter - jitter.mean() - 0.001  # lower on average, by far less than its scatter
+    assert choose_model({"mei": mei, "poly": alike}, views) == "mei"
+    assert choose_model({"poly": mei}, views) == "poly"

@@ -418,3 +418,57 @@ def test_load_robot(data):
     d, p = _tmp_file("robot.json", data)
     with d:
         project_call(load_robot, str(p))
+
+
+# ------------------------------------------------------------------------------------ target points files
+def _points_text(suffix: str) -> str:
+    from stcvision.calibration.target_sim import simulated_views
+    from stcvision.calibration.target_views import write_points_file
+
+    with tempfile.TemporaryDirectory() as d:
+        p = Path(d) / f"good{suffix}"
+        write_points_file(p, simulated_views(3, 4))
+        return p.read_text()
+
+
+_POINTS_XML = _points_text(".xml")
+_POINTS_YAML = _points_text(".yml")
+#: what a fuzzed points file's numbers, keys and sizes may become
+_POINT_TOKENS = st.sampled_from(
+    ["nan", ".Nan", "inf", "-.Inf", "1e308", "-1e308", "0", "-1", "4000000000", "abc", "", '"3d"', '"u"', "[]", "{}"]
+)
+_POINT_KEYS = st.sampled_from(["objectPoints", "imagePoints", "imageSize", "rows", "cols", "dt", "data"])
+
+
+@st.composite
+def _mutated_points(draw):
+    """A good points file (XML or YAML) with tokens replaced, a key renamed, lines dropped or
+    repeated, or cut short."""
+    text = draw(st.sampled_from([_POINTS_XML, _POINTS_YAML]))
+    suffix = ".xml" if text is _POINTS_XML else ".yml"
+    toks = text.split(" ")
+    for _ in range(draw(st.integers(0, 4))):
+        toks[draw(st.integers(0, len(toks) - 1))] = draw(_POINT_TOKENS)
+    text = " ".join(toks)
+    if draw(st.booleans()):
+        key = draw(_POINT_KEYS)
+        text = text.replace(key, draw(st.sampled_from(["", key + "1", key.upper(), "imagePoints2"])), 1)
+    lines = text.splitlines(keepends=True)
+    for _ in range(draw(st.integers(0, 3))):
+        i = draw(st.integers(0, len(lines) - 1))
+        lines[i : i + 1] = draw(st.sampled_from([[], [lines[i], lines[i]], [lines[i] * 50]]))
+    text = "".join(lines)
+    return suffix, text[: draw(st.integers(0, len(text)))] if draw(st.booleans()) else text
+
+
+@examples(2)
+@given(_mutated_points())
+def test_read_points_file(named):
+    """A fuzzed OpenCV points file: its views, or one line saying what is wrong (never a
+    traceback, never an allocation of what a file merely declares)."""
+    from stcvision.calibration.target_views import read_points_file
+
+    suffix, text = named
+    d, p = _tmp_file("points" + suffix, text.encode())
+    with d:
+        project_call(read_points_file, p)
