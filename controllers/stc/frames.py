@@ -687,6 +687,9 @@ class RobotCamera(Exposures):
         self._doubted: set[int] = set()
         self.relooked = 0  # looks taken again for dots in no row in the cell ahead (:meth:`_look_again`)
         self.last_image = None  # the last frame shot (read again by :meth:`_on_cell_lines`)
+        #: where each frame's render and pipeline time go (None: not timed;
+        #: :class:`stcvision.controllers.stc.timing.FrameTimes`)
+        self.times = None
         from stcvision.controllers.stc.health import NoiseCheck
 
         self.noise_check = NoiseCheck()
@@ -743,11 +746,15 @@ class RobotCamera(Exposures):
         from stcvision.sim_camera.camera import Pose
 
         dt = 0.0
+        times = self.times
         for _ in range(FRAME_RETRIES + 1):
+            t0 = times.now() if times is not None else None
             frame = self.cam.render(
                 Pose(*pose), rng=self.rng, t_s=t_s + dt, phosphor=phosphor, red_lights_m=self.lights,
                 sensor=self._sensor(k), n_avg=self.stack(k),
             )  # fmt: skip
+            if times is not None:
+                times.add_render(t0)
             self.pipe = self._pipeline(k)  # (after the first frame: the camera stream's order)
             dt += self.frame_s(k)
             img = None if frame is None else frame.image
@@ -757,7 +764,10 @@ class RobotCamera(Exposures):
             self.bad_frames += 1
         else:
             raise RobotStop(f"camera: {FRAME_RETRIES + 1} frames in a row {why}")
+        t0 = times.now() if times is not None else None
         res = self.pipe.process(img, heading_error_rad=heading_error_rad, position_offset=position_offset)
+        if times is not None:
+            times.add_pipeline(t0, res.stage_ms)
         self.last_image = img
         if res.observation.untrusted:  # the pipeline could not read this frame honestly (too many candidates)
             raise RobotStop(f"camera: a frame the pipeline cannot trust ({res.observation.untrusted})")
