@@ -201,6 +201,9 @@ class Exposures:
         self.frames = 0
         self.long_frames = 0
         self.per_rung = [0] * len(self.ladder)  # frames taken at each rung
+        #: rung -> (the camera's sensor, its settings at the rung, the rung's noise floor), worked
+        #: out once per rung and sensor rather than at every frame
+        self._settings: dict[int, tuple] = {}
         self.agreed = 0  # returns' boxes taken by two longer frames' agreement (:meth:`_check_return`)
         self.reread_old = 0  # returns read again for an unlit box near its frames' reach (:meth:`_check_old_boxes`)
         self.disputed = 0  # boxes one frame read lit and a longer one unlit, read again (:meth:`_check_disputed`)
@@ -256,10 +259,7 @@ class Exposures:
         Rung ``k``'s noise floor by the camera's figures (:func:`stcvision.controllers.stc.health.noise_floor_dn`),
         with its dark frame (a median of 8, or a mean of 8n frames for a stack of n).
         """
-        from stcvision.controllers.stc.health import noise_floor_dn
-
-        n = self.stack(k)
-        return noise_floor_dn(self._sensor(k), n_avg=n, n_dark=8 * n)
+        return self._rung(k)[2]
 
     def horizon(self, k: int, rho_m: float, snr: float | None = None) -> float:
         """Return how old (s) a mark may be and still be seen in a frame at rung ``k``.
@@ -573,8 +573,19 @@ class Exposures:
         return length if n == 1 else f"{n} x {length}"
 
     def _sensor(self, k: int):
-        e, g, _ = self.ladder[k]
-        return self.cam.sensor.replace(exposure_s=e, gain=g)
+        return self._rung(k)[1]
+
+    def _rung(self, k: int) -> tuple:
+        """Return (the camera's sensor, its settings at rung ``k``, the rung's noise floor)."""
+        base = self.cam.sensor
+        hit = self._settings.get(k)
+        if hit is None or hit[0] is not base:
+            from stcvision.controllers.stc.health import noise_floor_dn
+
+            e, g, _ = self.ladder[k]
+            s, n = base.replace(exposure_s=e, gain=g), self.stack(k)
+            hit = self._settings[k] = (base, s, noise_floor_dn(s, n_avg=n, n_dark=8 * n))
+        return hit
 
     def stack(self, k: int) -> int:
         """How many frames rung ``k`` averages."""
@@ -680,6 +691,8 @@ class RobotCamera(Exposures):
         self.rng = rng
         self.pipes: dict = {}
         self.darks: dict = {}
+        self.dark_levels: dict = {}  # each dark frame's level as frame_fault reads it, measured once
+        self.dark_level = None  # ... the last pipeline's
         self.pipe = None  # the pipeline that read the last frame (for the recording)
         self.bad_frames = 0  # frames lost or black, taken again
         self.refits = 0  # frames read again against the cell's own marks (:meth:`_on_cell_lines`)
@@ -727,6 +740,11 @@ class RobotCamera(Exposures):
         pipe = self.pipes[(e, g)]
         if pipe.dark is not self.darks[(e, g, n)]:
             pipe.set_dark(self.darks[(e, g, n)])
+        if (e, g, n) not in self.dark_levels:
+            from stcvision.controllers.stc.health import sampled_level
+
+            self.dark_levels[(e, g, n)] = sampled_level(self.darks[(e, g, n)])
+        self.dark_level = self.dark_levels[(e, g, n)]
         return pipe
 
     def shoot(
@@ -758,7 +776,7 @@ class RobotCamera(Exposures):
             self.pipe = self._pipeline(k)  # (after the first frame: the camera stream's order)
             dt += self.frame_s(k)
             img = None if frame is None else frame.image
-            why = frame_fault(img, self.pipe.dark)
+            why = frame_fault(img, self.pipe.dark, dark_level=self.dark_level)
             if why is None:
                 break
             self.bad_frames += 1
