@@ -22,6 +22,7 @@
 
 from __future__ import annotations
 
+import bisect
 import dataclasses
 
 import numpy as np
@@ -185,7 +186,7 @@ class Exposures:
         self.cam = SyntheticCamera(sensor=cfg.camera.sensor)
         self.cfg = cfg
         self.subcell_m = subcell_m
-        self._horizons: dict[tuple[int, float], np.ndarray] = {}  # a few curves per rung: bounded
+        self._horizons: dict[tuple[int, float], list[float]] = {}  # a few curves per rung: bounded
         if cfg.exposure == "auto":
             ladder = (WEBCAM, *AUTO_LONG)
         elif cfg.exposure == "webcam":
@@ -212,13 +213,16 @@ class Exposures:
     #: the distances (m) at which each rung's horizon is tabulated once (1 cm steps, read at
     #: the next step out: never longer than the truth)
     RHO = np.round(np.arange(0.05, 1.0, 0.01), 2)
+    #: the same as Python floats, searched by :func:`bisect.bisect_left` (numpy's searchsorted
+    #: on one number costs more than the search)
+    _RHO_LIST = RHO.tolist()
 
     #: with ``CoverConfig.size_by_frame_noise``, size the frames by the noise they will have
     #: (:meth:`stack_equivalent`); the physics-limited camera keeps the idealised noise (an
     #: upper bound)
     frame_noise = False
 
-    def _curve(self, k: int, snr: float | None = None) -> np.ndarray:
+    def _curve(self, k: int, snr: float | None = None) -> list[float]:
         """Return rung ``k``'s visibility horizon (s) at :data:`RHO`.
 
         Rung ``k``'s horizon (s) at :data:`RHO`, for a lone dot at ``snr`` (default
@@ -232,7 +236,7 @@ class Exposures:
             eq = (ROSE_SNR / snr) ** 2  # as if that many more frames were stacked
             n = self.stack_equivalent(k) if self.frame_noise and self.cfg.size_by_frame_noise else self.stack(k)
             curve = visibility_horizon_s(self.cam, sensor=self._sensor(k), rho_m=self.RHO, n_stack=eq * n)
-            self._horizons[(k, snr)] = curve
+            self._horizons[(k, snr)] = curve.tolist()
         return self._horizons[(k, snr)]
 
     def stack_equivalent(self, k: int) -> float:
@@ -267,8 +271,8 @@ class Exposures:
         How old (s) a mark ``rho_m`` from the robot may be and still be seen in a frame at rung
         ``k`` (its deciding dot at ``snr``, default ``CoverConfig.sizing_snr``).
         """
-        i = min(int(np.searchsorted(self.RHO, rho_m - 1e-9)), len(self.RHO) - 1)
-        return float(self._curve(k, snr)[i])
+        i = min(bisect.bisect_left(self._RHO_LIST, rho_m - 1e-9), len(self._RHO_LIST) - 1)
+        return self._curve(k, snr)[i]
 
     def horizons(self, reach_m: float = AUTO_REACH_M) -> tuple[float, ...]:
         """Return the long rungs' visibility horizons (s) for a dot ``reach_m`` from the robot."""
