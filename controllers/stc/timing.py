@@ -144,6 +144,7 @@ def bench_loop(board, cfg) -> dict:
         "loop_stage_ms_median": {k: float(np.median([s[k] for s in times.stage_ms])) for k in stages},
         "loop_overhead_ratio": summary["wall_s"] / (summary["frames"] * (med_render + med_pipe)),
         "loop_frame_share": float(render.sum() + pipe.sum()) / summary["wall_s"],
+        "loop_frame_cpu_share": float(np.sum(times.render_cpu_s) + np.sum(times.pipeline_cpu_s)) / cpu_s,
         # the same on this thread's CPU time (tour and frames): what other processes sharing the
         # core do not change
         "loop_overhead_ratio_cpu": cpu_s

@@ -287,7 +287,7 @@ def _loop_text(r) -> list[str]:
         f"(medians; means {r['loop_render_ms_mean']:.2f} and {r['loop_pipeline_ms_mean']:.2f})",
         f"  loop overhead ratio {r['loop_overhead_ratio']:.3f} (wall / (frames x (median render + median "
         f"pipeline))), {r['loop_overhead_ratio_cpu']:.3f} on CPU time; the frames' own time is "
-        f"{100 * r['loop_frame_share']:.1f} % of the wall time",
+        f"{100 * r['loop_frame_share']:.1f} % of the wall time, {100 * r['loop_frame_cpu_share']:.1f} % of the CPU time",
         "  pipeline stages (medians, ms): "
         + ", ".join(f"{k} {v:.3f}" for k, v in r["loop_stage_ms_median"].items()),
     ]

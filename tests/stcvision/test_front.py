@@ -289,3 +289,24 @@ def test_window_sums_refuse_a_malformed_pair(pair):
 
     with pytest.raises(BadInputError):
         window_sums(pair, 3)
+
+
+@pytest.mark.parametrize("quantum", [1, 16])
+@pytest.mark.parametrize("outliers", [0, 20])
+def test_histogram_quartiles_are_numpy_interp(quantum, outliers):
+    """The compiled quartiles (each value spread over its step) against numpy's: ``np.interp`` of
+    (0.25, 0.5, 0.75) on the strictly increasing points of the cumulative histogram, to the last
+    bit, on a dark background with saturated pixels far above it (the 16-bit frame's case, whose
+    histogram spans tens of thousands of empty bins beyond the last quartile)."""
+    from stcvision.stages.dark import histogram_quartiles
+
+    rng = np.random.default_rng(quantum + outliers)
+    v = (np.clip(rng.normal(300, 20, 7000), 0, None).astype(np.int64) // quantum) * quantum
+    v[:outliers] = 65535 // quantum * quantum
+    lo = int(v.min())
+    nbins = (int(v.max()) - lo) // quantum + 1
+    cdf = np.concatenate([[0.0], np.cumsum(np.bincount((v - lo) // quantum, minlength=nbins))]) / len(v)
+    keep = np.concatenate([[True], np.diff(cdf) > 0])
+    edges = lo + (np.arange(nbins + 1) - 0.5) * quantum
+    want = np.interp([0.25, 0.5, 0.75], cdf[keep], edges[keep])
+    assert np.array_equal(histogram_quartiles(v, lo, quantum, nbins), want)
