@@ -142,6 +142,7 @@ def bench_loop(board, cfg) -> dict:
         "loop_render_ms_mean": 1e3 * float(render.mean()),
         "loop_pipeline_ms_mean": 1e3 * float(pipe.mean()),
         "loop_stage_ms_median": {k: float(np.median([s[k] for s in times.stage_ms])) for k in stages},
+        "loop_timed_frames": len(render),
         "loop_overhead_ratio": summary["wall_s"] / (summary["frames"] * (med_render + med_pipe)),
         "loop_frame_share": float(render.sum() + pipe.sum()) / summary["wall_s"],
         "loop_frame_cpu_share": float(np.sum(times.render_cpu_s) + np.sum(times.pipeline_cpu_s)) / cpu_s,

@@ -46,7 +46,8 @@ def add_parser(p):
                      help=f"the tour's random board (default {LOOP_BOARD[0]}x{LOOP_BOARD[1]})")  # fmt: skip
     src.add_argument("--loop-map", metavar="FILE", help="the tour's board from a map, as cover --map takes it")
     loop.add_argument("--loop-camera", default="cooled", metavar="NAME|FILE.json", help="its camera (default cooled)")
-    loop.add_argument("--loop-seed", type=seed, default=0, metavar="S", help="its seed: board, robot and camera (default 0)")
+    loop.add_argument("--loop-seed", type=seed, default=0, metavar="S",
+                      help="its seed: board, robot and camera (default 0)")  # fmt: skip
     loop.add_argument("--loop-profile", type=positive(int, maximum=MAX_BENCH_PROFILE_ROWS), metavar="N",
                       help="also profile a tour (cProfile) and print its top N functions by own time")  # fmt: skip
     which = loop.add_mutually_exclusive_group()
@@ -199,8 +200,11 @@ def _bench_loop(args) -> dict:
     from stcvision.cli.cmd_cover import load_board
     from stcvision.controllers.stc.loop import CoverConfig
     from stcvision.controllers.stc.timing import bench_loop, profile_loop
+    from stcvision.limits import check_board_cells
     from stcvision.sim_camera import hardware
 
+    if args.loop_map is None:
+        check_board_cells(*args.loop_board, flag="--loop-board")
     where = argparse.Namespace(map=args.loop_map, board=args.loop_board, seed=args.loop_seed, obstacle_fraction=None,
                                start=None, subcell_m=None, resolution=None)  # fmt: skip
     board = load_board(where)
@@ -287,9 +291,9 @@ def _loop_text(r) -> list[str]:
         f"(medians; means {r['loop_render_ms_mean']:.2f} and {r['loop_pipeline_ms_mean']:.2f})",
         f"  loop overhead ratio {r['loop_overhead_ratio']:.3f} (wall / (frames x (median render + median "
         f"pipeline))), {r['loop_overhead_ratio_cpu']:.3f} on CPU time; the frames' own time is "
-        f"{100 * r['loop_frame_share']:.1f} % of the wall time, {100 * r['loop_frame_cpu_share']:.1f} % of the CPU time",
-        "  pipeline stages (medians, ms): "
-        + ", ".join(f"{k} {v:.3f}" for k, v in r["loop_stage_ms_median"].items()),
+        f"{100 * r['loop_frame_share']:.1f} % of the wall time, {100 * r['loop_frame_cpu_share']:.1f} % of the "
+        "CPU time",
+        "  pipeline stages (medians, ms): " + ", ".join(f"{k} {v:.3f}" for k, v in r["loop_stage_ms_median"].items()),
     ]
     if "loop_profile" in r:
         lines.append(r["loop_profile"])

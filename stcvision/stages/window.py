@@ -156,7 +156,8 @@ def box3_pair_wide(g, r, h, w, sums, rows):
                     continue
                 rows[oh] = np.uint32(src[o]) + np.uint32(src[o + uidx(1)])
                 for x in range(uidx(1), uw - uidx(1)):
-                    rows[oh + x] = np.uint32(src[o + x - uidx(1)]) + np.uint32(src[o + x]) + np.uint32(src[o + x + uidx(1)])
+                    left, right = np.uint32(src[o + x - uidx(1)]), np.uint32(src[o + x + uidx(1)])
+                    rows[oh + x] = left + np.uint32(src[o + x]) + right
                 rows[oh + uw - uidx(1)] = np.uint32(src[o + uw - uidx(2)]) + np.uint32(src[o + uw - uidx(1)])
         if y == 0:
             continue
