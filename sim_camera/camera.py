@@ -268,6 +268,10 @@ class SyntheticCamera:
         shape = (self.optics.height_px, self.optics.width_px)
         self.pattern = FixedPattern.draw(shape, self.sensor, np.random.default_rng(pattern_seed))
         self._scratch = np.empty((*shape, 3), np.float32)
+        # whether the scratch is all zeros: a rendered frame's exposure clears the few pixels its
+        # sources lit (expose's ``out``), so the next frame needs not clear the whole image
+        self._scratch_clear = False
+        self._exposed = np.empty((*shape, 3), np.float32)  # the exposure's electrons, scratch
         self._last_projection = None  # (positions, diameters, result) of the last signal()
 
     @property
@@ -381,7 +385,9 @@ class SyntheticCamera:
         source: :mod:`stcvision.controllers.stc.faults`)."""
         s = sensor or self.sensor
         out = self._scratch
-        out.fill(0)
+        if not self._scratch_clear:
+            out.fill(0)
+        self._scratch_clear = False  # the caller may change it (an exposure in place)
         info = {}
         sources = []  # (name, robot-frame positions, luminance, diameter, colour response)
         if phosphor is not None and len(phosphor):
@@ -447,7 +453,8 @@ class SyntheticCamera:
         if n_avg > 1:
             t_s = t_s + 0.5 * (n_avg - 1) * s.exposure_s
         sig, info = self.signal(pose, t_s=t_s, phosphor=phosphor, red_lights_m=red_lights_m, sensor=s, lamps=lamps)
-        image = expose(sig, s, self.pattern, rng, n_avg=n_avg)
+        image = expose(sig, s, self.pattern, rng, n_avg=n_avg, out=self._exposed)
+        self._scratch_clear = True
         gt = None
         if truth:
             from stcvision.sim_camera.truth import build_truth
@@ -459,8 +466,10 @@ class SyntheticCamera:
         """One frame with the lens capped (or the room dark and empty) at the given settings;
         with ``n_avg`` > 1 the average of that many (a master dark for stacked frames)."""
         s = sensor or self.sensor
-        self._scratch.fill(0)
-        return expose(self._scratch, s, self.pattern, rng, n_avg=n_avg)
+        if not self._scratch_clear:
+            self._scratch.fill(0)
+            self._scratch_clear = True
+        return expose(self._scratch, s, self.pattern, rng, n_avg=n_avg, out=self._exposed)
 
     def median_dark(self, n: int = 16, *, rng: np.random.Generator, sensor: SensorParams | None = None) -> np.ndarray:
         """The median of ``n`` dark frames at the given settings: what a user captures once

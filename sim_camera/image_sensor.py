@@ -253,6 +253,7 @@ def expose(
     rng: np.random.Generator,
     *,
     n_avg: int = 1,
+    out: np.ndarray | None = None,
 ) -> np.ndarray:
     """Turn expected signal electrons into one noisy BGR frame at the ADC's depth.
 
@@ -268,6 +269,10 @@ def expose(
         Expected photo-electrons per pixel and channel during this exposure (modified in place:
         pass a scratch array). Blooming and glare of saturating sources are the renderer's job
         (they are local to each source); here the charge is clipped at the full well.
+    out : (H, W, 3) float32, optional
+        Where the exposed electrons go instead; ``signal_e`` is then left all zeros (the pass
+        clears each pixel with signal as it reads it), so a renderer that splats a few sources
+        into it needs not clear the whole image before the next frame.
 
     Returns
     -------
@@ -280,8 +285,12 @@ def expose(
         raise BadInputError(f"expose: n_avg must be a whole number of frames >= 1, got {n_avg!r}")
     var0, mean0, sigma0 = _dark_terms(s, pattern, int(n_avg))
     idx = _noise_indices(rng, e.shape)  # the noise: indices into _LUT
+    if out is not None and (out.shape != e.shape or out.dtype != np.float32 or not out.flags.c_contiguous):
+        raise BadInputError("expose: out must be a C-contiguous float32 array of signal_e's shape")
     _expose_nb(
         e.reshape(-1),
+        (e if out is None else out).reshape(-1),
+        out is not None,
         pattern.prnu.reshape(-1),
         s.prnu_sigma > 0,
         var0.reshape(-1),
@@ -293,12 +302,13 @@ def expose(
         np.float32(s.full_well_e),
         np.float32(-s.black_dn / s.dn_per_e),
     )
-    return digitise(e, s)
+    return digitise(e if out is None else out, s)
 
 
 @numba.njit(cache=True, nogil=True)
-def _expose_nb(e, prnu, use_prnu, var0, mean0, sigma0, idx, lut, inv_n, full_well, floor):
-    """One pass over the frame (flat float32 arrays; ``e`` in place): PRNU, shot + read noise
+def _expose_nb(e, out, clear, prnu, use_prnu, var0, mean0, sigma0, idx, lut, inv_n, full_well, floor):
+    """One pass over the frame (flat float32 arrays; from ``e`` into ``out``, which may be ``e``;
+    ``clear``: zero each pixel of ``e`` with signal once read, leaving ``e`` all zeros): PRNU, shot + read noise
     ``sqrt((e + var0) * inv_n) * lut[idx]``, dark current and column offsets ``mean0``, the full
     well, and the floor below which the black level cannot go. A pixel without signal (most of
     a dark-room frame) takes its noise sigma from ``sigma0`` (``sqrt(var0 * inv_n)``, the same
@@ -310,6 +320,8 @@ def _expose_nb(e, prnu, use_prnu, var0, mean0, sigma0, idx, lut, inv_n, full_wel
         if x == 0:
             x = mean0[i] + sigma0[i] * lut[idx[i]]
         else:
+            if clear:
+                e[i] = 0
             if use_prnu:
                 x *= prnu[i]
             noise = np.sqrt((x + var0[i]) * inv_n) * lut[idx[i]]
@@ -318,7 +330,7 @@ def _expose_nb(e, prnu, use_prnu, var0, mean0, sigma0, idx, lut, inv_n, full_wel
             x = full_well
         if x < floor:
             x = floor
-        e[i] = x
+        out[i] = x
 
 
 def digitise(e: np.ndarray, s: SensorParams) -> np.ndarray:

@@ -15,6 +15,8 @@ MAX_DARK_FRAMES = 256
 MAX_DATASET_FRAMES = 100_000
 #: world steps of one ``stcvision world`` run (~8 minutes at ~2,000 steps/s)
 MAX_WORLD_STEPS = 1_000_000
+#: rows of the table ``stcvision bench --loop-profile N`` prints (a profile lists ~11,000 functions)
+MAX_BENCH_PROFILE_ROWS = 1000
 #: frames one ``stcvision bench`` times (each time is kept for the median; ~1 minute at 100,000)
 MAX_BENCH_FRAMES = 100_000
 #: a drawn picture's side (pixels): 10,000 x 10,000 x 3 bytes is 300 MB

@@ -22,6 +22,7 @@
 
 from __future__ import annotations
 
+import bisect
 import dataclasses
 
 import numpy as np
@@ -185,7 +186,7 @@ class Exposures:
         self.cam = SyntheticCamera(sensor=cfg.camera.sensor)
         self.cfg = cfg
         self.subcell_m = subcell_m
-        self._horizons: dict[tuple[int, float], np.ndarray] = {}  # a few curves per rung: bounded
+        self._horizons: dict[tuple[int, float], list[float]] = {}  # a few curves per rung: bounded
         if cfg.exposure == "auto":
             ladder = (WEBCAM, *AUTO_LONG)
         elif cfg.exposure == "webcam":
@@ -201,6 +202,9 @@ class Exposures:
         self.frames = 0
         self.long_frames = 0
         self.per_rung = [0] * len(self.ladder)  # frames taken at each rung
+        #: rung -> (the camera's sensor, its settings at the rung, the rung's noise floor), worked
+        #: out once per rung and sensor rather than at every frame
+        self._settings: dict[int, tuple] = {}
         self.agreed = 0  # returns' boxes taken by two longer frames' agreement (:meth:`_check_return`)
         self.reread_old = 0  # returns read again for an unlit box near its frames' reach (:meth:`_check_old_boxes`)
         self.disputed = 0  # boxes one frame read lit and a longer one unlit, read again (:meth:`_check_disputed`)
@@ -209,13 +213,16 @@ class Exposures:
     #: the distances (m) at which each rung's horizon is tabulated once (1 cm steps, read at
     #: the next step out: never longer than the truth)
     RHO = np.round(np.arange(0.05, 1.0, 0.01), 2)
+    #: the same as Python floats, searched by :func:`bisect.bisect_left` (numpy's searchsorted
+    #: on one number costs more than the search)
+    _RHO_LIST = RHO.tolist()
 
     #: with ``CoverConfig.size_by_frame_noise``, size the frames by the noise they will have
     #: (:meth:`stack_equivalent`); the physics-limited camera keeps the idealised noise (an
     #: upper bound)
     frame_noise = False
 
-    def _curve(self, k: int, snr: float | None = None) -> np.ndarray:
+    def _curve(self, k: int, snr: float | None = None) -> list[float]:
         """Return rung ``k``'s visibility horizon (s) at :data:`RHO`.
 
         Rung ``k``'s horizon (s) at :data:`RHO`, for a lone dot at ``snr`` (default
@@ -229,7 +236,7 @@ class Exposures:
             eq = (ROSE_SNR / snr) ** 2  # as if that many more frames were stacked
             n = self.stack_equivalent(k) if self.frame_noise and self.cfg.size_by_frame_noise else self.stack(k)
             curve = visibility_horizon_s(self.cam, sensor=self._sensor(k), rho_m=self.RHO, n_stack=eq * n)
-            self._horizons[(k, snr)] = curve
+            self._horizons[(k, snr)] = curve.tolist()
         return self._horizons[(k, snr)]
 
     def stack_equivalent(self, k: int) -> float:
@@ -256,10 +263,7 @@ class Exposures:
         Rung ``k``'s noise floor by the camera's figures (:func:`stcvision.controllers.stc.health.noise_floor_dn`),
         with its dark frame (a median of 8, or a mean of 8n frames for a stack of n).
         """
-        from stcvision.controllers.stc.health import noise_floor_dn
-
-        n = self.stack(k)
-        return noise_floor_dn(self._sensor(k), n_avg=n, n_dark=8 * n)
+        return self._rung(k)[2]
 
     def horizon(self, k: int, rho_m: float, snr: float | None = None) -> float:
         """Return how old (s) a mark may be and still be seen in a frame at rung ``k``.
@@ -267,8 +271,8 @@ class Exposures:
         How old (s) a mark ``rho_m`` from the robot may be and still be seen in a frame at rung
         ``k`` (its deciding dot at ``snr``, default ``CoverConfig.sizing_snr``).
         """
-        i = min(int(np.searchsorted(self.RHO, rho_m - 1e-9)), len(self.RHO) - 1)
-        return float(self._curve(k, snr)[i])
+        i = min(bisect.bisect_left(self._RHO_LIST, rho_m - 1e-9), len(self._RHO_LIST) - 1)
+        return self._curve(k, snr)[i]
 
     def horizons(self, reach_m: float = AUTO_REACH_M) -> tuple[float, ...]:
         """Return the long rungs' visibility horizons (s) for a dot ``reach_m`` from the robot."""
@@ -573,8 +577,19 @@ class Exposures:
         return length if n == 1 else f"{n} x {length}"
 
     def _sensor(self, k: int):
-        e, g, _ = self.ladder[k]
-        return self.cam.sensor.replace(exposure_s=e, gain=g)
+        return self._rung(k)[1]
+
+    def _rung(self, k: int) -> tuple:
+        """Return (the camera's sensor, its settings at rung ``k``, the rung's noise floor)."""
+        base = self.cam.sensor
+        hit = self._settings.get(k)
+        if hit is None or hit[0] is not base:
+            from stcvision.controllers.stc.health import noise_floor_dn
+
+            e, g, _ = self.ladder[k]
+            s, n = base.replace(exposure_s=e, gain=g), self.stack(k)
+            hit = self._settings[k] = (base, s, noise_floor_dn(s, n_avg=n, n_dark=8 * n))
+        return hit
 
     def stack(self, k: int) -> int:
         """How many frames rung ``k`` averages."""
@@ -680,6 +695,8 @@ class RobotCamera(Exposures):
         self.rng = rng
         self.pipes: dict = {}
         self.darks: dict = {}
+        self.dark_levels: dict = {}  # each dark frame's level as frame_fault reads it, measured once
+        self.dark_level = None  # ... the last pipeline's
         self.pipe = None  # the pipeline that read the last frame (for the recording)
         self.bad_frames = 0  # frames lost or black, taken again
         self.refits = 0  # frames read again against the cell's own marks (:meth:`_on_cell_lines`)
@@ -687,6 +704,9 @@ class RobotCamera(Exposures):
         self._doubted: set[int] = set()
         self.relooked = 0  # looks taken again for dots in no row in the cell ahead (:meth:`_look_again`)
         self.last_image = None  # the last frame shot (read again by :meth:`_on_cell_lines`)
+        #: where each frame's render and pipeline time go (None: not timed;
+        #: :class:`stcvision.controllers.stc.timing.FrameTimes`)
+        self.times = None
         from stcvision.controllers.stc.health import NoiseCheck
 
         self.noise_check = NoiseCheck()
@@ -724,6 +744,11 @@ class RobotCamera(Exposures):
         pipe = self.pipes[(e, g)]
         if pipe.dark is not self.darks[(e, g, n)]:
             pipe.set_dark(self.darks[(e, g, n)])
+        if (e, g, n) not in self.dark_levels:
+            from stcvision.controllers.stc.health import sampled_level
+
+            self.dark_levels[(e, g, n)] = sampled_level(self.darks[(e, g, n)])
+        self.dark_level = self.dark_levels[(e, g, n)]
         return pipe
 
     def shoot(
@@ -743,21 +768,28 @@ class RobotCamera(Exposures):
         from stcvision.sim_camera.camera import Pose
 
         dt = 0.0
+        times = self.times
         for _ in range(FRAME_RETRIES + 1):
+            t0 = times.now() if times is not None else None
             frame = self.cam.render(
                 Pose(*pose), rng=self.rng, t_s=t_s + dt, phosphor=phosphor, red_lights_m=self.lights,
                 sensor=self._sensor(k), n_avg=self.stack(k),
             )  # fmt: skip
+            if times is not None:
+                times.add_render(t0)
             self.pipe = self._pipeline(k)  # (after the first frame: the camera stream's order)
             dt += self.frame_s(k)
             img = None if frame is None else frame.image
-            why = frame_fault(img, self.pipe.dark)
+            why = frame_fault(img, self.pipe.dark, dark_level=self.dark_level)
             if why is None:
                 break
             self.bad_frames += 1
         else:
             raise RobotStop(f"camera: {FRAME_RETRIES + 1} frames in a row {why}")
+        t0 = times.now() if times is not None else None
         res = self.pipe.process(img, heading_error_rad=heading_error_rad, position_offset=position_offset)
+        if times is not None:
+            times.add_pipeline(t0, res.stage_ms)
         self.last_image = img
         if res.observation.untrusted:  # the pipeline could not read this frame honestly (too many candidates)
             raise RobotStop(f"camera: a frame the pipeline cannot trust ({res.observation.untrusted})")

@@ -24,6 +24,7 @@ __all__ = [
     "RobotStop",
     "frame_fault",
     "noise_floor_dn",
+    "sampled_level",
 ]
 
 #: a lost or black frame is taken again this many times before the robot stops: at 5 % lost
@@ -43,18 +44,25 @@ class RobotStop(Exception):
     """The robot stops: its message is the run's ``abort_reason``."""
 
 
-def frame_fault(image: np.ndarray | None, dark: np.ndarray | None) -> str | None:
+def frame_fault(image: np.ndarray | None, dark: np.ndarray | None, *, dark_level: float | None = None) -> str | None:
     """Why ``image`` (H, W, 3) uint8 cannot be read, or None: it never arrived, or it is black --
     its mean below half the dark frame's (a real frame of the dark room is never darker than
     the camera's black level and dark signal, which the dark frame holds). Sampled on every
-    8th pixel (~0.1 ms)."""
+    8th pixel (~0.1 ms); ``dark_level``: the dark frame's :func:`sampled_level`, when the caller
+    keeps it from frame to frame."""
     if image is None:
         return "dropped (no frame arrived)"
     if dark is not None and image.shape == dark.shape:
-        level, floor = float(image[::8, ::8].mean()), float(dark[::8, ::8].mean())
+        level = sampled_level(image)
+        floor = sampled_level(dark) if dark_level is None else dark_level
         if level < 0.5 * floor:
             return f"black (mean {level:.1f} DN against the dark frame's {floor:.1f})"
     return None
+
+
+def sampled_level(image: np.ndarray) -> float:
+    """The mean of every 8th pixel of every 8th row: a frame's level as :func:`frame_fault` reads it."""
+    return float(image[::8, ::8].mean())
 
 
 def noise_floor_dn(sensor, *, n_avg: int = 1, n_dark: int = 8) -> float:

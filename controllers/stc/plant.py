@@ -45,6 +45,9 @@ class Floor:
         self.record = MarkFloor(board.shape_subcells)
         self.laid: list[tuple[tuple[int, int], int]] = []  # (sub-cell, edge) of every four dots, in order
         self.laid_at: dict[tuple[tuple[int, int], int], float] = {}  # when each mark's LEDs went off
+        #: the same times by the cell each mark is in, so that a decision's question of the five
+        #: cells around it costs a look at those cells, not one at every mark of the tour
+        self._laid_in: dict[tuple[int, int], dict[tuple[tuple[int, int], int], float]] = {}
         #: the mark (index into ``laid``) of every phosphor dot: a mark has four dots, or fewer
         #: when an LED is dead (:mod:`stcvision.controllers.stc.faults`)
         self.dot_mark = np.zeros(0, int)
@@ -57,12 +60,14 @@ class Floor:
         self.record.mark(sub, edge)
         self.laid.append((sub, edge))
         self.laid_at[(sub, edge)] = t_s + duration_s
+        self._laid_in.setdefault(cell_of(sub), {})[(sub, edge)] = t_s + duration_s
 
     def oldest_near(self, sub: tuple[int, int], t_s: float) -> float:
         """The age of the oldest mark in the cell of ``sub`` and its four neighbours (what a
         decision there reads), 0 if none."""
         ci, cj = cell_of(sub)
-        ages = [t_s - t for (s, _), t in self.laid_at.items() if abs(s[0] // 2 - ci) + abs(s[1] // 2 - cj) <= 1]
+        near = ((ci, cj), (ci - 1, cj), (ci + 1, cj), (ci, cj - 1), (ci, cj + 1))  # the cell and its 4 neighbours
+        ages = [t_s - t for c in near for t in self._laid_in.get(c, {}).values()]
         return max(ages, default=0.0)
 
 

@@ -8,6 +8,12 @@ precision and localisation error of pipeline and baseline on a labelled set (stc
 by default frames rendered here from the ages recipe at a seed its tuning did not use
 (--labelled-frames, --labelled-seed), or a generated dataset (--labelled DIR).
 
+The closed loop (stcvision.controllers.stc.timing): one camera tour (--loop-board, default 22x22
+cells, --loop-camera cooled, --loop-seed) timed with its frames: loop_overhead_ratio, the tour's
+wall time over its frames x (median render + median pipeline time of those frames), beside the
+frames' render and pipeline medians; --loop-profile N adds the cProfile table of a second tour
+(its top N functions by own time). --loop-only measures the tour alone, --no-loop skips it.
+
 --sweep measures instead the sweep runner's own cost per task (stcvision.sweep): no-op tasks
 in this process, on the local pool and on a Dask cluster (--scheduler, or a LocalCluster of two
 single-threaded worker processes started for the purpose).
@@ -18,8 +24,8 @@ anything.
 
 from __future__ import annotations
 
-from stcvision.cli._args import positive, seed
-from stcvision.limits import MAX_BENCH_FRAMES
+from stcvision.cli._args import pair, positive, seed
+from stcvision.limits import MAX_BENCH_FRAMES, MAX_BENCH_PROFILE_ROWS
 
 
 def add_parser(p):
@@ -34,6 +40,19 @@ def add_parser(p):
     p.add_argument("--sweep", action="store_true", help="measure the sweep runner's cost per task instead")
     p.add_argument("--tasks", type=int, default=1000, metavar="N", help="--sweep: no-op tasks per backend (1000)")
     p.add_argument("--scheduler", metavar="tcp://HOST:PORT", help="--sweep: a Dask cluster (default: a LocalCluster)")
+    loop = p.add_argument_group("the closed loop's overhead ratio (one camera tour)")
+    src = loop.add_mutually_exclusive_group()
+    src.add_argument("--loop-board", type=pair(int, fmt="WxH", example="22x22"), default=LOOP_BOARD, metavar="WxH",
+                     help=f"the tour's random board (default {LOOP_BOARD[0]}x{LOOP_BOARD[1]})")  # fmt: skip
+    src.add_argument("--loop-map", metavar="FILE", help="the tour's board from a map, as cover --map takes it")
+    loop.add_argument("--loop-camera", default="cooled", metavar="NAME|FILE.json", help="its camera (default cooled)")
+    loop.add_argument("--loop-seed", type=seed, default=0, metavar="S",
+                      help="its seed: board, robot and camera (default 0)")  # fmt: skip
+    loop.add_argument("--loop-profile", type=positive(int, maximum=MAX_BENCH_PROFILE_ROWS), metavar="N",
+                      help="also profile a tour (cProfile) and print its top N functions by own time")  # fmt: skip
+    which = loop.add_mutually_exclusive_group()
+    which.add_argument("--loop-only", action="store_true", help="measure the tour alone")
+    which.add_argument("--no-loop", action="store_true", help="skip the tour")
     g = p.add_argument_group("the labelled set of the pipeline/baseline comparison")
     g.add_argument(
         "--labelled", metavar="DIR", help="a generated dataset (default: frames rendered from the ages recipe)"
@@ -53,6 +72,9 @@ def add_parser(p):
         help=f"their seed (default {LABELLED_SEED}; the baseline was tuned at the recipe's own seed, 1)",
     )
 
+
+#: the closed loop's tour: a 22x22-cell board, whose cooled-camera tour takes ~3,500-3,900 frames
+LOOP_BOARD = (22, 22)
 
 #: the ages recipe the labelled set is rendered from, and its held-out seed
 AGES_RECIPE = "datasets/recipes/ages.json"
@@ -170,9 +192,36 @@ def _median_ms(fn, n: int) -> float:
     return float(np.median(times)) / 1e6
 
 
+def _bench_loop(args) -> dict:
+    """The closed loop's overhead ratio on the tour the options name
+    (:func:`stcvision.controllers.stc.timing.bench_loop`), and its profile with --loop-profile."""
+    import argparse
+
+    from stcvision.cli.cmd_cover import load_board
+    from stcvision.controllers.stc.loop import CoverConfig
+    from stcvision.controllers.stc.timing import bench_loop, profile_loop
+    from stcvision.limits import check_board_cells
+    from stcvision.sim_camera import hardware
+
+    if args.loop_map is None:
+        check_board_cells(*args.loop_board, flag="--loop-board")
+    where = argparse.Namespace(map=args.loop_map, board=args.loop_board, seed=args.loop_seed, obstacle_fraction=None,
+                               start=None, subcell_m=None, resolution=None)  # fmt: skip
+    board = load_board(where)
+    cfg = CoverConfig(seed=args.loop_seed, camera=hardware.load_camera(args.loop_camera))
+    out = bench_loop(board, cfg)
+    if args.loop_map:
+        out["loop_map"] = args.loop_map
+    if args.loop_profile:
+        out["loop_profile"] = profile_loop(board, cfg, top=args.loop_profile)
+    return out
+
+
 def run(args):
     if args.sweep:
         return _bench_sweep(args)
+    if args.loop_only:
+        return _bench_loop(args)
     import cv2
     import numpy as np
 
@@ -224,7 +273,31 @@ def run(args):
     result.update(_bench_baseline(cam, board, layer, pose, frames=args.frames, seed=args.seed, profile=profile))
     if args.labelled or args.labelled_frames:
         result["labelled"] = _labelled(args, labelled)
+    if not args.no_loop:
+        result.update(_bench_loop(args))
     return result
+
+
+def _loop_text(r) -> list[str]:
+    """The closed loop's lines of the text table."""
+    if r["loop_overhead_ratio"] is None:
+        return [f"closed loop: the tour took no frames ({r['loop_wall_s']:.1f} s)"]
+    w, h = r["loop_board_cells"]
+    lines = [
+        f"closed loop, {w}x{h} cells, {r['loop_camera']} camera, seed {r['loop_seed']}: "
+        f"{r['loop_wall_s']:.1f} s for {r['loop_frames']} frames ({1e3 * r['loop_wall_s'] / r['loop_frames']:.2f} "
+        f"ms a frame; complete {r['loop_complete']})",
+        f"  its frames: render {r['loop_render_ms_median']:.2f} ms, pipeline {r['loop_pipeline_ms_median']:.2f} ms "
+        f"(medians; means {r['loop_render_ms_mean']:.2f} and {r['loop_pipeline_ms_mean']:.2f})",
+        f"  loop overhead ratio {r['loop_overhead_ratio']:.3f} (wall / (frames x (median render + median "
+        f"pipeline))), {r['loop_overhead_ratio_cpu']:.3f} on CPU time; the frames' own time is "
+        f"{100 * r['loop_frame_share']:.1f} % of the wall time, {100 * r['loop_frame_cpu_share']:.1f} % of the "
+        "CPU time",
+        "  pipeline stages (medians, ms): " + ", ".join(f"{k} {v:.3f}" for k, v in r["loop_stage_ms_median"].items()),
+    ]
+    if "loop_profile" in r:
+        lines.append(r["loop_profile"])
+    return lines
 
 
 def format_text(r):
@@ -234,6 +307,8 @@ def format_text(r):
             f"{x['wall_s']:.2f} s, store writes and pool start-up / client connection included)"
             for x in r["sweep_overhead"]
         )
+    if "render_ms_per_frame" not in r:  # --loop-only
+        return "\n".join(_loop_text(r))
     lines = [
         f"render: {r['render_ms_per_frame']:.2f} ms/frame ({r['render_frames_per_s']:.0f} frames/s), "
         f"{r['frame_size_px'][0]}x{r['frame_size_px'][1]} with noise, {r['dots_on_floor']} dots on the floor, 1 thread"
@@ -262,4 +337,6 @@ def format_text(r):
 
         lines.append(f"pipeline and baseline on {r['labelled']['source']}:")
         lines.append(format_comparison(r["labelled"]))
+    if "loop_overhead_ratio" in r:
+        lines += _loop_text(r)
     return "\n".join(lines)

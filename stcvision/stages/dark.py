@@ -322,24 +322,26 @@ def histogram_quartiles(v, lo, quantum, nbins):
     else:
         for x in v:
             counts[(np.int64(x) - lo) // quantum] += 1
-    hist = counts.astype(np.float64)
-    cdf = np.empty(nbins + 1)
-    cdf[0] = 0.0
-    acc = 0.0
-    for i in range(nbins):
-        acc += hist[i]
-        cdf[i + 1] = acc
-    total = cdf[nbins]
-    # the strictly increasing points (the first, then each bin that holds values)
+    # the cumulative histogram's total: the sum of whole counts, exact in any order
+    total = np.float64(len(v))
+    # the strictly increasing points of the cumulative histogram (the first, then each bin that
+    # holds values), up to the first beyond the last quartile: the interpolation below reads no
+    # further, and a 16-bit frame's range can span tens of thousands of bins beyond it
     xp = np.empty(nbins + 1)
     fp = np.empty(nbins + 1)
     m = 0
+    acc = prev = 0.0
     for i in range(nbins + 1):
-        c = cdf[i] / total
-        if i == 0 or c > cdf[i - 1] / total:
+        if i > 0:
+            acc += np.float64(counts[i - 1])
+        c = acc / total
+        if i == 0 or c > prev / total:
             xp[m] = c
             fp[m] = lo + (i - 0.5) * quantum
             m += 1
+            if c > 0.75:
+                break
+        prev = acc
     out = np.empty(3)
     for k, q in enumerate((0.25, 0.5, 0.75)):
         j = 0

@@ -27,6 +27,8 @@ CASES = [
     (["eval", "{d}", "--worst", "100000000000"], f"over the cap of {limits.MAX_EVAL_WORST_FRAMES:,}"),
     (["bench", "--sweep", "--tasks", "1000000000"], f"over the cap of {limits.MAX_BENCH_SWEEP_TASKS:,}"),
     (["bench", "--labelled-frames", "1000000000"], f"over the cap of {limits.MAX_BENCH_LABELLED_FRAMES:,}"),
+    (["bench", "--loop-profile", "1000000"], f"over the cap of {limits.MAX_BENCH_PROFILE_ROWS:,}"),
+    (["bench", "--loop-only", "--loop-board", "1000x1000"], "--loop-board 1000x1000: expected at least 1x1"),
     (["world", "--board", "10x10", "--steps", "100000000", "--out", "{d}/w.png"], "over the cap"),
     (["render", "--dark-frames", "100000", "--out", "{d}/r"], "over the cap"),
     (["firmware", "check", "--boards", "1000000000"], f"must be 0 to {limits.MAX_CHECK_BOARDS:,}"),

@@ -150,15 +150,18 @@ def test_unwarp_and_separation_are_remap_and_separate_channels(
         assert n2 == n and np.array_equal(obst2, ref_o) and np.array_equal(marks2, ref_m)
 
 
-@pytest.mark.parametrize("shape", [(389, 390), (1, 5), (4, 1), (2, 2)])
-def test_window_sums_are_box_filter(default_profile, shape):
-    """The compiled 3 x 3 window sums of a pair of 8-bit images (``window_sums`` of the pair, its
-    fast path) against ``window_sums`` of the two-channel image (cv2.boxFilter), edges included,
-    on bright and saturated pixels."""
-    gr = np.random.default_rng(4).integers(0, 256, (*shape, 2)).astype(np.uint8)
+@pytest.mark.parametrize("dtype", [np.uint8, np.uint16])
+@pytest.mark.parametrize("shape", [(389, 390), (1, 5), (4, 1), (2, 2), (1, 1), (3, 2)])
+def test_window_sums_are_box_filter(default_profile, shape, dtype):
+    """The compiled 3 x 3 window sums of a pair of 8- or 16-bit images (``window_sums`` of the
+    pair, its fast path) against ``window_sums`` of the two-channel image (cv2.boxFilter), edges
+    included, on bright and saturated pixels."""
+    top = np.iinfo(dtype).max
+    gr = np.random.default_rng(4).integers(0, top + 1, (*shape, 2)).astype(dtype)
+    gr[0, 0] = top  # saturated: the largest sums
     got = window_sums((np.ascontiguousarray(gr[..., 0]), np.ascontiguousarray(gr[..., 1])), 3)
     ref = window_sums(gr, 3)
-    assert got.dtype == ref.dtype == np.uint16
+    assert got.dtype == ref.dtype == (np.uint16 if dtype == np.uint8 else np.float32)
     assert np.array_equal(got, ref)
 
 
@@ -286,3 +289,24 @@ def test_window_sums_refuse_a_malformed_pair(pair):
 
     with pytest.raises(BadInputError):
         window_sums(pair, 3)
+
+
+@pytest.mark.parametrize("quantum", [1, 16])
+@pytest.mark.parametrize("outliers", [0, 20])
+def test_histogram_quartiles_are_numpy_interp(quantum, outliers):
+    """The compiled quartiles (each value spread over its step) against numpy's: ``np.interp`` of
+    (0.25, 0.5, 0.75) on the strictly increasing points of the cumulative histogram, to the last
+    bit, on a dark background with saturated pixels far above it (the 16-bit frame's case, whose
+    histogram spans tens of thousands of empty bins beyond the last quartile)."""
+    from stcvision.stages.dark import histogram_quartiles
+
+    rng = np.random.default_rng(quantum + outliers)
+    v = (np.clip(rng.normal(300, 20, 7000), 0, None).astype(np.int64) // quantum) * quantum
+    v[:outliers] = 65535 // quantum * quantum
+    lo = int(v.min())
+    nbins = (int(v.max()) - lo) // quantum + 1
+    cdf = np.concatenate([[0.0], np.cumsum(np.bincount((v - lo) // quantum, minlength=nbins))]) / len(v)
+    keep = np.concatenate([[True], np.diff(cdf) > 0])
+    edges = lo + (np.arange(nbins + 1) - 0.5) * quantum
+    want = np.interp([0.25, 0.5, 0.75], cdf[keep], edges[keep])
+    assert np.array_equal(histogram_quartiles(v, lo, quantum, nbins), want)
