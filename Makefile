@@ -27,7 +27,7 @@ demo: $(STAMP)
 # everything but the emulator's and the browser's tests: a machine with Python and cc runs it
 # whole, none skipped (make test-emulator, make test-browser run those)
 test: $(WARMED)
-	$(BIN)/python -m pytest -q -n 2 -m "not emulator and not browser"
+	$(BIN)/python -m pytest -q -n 2 --dist worksteal -m "not emulator and not browser"
 
 # the STC controller's firmware for the ATmega328P (avr-gcc) run in QEMU's uno machine
 # (tests/emulator; needs make cross-tools). A target of its own rather than skips inside make

@@ -6,9 +6,9 @@ this: the demo compiles the kernels it uses itself, on its first run, and says s
 (:func:`stcvision.compiles.announce_compiles`). ``make test`` runs ``python -m stcvision.warm``
 first, so that the suite's parallel workers do not each compile the same kernels: it does, small,
 what the demo and the pipeline do -- the demo's closed loop (render, 8-bit pipeline, world,
-recording), and an 8-bit and a 16-bit frame through render and the pipeline -- each in a process
-of its own, as many at a time as the machine has cores, so that each kernel is compiled with the
-argument types it will meet. Buffon's and the other rooms' kernels compile on their first use.
+recording), an 8-bit and a 16-bit frame through render and the pipeline, and a short Buffon trial
+-- each in a process of its own, as many at a time as the machine has cores, so that each kernel
+is compiled with the argument types it will meet. The other rooms' kernels compile on first use.
 
 A line on stderr as each part starts and ends; Ctrl-C or SIGTERM ends the parts at once (each is
 a ``stcvision`` command, which stops within a second of a signal).
@@ -37,6 +37,9 @@ def warm_steps(tmp: str) -> list[tuple[str, list[list[str]]]]:
         render = ["render", "--scene", str(scene), "--camera", cam, "--out", out]
         pipeline = ["pipeline", f"{out}/frame.png", "--dark", f"{out}/dark.png", "--json"]
         steps.append((f"render and pipeline, {cam} frame", [render, pipeline]))
+    # Buffon's visit loop: one compile here rather than one in each of the suite's workers
+    buffon = ["buffon", "--nest", "circle:30", "--trials", "2", "--visit-steps", "2000", "--threads", "1"]
+    steps.append(("Buffon's explorer", [buffon]))
     return steps
 
 

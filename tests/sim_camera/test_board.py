@@ -169,14 +169,14 @@ def test_negate_and_a_png_at_its_resolution_give_the_same_board(tmp_path):
         ("image: lab.pgm\nresolution: 0.04\nfree_thresh: 0.196\n", "no 'occupied_thresh'"),
         ("image: nope.pgm\nresolution: 0.04\noccupied_thresh: 0.65\nfree_thresh: 0.196\n", "nope.pgm"),
         ("image: lab.pgm\nresolution: 0.04\noccupied_thresh: 0.1\nfree_thresh: 0.5\n", "above occupied_thresh"),
-        ("image: lab.pgm\nresolution: 10\noccupied_thresh: 0.65\nfree_thresh: 0.196\n", None),
+        ("image: lab.pgm\nresolution: 1\noccupied_thresh: 0.65\nfree_thresh: 0.196\n", None),
     ],
 )
 def test_bad_map_yaml_is_one_named_line(tmp_path, yaml_text, says):
     _lab_map(tmp_path)
     (tmp_path / "lab.yaml").write_text(yaml_text)
-    if says is None:  # 10 m per pixel: a board of 1,000 x 700 m, far over the cap, but still a board
-        assert Board.from_map_yaml(tmp_path / "lab.yaml").shape_cells == (2187, 3125)
+    if says is None:  # 1 m per pixel: a board of 100 x 70 m, over the cap of cells, but still a board
+        assert Board.from_map_yaml(tmp_path / "lab.yaml").shape_cells == (218, 312)
         return
     with pytest.raises(MapError, match=says):
         Board.from_map_yaml(tmp_path / "lab.yaml")
