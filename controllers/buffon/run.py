@@ -109,15 +109,7 @@ def measure(
     config = VisitConfig(visit_steps=visit_steps, trail_width_u=trail_width_u)
     if seed < 0:
         raise BadInputError(f"--seed must be >= 0; got {seed}")
-    if rrd is not None:
-        from stcvision.rr import check_recording_path
-
-        check_recording_path(rrd, overwrite=force)
-    if trajectory is not None:
-        from stcvision.controllers.buffon.trajectory import VISIT_FILES
-        from stcvision.fileio import check_output_folder
-
-        check_output_folder(trajectory, VISIT_FILES, overwrite=force)
+    _check_trial_outputs(rrd, trajectory, force)
     with _bar(None if config.auto else 2 * trials * visit_steps, f"buffon {nest.label}") as bar:
         threads = threads or machine_workers()
         ts = run_trials(
@@ -142,6 +134,26 @@ def measure(
         "robot_steps_per_cpu_s": ts.robot_steps / ts.cpu_s,
         "wall_s": ts.wall_s,
     }
+    out.update(_write_trial_outputs(nest, ts, config, rrd, trajectory, force))
+    return out
+
+
+def _check_trial_outputs(rrd: str | None, trajectory: str | None, force: bool) -> None:
+    """Refuse, before any trial runs, a recording or a trajectory folder that cannot be written."""
+    if rrd is not None:
+        from stcvision.rr import check_recording_path
+
+        check_recording_path(rrd, overwrite=force)
+    if trajectory is not None:
+        from stcvision.controllers.buffon.trajectory import VISIT_FILES
+        from stcvision.fileio import check_output_folder
+
+        check_output_folder(trajectory, VISIT_FILES, overwrite=force)
+
+
+def _write_trial_outputs(nest, ts, config, rrd: str | None, trajectory: str | None, force: bool) -> dict:
+    """Write the first trial's recording and TUM files; returns the result's keys saying so."""
+    out = {}
     if rrd:
         from stcvision.controllers.buffon.rr import record_trial
 
