@@ -59,7 +59,7 @@ def visit_tum(start_xy, path: np.ndarray, dt_s: float) -> str:
 
 def write_trajectory(folder: str | Path, start_xy, trails: dict, dt_s: float, *, overwrite: bool = False) -> list[Path]:
     """Write the two visits' true paths into ``folder`` as one set (:data:`VISIT_FILES`,
-    :func:`stcvision.fileio.write_set`).
+    :func:`stcvision.tum.write_tum_files`).
 
     Parameters
     ----------
@@ -79,7 +79,7 @@ def write_trajectory(folder: str | Path, start_xy, trails: dict, dt_s: float, *,
     list of Path
         The files written.
     """
-    from stcvision.fileio import write_set
+    from stcvision.tum import write_tum_files
 
     files = {name: visit_tum(start_xy, trails[f"visit{k}"], dt_s) for k, name in enumerate(VISIT_FILES, 1)}
-    return write_set(folder, {k: v.encode() for k, v in files.items()}, overwrite=overwrite)
+    return write_tum_files(folder, files, overwrite=overwrite)

@@ -29,7 +29,14 @@ import numpy as np
 
 from stcvision.sim_camera.robot import TASTI2
 
-__all__ = ["footprints", "odometry_errors_m", "sampling_points_true", "shadow_area_m2", "summarise"]
+__all__ = [
+    "footprints",
+    "odometry_errors_m",
+    "sampling_points_true",
+    "shadow_area_m2",
+    "summarise",
+    "trajectory_files",
+]
 
 GRID_M = 0.005
 
@@ -56,6 +63,30 @@ def sampling_points_odo(run) -> np.ndarray:
 def odometry_errors_m(run) -> np.ndarray:
     """Dead-reckoning position error at each sensing operation (the start's is 0)."""
     return np.hypot(*(sampling_points_true(run) - sampling_points_odo(run)).T)
+
+
+def trajectory_files(run) -> dict[str, str]:
+    """The true path and the odometry's (after a beacon fix) as TUM files' text.
+
+    Sampled where :func:`odometry_errors_m` is measured (the start and after every move), so
+    evo's APE max on the two files is ``max_odometry_error_m`` and its last error the end's.
+
+    Parameters
+    ----------
+    run : SearchRun
+        The run.
+
+    Returns
+    -------
+    dict of str to str
+        By file name (:data:`stcvision.tum.TUM_FILES`).
+    """
+    from stcvision.tum import tum_files
+
+    start = (0.0, 0.0, 0.0, 0.0)  # the odometry's origin is the true start: metres from it
+    true = [start, *((m.t_s, *m.true_pose) for m in run.moves)]
+    believed = [start, *((m.t_s, *m.odo_pose) for m in run.moves)]
+    return tum_files(true, believed)
 
 
 def _disc_union(points: np.ndarray, radius: float, xs: np.ndarray, ys: np.ndarray) -> np.ndarray:

@@ -20,42 +20,18 @@ import numpy as np
 
 from stcvision.controllers.stc.observers import Observer, Reading
 from stcvision.stc_geometry import compass_to_rad
-from stcvision.tum import tum_line
+from stcvision.tum import tum_files, write_tum_files
 
 __all__ = [
     "TRACE_SCHEMA_VERSION",
-    "TUM_FILES",
     "JsonTrace",
     "PathLog",
-    "tum_files",
-    "tum_line",
     "write_paths",
     "write_trace",
 ]
 
-#: the two files of ``--trajectory DIR``: the path the robot truly drove, and the one it believed
-TUM_FILES = ("true.tum", "believed.tum")
 #: the trace's schema version (every line carries it): raised when a field changes meaning
 TRACE_SCHEMA_VERSION = 1
-
-
-def tum_files(true, believed) -> dict[str, str]:
-    """Return the TUM files' text of two paths sampled at the same times.
-
-    Parameters
-    ----------
-    true, believed : sequence of tuple
-        (t_s, x_m, y_m, heading_rad) each, the same times in both.
-
-    Returns
-    -------
-    dict of str to str
-        By file name (:data:`TUM_FILES`): the true path's, then the believed path's.
-    """
-    return {
-        name: "".join(tum_line(*p) + "\n" for p in poses)
-        for name, poses in zip(TUM_FILES, (true, believed), strict=True)
-    }
 
 
 class PathLog(Observer):
@@ -126,7 +102,7 @@ class PathLog(Observer):
         Returns
         -------
         dict of str to str
-            By file name (:data:`TUM_FILES`): the true path's, then the believed path's.
+            By file name (:data:`stcvision.tum.TUM_FILES`): the true path's, then the believed path's.
         """
         return tum_files(self.true, self.believed)
 
@@ -290,7 +266,7 @@ def write_paths(folder: str | Path, paths, *, overwrite: bool = False) -> list[P
     folder : str or Path
         Where ``true.tum`` and ``believed.tum`` go (made if missing).
     paths : PathLog or dict
-        The run's paths, or the files' text by name (:func:`tum_files`).
+        The run's paths, or the files' text by name (:func:`stcvision.tum.tum_files`).
     overwrite : bool
         Replace existing files; else they are refused.
 
@@ -299,10 +275,7 @@ def write_paths(folder: str | Path, paths, *, overwrite: bool = False) -> list[P
     list of Path
         The files written.
     """
-    from stcvision.fileio import write_set
-
-    files = paths.tum() if isinstance(paths, PathLog) else paths
-    return write_set(folder, {k: v.encode() for k, v in files.items()}, overwrite=overwrite)
+    return write_tum_files(folder, paths.tum() if isinstance(paths, PathLog) else paths, overwrite=overwrite)
 
 
 def write_trace(path: str | Path, trace: JsonTrace, *, overwrite: bool = False) -> Path:

@@ -275,8 +275,8 @@ class _Outputs:
 
 def _check_outputs(args, board) -> _Outputs:
     """Refuse, before the run, --trajectory and --trace files that exist (without --force) or cannot be made."""
-    from stcvision.controllers.stc.paths import TUM_FILES
     from stcvision.fileio import check_output_file, check_output_folder
+    from stcvision.tum import TUM_FILES
 
     if args.trajectory:
         check_output_folder(args.trajectory, TUM_FILES, overwrite=args.force)

@@ -139,8 +139,8 @@ def run(args):
     cfg = SearchConfig(pattern=pattern, policy=Policy(args.policy), threshold=args.threshold)
     _check_plot(args.plot, args.force)
     if args.trajectory:
-        from stcvision.controllers.stc.paths import TUM_FILES
         from stcvision.fileio import check_output_folder
+        from stcvision.tum import TUM_FILES
 
         check_output_folder(args.trajectory, TUM_FILES, overwrite=args.force)
     if args.rrd:
@@ -187,7 +187,10 @@ def run(args):
         "plot": args.plot,
     }
     if args.trajectory:
-        _write_trajectory(args.trajectory, result, overwrite=args.force)
+        from stcvision.controllers.search.metrics import trajectory_files
+        from stcvision.tum import write_tum_files
+
+        write_tum_files(args.trajectory, trajectory_files(result), overwrite=args.force)
         out["trajectory"] = args.trajectory  # only when asked for: a run without it prints what it always did
     if args.plot:
         from stcvision.controllers.search.plots import plot_path, save_figure
@@ -195,17 +198,6 @@ def run(args):
         title = f"{pattern.describe()}, policy {args.policy}, seed {args.seed}: {result.reason}"
         save_figure(plot_path(result, title), args.plot, overwrite=True)
     return out
-
-
-def _write_trajectory(folder, result, *, overwrite: bool) -> None:
-    """The true path and the odometry's (after a beacon fix) at the start and after every move,
-    where the run's odometry error is measured: evo's APE max is max_odometry_error_m."""
-    from stcvision.controllers.stc.paths import tum_files, write_paths
-
-    start = (0.0, 0.0, 0.0, 0.0)  # the odometry's origin is the true start: metres from it
-    true = [start, *((m.t_s, *m.true_pose) for m in result.moves)]
-    believed = [start, *((m.t_s, *m.odo_pose) for m in result.moves)]
-    write_paths(folder, tum_files(true, believed), overwrite=overwrite)
 
 
 def _reproduce(args):

@@ -12,7 +12,8 @@ from pathlib import Path
 import pytest
 
 from stcvision.cli import main
-from stcvision.controllers.stc.paths import TRACE_SCHEMA_VERSION, TUM_FILES
+from stcvision.controllers.stc.paths import TRACE_SCHEMA_VERSION
+from stcvision.tum import TUM_FILES
 
 # a camera run that completes in about two seconds: frames, long frames, looks and turns
 CAMERA_RUN = ["cover", "--board", "3x3", "--seed", "2"]
