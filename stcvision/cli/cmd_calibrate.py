@@ -68,14 +68,8 @@ def add_parser(p):
     t.add_argument(
         "--center", type=pair(float, fmt="U,V", example="320,240"), metavar="U,V", help="mirror centre by hand (pixels)"
     )
-    from stcvision.stc_geometry import DEFAULT_SUBCELL_M
 
-    t.add_argument(
-        "--subcell-m",
-        type=float,
-        default=DEFAULT_SUBCELL_M,
-        help=f"sub-cell side D of the board (default {DEFAULT_SUBCELL_M})",
-    )
+    _add_subcell_m(t, float)  # its range is checked with the mount's (_check_mount_ranges)
     t.add_argument(
         "--viewpoint-m",
         type=float,
@@ -104,6 +98,18 @@ def add_parser(p):
         _add_bag_frame(q, "FRAME" if q in (r, t, n) else "--lights-on FRAME")
     for q in (d, r, t, n, i, e, g, s):
         q.add_argument("--json", action="store_true", help="print the result as one JSON object")
+
+
+def _add_subcell_m(q, type_) -> None:
+    """--subcell-m: the board's sub-cell side, for the steps that fit the mount to the floor's grid."""
+    from stcvision.stc_geometry import DEFAULT_SUBCELL_M
+
+    q.add_argument(
+        "--subcell-m",
+        type=type_,
+        default=DEFAULT_SUBCELL_M,
+        help=f"sub-cell side D of the board (default {DEFAULT_SUBCELL_M})",
+    )
 
 
 def _add_bag_frame(q, instead: str) -> None:
@@ -144,7 +150,6 @@ def _one_frame(args, path, what: str, *, flag: str = "FRAME", required: bool = T
 def _add_lens_file_parsers(sub):
     """The ``import`` and ``export`` steps: profiles from and to other tools' calibration files."""
     from stcvision.cli._args import pair, positive
-    from stcvision.stc_geometry import DEFAULT_SUBCELL_M
 
     i = sub.add_parser(
         "import",
@@ -204,12 +209,7 @@ def _add_lens_file_parsers(sub):
         "mirror flip and height to it (--forward-angle-deg within 45 degrees tells forward from left), measure the "
         "rim and find the 12 corners; the file's intrinsics are kept",
     )
-    i.add_argument(
-        "--subcell-m",
-        type=positive(float),
-        default=DEFAULT_SUBCELL_M,
-        help=f"sub-cell side D of the board (default {DEFAULT_SUBCELL_M})",
-    )
+    _add_subcell_m(i, positive(float))
     i.add_argument("--force", action="store_true", help="overwrite --out")
     e = sub.add_parser(
         "export",
@@ -234,7 +234,6 @@ def _add_target_parsers(sub):
     """The ``target`` and ``rescale`` steps."""
     from stcvision.calibration.target_options import DEFAULT_FOLDS, MODELS, PATTERNS
     from stcvision.cli._args import pair, positive
-    from stcvision.stc_geometry import DEFAULT_SUBCELL_M
 
     g = sub.add_parser(
         "target",
@@ -274,7 +273,7 @@ def _add_target_parsers(sub):
     g.add_argument("--forward-angle-deg", type=float, default=-90.0, metavar="A", help="as for import (default -90)")
     g.add_argument("--mirrored", action="store_true", help="as for import")
     g.add_argument("--rim-px", type=positive(float), metavar="R", help="as for import")
-    g.add_argument("--subcell-m", type=positive(float), default=DEFAULT_SUBCELL_M, help="the board's sub-cell side")
+    _add_subcell_m(g, positive(float))
     g.add_argument("--force", action="store_true", help="overwrite --out and the map")
     s = sub.add_parser(
         "rescale",
