@@ -69,43 +69,47 @@ def warm(*, verbose: bool = True, processes: int | None = None) -> dict:
     """
     import json
     import tempfile
+    from pathlib import Path
 
     processes = max(1, processes or os.cpu_count() or 1)
     times: dict[str, float] = {}
     with tempfile.TemporaryDirectory(prefix="stcvision-warm-") as tmp:
-        pending = warm_steps(tmp)
-        running: list[tuple[str, subprocess.Popen, float]] = []
+        pending = list(enumerate(warm_steps(tmp)))
+        running: list[tuple[str, subprocess.Popen, float, Path]] = []
         try:
             while pending or running:
                 while pending and len(running) < processes:
-                    name, argv = pending.pop(0)
+                    k, (name, argv) = pending.pop(0)
                     if verbose:
                         print(f"stcvision warm: compiling for {name} ...", file=sys.stderr, flush=True)
-                    proc = subprocess.Popen(
-                        [sys.executable, "-m", "stcvision.warm", "--part", json.dumps(argv)],
-                        stdout=subprocess.DEVNULL,
-                        stderr=subprocess.PIPE,
-                        text=True,
-                    )
-                    running.append((name, proc, time.perf_counter()))
+                    # a part's stderr (progress, the compile notice) goes to a file: a pipe no one
+                    # reads until the part ends would stall a part that writes more than it holds
+                    log = Path(tmp) / f"part{k}.log"
+                    with log.open("w") as err:
+                        proc = subprocess.Popen(
+                            [sys.executable, "-m", "stcvision.warm", "--part", json.dumps(argv)],
+                            stdout=subprocess.DEVNULL,
+                            stderr=err,
+                        )
+                    running.append((name, proc, time.perf_counter(), log))
                 time.sleep(0.05)
                 for item in list(running):
-                    name, proc, t0 = item
+                    name, proc, t0, log = item
                     code = proc.poll()
                     if code is None:
                         continue
                     running.remove(item)
                     times[name] = round(time.perf_counter() - t0, 2)
                     if code not in (0, 3):  # 3: the robot did not complete, which still compiled everything
-                        err = (proc.stderr.read() if proc.stderr else "").strip().splitlines()
-                        last = err[-1] if err else ""
+                        lines = log.read_text(errors="replace").strip().splitlines()
+                        last = lines[-1] if lines else ""
                         raise SystemExit(f"stcvision warm: {name} failed with exit code {code}: {last}")
                     if verbose:
                         print(f"stcvision warm: {name}: {times[name]:.1f} s", file=sys.stderr, flush=True)
         finally:
-            for _, proc, _ in running:  # a signal or a failure: the other parts end now
+            for _, proc, _, _ in running:  # a signal or a failure: the other parts end now
                 proc.terminate()
-            for _, proc, _ in running:
+            for _, proc, _, _ in running:
                 proc.wait()
     return times
 
