@@ -39,3 +39,18 @@ class Terminated(KeyboardInterrupt):
     def __init__(self, signum: int) -> None:
         super().__init__(signum)
         self.signum = signum
+
+
+def signal_in_chain(exc: BaseException | None) -> int | None:
+    """The signal number of a Ctrl-C or :class:`Terminated` among ``exc``'s causes, else None.
+
+    A signal that lands inside code which wraps what it raises (a dataclass's ``__set_name__``
+    during an import turns it into a RuntimeError) still means the user stopped the run.
+    """
+    seen = set()
+    while exc is not None and id(exc) not in seen:
+        seen.add(id(exc))
+        if isinstance(exc, KeyboardInterrupt):
+            return exc.signum if isinstance(exc, Terminated) else 2
+        exc = exc.__cause__ or exc.__context__
+    return None

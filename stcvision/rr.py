@@ -255,13 +255,14 @@ class RecordingFile:
 
     def end(self, exc: BaseException | None) -> None:
         """End as a block that raised ``exc`` (None: it did not) asks: :meth:`close`,
-        :meth:`interrupted` after Ctrl-C or a termination signal, :meth:`abort` after an error."""
-        from stcvision.errors import Terminated
+        :meth:`interrupted` after Ctrl-C or a termination signal (also one a library wrapped in
+        another exception), :meth:`abort` after an error."""
+        from stcvision.errors import signal_in_chain
 
         if exc is None:
             self.close()
-        elif isinstance(exc, KeyboardInterrupt):
-            self.interrupted(exc.signum if isinstance(exc, Terminated) else 2)
+        elif (signum := signal_in_chain(exc)) is not None:  # a signal, also one a library wrapped
+            self.interrupted(signum)
         else:
             self.abort()
 

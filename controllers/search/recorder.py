@@ -53,11 +53,11 @@ class SearchRecorder(Recorder):
         self.path = Path(path)
         self.file = RecordingFile(self.path, app_id="stcvision-search", default_blueprint=blueprint())
         self.rec = self.file.rec
-        self._true = [(0.0, 0.0)]
-        self._odo = [(0.0, 0.0)]
-        self._fixes: list = []
-        self._pipe_logger = None
         try:
+            self._true = [(0.0, 0.0)]
+            self._odo = [(0.0, 0.0)]
+            self._fixes: list = []
+            self._pipe_logger = None
             self._static(scene, pattern)
         except BaseException as exc:  # stopped before the caller holds it: ended here as the caller would
             self.end(exc)

@@ -93,15 +93,15 @@ class CoverRecorder(Observer, Recorder):
         self.path = Path(path)
         self.file = RecordingFile(self.path, app_id="stcvision-cover", default_blueprint=blueprint())
         self.rec = self.file.rec
-        self.board = board
-        self.paths = PathLog(board)  # the true and believed paths, drawn with the world's snapshots
-        self.trace = JsonTrace(board)  # each reading's trace line, logged once final
-        self.every = readings_every(board) if every is None else max(1, int(every))
-        self.world_every = max(self.every, readings_every(board, WORLD_BUDGET))
-        self.readings = self.full = 0  # readings seen, and logged in full
-        self._last: Reading | None = None  # the last reading, when it was not logged in full
-        self._pipe_logger = None
         try:
+            self.board = board
+            self.paths = PathLog(board)  # the true and believed paths, drawn with the world's snapshots
+            self.trace = JsonTrace(board)  # each reading's trace line, logged once final
+            self.every = readings_every(board) if every is None else max(1, int(every))
+            self.world_every = max(self.every, readings_every(board, WORLD_BUDGET))
+            self.readings = self.full = 0  # readings seen, and logged in full
+            self._last: Reading | None = None  # the last reading, when it was not logged in full
+            self._pipe_logger = None
             self._static()
         except BaseException as exc:  # stopped before the caller holds it: ended here as the caller would
             self.end(exc)

@@ -120,19 +120,6 @@ def _install_signal_handlers() -> dict:
     return previous
 
 
-def _signal_in_chain(exc: BaseException) -> int | None:
-    """The signal number of a Ctrl-C or :class:`Terminated` among ``exc``'s causes, else None."""
-    from stcvision.errors import Terminated
-
-    seen = set()
-    while exc is not None and id(exc) not in seen:
-        seen.add(id(exc))
-        if isinstance(exc, KeyboardInterrupt):
-            return exc.signum if isinstance(exc, Terminated) else 2
-        exc = exc.__cause__ or exc.__context__
-    return None
-
-
 def _restore_signal_handlers(previous: dict) -> None:
     import signal
 
@@ -243,7 +230,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     except Exception as exc:
         # a signal that lands inside code which wraps what it raises (a dataclass's __set_name__
         # during an import turns it into a RuntimeError) still means the user stopped the run
-        signum = _signal_in_chain(exc)
+        from stcvision.errors import signal_in_chain
+
+        signum = signal_in_chain(exc)
         if signum is None:
             raise
         print(f"stcvision {name}: interrupted{_kept_note()}", file=sys.stderr)

@@ -101,3 +101,32 @@ def test_a_finished_recording_opens_with_the_pipelines_layout(video, tmp_path, c
     assert contents.time_panel() == {"state": 3, "timeline": "frame"}  # 3: expanded (rerun's PanelState)
     assert contents.properties()["/__properties:RecordingInfo:name"] == ["run.rrd"]
     assert contents.times("/raw", "frame") == [0, 1]
+
+
+def test_a_signal_a_library_wrapped_in_another_error_still_keeps_the_recording(tmp_path):
+    """A SIGTERM that lands inside code which re-raises it as another error (an import's
+    dataclass machinery, say) ends the recording as a signal does: kept, named interrupted;
+    an error with no signal behind it removes the recording."""
+    import rerun as rr
+
+    from stcvision.errors import Terminated
+    from stcvision.fileio import kept_partial, new_run
+    from stcvision.rr import RecordingFile
+
+    new_run()
+    kept = tmp_path / "kept.rrd"
+    f = RecordingFile(kept)
+    f.rec.log("x", rr.Scalars(1.0))
+    try:
+        try:
+            raise Terminated(signal.SIGTERM)
+        except Terminated as exc:
+            raise RuntimeError("wrapped by a library") from exc
+    except RuntimeError as wrapped:
+        f.end(wrapped)
+    assert kept.exists() and kept_partial() == [kept]
+    gone = tmp_path / "gone.rrd"
+    g = RecordingFile(gone)
+    g.end(RuntimeError("a plain error"))
+    assert not gone.exists() and sorted(p.name for p in tmp_path.iterdir()) == ["kept.rrd"]
+    new_run()
