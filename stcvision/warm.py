@@ -17,9 +17,15 @@ a ``stcvision`` command, which stops within a second of a signal).
 from __future__ import annotations
 
 import os
+import signal
 import subprocess
 import sys
 import time
+
+_STOPS = {signal.SIGINT, signal.SIGTERM}
+# how long a part may take to stop on SIGTERM before it is killed (a command stops within a second
+# or two of a signal)
+_PART_GRACE_S = 1.5
 
 
 def warm_steps(tmp: str) -> list[tuple[str, list[list[str]]]]:
@@ -85,13 +91,20 @@ def warm(*, verbose: bool = True, processes: int | None = None) -> dict:
                     # a part's stderr (progress, the compile notice) goes to a file: a pipe no one
                     # reads until the part ends would stall a part that writes more than it holds
                     log = Path(tmp) / f"part{k}.log"
-                    with log.open("w") as err:
-                        proc = subprocess.Popen(
-                            [sys.executable, "-m", "stcvision.warm", "--part", json.dumps(argv)],
-                            stdout=subprocess.DEVNULL,
-                            stderr=err,
-                        )
-                    running.append((name, proc, time.perf_counter(), log))
+                    # a signal that landed inside Popen (after the fork, before the part is in
+                    # ``running``) would leave that part compiling on its own: the signals wait
+                    # until the part is known, and the part unblocks them as it starts
+                    signal.pthread_sigmask(signal.SIG_BLOCK, _STOPS)
+                    try:
+                        with log.open("w") as err:
+                            proc = subprocess.Popen(
+                                [sys.executable, "-m", "stcvision.warm", "--part", json.dumps(argv)],
+                                stdout=subprocess.DEVNULL,
+                                stderr=err,
+                            )
+                        running.append((name, proc, time.perf_counter(), log))
+                    finally:
+                        signal.pthread_sigmask(signal.SIG_UNBLOCK, _STOPS)
                 time.sleep(0.05)
                 for item in list(running):
                     name, proc, t0, log = item
@@ -110,17 +123,20 @@ def warm(*, verbose: bool = True, processes: int | None = None) -> dict:
             for _, proc, _, _ in running:  # a signal or a failure: the other parts end now
                 proc.terminate()
             for _, proc, _, _ in running:
-                proc.wait()
+                try:  # a part inside a long LLVM pass answers its SIGTERM late: it is killed
+                    proc.wait(timeout=_PART_GRACE_S)
+                except subprocess.TimeoutExpired:
+                    proc.kill()  # numba writes its cache files whole (a temporary file, renamed)
+                    proc.wait()
     return times
 
 
 def main(argv: list[str] | None = None) -> int:
-    import signal
-
     argv = sys.argv[1:] if argv is None else argv
     if argv[:1] == ["--part"]:
         import json
 
+        signal.pthread_sigmask(signal.SIG_UNBLOCK, _STOPS)  # blocked by the warm-up while it started this part
         return _run_part(json.loads(argv[1]))
 
     from stcvision.errors import Terminated

@@ -82,3 +82,36 @@ def test_a_signal_during_the_warm_up_ends_it_and_its_parts(tmp_path):
     while _processes_with(cache) and time.monotonic() < deadline:
         time.sleep(0.05)
     assert _processes_with(cache) == []
+
+
+def test_a_signal_as_a_part_starts_still_ends_that_part(monkeypatch):
+    """A signal that lands while a part is being started (after its fork, before the warm-up knows
+    it) waits until the part is known, so that the part is ended with the others, not orphaned."""
+    import os
+    import signal
+
+    import pytest
+
+    from stcvision import warm as warm_module
+    from stcvision.errors import Terminated
+
+    started = []
+    real_popen = subprocess.Popen
+
+    def popen(*args, **kwargs):
+        proc = real_popen(*args, **kwargs)
+        started.append(proc)
+        os.kill(os.getpid(), signal.SIGTERM)  # the signal lands inside the start of the part
+        return proc
+
+    def on_term(signum, frame):
+        raise Terminated(signum)
+
+    monkeypatch.setattr(warm_module.subprocess, "Popen", popen)
+    previous = signal.signal(signal.SIGTERM, on_term)
+    try:
+        with pytest.raises(Terminated):
+            warm_module.warm(verbose=False, processes=1)
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+    assert len(started) == 1 and started[0].poll() is not None  # the part was ended and reaped
