@@ -16,10 +16,12 @@ a ``stcvision`` command, which stops within a second of a signal).
 
 from __future__ import annotations
 
+import contextlib
 import os
 import signal
 import subprocess
 import sys
+import threading
 import time
 
 _STOPS = {signal.SIGINT, signal.SIGTERM}
@@ -49,9 +51,33 @@ def warm_steps(tmp: str) -> list[tuple[str, list[list[str]]]]:
     return steps
 
 
+@contextlib.contextmanager
+def _signals_deferred():
+    """Hold Ctrl-C and SIGTERM for the duration of the block, then act on the first one that came
+    as the handler in place would have. Python runs signal handlers in the main thread whichever
+    thread the signal reached, so a handler swapped in for the block defers it where blocking the
+    signal in this thread would not (another thread may take it). Outside the main thread, where
+    handlers cannot be set, the block runs as it is."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    caught: list[tuple[int, object]] = []
+    previous = {s: signal.signal(s, lambda signum, frame: caught.append((signum, frame))) for s in _STOPS}
+    try:
+        yield
+    finally:
+        for s, handler in previous.items():
+            signal.signal(s, handler)
+        for signum, frame in caught[:1]:
+            handler = previous[signum]
+            if callable(handler):
+                handler(signum, frame)
+            elif handler == signal.SIG_DFL:
+                signal.raise_signal(signum)
+
+
 def _run_part(commands: list[list[str]]) -> int:
     """Run ``stcvision`` commands in turn in this process (one part of the warm-up)."""
-    import contextlib
     import io
 
     from stcvision.cli import main
@@ -92,19 +118,15 @@ def warm(*, verbose: bool = True, processes: int | None = None) -> dict:
                     # reads until the part ends would stall a part that writes more than it holds
                     log = Path(tmp) / f"part{k}.log"
                     # a signal that landed inside Popen (after the fork, before the part is in
-                    # ``running``) would leave that part compiling on its own: the signals wait
-                    # until the part is known, and the part unblocks them as it starts
-                    signal.pthread_sigmask(signal.SIG_BLOCK, _STOPS)
-                    try:
-                        with log.open("w") as err:
-                            proc = subprocess.Popen(
-                                [sys.executable, "-m", "stcvision.warm", "--part", json.dumps(argv)],
-                                stdout=subprocess.DEVNULL,
-                                stderr=err,
-                            )
+                    # ``running``) would leave that part compiling on its own: it waits until
+                    # the part is known
+                    with _signals_deferred(), log.open("w") as err:
+                        proc = subprocess.Popen(
+                            [sys.executable, "-m", "stcvision.warm", "--part", json.dumps(argv)],
+                            stdout=subprocess.DEVNULL,
+                            stderr=err,
+                        )
                         running.append((name, proc, time.perf_counter(), log))
-                    finally:
-                        signal.pthread_sigmask(signal.SIG_UNBLOCK, _STOPS)
                 time.sleep(0.05)
                 for item in list(running):
                     name, proc, t0, log = item
@@ -136,7 +158,6 @@ def main(argv: list[str] | None = None) -> int:
     if argv[:1] == ["--part"]:
         import json
 
-        signal.pthread_sigmask(signal.SIG_UNBLOCK, _STOPS)  # blocked by the warm-up while it started this part
         return _run_part(json.loads(argv[1]))
 
     from stcvision.errors import Terminated
