@@ -15,7 +15,6 @@ from dataclasses import dataclass
 
 import cv2
 import numpy as np
-from scipy.optimize import least_squares
 
 from stcvision.errors import BadInputError
 
@@ -153,6 +152,8 @@ def detect_rim(
     if best[1] is None:
         raise BadInputError("no circular rim found: expected the mirror's rim as a circle in the middle of the image")
     c, r = best[1]
+    from scipy.optimize import least_squares  # here: a frame with no rim (most) costs no import of it
+
     for _ in range(3):  # refine on all edge points near the circle
         _, inl = _coverage(pts, c, r, (h, w), tol_px * 1.5)
         q = pts[inl]

@@ -10,11 +10,12 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
-import rerun as rr
-import rerun.blueprint as rrb
 
 from stcvision.controllers.search.patterns import planned_points
-from stcvision.rr import Recorder, RecordingFile
+from stcvision.rr import OnFirstUse, Recorder, RecordingFile
+
+rr = OnFirstUse("rerun")  # imported when a recording is made
+rrb = OnFirstUse("rerun.blueprint")
 
 __all__ = ["SearchRecorder", "blueprint"]
 

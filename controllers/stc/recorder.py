@@ -9,12 +9,13 @@ import json
 from pathlib import Path
 
 import numpy as np
-import rerun as rr
-import rerun.blueprint as rrb
 
 from stcvision.controllers.stc.observers import Observer, Reading
 from stcvision.controllers.stc.paths import JsonTrace, PathLog
-from stcvision.rr import PipelineLogger, Recorder, RecordingFile, Recordings
+from stcvision.rr import OnFirstUse, PipelineLogger, Recorder, RecordingFile, Recordings
+
+rr = OnFirstUse("rerun")  # imported when a recording is made
+rrb = OnFirstUse("rerun.blueprint")
 
 __all__ = [
     "READINGS_BUDGET",

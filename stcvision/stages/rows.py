@@ -13,7 +13,6 @@ from dataclasses import dataclass
 import cv2
 import numba
 import numpy as np
-from scipy.spatial import cKDTree
 
 from stcvision.stages.common import SUM_DTYPES, noise_floor
 from stcvision.stages.compiled import fma32, grow_array, marked_positions, row_flags
@@ -296,6 +295,8 @@ def _anchored_rows(z, occ, dots: Dots, step: float, n: int, params: RowParams):
     if len(xy_lit) <= 256:
         crowded = crowded_dots(xy_lit, near)
     else:  # more dots than a frame is read for: neighbours by a k-d tree, not all pairs
+        from scipy.spatial import cKDTree  # only here: its import costs a command ~0.25 s
+
         pairs = cKDTree(xy_lit).query_pairs(near * (1 + 1e-9), output_type="ndarray")
         d2 = ((xy_lit[pairs[:, 0]] - xy_lit[pairs[:, 1]]) ** 2).sum(axis=1)
         crowded = np.zeros(len(xy_lit), bool)
