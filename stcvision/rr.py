@@ -22,31 +22,40 @@ built (``rr.Image`` alone costs ~0.1 ms).
 
 from __future__ import annotations
 
-import importlib
 from pathlib import Path
 
 import numpy as np
 
 
-class OnFirstUse:
-    """A module imported when one of its names is first read (``rr = OnFirstUse("rerun")``):
-    rerun costs a command ~0.35 s of import, which a run that records nothing (most runs)
-    should not pay for importing a module that can record."""
-
-    def __init__(self, name: str) -> None:
-        self._name = name
+class _Rerun:
+    """rerun, imported when one of its names is first read: it costs a command ~0.35 s of import,
+    which a run that records nothing (most runs) should not pay for importing a module that can
+    record."""
 
     def __getattr__(self, attr: str):
-        return getattr(importlib.import_module(self._name), attr)
+        import rerun
+
+        return getattr(rerun, attr)
 
 
-rr = OnFirstUse("rerun")
-rrb = OnFirstUse("rerun.blueprint")
+class _RerunBlueprint:
+    """``rerun.blueprint``, imported when one of its names is first read (as :data:`rerun_sdk`)."""
+
+    def __getattr__(self, attr: str):
+        import rerun.blueprint
+
+        return getattr(rerun.blueprint, attr)
+
+
+#: ``rerun`` and ``rerun.blueprint`` for the modules that record: imported on first use
+rerun_sdk = _Rerun()
+rerun_blueprint = _RerunBlueprint()
+rr = rerun_sdk
+rrb = rerun_blueprint
 
 __all__ = [
     "ENTITY_PATHS",
     "INTERRUPTED_PROPERTY",
-    "OnFirstUse",
     "PipelineLogger",
     "Recorder",
     "RecordingFile",
@@ -54,6 +63,8 @@ __all__ = [
     "blueprint",
     "check_recording_path",
     "layout",
+    "rerun_blueprint",
+    "rerun_sdk",
 ]
 
 ENTITY_PATHS = (

@@ -12,10 +12,9 @@ from pathlib import Path
 import numpy as np
 
 from stcvision.controllers.search.patterns import planned_points
-from stcvision.rr import OnFirstUse, Recorder, RecordingFile
-
-rr = OnFirstUse("rerun")  # imported when a recording is made
-rrb = OnFirstUse("rerun.blueprint")
+from stcvision.rr import Recorder, RecordingFile
+from stcvision.rr import rerun_blueprint as rrb  # rerun, imported when a recording is made
+from stcvision.rr import rerun_sdk as rr
 
 __all__ = ["SearchRecorder", "blueprint"]
 

@@ -12,10 +12,9 @@ import numpy as np
 
 from stcvision.controllers.stc.observers import Observer, Reading
 from stcvision.controllers.stc.paths import JsonTrace, PathLog
-from stcvision.rr import OnFirstUse, PipelineLogger, Recorder, RecordingFile, Recordings
-
-rr = OnFirstUse("rerun")  # imported when a recording is made
-rrb = OnFirstUse("rerun.blueprint")
+from stcvision.rr import PipelineLogger, Recorder, RecordingFile, Recordings
+from stcvision.rr import rerun_blueprint as rrb  # rerun, imported when a recording is made
+from stcvision.rr import rerun_sdk as rr
 
 __all__ = [
     "READINGS_BUDGET",
