@@ -21,6 +21,7 @@ from stcvision.calibration.target_options import DEFAULT_FOLDS, MODELS
 from stcvision.calibration.target_uncertainty import (
     CONFIDENCE,
     cross_validation_diff,
+    draw_floor_uncertainty,
     draw_uncertainty,
     floor_uncertainty,
     projection_uncertainty,
@@ -234,8 +235,9 @@ def target_profile(
 ):
     """The profile of the fit (as ``calibrate import`` makes one), its mount from a lights-on
     frame when given (the intrinsics kept), the floor uncertainty at the distances the robot reads,
-    and the verdict."""
+    and the verdict; with the floor bound drawn against the distance as PNG bytes."""
     from stcvision.calibration.lens_import import profile_from_model
+    from stcvision.fileio import figure_png
 
     prof, fid = profile_from_model(
         fit.lens_model(),
@@ -275,4 +277,14 @@ def target_profile(
     if mount is None:
         v["advice"].append("no lights-on frame: the mount (forward angle, mirror flip, height) is as given, not fitted")
         v["ok"] = False
-    return prof, {"fidelity": fid.to_dict(), "mount": mount, "floor": floor, "verdict": v}
+    import matplotlib.pyplot as plt
+
+    fig = draw_floor_uncertainty(
+        floor,
+        v,
+        f"floor uncertainty of the profile ({'mount fitted to a lights-on frame' if mount else 'mount as given'}): "
+        f"{'good enough' if v['ok'] else 'not good enough'} for the STC robot",
+    )
+    floor_png = figure_png(fig)
+    plt.close(fig)
+    return prof, {"fidelity": fid.to_dict(), "mount": mount, "floor": floor, "verdict": v}, floor_png

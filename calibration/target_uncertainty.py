@@ -27,6 +27,7 @@ __all__ = [
     "CONFIDENCE",
     "FLOOR_DISTANCES_M",
     "cross_validation_diff",
+    "draw_floor_uncertainty",
     "floor_uncertainty",
     "projection_uncertainty",
     "verdict",
@@ -228,6 +229,35 @@ def floor_uncertainty(
             row.update(sigma_mm=None, r95_mm=None)
         out.append(row)
     return out
+
+
+def draw_floor_uncertainty(floor: list[dict], verdict_: dict, title: str):
+    """A matplotlib figure of the floor bound against the distance from the robot: the worst
+    azimuth's 1 sigma and 95 % radius (mm) at each distance, the row band the verdict holds them
+    to, and the farthest distance the robot reads."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    d = np.array([r["distance_m"] for r in floor], float)
+    sig = np.array([np.nan if r["sigma_mm"] is None else r["sigma_mm"] for r in floor], float)
+    r95 = np.array([np.nan if r["r95_mm"] is None else r["r95_mm"] for r in floor], float)
+    fig, ax = plt.subplots(figsize=(6.4, 4.0))
+    ax.plot(d, r95, "o-", color="C3", label=f"{100 * CONFIDENCE:.0f} % radius (worst azimuth)")
+    ax.plot(d, sig, "s--", color="C0", label="1 sigma (worst azimuth)")
+    ax.axhline(verdict_["limit_mm"], color="k", linestyle=":", label=f"row band: {verdict_['limit_mm']:.1f} mm")
+    ax.axvline(verdict_["reach_m"], color="grey", linestyle="-.", label=f"farthest read: {verdict_['reach_m']:.2f} m")
+    unseen = [r["distance_m"] for r in floor if r["seen_fraction"] < 1.0]
+    if unseen:
+        ax.axvspan(min(unseen) - 0.05, max(unseen) + 0.05, color="grey", alpha=0.15, label="not seen all round")
+    ax.set_xlabel("distance on the floor from the viewpoint (m)")
+    ax.set_ylabel("floor uncertainty (mm)")
+    ax.set_ylim(bottom=0)
+    ax.set_title(title, fontsize=9)
+    ax.legend(fontsize=7, loc="upper left")
+    fig.tight_layout()
+    return fig
 
 
 # ---------------------------------------------------------------------------- tests of it

@@ -401,6 +401,8 @@ def _target(args):
         if args.viewpoint_height_m is None:
             raise BadInputError("--out needs --viewpoint-height-m (the first guess the lights-on frame refines)")
         check_output_file(args.out, overwrite=args.force, what="profile")
+        floor_png_path = str(Path(args.out).with_suffix(".floor.png"))
+        check_output_file(floor_png_path, overwrite=args.force, what="floor uncertainty plot")
         _check_mount_ranges(args.subcell_m, args.viewpoint_height_m)
     elif args.lights_on or args.bag or args.viewpoint_height_m:
         raise BadInputError(
@@ -419,7 +421,7 @@ def _target(args):
     res = calibrate_target(views, model=args.model, folds=args.folds, should_stop=raise_if_signalled)
     rep = {"source": str(args.source), "source_kind": kind, **res.report}
     if args.out is not None:
-        prof, floor = target_profile(
+        prof, floor, floor_png = target_profile(
             res.fit,
             viewpoint_height_m=args.viewpoint_height_m,
             forward_angle_rad=math.radians(args.forward_angle_deg),
@@ -439,7 +441,8 @@ def _target(args):
             cv_ratio=rep["cross_validation"].get("diff_over_predicted", 1.0),
         )
         prof.save(args.out, overwrite=args.force)
-        rep.update(out=str(args.out), **floor)
+        write_bytes_atomic(floor_png_path, _tag_png(floor_png), overwrite=True)  # checked above
+        rep.update(out=str(args.out), **floor, floor_png=floor_png_path)
     write_bytes_atomic(png, _tag_png(res.png), overwrite=True)  # checked above
     rep["uncertainty_png"] = png
     return rep
@@ -826,7 +829,7 @@ def _target_text(r) -> str:
         )
     if "floor" in r:
         fl = ", ".join(f"{x['distance_m']:g} m {x['r95_mm']:.1f}" for x in r["floor"] if x["r95_mm"] is not None)
-        lines.append(f"floor, 95 % bound (mm): {fl}")
+        lines.append(f"floor, 95 % bound (mm): {fl}; plot {r['floor_png']}")
         v = r["verdict"]
         lines.append(
             "verdict: good enough for the STC robot"

@@ -292,6 +292,21 @@ def test_target_to_profile_with_a_lights_on_frame_and_a_verdict(cli, tmp_path, m
     # intrinsics' error adds to it: a millimetre's margin)
     assert 0 < r["mount"]["viewpoint_height_mm_std"] < 5 and 0 < r["mount"]["forward_angle_deg_std"] < 1
     assert abs(1000 * prof.viewpoint_height_m - 250) < 3 * r["mount"]["viewpoint_height_mm_std"] + 1.0
+    # the floor bound as a plot beside the profile: a PNG of the figure's size
+    plot = cv2.imread(r["floor_png"])
+    assert r["floor_png"] == str(tmp_path / "p.floor.png") and plot is not None and plot.shape[1] > 500
+    code, _, err = cli(
+        "calibrate", "target", tmp_path / "sim.xml", "--model", "mei", "--folds", "2",
+        "--out", tmp_path / "p2.json", "--viewpoint-height-m", "0.3", "--uncertainty-png", tmp_path / "u2.png",
+    )  # fmt: skip
+    assert code == 0 and "plot" in err + _ and (tmp_path / "p2.floor.png").is_file()
+    # an existing plot is not overwritten without --force
+    (tmp_path / "p3.floor.png").write_bytes(b"mine")
+    code, _, err = cli(
+        "calibrate", "target", tmp_path / "sim.xml", "--out", tmp_path / "p3.json", "--viewpoint-height-m", "0.3",
+        "--uncertainty-png", tmp_path / "u3.png",
+    )  # fmt: skip
+    assert code == 2 and "p3.floor.png" in err and (tmp_path / "p3.floor.png").read_bytes() == b"mine"
 
 
 def _views_of(params, size, n=10, seed=7):
