@@ -38,18 +38,40 @@ def announce_compiles(stream=None) -> None:
 
 
 def _listen(stream) -> None:
+    import threading
+    import time
+
     from numba.core import event
 
+    from stcvision.fileio import interrupted_since, raise_if_signalled
+
     class _Notice(event.Listener):
+        """Says the first compile, and ends a compile a signal asked to stop: a signal's exception
+        raised inside a callback from C (llvmlite calls back into Python while LLVM finalises
+        code) is printed and dropped by ctypes, and the compile would run on for tens of
+        seconds; at the end of each function's compile (a second or two at most) the signal
+        that came meanwhile is raised again."""
+
+        def __init__(self) -> None:
+            self._starts: list[float] = []
+
         def on_start(self, ev) -> None:
             global _ANNOUNCED
             if not _ANNOUNCED:
                 _ANNOUNCED = True
                 out = stream or sys.stderr
                 print(NOTICE, file=out, flush=True)
+            if threading.current_thread() is threading.main_thread():
+                self._starts.append(time.monotonic())
 
         def on_end(self, ev) -> None:
-            pass
+            if threading.current_thread() is not threading.main_thread() or not self._starts:
+                return  # signals are handled in the main thread: only its compiles can lose one
+            t0 = self._starts.pop()
+            # raised even when the signal's own exception is ending the compile: it is the same one
+            raise_if_signalled()
+            if interrupted_since(t0):
+                raise KeyboardInterrupt
 
     event.register("numba:compile", _Notice())
 

@@ -13,6 +13,7 @@ import math
 import os
 import secrets
 import tempfile
+import time
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -154,11 +155,30 @@ _SIGNALS: list[int] = []
 _KEPT: list[Path] = []
 
 
+#: when this run's Ctrl-Cs came (time.monotonic), for :func:`interrupted_since`
+_INTERRUPTS: list[float] = []
+
+
 def new_run() -> None:
     """Start a new run (the CLI calls it first): folders are swept for stale temporaries again."""
     _SWEPT.clear()
     _SIGNALS.clear()
+    _INTERRUPTS.clear()
     _KEPT.clear()
+
+
+def interrupt_received() -> None:
+    """Note a Ctrl-C (its time) for :func:`interrupted_since`.
+
+    A Ctrl-C stays a ``KeyboardInterrupt`` that code may catch on purpose (a live run ends on
+    it), so it is not one of :func:`raise_if_signalled`'s signals.
+    """
+    _INTERRUPTS.append(time.monotonic())
+
+
+def interrupted_since(t: float) -> bool:
+    """Whether a Ctrl-C came after ``t`` (``time.monotonic``) in this run."""
+    return bool(_INTERRUPTS) and _INTERRUPTS[-1] >= t
 
 
 def signal_received(signum: int) -> None:
@@ -169,6 +189,7 @@ def signal_received(signum: int) -> None:
 def forget_signals() -> None:
     """End the run (the CLI calls it last): a later write in this process is not refused."""
     _SIGNALS.clear()
+    _INTERRUPTS.clear()
 
 
 def raise_if_signalled() -> None:

@@ -94,12 +94,13 @@ _PATH_ERRNOS = frozenset(
 
 
 def _install_signal_handlers() -> dict:
-    """Turn SIGTERM and SIGHUP into :class:`Terminated`; returns the handlers they had."""
+    """Turn SIGTERM and SIGHUP into :class:`Terminated`, and note each Ctrl-C's time before its
+    ``KeyboardInterrupt``; returns the handlers they had."""
     import os
     import signal
 
     from stcvision.errors import Terminated
-    from stcvision.fileio import signal_received
+    from stcvision.fileio import interrupt_received, signal_received
 
     main_pid = os.getpid()
     previous = {}
@@ -112,19 +113,43 @@ def _install_signal_handlers() -> dict:
         signal_received(signum)  # remembered: a library that swallows the exception cannot commit outputs
         raise Terminated(signum)
 
-    for sig in (signal.SIGTERM, signal.SIGHUP):
+    def on_ctrl_c(signum, frame):
+        # noted, so that a Ctrl-C whose exception was lost (raised inside a callback from C, as
+        # llvmlite's during a numba compile, which ctypes prints and drops) still ends the compile
+        if os.getpid() == main_pid:
+            interrupt_received()
+        raise KeyboardInterrupt
+
+    for sig, h in ((signal.SIGTERM, handler), (signal.SIGHUP, handler), (signal.SIGINT, on_ctrl_c)):
         try:
-            previous[sig] = signal.signal(sig, handler)
+            if sig == signal.SIGINT and signal.getsignal(sig) is not signal.default_int_handler:
+                continue  # Ctrl-C ignored or handled by the caller: left as it is
+            previous[sig] = signal.signal(sig, h)
         except (ValueError, OSError):  # not the main thread (main() called from a thread)
             break
+    if previous:
+        previous["unraisable"] = sys.unraisablehook
+        sys.unraisablehook = _quiet_lost_signal
     return previous
+
+
+def _quiet_lost_signal(unraisable) -> None:
+    """A signal's exception that Python could not raise (inside a callback from C) is not printed
+    with its traceback: the signal was noted, and the run ends on it at the next point that
+    checks (the end of a function's compile, a frame). Anything else is reported as usual."""
+    if isinstance(unraisable.exc_value, KeyboardInterrupt):
+        return
+    sys.__unraisablehook__(unraisable)
 
 
 def _restore_signal_handlers(previous: dict) -> None:
     import signal
 
     for sig, h in previous.items():
-        signal.signal(sig, h)
+        if sig == "unraisable":
+            sys.unraisablehook = h
+        else:
+            signal.signal(sig, h)
 
 
 def _kept_note() -> str:
