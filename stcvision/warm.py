@@ -62,16 +62,19 @@ def _signals_deferred():
         yield
         return
     caught: list[tuple[int, object]] = []
-    previous = {s: signal.signal(s, lambda signum, frame: caught.append((signum, frame))) for s in _STOPS}
+    previous: dict[int, object] = {}
     try:
+        for s in _STOPS:
+            if signal.getsignal(s) is not signal.SIG_IGN:  # an ignored signal stays ignored, in the parts too
+                previous[s] = signal.signal(s, lambda signum, frame: caught.append((signum, frame)))
         yield
     finally:
         for s, handler in previous.items():
             signal.signal(s, handler)
-        for signum, frame in caught[:1]:
+        for signum, frame in dict(caught).items():  # each signal once, in the order they came
             handler = previous[signum]
             if callable(handler):
-                handler(signum, frame)
+                handler(signum, frame)  # the usual handlers raise: the rest wait for the next check
             elif handler == signal.SIG_DFL:
                 signal.raise_signal(signum)
 

@@ -129,27 +129,34 @@ def _install_signal_handlers() -> dict:
             break
     if previous:
         previous["unraisable"] = sys.unraisablehook
-        sys.unraisablehook = _quiet_lost_signal
+        sys.unraisablehook = _quiet_lost_signal(sys.unraisablehook)
     return previous
 
 
-def _quiet_lost_signal(unraisable) -> None:
-    """A signal's exception that Python could not raise (inside a callback from C) is not printed
-    with its traceback: the signal was noted, and the run ends on it at the next point that
-    checks (the end of a function's compile, a frame). Anything else is reported as usual."""
-    if isinstance(unraisable.exc_value, KeyboardInterrupt):
-        return
-    sys.__unraisablehook__(unraisable)
+def _quiet_lost_signal(then):
+    """An unraisable-exception hook: a signal's exception that Python could not raise (inside a
+    callback from C) is not printed with its traceback, since the signal was noted and the run
+    ends on it at the next point that checks (the end of a function's compile, a frame); anything
+    else goes to ``then``, the hook in place before."""
+
+    def hook(unraisable) -> None:
+        if not isinstance(unraisable.exc_value, KeyboardInterrupt):
+            then(unraisable)
+
+    return hook
 
 
 def _restore_signal_handlers(previous: dict) -> None:
     import signal
 
-    for sig, h in previous.items():
+    # Ctrl-C's handler and the hook first: a Ctrl-C while the others are restored is then the
+    # default KeyboardInterrupt, and nothing of this run's is left installed
+    first = [k for k in ("unraisable", signal.SIGINT) if k in previous]
+    for sig in first + [k for k in previous if k not in first]:
         if sig == "unraisable":
-            sys.unraisablehook = h
+            sys.unraisablehook = previous[sig]
         else:
-            signal.signal(sig, h)
+            signal.signal(sig, previous[sig])
 
 
 def _kept_note() -> str:

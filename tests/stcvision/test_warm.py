@@ -184,3 +184,21 @@ def test_sigterm_during_the_demos_first_compile_stops_it(tmp_path):
     err = p.stderr.read()
     assert p.returncode == 128 + signal.SIGTERM and "interrupted" in err and "Traceback" not in err, err
     assert time.monotonic() - t0 < 8  # a function's compile at most, under the suite's load
+
+
+def test_an_ignored_ctrl_c_stays_ignored_in_a_part_started_while_signals_wait():
+    """A warm-up whose Ctrl-C is ignored (started in the background by a script) starts parts
+    that ignore it too: waiting signals leave an ignored one alone."""
+    import signal
+
+    from stcvision import warm as warm_module
+
+    probe = "import signal; print(signal.getsignal(signal.SIGINT) is signal.SIG_IGN)"
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        with warm_module._signals_deferred():
+            r = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, timeout=60)
+        assert signal.getsignal(signal.SIGINT) is signal.SIG_IGN
+    finally:
+        signal.signal(signal.SIGINT, previous)
+    assert r.stdout.strip() == "True", r.stderr
