@@ -402,6 +402,8 @@ def _target(args):
             raise BadInputError("--out needs --viewpoint-height-m (the first guess the lights-on frame refines)")
         check_output_file(args.out, overwrite=args.force, what="profile")
         floor_png_path = str(Path(args.out).with_suffix(".floor.png"))
+        if Path(floor_png_path).resolve() == Path(png).resolve():
+            raise OutputError(f"--uncertainty-png {png} is where the floor plot goes; expected another file name")
         check_output_file(floor_png_path, overwrite=args.force, what="floor uncertainty plot")
         _check_mount_ranges(args.subcell_m, args.viewpoint_height_m)
     elif args.lights_on or args.bag or args.viewpoint_height_m:

@@ -300,6 +300,12 @@ def test_target_to_profile_with_a_lights_on_frame_and_a_verdict(cli, tmp_path, m
         "--out", tmp_path / "p2.json", "--viewpoint-height-m", "0.3", "--uncertainty-png", tmp_path / "u2.png",
     )  # fmt: skip
     assert code == 0 and "plot" in err + _ and (tmp_path / "p2.floor.png").is_file()
+    # the uncertainty map cannot take the floor plot's name
+    code, _, err = cli(
+        "calibrate", "target", tmp_path / "sim.xml", "--out", tmp_path / "p4.json", "--viewpoint-height-m", "0.3",
+        "--uncertainty-png", tmp_path / "p4.floor.png",
+    )  # fmt: skip
+    assert code == 2 and "floor plot" in err and not (tmp_path / "p4.json").exists()
     # an existing plot is not overwritten without --force
     (tmp_path / "p3.floor.png").write_bytes(b"mine")
     code, _, err = cli(
