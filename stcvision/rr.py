@@ -200,7 +200,7 @@ class RecordingFile:
         app_id: str = "stcvision",
         default_blueprint: rrb.Blueprint | None = None,
     ) -> None:
-        from stcvision.errors import StcVisionError, signal_in_chain
+        from stcvision.errors import StcVisionError
         from stcvision.fileio import output_error, temp_sibling
 
         if spawn:
@@ -218,15 +218,8 @@ class RecordingFile:
             try:
                 self.rec.save(self._tmp, default_blueprint=bp)
                 self.rec.send_recording_name(self.path.name)
-            except BaseException as exc:
-                # a signal once the file sink has started keeps what it holds, as one later would
-                # (the file is there: a caller that saw it must find the recording); before,
-                # or after any other error, the sink stops and its file goes
-                signum = signal_in_chain(exc)
-                if signum is not None and self._tmp.is_file():
-                    self.interrupted(signum)
-                else:
-                    self.abort()
+            except BaseException:  # a signal while the file sink starts: stop it, then remove its file
+                self.abort()
                 raise
         if spawn:
             try:

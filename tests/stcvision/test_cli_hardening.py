@@ -328,14 +328,18 @@ def test_a_closed_stdout_ends_quietly(files):
 
 
 def test_sigterm_keeps_the_recording_so_far_and_no_temporary(tmp_path):
-    """SIGTERM once the recording's file has its first batch: exit 143, the recording kept
+    """SIGTERM once the recording's file has its second batch: exit 143, the recording kept
     whole (rerun's footer written: it verifies) as it stood, no temporary. The run is an 8x8
     board (seconds of work after the recording opens; the signal ends it long before): a 3x3
     run, now a fraction of a second, could finish between the poll and the signal."""
     rrd = tmp_path / "run.rrd"
     p = _stcvision("cover", "--board", "8x8", "--rrd", rrd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
     try:
-        while not any(t.stat().st_size for t in tmp_path.glob(".*.tmp")) and p.poll() is None:
+        # the file's second batch: the first (the layout) is written as the sink starts, where a
+        # signal still removes the file (nothing recorded yet); by the next the run is logging
+        sizes = set()
+        while len(sizes - {0}) < 2 and p.poll() is None:
+            sizes.update(t.stat().st_size for t in tmp_path.glob(".*.tmp"))
             time.sleep(0.02)  # polling for an event, not timing anything
         assert p.poll() is None, "the run ended before its recording was opened"
         p.send_signal(signal.SIGTERM)
