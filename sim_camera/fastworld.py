@@ -103,23 +103,28 @@ class StaticGeometry:
         if nx * ny > _MAX_GRID_CELLS:
             raise BadInputError(f"arena too large for the batched path: {ny}x{nx} near-grid cells")
         half_diag = cell * math.sqrt(0.5)
-        lists: list[list[int]] = [[] for _ in range(nx * ny)]
+        # (cell, capsule) pairs, capsule by capsule; a stable sort by cell then lists each cell's
+        # capsules in capsule order (a list of lists appended to in Python cost most of a
+        # Buffon batch's set-up: ~20 ms for a 30 u circle, a fifth of four paper-length trials)
+        cells, ks = [], []
         for k, (ax, ay, bx, by, rad) in enumerate(caps):
             lim = rad + reach_m + half_diag
             j0 = max(0, int((min(ax, bx) - lim - ox) / cell))
             j1 = min(nx - 1, int((max(ax, bx) + lim - ox) / cell))
             i0 = max(0, int((min(ay, by) - lim - oy) / cell))
             i1 = min(ny - 1, int((max(ay, by) + lim - oy) / cell))
-            jj, ii = np.meshgrid(np.arange(j0, j1 + 1), np.arange(i0, i1 + 1))
-            cx = ox + (jj.ravel() + 0.5) * cell
-            cy = oy + (ii.ravel() + 0.5) * cell
+            jj, ii = np.arange(j0, j1 + 1), np.arange(i0, i1 + 1)[:, None]  # the box's cells, row by row
+            cx = ox + (jj + 0.5) * cell
+            cy = oy + (ii + 0.5) * cell
             d = _point_segment_distance_np(cx, cy, ax, ay, bx, by)
-            for c in (ii.ravel() * nx + jj.ravel())[d <= lim]:
-                lists[c].append(k)
-        counts = np.array([len(x) for x in lists], dtype=np.int64)
+            near = (ii * nx + jj)[d <= lim]
+            cells.append(near)
+            ks.append(np.full(len(near), k, dtype=np.int64))
+        cell_of = np.concatenate(cells).astype(np.int64) if cells else np.zeros(0, np.int64)
+        cap_of = np.concatenate(ks) if ks else np.zeros(0, np.int64)
         offsets = np.zeros(nx * ny + 1, dtype=np.int64)
-        np.cumsum(counts, out=offsets[1:])
-        index = np.array([k for x in lists for k in x], dtype=np.int64)
+        np.cumsum(np.bincount(cell_of, minlength=nx * ny), out=offsets[1:])
+        index = np.ascontiguousarray(cap_of[np.argsort(cell_of, kind="stable")], dtype=np.int64)
         return cls(caps, (ox, oy), cell, (ny, nx), offsets, index, np.ascontiguousarray(v, dtype=np.float64))
 
     @property
