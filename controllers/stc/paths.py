@@ -6,7 +6,8 @@ The true and believed paths in the TUM trajectory format (what ``evo`` reads,
 Both are observers (:class:`stcvision.controllers.stc.observers.Observer`): they read the plant
 and the belief as the loop tells them of a reading or a move and keep copies; the controller
 never sees them. Each is held in memory and written in one piece when the run ends
-(:func:`write_paths`, :func:`write_trace`): an interrupted run leaves no half-written file.
+(:meth:`PathLog.tum` through :func:`stcvision.tum.write_tum_files`, :func:`write_trace`): an
+interrupted run leaves no half-written file.
 """
 
 from __future__ import annotations
@@ -20,13 +21,12 @@ import numpy as np
 
 from stcvision.controllers.stc.observers import Observer, Reading
 from stcvision.stc_geometry import compass_to_rad
-from stcvision.tum import tum_files, write_tum_files
+from stcvision.tum import tum_files
 
 __all__ = [
     "TRACE_SCHEMA_VERSION",
     "JsonTrace",
     "PathLog",
-    "write_paths",
     "write_trace",
 ]
 
@@ -256,26 +256,6 @@ class JsonTrace(Observer):
             One compact JSON object a line, in the order of the readings.
         """
         return "".join(json.dumps(line, allow_nan=False) + "\n" for line in self.lines)
-
-
-def write_paths(folder: str | Path, paths, *, overwrite: bool = False) -> list[Path]:
-    """Write the TUM files into a folder as one set (:func:`stcvision.fileio.write_set`).
-
-    Parameters
-    ----------
-    folder : str or Path
-        Where ``true.tum`` and ``believed.tum`` go (made if missing).
-    paths : PathLog or dict
-        The run's paths, or the files' text by name (:func:`stcvision.tum.tum_files`).
-    overwrite : bool
-        Replace existing files; else they are refused.
-
-    Returns
-    -------
-    list of Path
-        The files written.
-    """
-    return write_tum_files(folder, paths.tum() if isinstance(paths, PathLog) else paths, overwrite=overwrite)
 
 
 def write_trace(path: str | Path, trace: JsonTrace, *, overwrite: bool = False) -> Path:

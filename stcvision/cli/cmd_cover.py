@@ -263,10 +263,11 @@ class _Outputs:
 
     def write(self, result: dict, *, overwrite: bool) -> None:
         # the keys appear only with their options: a run without them prints what it always did
-        from stcvision.controllers.stc.paths import write_paths, write_trace
+        from stcvision.controllers.stc.paths import write_trace
+        from stcvision.tum import write_tum_files
 
         if self.paths is not None:
-            write_paths(self.args.trajectory, self.paths, overwrite=overwrite)
+            write_tum_files(self.args.trajectory, self.paths.tum(), overwrite=overwrite)
             result["trajectory"] = self.args.trajectory
         if self.trace is not None:
             write_trace(self.args.trace, self.trace, overwrite=overwrite)
