@@ -2,8 +2,9 @@
 mirror images at the sensor's ADC depth (uint8 for 8 bits, uint16 ADC counts for more:
 :mod:`stcvision.sim_camera.image_sensor`), with ground truth.
 
-Build once, render many: :class:`SyntheticCamera` traces every pixel onto the floor once
-(:func:`stcvision.sim_camera.optics.trace_pixels`) and draws its fixed-pattern noise once; per frame only
+Build once, render many: :class:`SyntheticCamera` traces every pixel onto the floor once per
+process for its optics (:func:`stcvision.sim_camera.optics.camera_geometry`, which keeps the
+table for the next camera with the same optics) and draws its fixed-pattern noise once; per frame only
 the robot pose moves the floor under that table.
 
 Rendering
@@ -35,7 +36,7 @@ from llvmlite import ir
 from numba.extending import intrinsic
 
 from stcvision.sim_camera.image_sensor import ROSE_SNR, FixedPattern, SensorParams, detection_snr, expose
-from stcvision.sim_camera.optics import FloorProjector, MirrorCameraParams, RayTable, trace_pixels
+from stcvision.sim_camera.optics import MirrorCameraParams, RayTable, camera_geometry
 
 __all__ = [
     "Frame",
@@ -263,8 +264,8 @@ class SyntheticCamera:
     ) -> None:
         self.optics = optics or MirrorCameraParams()
         self.sensor = sensor or SensorParams()
-        self.table: RayTable = trace_pixels(self.optics)
-        self.projector = FloorProjector(self.table)
+        self.table: RayTable
+        self.table, self.projector = camera_geometry(self.optics)
         shape = (self.optics.height_px, self.optics.width_px)
         self.pattern = FixedPattern.draw(shape, self.sensor, np.random.default_rng(pattern_seed))
         self._scratch = np.empty((*shape, 3), np.float32)

@@ -29,6 +29,7 @@ Two independent calculations:
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass, replace
+from functools import lru_cache
 
 import numba
 import numpy as np
@@ -254,6 +255,23 @@ def trace_pixels(p: MirrorCameraParams) -> RayTable:
     footprint = np.abs(fu[..., 0] * fv[..., 1] - fu[..., 1] * fv[..., 0])
     footprint[~ground] = np.nan
     return RayTable(p, floor, ground, mirror, body, footprint, vignetting, jac)
+
+
+#: cameras whose geometry :func:`camera_geometry` keeps: a table and its projector are ~45 MB
+#: for a 640 x 480 image, and a process rarely uses more than two optics at once
+GEOMETRY_CACHE_SIZE = 4
+
+
+@lru_cache(maxsize=GEOMETRY_CACHE_SIZE)
+def camera_geometry(p: MirrorCameraParams) -> tuple[RayTable, FloorProjector]:
+    """The ray table of ``p`` and its :class:`FloorProjector`, traced once per process for equal
+    optics: tracing takes ~0.5 s and every simulated camera of a run (each tour of a sweep, each
+    camera of a test) with the same optics would trace the same table again. Read only: every
+    array is shared by the cameras that asked for it."""
+    table = trace_pixels(p)
+    for name in ("floor_xy_m", "ground", "mirror", "body", "footprint_m2", "vignetting", "jacobian"):
+        getattr(table, name).setflags(write=False)
+    return table, FloorProjector(table)
 
 
 def _footprint_steps(p: MirrorCameraParams, u=None, v=None):
