@@ -117,3 +117,16 @@ def test_sensor_gain_keeps_the_webcam_and_spans_the_noise_on_the_others():
 
     ladder = Exposures(CoverConfig(camera=CAMERAS["webcam"], exposure="auto")).ladder
     assert ladder == (WEBCAM, *AUTO_LONG)
+
+
+def test_the_noise_table_is_scipys_normal_quantiles_to_the_last_bit():
+    """The sensor's inverse-CDF table comes from the standard library (no scipy.special import
+    in a rendering command); its 65,536 float32 values must be those ``ndtri`` gives, or every
+    frame's noise, and every run's result, would change."""
+    from scipy.special import ndtri
+
+    from stcvision.sim_camera import image_sensor
+
+    want = ndtri((np.arange(65536) + 0.5) / 65536).astype(np.float32)
+    assert image_sensor._LUT.dtype == np.float32
+    np.testing.assert_array_equal(image_sensor._LUT, want)
