@@ -48,6 +48,7 @@ def test_mei_fit_matches_opencv_omnidir_on_the_real_sample(sample):
     assert fit.rms_px < held <= HELDOUT_RATIO * fit.rms_px and len(per_view) == 15
 
 
+@pytest.mark.slow
 def test_cli_on_the_real_sample_compares_the_models(cli, sample, tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     code, out, err = cli("calibrate", "target", sample, "--json", "--folds", "3")
@@ -163,6 +164,7 @@ def test_too_few_views_and_a_folder_without_a_pattern_are_refused(cli, tmp_path,
     assert code == 2 and "--pattern" in err
 
 
+@pytest.mark.slow
 def test_the_95_percent_bounds_hold_the_truth_over_simulated_calibrations():
     """12 simulated calibrations of 8 views each (the seeds are fixed): the image and floor
     bounds hold the truth at 90-99 % of points (``python -m stcvision.calibration.target_sim``
@@ -202,6 +204,7 @@ def _render_checkerboard(params, size, R, t, squares, spacing):
     return cv2.cvtColor(np.clip(img, 0, 255).astype(np.uint8), cv2.COLOR_GRAY2BGR)
 
 
+@pytest.mark.slow
 def test_image_folder_finds_the_corners_and_refuses_a_blank_view(cli, tmp_path, monkeypatch):
     """Rendered checkerboard views of a known camera: the corners are found to sub-pixel, the
     fit recovers the camera's centre within its 95 % interval, and a blank image is refused with
@@ -241,6 +244,7 @@ def test_image_folder_finds_the_corners_and_refuses_a_blank_view(cli, tmp_path, 
         assert abs(p["value"] - value) < 3 * p["std"], (name, p)
 
 
+@pytest.mark.slow
 def test_target_to_profile_with_a_lights_on_frame_and_a_verdict(cli, tmp_path, monkeypatch):
     """The simulator's camera as a unified model (fitted to its own profile), seen through 10
     simulated target views; then its lights-on frame fits the mount. The profile reads the floor
@@ -397,6 +401,7 @@ def test_rescaled_profile_finds_the_dots_where_the_original_does(cli, tmp_path):
     assert not b.untrusted and len(B) <= len(a.dots.xy_m[a.dots.lit]) + 2
 
 
+@pytest.mark.slow
 def test_the_floor_bound_holds_on_the_simulators_own_camera():
     """Four calibrations of the simulator's ray-traced spherical-mirror camera (a webcam looking
     up into the mirror: not central) from a board on the floor and raised on blocks: the unified

@@ -28,6 +28,7 @@ def perturbed(k):
     )
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("k", range(4))
 def test_transformation_calibration_on_perturbed_cameras(k):
     optics = perturbed(k)
@@ -91,6 +92,7 @@ def test_rim_of_the_real_opencv_catadioptric_sample(peer_data):
     assert rim.residual_px < 1.5
 
 
+@pytest.mark.slow
 def test_calibrate_cli_end_to_end(tmp_path, cli):
     cam = SyntheticCamera()
     frame = calibration_frame(cam)

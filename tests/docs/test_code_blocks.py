@@ -121,6 +121,7 @@ def run_page(path: Path, cwd: Path) -> None:
                 os.chdir(old)
 
 
+@pytest.mark.slow  # each page runs its commands, seconds each
 @pytest.mark.parametrize("page", PAGES, ids=[p.name for p in PAGES])
 def test_every_code_block_runs(page, tmp_path):
     assert code_blocks(page), f"{page.name} has no code block to run"

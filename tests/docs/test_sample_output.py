@@ -5,6 +5,8 @@ changes it fails here instead of leaving the page stale."""
 import re
 from pathlib import Path
 
+import pytest
+
 from stcvision.cli import main
 
 PAGE = Path(__file__).resolve().parents[2] / "docs" / "tutorials" / "first-10-minutes.md"
@@ -23,6 +25,7 @@ def _untimed(lines: list[str]) -> list[str]:
     return [re.sub(r"/ [0-9.]+ s$", "/ (wall) s", line.rstrip()) for line in lines]
 
 
+@pytest.mark.slow
 def test_the_tutorials_demo_summary_is_the_demos_output(tmp_path, capsys, monkeypatch):
     monkeypatch.chdir(tmp_path)
     assert main(["demo", "--out", "out"]) == 0

@@ -60,7 +60,12 @@ def _guarded_cover(real):
 def _stubs():
     import stcvision.controllers.buffon.run as buffon_run
     import stcvision.controllers.stc.loop as loop
+    import stcvision.controllers.stc.plan  # noqa: F401  (see below)
     import stcvision.sweep as sweep
+
+    # plan binds run_cover when it is first imported: imported first inside the patch below (the
+    # patch of plan.plan imports it), it would keep the stub for the rest of the process, and a
+    # later test of cover plan in the same worker would meet it
 
     with contextlib.ExitStack() as stack:
         stack.enter_context(mock.patch.object(loop, "run_cover", _guarded_cover(loop.run_cover)))

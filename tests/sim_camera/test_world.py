@@ -41,6 +41,7 @@ def test_units_are_metres():
     assert w.max_substep_travel_m <= 0.25 * 0.5 * w.arena.wall_thickness_m
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", ["circle", "square", "ellipse", "polygon", "board"])
 def test_random_drive_never_leaves_arena(name, arenas):
     """Acceptance: 100,000 steps of random driving (at max speed a good part of the time) in

@@ -195,6 +195,7 @@ def _bag_lines(cli, bag, dark, *extra):
     return lines[:-1], lines[-1]["summary"], err
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("kind", ["ros1", "ros2-sqlite3", "ros2-mcap", "mcap"])
 def test_a_recording_gives_the_png_frames_results_and_stamps(rendered, tmp_path, cli, kind, results_only):
     d, frames, dark = rendered
@@ -312,6 +313,7 @@ def test_bad_recordings_and_topics_are_one_line(rendered, tmp_path, cli, capsys)
         assert "Traceback" not in err
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["ctrl-c", "sigterm"])
 def test_a_signal_stops_a_bag_run_within_two_seconds(rendered, tmp_path, sig):
     d, frames, dark = rendered
@@ -413,6 +415,7 @@ def test_calibrate_dark_from_a_recording_equals_the_files(tmp_path, cli):
     assert not (tmp_path / "x.png").exists()
 
 
+@pytest.mark.slow
 def test_calibrate_reads_its_one_frame_from_a_recording(tmp_path, cli):
     """rim, transform and import --lights-on read a recording's message as they read a PNG of it:
     the one whose header stamp is --stamp, or the first; the same results, the same profiles

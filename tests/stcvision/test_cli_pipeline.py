@@ -105,6 +105,7 @@ def test_pipeline_profile_that_does_not_match(rendered, tmp_path, capsys):
     assert "800x600" in capsys.readouterr().err
 
 
+@pytest.mark.slow
 def test_bench_reports_render_and_pipeline_times(capsys):
     # (the closed loop's 22x22 tour has its own tests: tests/controllers/stc/test_timing.py)
     assert main(["bench", "--frames", "5", "--no-loop", "--json"]) == 0

@@ -171,6 +171,7 @@ def test_a_corrupt_frame_is_skipped_and_counted(smoke, tmp_path, cli):
     assert r["skipped"][0]["frame"] == "frames/000002.png" and "000002.png" in err
 
 
+@pytest.mark.slow
 def test_each_camera_is_read_with_its_own_workflow_profile(tmp_path, cli):
     recipe = {
         "schema_version": 1,

@@ -144,6 +144,7 @@ def rrd_complete(data: bytes) -> bool:
     return data[:4] == b"RRF2" and data[-12:-4] == b"RRF2FOOT"
 
 
+@pytest.mark.slow
 def test_recording_killed_while_written_keeps_the_old_one(tmp_path):
     rrd = tmp_path / "run.rrd"
     argv = stcvision("cover", "--board", "5x5", "--perception", "oracle", "--rrd", rrd, "--force")

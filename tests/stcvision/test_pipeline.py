@@ -66,6 +66,7 @@ def test_longer_exposures_with_matching_dark_frames(default_camera, default_prof
     check(m)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("k", range(2))
 def test_perturbed_cameras_calibrated_by_the_workflow(k):
     rng = np.random.default_rng(100 + k)

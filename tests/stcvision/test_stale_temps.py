@@ -13,6 +13,8 @@ import sys
 import time
 from pathlib import Path
 
+import pytest
+
 ROOT = Path(__file__).resolve().parents[2]
 STCVISION = str(Path(sys.executable).with_name("stcvision"))
 
@@ -73,6 +75,7 @@ def test_every_writer_removes_a_killed_writers_temporaries_of_its_file(cli, tmp_
     assert [p for p in left if p.exists()] == [] and temps(tmp_path) == []
 
 
+@pytest.mark.slow
 def test_dataset_generate_with_a_pool_killed_leaves_nothing_after_the_next_run(cli, tmp_path, session_pids):
     ds = tmp_path / "D"
     # The smoke recipe with 60 frames a group: its six frames are written in a few milliseconds,

@@ -94,6 +94,7 @@ def test_dask_cluster_gives_the_local_pools_results(tmp_path, dask_cluster):
     assert all(w.split(":")[1] != str(os.getpid()) for w in workers)
 
 
+@pytest.mark.slow
 def test_a_sigkilled_sweep_resumes_with_every_key_once_and_equal_to_an_uninterrupted_run(tmp_path):
     store, n = tmp_path / "killed.jsonl", 40
     proc = subprocess.Popen(

@@ -6,6 +6,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 from stcvision.compiles import NOTICE
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -28,6 +30,7 @@ def test_a_compile_is_announced_once_on_stderr():
     assert r.stderr.count(NOTICE) == 1 and r.stdout.count(NOTICE) == 0
 
 
+@pytest.mark.slow
 def test_warm_runs_and_then_the_demo_loads_every_kernel_from_the_cache(tmp_path):
     stc = str(Path(sys.executable).with_name("stcvision"))
     r = subprocess.run([sys.executable, "-m", "stcvision.warm"], capture_output=True, text=True, timeout=600)
@@ -161,6 +164,7 @@ def test_a_signal_lost_inside_a_compile_still_ends_it():
     assert r.stdout.split("\n")[:3] == ["stopped 15", "stopped KeyboardInterrupt", "3"], r.stdout
 
 
+@pytest.mark.slow
 def test_sigterm_during_the_demos_first_compile_stops_it(tmp_path):
     """Measured before the listener: SIGTERM 6 and 15 s into a cold demo took 33 and 23 s to end it."""
     import os

@@ -201,6 +201,7 @@ def _mini_evaluation(folder):
     return out
 
 
+@pytest.mark.slow
 def test_online_experiment_writes_its_tables_and_figures(cli, tmp_path, monkeypatch):
     import stcvision.controllers.buffon.online as exp
 

@@ -149,6 +149,7 @@ def test_summary_keys_interval_and_corrections():
     assert median_ci95([1.0, 2.0]) is None
 
 
+@pytest.mark.slow
 def test_batched_path_is_a_model_of_the_pymunk_path():
     """Small version of `stcvision buffon compare`: nBC of 10 pymunk trials vs 120 batched trials
     in a 20 u circle, 1,500-step visits, are not told apart (Mann-Whitney, 1 %), and lengths agree."""

@@ -24,6 +24,7 @@ def _cli(tmp_path, *argv):
     )
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("sig,status,threads", [(signal.SIGTERM, 143, 1), (signal.SIGINT, 130, 2)])
 def test_a_huge_visit_stops_within_a_second(tmp_path, sig, status, threads):
     argv = ["buffon", "--nest", "circle:30", "--trials", "2", "--visit-steps", "100000000"]

@@ -117,6 +117,7 @@ def test_run_trial_is_json_and_deterministic():
     assert a == b and json.loads(json.dumps(a)) == a
 
 
+@pytest.mark.slow
 def test_reproduce_end_to_end_resumes_and_refuses_without_writing(tmp_path, capsys, monkeypatch):
     """`search reproduce` cut short (every pattern 10 steps, 2 seeds): every figure, table and
     results.json; the two rows with the same parameters in two tables (the can case, improved

@@ -267,6 +267,7 @@ def test_the_03_m_obstacle_beside_the_petal_noise_off():
     assert s["phases_visited"] == [1, 2, 3, 4] and s["min_clearance_to_obstacle_m"] > 0.0
 
 
+@pytest.mark.slow
 def test_the_03_m_obstacle_beside_the_petal_whole_flower(capsys):
     """``search --obstacle 1.0,0.5,0.3 --patch 2,1,0.3 --beacon`` stopped "trapped: every move from
     here is blocked" after 278 steps, at the far side of the obstacle where the flower turns back

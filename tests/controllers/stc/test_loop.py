@@ -24,6 +24,7 @@ def small_board(seed):
     return Board.random(cells, obstacle_fraction=float(rng.uniform(0, 0.25)), rng=rng)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("chunk", range(4))
 def test_camera_mode_covers_random_boards_with_exposure_control(chunk):
     """20 random boards of 2x2..4x4 cells: every decision from rendered frames."""
@@ -49,6 +50,7 @@ def test_webcam_exposure_fails_where_exposure_control_succeeds():
     assert auto["max_mark_age_read_s"] > 2 * horizon  # it had to read marks the webcam cannot see
 
 
+@pytest.mark.slow
 def test_red_light_landmarks_keep_the_robot_on_its_sub_cells():
     """On 5x5 boards the robot's own marks show its heading drift only as the lean of old
     rows; the red lights show it absolutely. Without them it strays 1.6-2.8 cm from its
@@ -209,6 +211,7 @@ def test_exposure_rungs_follow_the_clock():
     assert not _Camera(board, CoverConfig(exposure="webcam"), np.random.default_rng(0)).controlled
 
 
+@pytest.mark.slow
 def test_far_red_lights_keep_the_robot_on_its_sub_cells_on_open_floor():
     """The newest row's heading random-walks (each row was laid with the error the robot had
     then) and the marks' offset follows the trail: only the red lights are absolute. Their
@@ -250,6 +253,7 @@ def test_ideal_camera_sees_exactly_the_marks_within_the_horizon():
     assert seen.has((0, 0), 0) and seen.has((1, 1), 1) and not seen.has((2, 2), 2)
 
 
+@pytest.mark.slow
 def test_ideal_camera_bounds_what_any_pipeline_can_do():
     """The physics-limited camera spends the camera's time and sees what its frames could show
     at all. On six 10x10 boards it reproduces the paper's limitation (at webcam settings the
@@ -286,6 +290,7 @@ def test_on_a_map_the_webcam_tour_outruns_its_marks_and_stops_before_deciding(pe
     assert edge["sim_time_s"] > 2 * default["sim_time_s"]
 
 
+@pytest.mark.slow
 def test_camera_mode_covers_a_12x12_board_with_the_cooled_camera():
     """A 12x12 board from rendered 16-bit frames of the cooled camera: every sub-cell once, back
     at the start, 0 wrong decisions, in ~3,700 s of robot time (the webcam, exposure control
