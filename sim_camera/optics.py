@@ -28,8 +28,14 @@ Two independent calculations:
 
 from __future__ import annotations
 
+import hashlib
+import io
+import os
+import platform
+import zipfile
 from dataclasses import asdict, dataclass, replace
 from functools import lru_cache
+from pathlib import Path
 
 import numba
 import numpy as np
@@ -257,21 +263,93 @@ def trace_pixels(p: MirrorCameraParams) -> RayTable:
     return RayTable(p, floor, ground, mirror, body, footprint, vignetting, jac)
 
 
-#: cameras whose geometry :func:`camera_geometry` keeps: a table and its projector are ~45 MB
-#: for a 640 x 480 image, and a process rarely uses more than two optics at once
+#: cameras whose geometry :func:`camera_geometry` keeps in memory: a table and its projector
+#: are ~45 MB for a 640 x 480 image, and a process rarely uses more than two optics at once
 GEOMETRY_CACHE_SIZE = 4
+#: ... and on disk (~22 MB each at 640 x 480): the least recently used beyond these are removed
+GEOMETRY_FILES_KEPT = 8
+#: where the geometry files go; None: ``__pycache__`` beside this module, where numba keeps the
+#: compiled kernels (nothing is kept where that folder cannot be written)
+GEOMETRY_DIR: Path | None = None
+_TABLE_ARRAYS = ("floor_xy_m", "ground", "mirror", "body", "footprint_m2", "vignetting", "jacobian")
 
 
 @lru_cache(maxsize=GEOMETRY_CACHE_SIZE)
 def camera_geometry(p: MirrorCameraParams) -> tuple[RayTable, FloorProjector]:
-    """The ray table of ``p`` and its :class:`FloorProjector`, traced once per process for equal
-    optics: tracing takes ~0.5 s and every simulated camera of a run (each tour of a sweep, each
-    camera of a test) with the same optics would trace the same table again. Read only: every
-    array is shared by the cameras that asked for it."""
-    table = trace_pixels(p)
-    for name in ("floor_xy_m", "ground", "mirror", "body", "footprint_m2", "vignetting", "jacobian"):
+    """The ray table of ``p`` and its :class:`FloorProjector`, made once per optics: tracing and
+    the projector's lookup grid take ~0.9 s, and every simulated camera with the same optics (each
+    tour of a sweep, each command of a session, each camera of a test) would make the same ones
+    again. Kept in memory for the process and in a file for the next process (the arrays as
+    computed, so a camera renders the same frames either way), under a key of the optics, this
+    module's source, numpy's version and the machine: a change to any of them traces again.
+    Read only: every array is shared by the cameras that asked for it."""
+    path = _geometry_path(p)
+    kept = _load_geometry(path, p) if path is not None else None
+    if kept is None:
+        table = trace_pixels(p)
+        projector = FloorProjector(table)
+        if path is not None:
+            _save_geometry(path, table, projector)
+    else:
+        table, guess = kept
+        projector = FloorProjector(table, guess=guess)
+    for name in _TABLE_ARRAYS:
         getattr(table, name).setflags(write=False)
-    return table, FloorProjector(table)
+    return table, projector
+
+
+def _geometry_path(p: MirrorCameraParams) -> Path | None:
+    folder = GEOMETRY_DIR if GEOMETRY_DIR is not None else Path(__file__).resolve().parent / "__pycache__"
+    try:
+        folder.mkdir(exist_ok=True)
+    except OSError:
+        return None
+    if not os.access(folder, os.W_OK):
+        return None
+    key = hashlib.sha256()
+    for part in (repr(sorted(asdict(p).items())), np.__version__, platform.machine()):
+        key.update(part.encode() + b"\0")
+    key.update(Path(__file__).read_bytes())
+    return folder / f"raytable-{key.hexdigest()[:32]}.npz"
+
+
+def _load_geometry(path: Path, p: MirrorCameraParams) -> tuple[RayTable, np.ndarray] | None:
+    """The table and lookup grid kept in ``path``, or None if there is none or it is not whole
+    (a file cut short, from another writer, of other shapes: traced again)."""
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            arrays = {name: z[name] for name in (*_TABLE_ARRAYS, "guess")}
+        os.utime(path)  # recently used: trimmed last
+    except (OSError, ValueError, KeyError, zipfile.BadZipFile, EOFError):
+        return None
+    h, w = p.height_px, p.width_px
+    shapes = {"floor_xy_m": (h, w, 2), "jacobian": (h, w, 2, 2)}
+    for name in _TABLE_ARRAYS:
+        want = np.dtype(bool) if name in ("ground", "mirror", "body") else np.dtype(np.float64)
+        if arrays[name].shape != shapes.get(name, (h, w)) or arrays[name].dtype != want:
+            return None
+    guess = arrays.pop("guess")
+    if guess.ndim != 3 or guess.shape[2] != 2 or guess.dtype != np.float64:
+        return None
+    return RayTable(p, **arrays), guess
+
+
+def _save_geometry(path: Path, table: RayTable, projector: FloorProjector) -> None:
+    """Write the table and the lookup grid to ``path`` (atomically: a reader sees the whole file
+    or none), then remove the least recently used files beyond :data:`GEOMETRY_FILES_KEPT`. A
+    file that cannot be written leaves the run as it was: it only costs the next one the trace."""
+    from stcvision.errors import OutputError
+    from stcvision.fileio import write_bytes_atomic
+
+    buf = io.BytesIO()
+    np.savez(buf, **{name: getattr(table, name) for name in _TABLE_ARRAYS}, guess=projector.guess)
+    try:
+        write_bytes_atomic(path, buf.getvalue(), overwrite=True)
+        files = sorted(path.parent.glob("raytable-*.npz"), key=lambda f: f.stat().st_mtime, reverse=True)
+        for old in files[GEOMETRY_FILES_KEPT:]:
+            old.unlink(missing_ok=True)
+    except (OSError, OutputError):
+        return
 
 
 def _footprint_steps(p: MirrorCameraParams, u=None, v=None):
@@ -538,6 +616,24 @@ def _aligned_empty(shape, align: int = 64) -> np.ndarray:
     return buf[skip : skip + n].reshape(shape)
 
 
+def _lookup_grid(table: RayTable, xy: np.ndarray, origin: float, cell_m: float, n: int) -> np.ndarray:
+    """:attr:`FloorProjector.guess` of ``table``: ``xy`` its ground pixels' floor points, the
+    grid's ``n`` x ``n`` cells of ``cell_m`` from ``origin`` (both axes)."""
+    from scipy import ndimage
+
+    ij = np.floor((xy - origin) / cell_m).astype(int)
+    v, u = np.nonzero(table.ground)
+    flat = ij[:, 1] * n + ij[:, 0]
+    cnt = np.bincount(flat, minlength=n * n).astype(float)
+    su = np.bincount(flat, weights=u, minlength=n * n)
+    sv = np.bincount(flat, weights=v, minlength=n * n)
+    filled = cnt > 0
+    gu = np.where(filled, su / np.maximum(cnt, 1), 0).reshape(n, n)
+    gv = np.where(filled, sv / np.maximum(cnt, 1), 0).reshape(n, n)
+    _, (ii, jj) = ndimage.distance_transform_edt(~filled.reshape(n, n), return_indices=True)
+    return np.stack([gu[ii, jj], gv[ii, jj]], axis=-1)
+
+
 class FloorProjector:
     """Fast floor -> pixel projection for rendering, built once from a :class:`RayTable`.
 
@@ -550,9 +646,9 @@ class FloorProjector:
     other points share the call.
     """
 
-    def __init__(self, table: RayTable, *, cell_m: float = 0.01) -> None:
-        from scipy import ndimage
-
+    def __init__(self, table: RayTable, *, cell_m: float = 0.01, guess: np.ndarray | None = None) -> None:
+        """``guess``: the lookup grid (:attr:`guess`) of an earlier projector of the same table
+        and ``cell_m``, which is then not built again (it is most of the set-up's time)."""
         self.table = table
         g = table.ground
         xy = table.floor_xy_m[g]
@@ -560,17 +656,13 @@ class FloorProjector:
         r = self.max_radius_m + cell_m
         n = int(np.ceil(2 * r / cell_m))
         self._origin, self._cell, self._n = -r, cell_m, n
-        ij = np.floor((xy - self._origin) / cell_m).astype(int)
-        v, u = np.nonzero(g)
-        flat = ij[:, 1] * n + ij[:, 0]
-        cnt = np.bincount(flat, minlength=n * n).astype(float)
-        su = np.bincount(flat, weights=u, minlength=n * n)
-        sv = np.bincount(flat, weights=v, minlength=n * n)
-        filled = cnt > 0
-        gu = np.where(filled, su / np.maximum(cnt, 1), 0).reshape(n, n)
-        gv = np.where(filled, sv / np.maximum(cnt, 1), 0).reshape(n, n)
-        _, (ii, jj) = ndimage.distance_transform_edt(~filled.reshape(n, n), return_indices=True)
-        self._guess = np.stack([gu[ii, jj], gv[ii, jj]], axis=-1)
+        if guess is None:
+            guess = _lookup_grid(table, xy, -r, cell_m, n)
+        elif guess.shape != (n, n, 2) or guess.dtype != np.float64:
+            raise ValueError(f"a lookup grid of shape {guess.shape} for a table that needs {(n, n, 2)}")
+        #: (n, n, 2) float64: the mean pixel (u, v) of the rays landing in each floor cell, holes
+        #: filled from the nearest filled cell: the first guess of a projection
+        self.guess = np.ascontiguousarray(guess)
         self._k = _trace_constants(table.params)
         #: (H, W, 8) float64, one 64-byte record per pixel (a cache line: a projected point's
         #: lookups cost one memory access, not one per table): the pixel->floor Jacobian
@@ -592,7 +684,7 @@ class FloorProjector:
         _project_nb(
             xy,
             self.max_radius_m,
-            self._guess,
+            self.guess,
             float(self._origin),
             float(self._cell),
             self.pixels,

@@ -183,3 +183,76 @@ def test_default_view_reaches_the_five_cells():
     ]
     _, ok = project_floor_points(p, np.array(corners))
     assert ok.all()
+
+
+@pytest.fixture
+def geometry_dir(tmp_path, monkeypatch):
+    """camera_geometry's files in a folder of the test's own, with an empty memory cache."""
+    from stcvision.sim_camera import optics
+
+    monkeypatch.setattr(optics, "GEOMETRY_DIR", tmp_path)
+    optics.camera_geometry.cache_clear()
+    yield tmp_path
+    optics.camera_geometry.cache_clear()
+
+
+def _same_geometry(a, b):
+    (ta, pa), (tb, pb) = a, b
+    for name in ("floor_xy_m", "ground", "mirror", "body", "footprint_m2", "vignetting", "jacobian"):
+        np.testing.assert_array_equal(getattr(ta, name), getattr(tb, name), err_msg=name)
+    np.testing.assert_array_equal(pa.guess, pb.guess)
+    np.testing.assert_array_equal(pa.pixels, pb.pixels)
+    assert pa.max_radius_m == pb.max_radius_m
+
+
+def test_camera_geometry_from_its_file_is_the_traced_one_to_the_last_bit(geometry_dir):
+    """The second process (here: an emptied memory cache) reads the table and the lookup grid
+    from the file the first wrote: the same arrays, bit for bit, as tracing them again, so a
+    camera renders the same frames either way; the arrays are shared, so they are read only."""
+    from stcvision.sim_camera import optics
+
+    traced = optics.camera_geometry(PERTURBED)
+    (file,) = geometry_dir.glob("raytable-*.npz")
+    optics.camera_geometry.cache_clear()
+    loaded = optics.camera_geometry(PERTURBED)
+    assert loaded[0] is not traced[0]
+    fresh = trace_pixels(PERTURBED)
+    _same_geometry(loaded, (fresh, FloorProjector(fresh)))
+    assert not loaded[0].floor_xy_m.flags.writeable and not loaded[0].ground.flags.writeable
+    assert optics.camera_geometry(PERTURBED) is loaded  # the memory cache within a process
+    assert list(geometry_dir.glob("raytable-*.npz")) == [file]
+
+
+def test_a_cut_or_foreign_geometry_file_is_traced_again(geometry_dir):
+    from stcvision.sim_camera import optics
+
+    traced = optics.camera_geometry(PERTURBED)
+    (file,) = geometry_dir.glob("raytable-*.npz")
+    whole = file.read_bytes()
+    for bad in (whole[: len(whole) // 2], b"", b"not a zip file"):
+        file.write_bytes(bad)
+        optics.camera_geometry.cache_clear()
+        _same_geometry(optics.camera_geometry(PERTURBED), traced)
+        assert file.read_bytes() == whole  # written again, whole
+    # a file of other shapes under this key (another camera's arrays): traced again
+    other = np.load(file)
+    np.savez(file, **{k: other[k][:-1] for k in other.files})
+    optics.camera_geometry.cache_clear()
+    _same_geometry(optics.camera_geometry(PERTURBED), traced)
+
+
+def test_geometry_files_are_keyed_by_the_optics_and_trimmed(geometry_dir, monkeypatch):
+    import dataclasses
+
+    from stcvision.sim_camera import optics
+
+    monkeypatch.setattr(optics, "GEOMETRY_FILES_KEPT", 2)
+    small = dataclasses.replace(
+        PERTURBED, width_px=160, height_px=120, focal_px=PERTURBED.focal_px / 4, principal_px=(80.5, 59.0)
+    )
+    for k1 in (-0.10, -0.11, -0.12):
+        optics.camera_geometry(dataclasses.replace(small, k1=k1))
+    assert len(list(geometry_dir.glob("raytable-*.npz"))) == 2
+    a = optics._geometry_path(small)
+    assert a == optics._geometry_path(dataclasses.replace(small))
+    assert a != optics._geometry_path(dataclasses.replace(small, k2=0.011))
