@@ -14,8 +14,9 @@ venv: $(STAMP)
 # leaves the source tree to the interpreter, which compiles each module it imports on every run
 # when PYTHONDONTWRITEBYTECODE is set (as in many containers and CI images): 0.26 s of CPU at
 # every command's start, measured. Only files changed since the last pass are compiled again;
-# hidden folders (.venv, .git) and build outputs are left out.
-BYTECODE = $(BIN)/python -m compileall -q -x '/(\.|build/|site/|out/)' .
+# hidden folders (.venv, .git), build outputs, and the folders no command imports from (pytest
+# compiles the tests its own way) are left out.
+BYTECODE = $(BIN)/python -m compileall -q -x '/(\.|build/|site/|out/|tests/|docs/|datasets/)' .
 
 $(STAMP): pyproject.toml
 	@test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
