@@ -32,7 +32,6 @@ import hashlib
 import io
 import os
 import platform
-import zipfile
 from dataclasses import asdict, dataclass, replace
 from functools import lru_cache
 from pathlib import Path
@@ -278,10 +277,11 @@ _TABLE_ARRAYS = ("floor_xy_m", "ground", "mirror", "body", "footprint_m2", "vign
 def camera_geometry(p: MirrorCameraParams) -> tuple[RayTable, FloorProjector]:
     """The ray table of ``p`` and its :class:`FloorProjector`, made once per optics: tracing and
     the projector's lookup grid take ~0.9 s, and every simulated camera with the same optics (each
-    tour of a sweep, each command of a session, each camera of a test) would make the same ones
+    tour of a sweep, each command a user runs, each camera of a test) would make the same ones
     again. Kept in memory for the process and in a file for the next process (the arrays as
     computed, so a camera renders the same frames either way), under a key of the optics, this
-    module's source, numpy's version and the machine: a change to any of them traces again.
+    module's source, numpy's and scipy's versions and the processor: a change to any of them
+    traces again.
     Read only: every array is shared by the cameras that asked for it."""
     path = _geometry_path(p)
     kept = _load_geometry(path, p) if path is not None else None
@@ -291,14 +291,35 @@ def camera_geometry(p: MirrorCameraParams) -> tuple[RayTable, FloorProjector]:
         if path is not None:
             _save_geometry(path, table, projector)
     else:
-        table, guess = kept
-        projector = FloorProjector(table, guess=guess)
+        table, projector = kept
     for name in _TABLE_ARRAYS:
         getattr(table, name).setflags(write=False)
     return table, projector
 
 
+def _key_value(v):
+    """A field of the optics as its key writes it: numbers by their float64 bits (786 and 786.0,
+    ``np.float64(0.06)`` and 0.06 are the same optics), sequences element by element."""
+    if isinstance(v, (bool, int, float, np.integer, np.floating)):
+        return float(v).hex()
+    if isinstance(v, (tuple, list, np.ndarray)):
+        return [_key_value(x) for x in v]
+    return repr(v)
+
+
+#: this module's source as the process loaded it: a file edited while a process runs must not
+#: key that process's tables, traced with the old code, as the new code's
+_SOURCE_DIGEST = hashlib.sha256(Path(__file__).read_bytes()).hexdigest()
+
+
 def _geometry_path(p: MirrorCameraParams) -> Path | None:
+    """The file of ``p``'s geometry, or None where none can be kept. The key holds what the arrays
+    depend on beyond the optics: this module's code, numpy's and scipy's versions (the lookup
+    grid's nearest-cell ties are scipy's) and the processor, by name and features as numba keys
+    its own cache (numpy takes other SIMD paths on other processors, and their last bits differ)."""
+    import scipy
+    from llvmlite import binding
+
     folder = GEOMETRY_DIR if GEOMETRY_DIR is not None else Path(__file__).resolve().parent / "__pycache__"
     try:
         folder.mkdir(exist_ok=True)
@@ -306,22 +327,26 @@ def _geometry_path(p: MirrorCameraParams) -> Path | None:
         return None
     if not os.access(folder, os.W_OK):
         return None
+    fields = sorted((k, _key_value(v)) for k, v in asdict(p).items())
+    cpu = (binding.get_host_cpu_name(), binding.get_host_cpu_features().flatten())
     key = hashlib.sha256()
-    for part in (repr(sorted(asdict(p).items())), np.__version__, platform.machine()):
+    for part in (repr(fields), _SOURCE_DIGEST, np.__version__, scipy.__version__, platform.machine(), repr(cpu)):
         key.update(part.encode() + b"\0")
-    key.update(Path(__file__).read_bytes())
     return folder / f"raytable-{key.hexdigest()[:32]}.npz"
 
 
-def _load_geometry(path: Path, p: MirrorCameraParams) -> tuple[RayTable, np.ndarray] | None:
-    """The table and lookup grid kept in ``path``, or None if there is none or it is not whole
-    (a file cut short, from another writer, of other shapes: traced again)."""
+def _load_geometry(path: Path, p: MirrorCameraParams) -> tuple[RayTable, FloorProjector] | None:
+    """The table and projector kept in ``path``, or None if there is none or it is not whole (a
+    file cut short, from another writer, of other shapes: traced again)."""
     try:
         with np.load(path, allow_pickle=False) as z:
             arrays = {name: z[name] for name in (*_TABLE_ARRAYS, "guess")}
-        os.utime(path)  # recently used: trimmed last
-    except (OSError, ValueError, KeyError, zipfile.BadZipFile, EOFError):
+    except Exception:  # any file that does not read back as written is traced again
         return None
+    try:
+        os.utime(path)  # recently used: trimmed last (a file another user owns is still read)
+    except OSError:
+        pass
     h, w = p.height_px, p.width_px
     shapes = {"floor_xy_m": (h, w, 2), "jacobian": (h, w, 2, 2)}
     for name in _TABLE_ARRAYS:
@@ -329,9 +354,11 @@ def _load_geometry(path: Path, p: MirrorCameraParams) -> tuple[RayTable, np.ndar
         if arrays[name].shape != shapes.get(name, (h, w)) or arrays[name].dtype != want:
             return None
     guess = arrays.pop("guess")
-    if guess.ndim != 3 or guess.shape[2] != 2 or guess.dtype != np.float64:
+    table = RayTable(p, **arrays)
+    try:
+        return table, FloorProjector(table, guess=guess)
+    except ValueError:  # a lookup grid not of this table's shape
         return None
-    return RayTable(p, **arrays), guess
 
 
 def _save_geometry(path: Path, table: RayTable, projector: FloorProjector) -> None:

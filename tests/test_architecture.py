@@ -306,6 +306,10 @@ def test_the_distribution_lists_every_package_folder_under_one_name():
     assert sorted(_listed_packages()) == folders
     mapping = tomllib.loads((ROOT / "pyproject.toml").read_text(encoding="utf-8"))["tool"]["setuptools"]["package-dir"]
     assert mapping == {name: folder for folder, name in FOLDERS.items() if name != folder}
+    # make writes the bytecode of the same folders
+    make = (ROOT / "Makefile").read_text(encoding="utf-8")
+    (line,) = [ln for ln in make.splitlines() if ln.startswith("PACKAGE_FOLDERS :=")]
+    assert sorted(line.split(":=")[1].split()) == sorted(FOLDERS)
 
 
 def test_a_built_wheel_installs_stcvision_alone(tmp_path):

@@ -255,4 +255,11 @@ def test_geometry_files_are_keyed_by_the_optics_and_trimmed(geometry_dir, monkey
     assert len(list(geometry_dir.glob("raytable-*.npz"))) == 2
     a = optics._geometry_path(small)
     assert a == optics._geometry_path(dataclasses.replace(small))
+    # the same optics however its numbers were typed (a JSON file's 40 is the 40.0 of Python)
+    assert optics._geometry_path(dataclasses.replace(small, focal_px=196)) == optics._geometry_path(
+        dataclasses.replace(small, focal_px=np.float64(196.0))
+    )
     assert a != optics._geometry_path(dataclasses.replace(small, k2=0.011))
+    # the code that traced is the code the process loaded, not the file as it is now
+    monkeypatch.setattr(optics, "_SOURCE_DIGEST", "another version of optics.py")
+    assert a != optics._geometry_path(small)
