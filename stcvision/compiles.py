@@ -9,10 +9,20 @@ import importlib.abc
 import importlib.util
 import sys
 
-__all__ = ["NOTICE", "announce_compiles"]
+__all__ = ["NOTICE", "announce_compiles", "at_first_compile"]
 
 _ANNOUNCED = False
 _LISTENING = False
+#: what runs when this process first compiles (after the notice): a command that knows which
+#: kernels it will need can start compiling some of them elsewhere
+_AT_FIRST: list = []
+
+
+def at_first_compile(action) -> None:
+    """Call ``action()`` once, when this process first compiles a numba kernel (a cache miss;
+    nothing if every kernel loads from the cache). Needs :func:`announce_compiles`'s listener."""
+    _AT_FIRST.append(action)
+
 
 NOTICE = (
     "stcvision: compiling numba kernels on first use (once, ~30-50 s; then they load from __pycache__; "
@@ -61,6 +71,8 @@ def _listen(stream) -> None:
                 _ANNOUNCED = True
                 out = stream or sys.stderr
                 print(NOTICE, file=out, flush=True)
+                while _AT_FIRST:
+                    _AT_FIRST.pop(0)()
             if threading.current_thread() is threading.main_thread():
                 self._starts.append(time.monotonic())
 

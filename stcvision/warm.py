@@ -93,6 +93,138 @@ def _run_part(commands: list[list[str]]) -> int:
     return 0
 
 
+# ------------------------------------------------------------------ the demo's first run, on two cores
+#: run with an empty numba cache by ``--record-demo``: the demo, in process, with each cached
+#: kernel numba starts compiling for it noted (those it calls from Python and those they call),
+#: in the order the compiles start
+_RECORDER = """
+import io, contextlib, sys
+from numba.core import event
+seen = []
+class Note(event.Listener):
+    def on_start(self, ev):
+        d = ev.data["dispatcher"]
+        if d.py_func.__module__.startswith("stcvision") and d.stats.cache_path is not None:
+            mod = sys.modules[d.py_func.__module__]
+            names = [k for k, v in vars(mod).items() if v is d]
+            entry = names and (d.py_func.__module__, names[0], repr(tuple(ev.data["args"])))
+            if entry and entry not in seen:
+                seen.append(entry)
+    def on_end(self, ev):
+        pass
+event.register("numba:compile", Note())
+import stcvision.warm
+stcvision.warm.start_compiling_from_the_end = lambda: None  # every compile here, in this process
+from stcvision.cli import main
+with contextlib.redirect_stdout(io.StringIO()):
+    code = main(["demo", "--out", sys.argv[1], "--force"])
+for entry in seen:
+    print(repr(entry))
+sys.exit(code)
+"""
+
+
+def record_demo_kernels() -> str:
+    """The text of :mod:`stcvision.demo_kernels`: the demo run once on an empty numba cache, each
+    cached kernel it compiles with its argument types, in the order the compiles start."""
+    import tempfile
+
+    with tempfile.TemporaryDirectory(prefix="stcvision-record-") as tmp:
+        env = {**os.environ, "NUMBA_CACHE_DIR": f"{tmp}/cache"}
+        done = subprocess.run(
+            [sys.executable, "-c", _RECORDER, f"{tmp}/demo"], env=env, capture_output=True, text=True, check=False
+        )
+    if done.returncode not in (0, 3):
+        raise SystemExit(f"stcvision warm: the demo failed while recording: {done.stderr.strip()[-500:]}")
+    lines = "".join(f"    {line},\n" for line in done.stdout.splitlines() if line.startswith("("))
+    return (
+        "# ruff: noqa: E501 (numba's argument types, one kernel a line)\n"
+        '"""The numba kernels the demo compiles on its first run (those it calls from Python and\n'
+        "those they call), with their argument types as numba writes them, in the order their\n"
+        "compiles start: written by ``python -m stcvision.warm --record-demo``, checked against what\n"
+        "the demo loads by ``tests/stcvision/test_warm.py``. On the demo's first run a second process\n"
+        "compiles them from the last (:func:`stcvision.warm.compile_from_the_end`) while the demo\n"
+        'compiles them from the first."""\n\n'
+        "#: (module, the name the kernel has there, its argument types)\n"
+        f"DEMO_KERNELS = (\n{lines})\n"
+    )
+
+
+def _argument_types(text: str) -> tuple:
+    """Argument types written as numba's ``repr`` writes them, as numba types."""
+    from numba.core import types
+
+    class _Literal:  # ``Literal[int](5)``: a constant a kernel passes to the kernels it calls
+        def __getitem__(self, kind):
+            return lambda value: types.literal(kind(value))
+
+    names = {**vars(types), "bool": types.boolean, "int": int, "Literal": _Literal()}
+    return eval(text, {"__builtins__": {}}, names)  # noqa: S307 (the table is ours, and checked)
+
+
+def compile_from_the_end(parent: int, count: int | None = None) -> int:
+    """Compile the demo's kernels from the last (``count`` of them; all by default), each unless
+    numba's cache has it already (the demo, compiling from the first, wrote it); end with
+    ``parent``, the demo's process."""
+    import importlib
+
+    _die_with(parent)
+    from stcvision.demo_kernels import DEMO_KERNELS
+
+    for module, name, args in list(reversed(DEMO_KERNELS))[:count]:
+        try:
+            getattr(importlib.import_module(module), name).compile(_argument_types(args))
+        except Exception:  # noqa: BLE001 (a kernel that no longer takes these types: the demo compiles its own)
+            continue
+    return 0
+
+
+def _die_with(parent: int) -> None:
+    """End this process with SIGTERM when ``parent`` ends, however it ends (Linux's
+    ``PR_SET_PDEATHSIG``; elsewhere the parent's exit ends it); and now if it has ended already."""
+    import ctypes
+
+    try:
+        ctypes.CDLL(None, use_errno=True).prctl(1, signal.SIGTERM)  # 1: PR_SET_PDEATHSIG
+    except (OSError, AttributeError):
+        pass
+    if os.getppid() != parent:
+        sys.exit(0)
+
+
+_FROM_THE_END: list[subprocess.Popen] = []
+
+
+def start_compiling_from_the_end() -> None:
+    """Start the process of :func:`compile_from_the_end` beside this one, which is about to compile
+    the demo's kernels from the first: the two meet halfway, and the first run's compile takes
+    the two cores. It ends when this process exits (or is killed), or when it is done."""
+    import atexit
+
+    if _FROM_THE_END:
+        return
+    with _signals_deferred():
+        proc = subprocess.Popen(
+            [sys.executable, "-m", "stcvision.warm", "--from-the-end", str(os.getpid())],
+            stdin=subprocess.DEVNULL,
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.DEVNULL,
+        )
+        _FROM_THE_END.append(proc)
+        atexit.register(_end_from_the_end)
+
+
+def _end_from_the_end() -> None:
+    for proc in _FROM_THE_END:
+        if proc.poll() is None:
+            proc.terminate()
+            try:
+                proc.wait(timeout=_PART_GRACE_S)
+            except subprocess.TimeoutExpired:
+                proc.kill()
+                proc.wait()
+
+
 def warm(*, verbose: bool = True, processes: int | None = None) -> dict:
     """Run the warm-up's parts, ``processes`` at a time (default: the machine's cores); returns
     the wall time of each part (seconds).
@@ -162,6 +294,11 @@ def main(argv: list[str] | None = None) -> int:
         import json
 
         return _run_part(json.loads(argv[1]))
+    if argv[:1] == ["--from-the-end"]:
+        return compile_from_the_end(int(argv[1]), int(argv[2]) if len(argv) > 2 else None)
+    if argv[:1] == ["--record-demo"]:
+        sys.stdout.write(record_demo_kernels())
+        return 0
 
     from stcvision.errors import Terminated
 

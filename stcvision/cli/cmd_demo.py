@@ -30,12 +30,17 @@ def run(args) -> dict:
     import numpy as np
 
     from stcvision.cli.cmd_cover import run_recorded
+    from stcvision.compiles import at_first_compile
     from stcvision.controllers.stc.loop import CoverConfig
     from stcvision.controllers.stc.observers import FloorPicture
     from stcvision.fileio import check_output_folder, write_image
     from stcvision.rr import check_recording_path
     from stcvision.sim_camera.board import Board
+    from stcvision.warm import start_compiling_from_the_end
 
+    # a first run compiles ~35 CPU-seconds of kernels: a second process compiles them from the
+    # last while this one compiles them from the first
+    at_first_compile(start_compiling_from_the_end)
     out = check_output_folder(args.out, OUTPUTS, overwrite=args.force)
     check_recording_path(out / OUTPUTS[0], overwrite=args.force)
     made = _missing_folders(out)  # made by this run: an interrupted one takes them away again

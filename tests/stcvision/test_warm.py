@@ -30,13 +30,80 @@ def test_a_compile_is_announced_once_on_stderr():
     assert r.stderr.count(NOTICE) == 1 and r.stdout.count(NOTICE) == 0
 
 
+#: the demo run in a process of its own, then the kernels it called from Python, with their
+#: argument types, one repr'd tuple a line: loaded from the cache, a kernel's callees are part of
+#: its machine code, so the loaded signatures are those the demo called
+DEMO_THEN_ITS_KERNELS = """
+import contextlib, io, sys
+from numba.core.registry import CPUDispatcher
+from stcvision.cli import main
+with contextlib.redirect_stdout(io.StringIO()):
+    code = main(["demo", "--out", sys.argv[1]])
+for name, mod in list(sys.modules.items()):
+    if name.startswith("stcvision"):
+        for attr, d in vars(mod).items():
+            if isinstance(d, CPUDispatcher) and d.py_func.__module__ == name:
+                for sig in d.signatures:
+                    print(repr((name, attr, repr(tuple(sig)))))
+sys.exit(code)
+"""
+
+
 @pytest.mark.slow
 def test_warm_runs_and_then_the_demo_loads_every_kernel_from_the_cache(tmp_path):
-    stc = str(Path(sys.executable).with_name("stcvision"))
+    """... and the kernels it loads are those stcvision.demo_kernels lists, with the same
+    argument types (the table the first run's second process compiles from the end)."""
+    from stcvision.demo_kernels import DEMO_KERNELS
+
     r = subprocess.run([sys.executable, "-m", "stcvision.warm"], capture_output=True, text=True, timeout=600)
     assert r.returncode == 0 and "numba kernels compiled and cached" in r.stderr, r.stderr
-    r = subprocess.run([stc, "demo", "--out", str(tmp_path / "d")], capture_output=True, text=True, timeout=600)
+    r = subprocess.run(
+        [sys.executable, "-c", DEMO_THEN_ITS_KERNELS, str(tmp_path / "d")], capture_output=True, text=True, timeout=600
+    )
     assert r.returncode == 0 and NOTICE not in r.stderr, r.stderr  # nothing left to compile
+    loaded = set(r.stdout.splitlines())
+    listed = {repr(entry) for entry in DEMO_KERNELS}
+    again = "python -m stcvision.warm --record-demo > stcvision/demo_kernels.py"
+    assert loaded <= listed, f"the demo's kernels changed, run {again}: {loaded - listed}"
+    # the rest are kernels those call, compiled as they are: each names a cached kernel and
+    # types numba reads back
+    import importlib
+
+    from stcvision.warm import _argument_types
+
+    for module, name, args in DEMO_KERNELS:
+        kernel = getattr(importlib.import_module(module), name)
+        assert kernel.stats.cache_path is not None and repr(_argument_types(args)) == args, (module, name)
+
+
+def test_the_process_compiling_from_the_end_fills_the_cache_for_the_demo(tmp_path):
+    """The second process of a first demo compiles the table's kernels, last first, into numba's
+    cache, where the demo finds them (here: the last one, into an empty cache)."""
+    import os
+
+    from stcvision.demo_kernels import DEMO_KERNELS
+
+    module, name, _ = DEMO_KERNELS[-1]
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "cache")}
+    r = subprocess.run(
+        [sys.executable, "-m", "stcvision.warm", "--from-the-end", str(os.getpid()), "1"],
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert r.returncode == 0, r.stderr
+    function = getattr(__import__(module, fromlist=[name]), name).py_func.__name__
+    assert [p.name for p in (tmp_path / "cache").rglob(f"*.{function}-*.nbi")], list((tmp_path / "cache").rglob("*"))
+    # a parent that is gone already: nothing is compiled
+    r = subprocess.run(
+        [sys.executable, "-m", "stcvision.warm", "--from-the-end", "1", "1"],
+        env={**env, "NUMBA_CACHE_DIR": str(tmp_path / "other")},
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert r.returncode == 0 and not (tmp_path / "other").exists(), r.stderr
 
 
 def test_the_suite_warms_the_cache_and_the_demo_compiles_only_its_own():
@@ -182,12 +249,60 @@ def test_sigterm_during_the_demos_first_compile_stops_it(tmp_path):
     )
     assert NOTICE in p.stderr.readline()  # compiling now
     time.sleep(2.0)
+    helpers = _compiling_from_the_end(p.pid)
+    assert helpers  # the second process, compiling from the last kernel
     p.send_signal(signal.SIGTERM)
     t0 = time.monotonic()
     p.wait(timeout=60)
     err = p.stderr.read()
     assert p.returncode == 128 + signal.SIGTERM and "interrupted" in err and "Traceback" not in err, err
     assert time.monotonic() - t0 < 8  # a function's compile at most, under the suite's load
+    assert _gone(helpers, within=3.0)  # it ends with the demo
+    # killed outright, the demo leaves no second process behind either (it dies with its parent)
+    p = subprocess.Popen(
+        [stc, "demo", "--out", str(tmp_path / "e")], env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE
+    )
+    p.stderr.readline()
+    deadline = time.monotonic() + 10
+    while not (helpers := _compiling_from_the_end(p.pid)) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert helpers
+    p.kill()
+    p.wait(timeout=10)
+    assert _gone(helpers, within=3.0)
+
+
+def _compiling_from_the_end(parent: int) -> list[int]:
+    """PIDs of the processes compiling the demo's kernels from the end for ``parent``."""
+    mark = f"--from-the-end\0{parent}\0".encode()
+    found = []
+    for d in Path("/proc").iterdir():
+        if d.name.isdigit():
+            try:
+                if mark in (d / "cmdline").read_bytes():
+                    found.append(int(d.name))
+            except OSError:
+                continue
+    return found
+
+
+def _gone(pids: list[int], *, within: float) -> bool:
+    import time
+
+    deadline = time.monotonic() + within
+    while time.monotonic() < deadline:
+        alive = [pid for pid in pids if Path(f"/proc/{pid}").exists() and b"Z" not in _state(pid)]
+        if not alive:
+            return True
+        time.sleep(0.05)
+    return False
+
+
+def _state(pid: int) -> bytes:
+    try:
+        return Path(f"/proc/{pid}/stat").read_bytes().rsplit(b")", 1)[1].split()[0]
+    except (OSError, IndexError):
+        return b"Z"
 
 
 def test_an_ignored_ctrl_c_stays_ignored_in_a_part_started_while_signals_wait():
