@@ -1,4 +1,4 @@
-"""Say when numba compiles: a first run that compiles kernels (~30-50 s for the demo's, then cached in
+"""Say when numba compiles: a first run that compiles kernels (~25-50 s for the demo's, then cached in
 ``__pycache__``) says so once on stderr instead of sitting silent. The CLI installs
 :func:`announce_compiles` for every command; :mod:`stcvision.warm` compiles ahead of time.
 """
@@ -25,7 +25,7 @@ def at_first_compile(action) -> None:
 
 
 NOTICE = (
-    "stcvision: compiling numba kernels on first use (once, ~30-50 s; then they load from __pycache__; "
+    "stcvision: compiling numba kernels on first use (once, ~20-50 s; then they load from __pycache__; "
     "'python -m stcvision.warm' compiles the demo's and the pipeline's ahead, in parallel)"
 )
 
