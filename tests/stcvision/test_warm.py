@@ -249,27 +249,27 @@ def test_sigterm_during_the_demos_first_compile_stops_it(tmp_path):
     )
     assert NOTICE in p.stderr.readline()  # compiling now
     time.sleep(2.0)
-    helpers = _compiling_from_the_end(p.pid)
-    assert helpers  # the second process, compiling from the last kernel
+    compilers = _compiling_from_the_end(p.pid)
+    assert compilers  # the second process, compiling from the last kernel
     p.send_signal(signal.SIGTERM)
     t0 = time.monotonic()
     p.wait(timeout=60)
     err = p.stderr.read()
     assert p.returncode == 128 + signal.SIGTERM and "interrupted" in err and "Traceback" not in err, err
     assert time.monotonic() - t0 < 8  # a function's compile at most, under the suite's load
-    assert _gone(helpers, within=3.0)  # it ends with the demo
+    assert _gone(compilers, within=3.0)  # it ends with the demo
     # killed outright, the demo leaves no second process behind either (it dies with its parent)
     p = subprocess.Popen(
         [stc, "demo", "--out", str(tmp_path / "e")], env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE
     )
     p.stderr.readline()
     deadline = time.monotonic() + 10
-    while not (helpers := _compiling_from_the_end(p.pid)) and time.monotonic() < deadline:
+    while not (compilers := _compiling_from_the_end(p.pid)) and time.monotonic() < deadline:
         time.sleep(0.05)
-    assert helpers
+    assert compilers
     p.kill()
     p.wait(timeout=10)
-    assert _gone(helpers, within=3.0)
+    assert _gone(compilers, within=3.0)
 
 
 def _compiling_from_the_end(parent: int) -> list[int]:
