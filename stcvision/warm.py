@@ -105,9 +105,7 @@ class Note(event.Listener):
     def on_start(self, ev):
         d = ev.data["dispatcher"]
         if d.py_func.__module__.startswith("stcvision") and d.stats.cache_path is not None:
-            mod = sys.modules[d.py_func.__module__]
-            names = [k for k, v in vars(mod).items() if v is d]
-            entry = names and (d.py_func.__module__, names[0], repr(tuple(ev.data["args"])))
+            entry = stcvision.warm.kernel_entry(d, ev.data["args"])
             if entry and entry not in seen:
                 seen.append(entry)
     def on_end(self, ev):
@@ -122,6 +120,14 @@ for entry in seen:
     print(repr(entry))
 sys.exit(code)
 """
+
+
+def kernel_entry(dispatcher, args) -> tuple[str, str, str] | None:
+    """A line of :data:`stcvision.demo_kernels.DEMO_KERNELS`: the kernel's module, the name it has
+    there, and its argument types as numba writes them; None for a kernel no module names."""
+    module = dispatcher.py_func.__module__
+    names = [k for k, v in vars(sys.modules[module]).items() if v is dispatcher]
+    return (module, names[0], repr(tuple(args))) if names else None
 
 
 def record_demo_kernels() -> str:
@@ -145,8 +151,11 @@ def record_demo_kernels() -> str:
         "the demo loads by ``tests/stcvision/test_warm.py``. On the demo's first run a second process\n"
         "compiles them from the last (:func:`stcvision.warm.compile_from_the_end`) while the demo\n"
         'compiles them from the first."""\n\n'
-        "#: (module, the name the kernel has there, its argument types)\n"
+        "#: (module, the name the kernel has there, its argument types), one kernel a line, as the\n"
+        "#: recording writes it\n"
+        "# fmt: off\n"
         f"DEMO_KERNELS = (\n{lines})\n"
+        "# fmt: on\n"
     )
 
 
@@ -215,14 +224,22 @@ def start_compiling_from_the_end() -> None:
 
 
 def _end_from_the_end() -> None:
-    for proc in _FROM_THE_END:
+    _end(_FROM_THE_END)
+
+
+def _end(procs: list[subprocess.Popen]) -> None:
+    """End compiling processes: SIGTERM to all, then each is waited for and killed if it has not
+    ended within :data:`_PART_GRACE_S` (one inside a long LLVM pass answers late; numba writes
+    its cache files whole, a temporary file renamed, so a kill leaves no half file)."""
+    for proc in procs:
         if proc.poll() is None:
             proc.terminate()
-            try:
-                proc.wait(timeout=_PART_GRACE_S)
-            except subprocess.TimeoutExpired:
-                proc.kill()
-                proc.wait()
+    for proc in procs:
+        try:
+            proc.wait(timeout=_PART_GRACE_S)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait()
 
 
 def warm(*, verbose: bool = True, processes: int | None = None) -> dict:
@@ -277,14 +294,7 @@ def warm(*, verbose: bool = True, processes: int | None = None) -> dict:
                     if verbose:
                         print(f"stcvision warm: {name}: {times[name]:.1f} s", file=sys.stderr, flush=True)
         finally:
-            for _, proc, _, _ in running:  # a signal or a failure: the other parts end now
-                proc.terminate()
-            for _, proc, _, _ in running:
-                try:  # a part inside a long LLVM pass answers its SIGTERM late: it is killed
-                    proc.wait(timeout=_PART_GRACE_S)
-                except subprocess.TimeoutExpired:
-                    proc.kill()  # numba writes its cache files whole (a temporary file, renamed)
-                    proc.wait()
+            _end([proc for _, proc, _, _ in running])  # a signal or a failure: the other parts end now
     return times
 
 

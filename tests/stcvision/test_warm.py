@@ -37,14 +37,14 @@ DEMO_THEN_ITS_KERNELS = """
 import contextlib, io, sys
 from numba.core.registry import CPUDispatcher
 from stcvision.cli import main
+from stcvision.warm import kernel_entry
 with contextlib.redirect_stdout(io.StringIO()):
     code = main(["demo", "--out", sys.argv[1]])
 for name, mod in list(sys.modules.items()):
     if name.startswith("stcvision"):
-        for attr, d in vars(mod).items():
-            if isinstance(d, CPUDispatcher) and d.py_func.__module__ == name:
-                for sig in d.signatures:
-                    print(repr((name, attr, repr(tuple(sig)))))
+        for d in set(v for v in vars(mod).values() if isinstance(v, CPUDispatcher) and v.py_func.__module__ == name):
+            for sig in d.signatures:
+                print(repr(kernel_entry(d, sig)))
 sys.exit(code)
 """
 
@@ -115,13 +115,14 @@ def test_the_suite_warms_the_cache_and_the_demo_compiles_only_its_own():
     assert "stcvision.warm" not in install  # the demo's first run compiles what it uses, no more
 
 
-def _processes_with(env_value: str) -> list[int]:
-    """PIDs of this user's processes whose environment holds ``env_value``."""
+def _processes_with(text: str, where: str = "environ") -> list[int]:
+    """PIDs of this user's processes whose environment (or ``where``: their command line,
+    ``cmdline``) holds ``text``."""
     found = []
     for d in Path("/proc").iterdir():
         if d.name.isdigit():
             try:
-                if env_value.encode() in (d / "environ").read_bytes():
+                if text.encode() in (d / where).read_bytes():
                     found.append(int(d.name))
             except OSError:
                 continue
@@ -274,31 +275,24 @@ def test_sigterm_during_the_demos_first_compile_stops_it(tmp_path):
 
 def _compiling_from_the_end(parent: int) -> list[int]:
     """PIDs of the processes compiling the demo's kernels from the end for ``parent``."""
-    mark = f"--from-the-end\0{parent}\0".encode()
-    found = []
-    for d in Path("/proc").iterdir():
-        if d.name.isdigit():
-            try:
-                if mark in (d / "cmdline").read_bytes():
-                    found.append(int(d.name))
-            except OSError:
-                continue
-    return found
+    return _processes_with(f"--from-the-end\0{parent}\0", "cmdline")
 
 
 def _gone(pids: list[int], *, within: float) -> bool:
+    """Whether every one of ``pids`` has ended (or is a zombie, ended but not yet reaped) within
+    ``within`` seconds."""
     import time
 
     deadline = time.monotonic() + within
-    while time.monotonic() < deadline:
-        alive = [pid for pid in pids if Path(f"/proc/{pid}").exists() and b"Z" not in _state(pid)]
-        if not alive:
-            return True
+    while any(_state(pid) != b"Z" for pid in pids):
+        if time.monotonic() > deadline:
+            return False
         time.sleep(0.05)
-    return False
+    return True
 
 
 def _state(pid: int) -> bytes:
+    """The process's state letter (``/proc/PID/stat``); ``Z`` for one that is gone."""
     try:
         return Path(f"/proc/{pid}/stat").read_bytes().rsplit(b")", 1)[1].split()[0]
     except (OSError, IndexError):
